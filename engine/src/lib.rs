@@ -1,0 +1,11 @@
+//! millsim-engine: the pure computation core of millsim.
+//!
+//! No async, HTTP or SQL here: everything takes in-memory inputs and returns
+//! in-memory results, so it can be tested with plain `#[test]`s.
+//! Units inside: mm, mm/min, rev/min, s, N, N·m, W, J.
+
+pub mod cl;
+pub mod geometry;
+pub mod job;
+pub mod nc;
+pub mod physics;
