@@ -5,7 +5,9 @@
 //! Units inside: mm, mm/min, rev/min, s, N, N·m, W, J.
 
 pub mod cl;
+pub mod engagement;
 pub mod geometry;
 pub mod job;
 pub mod nc;
 pub mod physics;
+pub mod tool;

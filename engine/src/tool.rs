@@ -1,0 +1,325 @@
+//! Cutting tools as surfaces of revolution, shared by the geometry engine (what the
+//! tool sweeps) and the force model (what the cutting edge looks like).
+//!
+//! Frame: z along the tool axis, measured up from the tool tip (z = 0), in mm.
+//! The axial immersion angle κ of an edge point is the angle between the tool axis
+//! and the edge's outward surface normal: 90° on a cylindrical flank, 0° at the tip
+//! of a ball. Chip thickness scales with sin κ and the chip width of a slice of
+//! height dz is dz / sin κ.
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ToolShape {
+    /// Flat end mill: cylinder, square corner.
+    Flat,
+    /// Ball end mill: corner radius = diameter / 2.
+    Ball,
+    /// Bull-nose (torus) end mill with `corner_radius`.
+    BullNose,
+    /// Chamfer/taper mill: cone from `tip_diameter` widening at `taper_half_angle_deg`
+    /// from the axis until it reaches `diameter`, cylindrical above.
+    Chamfer,
+}
+
+/// One piece of the holder stack, from the bottom (nearest the tool) up.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HolderSegment {
+    /// Axial length, mm.
+    pub length: f64,
+    /// Diameter at the bottom of the segment, mm.
+    pub bottom_diameter: f64,
+    /// Diameter at the top; equal to the bottom for a cylinder.
+    pub top_diameter: f64,
+}
+
+/// Radial runout of the tool: the tool's axis of rotation is offset from the spindle
+/// axis by `offset` mm in the direction `angle_deg`, measured in the tool's rotating
+/// frame from tooth 1, so that each tooth sweeps a slightly different radius.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Runout {
+    pub offset: f64,
+    pub angle_deg: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Tool {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub shape: ToolShape,
+    /// Cutting diameter, mm.
+    pub diameter: f64,
+    /// Corner radius for bull-nose tools, mm (ignored for the others: flat 0, ball D/2).
+    #[serde(default)]
+    pub corner_radius: f64,
+    /// Chamfer tools: diameter at the tip, mm.
+    #[serde(default)]
+    pub tip_diameter: f64,
+    /// Chamfer tools: angle between the conical edge and the tool axis, degrees.
+    #[serde(default)]
+    pub taper_half_angle_deg: f64,
+    pub flutes: u32,
+    /// Helix angle of the flutes, degrees.
+    #[serde(default)]
+    pub helix_deg: f64,
+    /// Length of the cutting part from the tip, mm.
+    pub flute_length: f64,
+    /// Shank diameter, mm (defaults to the cutting diameter).
+    #[serde(default)]
+    pub shank_diameter: Option<f64>,
+    /// Length from the tip to the holder's face, mm (defaults to flute length + 2·D).
+    #[serde(default)]
+    pub stick_out: Option<f64>,
+    #[serde(default)]
+    pub holder: Vec<HolderSegment>,
+    #[serde(default)]
+    pub runout: Runout,
+}
+
+/// A point of the cutting edge at height z above the tip.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgePoint {
+    /// Distance from the tool axis, mm.
+    pub radius: f64,
+    /// Axial immersion angle κ, radians, in (0, π/2].
+    pub kappa: f64,
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("tool field `{field}`: {message}")]
+pub struct ToolError {
+    pub field: &'static str,
+    pub message: String,
+}
+
+fn bad(field: &'static str, message: impl Into<String>) -> ToolError {
+    ToolError { field, message: message.into() }
+}
+
+impl Tool {
+    /// A flat end mill with the given diameter and flute count, 30° helix, flute length 3·D.
+    pub fn flat(diameter: f64, flutes: u32) -> Tool {
+        Tool {
+            name: None,
+            shape: ToolShape::Flat,
+            diameter,
+            corner_radius: 0.0,
+            tip_diameter: 0.0,
+            taper_half_angle_deg: 0.0,
+            flutes,
+            helix_deg: 30.0,
+            flute_length: 3.0 * diameter,
+            shank_diameter: None,
+            stick_out: None,
+            holder: Vec::new(),
+            runout: Runout::default(),
+        }
+    }
+
+    /// A ball end mill.
+    pub fn ball(diameter: f64, flutes: u32) -> Tool {
+        Tool { shape: ToolShape::Ball, corner_radius: diameter / 2.0, ..Tool::flat(diameter, flutes) }
+    }
+
+    /// A bull-nose end mill with corner radius `corner_radius`.
+    pub fn bull_nose(diameter: f64, corner_radius: f64, flutes: u32) -> Tool {
+        Tool { shape: ToolShape::BullNose, corner_radius, ..Tool::flat(diameter, flutes) }
+    }
+
+    pub fn radius(&self) -> f64 {
+        self.diameter / 2.0
+    }
+
+    /// The corner radius that the shape implies (0 flat, R ball, given for bull-nose).
+    pub fn effective_corner_radius(&self) -> f64 {
+        match self.shape {
+            ToolShape::Flat | ToolShape::Chamfer => 0.0,
+            ToolShape::Ball => self.radius(),
+            ToolShape::BullNose => self.corner_radius,
+        }
+    }
+
+    pub fn shank_diameter(&self) -> f64 {
+        self.shank_diameter.unwrap_or(self.diameter)
+    }
+
+    pub fn stick_out(&self) -> f64 {
+        self.stick_out.unwrap_or(self.flute_length + 2.0 * self.diameter)
+    }
+
+    /// Checks that the numbers describe a tool that can exist; names the field that is wrong.
+    pub fn validate(&self) -> Result<(), ToolError> {
+        let finite_pos = |field: &'static str, v: f64| {
+            if !v.is_finite() || v <= 0.0 {
+                Err(bad(field, format!("must be a positive number, got {v}")))
+            } else {
+                Ok(())
+            }
+        };
+        finite_pos("diameter", self.diameter)?;
+        if self.diameter > 1000.0 {
+            return Err(bad("diameter", format!("{} mm is not a milling tool", self.diameter)));
+        }
+        finite_pos("flute_length", self.flute_length)?;
+        if self.flutes == 0 || self.flutes > 64 {
+            return Err(bad("flutes", format!("must be between 1 and 64, got {}", self.flutes)));
+        }
+        if !self.helix_deg.is_finite() || !(0.0..80.0).contains(&self.helix_deg.abs()) {
+            return Err(bad("helix_deg", format!("must be in [0, 80) degrees, got {}", self.helix_deg)));
+        }
+        match self.shape {
+            ToolShape::BullNose => {
+                finite_pos("corner_radius", self.corner_radius)?;
+                if self.corner_radius > self.radius() {
+                    return Err(bad("corner_radius", "must not exceed half the diameter"));
+                }
+            }
+            ToolShape::Chamfer => {
+                if !self.tip_diameter.is_finite() || self.tip_diameter < 0.0 || self.tip_diameter >= self.diameter {
+                    return Err(bad("tip_diameter", "must be in [0, diameter)"));
+                }
+                if !(self.taper_half_angle_deg > 0.0 && self.taper_half_angle_deg < 89.0) {
+                    return Err(bad("taper_half_angle_deg", "must be in (0, 89) degrees"));
+                }
+            }
+            ToolShape::Flat | ToolShape::Ball => {}
+        }
+        if let Some(d) = self.shank_diameter {
+            finite_pos("shank_diameter", d)?;
+        }
+        if let Some(s) = self.stick_out {
+            finite_pos("stick_out", s)?;
+            if s < self.flute_length {
+                return Err(bad("stick_out", "must be at least the flute length"));
+            }
+        }
+        for seg in &self.holder {
+            finite_pos("holder.length", seg.length)?;
+            finite_pos("holder.bottom_diameter", seg.bottom_diameter)?;
+            finite_pos("holder.top_diameter", seg.top_diameter)?;
+        }
+        if !self.runout.offset.is_finite() || self.runout.offset < 0.0 || self.runout.offset > 0.1 * self.diameter {
+            return Err(bad("runout.offset", "must be in [0, D/10] mm"));
+        }
+        if !self.runout.angle_deg.is_finite() {
+            return Err(bad("runout.angle_deg", "must be a number"));
+        }
+        Ok(())
+    }
+
+    /// Height above the tip where the profile becomes the full-diameter cylinder.
+    pub fn profile_top(&self) -> f64 {
+        match self.shape {
+            ToolShape::Flat => 0.0,
+            ToolShape::Ball | ToolShape::BullNose => self.effective_corner_radius(),
+            ToolShape::Chamfer => {
+                (self.radius() - self.tip_diameter / 2.0) / self.taper_half_angle_deg.to_radians().tan()
+            }
+        }
+    }
+
+    /// Radius of the tool's envelope at height z above the tip (0 below the tip).
+    /// Valid for the whole cutting part; above the flutes see `shank_diameter`/`holder`.
+    pub fn profile_radius(&self, z: f64) -> f64 {
+        if z < 0.0 {
+            return 0.0;
+        }
+        let r = self.radius();
+        match self.shape {
+            ToolShape::Flat => r,
+            ToolShape::Ball | ToolShape::BullNose => {
+                let rc = self.effective_corner_radius();
+                if z >= rc {
+                    r
+                } else {
+                    let dz = rc - z;
+                    r - rc + (rc * rc - dz * dz).max(0.0).sqrt()
+                }
+            }
+            ToolShape::Chamfer => {
+                let top = self.profile_top();
+                if z >= top {
+                    r
+                } else {
+                    self.tip_diameter / 2.0 + z * self.taper_half_angle_deg.to_radians().tan()
+                }
+            }
+        }
+    }
+
+    /// The cutting edge at height z above the tip, or None outside the flutes or at
+    /// the very tip where the edge has no radial extent.
+    pub fn edge_point(&self, z: f64) -> Option<EdgePoint> {
+        if !(z > 0.0 && z <= self.flute_length) {
+            return None;
+        }
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let kappa = match self.shape {
+            ToolShape::Flat => half_pi,
+            ToolShape::Ball | ToolShape::BullNose => {
+                let rc = self.effective_corner_radius();
+                if z >= rc {
+                    half_pi
+                } else {
+                    // On the corner arc: the normal points from the arc centre (height rc)
+                    // to the edge point; sin κ = horizontal part of that unit normal.
+                    let dz = rc - z;
+                    ((rc * rc - dz * dz).max(0.0).sqrt() / rc).asin()
+                }
+            }
+            ToolShape::Chamfer => {
+                if z >= self.profile_top() {
+                    half_pi
+                } else {
+                    half_pi - self.taper_half_angle_deg.to_radians()
+                }
+            }
+        };
+        let radius = self.profile_radius(z);
+        if radius <= 0.0 || kappa <= 0.0 {
+            return None;
+        }
+        Some(EdgePoint { radius, kappa })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::FRAC_PI_2;
+
+    #[test]
+    fn ball_profile_is_a_sphere() {
+        let t = Tool::ball(10.0, 2);
+        for &z in &[0.5, 1.0, 2.5, 4.9] {
+            let r = t.profile_radius(z);
+            // (r, z) lies on the sphere centred at (0, 5) with radius 5.
+            assert!((r * r + (z - 5.0) * (z - 5.0) - 25.0).abs() < 1e-9);
+            let e = t.edge_point(z).unwrap();
+            assert!((e.kappa.sin() - r / 5.0).abs() < 1e-12);
+        }
+        assert_eq!(t.edge_point(6.0).unwrap().kappa, FRAC_PI_2);
+        assert!(t.edge_point(0.0).is_none());
+    }
+
+    #[test]
+    fn bull_nose_profile_meets_the_flank() {
+        let t = Tool::bull_nose(8.0, 1.0, 4);
+        assert!((t.profile_radius(0.0) - 3.0).abs() < 1e-12);
+        assert!((t.profile_radius(1.0) - 4.0).abs() < 1e-12);
+        assert!((t.profile_radius(3.0) - 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn validation_names_the_field() {
+        let mut t = Tool::flat(10.0, 4);
+        t.flutes = 0;
+        assert_eq!(t.validate().unwrap_err().field, "flutes");
+        let mut t = Tool::bull_nose(8.0, 5.0, 4);
+        assert_eq!(t.validate().unwrap_err().field, "corner_radius");
+        t.corner_radius = f64::NAN;
+        assert_eq!(t.validate().unwrap_err().field, "corner_radius");
+        assert!(Tool::ball(6.0, 2).validate().is_ok());
+    }
+}
