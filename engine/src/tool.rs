@@ -86,7 +86,7 @@ pub struct EdgePoint {
     pub kappa: f64,
 }
 
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
 #[error("tool field `{field}`: {message}")]
 pub struct ToolError {
     pub field: &'static str,
