@@ -1,0 +1,569 @@
+//! Jobs and the durable queue: every state change is one SQL statement or one
+//! transaction, so a worker that dies at any point leaves a job that is either
+//! finished or claimable again once its lease expires.
+
+use serde::Serialize;
+use sqlx::Row;
+
+use super::resources::{insert as insert_resource, NewResource};
+use super::{new_id, now_ms, rfc3339, Db, StoreError};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JobStatus {
+    Queued,
+    Running,
+    Succeeded,
+    Failed,
+    Cancelled,
+}
+
+impl JobStatus {
+    pub const ALL: [JobStatus; 5] =
+        [JobStatus::Queued, JobStatus::Running, JobStatus::Succeeded, JobStatus::Failed, JobStatus::Cancelled];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobStatus::Queued => "queued",
+            JobStatus::Running => "running",
+            JobStatus::Succeeded => "succeeded",
+            JobStatus::Failed => "failed",
+            JobStatus::Cancelled => "cancelled",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<JobStatus> {
+        JobStatus::ALL.into_iter().find(|v| v.as_str() == s)
+    }
+
+    pub fn is_terminal(self) -> bool {
+        matches!(self, JobStatus::Succeeded | JobStatus::Failed | JobStatus::Cancelled)
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Progress {
+    pub done: i64,
+    pub total: i64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct JobRecord {
+    pub id: String,
+    pub kind: String,
+    pub status: JobStatus,
+    pub inputs: serde_json::Value,
+    pub options: serde_json::Value,
+    pub progress: Progress,
+    pub attempts: i64,
+    pub max_attempts: i64,
+    pub cancel_requested: bool,
+    pub created_at: String,
+    pub started_at: Option<String>,
+    pub finished_at: Option<String>,
+    /// Seconds from start to finish of the attempt that finished it.
+    pub duration_seconds: Option<f64>,
+    pub error: Option<serde_json::Value>,
+    pub summary: Option<serde_json::Value>,
+}
+
+fn job_record(row: &sqlx::sqlite::SqliteRow) -> Result<JobRecord, StoreError> {
+    let spec: serde_json::Value = serde_json::from_str(&row.try_get::<String, _>("spec")?)?;
+    let status: String = row.try_get("status")?;
+    let started: Option<i64> = row.try_get("started_at")?;
+    let finished: Option<i64> = row.try_get("finished_at")?;
+    let json_col = |name: &str| -> Result<Option<serde_json::Value>, StoreError> {
+        Ok(match row.try_get::<Option<String>, _>(name)? {
+            Some(s) => Some(serde_json::from_str(&s)?),
+            None => None,
+        })
+    };
+    Ok(JobRecord {
+        id: row.try_get("id")?,
+        kind: row.try_get("kind")?,
+        status: JobStatus::parse(&status).unwrap_or(JobStatus::Failed),
+        inputs: spec.get("inputs").cloned().unwrap_or(serde_json::Value::Null),
+        options: spec.get("options").cloned().unwrap_or(serde_json::Value::Null),
+        progress: Progress { done: row.try_get("progress_done")?, total: row.try_get("progress_total")? },
+        attempts: row.try_get("attempts")?,
+        max_attempts: row.try_get("max_attempts")?,
+        cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
+        created_at: rfc3339(row.try_get("created_at")?),
+        started_at: started.map(rfc3339),
+        finished_at: finished.map(rfc3339),
+        duration_seconds: match (started, finished) {
+            (Some(s), Some(f)) => Some((f - s) as f64 / 1000.0),
+            _ => None,
+        },
+        error: json_col("error")?,
+        summary: json_col("summary")?,
+    })
+}
+
+/// An inline input carried by a job submission, stored as a resource with the job.
+pub struct InlineInput {
+    /// Key under `inputs` that will name the new resource's id.
+    pub input: String,
+    pub kind: super::ResourceKind,
+    pub name: Option<String>,
+    pub media_type: &'static str,
+    pub summary: serde_json::Value,
+    pub content: Vec<u8>,
+}
+
+pub struct NewJob {
+    pub kind: String,
+    /// Inputs by id; inline inputs are added under their key once stored.
+    pub inputs: serde_json::Map<String, serde_json::Value>,
+    pub inline: Vec<InlineInput>,
+    pub options: serde_json::Value,
+    pub idempotency_key: Option<String>,
+    pub request_hash: String,
+    pub max_attempts: i64,
+}
+
+pub enum CreateOutcome {
+    Created(JobRecord),
+    /// Same idempotency key and same body: the job created the first time.
+    Replayed(JobRecord),
+    /// Same idempotency key, another body.
+    KeyConflict(JobRecord),
+}
+
+/// A job as a worker sees it after claiming it.
+#[derive(Clone, Debug)]
+pub struct ClaimedJob {
+    pub id: String,
+    pub owner: String,
+    pub kind: String,
+    pub spec: serde_json::Value,
+    pub attempt: i64,
+}
+
+/// How a worker's attempt ended, written with the state change.
+pub enum Finish {
+    Succeeded { summary: serde_json::Value, rows: Vec<String>, artifacts: Vec<Artifact> },
+    Failed { error: serde_json::Value },
+    Cancelled,
+}
+
+pub struct Artifact {
+    pub name: String,
+    pub media_type: String,
+    pub file_name: String,
+    pub content: Vec<u8>,
+}
+
+/// What the heartbeat learned.
+pub enum LeaseState {
+    Held { cancel_requested: bool },
+    Lost,
+}
+
+fn is_unique_violation(e: &sqlx::Error) -> bool {
+    matches!(e, sqlx::Error::Database(d) if d.is_unique_violation())
+}
+
+impl Db {
+    pub async fn create_job(&self, owner: &str, mut new: NewJob) -> Result<CreateOutcome, StoreError> {
+        if let Some(key) = &new.idempotency_key {
+            if let Some(existing) = self.job_by_idempotency_key(owner, key).await? {
+                return self.replay_or_conflict(owner, key, &new.request_hash, existing).await;
+            }
+        }
+        let now = now_ms();
+        let id = new_id();
+        let mut tx = self.pool.begin().await?;
+        for inline in &new.inline {
+            let resource = NewResource {
+                kind: inline.kind,
+                name: inline.name.as_deref(),
+                media_type: inline.media_type,
+                summary: inline.summary.clone(),
+                content: &inline.content,
+            };
+            let rid = insert_resource(&mut *tx, owner, &resource).await?;
+            new.inputs.insert(inline.input.clone(), serde_json::Value::String(rid));
+        }
+        let spec = serde_json::json!({ "inputs": new.inputs, "options": new.options });
+        let inserted = sqlx::query(
+            "INSERT INTO jobs (id, owner, kind, status, spec, idempotency_key, request_hash, max_attempts, created_at, updated_at)
+             VALUES (?, ?, ?, 'queued', ?, ?, ?, ?, ?, ?)",
+        )
+        .bind(&id)
+        .bind(owner)
+        .bind(&new.kind)
+        .bind(spec.to_string())
+        .bind(&new.idempotency_key)
+        .bind(&new.request_hash)
+        .bind(new.max_attempts)
+        .bind(now)
+        .bind(now)
+        .execute(&mut *tx)
+        .await;
+        match inserted {
+            Ok(_) => {
+                tx.commit().await?;
+                Ok(CreateOutcome::Created(self.get_job(owner, &id).await?.expect("job just inserted")))
+            }
+            // Two requests with one key raced; the other one won.
+            Err(e) if is_unique_violation(&e) && new.idempotency_key.is_some() => {
+                tx.rollback().await?;
+                let key = new.idempotency_key.as_deref().unwrap_or_default();
+                let existing = self.job_by_idempotency_key(owner, key).await?.ok_or(StoreError::Sql(e))?;
+                self.replay_or_conflict(owner, key, &new.request_hash, existing).await
+            }
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    async fn job_by_idempotency_key(&self, owner: &str, key: &str) -> Result<Option<(String, String)>, StoreError> {
+        let row = sqlx::query("SELECT id, request_hash FROM jobs WHERE owner = ? AND idempotency_key = ?")
+            .bind(owner)
+            .bind(key)
+            .fetch_optional(&self.pool)
+            .await?;
+        Ok(match row {
+            Some(r) => Some((r.try_get("id")?, r.try_get::<Option<String>, _>("request_hash")?.unwrap_or_default())),
+            None => None,
+        })
+    }
+
+    async fn replay_or_conflict(
+        &self,
+        owner: &str,
+        _key: &str,
+        hash: &str,
+        (id, stored_hash): (String, String),
+    ) -> Result<CreateOutcome, StoreError> {
+        let job = self.get_job(owner, &id).await?.expect("job found by key");
+        Ok(if stored_hash == hash { CreateOutcome::Replayed(job) } else { CreateOutcome::KeyConflict(job) })
+    }
+
+    pub async fn get_job(&self, owner: &str, id: &str) -> Result<Option<JobRecord>, StoreError> {
+        let row = sqlx::query("SELECT * FROM jobs WHERE owner = ? AND id = ?")
+            .bind(owner)
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.as_ref().map(job_record).transpose()
+    }
+
+    pub async fn list_jobs(
+        &self,
+        owner: &str,
+        status: Option<JobStatus>,
+        kind: Option<&str>,
+        cursor: Option<&str>,
+        limit: u32,
+    ) -> Result<(Vec<JobRecord>, Option<String>), StoreError> {
+        let rows = sqlx::query(
+            "SELECT * FROM jobs WHERE owner = ? AND id > ?
+               AND (? IS NULL OR status = ?) AND (? IS NULL OR kind = ?)
+             ORDER BY id LIMIT ?",
+        )
+        .bind(owner)
+        .bind(cursor.unwrap_or(""))
+        .bind(status.map(JobStatus::as_str))
+        .bind(status.map(JobStatus::as_str))
+        .bind(kind)
+        .bind(kind)
+        .bind(i64::from(limit) + 1)
+        .fetch_all(&self.pool)
+        .await?;
+        let mut items = rows.iter().map(job_record).collect::<Result<Vec<_>, _>>()?;
+        let next = if items.len() > limit as usize {
+            items.truncate(limit as usize);
+            items.last().map(|j| j.id.clone())
+        } else {
+            None
+        };
+        Ok((items, next))
+    }
+
+    /// Cancels a queued job at once; asks a running one to stop (its worker sees the
+    /// flag at the next heartbeat). Returns the job as it now is.
+    pub async fn cancel_job(&self, owner: &str, id: &str) -> Result<Option<JobRecord>, StoreError> {
+        let now = now_ms();
+        sqlx::query(
+            "UPDATE jobs SET
+                status = CASE WHEN status = 'queued' THEN 'cancelled' ELSE status END,
+                finished_at = CASE WHEN status = 'queued' THEN ? ELSE finished_at END,
+                cancel_requested = 1, updated_at = ?
+             WHERE owner = ? AND id = ? AND status IN ('queued', 'running')",
+        )
+        .bind(now)
+        .bind(now)
+        .bind(owner)
+        .bind(id)
+        .execute(&self.pool)
+        .await?;
+        self.get_job(owner, id).await
+    }
+
+    /// Fails jobs whose lease expired on their last allowed attempt: a job that keeps
+    /// killing its worker must stop being retried.
+    pub async fn fail_exhausted(&self) -> Result<u64, StoreError> {
+        let now = now_ms();
+        let mut tx = self.pool.begin().await?;
+        let ids: Vec<(String, i64)> = sqlx::query_as(
+            "UPDATE jobs SET status = 'failed', finished_at = ?, updated_at = ?, lease_owner = NULL,
+                error = json_object('type', 'https://millsim.dev/problems/worker-lost', 'title', 'Job failed',
+                    'status', 500, 'detail', 'the worker running this job stopped without finishing it ' || attempts || ' times (max attempts ' || max_attempts || ')')
+             WHERE status = 'running' AND lease_expires_at < ? AND attempts >= max_attempts
+             RETURNING id, attempts",
+        )
+        .bind(now)
+        .bind(now)
+        .bind(now)
+        .fetch_all(&mut *tx)
+        .await?;
+        for (id, attempt) in &ids {
+            sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = ? WHERE job_id = ? AND attempt = ? AND outcome IS NULL")
+                .bind(now)
+                .bind(id)
+                .bind(attempt)
+                .execute(&mut *tx)
+                .await?;
+        }
+        tx.commit().await?;
+        Ok(ids.len() as u64)
+    }
+
+    /// Claims the oldest claimable job in one atomic UPDATE … RETURNING: a queued job,
+    /// or a running one whose lease expired (its worker died). Cancelled-while-dead jobs
+    /// are settled first.
+    pub async fn claim_job(&self, worker: &str, lease_ms: i64) -> Result<Option<ClaimedJob>, StoreError> {
+        let now = now_ms();
+        self.fail_exhausted().await?;
+        sqlx::query(
+            "UPDATE jobs SET status = 'cancelled', finished_at = ?, updated_at = ?, lease_owner = NULL
+             WHERE status = 'running' AND lease_expires_at < ? AND cancel_requested = 1",
+        )
+        .bind(now)
+        .bind(now)
+        .bind(now)
+        .execute(&self.pool)
+        .await?;
+        let mut tx = self.pool.begin().await?;
+        let row = sqlx::query(
+            "UPDATE jobs SET status = 'running', lease_owner = ?, lease_expires_at = ?,
+                attempts = attempts + 1, started_at = ?, finished_at = NULL, updated_at = ?
+             WHERE id = (SELECT id FROM jobs
+                         WHERE status = 'queued' OR (status = 'running' AND lease_expires_at < ?)
+                         ORDER BY id LIMIT 1)
+             RETURNING id, owner, kind, spec, attempts",
+        )
+        .bind(worker)
+        .bind(now + lease_ms)
+        .bind(now)
+        .bind(now)
+        .bind(now)
+        .fetch_optional(&mut *tx)
+        .await?;
+        let Some(row) = row else {
+            tx.rollback().await?;
+            return Ok(None);
+        };
+        let job = ClaimedJob {
+            id: row.try_get("id")?,
+            owner: row.try_get("owner")?,
+            kind: row.try_get("kind")?,
+            spec: serde_json::from_str(&row.try_get::<String, _>("spec")?)?,
+            attempt: row.try_get("attempts")?,
+        };
+        // The previous attempt, if its worker died, ends here as lost.
+        sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = ? WHERE job_id = ? AND outcome IS NULL")
+            .bind(now)
+            .bind(&job.id)
+            .execute(&mut *tx)
+            .await?;
+        sqlx::query("INSERT INTO job_attempts (job_id, attempt, worker, started_at) VALUES (?, ?, ?, ?)")
+            .bind(&job.id)
+            .bind(job.attempt)
+            .bind(worker)
+            .bind(now)
+            .execute(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok(Some(job))
+    }
+
+    /// Extends the lease and records progress; tells the worker whether it still holds
+    /// the job and whether someone asked to cancel it.
+    pub async fn heartbeat(&self, job: &ClaimedJob, worker: &str, lease_ms: i64, done: u64, total: u64) -> Result<LeaseState, StoreError> {
+        let now = now_ms();
+        let row: Option<(i64,)> = sqlx::query_as(
+            "UPDATE jobs SET lease_expires_at = ?, progress_done = ?, progress_total = ?, updated_at = ?
+             WHERE id = ? AND lease_owner = ? AND status = 'running' AND attempts = ?
+             RETURNING cancel_requested",
+        )
+        .bind(now + lease_ms)
+        .bind(done as i64)
+        .bind(total as i64)
+        .bind(now)
+        .bind(&job.id)
+        .bind(worker)
+        .bind(job.attempt)
+        .fetch_optional(&self.pool)
+        .await?;
+        Ok(match row {
+            Some((c,)) => LeaseState::Held { cancel_requested: c != 0 },
+            None => LeaseState::Lost,
+        })
+    }
+
+    /// Writes the outcome and the results in one transaction, only if this worker still
+    /// holds this attempt's lease. Returns false (and writes nothing) when it does not.
+    pub async fn finish_job(&self, job: &ClaimedJob, worker: &str, finish: Finish) -> Result<bool, StoreError> {
+        let now = now_ms();
+        let (status, summary, error, outcome) = match &finish {
+            Finish::Succeeded { summary, .. } => ("succeeded", Some(summary.to_string()), None, "succeeded"),
+            Finish::Failed { error } => ("failed", None, Some(error.to_string()), "failed"),
+            Finish::Cancelled => ("cancelled", None, None, "cancelled"),
+        };
+        let mut tx = self.pool.begin().await?;
+        // The state change comes first so the transaction takes the write lock before it
+        // reads anything (no lock upgrade, no SQLITE_BUSY deadlock between processes).
+        let done = sqlx::query(
+            "UPDATE jobs SET status = ?, summary = ?, error = ?, finished_at = ?, updated_at = ?,
+                lease_owner = NULL, lease_expires_at = NULL,
+                progress_done = CASE WHEN ? = 'succeeded' THEN progress_total ELSE progress_done END
+             WHERE id = ? AND lease_owner = ? AND status = 'running' AND attempts = ?",
+        )
+        .bind(status)
+        .bind(summary)
+        .bind(error)
+        .bind(now)
+        .bind(now)
+        .bind(status)
+        .bind(&job.id)
+        .bind(worker)
+        .bind(job.attempt)
+        .execute(&mut *tx)
+        .await?;
+        if done.rows_affected() == 0 {
+            tx.rollback().await?;
+            return Ok(false);
+        }
+        if let Finish::Succeeded { rows, artifacts, .. } = finish {
+            sqlx::query("DELETE FROM job_rows WHERE job_id = ?").bind(&job.id).execute(&mut *tx).await?;
+            // Multi-row inserts: one statement per 400 rows instead of one per row.
+            for (chunk_index, chunk) in rows.chunks(400).enumerate() {
+                let mut q = sqlx::QueryBuilder::new("INSERT INTO job_rows (job_id, seq, data) ");
+                q.push_values(chunk.iter().enumerate(), |mut b, (i, data)| {
+                    b.push_bind(&job.id).push_bind((chunk_index * 400 + i) as i64).push_bind(data);
+                });
+                q.build().execute(&mut *tx).await?;
+            }
+            for a in artifacts {
+                sqlx::query("INSERT INTO job_artifacts (job_id, name, media_type, file_name, content) VALUES (?, ?, ?, ?, ?)")
+                    .bind(&job.id)
+                    .bind(&a.name)
+                    .bind(&a.media_type)
+                    .bind(&a.file_name)
+                    .bind(&a.content)
+                    .execute(&mut *tx)
+                    .await?;
+            }
+        }
+        sqlx::query("UPDATE job_attempts SET outcome = ?, finished_at = ? WHERE job_id = ? AND attempt = ?")
+            .bind(outcome)
+            .bind(now)
+            .bind(&job.id)
+            .bind(job.attempt)
+            .execute(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok(true)
+    }
+
+    /// Gives a job back to the queue on graceful shutdown; the attempt does not count.
+    pub async fn release_job(&self, job: &ClaimedJob, worker: &str) -> Result<bool, StoreError> {
+        let now = now_ms();
+        let mut tx = self.pool.begin().await?;
+        let done = sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL,
+                attempts = attempts - 1, updated_at = ?
+             WHERE id = ? AND lease_owner = ? AND status = 'running' AND attempts = ?",
+        )
+        .bind(now)
+        .bind(&job.id)
+        .bind(worker)
+        .bind(job.attempt)
+        .execute(&mut *tx)
+        .await?;
+        if done.rows_affected() == 0 {
+            tx.rollback().await?;
+            return Ok(false);
+        }
+        sqlx::query("UPDATE job_attempts SET outcome = 'released', finished_at = ? WHERE job_id = ? AND attempt = ?")
+            .bind(now)
+            .bind(&job.id)
+            .bind(job.attempt)
+            .execute(&mut *tx)
+            .await?;
+        // The released attempt's number is reused by the next claim.
+        sqlx::query("DELETE FROM job_attempts WHERE job_id = ? AND attempt = ?")
+            .bind(&job.id)
+            .bind(job.attempt)
+            .execute(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok(true)
+    }
+
+    /// One page of a finished job's per-block rows, raw JSON text, from `from` on.
+    pub async fn job_rows(&self, job_id: &str, from: i64, limit: i64) -> Result<Vec<(i64, String)>, StoreError> {
+        Ok(sqlx::query_as("SELECT seq, data FROM job_rows WHERE job_id = ? AND seq >= ? ORDER BY seq LIMIT ?")
+            .bind(job_id)
+            .bind(from)
+            .bind(limit)
+            .fetch_all(&self.pool)
+            .await?)
+    }
+
+    pub async fn job_row_count(&self, job_id: &str) -> Result<i64, StoreError> {
+        Ok(sqlx::query_scalar("SELECT COUNT(*) FROM job_rows WHERE job_id = ?").bind(job_id).fetch_one(&self.pool).await?)
+    }
+
+    pub async fn job_artifact(&self, job_id: &str, name: &str) -> Result<Option<Artifact>, StoreError> {
+        let row = sqlx::query("SELECT name, media_type, file_name, content FROM job_artifacts WHERE job_id = ? AND name = ?")
+            .bind(job_id)
+            .bind(name)
+            .fetch_optional(&self.pool)
+            .await?;
+        Ok(match row {
+            Some(r) => Some(Artifact {
+                name: r.try_get("name")?,
+                media_type: r.try_get("media_type")?,
+                file_name: r.try_get("file_name")?,
+                content: r.try_get("content")?,
+            }),
+            None => None,
+        })
+    }
+
+    pub async fn delete_job(&self, owner: &str, id: &str) -> Result<bool, StoreError> {
+        let done = sqlx::query("DELETE FROM jobs WHERE owner = ? AND id = ? AND status NOT IN ('queued', 'running')")
+            .bind(owner)
+            .bind(id)
+            .execute(&self.pool)
+            .await?;
+        Ok(done.rows_affected() > 0)
+    }
+
+    /// Job counts by status, over all owners, for /metrics.
+    pub async fn job_counts(&self) -> Result<Vec<(String, i64)>, StoreError> {
+        Ok(sqlx::query_as("SELECT status, COUNT(*) FROM jobs GROUP BY status").fetch_all(&self.pool).await?)
+    }
+
+    /// The attempts log of a job: (attempt, worker, started, finished, outcome).
+    pub async fn job_attempts(&self, job_id: &str) -> Result<Vec<(i64, String, i64, Option<i64>, Option<String>)>, StoreError> {
+        Ok(sqlx::query_as("SELECT attempt, worker, started_at, finished_at, outcome FROM job_attempts WHERE job_id = ? ORDER BY attempt")
+            .bind(job_id)
+            .fetch_all(&self.pool)
+            .await?)
+    }
+}
+

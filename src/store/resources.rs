@@ -1,0 +1,183 @@
+//! Uploaded inputs: stocks, tools, materials, machines, programs.
+
+use serde::Serialize;
+use sqlx::Row;
+
+use super::{now_ms, rfc3339, Db, StoreError};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResourceKind {
+    Stock,
+    Tool,
+    Material,
+    Machine,
+    Program,
+}
+
+impl ResourceKind {
+    pub const ALL: [ResourceKind; 5] =
+        [ResourceKind::Stock, ResourceKind::Tool, ResourceKind::Material, ResourceKind::Machine, ResourceKind::Program];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ResourceKind::Stock => "stock",
+            ResourceKind::Tool => "tool",
+            ResourceKind::Material => "material",
+            ResourceKind::Machine => "machine",
+            ResourceKind::Program => "program",
+        }
+    }
+
+    /// The collection's path segment under /v1.
+    pub fn collection(self) -> &'static str {
+        match self {
+            ResourceKind::Stock => "stocks",
+            ResourceKind::Tool => "tools",
+            ResourceKind::Material => "materials",
+            ResourceKind::Machine => "machines",
+            ResourceKind::Program => "programs",
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ResourceRecord {
+    pub id: String,
+    pub kind: &'static str,
+    pub name: Option<String>,
+    pub media_type: String,
+    pub size: i64,
+    pub created_at: String,
+    /// What validation found: block count, triangle count, bounding box, ...
+    pub summary: serde_json::Value,
+    /// JSON resources (tool, material, machine, parametric stock) carry their definition.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub definition: Option<serde_json::Value>,
+}
+
+pub struct NewResource<'a> {
+    pub kind: ResourceKind,
+    pub name: Option<&'a str>,
+    pub media_type: &'a str,
+    pub summary: serde_json::Value,
+    pub content: &'a [u8],
+}
+
+fn record(kind: ResourceKind, row: &sqlx::sqlite::SqliteRow, with_definition: bool) -> Result<ResourceRecord, StoreError> {
+    let media_type: String = row.try_get("media_type")?;
+    let definition = if with_definition && media_type == "application/json" {
+        let content: Vec<u8> = row.try_get("content")?;
+        Some(serde_json::from_slice(&content)?)
+    } else {
+        None
+    };
+    Ok(ResourceRecord {
+        id: row.try_get("id")?,
+        kind: kind.as_str(),
+        name: row.try_get("name")?,
+        media_type,
+        size: row.try_get("size")?,
+        created_at: rfc3339(row.try_get("created_at")?),
+        summary: serde_json::from_str(&row.try_get::<String, _>("summary")?)?,
+        definition,
+    })
+}
+
+/// Inserts a resource inside an open transaction or on the pool.
+pub async fn insert<'e, E>(exec: E, owner: &str, new: &NewResource<'_>) -> Result<String, StoreError>
+where
+    E: sqlx::Executor<'e, Database = sqlx::Sqlite>,
+{
+    let id = super::new_id();
+    sqlx::query(
+        "INSERT INTO resources (id, owner, kind, name, media_type, size, summary, content, created_at)
+         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    )
+    .bind(&id)
+    .bind(owner)
+    .bind(new.kind.as_str())
+    .bind(new.name)
+    .bind(new.media_type)
+    .bind(new.content.len() as i64)
+    .bind(new.summary.to_string())
+    .bind(new.content)
+    .bind(now_ms())
+    .execute(exec)
+    .await?;
+    Ok(id)
+}
+
+impl Db {
+    pub async fn create_resource(&self, owner: &str, new: &NewResource<'_>) -> Result<ResourceRecord, StoreError> {
+        let id = insert(&self.pool, owner, new).await?;
+        Ok(self.get_resource(owner, new.kind, &id).await?.expect("row just inserted"))
+    }
+
+    pub async fn get_resource(&self, owner: &str, kind: ResourceKind, id: &str) -> Result<Option<ResourceRecord>, StoreError> {
+        let row = sqlx::query("SELECT * FROM resources WHERE owner = ? AND kind = ? AND id = ?")
+            .bind(owner)
+            .bind(kind.as_str())
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        row.map(|r| record(kind, &r, true)).transpose()
+    }
+
+    /// The stored bytes and media type of a resource, unchanged.
+    pub async fn resource_content(
+        &self,
+        owner: &str,
+        kind: ResourceKind,
+        id: &str,
+    ) -> Result<Option<(Option<String>, String, Vec<u8>)>, StoreError> {
+        let row = sqlx::query("SELECT name, media_type, content FROM resources WHERE owner = ? AND kind = ? AND id = ?")
+            .bind(owner)
+            .bind(kind.as_str())
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        Ok(match row {
+            Some(r) => Some((r.try_get("name")?, r.try_get("media_type")?, r.try_get("content")?)),
+            None => None,
+        })
+    }
+
+    /// One page of resources of a kind, oldest first, after `cursor` (an id).
+    pub async fn list_resources(
+        &self,
+        owner: &str,
+        kind: ResourceKind,
+        cursor: Option<&str>,
+        limit: u32,
+    ) -> Result<(Vec<ResourceRecord>, Option<String>), StoreError> {
+        let rows = sqlx::query(
+            "SELECT id, name, media_type, size, summary, created_at FROM resources
+             WHERE owner = ? AND kind = ? AND id > ? ORDER BY id LIMIT ?",
+        )
+        .bind(owner)
+        .bind(kind.as_str())
+        .bind(cursor.unwrap_or(""))
+        .bind(i64::from(limit) + 1)
+        .fetch_all(&self.pool)
+        .await?;
+        let mut items = rows.iter().map(|r| record(kind, r, false)).collect::<Result<Vec<_>, _>>()?;
+        let next = if items.len() > limit as usize {
+            items.truncate(limit as usize);
+            items.last().map(|r| r.id.clone())
+        } else {
+            None
+        };
+        Ok((items, next))
+    }
+
+    /// Deletes a resource; false when there was none.
+    pub async fn delete_resource(&self, owner: &str, kind: ResourceKind, id: &str) -> Result<bool, StoreError> {
+        let done = sqlx::query("DELETE FROM resources WHERE owner = ? AND kind = ? AND id = ?")
+            .bind(owner)
+            .bind(kind.as_str())
+            .bind(id)
+            .execute(&self.pool)
+            .await?;
+        Ok(done.rows_affected() > 0)
+    }
+}
