@@ -45,7 +45,7 @@
 //! include a tooth exactly on an arc boundary.
 
 use serde::{Deserialize, Serialize};
-use std::f64::consts::TAU;
+use std::f64::consts::{FRAC_PI_2, TAU};
 
 use super::material::CuttingCoefficients;
 use super::{non_negative, positive, PhysicsError};
@@ -610,8 +610,9 @@ impl Pass {
     }
 }
 
-/// Adds one tooth's forces over a contiguous run of sample positions. Branch-free on
-/// the chip test so it vectorizes.
+/// Adds one tooth's forces over a contiguous run of sample positions (sin θ, cos θ in
+/// `st`, `ct`). Without runout every component is affine in sin φ; branch-free and without
+/// reductions so it vectorizes.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn run_segment(
@@ -623,7 +624,7 @@ fn run_segment(
     fy: &mut [f64],
     fz: &mut [f64],
     tq: &mut [f64],
-) -> f64 {
+) {
     let n = st.len();
     let (ct, fx, fy, fz, tq) = (
         &ct[..n],
@@ -632,20 +633,54 @@ fn run_segment(
         &mut fz[..n],
         &mut tq[..n],
     );
-    let mut hmax = f64::NEG_INFINITY;
-    for i in 0..n {
-        let sphi = st[i] * p.ca - ct[i] * p.sa;
-        let cphi = ct[i] * p.ca + st[i] * p.sa;
-        let (h, x, v) = p.chip(steps, sphi);
-        let on = if h >= -CHIP_EPS { 1.0 } else { 0.0 };
-        let f = p.force(x, v, sphi, cphi);
-        fx[i] += f[0] * on;
-        fy[i] += f[1] * on;
-        fz[i] += f[2] * on;
-        tq[i] += f[3] * on;
-        hmax = hmax.max(h);
+    let (sa, ca) = (p.sa, p.ca);
+    if steps.is_empty() {
+        let (hs, hv) = (p.ch * p.sk, p.cv * p.ck);
+        let a = p.a.map(|v| v * p.ch);
+        let b = [0, 1, 2, 3].map(|i| p.b0[i] + p.bv[i] * p.cv);
+        for i in 0..n {
+            let s = st[i] * ca - ct[i] * sa;
+            let c = ct[i] * ca + st[i] * sa;
+            let on = if hs * s - hv >= -CHIP_EPS { 1.0 } else { 0.0 };
+            let ft = (a[0] * s + b[0]) * on;
+            let fp = (a[1] * s + b[1]) * on;
+            fx[i] += fp * s - ft * c;
+            fy[i] += ft * s + fp * c;
+            fz[i] += (a[2] * s + b[2]) * on;
+            tq[i] += (a[3] * s + b[3]) * on;
+        }
+    } else {
+        for i in 0..n {
+            let s = st[i] * ca - ct[i] * sa;
+            let c = ct[i] * ca + st[i] * sa;
+            let (h, x, v) = p.chip(steps, s);
+            let on = if h >= -CHIP_EPS { 1.0 } else { 0.0 };
+            let f = p.force(x, v, s, c);
+            fx[i] += f[0] * on;
+            fy[i] += f[1] * on;
+            fz[i] += f[2] * on;
+            tq[i] += f[3] * on;
+        }
     }
-    hmax
+}
+
+/// Largest sin φ over the samples φ = φ0 + i·Δ, i < count: at the sample nearest a crest
+/// φ ≡ π/2 inside the run, else at an end (sin is unimodal between troughs). The chip grows
+/// with sin φ (with runout too), so this gives the largest chip without a reduction in the
+/// inner loop.
+fn max_sin(phi0: f64, delta: f64, count: usize) -> f64 {
+    let phi1 = phi0 + (count - 1) as f64 * delta;
+    let mut best = phi0.sin().max(phi1.sin());
+    let crest = FRAC_PI_2 + TAU * ((phi0 - FRAC_PI_2) / TAU).ceil();
+    if crest <= phi1 {
+        let i = ((crest - phi0) / delta).floor();
+        for j in [i, i + 1.0] {
+            if j >= 0.0 && j <= (count - 1) as f64 {
+                best = best.max((phi0 + j * delta).sin());
+            }
+        }
+    }
+    best
 }
 
 /// The force model for one tool: edge table, angular grid and reusable buffers. Build
@@ -790,7 +825,7 @@ impl ForceModel {
                         let start = (k_lo as i64).rem_euclid(kpos as i64) as usize;
                         let first = count.min(kpos - start);
                         let seg = start..start + first;
-                        let h = run_segment(
+                        run_segment(
                             &p,
                             steps,
                             &self.sin_t[seg.clone()],
@@ -800,10 +835,9 @@ impl ForceModel {
                             &mut fz[seg.clone()],
                             &mut tq[seg],
                         );
-                        self.tooth_hmax[j] = self.tooth_hmax[j].max(h);
                         if count > first {
                             let seg = 0..count - first;
-                            let h = run_segment(
+                            run_segment(
                                 &p,
                                 steps,
                                 &self.sin_t[seg.clone()],
@@ -813,8 +847,9 @@ impl ForceModel {
                                 &mut fz[seg.clone()],
                                 &mut tq[seg],
                             );
-                            self.tooth_hmax[j] = self.tooth_hmax[j].max(h);
                         }
+                        let (h, _, _) = p.chip(steps, max_sin(k_lo * delta - alpha, delta, count));
+                        self.tooth_hmax[j] = self.tooth_hmax[j].max(h);
                     }
                     // Bins k cover [k − ½, k + ½]; the two the arc's ends fall in are partly covered.
                     let kb0 = (u + 0.5).floor();
@@ -885,9 +920,9 @@ impl ForceModel {
             let mut f = [0.0f64; 4];
             for j in 0..n {
                 let t = [comp(0, j, k), comp(1, j, k), comp(2, j, k)];
-                let m = norm(t);
+                // Squared for now; square-rooted once after the loop.
                 let ts = &mut out.per_tooth[j];
-                ts.peak_force = ts.peak_force.max(m);
+                ts.peak_force = ts.peak_force.max(dot(t, t));
                 for c in 0..3 {
                     f[c] += t[c];
                 }
@@ -910,7 +945,7 @@ impl ForceModel {
                 fpeak = m;
                 peak_vec = p;
             }
-            let mxy = f[0].hypot(f[1]);
+            let mxy = (f[0] * f[0] + f[1] * f[1]).sqrt();
             xysum += mxy;
             xypeak = f64::max(xypeak, mxy);
             tpeak = f64::max(tpeak, f[3]);
@@ -923,6 +958,9 @@ impl ForceModel {
                     torque: f[3] * 1e-3,
                 });
             }
+        }
+        for t in &mut out.per_tooth {
+            t.peak_force = t.peak_force.sqrt();
         }
         let kf = kpos as f64;
         let mean: Vec<f64> = (0..4).map(|c| (sum[c] + corr[c]) / kf).collect();
