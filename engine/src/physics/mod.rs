@@ -1,1 +1,115 @@
-//! (being written)
+//! Cutting physics: mechanistic milling forces (with helix, runout, ball/torus/chamfer
+//! edges and tilted axes), torque and power, work materials and coefficient
+//! identification, tool life, and surface roughness.
+//!
+//! Inputs are the shared [`crate::tool::Tool`] and [`crate::engagement::Engagement`];
+//! angles follow the Engagement convention (φ clockwise from +y seen from the spindle,
+//! x the feed direction, z the tool axis). Units: mm, N, N·m, W, rpm, radians.
+//!
+//! - [`force`]: [`ToolEdgeTable`], [`ForceModel`], [`cutting_forces`], [`ForceResult`],
+//!   [`BlockForces`] (per-block aggregate and down-sampled trace).
+//! - [`material`]: [`CuttingCoefficients`], [`Material`], [`builtin_materials`].
+//! - [`identify`]: [`identify_coefficients`] (average-force method) and
+//!   [`closed_form_mean_force`].
+//! - [`life`]: [`TaylorLife`], [`tool_life`] (life consumed per block, remaining life).
+//! - [`roughness`]: [`scallop_height`], [`feed_marks`], [`surface_roughness`].
+
+pub mod force;
+pub mod identify;
+pub mod life;
+pub mod material;
+pub mod roughness;
+
+pub use force::{
+    cutting_forces, AxisStats, BlockForces, CuttingConditions, EdgeSlice, ForceModel, ForceResult,
+    ForceSample, MagnitudeStats, ToolEdgeTable, ToothStats, TracePoint, DEFAULT_POSITIONS,
+};
+pub use identify::{
+    closed_form_mean_force, identify_coefficients, AxisFit, ForceMeasurement, Identification,
+    IdentificationSetup,
+};
+pub use life::{cutting_speed_m_per_min, tool_life, BlockWear, LifeReport, TaylorLife};
+pub use material::{builtin_materials, CuttingCoefficients, Material};
+pub use roughness::{
+    feed_marks, scallop_height, surface_roughness, FeedMarks, Roughness, SurfaceKind,
+};
+
+use crate::tool::ToolError;
+
+/// Everything that can be wrong with the inputs of the physics functions. Each variant
+/// names the offending field (with an index path such as `slices[3].arcs[0]` where useful).
+#[derive(Debug, PartialEq, thiserror::Error)]
+pub enum PhysicsError {
+    #[error("`{field}` must be a finite number, got {value}")]
+    NotFinite { field: String, value: f64 },
+    #[error("`{field}` {message}")]
+    Invalid { field: String, message: String },
+    #[error(
+        "identification needs mean forces at at least 2 different feeds per tooth, got {distinct}"
+    )]
+    TooFewFeeds { distinct: usize },
+    #[error("identification: immersion {entry_rad}..{exit_rad} rad does not separate the {what} coefficients")]
+    Unidentifiable {
+        what: &'static str,
+        entry_rad: f64,
+        exit_rad: f64,
+    },
+    #[error(transparent)]
+    Tool(#[from] ToolError),
+}
+
+impl PhysicsError {
+    pub(crate) fn invalid(field: impl Into<String>, message: impl Into<String>) -> PhysicsError {
+        PhysicsError::Invalid {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The field the error is about.
+    pub fn field(&self) -> &str {
+        match self {
+            PhysicsError::NotFinite { field, .. } | PhysicsError::Invalid { field, .. } => field,
+            PhysicsError::TooFewFeeds { .. } => "measurements",
+            PhysicsError::Unidentifiable { .. } => "setup",
+            PhysicsError::Tool(e) => e.field,
+        }
+    }
+}
+
+pub(crate) fn finite(field: impl Into<String>, v: f64) -> Result<f64, PhysicsError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(PhysicsError::NotFinite {
+            field: field.into(),
+            value: v,
+        })
+    }
+}
+
+pub(crate) fn positive(field: impl Into<String>, v: f64) -> Result<f64, PhysicsError> {
+    let field = field.into();
+    finite(field.clone(), v)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(PhysicsError::invalid(
+            field,
+            format!("must be positive, got {v}"),
+        ))
+    }
+}
+
+pub(crate) fn non_negative(field: impl Into<String>, v: f64) -> Result<f64, PhysicsError> {
+    let field = field.into();
+    finite(field.clone(), v)?;
+    if v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(PhysicsError::invalid(
+            field,
+            format!("must not be negative, got {v}"),
+        ))
+    }
+}

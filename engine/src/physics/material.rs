@@ -1,0 +1,124 @@
+//! Work materials: mechanistic cutting coefficients, optional tool-life constants, and
+//! where each number comes from. The built-in library holds only rows with a cited source
+//! (../shared/REFERENCE.md); everything else is user-defined.
+
+use serde::{Deserialize, Serialize};
+
+use super::life::TaylorLife;
+use super::PhysicsError;
+
+/// Mechanistic (linear edge-force) cutting coefficients.
+///
+/// Cutting terms in N/mm² (multiply chip area, mm²), edge terms in N/mm (multiply edge
+/// length, mm). Signs are not restricted: identified axial coefficients are sometimes
+/// negative in the literature.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CuttingCoefficients {
+    pub ktc: f64,
+    pub krc: f64,
+    pub kac: f64,
+    pub kte: f64,
+    pub kre: f64,
+    pub kae: f64,
+}
+
+impl CuttingCoefficients {
+    /// All six must be finite numbers; names the first one that is not.
+    pub fn validate(&self) -> Result<(), PhysicsError> {
+        for (field, v) in [
+            ("ktc", self.ktc),
+            ("krc", self.krc),
+            ("kac", self.kac),
+            ("kte", self.kte),
+            ("kre", self.kre),
+            ("kae", self.kae),
+        ] {
+            super::finite(field, v)?;
+        }
+        Ok(())
+    }
+}
+
+/// A work material as the force model and the life model need it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Material {
+    pub name: String,
+    pub coefficients: CuttingCoefficients,
+    /// Extended Taylor constants, when a source for them exists.
+    #[serde(default)]
+    pub taylor: Option<TaylorLife>,
+    /// Where the numbers come from (publication, measurement campaign, identification job).
+    pub source: String,
+}
+
+impl Material {
+    /// Checks the numbers; a user-defined material must also say where its numbers come from.
+    pub fn validate(&self) -> Result<(), PhysicsError> {
+        if self.name.trim().is_empty() {
+            return Err(PhysicsError::invalid("name", "must not be empty"));
+        }
+        if self.source.trim().is_empty() {
+            return Err(PhysicsError::invalid(
+                "source",
+                "must say where the numbers come from",
+            ));
+        }
+        self.coefficients.validate()?;
+        if let Some(t) = &self.taylor {
+            t.validate()?;
+        }
+        Ok(())
+    }
+
+    /// A built-in material by name. Matching ignores case, spaces, `-` and `_`, so
+    /// "al7075-t6", "AL 7075 T6" and "Al7075T6" all find the same row.
+    pub fn builtin(name: &str) -> Option<Material> {
+        let key = normalize(name);
+        builtin_materials()
+            .into_iter()
+            .find(|m| normalize(&m.name) == key)
+    }
+}
+
+fn normalize(s: &str) -> String {
+    s.chars()
+        .filter(|c| !matches!(c, ' ' | '-' | '_'))
+        .flat_map(char::to_lowercase)
+        .collect()
+}
+
+/// The sourced rows of ../shared/REFERENCE.md, nothing else. No Taylor constants ship:
+/// none of these sources gives them.
+pub fn builtin_materials() -> Vec<Material> {
+    let row = |name: &str, k: [f64; 6], source: &str| Material {
+        name: name.to_string(),
+        coefficients: CuttingCoefficients {
+            ktc: k[0],
+            krc: k[1],
+            kac: k[2],
+            kte: k[3],
+            kre: k[4],
+            kae: k[5],
+        },
+        taylor: None,
+        source: source.to_string(),
+    };
+    vec![
+        row(
+            "TC6",
+            [1785.0, 461.0, 610.0, 26.0, 43.0, 6.0],
+            "Impeller simulation and feed optimization study, Shanghai Jiao Tong University, 2019 \
+             (TC6 titanium alloy, D8R1/D6R3 impeller)",
+        ),
+        row(
+            "Al7075-T6",
+            [767.01, 168.8, 222.0, 27.7, 26.6, 0.7],
+            "Review, Chinese Journal of Mechanical Engineering 2021, doi:10.1186/s10033-021-00536-9, Table 5",
+        ),
+        row(
+            "Al6082-T6",
+            [631.0, 99.0, 273.0, 13.0, 10.0, 2.8],
+            "Review, Chinese Journal of Mechanical Engineering 2021, doi:10.1186/s10033-021-00536-9, Table 5",
+        ),
+    ]
+}

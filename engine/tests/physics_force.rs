@@ -1,0 +1,601 @@
+//! Acceptance tests of the mechanistic force model against outside numbers:
+//! the closed-form mean forces and the table in ../shared/REFERENCE.md (Altintas), an
+//! independent ball-end integration written here, and runout geometry.
+
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+use millsim_engine::engagement::{EngagedSlice, Engagement};
+use millsim_engine::physics::{
+    cutting_forces, BlockForces, CuttingCoefficients, CuttingConditions, ForceModel, Material,
+    PhysicsError, ToolEdgeTable,
+};
+use millsim_engine::tool::{Runout, Tool};
+
+fn al7075() -> CuttingCoefficients {
+    Material::builtin("Al7075-T6").unwrap().coefficients
+}
+
+fn flat(d: f64, flutes: u32, helix: f64) -> Tool {
+    Tool {
+        helix_deg: helix,
+        flute_length: 30.0,
+        ..Tool::flat(d, flutes)
+    }
+}
+
+/// `n` slices of equal height from the tip to depth `a`, all engaged on the same arcs.
+fn engagement(a: f64, n: usize, arcs: &[(f64, f64)]) -> Engagement {
+    let dz = a / n as f64;
+    Engagement {
+        slices: (0..n)
+            .map(|i| EngagedSlice {
+                z: (i as f64 + 0.5) * dz,
+                dz,
+                arcs: arcs.to_vec(),
+            })
+            .collect(),
+        feed_dir: [1.0, 0.0, 0.0],
+        tool_axis: [0.0, 0.0, 1.0],
+    }
+}
+
+fn cond(c: f64) -> CuttingConditions {
+    CuttingConditions {
+        spindle_rpm: 10_000.0,
+        feed_per_tooth: c,
+    }
+}
+
+/// REFERENCE.md closed form, written out here independently of the library's copy.
+fn closed_form(k: &CuttingCoefficients, n: f64, a: f64, c: f64, st: f64, ex: f64) -> [f64; 3] {
+    let br = |f: &dyn Fn(f64) -> f64| f(ex) - f(st);
+    let fx = n * a * c / (8.0 * PI)
+        * br(&|p| k.ktc * (2.0 * p).cos() - k.krc * (2.0 * p - (2.0 * p).sin()))
+        + n * a / (2.0 * PI) * br(&|p| -k.kte * p.sin() + k.kre * p.cos());
+    let fy = n * a * c / (8.0 * PI)
+        * br(&|p| k.ktc * (2.0 * p - (2.0 * p).sin()) + k.krc * (2.0 * p).cos())
+        - n * a / (2.0 * PI) * br(&|p| k.kte * p.cos() + k.kre * p.sin());
+    let fz = n * a / (2.0 * PI) * br(&|p| -k.kac * c * p.cos() + k.kae * p);
+    [fx, fy, fz]
+}
+
+struct Case {
+    name: &'static str,
+    flutes: u32,
+    a: f64,
+    c: f64,
+    st: f64,
+    ex: f64,
+    table: [f64; 4],
+}
+
+fn cases() -> Vec<Case> {
+    // ae/D = 0.1 down-milling: engaged from φ = π − acos(1 − 2·0.1) to π.
+    let st10 = PI - (1.0f64 - 0.2).acos();
+    vec![
+        Case {
+            name: "slot",
+            flutes: 4,
+            a: 5.0,
+            c: 0.1,
+            st: 0.0,
+            ex: PI,
+            table: [-253.74, 559.85, 148.33, 664.2],
+        },
+        Case {
+            name: "half down",
+            flutes: 4,
+            a: 5.0,
+            c: 0.1,
+            st: FRAC_PI_2,
+            ex: PI,
+            table: [83.37, 391.46, 74.16, 659.7],
+        },
+        Case {
+            name: "half up",
+            flutes: 4,
+            a: 5.0,
+            c: 0.1,
+            st: 0.0,
+            ex: FRAC_PI_2,
+            table: [-337.12, 168.39, 74.16, 565.5],
+        },
+        Case {
+            name: "10% down",
+            flutes: 3,
+            a: 10.0,
+            c: 0.05,
+            st: st10,
+            ex: PI,
+            table: [83.62, 124.88, 12.75, 597.8],
+        },
+    ]
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
+
+#[test]
+fn closed_form_written_here_reproduces_reference_table() {
+    let k = al7075();
+    for c in cases() {
+        let f = closed_form(&k, c.flutes as f64, c.a, c.c, c.st, c.ex);
+        for i in 0..3 {
+            assert!(
+                (f[i] - c.table[i]).abs() < 0.006,
+                "{} axis {i}: {} vs table {}",
+                c.name,
+                f[i],
+                c.table[i]
+            );
+        }
+    }
+}
+
+fn mean_forces(helix: f64, case: &Case, positions: usize) -> millsim_engine::physics::ForceResult {
+    let tool = flat(10.0, case.flutes, helix);
+    let e = engagement(case.a, 50, &[(case.st, case.ex)]);
+    let mut m = ForceModel::new(&tool, 600, positions).unwrap();
+    m.evaluate(&e, &al7075(), &cond(case.c)).unwrap()
+}
+
+#[test]
+fn mean_forces_match_closed_form_and_table_zero_helix() {
+    let k = al7075();
+    for c in cases() {
+        let r = mean_forces(0.0, &c, 360);
+        let cf = closed_form(&k, c.flutes as f64, c.a, c.c, c.st, c.ex);
+        let got = [r.fx.mean, r.fy.mean, r.fz.mean];
+        for i in 0..3 {
+            assert!(
+                rel(got[i], cf[i]) < 0.005,
+                "{} axis {i}: model {} closed form {}",
+                c.name,
+                got[i],
+                cf[i]
+            );
+            assert!(
+                rel(got[i], c.table[i]) < 0.005,
+                "{} axis {i}: model {} table {}",
+                c.name,
+                got[i],
+                c.table[i]
+            );
+        }
+    }
+}
+
+#[test]
+fn helix_keeps_means_and_lowers_peak() {
+    let k = al7075();
+    for c in cases() {
+        let straight = mean_forces(0.0, &c, 360);
+        let helical = mean_forces(30.0, &c, 360);
+        let cf = closed_form(&k, c.flutes as f64, c.a, c.c, c.st, c.ex);
+        let got = [helical.fx.mean, helical.fy.mean, helical.fz.mean];
+        for i in 0..3 {
+            assert!(
+                rel(got[i], cf[i]) < 0.005,
+                "{} axis {i}: helix model {} closed form {}",
+                c.name,
+                got[i],
+                cf[i]
+            );
+        }
+        assert!(
+            helical.force_xy.peak < straight.force_xy.peak * 0.995,
+            "{}: helix peak {} not below straight peak {}",
+            c.name,
+            helical.force_xy.peak,
+            straight.force_xy.peak
+        );
+    }
+}
+
+#[test]
+fn peak_fxy_matches_reference_table_with_fine_sampling() {
+    for c in cases() {
+        let r = mean_forces(0.0, &c, 3600);
+        assert!(
+            rel(r.force_xy.peak, c.table[3]) < 0.005,
+            "{}: peak |Fxy| {} vs table {}",
+            c.name,
+            r.force_xy.peak,
+            c.table[3]
+        );
+    }
+}
+
+#[test]
+fn torque_and_power_follow_tangential_force() {
+    // Slot: mean total tangential force (N·a/2π)(2·Ktc·c + π·Kte); T = Ft·R; P = Ft·v.
+    let k = al7075();
+    let (n, a, c, d, rpm) = (4.0, 5.0, 0.1, 10.0, 10_000.0);
+    let ft = n * a / TAU * (2.0 * k.ktc * c + PI * k.kte);
+    let r = mean_forces(0.0, &cases()[0], 360);
+    assert!(
+        rel(r.torque.mean, ft * d / 2.0 / 1000.0) < 0.005,
+        "torque {}",
+        r.torque.mean
+    );
+    let v = PI * d * rpm / 60_000.0;
+    assert!(
+        rel(r.power.mean, ft * v) < 0.005,
+        "power {} vs {}",
+        r.power.mean,
+        ft * v
+    );
+    assert!(r.power.peak >= r.power.mean && r.torque.peak >= r.torque.mean);
+    // Largest chip of a slot is the feed per tooth.
+    assert!((r.max_chip_thickness - c).abs() < 1e-9);
+}
+
+#[test]
+fn means_do_not_depend_on_table_grid_or_angular_resolution() {
+    let c = &cases()[3];
+    let tool = flat(10.0, c.flutes, 30.0);
+    let e = engagement(c.a, 37, &[(c.st, c.ex)]);
+    let k = al7075();
+    // Grid matches the engagement (table lookups) vs a different grid (on-the-fly slices).
+    let a = ForceModel::from_table(
+        ToolEdgeTable::with_slice_height(&tool, c.a / 37.0).unwrap(),
+        360,
+    )
+    .unwrap()
+    .evaluate(&e, &k, &cond(c.c))
+    .unwrap();
+    let b = ForceModel::new(&tool, 7, 97)
+        .unwrap()
+        .evaluate(&e, &k, &cond(c.c))
+        .unwrap();
+    let one_shot = cutting_forces(&tool, &e, &k, &cond(c.c), 360).unwrap();
+    assert_eq!(a.fx.mean, one_shot.fx.mean);
+    for (x, y) in [
+        (a.fx.mean, b.fx.mean),
+        (a.fy.mean, b.fy.mean),
+        (a.fz.mean, b.fz.mean),
+    ] {
+        assert!(rel(x, y) < 0.002, "{x} vs {y}");
+    }
+}
+
+/// Rotates v about z by angle g.
+fn rot_z(v: [f64; 3], g: f64) -> [f64; 3] {
+    [
+        v[0] * g.cos() - v[1] * g.sin(),
+        v[0] * g.sin() + v[1] * g.cos(),
+        v[2],
+    ]
+}
+
+#[test]
+fn feed_direction_and_tilted_axis_rotate_into_part_frame() {
+    let c = &cases()[1];
+    let tool = flat(10.0, c.flutes, 30.0);
+    let k = al7075();
+    let base = engagement(c.a, 20, &[(c.st, c.ex)]);
+    let r0 = cutting_forces(&tool, &base, &k, &cond(c.c), 360).unwrap();
+
+    // Feeding along +Y at 3-axis: same tool-frame forces, part frame rotated by +90° about Z.
+    let mut e = base.clone();
+    e.feed_dir = [0.0, 1.0, 0.0];
+    let r = cutting_forces(&tool, &e, &k, &cond(c.c), 360).unwrap();
+    assert!(rel(r.fx.mean, r0.fx.mean) < 1e-12 && rel(r.fy.mean, r0.fy.mean) < 1e-12);
+    let expect = rot_z(r0.mean_force_part, FRAC_PI_2);
+    for i in 0..3 {
+        assert!(
+            (r.mean_force_part[i] - expect[i]).abs() < 1e-9,
+            "{i}: {:?} vs {expect:?}",
+            r.mean_force_part
+        );
+    }
+
+    // 5-axis: axis tilted 20° about part Y, feed perpendicular to it. The tool-frame result
+    // is unchanged; the part-frame vector is the tool-frame one expressed with the tilted axes.
+    let t = 20f64.to_radians();
+    let mut e = base.clone();
+    e.tool_axis = [t.sin(), 0.0, t.cos()];
+    e.feed_dir = [t.cos(), 0.0, -t.sin()];
+    let r = cutting_forces(&tool, &e, &k, &cond(c.c), 360).unwrap();
+    assert!(rel(r.fy.mean, r0.fy.mean) < 1e-12 && rel(r.force.peak, r0.force.peak) < 1e-12);
+    let m = [r0.fx.mean, r0.fy.mean, r0.fz.mean];
+    let expect = [
+        m[0] * t.cos() + m[2] * t.sin(),
+        m[1],
+        -m[0] * t.sin() + m[2] * t.cos(),
+    ];
+    for i in 0..3 {
+        assert!(
+            (r.mean_force_part[i] - expect[i]).abs() < 1e-9,
+            "{i}: {:?} vs {expect:?}",
+            r.mean_force_part
+        );
+    }
+
+    // Ramping down at 10° with the axis vertical: the feed's downward part thickens the chip
+    // under a ball (h = c_h·sin φ·sin κ − c_v·cos κ), so the axial force grows.
+    let ball = Tool {
+        helix_deg: 30.0,
+        ..Tool::ball(10.0, 2)
+    };
+    let eb = engagement(1.0, 20, &[(0.0, PI)]);
+    let level = cutting_forces(&ball, &eb, &k, &cond(0.1), 360).unwrap();
+    let mut ramp = eb.clone();
+    let g = 10f64.to_radians();
+    ramp.feed_dir = [g.cos(), 0.0, -g.sin()];
+    let down = cutting_forces(&ball, &ramp, &k, &cond(0.1), 360).unwrap();
+    assert!(down.fz.mean > level.fz.mean && down.max_chip_thickness > level.max_chip_thickness);
+}
+
+/// Independent integration of a ball end mill's edge: parametrized by the arc angle κ
+/// (not by height), each edge element of length R·dκ, time-averaged on its own angular grid.
+fn ball_reference(
+    k: &CuttingCoefficients,
+    r0: f64,
+    flutes: usize,
+    helix_deg: f64,
+    depth: f64,
+    c: f64,
+    kappa_steps: usize,
+    theta_steps: usize,
+) -> ([f64; 3], f64, f64) {
+    let kmax = ((r0 - depth) / r0).acos();
+    let dk = kmax / kappa_steps as f64;
+    let tanb = helix_deg.to_radians().tan();
+    let mut mean = [0.0; 3];
+    let mut torque = 0.0;
+    let mut peak = 0.0f64;
+    for t in 0..theta_steps {
+        let theta = TAU * t as f64 / theta_steps as f64;
+        let mut f = [0.0; 3];
+        for j in 0..flutes {
+            for i in 0..kappa_steps {
+                let kap = (i as f64 + 0.5) * dk;
+                let z = r0 * (1.0 - kap.cos());
+                let r = r0 * kap.sin();
+                let phi = (theta - TAU * j as f64 / flutes as f64 - z * tanb / r0).rem_euclid(TAU);
+                if phi > PI {
+                    continue;
+                }
+                let h = c * phi.sin() * kap.sin();
+                let len = r0 * dk;
+                let ft = (k.ktc * h + k.kte) * len;
+                let fr = (k.krc * h + k.kre) * len;
+                let fa = (k.kac * h + k.kae) * len;
+                // Unit vectors: cutting velocity (cos φ, −sin φ, 0), outward normal
+                // (sin κ sin φ, sin κ cos φ, −cos κ), edge tangent (cos κ sin φ, cos κ cos φ, sin κ).
+                let vel = [phi.cos(), -phi.sin(), 0.0];
+                let nrm = [kap.sin() * phi.sin(), kap.sin() * phi.cos(), -kap.cos()];
+                let tan = [kap.cos() * phi.sin(), kap.cos() * phi.cos(), kap.sin()];
+                for a in 0..3 {
+                    f[a] += -ft * vel[a] - fr * nrm[a] + fa * tan[a];
+                }
+                torque += ft * r;
+            }
+        }
+        for a in 0..3 {
+            mean[a] += f[a] / theta_steps as f64;
+        }
+        peak = peak.max((f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt());
+    }
+    (mean, torque / theta_steps as f64 / 1000.0, peak)
+}
+
+#[test]
+fn ball_end_small_depth_matches_independent_integration() {
+    let k = Material::builtin("TC6").unwrap().coefficients;
+    for &(depth, helix) in &[(0.3, 30.0), (0.8, 0.0), (0.8, 30.0)] {
+        let tool = Tool {
+            helix_deg: helix,
+            ..Tool::ball(10.0, 2)
+        };
+        let e = engagement(depth, 25, &[(0.0, PI)]);
+        let r = cutting_forces(&tool, &e, &k, &cond(0.08), 360).unwrap();
+        let (mean, torque, peak) = ball_reference(&k, 5.0, 2, helix, depth, 0.08, 4000, 2880);
+        let got = [r.fx.mean, r.fy.mean, r.fz.mean];
+        for a in 0..3 {
+            assert!(
+                rel(got[a], mean[a]) < 0.01,
+                "depth {depth} helix {helix} axis {a}: model {} reference {}",
+                got[a],
+                mean[a]
+            );
+        }
+        assert!(
+            rel(r.torque.mean, torque) < 0.01,
+            "torque {} vs {torque}",
+            r.torque.mean
+        );
+        assert!(
+            rel(r.force.peak, peak) < 0.01,
+            "depth {depth} helix {helix}: peak {} vs {peak}",
+            r.force.peak
+        );
+    }
+}
+
+/// Exact radius of each tooth about the spindle axis: the tool axis is offset by ρ at
+/// angle λ in the rotating frame and tooth j sits at −j·2π/N.
+fn tooth_radii(r: f64, n: usize, rho: f64, lambda: f64) -> Vec<f64> {
+    (0..n)
+        .map(|j| {
+            let a = -(j as f64) * TAU / n as f64;
+            let p = [
+                rho * lambda.cos() + r * a.cos(),
+                rho * lambda.sin() + r * a.sin(),
+            ];
+            (p[0] * p[0] + p[1] * p[1]).sqrt()
+        })
+        .collect()
+}
+
+#[test]
+fn runout_chips_and_per_tooth_peaks_follow_geometry() {
+    let k = al7075();
+    let (n, c) = (4usize, 0.05);
+    let e = engagement(3.0, 10, &[(0.0, PI)]);
+    // Zero runout: all teeth alike.
+    let tool = flat(10.0, n as u32, 30.0);
+    let r = cutting_forces(&tool, &e, &k, &cond(c), 360).unwrap();
+    let p0 = r.per_tooth[0].peak_force;
+    for t in &r.per_tooth {
+        assert!(rel(t.peak_force, p0) < 1e-9, "{:?}", r.per_tooth);
+        // Sampled at whole degrees around φ = 90°: within c·(1 − cos 0.5°).
+        assert!((t.max_chip_thickness - c).abs() < 1e-5);
+    }
+
+    for &(rho, lambda_deg) in &[(0.01, 0.0), (0.02, 60.0), (0.06, 200.0)] {
+        let tool = Tool {
+            runout: Runout {
+                offset: rho,
+                angle_deg: lambda_deg,
+            },
+            ..flat(10.0, n as u32, 30.0)
+        };
+        let r = cutting_forces(&tool, &e, &k, &cond(c), 360).unwrap();
+        let radii = tooth_radii(5.0, n, rho, lambda_deg.to_radians());
+        // Largest chip of tooth j (at φ = 90°): it cuts what the last tooth that swept further
+        // out left, m teeth earlier: min over m of m·c + r_j − r_{j−m}, never negative.
+        let expect: Vec<f64> = (0..n)
+            .map(|j| {
+                (1..=n)
+                    .map(|m| m as f64 * c + radii[j] - radii[(j + n - m % n) % n])
+                    .fold(f64::INFINITY, f64::min)
+                    .max(0.0)
+            })
+            .collect();
+        // First-order radii in the model: allow the second-order term ρ²/R.
+        let tol = 2e-5 + rho * rho / 5.0;
+        for j in 0..n {
+            assert!(
+                (r.per_tooth[j].max_chip_thickness - expect[j]).abs() < tol,
+                "rho {rho} λ {lambda_deg} tooth {}: {} vs {}",
+                j + 1,
+                r.per_tooth[j].max_chip_thickness,
+                expect[j]
+            );
+        }
+        // A tooth that sweeps a larger radius than the one before it takes a chip larger
+        // than the feed, a shorter one a smaller chip; peak forces are ordered as the chips.
+        for j in 0..n {
+            let step = radii[j] - radii[(j + n - 1) % n];
+            let chip = r.per_tooth[j].max_chip_thickness;
+            if step > 1e-4 {
+                assert!(
+                    chip > c,
+                    "tooth {} longer than its predecessor but chip {chip}",
+                    j + 1
+                );
+            } else if step < -1e-4 {
+                assert!(
+                    chip < c,
+                    "tooth {} shorter than its predecessor but chip {chip}",
+                    j + 1
+                );
+            }
+        }
+        for a in 0..n {
+            for b in 0..n {
+                if expect[a] > expect[b] + 1e-4 {
+                    assert!(
+                        r.per_tooth[a].peak_force > r.per_tooth[b].peak_force,
+                        "{:?}",
+                        r.per_tooth
+                    );
+                }
+            }
+        }
+        // While every tooth cuts, runout only redistributes the feed: the chips add up to N·c.
+        if expect.iter().all(|&h| h > 0.0) && rho < c {
+            let total: f64 = r.per_tooth.iter().map(|t| t.max_chip_thickness).sum();
+            assert!((total - n as f64 * c).abs() < 1e-4, "total chip {total}");
+        }
+    }
+    // Runout larger than the feed: the shortest tooth cuts nothing at all.
+    let tool = Tool {
+        runout: Runout {
+            offset: 0.06,
+            angle_deg: 0.0,
+        },
+        ..flat(10.0, 2, 0.0)
+    };
+    let r = cutting_forces(&tool, &e, &k, &cond(c), 360).unwrap();
+    assert!(r.per_tooth[1].max_chip_thickness < 1e-9 && r.per_tooth[1].peak_force < 1e-9);
+    assert!((r.per_tooth[0].max_chip_thickness - 2.0 * c).abs() < 1e-9);
+}
+
+#[test]
+fn air_and_bad_inputs() {
+    let tool = flat(10.0, 4, 30.0);
+    let k = al7075();
+    let air = Engagement::default();
+    let r = cutting_forces(&tool, &air, &k, &cond(0.1), 360).unwrap();
+    assert!(r.is_air() && r.force.peak == 0.0 && r.samples.len() == 360);
+
+    let mut e = engagement(2.0, 4, &[(0.0, PI)]);
+    e.slices[2].arcs[0].1 = f64::NAN;
+    let err = cutting_forces(&tool, &e, &k, &cond(0.1), 360).unwrap_err();
+    assert_eq!(err.field(), "slices[2].arcs[0]");
+    let mut e = engagement(2.0, 4, &[(0.0, PI)]);
+    e.feed_dir = [0.0; 3];
+    assert_eq!(
+        cutting_forces(&tool, &e, &k, &cond(0.1), 360)
+            .unwrap_err()
+            .field(),
+        "feed_dir"
+    );
+    let e = engagement(2.0, 4, &[(0.0, PI)]);
+    let bad = CuttingConditions {
+        spindle_rpm: 0.0,
+        feed_per_tooth: 0.1,
+    };
+    assert_eq!(
+        cutting_forces(&tool, &e, &k, &bad, 360)
+            .unwrap_err()
+            .field(),
+        "spindle_rpm"
+    );
+    let kk = CuttingCoefficients {
+        kre: f64::INFINITY,
+        ..k
+    };
+    assert!(matches!(
+        cutting_forces(&tool, &e, &kk, &cond(0.1), 360),
+        Err(PhysicsError::NotFinite { .. })
+    ));
+    // Above the flutes there is no edge: those slices are skipped and counted.
+    let short = Tool {
+        flute_length: 1.0,
+        ..flat(10.0, 4, 30.0)
+    };
+    let r = cutting_forces(&short, &e, &k, &cond(0.1), 360).unwrap();
+    assert_eq!((r.engaged_slices, r.skipped_slices), (2, 2));
+}
+
+#[test]
+fn block_aggregate_keeps_extremes_and_bounds_the_trace() {
+    let tool = flat(10.0, 4, 30.0);
+    let k = al7075();
+    let mut m = ForceModel::new(&tool, 60, 180).unwrap().keep_samples(false);
+    let mut block = BlockForces::new(16);
+    let mut peak = 0.0f64;
+    for i in 0..100 {
+        let depth = 0.5 + (i % 17) as f64 * 0.2;
+        let r = m
+            .evaluate(&engagement(depth, 10, &[(FRAC_PI_2, PI)]), &k, &cond(0.1))
+            .unwrap();
+        assert!(r.samples.is_empty());
+        peak = peak.max(r.force.peak);
+        block.push(&r);
+    }
+    let block = block.finish();
+    assert_eq!(block.steps, 100);
+    assert!(block.trace.len() <= 16 && block.trace.len() >= 8);
+    assert_eq!(block.trace.iter().map(|p| p.steps).sum::<usize>(), 100);
+    assert_eq!(block.force.peak, peak);
+    assert_eq!(
+        block.trace.iter().map(|p| p.peak_force).fold(0.0, f64::max),
+        peak
+    );
+}
