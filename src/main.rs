@@ -1,1 +1,332 @@
-fn main(){}
+//! millsim: the virtual-machining service and its command line.
+
+mod config;
+mod http;
+mod metrics;
+mod queue;
+mod runner;
+mod store;
+mod validate;
+
+use std::io::Write;
+use std::net::SocketAddr;
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use tokio::sync::{watch, Notify};
+
+use config::{Limits, QueueConfig};
+use http::auth::{hash_key, hex, Auth};
+use millsim_engine::nc;
+
+#[derive(Parser)]
+#[command(name = "millsim", version, about = "Virtual machining: material removal, cutting forces, feed optimization")]
+struct Cli {
+    /// Log format on stderr.
+    #[arg(long, global = true, env = "MILLSIM_LOG_FORMAT", value_enum, default_value = "text")]
+    log_format: LogFormat,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum LogFormat {
+    Text,
+    Json,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the HTTP API and the workers.
+    Serve(ServeArgs),
+    /// Run workers only, against the same database as a `serve`.
+    Worker(WorkerArgs),
+    /// Interpret an NC program (G-code or APT/CLS) and print one JSON object per move.
+    Interpret(InterpretArgs),
+    /// Make a new API key: prints the key, and the line to add to the key file.
+    ApiKey {
+        /// Name of the key's owner (a CAM station, an MES, ...).
+        name: String,
+    },
+}
+
+#[derive(clap::Args)]
+struct QueueArgs {
+    /// SQLite database URL; created and migrated if missing.
+    #[arg(long, env = "MILLSIM_DATABASE", default_value = "sqlite://millsim.db")]
+    database: String,
+    /// Worker count (engine threads); default: the number of cores.
+    #[arg(long, env = "MILLSIM_WORKERS")]
+    workers: Option<usize>,
+    /// Lease a worker holds on a job between heartbeats, seconds.
+    #[arg(long, env = "MILLSIM_LEASE_SECS", default_value_t = 30.0)]
+    lease_secs: f64,
+    /// Attempts before a job whose worker keeps dying is failed.
+    #[arg(long, env = "MILLSIM_MAX_ATTEMPTS", default_value_t = 3)]
+    max_attempts: i64,
+    /// On SIGTERM/SIGINT, how long running jobs may finish before their leases are given back, seconds.
+    #[arg(long, env = "MILLSIM_SHUTDOWN_GRACE_SECS", default_value_t = 30.0)]
+    shutdown_grace_secs: f64,
+}
+
+impl QueueArgs {
+    fn config(&self, default_workers: usize) -> Result<QueueConfig, String> {
+        if !(self.lease_secs >= 0.2 && self.lease_secs <= 3600.0) {
+            return Err(format!("--lease-secs must be in [0.2, 3600], got {}", self.lease_secs));
+        }
+        if !(1..=100).contains(&self.max_attempts) {
+            return Err(format!("--max-attempts must be in [1, 100], got {}", self.max_attempts));
+        }
+        if !(self.shutdown_grace_secs >= 0.0 && self.shutdown_grace_secs <= 86_400.0) {
+            return Err(format!("--shutdown-grace-secs must be in [0, 86400], got {}", self.shutdown_grace_secs));
+        }
+        Ok(QueueConfig {
+            workers: self.workers.unwrap_or(default_workers),
+            lease_ms: (self.lease_secs * 1000.0) as i64,
+            max_attempts: self.max_attempts,
+            poll_ms: 250,
+            shutdown_grace_ms: (self.shutdown_grace_secs * 1000.0) as u64,
+        })
+    }
+}
+
+#[derive(clap::Args)]
+struct ServeArgs {
+    /// Address to listen on. Non-loopback addresses need --api-key-file or --insecure-no-auth.
+    #[arg(long, env = "MILLSIM_BIND", default_value = "127.0.0.1:8080")]
+    bind: SocketAddr,
+    #[command(flatten)]
+    queue: QueueArgs,
+    /// File of API keys, one `NAME SHA256HEX` per line (see `millsim api-key`).
+    #[arg(long, env = "MILLSIM_API_KEY_FILE")]
+    api_key_file: Option<std::path::PathBuf>,
+    /// Serve a non-loopback address without API keys (trusted networks only).
+    #[arg(long)]
+    insecure_no_auth: bool,
+    /// Largest STL upload, bytes.
+    #[arg(long, env = "MILLSIM_MAX_UPLOAD_BYTES", default_value_t = 256 << 20)]
+    max_upload_bytes: u64,
+}
+
+#[derive(clap::Args)]
+struct WorkerArgs {
+    #[command(flatten)]
+    queue: QueueArgs,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum DialectArg {
+    Auto,
+    Fanuc,
+    Linuxcnc,
+}
+
+#[derive(clap::Args)]
+struct InterpretArgs {
+    /// The NC program (G-code, or APT/CLS).
+    file: std::path::PathBuf,
+    #[arg(long, value_enum, default_value = "auto")]
+    dialect: DialectArg,
+    /// LinuxCNC tool table for G43 tool lengths.
+    #[arg(long)]
+    tool_table: Option<std::path::PathBuf>,
+    /// Fanuc: length words without a decimal point count in thousandths of a mm.
+    #[arg(long)]
+    fanuc_implied_decimal: bool,
+}
+
+fn init_logs(format: LogFormat) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info,sqlx=warn,tower_http=info".into());
+    let builder = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr);
+    match format {
+        LogFormat::Json => builder.json().init(),
+        LogFormat::Text => builder.init(),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Interpret(args) => interpret(args),
+        Command::ApiKey { name } => {
+            if name.is_empty() || name.contains(char::is_whitespace) {
+                eprintln!("millsim api-key: the name must be one word");
+                return ExitCode::from(2);
+            }
+            let key = format!("ms_{}{}", uuid::Uuid::new_v4().simple(), uuid::Uuid::new_v4().simple());
+            println!("key: {key}");
+            println!("key file line: {name} {}", hex(&hash_key(&key)));
+            ExitCode::SUCCESS
+        }
+        Command::Serve(args) => {
+            init_logs(cli.log_format);
+            run_async(serve(args))
+        }
+        Command::Worker(args) => {
+            init_logs(cli.log_format);
+            run_async(worker(args))
+        }
+    }
+}
+
+fn run_async(f: impl std::future::Future<Output = Result<(), String>>) -> ExitCode {
+    let rt = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("millsim: cannot start the runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match rt.block_on(f) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("millsim: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Turns true on SIGTERM or SIGINT.
+fn shutdown_signal() -> watch::Receiver<bool> {
+    let (tx, rx) = watch::channel(false);
+    tokio::spawn(async move {
+        let ctrl_c = tokio::signal::ctrl_c();
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).expect("SIGTERM handler");
+        tokio::select! {
+            _ = ctrl_c => {}
+            _ = term.recv() => {}
+        }
+        tracing::info!("shutdown requested: no new jobs are claimed; running jobs finish or are given back");
+        let _ = tx.send(true);
+    });
+    rx
+}
+
+fn cores() -> usize {
+    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+}
+
+async fn serve(args: ServeArgs) -> Result<(), String> {
+    let queue = args.queue.config(cores())?;
+    let auth = match &args.api_key_file {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+            Auth::from_key_file(&path.display().to_string(), &text).map_err(|e| e.to_string())?
+        }
+        None => Auth::disabled(),
+    };
+    if !args.bind.ip().is_loopback() && !auth.enabled() && !args.insecure_no_auth {
+        return Err(format!(
+            "refusing to serve {} without API keys: pass --api-key-file FILE (see `millsim api-key`), or --insecure-no-auth on a trusted network",
+            args.bind
+        ));
+    }
+    let db = store::Db::open(&args.queue.database).await.map_err(|e| format!("{}: {e}", args.queue.database))?;
+    let metrics = Arc::new(metrics::Metrics::default());
+    let wake = Arc::new(Notify::new());
+    let limits = Limits { max_stl_bytes: args.max_upload_bytes, ..Limits::default() };
+    let state = http::AppState {
+        db: db.clone(),
+        limits: Arc::new(limits),
+        metrics: metrics.clone(),
+        auth: Arc::new(auth),
+        job_submitted: wake.clone(),
+        max_attempts: queue.max_attempts,
+    };
+    let listener = tokio::net::TcpListener::bind(args.bind).await.map_err(|e| format!("cannot bind {}: {e}", args.bind))?;
+    let addr = listener.local_addr().map_err(|e| e.to_string())?;
+    let shutdown = shutdown_signal();
+    let workers = tokio::spawn(queue::run_workers(db, queue, metrics, wake, shutdown.clone()));
+    tracing::info!(%addr, "listening");
+    // Tests and scripts read the bound address (the port may have been 0) from stdout.
+    println!("millsim listening on http://{addr}");
+    let _ = std::io::stdout().flush();
+    let mut stop = shutdown.clone();
+    axum::serve(listener, http::router(state))
+        .with_graceful_shutdown(async move {
+            let _ = stop.wait_for(|v| *v).await;
+        })
+        .await
+        .map_err(|e| format!("server: {e}"))?;
+    let _ = workers.await;
+    Ok(())
+}
+
+async fn worker(args: WorkerArgs) -> Result<(), String> {
+    let queue = args.queue.config(cores())?;
+    if queue.workers == 0 {
+        return Err("--workers must be at least 1 for `millsim worker`".into());
+    }
+    let db = store::Db::open(&args.queue.database).await.map_err(|e| format!("{}: {e}", args.queue.database))?;
+    let shutdown = shutdown_signal();
+    queue::run_workers(db, queue, Arc::new(metrics::Metrics::default()), Arc::new(Notify::new()), shutdown).await;
+    Ok(())
+}
+
+fn interpret(args: InterpretArgs) -> ExitCode {
+    let file = args.file.display().to_string();
+    let text = match std::fs::read(&args.file) {
+        Ok(bytes) => match String::from_utf8(bytes) {
+            Ok(t) => t,
+            Err(e) => {
+                eprintln!("{file}: not UTF-8 text (byte {})", e.utf8_error().valid_up_to());
+                return ExitCode::from(2);
+            }
+        },
+        Err(e) => {
+            eprintln!("{file}: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let mut options = nc::InterpretOptions {
+        dialect: match args.dialect {
+            DialectArg::Auto => nc::Dialect::Auto,
+            DialectArg::Fanuc => nc::Dialect::Fanuc,
+            DialectArg::Linuxcnc => nc::Dialect::LinuxCnc,
+        },
+        fanuc_implied_decimal: args.fanuc_implied_decimal,
+        ..Default::default()
+    };
+    if let Some(path) = &args.tool_table {
+        let table_file = path.display().to_string();
+        let parsed = std::fs::read_to_string(path).map_err(|e| vec![format!("{table_file}: {e}")]).and_then(|t| {
+            nc::parse_tool_table(&t).map_err(|d| d.0.iter().map(|e| format!("{table_file}:{e}")).collect())
+        });
+        match parsed {
+            Ok(t) => options.tool_table = t,
+            Err(lines) => {
+                for l in lines {
+                    eprintln!("{l}");
+                }
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    let result =
+        if validate::looks_like_cls(&text) { millsim_engine::cl::read_cls(&text) } else { nc::interpret(&text, &options) };
+    match result {
+        Ok(out) => {
+            for w in &out.warnings {
+                eprintln!("{file}:{w} (warning)");
+            }
+            let stdout = std::io::stdout();
+            let mut w = std::io::BufWriter::new(stdout.lock());
+            for m in &out.moves {
+                if serde_json::to_writer(&mut w, m).is_err() || w.write_all(b"\n").is_err() {
+                    return ExitCode::FAILURE;
+                }
+            }
+            if w.flush().is_err() {
+                return ExitCode::FAILURE;
+            }
+            ExitCode::SUCCESS
+        }
+        Err(diags) => {
+            for d in &diags.0 {
+                eprintln!("{file}:{d}");
+            }
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -8,6 +8,7 @@ pub mod cl;
 pub mod engagement;
 pub mod geometry;
 pub mod job;
+pub mod machine;
 pub mod nc;
 pub mod physics;
 pub mod tool;

@@ -1,0 +1,152 @@
+//! Machine definitions: what the cycle-time model, the optimizer's limits and the
+//! kinematics need to know about a machine tool.
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kinematics {
+    Xyz,
+    XyzA,
+    XyzB,
+    XyzAc,
+    XyzBc,
+    HeadTable,
+}
+
+/// A machine tool. Rates in mm/min, accelerations in mm/s², speeds in rev/min, power in
+/// W, torque in N·m, force in N, times in s.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Machine {
+    pub name: String,
+    #[serde(default = "default_kinematics")]
+    pub kinematics: Kinematics,
+    pub rapid_rate: f64,
+    pub max_feed: f64,
+    /// Per-axis acceleration X, Y, Z.
+    pub acceleration: [f64; 3],
+    #[serde(default)]
+    pub jerk: Option<[f64; 3]>,
+    pub spindle_min_rpm: f64,
+    pub spindle_max_rpm: f64,
+    pub rated_power: f64,
+    #[serde(default = "default_efficiency")]
+    pub efficiency: f64,
+    #[serde(default)]
+    pub torque_limit: Option<f64>,
+    #[serde(default)]
+    pub axis_thrust_limit: Option<f64>,
+    #[serde(default)]
+    pub tool_change_time: f64,
+    /// Travel limits [min, max] per axis X, Y, Z, mm.
+    #[serde(default)]
+    pub travel: Option<[[f64; 2]; 3]>,
+}
+
+fn default_kinematics() -> Kinematics {
+    Kinematics::Xyz
+}
+
+fn default_efficiency() -> f64 {
+    0.8
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("machine field `{field}`: {message}")]
+pub struct MachineError {
+    pub field: String,
+    pub message: String,
+}
+
+impl Machine {
+    /// A generic 3-axis vertical machining centre (a sensible default, not a specific model).
+    pub fn generic() -> Machine {
+        Machine {
+            name: "generic 3-axis VMC".into(),
+            kinematics: Kinematics::Xyz,
+            rapid_rate: 24_000.0,
+            max_feed: 10_000.0,
+            acceleration: [2_000.0, 2_000.0, 1_500.0],
+            jerk: None,
+            spindle_min_rpm: 100.0,
+            spindle_max_rpm: 12_000.0,
+            rated_power: 11_000.0,
+            efficiency: 0.8,
+            torque_limit: Some(70.0),
+            axis_thrust_limit: Some(5_000.0),
+            tool_change_time: 4.0,
+            travel: None,
+        }
+    }
+
+    /// Checks that the numbers describe a machine that can exist; names the field.
+    pub fn validate(&self) -> Result<(), MachineError> {
+        let err = |field: &str, message: String| Err(MachineError { field: field.to_string(), message });
+        let positive = [
+            ("rapid_rate", self.rapid_rate),
+            ("max_feed", self.max_feed),
+            ("acceleration[0]", self.acceleration[0]),
+            ("acceleration[1]", self.acceleration[1]),
+            ("acceleration[2]", self.acceleration[2]),
+            ("spindle_max_rpm", self.spindle_max_rpm),
+            ("rated_power", self.rated_power),
+        ];
+        for (field, v) in positive {
+            if !v.is_finite() || v <= 0.0 {
+                return err(field, format!("must be a positive number, got {v}"));
+            }
+        }
+        if self.name.trim().is_empty() {
+            return err("name", "must not be empty".into());
+        }
+        if !self.spindle_min_rpm.is_finite() || self.spindle_min_rpm < 0.0 || self.spindle_min_rpm > self.spindle_max_rpm {
+            return err("spindle_min_rpm", "must be in [0, spindle_max_rpm]".into());
+        }
+        if self.max_feed > self.rapid_rate * 2.0 {
+            return err("max_feed", format!("{} mm/min is more than twice the rapid rate", self.max_feed));
+        }
+        if !(self.efficiency > 0.0 && self.efficiency <= 1.0) {
+            return err("efficiency", format!("must be in (0, 1], got {}", self.efficiency));
+        }
+        for (field, v) in [("torque_limit", self.torque_limit), ("axis_thrust_limit", self.axis_thrust_limit)] {
+            if let Some(v) = v {
+                if !v.is_finite() || v <= 0.0 {
+                    return err(field, format!("must be a positive number, got {v}"));
+                }
+            }
+        }
+        if let Some(j) = self.jerk {
+            if j.iter().any(|v| !v.is_finite() || *v <= 0.0) {
+                return err("jerk", "every axis must be a positive number".into());
+            }
+        }
+        if !self.tool_change_time.is_finite() || self.tool_change_time < 0.0 {
+            return err("tool_change_time", "must be a non-negative number".into());
+        }
+        if let Some(t) = self.travel {
+            for (i, [lo, hi]) in t.iter().enumerate() {
+                if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                    return err(&format!("travel[{i}]"), "must be [min, max] with min < max".into());
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn generic_machine_is_valid_and_errors_name_fields() {
+        assert!(Machine::generic().validate().is_ok());
+        let mut m = Machine::generic();
+        m.acceleration[1] = 0.0;
+        assert_eq!(m.validate().unwrap_err().field, "acceleration[1]");
+        let mut m = Machine::generic();
+        m.efficiency = 1.5;
+        assert_eq!(m.validate().unwrap_err().field, "efficiency");
+    }
+}

@@ -1,0 +1,28 @@
+//! Limits and timing the service runs with.
+
+/// Per-route body limits and timeouts.
+#[derive(Clone, Debug)]
+pub struct Limits {
+    pub max_stl_bytes: u64,
+    pub max_program_bytes: u64,
+    pub max_json_bytes: u64,
+    pub upload_timeout_secs: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits { max_stl_bytes: 256 << 20, max_program_bytes: 64 << 20, max_json_bytes: 1 << 20, upload_timeout_secs: 600 }
+    }
+}
+
+/// How workers hold and renew jobs.
+#[derive(Clone, Debug)]
+pub struct QueueConfig {
+    pub workers: usize,
+    pub lease_ms: i64,
+    pub max_attempts: i64,
+    /// How often an idle worker looks for work another process submitted.
+    pub poll_ms: u64,
+    /// On shutdown, how long running jobs may take to finish before their leases are given back.
+    pub shutdown_grace_ms: u64,
+}

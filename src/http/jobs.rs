@@ -1,0 +1,410 @@
+//! Jobs: submission (idempotent), status, cancellation, progress events, results.
+
+use std::convert::Infallible;
+use std::time::Duration;
+
+use axum::body::Body;
+use axum::extract::{Path, Request, State};
+use axum::http::{header, HeaderMap, StatusCode};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use futures_util::stream::{self, Stream};
+use serde::Deserialize;
+use serde_json::{json, Map, Value};
+use sha2::{Digest, Sha256};
+
+use super::auth::hex;
+use super::body::read_limited;
+use super::problem::{parse_json, ApiError};
+use super::{parse_query, AppState, Owner, PageQuery};
+use crate::runner;
+use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
+use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
+use crate::validate;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JobRequest {
+    kind: String,
+    #[serde(default)]
+    inputs: Map<String, Value>,
+    #[serde(default)]
+    options: Option<Value>,
+}
+
+fn job_response(status: StatusCode, job: &JobRecord, replayed: bool) -> Response {
+    let mut res = (status, [(header::LOCATION, format!("/v1/jobs/{}", job.id))], Json(job)).into_response();
+    if replayed {
+        res.headers_mut().insert("idempotent-replayed", header::HeaderValue::from_static("true"));
+    }
+    res
+}
+
+/// Checks the options of a kind at submission, so a bad option is a 422 now rather
+/// than a failed job later.
+fn check_options(kind: &str, options: &Value) -> Result<(), ApiError> {
+    if kind == "interpret" {
+        let o: runner::InterpretOptions = parse_json(options.to_string().as_bytes()).map_err(|mut e| {
+            let field = e.extensions.get("field").and_then(Value::as_str).unwrap_or("").to_string();
+            e.extensions.insert("field".into(), Value::String(format!("options.{field}")));
+            e
+        })?;
+        o.engine_options().map_err(|d| {
+            let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
+            ApiError::invalid_field("options.tool_table", format!("tool table: {first}"))
+        })?;
+    }
+    Ok(())
+}
+
+pub async fn create(State(state): State<AppState>, Owner(owner): Owner, headers: HeaderMap, req: Request) -> Result<Response, ApiError> {
+    let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes).await?;
+    let request: JobRequest = parse_json(&bytes)?;
+    let key = match headers.get("idempotency-key") {
+        None => None,
+        Some(v) => {
+            let k = v.to_str().map_err(|_| ApiError::bad_request("Idempotency-Key must be visible ASCII"))?.trim();
+            if k.is_empty() || k.len() > 255 {
+                return Err(ApiError::bad_request("Idempotency-Key must be 1 to 255 characters"));
+            }
+            Some(k.to_string())
+        }
+    };
+    if !runner::KNOWN_KINDS.contains(&request.kind.as_str()) {
+        return Err(ApiError::invalid_field("kind", format!("unknown job kind `{}`; one of: {}", request.kind, runner::KNOWN_KINDS.join(", "))));
+    }
+    if !runner::is_supported(&request.kind) {
+        return Err(ApiError::not_supported(format!("job kind `{}` is not supported yet by this server", request.kind)).with("field", "kind"));
+    }
+    let options = request.options.clone().unwrap_or_else(|| json!({}));
+    if !options.is_object() {
+        return Err(ApiError::invalid_field("options", "`options` must be a JSON object"));
+    }
+    check_options(&request.kind, &options)?;
+
+    let mut inputs = Map::new();
+    let mut inline = Vec::new();
+    let required = runner::required_inputs(&request.kind);
+    for name in request.inputs.keys() {
+        if !required.iter().any(|(n, _)| n == name) {
+            return Err(ApiError::invalid_field(format!("inputs.{name}"), format!("a `{}` job takes no input `{name}`", request.kind)));
+        }
+    }
+    for (name, kind) in required {
+        let field = format!("inputs.{name}");
+        match request.inputs.get(*name) {
+            None => return Err(ApiError::invalid_field(field, format!("a `{}` job needs input `{name}`", request.kind))),
+            Some(Value::String(id)) => {
+                if state.db.get_resource(&owner, *kind, id).await?.is_none() {
+                    return Err(ApiError::invalid_field(field, format!("no {} with id `{id}`", kind.as_str())).with("id", id.clone()));
+                }
+                inputs.insert(name.to_string(), Value::String(id.clone()));
+            }
+            Some(Value::Object(o)) if *kind == ResourceKind::Program => {
+                let content = o.get("content").and_then(Value::as_str).ok_or_else(|| {
+                    ApiError::invalid_field(format!("{field}.content"), "an inline program is {\"name\": ..., \"content\": \"G-code text\"}")
+                })?;
+                let file = o.get("name").and_then(Value::as_str).unwrap_or("program.nc").to_string();
+                let checked = validate::program(content.as_bytes(), &file)?;
+                inline.push(InlineInput {
+                    input: name.to_string(),
+                    kind: *kind,
+                    name: Some(file),
+                    media_type: checked.media_type,
+                    summary: checked.summary,
+                    content: content.as_bytes().to_vec(),
+                });
+            }
+            Some(_) => {
+                return Err(ApiError::invalid_field(field, format!("input `{name}` must be the id of a {} (a string)", kind.as_str())))
+            }
+        }
+    }
+    let request_hash = hex(&Sha256::digest(&bytes));
+    let outcome = state
+        .db
+        .create_job(
+            &owner,
+            NewJob {
+                kind: request.kind,
+                inputs,
+                inline,
+                options,
+                idempotency_key: key.clone(),
+                request_hash,
+                max_attempts: state.max_attempts,
+            },
+        )
+        .await?;
+    match outcome {
+        CreateOutcome::Created(job) => {
+            state.job_submitted.notify_one();
+            Ok(job_response(StatusCode::ACCEPTED, &job, false))
+        }
+        CreateOutcome::Replayed(job) => Ok(job_response(StatusCode::ACCEPTED, &job, true)),
+        CreateOutcome::KeyConflict(job) => Err(ApiError::conflict(format!(
+            "Idempotency-Key `{}` was used for another request (job {}); use a new key for a new job",
+            key.unwrap_or_default(),
+            job.id
+        ))
+        .with("job_id", job.id)),
+    }
+}
+
+async fn find(db: &Db, owner: &str, id: &str) -> Result<JobRecord, ApiError> {
+    db.get_job(owner, id).await?.ok_or_else(|| ApiError::not_found("job", id))
+}
+
+pub async fn get_one(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Json<JobRecord>, ApiError> {
+    Ok(Json(find(&state.db, &owner, &id).await?))
+}
+
+pub async fn list(State(state): State<AppState>, Owner(owner): Owner, req: Request) -> Result<Response, ApiError> {
+    let q: PageQuery = parse_query(req.uri().query())?;
+    let status = match &q.status {
+        None => None,
+        Some(s) => Some(JobStatus::parse(s).ok_or_else(|| {
+            ApiError::invalid_field("status", format!("unknown status `{s}`; one of: queued, running, succeeded, failed, cancelled"))
+        })?),
+    };
+    if let Some(k) = &q.kind {
+        if !runner::KNOWN_KINDS.contains(&k.as_str()) {
+            return Err(ApiError::invalid_field("kind", format!("unknown job kind `{k}`; one of: {}", runner::KNOWN_KINDS.join(", "))));
+        }
+    }
+    let (items, next) = state.db.list_jobs(&owner, status, q.kind.as_deref(), q.cursor.as_deref(), q.limit()?).await?;
+    Ok(Json(json!({ "items": items, "next_cursor": next })).into_response())
+}
+
+pub async fn delete(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+    let job = find(&state.db, &owner, &id).await?;
+    if !job.status.is_terminal() {
+        return Err(ApiError::conflict(format!("job {id} is {}: cancel it first", job.status.as_str())).with("status", job.status.as_str()));
+    }
+    state.db.delete_job(&owner, &id).await?;
+    Ok(StatusCode::NO_CONTENT.into_response())
+}
+
+pub async fn cancel(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+    let before = find(&state.db, &owner, &id).await?;
+    if before.status.is_terminal() {
+        return Err(ApiError::conflict(format!("job {id} already {}", before.status.as_str())).with("status", before.status.as_str()));
+    }
+    let job = state.db.cancel_job(&owner, &id).await?.ok_or_else(|| ApiError::not_found("job", &id))?;
+    Ok(job_response(StatusCode::ACCEPTED, &job, false))
+}
+
+pub async fn attempts(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+    find(&state.db, &owner, &id).await?;
+    let rows = state.db.job_attempts(&id).await?;
+    let items: Vec<Value> = rows
+        .into_iter()
+        .map(|(attempt, worker, started, finished, outcome)| {
+            json!({ "attempt": attempt, "worker": worker, "started_at": crate::store::rfc3339(started),
+                    "finished_at": finished.map(crate::store::rfc3339), "outcome": outcome })
+        })
+        .collect();
+    Ok(Json(json!({ "items": items })).into_response())
+}
+
+/// The job, which must have succeeded for its results to exist.
+async fn succeeded(db: &Db, owner: &str, id: &str) -> Result<JobRecord, ApiError> {
+    let job = find(db, owner, id).await?;
+    if job.status != JobStatus::Succeeded {
+        return Err(ApiError::conflict(format!("job {id} is {}: results exist once it has succeeded", job.status.as_str()))
+            .with("status", job.status.as_str()));
+    }
+    Ok(job)
+}
+
+pub async fn summary(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+    let job = succeeded(&state.db, &owner, &id).await?;
+    Ok(Json(job.summary.unwrap_or(Value::Null)).into_response())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BlocksQuery {
+    format: Option<String>,
+    cursor: Option<String>,
+    limit: Option<String>,
+}
+
+pub async fn blocks(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>, req: Request) -> Result<Response, ApiError> {
+    let q: BlocksQuery = parse_query(req.uri().query())?;
+    succeeded(&state.db, &owner, &id).await?;
+    match q.format.as_deref().unwrap_or("json") {
+        "json" => {
+            let from = match &q.cursor {
+                None => 0,
+                Some(c) => c.parse::<i64>().ok().filter(|v| *v >= 0).ok_or_else(|| ApiError::invalid_field("cursor", format!("not a cursor of this route: `{c}`")))?,
+            };
+            let limit = PageQuery { cursor: None, limit: q.limit.clone(), status: None, kind: None }.limit()?;
+            let rows = state.db.job_rows(&id, from, i64::from(limit) + 1).await?;
+            let more = rows.len() > limit as usize;
+            let items: Vec<Value> =
+                rows.iter().take(limit as usize).map(|(_, d)| serde_json::from_str(d).unwrap_or(Value::Null)).collect();
+            let next = if more { rows.get(limit as usize).map(|(seq, _)| seq.to_string()) } else { None };
+            Ok(Json(json!({ "items": items, "next_cursor": next })).into_response())
+        }
+        "csv" => Ok(csv_response(state.db.clone(), id)),
+        other => Err(ApiError::invalid_field("format", format!("unknown format `{other}`; one of: json, csv"))),
+    }
+}
+
+/// CSV columns of a JSON row: nested arrays become `name_x`, `name_y`, ... columns.
+fn csv_columns(row: &Map<String, Value>) -> Vec<(String, String, Option<usize>)> {
+    const AXES: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
+    let mut cols = Vec::new();
+    for (k, v) in row {
+        match v {
+            Value::Array(a) if a.len() <= 6 => {
+                for i in 0..a.len() {
+                    cols.push((format!("{k}_{}", AXES[i]), k.clone(), Some(i)));
+                }
+            }
+            _ => cols.push((k.clone(), k.clone(), None)),
+        }
+    }
+    cols
+}
+
+fn csv_field(v: Option<&Value>) -> String {
+    match v {
+        None | Some(Value::Null) => String::new(),
+        Some(Value::String(s)) if s.contains([',', '"', '\n']) => format!("\"{}\"", s.replace('"', "\"\"")),
+        Some(Value::String(s)) => s.clone(),
+        Some(other) => {
+            let s = other.to_string();
+            if s.contains([',', '"', '\n']) {
+                format!("\"{}\"", s.replace('"', "\"\""))
+            } else {
+                s
+            }
+        }
+    }
+}
+
+/// Streams every row as CSV, reading the table page by page: memory stays flat
+/// whatever the number of blocks.
+fn csv_response(db: Db, id: String) -> Response {
+    const PAGE: i64 = 5000;
+    struct S {
+        db: Db,
+        id: String,
+        next: i64,
+        columns: Option<Vec<(String, String, Option<usize>)>>,
+        done: bool,
+    }
+    let stream = stream::unfold(S { db, id, next: 0, columns: None, done: false }, |mut s| async move {
+        if s.done {
+            return None;
+        }
+        let rows = match s.db.job_rows(&s.id, s.next, PAGE).await {
+            Ok(r) => r,
+            Err(e) => return Some((Err(std::io::Error::other(e.to_string())), S { done: true, ..s })),
+        };
+        if (rows.len() as i64) < PAGE {
+            s.done = true;
+        }
+        let mut out = String::with_capacity(rows.len() * 160);
+        for (seq, data) in &rows {
+            s.next = seq + 1;
+            let Ok(Value::Object(row)) = serde_json::from_str::<Value>(data) else { continue };
+            if s.columns.is_none() {
+                let cols = csv_columns(&row);
+                out.push_str(&cols.iter().map(|c| c.0.as_str()).collect::<Vec<_>>().join(","));
+                out.push('\n');
+                s.columns = Some(cols);
+            }
+            let cols = s.columns.as_ref().expect("set above");
+            for (i, (_, key, idx)) in cols.iter().enumerate() {
+                if i > 0 {
+                    out.push(',');
+                }
+                let v = row.get(key);
+                out.push_str(&csv_field(match idx {
+                    Some(j) => v.and_then(|a| a.get(*j)),
+                    None => v,
+                }));
+            }
+            out.push('\n');
+        }
+        Some((Ok::<_, std::io::Error>(bytes::Bytes::from(out)), s))
+    });
+    (
+        [(header::CONTENT_TYPE, "text/csv; charset=utf-8"), (header::CONTENT_DISPOSITION, "attachment; filename=\"blocks.csv\"")],
+        Body::from_stream(stream),
+    )
+        .into_response()
+}
+
+async fn artifact(state: &AppState, owner: &str, id: &str, name: &str, what: &str) -> Result<Response, ApiError> {
+    let job = succeeded(&state.db, owner, id).await?;
+    let a = state.db.job_artifact(id, name).await?.ok_or_else(|| {
+        ApiError::new(StatusCode::NOT_FOUND, "no-result", "No such result", format!("job {id} ({}) produced no {what}: only optimize/simulate jobs do", job.kind))
+    })?;
+    let disposition = format!("attachment; filename=\"{}\"", a.file_name.replace('"', ""));
+    Ok(([(header::CONTENT_TYPE, a.media_type), (header::CONTENT_DISPOSITION, disposition)], a.content).into_response())
+}
+
+pub async fn program(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+    artifact(&state, &owner, &id, "program", "optimized program").await
+}
+
+pub async fn stock_stl(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+    artifact(&state, &owner, &id, "stock.stl", "final stock").await
+}
+
+/// Server-sent events: `progress` whenever it changes, then one `status` event with the
+/// final job, then the stream ends. Reads the database, so progress from workers in other
+/// processes arrives too.
+pub async fn events(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+    let job = find(&state.db, &owner, &id).await?;
+    struct S {
+        db: Db,
+        owner: String,
+        id: String,
+        last: Option<(String, i64, i64)>,
+        first: Option<JobRecord>,
+        finished: bool,
+    }
+    let stream = stream::unfold(S { db: state.db.clone(), owner, id, last: None, first: Some(job), finished: false }, |mut s| async move {
+        if s.finished {
+            return None;
+        }
+        loop {
+            let job = match s.first.take() {
+                Some(j) => j,
+                None => {
+                    tokio::time::sleep(Duration::from_millis(200)).await;
+                    match s.db.get_job(&s.owner, &s.id).await {
+                        Ok(Some(j)) => j,
+                        // Deleted or unreadable: end the stream.
+                        _ => return None,
+                    }
+                }
+            };
+            if job.status.is_terminal() {
+                s.finished = true;
+                let ev = Event::default().event("status").json_data(&job).unwrap_or_default();
+                return Some((Ok::<_, Infallible>(ev), s));
+            }
+            let now = (job.status.as_str().to_string(), job.progress.done, job.progress.total);
+            if s.last.as_ref() != Some(&now) {
+                s.last = Some(now);
+                let ev = Event::default()
+                    .event("progress")
+                    .json_data(json!({ "status": job.status, "done": job.progress.done, "total": job.progress.total, "attempts": job.attempts }))
+                    .unwrap_or_default();
+                return Some((Ok(ev), s));
+            }
+        }
+    });
+    Ok(sse(stream).into_response())
+}
+
+fn sse<S: Stream<Item = Result<Event, Infallible>> + Send + 'static>(s: S) -> Sse<S> {
+    Sse::new(s).keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
+}

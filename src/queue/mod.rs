@@ -1,0 +1,212 @@
+//! Workers: claim a job, run the engine on a blocking thread, heartbeat the lease while
+//! it runs, then commit the outcome with the results (only while holding the lease).
+//! N workers run at most N engine threads: the pool is bounded by construction.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use serde_json::json;
+use tokio::sync::{watch, Notify};
+
+use millsim_engine::job::{CancelFlag, Progress};
+
+use crate::config::QueueConfig;
+use crate::metrics::Metrics;
+use crate::runner::{self, JobFailure, LoadedInputs};
+use crate::store::jobs::{ClaimedJob, Finish, LeaseState};
+use crate::store::{Db, ResourceKind};
+
+#[derive(Default)]
+struct SharedProgress {
+    done: AtomicU64,
+    total: AtomicU64,
+}
+
+impl Progress for SharedProgress {
+    fn report(&self, done: u64, total: u64) {
+        self.total.store(total, Ordering::Relaxed);
+        self.done.store(done, Ordering::Relaxed);
+    }
+}
+
+/// A name for this process's workers, unique across processes and restarts.
+pub fn process_worker_prefix() -> String {
+    let host = std::env::var("HOSTNAME").unwrap_or_else(|_| "host".into());
+    format!("{host}-{}-{}", std::process::id(), &uuid::Uuid::now_v7().simple().to_string()[20..])
+}
+
+/// Runs `config.workers` workers until `shutdown` turns true, then lets running jobs
+/// finish within the grace period or gives their leases back.
+pub async fn run_workers(db: Db, config: QueueConfig, metrics: Arc<Metrics>, wake: Arc<Notify>, shutdown: watch::Receiver<bool>) {
+    let prefix = process_worker_prefix();
+    let mut handles = Vec::new();
+    for i in 0..config.workers {
+        let worker = Worker {
+            id: format!("{prefix}-w{i}"),
+            db: db.clone(),
+            config: config.clone(),
+            metrics: metrics.clone(),
+            wake: wake.clone(),
+            shutdown: shutdown.clone(),
+        };
+        handles.push(tokio::spawn(worker.run()));
+    }
+    tracing::info!(workers = config.workers, prefix = %prefix, "workers started");
+    for h in handles {
+        let _ = h.await;
+    }
+    tracing::info!("workers stopped");
+}
+
+struct Worker {
+    id: String,
+    db: Db,
+    config: QueueConfig,
+    metrics: Arc<Metrics>,
+    wake: Arc<Notify>,
+    shutdown: watch::Receiver<bool>,
+}
+
+impl Worker {
+    async fn run(mut self) {
+        loop {
+            if *self.shutdown.borrow() {
+                return;
+            }
+            match self.db.claim_job(&self.id, self.config.lease_ms).await {
+                Ok(Some(job)) => self.run_job(job).await,
+                Ok(None) => {
+                    tokio::select! {
+                        _ = self.wake.notified() => {}
+                        _ = tokio::time::sleep(Duration::from_millis(self.config.poll_ms)) => {}
+                        _ = self.shutdown.changed() => {}
+                    }
+                }
+                Err(e) => {
+                    tracing::warn!(worker = %self.id, error = %e, "claim failed; retrying");
+                    tokio::time::sleep(Duration::from_millis(500)).await;
+                }
+            }
+        }
+    }
+
+    async fn load_inputs(&self, job: &ClaimedJob) -> Result<LoadedInputs, serde_json::Value> {
+        let mut loaded = LoadedInputs { program: None };
+        for (name, kind) in runner::required_inputs(&job.kind) {
+            let id = job.spec["inputs"][*name].as_str().unwrap_or_default();
+            let found = self.db.resource_content(&job.owner, *kind, id).await.map_err(|e| json!({"title": "storage error", "detail": e.to_string(), "status": 503}))?;
+            let Some((file, _, bytes)) = found else {
+                return Err(json!({
+                    "type": "https://millsim.dev/problems/input-gone",
+                    "title": "Input deleted", "status": 422,
+                    "detail": format!("input `{name}` ({} {id}) was deleted before the job ran", kind.as_str()),
+                }));
+            };
+            if *kind == ResourceKind::Program {
+                let text = String::from_utf8(bytes).map_err(|_| json!({"title": "program is not UTF-8", "status": 422}))?;
+                loaded.program = Some((file.unwrap_or_else(|| "program.nc".into()), text));
+            }
+        }
+        Ok(loaded)
+    }
+
+    async fn run_job(&mut self, job: ClaimedJob) {
+        let started = Instant::now();
+        tracing::info!(worker = %self.id, job = %job.id, kind = %job.kind, attempt = job.attempt, "job claimed");
+        let outcome = match self.load_inputs(&job).await {
+            Err(problem) => Finish::Failed { error: problem },
+            Ok(inputs) => match self.execute(&job, inputs).await {
+                Some(finish) => finish,
+                // Lease lost or given back: whoever holds the job now writes its outcome.
+                None => return,
+            },
+        };
+        let label = match &outcome {
+            Finish::Succeeded { .. } => "succeeded",
+            Finish::Failed { .. } => "failed",
+            Finish::Cancelled => "cancelled",
+        };
+        match self.db.finish_job(&job, &self.id, outcome).await {
+            Ok(true) => {
+                self.metrics.observe_job(&job.kind, label, started.elapsed());
+                tracing::info!(worker = %self.id, job = %job.id, outcome = label, seconds = started.elapsed().as_secs_f64(), "job finished");
+            }
+            Ok(false) => tracing::warn!(worker = %self.id, job = %job.id, "lease lost before commit; result dropped"),
+            Err(e) => tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not commit the job's outcome"),
+        }
+    }
+
+    /// Runs the engine and heartbeats until it ends. None when the job must not be
+    /// finished by this worker (lease lost, or given back on shutdown).
+    async fn execute(&mut self, job: &ClaimedJob, inputs: LoadedInputs) -> Option<Finish> {
+        let cancel = CancelFlag::new();
+        let progress = Arc::new(SharedProgress::default());
+        let mut engine = {
+            let (cancel, progress, kind, options) = (cancel.clone(), progress.clone(), job.kind.clone(), job.spec["options"].clone());
+            tokio::task::spawn_blocking(move || runner::run(&kind, &options, inputs, &cancel, progress.as_ref()))
+        };
+        let beat = Duration::from_millis((self.config.lease_ms as u64 / 3).clamp(100, 1000));
+        let mut ticker = tokio::time::interval(beat);
+        let mut grace_deadline: Option<tokio::time::Instant> = None;
+        let mut give_back = false;
+        let mut lost = false;
+        let result = loop {
+            let grace = async {
+                match grace_deadline {
+                    Some(d) => tokio::time::sleep_until(d).await,
+                    None => std::future::pending().await,
+                }
+            };
+            tokio::select! {
+                r = &mut engine => break r,
+                _ = ticker.tick() => {
+                    let (done, total) = (progress.done.load(Ordering::Relaxed), progress.total.load(Ordering::Relaxed));
+                    match self.db.heartbeat(job, &self.id, self.config.lease_ms, done, total).await {
+                        Ok(LeaseState::Held { cancel_requested }) => if cancel_requested { cancel.cancel() },
+                        Ok(LeaseState::Lost) => {
+                            tracing::warn!(worker = %self.id, job = %job.id, "lease lost; stopping");
+                            lost = true;
+                            cancel.cancel();
+                        }
+                        Err(e) => tracing::warn!(worker = %self.id, job = %job.id, error = %e, "heartbeat failed"),
+                    }
+                }
+                _ = self.shutdown.changed(), if grace_deadline.is_none() => {
+                    grace_deadline = Some(tokio::time::Instant::now() + Duration::from_millis(self.config.shutdown_grace_ms));
+                }
+                _ = grace => {
+                    tracing::info!(worker = %self.id, job = %job.id, "shutdown grace over; giving the job back");
+                    give_back = true;
+                    cancel.cancel();
+                    grace_deadline = Some(tokio::time::Instant::now() + Duration::from_secs(3600));
+                }
+            }
+        };
+        if lost {
+            return None;
+        }
+        match result {
+            Ok(Ok(out)) => Some(Finish::Succeeded { summary: out.summary, rows: out.rows, artifacts: Vec::new() }),
+            Ok(Err(JobFailure::Invalid(problem))) => Some(Finish::Failed { error: problem }),
+            Ok(Err(JobFailure::Cancelled)) if give_back => {
+                match self.db.release_job(job, &self.id).await {
+                    Ok(_) => tracing::info!(worker = %self.id, job = %job.id, "job given back to the queue"),
+                    Err(e) => tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not give the job back; its lease will expire"),
+                }
+                None
+            }
+            Ok(Err(JobFailure::Cancelled)) => Some(Finish::Cancelled),
+            Err(join) => {
+                tracing::error!(worker = %self.id, job = %job.id, error = %join, "engine panicked");
+                Some(Finish::Failed {
+                    error: json!({
+                        "type": "https://millsim.dev/problems/internal",
+                        "title": "Internal error", "status": 500,
+                        "detail": "the engine stopped on an internal error while running this job; this is a bug in millsim, please report it with the job id",
+                    }),
+                })
+            }
+        }
+    }
+}

@@ -1,0 +1,140 @@
+//! Upload validation: each input is checked with the engine's own readers before it is
+//! stored, and what they find becomes the resource's summary. Errors name the field,
+//! or the line and column.
+
+use serde_json::{json, Value};
+
+use millsim_engine::{geometry, machine::Machine, nc, physics::Material, tool::Tool};
+
+use crate::http::problem::{parse_json, ApiError};
+
+/// A validated input ready to store.
+pub struct Validated {
+    pub media_type: &'static str,
+    pub summary: Value,
+}
+
+fn diagnostics_problem(file: &str, what: &'static str, d: &nc::Diagnostics) -> ApiError {
+    let errors: Vec<Value> =
+        d.0.iter().map(|e| json!({ "line": e.line, "column": e.col, "message": e.message })).collect();
+    let first = d.0.first().map(|e| format!("{file}:{}:{}: {}", e.line, e.col, e.message)).unwrap_or_default();
+    let mut err = ApiError::new(
+        axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+        "invalid-program",
+        what,
+        format!("{} error(s); first: {first}", d.0.len()),
+    )
+    .with("file", file.to_string())
+    .with("errors", Value::Array(errors));
+    if let Some(e) = d.0.first() {
+        err = err.with("line", e.line).with("column", e.col);
+    }
+    err
+}
+
+/// The line and column of a byte offset in `bytes` (1-based).
+fn line_col(bytes: &[u8], offset: usize) -> (usize, usize) {
+    let before = &bytes[..offset.min(bytes.len())];
+    let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+    let col = offset - before.iter().rposition(|&b| b == b'\n').map(|p| p + 1).unwrap_or(0) + 1;
+    (line, col)
+}
+
+/// True when the text reads as an APT/CLS cutter-location file rather than G-code.
+pub fn looks_like_cls(text: &str) -> bool {
+    text.lines().take(200).any(|l| {
+        let l = l.trim_start().to_ascii_uppercase();
+        l.starts_with("GOTO/") || l.starts_with("TLAXIS/") || l.starts_with("FEDRAT/") || l.starts_with("LOADTL/")
+    })
+}
+
+/// NC program text: UTF-8 (or plain ASCII), then the syntax of G-code or CLS.
+pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let (line, column) = line_col(bytes, e.valid_up_to());
+        ApiError::new(
+            axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid-program",
+            "Program is not text",
+            format!("{file}:{line}:{column}: byte 0x{:02x} is not UTF-8 text", bytes[e.valid_up_to()]),
+        )
+        .with("file", file.to_string())
+        .with("line", line)
+        .with("column", column)
+    })?;
+    if text.trim().is_empty() {
+        return Err(ApiError::invalid_field("content", format!("{file}: the program is empty")));
+    }
+    let lines = text.lines().count();
+    if looks_like_cls(text) {
+        let cls = millsim_engine::cl::read_cls(text)
+            .map_err(|d| diagnostics_problem(file, "CLS file does not read", &d))?;
+        return Ok(Validated {
+            media_type: "text/plain",
+            summary: json!({ "format": "cls", "lines": lines, "moves": cls.moves.len() }),
+        });
+    }
+    let parsed = nc::Program::parse(text).map_err(|d| diagnostics_problem(file, "G-code does not parse", &d))?;
+    Ok(Validated {
+        media_type: "text/plain",
+        summary: json!({ "format": "gcode", "lines": lines, "blocks": parsed.blocks().len() }),
+    })
+}
+
+/// STL stock or part: read and checked (closed, finite, sane size) by the engine.
+pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
+    let mesh = geometry::Mesh::from_stl_bytes(bytes).map_err(|e| {
+        ApiError::new(axum::http::StatusCode::UNPROCESSABLE_ENTITY, "invalid-stl", "STL is not usable", format!("{file}: {e}"))
+            .with("file", file.to_string())
+    })?;
+    let (min, max) = mesh.bounds();
+    Ok(Validated {
+        media_type: "model/stl",
+        summary: json!({ "format": "stl", "triangles": mesh.triangles.len(), "bounds": { "min": min, "max": max }, "volume_mm3": mesh.volume() }),
+    })
+}
+
+/// A parametric stock (block or cylinder) as JSON.
+pub fn stock_json(bytes: &[u8]) -> Result<Validated, ApiError> {
+    let shape: geometry::StockShape = parse_json(bytes)?;
+    let (min, max) = shape.bounds().map_err(|e| ApiError::invalid_field("", e.to_string()))?;
+    Ok(Validated { media_type: "application/json", summary: json!({ "format": "parametric", "bounds": { "min": min, "max": max } }) })
+}
+
+pub fn tool(bytes: &[u8]) -> Result<Validated, ApiError> {
+    let tool: Tool = parse_json(bytes)?;
+    tool.validate().map_err(|e| ApiError::invalid_field(e.field, e.to_string()))?;
+    Ok(Validated {
+        media_type: "application/json",
+        summary: json!({ "shape": tool.shape, "diameter": tool.diameter, "flutes": tool.flutes }),
+    })
+}
+
+pub fn material(bytes: &[u8]) -> Result<Validated, ApiError> {
+    let m: Material = parse_json(bytes)?;
+    m.validate().map_err(|e| ApiError::invalid_field(e.field().to_string(), e.to_string()))?;
+    Ok(Validated { media_type: "application/json", summary: json!({ "name": m.name, "source": m.source }) })
+}
+
+pub fn machine(bytes: &[u8]) -> Result<Validated, ApiError> {
+    let m: Machine = parse_json(bytes)?;
+    m.validate().map_err(|e| ApiError::invalid_field(e.field.clone(), e.to_string()))?;
+    Ok(Validated { media_type: "application/json", summary: json!({ "name": m.name, "kinematics": m.kinematics }) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_col_counts_from_one() {
+        assert_eq!(line_col(b"ab\ncd", 0), (1, 1));
+        assert_eq!(line_col(b"ab\ncd", 4), (2, 2));
+    }
+
+    #[test]
+    fn cls_is_told_from_gcode() {
+        assert!(looks_like_cls("TLAXIS/0,0,1\nGOTO/1,2,3\n"));
+        assert!(!looks_like_cls("G0 X1 Y2\nG1 Z-1 F100\n"));
+    }
+}
