@@ -328,20 +328,40 @@ fn feed_direction_and_tilted_axis_rotate_into_part_frame() {
     assert!(down.fz.mean > level.fz.mean && down.max_chip_thickness > level.max_chip_thickness);
 }
 
-/// Independent integration of a ball end mill's edge: parametrized by the arc angle κ
-/// (not by height), each edge element of length R·dκ, time-averaged on its own angular grid.
-fn ball_reference(
+/// Independent integration of a ball or bull-nose edge (corner radius rc, tool radius r0):
+/// the corner is parametrized by its arc angle κ (not by height), each element of length
+/// rc·dκ, the flank above it by height; time-averaged on its own angular grid.
+#[allow(clippy::too_many_arguments)]
+fn torus_reference(
     k: &CuttingCoefficients,
     r0: f64,
+    rc: f64,
     flutes: usize,
     helix_deg: f64,
     depth: f64,
     c: f64,
-    kappa_steps: usize,
+    steps: usize,
     theta_steps: usize,
 ) -> ([f64; 3], f64, f64) {
-    let kmax = ((r0 - depth) / r0).acos();
-    let dk = kmax / kappa_steps as f64;
+    // Edge elements: (z, r, κ, length).
+    let mut elems = Vec::new();
+    let ktop = ((rc - depth.min(rc)) / rc).acos();
+    let dk = ktop / steps as f64;
+    for i in 0..steps {
+        let kap = (i as f64 + 0.5) * dk;
+        elems.push((
+            rc * (1.0 - kap.cos()),
+            r0 - rc + rc * kap.sin(),
+            kap,
+            rc * dk,
+        ));
+    }
+    if depth > rc {
+        let dz = (depth - rc) / steps as f64;
+        for i in 0..steps {
+            elems.push((rc + (i as f64 + 0.5) * dz, r0, FRAC_PI_2, dz));
+        }
+    }
     let tanb = helix_deg.to_radians().tan();
     let mut mean = [0.0; 3];
     let mut torque = 0.0;
@@ -350,16 +370,12 @@ fn ball_reference(
         let theta = TAU * t as f64 / theta_steps as f64;
         let mut f = [0.0; 3];
         for j in 0..flutes {
-            for i in 0..kappa_steps {
-                let kap = (i as f64 + 0.5) * dk;
-                let z = r0 * (1.0 - kap.cos());
-                let r = r0 * kap.sin();
+            for &(z, r, kap, len) in &elems {
                 let phi = (theta - TAU * j as f64 / flutes as f64 - z * tanb / r0).rem_euclid(TAU);
                 if phi > PI {
                     continue;
                 }
                 let h = c * phi.sin() * kap.sin();
-                let len = r0 * dk;
                 let ft = (k.ktc * h + k.kte) * len;
                 let fr = (k.krc * h + k.kre) * len;
                 let fa = (k.kac * h + k.kae) * len;
@@ -392,7 +408,7 @@ fn ball_end_small_depth_matches_independent_integration() {
         };
         let e = engagement(depth, 25, &[(0.0, PI)]);
         let r = cutting_forces(&tool, &e, &k, &cond(0.08), 360).unwrap();
-        let (mean, torque, peak) = ball_reference(&k, 5.0, 2, helix, depth, 0.08, 4000, 2880);
+        let (mean, torque, peak) = torus_reference(&k, 5.0, 5.0, 2, helix, depth, 0.08, 4000, 2880);
         let got = [r.fx.mean, r.fy.mean, r.fz.mean];
         for a in 0..3 {
             assert!(
@@ -412,6 +428,138 @@ fn ball_end_small_depth_matches_independent_integration() {
             "depth {depth} helix {helix}: peak {} vs {peak}",
             r.force.peak
         );
+    }
+}
+
+#[test]
+fn bull_nose_across_corner_and_flank_matches_independent_integration() {
+    // The impeller roughing tool, D8R1, slotting 2.5 mm deep: corner arc plus flank.
+    let k = Material::builtin("TC6").unwrap().coefficients;
+    let tool = Tool {
+        helix_deg: 30.0,
+        ..Tool::bull_nose(8.0, 1.0, 4)
+    };
+    let e = engagement(2.5, 25, &[(0.0, PI)]);
+    let r = cutting_forces(&tool, &e, &k, &cond(0.05), 360).unwrap();
+    let (mean, torque, peak) = torus_reference(&k, 4.0, 1.0, 4, 30.0, 2.5, 0.05, 2000, 1440);
+    let got = [r.fx.mean, r.fy.mean, r.fz.mean];
+    for a in 0..3 {
+        assert!(
+            rel(got[a], mean[a]) < 0.01,
+            "axis {a}: model {} reference {}",
+            got[a],
+            mean[a]
+        );
+    }
+    assert!(
+        rel(r.torque.mean, torque) < 0.01,
+        "torque {} vs {torque}",
+        r.torque.mean
+    );
+    assert!(
+        rel(r.force.peak, peak) < 0.01,
+        "peak {} vs {peak}",
+        r.force.peak
+    );
+}
+
+#[test]
+fn edge_slice_integrals_match_quadrature() {
+    let chamfer = Tool {
+        shape: millsim_engine::tool::ToolShape::Chamfer,
+        tip_diameter: 2.0,
+        taper_half_angle_deg: 30.0,
+        ..Tool::flat(10.0, 2)
+    };
+    let cases = [
+        (Tool::ball(10.0, 2), 0.0, 0.4),
+        (Tool::ball(10.0, 2), 2.0, 2.7),
+        (Tool::bull_nose(8.0, 1.0, 4), 0.6, 1.5),
+        (chamfer.clone(), 6.5, 7.5),
+        (chamfer, 0.5, 1.0),
+        (Tool::flat(10.0, 4), 1.0, 1.3),
+    ];
+    for (tool, za, zb) in cases {
+        let s = millsim_engine::physics::EdgeSlice::compute(&tool, za, zb).unwrap();
+        let n = 200_000;
+        let h = (zb - za) / n as f64;
+        let mut q = [0.0f64; 9];
+        for i in 0..n {
+            let z = za + (i as f64 + 0.5) * h;
+            let p = tool.edge_point(z).unwrap();
+            let (sk, ck) = p.kappa.sin_cos();
+            let v = [
+                sk,
+                ck,
+                ck / sk,
+                ck * ck / sk,
+                1.0 / sk,
+                ck / sk,
+                p.radius,
+                p.radius * ck / sk,
+                p.radius / sk,
+            ];
+            for j in 0..9 {
+                q[j] += v[j] * h;
+            }
+        }
+        let got = [
+            s.int_sin,
+            s.int_cos,
+            s.int_cot,
+            s.int_cos2_sin,
+            s.edge_length,
+            s.radius_rise,
+            s.int_r_dz,
+            s.int_r_cot,
+            s.int_r_ds,
+        ];
+        for j in 0..9 {
+            assert!(
+                (got[j] - q[j]).abs() <= 1e-3 * q[j].abs() + 1e-9,
+                "{:?} [{za}, {zb}] #{j}: {} vs {}",
+                tool.shape,
+                got[j],
+                q[j]
+            );
+        }
+    }
+}
+
+#[test]
+fn tooth_symmetry_shortcut_agrees_with_computing_every_tooth() {
+    // A runout of 1e-200 mm takes the general path (every tooth computed); none takes the
+    // shortcut (tooth 1 computed, the others copied one pitch later).
+    let k = al7075();
+    for (n, arcs) in [(4u32, vec![(0.3, 2.9)]), (3, vec![(0.0, 1.0), (2.0, 3.1)])] {
+        let plain = flat(10.0, n, 30.0);
+        let tiny = Tool {
+            runout: Runout {
+                offset: 1e-200,
+                angle_deg: 0.0,
+            },
+            ..plain.clone()
+        };
+        let e = engagement(6.0, 30, &arcs);
+        let a = cutting_forces(&plain, &e, &k, &cond(0.07), 360).unwrap();
+        let b = cutting_forces(&tiny, &e, &k, &cond(0.07), 360).unwrap();
+        for (x, y) in [
+            (a.fx.mean, b.fx.mean),
+            (a.fy.min, b.fy.min),
+            (a.fz.max, b.fz.max),
+            (a.force.peak, b.force.peak),
+            (a.torque.mean, b.torque.mean),
+            (
+                a.per_tooth[n as usize - 1].peak_force,
+                b.per_tooth[n as usize - 1].peak_force,
+            ),
+            (a.max_chip_thickness, b.max_chip_thickness),
+        ] {
+            assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{x} vs {y}");
+        }
+        for (p, q) in a.samples.iter().zip(&b.samples) {
+            assert!((p.fy - q.fy).abs() < 1e-9 && (p.torque - q.torque).abs() < 1e-12);
+        }
     }
 }
 

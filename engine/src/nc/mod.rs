@@ -1,1 +1,214 @@
-//! (being written)
+//! NC programs: G-code (Fanuc/ISO and LinuxCNC RS274/NGC dialects) into machine moves.
+//!
+//! * [`Program`] is the syntax: every source line is a block, every word keeps its byte span, and
+//!   the original text is kept so that writing it back gives the same bytes (and so F words can be
+//!   rewritten in place, see [`Program::with_feeds`]).
+//! * [`interpret`] runs a program with full modal state and gives [`Move`]s in the machine (G53)
+//!   frame, in mm and degrees whatever the program's units.
+//!
+//! Anything the interpreter does not support is an error naming the line, column and word;
+//! nothing is skipped silently.
+
+mod arc;
+mod expr;
+mod interp;
+mod lexer;
+mod parser;
+mod program;
+mod tooltable;
+
+pub use arc::{sample_arc, ArcGeometry};
+pub use interp::interpret_program;
+pub use program::{
+    Assignment, Block, Comment, Expr, OKeyword, OName, OWord, ParamRef, Program, Span, Word,
+};
+pub use tooltable::{parse_tool_table, ToolEntry, ToolTable};
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// Which control's rules apply where Fanuc and LinuxCNC differ (G4 P units, program numbers,
+/// `,R`/`,C` corners, canned cycle repeat word, initial retract mode).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Dialect {
+    /// Decide from the program: Fanuc-only syntax (program number `O1234`, `,R`/`,C` corners,
+    /// `M98`/`M99`) selects Fanuc, anything else LinuxCNC rules.
+    #[default]
+    Auto,
+    Fanuc,
+    #[serde(rename = "linuxcnc")]
+    LinuxCnc,
+}
+
+/// Options of one interpretation.
+#[derive(Clone, Debug)]
+pub struct InterpretOptions {
+    pub dialect: Dialect,
+    pub tool_table: ToolTable,
+    /// Fanuc "implied decimal": a length/angle word written without a decimal point counts in
+    /// least input increments (0.001 mm, 0.0001 inch, 0.001 degree). Off: the LinuxCNC rule
+    /// (`X10` is 10 mm).
+    pub fanuc_implied_decimal: bool,
+    /// Guard against runaway loops: interpretation fails after this many moves.
+    pub max_moves: usize,
+    /// Guard against loops that make no moves: interpretation fails after executing this many
+    /// blocks (each loop iteration counts its blocks again).
+    pub max_blocks: usize,
+    /// Fanuc parameter CCR (No. 3405#4): corner rounding `R` and chamfer `C` written without the
+    /// comma on G1 blocks. With it set, C is no longer an axis address.
+    pub fanuc_corners_without_comma: bool,
+    /// M codes that are known to the caller's machine but do nothing we can model (e.g. the
+    /// LinuxCNC sim's remapped `M428`/`M429` kinematics switches). They are accepted as no-ops;
+    /// every other unknown M code is an error.
+    pub passthrough_m_codes: Vec<u32>,
+    /// State of the control's block-delete switch: when on, blocks starting with `/` are skipped.
+    pub block_delete: bool,
+}
+
+impl Default for InterpretOptions {
+    fn default() -> Self {
+        InterpretOptions {
+            dialect: Dialect::Auto,
+            tool_table: ToolTable::default(),
+            fanuc_implied_decimal: false,
+            max_moves: 10_000_000,
+            max_blocks: 50_000_000,
+            fanuc_corners_without_comma: false,
+            passthrough_m_codes: Vec::new(),
+            block_delete: false,
+        }
+    }
+}
+
+/// One problem in a program, at a 1-based line and column (column counted in characters).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Diagnostic {
+    pub line: u32,
+    pub col: u32,
+    pub message: String,
+}
+
+impl Diagnostic {
+    pub fn new(line: u32, col: u32, message: impl Into<String>) -> Self {
+        Diagnostic {
+            line,
+            col,
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}: {}", self.line, self.col, self.message)
+    }
+}
+
+/// All problems found, in source order.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub struct Diagnostics(pub Vec<Diagnostic>);
+
+impl fmt::Display for Diagnostics {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, d) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{d}")?;
+        }
+        Ok(())
+    }
+}
+
+impl From<Diagnostic> for Diagnostics {
+    fn from(d: Diagnostic) -> Self {
+        Diagnostics(vec![d])
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MoveKind {
+    Rapid,
+    Linear,
+    Arc,
+    Dwell,
+    ToolChange,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum FeedMode {
+    /// mm/min
+    #[default]
+    PerMin,
+    /// 1/min: the move takes 1/F minutes.
+    InverseTime,
+    /// mm per spindle revolution
+    PerRev,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum SpindleDir {
+    #[default]
+    Off,
+    Cw,
+    Ccw,
+}
+
+/// One move. `end` (and `start`) are the tool tip in the machine G53 frame: X Y Z in mm,
+/// A B C in degrees. Serializes to the JSON-lines row of the `interpret` job.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Move {
+    /// 0-based index of the block (= source line - 1) that produced the move.
+    pub block: usize,
+    /// 1-based source line.
+    pub line: u32,
+    pub kind: MoveKind,
+    pub end: [f64; 6],
+    /// mm/min, 1/min (inverse time) or mm/rev after `feed_mode`; the modal value on rapids.
+    pub feed: f64,
+    pub feed_mode: FeedMode,
+    /// Programmed spindle speed, rev/min (see `spindle_dir` for whether it turns).
+    pub spindle: f64,
+    /// Tool in the spindle (0: none).
+    pub tool: u32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f64; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub normal: Option<[f64; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clockwise: Option<bool>,
+    /// Active G43 tool length offset, mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tool_length: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seconds: Option<f64>,
+    /// Tool axis unit vector (APT/CLS input, part frame).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tool_axis: Option<[f64; 3]>,
+    #[serde(skip)]
+    pub start: [f64; 6],
+    #[serde(skip)]
+    pub spindle_dir: SpindleDir,
+    /// Full arc geometry (arcs only).
+    #[serde(skip)]
+    pub arc: Option<ArcGeometry>,
+}
+
+/// Result of interpreting a program.
+#[derive(Clone, Debug, Default)]
+pub struct Interpretation {
+    pub moves: Vec<Move>,
+    pub warnings: Vec<Diagnostic>,
+    /// Number of blocks (source lines) in the program.
+    pub block_count: usize,
+}
+
+/// Parse and interpret a program.
+pub fn interpret(source: &str, options: &InterpretOptions) -> Result<Interpretation, Diagnostics> {
+    let program = Program::parse(source)?;
+    interpret_program(&program, options)
+}

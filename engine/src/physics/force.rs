@@ -695,6 +695,8 @@ pub struct ForceModel {
     cos_t: Vec<f64>,
     /// Per tooth, per position: fx, fy, fz, torque (N·mm), in four blocks of N·K.
     acc: Vec<f64>,
+    /// Totals over teeth per position, four blocks of K.
+    tot: Vec<f64>,
     tooth_hmax: Vec<f64>,
     keep_samples: bool,
 }
@@ -725,6 +727,7 @@ impl ForceModel {
             sin_t,
             cos_t,
             acc: vec![0.0; 4 * n * positions],
+            tot: vec![0.0; 4 * positions],
             tooth_hmax: vec![0.0; n],
             table,
             keep_samples: true,
@@ -789,6 +792,10 @@ impl ForceModel {
         let mut engaged = 0usize;
         let mut skipped = 0usize;
         let no_steps: [f64; 0] = [];
+        // Without runout every tooth repeats tooth 1 one pitch later; when the pitch is a
+        // whole number of positions, compute tooth 1 only and copy it shifted.
+        let symmetric = self.table.runout_steps.is_empty() && kpos % n == 0;
+        let computed_teeth = if symmetric { 1 } else { n };
 
         for s in &engagement.slices {
             if s.arcs.is_empty() {
@@ -799,7 +806,7 @@ impl ForceModel {
                 continue;
             };
             engaged += 1;
-            for j in 0..n {
+            for j in 0..computed_teeth {
                 let alpha = j as f64 * self.table.pitch + g.lag;
                 let p = Pass::new(&g, k, alpha, c_h, c_v);
                 let steps: &[f64] = if self.table.runout_steps.is_empty() {
@@ -880,17 +887,26 @@ impl ForceModel {
                 }
             }
         }
-        self.summarize(frame, conditions, corr, engaged, skipped, out);
+        if symmetric && n > 1 {
+            let h0 = self.tooth_hmax[0];
+            self.tooth_hmax.fill(h0);
+            for c in &mut corr {
+                *c *= n as f64;
+            }
+        }
+        self.summarize(frame, conditions, corr, engaged, skipped, symmetric, out);
         Ok(())
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn summarize(
-        &self,
+        &mut self,
         frame: ToolFrame,
         conditions: &CuttingConditions,
         corr: [f64; 4],
         engaged: usize,
         skipped: usize,
+        symmetric: bool,
         out: &mut ForceResult,
     ) {
         let kpos = self.positions;
@@ -898,14 +914,50 @@ impl ForceModel {
         let delta = TAU / kpos as f64;
         let omega = conditions.omega();
         let nk = n * kpos;
-        let comp = |c: usize, j: usize, k: usize| self.acc[c * nk + j * kpos + k];
+        let shift = if symmetric { kpos / n } else { 0 };
+        // Totals per position; with the symmetry shortcut tooth j is row 1 shifted by j pitches.
+        self.tot.fill(0.0);
+        for c in 0..4 {
+            let tot = &mut self.tot[c * kpos..(c + 1) * kpos];
+            for j in 0..n {
+                let (row, s) = if symmetric {
+                    (&self.acc[c * nk..c * nk + kpos], (j * shift) % kpos)
+                } else {
+                    (&self.acc[c * nk + j * kpos..c * nk + (j + 1) * kpos], 0)
+                };
+                for (t, r) in tot[s..].iter_mut().zip(&row[..kpos - s]) {
+                    *t += r;
+                }
+                for (t, r) in tot[..s].iter_mut().zip(&row[kpos - s..]) {
+                    *t += r;
+                }
+            }
+        }
+        let rows = if symmetric { 1 } else { n };
+        let mut tooth_peak = [0.0f64; 64];
+        for (j, peak) in tooth_peak.iter_mut().enumerate().take(rows) {
+            let row = |c: usize| &self.acc[c * nk + j * kpos..c * nk + (j + 1) * kpos];
+            let (x, y, z) = (row(0), row(1), row(2));
+            let mut m = 0.0f64;
+            for k in 0..kpos {
+                m = m.max(x[k] * x[k] + y[k] * y[k] + z[k] * z[k]);
+            }
+            *peak = m.sqrt();
+        }
+        if symmetric {
+            let p = tooth_peak[0];
+            tooth_peak[..n].fill(p);
+        }
+        let (tx, rest) = self.tot.split_at(kpos);
+        let (ty, rest) = rest.split_at(kpos);
+        let (tz, tt) = rest.split_at(kpos);
 
         out.positions = kpos;
         out.samples.clear();
         out.per_tooth.clear();
         out.per_tooth.extend((0..n).map(|j| ToothStats {
             tooth: j + 1,
-            peak_force: 0.0,
+            peak_force: tooth_peak[j],
             max_chip_thickness: self.tooth_hmax[j].max(0.0),
         }));
         let mut sum = [0.0f64; 4];
@@ -917,17 +969,7 @@ impl ForceModel {
             (0.0, 0.0, 0.0, 0.0, f64::NEG_INFINITY);
         let mut peak_vec = [0.0; 3];
         for k in 0..kpos {
-            let mut f = [0.0f64; 4];
-            for j in 0..n {
-                let t = [comp(0, j, k), comp(1, j, k), comp(2, j, k)];
-                // Squared for now; square-rooted once after the loop.
-                let ts = &mut out.per_tooth[j];
-                ts.peak_force = ts.peak_force.max(dot(t, t));
-                for c in 0..3 {
-                    f[c] += t[c];
-                }
-                f[3] += comp(3, j, k);
-            }
+            let f = [tx[k], ty[k], tz[k], tt[k]];
             for c in 0..4 {
                 sum[c] += f[c];
             }
@@ -958,9 +1000,6 @@ impl ForceModel {
                     torque: f[3] * 1e-3,
                 });
             }
-        }
-        for t in &mut out.per_tooth {
-            t.peak_force = t.peak_force.sqrt();
         }
         let kf = kpos as f64;
         let mean: Vec<f64> = (0..4).map(|c| (sum[c] + corr[c]) / kf).collect();

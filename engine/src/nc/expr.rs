@@ -1,0 +1,178 @@
+//! Evaluation of LinuxCNC `[expressions]` and parameter storage.
+
+use super::program::{BinOp, Expr, Func, ParamRef};
+use std::collections::HashMap;
+
+/// Highest numbered parameter (LinuxCNC: 5601 user-visible).
+pub(crate) const MAX_PARAM: usize = 5601;
+/// LinuxCNC's tolerance for EQ / NE.
+const TOLERANCE_EQUAL: f64 = 1e-4;
+
+/// Where parameter values come from during evaluation.
+pub(crate) trait Env {
+    fn numbered(&self, n: usize) -> Result<f64, String>;
+    fn named(&self, name: &str) -> Result<f64, String>;
+    fn exists(&self, name: &str) -> bool;
+}
+
+/// Parameter number from a value: an integer in 1..=5601.
+pub(crate) fn param_index(v: f64) -> Result<usize, String> {
+    let r = v.round();
+    if !v.is_finite() || (v - r).abs() > 1e-4 {
+        return Err(format!("parameter number {v} is not a whole number"));
+    }
+    if r < 1.0 || r > MAX_PARAM as f64 {
+        return Err(format!("parameter number {r} out of range 1..{MAX_PARAM}"));
+    }
+    Ok(r as usize)
+}
+
+/// Resolve the index of a numbered parameter reference.
+pub(crate) fn resolve_index(e: &Expr, env: &dyn Env) -> Result<usize, String> {
+    param_index(eval(e, env)?)
+}
+
+pub(crate) fn eval(e: &Expr, env: &dyn Env) -> Result<f64, String> {
+    let v = eval_inner(e, env)?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err("expression result is not a finite number".to_string())
+    }
+}
+
+fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
+    Ok(match e {
+        Expr::Number { value, .. } => *value,
+        Expr::Param(p) => match p.as_ref() {
+            ParamRef::Numbered(ix) => env.numbered(resolve_index(ix, env)?)?,
+            ParamRef::Named(n) => env.named(n)?,
+        },
+        Expr::Neg(x) => -eval(x, env)?,
+        Expr::Exists(n) => {
+            if env.exists(n) {
+                1.0
+            } else {
+                0.0
+            }
+        }
+        Expr::Atan(y, x) => {
+            let (y, x) = (eval(y, env)?, eval(x, env)?);
+            y.atan2(x).to_degrees()
+        }
+        Expr::Func(f, x) => {
+            let x = eval(x, env)?;
+            match f {
+                Func::Abs => x.abs(),
+                Func::Acos => {
+                    if !(-1.0..=1.0).contains(&x) {
+                        return Err(format!("ACOS argument {x} out of range -1..1"));
+                    }
+                    x.acos().to_degrees()
+                }
+                Func::Asin => {
+                    if !(-1.0..=1.0).contains(&x) {
+                        return Err(format!("ASIN argument {x} out of range -1..1"));
+                    }
+                    x.asin().to_degrees()
+                }
+                Func::Cos => x.to_radians().cos(),
+                Func::Sin => x.to_radians().sin(),
+                Func::Tan => x.to_radians().tan(),
+                Func::Exp => x.exp(),
+                Func::Fix => x.floor(),
+                Func::Fup => x.ceil(),
+                Func::Round => x.round(),
+                Func::Ln => {
+                    if x <= 0.0 {
+                        return Err(format!("LN of zero or a negative number ({x})"));
+                    }
+                    x.ln()
+                }
+                Func::Sqrt => {
+                    if x < 0.0 {
+                        return Err(format!("SQRT of a negative number ({x})"));
+                    }
+                    x.sqrt()
+                }
+            }
+        }
+        Expr::Binary(op, l, r) => {
+            let (a, b) = (eval(l, env)?, eval(r, env)?);
+            let t = |c: bool| if c { 1.0 } else { 0.0 };
+            match op {
+                BinOp::Pow => {
+                    if a < 0.0 && b.fract() != 0.0 {
+                        return Err(format!("cannot raise negative number {a} to non-integer power {b}"));
+                    }
+                    a.powf(b)
+                }
+                BinOp::Mul => a * b,
+                BinOp::Div => {
+                    if b == 0.0 {
+                        return Err("division by zero".to_string());
+                    }
+                    a / b
+                }
+                BinOp::Mod => {
+                    if b == 0.0 {
+                        return Err("MOD by zero".to_string());
+                    }
+                    let m = a % b;
+                    if m < 0.0 {
+                        m + b.abs()
+                    } else {
+                        m
+                    }
+                }
+                BinOp::Add => a + b,
+                BinOp::Sub => a - b,
+                BinOp::Eq => t((a - b).abs() < TOLERANCE_EQUAL),
+                BinOp::Ne => t((a - b).abs() >= TOLERANCE_EQUAL),
+                BinOp::Gt => t(a > b),
+                BinOp::Ge => t(a >= b),
+                BinOp::Lt => t(a < b),
+                BinOp::Le => t(a <= b),
+                BinOp::And => t(a != 0.0 && b != 0.0),
+                BinOp::Or => t(a != 0.0 || b != 0.0),
+                BinOp::Xor => t((a != 0.0) != (b != 0.0)),
+            }
+        }
+    })
+}
+
+/// Numbered and named parameters with subroutine scoping: `#1`-`#30` and names without a
+/// leading `_` are local to a call; `_names` are global.
+#[derive(Clone, Debug)]
+pub(crate) struct Params {
+    pub numbered: Vec<f64>,
+    pub globals: HashMap<String, f64>,
+    /// One scope per active call level; index 0 is the main program.
+    pub locals: Vec<HashMap<String, f64>>,
+}
+
+impl Params {
+    pub fn new() -> Self {
+        Params {
+            numbered: vec![0.0; MAX_PARAM + 1],
+            globals: HashMap::new(),
+            locals: vec![HashMap::new()],
+        }
+    }
+
+    pub fn get_named(&self, name: &str) -> Option<f64> {
+        if name.starts_with('_') {
+            self.globals.get(name).copied()
+        } else {
+            self.locals.last().and_then(|m| m.get(name).copied())
+        }
+    }
+
+    pub fn set_named(&mut self, name: &str, v: f64) {
+        if name.starts_with('_') {
+            self.globals.insert(name.to_string(), v);
+        } else if let Some(m) = self.locals.last_mut() {
+            m.insert(name.to_string(), v);
+        }
+    }
+}

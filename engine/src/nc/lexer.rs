@@ -1,0 +1,250 @@
+//! Tokens of one source line. The lexer has two modes because letters mean different things:
+//! outside brackets each letter is a word address (`G1X2`), inside brackets letters form
+//! names (`SIN`, `MOD`, `GT`).
+
+use super::program::Span;
+
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum Tok {
+    /// A word address, upper-cased (word mode).
+    Letter(char),
+    /// An alphabetic run, upper-cased (expression mode, O-word keywords).
+    Ident(String),
+    Number { value: f64, has_point: bool },
+    Plus,
+    Minus,
+    Star,
+    StarStar,
+    Slash,
+    LBracket,
+    RBracket,
+    Hash,
+    /// `<name>` after `#` or `o`: lower-cased, blanks removed.
+    Name(String),
+    Equals,
+    Comma,
+    Comment(String),
+    Percent,
+    End,
+}
+
+pub(crate) struct LexError {
+    pub pos: usize,
+    pub message: String,
+}
+
+#[derive(Clone)]
+pub(crate) struct Lexer<'a> {
+    src: &'a str,
+    pub pos: usize,
+    end: usize,
+}
+
+impl<'a> Lexer<'a> {
+    /// Lex `src[start..end]` (one line without its terminator).
+    pub fn new(src: &'a str, start: usize, end: usize) -> Self {
+        Lexer {
+            src,
+            pos: start,
+            end,
+        }
+    }
+
+    fn byte(&self, i: usize) -> Option<u8> {
+        if i < self.end {
+            Some(self.src.as_bytes()[i])
+        } else {
+            None
+        }
+    }
+
+    pub fn skip_ws(&mut self) {
+        while let Some(b) = self.byte(self.pos) {
+            if b == b' ' || b == b'\t' || b == b'\r' {
+                self.pos += 1;
+            } else {
+                break;
+            }
+        }
+    }
+
+    /// Next non-blank byte without consuming it.
+    pub fn peek_byte(&mut self) -> Option<u8> {
+        self.skip_ws();
+        self.byte(self.pos)
+    }
+
+    /// Upper-cased alphabetic run starting at the next non-blank byte (not consumed).
+    pub fn peek_ident(&mut self) -> String {
+        self.skip_ws();
+        let mut i = self.pos;
+        let mut s = String::new();
+        while let Some(b) = self.byte(i) {
+            if b.is_ascii_alphabetic() {
+                s.push(b.to_ascii_uppercase() as char);
+                i += 1;
+            } else {
+                break;
+            }
+        }
+        s
+    }
+
+    fn err<T>(&self, pos: usize, message: impl Into<String>) -> Result<T, LexError> {
+        Err(LexError {
+            pos,
+            message: message.into(),
+        })
+    }
+
+    /// Next token; `names` selects expression mode (alphabetic runs are one token).
+    pub fn next(&mut self, names: bool) -> Result<(Tok, Span), LexError> {
+        self.skip_ws();
+        let start = self.pos;
+        let Some(b) = self.byte(start) else {
+            return Ok((Tok::End, Span::new(start, start)));
+        };
+        let tok = match b {
+            b'(' => {
+                let body = start + 1;
+                let mut i = body;
+                // Nested parentheses are balanced (simulator directives such as
+                // `($SetPartSize(100, 100, 20, 1) )` use them); LinuxCNC would refuse them.
+                let mut depth = 1;
+                loop {
+                    match self.byte(i) {
+                        Some(b')') => {
+                            depth -= 1;
+                            if depth == 0 {
+                                break;
+                            }
+                            i += 1;
+                        }
+                        Some(b'(') => {
+                            depth += 1;
+                            i += 1;
+                        }
+                        Some(_) => i += 1,
+                        None => return self.err(start, "comment is not closed: missing ')'"),
+                    }
+                }
+                self.pos = i + 1;
+                Tok::Comment(self.src[body..i].to_string())
+            }
+            b';' => {
+                self.pos = self.end;
+                Tok::Comment(self.src[start + 1..self.end].to_string())
+            }
+            b'0'..=b'9' | b'.' => {
+                let mut i = start;
+                let mut has_point = false;
+                let mut digits = 0;
+                while let Some(c) = self.byte(i) {
+                    if c.is_ascii_digit() {
+                        digits += 1;
+                        i += 1;
+                    } else if c == b'.' && !has_point {
+                        has_point = true;
+                        i += 1;
+                    } else {
+                        break;
+                    }
+                }
+                if digits == 0 {
+                    return self.err(start, "'.' is not a number");
+                }
+                let text = &self.src[start..i];
+                let value: f64 = match text.parse() {
+                    Ok(v) => v,
+                    Err(_) => return self.err(start, format!("bad number '{text}'")),
+                };
+                self.pos = i;
+                Tok::Number { value, has_point }
+            }
+            b'+' => {
+                self.pos += 1;
+                Tok::Plus
+            }
+            b'-' => {
+                self.pos += 1;
+                Tok::Minus
+            }
+            b'*' => {
+                if self.byte(start + 1) == Some(b'*') {
+                    self.pos += 2;
+                    Tok::StarStar
+                } else {
+                    self.pos += 1;
+                    Tok::Star
+                }
+            }
+            b'/' => {
+                self.pos += 1;
+                Tok::Slash
+            }
+            b'[' => {
+                self.pos += 1;
+                Tok::LBracket
+            }
+            b']' => {
+                self.pos += 1;
+                Tok::RBracket
+            }
+            b'#' => {
+                self.pos += 1;
+                Tok::Hash
+            }
+            b'=' => {
+                self.pos += 1;
+                Tok::Equals
+            }
+            b',' => {
+                self.pos += 1;
+                Tok::Comma
+            }
+            b'%' => {
+                self.pos += 1;
+                Tok::Percent
+            }
+            b'<' => {
+                let mut i = start + 1;
+                let mut name = String::new();
+                loop {
+                    match self.byte(i) {
+                        Some(b'>') => break,
+                        Some(c) if c == b' ' || c == b'\t' => i += 1,
+                        Some(c) if c.is_ascii() && !c.is_ascii_control() => {
+                            name.push(c.to_ascii_lowercase() as char);
+                            i += 1;
+                        }
+                        Some(_) => return self.err(i, "bad character in a <name>"),
+                        None => return self.err(start, "name is not closed: missing '>'"),
+                    }
+                }
+                if name.is_empty() {
+                    return self.err(start, "empty <name>");
+                }
+                self.pos = i + 1;
+                Tok::Name(name)
+            }
+            c if c.is_ascii_alphabetic() => {
+                if names {
+                    let s = self.peek_ident();
+                    self.pos = start + s.len();
+                    Tok::Ident(s)
+                } else {
+                    self.pos += 1;
+                    Tok::Letter(c.to_ascii_uppercase() as char)
+                }
+            }
+            b'@' | b'^' => {
+                return self.err(start, format!("polar coordinates ('{}' word) are not supported", b as char))
+            }
+            _ => {
+                let ch = self.src[start..].chars().next().unwrap_or('?');
+                return self.err(start, format!("unexpected character '{ch}'"));
+            }
+        };
+        Ok((tok, Span::new(start, self.pos)))
+    }
+}

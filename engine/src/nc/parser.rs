@@ -1,0 +1,470 @@
+//! Lines into blocks: words, parameter assignments, O-word control lines and comments, with
+//! spans. A syntax error ends the parse of its line only, so every line's errors are reported.
+
+use super::lexer::{LexError, Lexer, Tok};
+use super::program::*;
+use super::Diagnostic;
+
+/// Deepest bracket nesting accepted; keeps the recursive parser off the stack limit.
+const MAX_DEPTH: usize = 64;
+
+struct LineParser<'a> {
+    lx: Lexer<'a>,
+    depth: usize,
+    /// Binary operators on the line so far: bounds the depth of left-leaning expression trees.
+    ops: usize,
+}
+
+/// Most binary operators accepted on one line.
+const MAX_OPS: usize = 1000;
+
+type PResult<T> = Result<T, LexError>;
+
+fn err<T>(pos: usize, message: impl Into<String>) -> PResult<T> {
+    Err(LexError {
+        pos,
+        message: message.into(),
+    })
+}
+
+fn tok_name(t: &Tok) -> String {
+    match t {
+        Tok::Letter(c) => format!("'{c}'"),
+        Tok::Ident(s) => format!("'{s}'"),
+        Tok::Number { value, .. } => format!("number {value}"),
+        Tok::Plus => "'+'".into(),
+        Tok::Minus => "'-'".into(),
+        Tok::Star => "'*'".into(),
+        Tok::StarStar => "'**'".into(),
+        Tok::Slash => "'/'".into(),
+        Tok::LBracket => "'['".into(),
+        Tok::RBracket => "']'".into(),
+        Tok::Hash => "'#'".into(),
+        Tok::Name(n) => format!("'<{n}>'"),
+        Tok::Equals => "'='".into(),
+        Tok::Comma => "','".into(),
+        Tok::Comment(_) => "comment".into(),
+        Tok::Percent => "'%'".into(),
+        Tok::End => "end of line".into(),
+    }
+}
+
+impl<'a> LineParser<'a> {
+    /// A real value after a word letter or as an operand: number, `#param`, `[expr]`,
+    /// `FUNC[expr]` or a signed one of these.
+    fn value(&mut self) -> PResult<Expr> {
+        self.depth += 1;
+        if self.depth > MAX_DEPTH {
+            return err(self.lx.pos, "expression nested too deeply");
+        }
+        let r = self.value_inner();
+        self.depth -= 1;
+        r
+    }
+
+    fn value_inner(&mut self) -> PResult<Expr> {
+        // A function name is alphabetic; look ahead so single letters stay word addresses.
+        if let Some(b) = self.lx.peek_byte() {
+            if b.is_ascii_alphabetic() {
+                let save = self.lx.clone();
+                let (tok, span) = self.lx.next(true)?;
+                if let Tok::Ident(name) = tok {
+                    if let Some(e) = self.function(&name, span.start)? {
+                        return Ok(e);
+                    }
+                }
+                self.lx = save;
+                return err(span.start, "expected a value (number, #parameter or [expression])");
+            }
+        }
+        let (tok, span) = self.lx.next(false)?;
+        match tok {
+            Tok::Number { value, has_point } => Ok(Expr::Number { value, has_point }),
+            Tok::Minus => Ok(Expr::Neg(Box::new(self.value()?))),
+            Tok::Plus => self.value(),
+            Tok::LBracket => {
+                let e = self.expr(0)?;
+                self.expect_rbracket()?;
+                Ok(e)
+            }
+            Tok::Hash => Ok(Expr::Param(Box::new(self.param_ref()?))),
+            t => err(
+                span.start,
+                format!("expected a value (number, #parameter or [expression]), found {}", tok_name(&t)),
+            ),
+        }
+    }
+
+    /// `NAME[expr]`; `None` when the name is not a function.
+    fn function(&mut self, name: &str, at: usize) -> PResult<Option<Expr>> {
+        let func = Func::from_name(name);
+        if func.is_none() && name != "ATAN" && name != "EXISTS" {
+            return Ok(None);
+        }
+        let (t, s) = self.lx.next(true)?;
+        if t != Tok::LBracket {
+            return err(s.start, format!("expected '[' after {name}"));
+        }
+        if name == "EXISTS" {
+            let (t, s) = self.lx.next(true)?;
+            if t != Tok::Hash {
+                return err(s.start, "EXISTS needs a named parameter: EXISTS[#<name>]");
+            }
+            let (t, s) = self.lx.next(true)?;
+            let Tok::Name(n) = t else {
+                return err(s.start, "EXISTS needs a named parameter: EXISTS[#<name>]");
+            };
+            self.expect_rbracket()?;
+            return Ok(Some(Expr::Exists(n)));
+        }
+        let arg = self.expr(0)?;
+        self.expect_rbracket()?;
+        if name == "ATAN" {
+            let (t, s) = self.lx.next(true)?;
+            if t != Tok::Slash {
+                return err(s.start, "ATAN needs two arguments: ATAN[y]/[x]");
+            }
+            let (t, s) = self.lx.next(true)?;
+            if t != Tok::LBracket {
+                return err(s.start, "ATAN needs two arguments: ATAN[y]/[x]");
+            }
+            let x = self.expr(0)?;
+            self.expect_rbracket()?;
+            return Ok(Some(Expr::Atan(Box::new(arg), Box::new(x))));
+        }
+        let _ = at;
+        Ok(Some(Expr::Func(func.expect("checked above"), Box::new(arg))))
+    }
+
+    fn expect_rbracket(&mut self) -> PResult<()> {
+        let (t, s) = self.lx.next(true)?;
+        if t != Tok::RBracket {
+            return err(s.start, format!("expected ']', found {}", tok_name(&t)));
+        }
+        Ok(())
+    }
+
+    /// Operand inside brackets.
+    fn operand(&mut self) -> PResult<Expr> {
+        self.depth += 1;
+        if self.depth > MAX_DEPTH {
+            return err(self.lx.pos, "expression nested too deeply");
+        }
+        let (tok, span) = self.lx.next(true)?;
+        let r = match tok {
+            Tok::Number { value, has_point } => Ok(Expr::Number { value, has_point }),
+            Tok::Minus => self.operand().map(|e| Expr::Neg(Box::new(e))),
+            Tok::Plus => self.operand(),
+            Tok::LBracket => {
+                let e = self.expr(0);
+                match e {
+                    Ok(e) => self.expect_rbracket().map(|_| e),
+                    Err(e) => Err(e),
+                }
+            }
+            Tok::Hash => self.param_ref().map(|p| Expr::Param(Box::new(p))),
+            Tok::Ident(name) => match self.function(&name, span.start)? {
+                Some(e) => Ok(e),
+                None => err(span.start, format!("unknown function or operator '{name}'")),
+            },
+            t => err(span.start, format!("expected a value, found {}", tok_name(&t))),
+        };
+        self.depth -= 1;
+        r
+    }
+
+    fn binop(&mut self) -> PResult<Option<BinOp>> {
+        let save = self.lx.clone();
+        let (tok, span) = self.lx.next(true)?;
+        let op = match tok {
+            Tok::StarStar => BinOp::Pow,
+            Tok::Star => BinOp::Mul,
+            Tok::Slash => BinOp::Div,
+            Tok::Plus => BinOp::Add,
+            Tok::Minus => BinOp::Sub,
+            Tok::Ident(ref s) => match s.as_str() {
+                "MOD" => BinOp::Mod,
+                "EQ" => BinOp::Eq,
+                "NE" => BinOp::Ne,
+                "GT" => BinOp::Gt,
+                "GE" => BinOp::Ge,
+                "LT" => BinOp::Lt,
+                "LE" => BinOp::Le,
+                "AND" => BinOp::And,
+                "OR" => BinOp::Or,
+                "XOR" => BinOp::Xor,
+                _ => return err(span.start, format!("unknown operator '{s}'")),
+            },
+            _ => {
+                self.lx = save;
+                return Ok(None);
+            }
+        };
+        Ok(Some(op))
+    }
+
+    /// Precedence climbing; all binary operators are left-associative (as in LinuxCNC).
+    fn expr(&mut self, min_prec: u8) -> PResult<Expr> {
+        let mut lhs = self.operand()?;
+        loop {
+            let save = self.lx.clone();
+            let Some(op) = self.binop()? else { break };
+            let p = op.precedence();
+            if p < min_prec {
+                self.lx = save;
+                break;
+            }
+            self.ops += 1;
+            if self.ops > MAX_OPS {
+                return err(self.lx.pos, "expression too long");
+            }
+            let rhs = self.expr(p + 1)?;
+            lhs = Expr::Binary(op, Box::new(lhs), Box::new(rhs));
+        }
+        Ok(lhs)
+    }
+
+    /// After `#`: `123`, `<name>`, `[expr]`, or `#...` (indirect).
+    fn param_ref(&mut self) -> PResult<ParamRef> {
+        self.depth += 1;
+        if self.depth > MAX_DEPTH {
+            return err(self.lx.pos, "parameter reference nested too deeply");
+        }
+        let (tok, span) = self.lx.next(false)?;
+        let r = match tok {
+            Tok::Number { value, has_point } => Ok(ParamRef::Numbered(Expr::Number { value, has_point })),
+            Tok::Name(n) => Ok(ParamRef::Named(n)),
+            Tok::LBracket => {
+                let e = self.expr(0)?;
+                self.expect_rbracket()?;
+                Ok(ParamRef::Numbered(e))
+            }
+            Tok::Hash => {
+                let inner = self.param_ref()?;
+                Ok(ParamRef::Numbered(Expr::Param(Box::new(inner))))
+            }
+            t => err(
+                span.start,
+                format!("expected a parameter number or <name> after '#', found {}", tok_name(&t)),
+            ),
+        };
+        self.depth -= 1;
+        r
+    }
+}
+
+/// Split the source into lines and parse each one.
+pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
+    let mut blocks = Vec::new();
+    let mut errors = Vec::new();
+    let bytes = source.as_bytes();
+    let mut start = 0;
+    let mut line = 1u32;
+    let mut percents = 0;
+    while start < source.len() {
+        let nl = bytes[start..].iter().position(|&b| b == b'\n');
+        let (content_end, end) = match nl {
+            Some(i) => {
+                let e = start + i;
+                let ce = if e > start && bytes[e - 1] == b'\r' { e - 1 } else { e };
+                (ce, e + 1)
+            }
+            None => (source.len(), source.len()),
+        };
+        let mut block = Block {
+            line,
+            span: Span::new(start, content_end),
+            end,
+            ..Block::default()
+        };
+        if percents >= 2 {
+            block.after_end = true;
+        } else if let Err(e) = parse_line(source, &mut block) {
+            let col = source[start..e.pos.min(content_end).max(start)].chars().count() as u32 + 1;
+            errors.push(Diagnostic::new(line, col, e.message));
+        }
+        if block.percent {
+            percents += 1;
+        }
+        blocks.push(block);
+        start = end;
+        line += 1;
+    }
+    (blocks, errors)
+}
+
+fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
+    let mut p = LineParser {
+        lx: Lexer::new(source, block.span.start, block.span.end),
+        depth: 0,
+        ops: 0,
+    };
+    if p.lx.peek_byte() == Some(b'/') {
+        p.lx.next(false)?;
+        block.block_delete = true;
+    }
+    if p.lx.peek_byte() == Some(b'%') {
+        p.lx.next(false)?;
+        block.percent = true;
+        return rest_comments(&mut p, block);
+    }
+    // N word: only first in the block.
+    if matches!(p.lx.peek_byte(), Some(b'n' | b'N')) {
+        let (_, ls) = p.lx.next(false)?;
+        let vstart = {
+            p.lx.skip_ws();
+            p.lx.pos
+        };
+        let (t, s) = p.lx.next(false)?;
+        let Tok::Number { value, has_point } = t else {
+            return err(s.start, "N must be followed by a line number");
+        };
+        block.line_number = Some(Word {
+            letter: 'N',
+            comma: false,
+            value: Expr::Number { value, has_point },
+            span: Span::new(ls.start, s.end),
+            value_span: Span::new(vstart, s.end),
+        });
+    }
+    if matches!(p.lx.peek_byte(), Some(b'o' | b'O')) {
+        return o_line(&mut p, block);
+    }
+    loop {
+        let (tok, span) = p.lx.next(false)?;
+        match tok {
+            Tok::End => break,
+            Tok::Comment(text) => block.comments.push(Comment { text, span }),
+            Tok::Letter(c) => {
+                if c == 'N' {
+                    return err(span.start, "N word (line number) must be at the start of the block");
+                }
+                if c == 'O' {
+                    return err(span.start, "O word must be at the start of the block");
+                }
+                p.lx.skip_ws();
+                let vstart = p.lx.pos;
+                let value = p.value()?;
+                block.words.push(Word {
+                    letter: c,
+                    comma: false,
+                    value,
+                    span: Span::new(span.start, p.lx.pos),
+                    value_span: Span::new(vstart, p.lx.pos),
+                });
+            }
+            Tok::Comma => {
+                let (t, s) = p.lx.next(false)?;
+                let Tok::Letter(c) = t else {
+                    return err(s.start, "expected R or C after ',' (Fanuc corner word)");
+                };
+                if c != 'R' && c != 'C' {
+                    return err(s.start, format!("',{c}' is not a corner word (only ,R and ,C)"));
+                }
+                p.lx.skip_ws();
+                let vstart = p.lx.pos;
+                let value = p.value()?;
+                block.words.push(Word {
+                    letter: c,
+                    comma: true,
+                    value,
+                    span: Span::new(span.start, p.lx.pos),
+                    value_span: Span::new(vstart, p.lx.pos),
+                });
+            }
+            Tok::Hash => {
+                let target = p.param_ref()?;
+                let (t, s) = p.lx.next(false)?;
+                if t != Tok::Equals {
+                    return err(s.start, "expected '=' after a parameter (a parameter can only be set here)");
+                }
+                let value = p.value()?;
+                block.assignments.push(Assignment {
+                    target,
+                    value,
+                    span: Span::new(span.start, p.lx.pos),
+                });
+            }
+            t => return err(span.start, format!("unexpected {}", tok_name(&t))),
+        }
+    }
+    Ok(())
+}
+
+fn rest_comments(p: &mut LineParser, block: &mut Block) -> PResult<()> {
+    loop {
+        let (tok, span) = p.lx.next(false)?;
+        match tok {
+            Tok::End => return Ok(()),
+            Tok::Comment(text) => block.comments.push(Comment { text, span }),
+            t => return err(span.start, format!("unexpected {} on this line", tok_name(&t))),
+        }
+    }
+}
+
+fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
+    let (_, os) = p.lx.next(false)?;
+    let (t, s) = p.lx.next(false)?;
+    let name = match t {
+        Tok::Number { value, .. } if value.fract() == 0.0 && value <= u32::MAX as f64 => OName::Number(value as u32),
+        Tok::Name(n) => OName::Named(n),
+        t => {
+            return err(
+                s.start,
+                format!("O word needs a number or <name>, found {}", tok_name(&t)),
+            )
+        }
+    };
+    let kw_text = p.lx.peek_ident();
+    let keyword = if kw_text.is_empty() {
+        OKeyword::ProgramNumber
+    } else {
+        let at = p.lx.pos;
+        let Some(k) = OKeyword::from_name(&kw_text) else {
+            return err(at, format!("unknown O-word keyword '{kw_text}'"));
+        };
+        p.lx.pos += kw_text.len();
+        k
+    };
+    let mut args = Vec::new();
+    // Bracketed arguments: any number for call, at most one for the others.
+    loop {
+        match p.lx.peek_byte() {
+            Some(b'[') => {
+                let at = p.lx.pos;
+                p.lx.next(false)?;
+                let e = p.expr(0)?;
+                p.expect_rbracket()?;
+                let allowed = match keyword {
+                    OKeyword::Call => usize::MAX,
+                    OKeyword::While
+                    | OKeyword::If
+                    | OKeyword::ElseIf
+                    | OKeyword::Repeat
+                    | OKeyword::Return
+                    | OKeyword::EndSub => 1,
+                    _ => 0,
+                };
+                if args.len() >= allowed {
+                    return err(at, format!("unexpected argument after {kw_text}"));
+                }
+                args.push(e);
+            }
+            _ => break,
+        }
+    }
+    if matches!(
+        keyword,
+        OKeyword::While | OKeyword::If | OKeyword::ElseIf | OKeyword::Repeat
+    ) && args.is_empty()
+    {
+        return err(p.lx.pos, format!("{kw_text} needs a condition in brackets"));
+    }
+    block.o_word = Some(OWord {
+        name,
+        keyword,
+        args,
+        span: Span::new(os.start, p.lx.pos),
+    });
+    rest_comments(p, block)
+}
