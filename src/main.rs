@@ -3,6 +3,7 @@
 mod config;
 mod http;
 mod metrics;
+mod pending;
 mod queue;
 mod runner;
 mod store;
@@ -44,6 +45,9 @@ enum Command {
     Worker(WorkerArgs),
     /// Interpret an NC program (G-code or APT/CLS) and print one JSON object per move.
     Interpret(InterpretArgs),
+    /// Print every HTTP route as `METHOD PATH`, one per line (checked against openapi.yaml).
+    #[command(hide = true)]
+    Routes,
     /// Make a new API key: prints the key, and the line to add to the key file.
     ApiKey {
         /// Name of the key's owner (a CAM station, an MES, ...).
@@ -149,6 +153,12 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Interpret(args) => interpret(args),
+        Command::Routes => {
+            for (method, path) in http::route_table() {
+                println!("{method} {path}");
+            }
+            ExitCode::SUCCESS
+        }
         Command::ApiKey { name } => {
             if name.is_empty() || name.contains(char::is_whitespace) {
                 eprintln!("millsim api-key: the name must be one word");
@@ -304,7 +314,7 @@ fn interpret(args: InterpretArgs) -> ExitCode {
         }
     }
     let result =
-        if validate::looks_like_cls(&text) { millsim_engine::cl::read_cls(&text) } else { nc::interpret(&text, &options) };
+        if validate::looks_like_cls(&text) { crate::pending::read_cls(&text) } else { nc::interpret(&text, &options) };
     match result {
         Ok(out) => {
             for w in &out.warnings {

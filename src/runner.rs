@@ -5,7 +5,7 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 
 use millsim_engine::job::{CancelFlag, Progress};
-use millsim_engine::{cl, nc};
+use millsim_engine::nc;
 
 /// Job kinds the API knows. Only the ones whose engine exists run; the others are refused
 /// at submission with a clear "not supported yet".
@@ -99,7 +99,7 @@ fn interpret(options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progres
     })?;
     let engine_opts = opts.engine_options().map_err(|d| JobFailure::Invalid(diagnostics_problem("tool_table", &d)))?;
     let result = if crate::validate::looks_like_cls(&text) {
-        cl::read_cls(&text)
+        crate::pending::read_cls(&text)
     } else {
         nc::interpret(&text, &engine_opts)
     }
@@ -109,8 +109,18 @@ fn interpret(options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progres
     }
     let total = result.moves.len() as u64;
     let mut rows = Vec::with_capacity(result.moves.len());
+    // Rows differ (arcs carry a centre, dwells seconds): the CSV needs every column.
+    let mut columns: Vec<String> = Vec::new();
     for (i, m) in result.moves.iter().enumerate() {
-        rows.push(serde_json::to_string(m).expect("moves serialize"));
+        let row = serde_json::to_value(m).expect("moves serialize");
+        if let Value::Object(o) = &row {
+            for k in o.keys() {
+                if !columns.iter().any(|c| c == k) {
+                    columns.push(k.clone());
+                }
+            }
+        }
+        rows.push(row.to_string());
         if i % 4096 == 0 {
             progress.report(i as u64, total);
             if cancel.is_cancelled() {
@@ -122,7 +132,7 @@ fn interpret(options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progres
     let warnings: Vec<Value> =
         result.warnings.iter().map(|w| json!({"line": w.line, "column": w.col, "message": w.message})).collect();
     Ok(JobOutput {
-        summary: json!({ "file": file, "moves": result.moves.len(), "blocks": result.block_count, "warnings": warnings }),
+        summary: json!({ "file": file, "moves": result.moves.len(), "blocks": result.block_count, "warnings": warnings, "row_columns": columns }),
         rows,
     })
 }

@@ -9,7 +9,7 @@ use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
-use futures_util::stream::{self, Stream};
+use futures_util::stream;
 use serde::Deserialize;
 use serde_json::{json, Map, Value};
 use sha2::{Digest, Sha256};
@@ -233,7 +233,7 @@ struct BlocksQuery {
 
 pub async fn blocks(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>, req: Request) -> Result<Response, ApiError> {
     let q: BlocksQuery = parse_query(req.uri().query())?;
-    succeeded(&state.db, &owner, &id).await?;
+    let job = succeeded(&state.db, &owner, &id).await?;
     match q.format.as_deref().unwrap_or("json") {
         "json" => {
             let from = match &q.cursor {
@@ -248,20 +248,29 @@ pub async fn blocks(State(state): State<AppState>, Owner(owner): Owner, Path(id)
             let next = if more { rows.get(limit as usize).map(|(seq, _)| seq.to_string()) } else { None };
             Ok(Json(json!({ "items": items, "next_cursor": next })).into_response())
         }
-        "csv" => Ok(csv_response(state.db.clone(), id)),
+        "csv" => {
+            let declared: Option<Vec<String>> = job
+                .summary
+                .as_ref()
+                .and_then(|s| s.get("row_columns"))
+                .and_then(|c| serde_json::from_value(c.clone()).ok());
+            Ok(csv_response(state.db.clone(), id, declared))
+        }
         other => Err(ApiError::invalid_field("format", format!("unknown format `{other}`; one of: json, csv"))),
     }
 }
 
-/// CSV columns of a JSON row: nested arrays become `name_x`, `name_y`, ... columns.
-fn csv_columns(row: &Map<String, Value>) -> Vec<(String, String, Option<usize>)> {
+/// CSV columns: the job's declared row keys (else the first row's), where a key whose
+/// value is an array becomes `name_x`, `name_y`, ... columns (sized from the first row
+/// holding it: positions are 6 axes, centres and normals 3).
+fn csv_columns(keys: &[String], sample_rows: &[Map<String, Value>]) -> Vec<(String, String, Option<usize>)> {
     const AXES: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
     let mut cols = Vec::new();
-    for (k, v) in row {
-        match v {
-            Value::Array(a) if a.len() <= 6 => {
-                for i in 0..a.len() {
-                    cols.push((format!("{k}_{}", AXES[i]), k.clone(), Some(i)));
+    for k in keys {
+        match sample_rows.iter().find_map(|r| r.get(k).filter(|v| !v.is_null())) {
+            Some(Value::Array(a)) if a.len() <= 6 => {
+                for (i, axis) in AXES.iter().enumerate().take(a.len()) {
+                    cols.push((format!("{k}_{axis}"), k.clone(), Some(i)));
                 }
             }
             _ => cols.push((k.clone(), k.clone(), None)),
@@ -288,16 +297,17 @@ fn csv_field(v: Option<&Value>) -> String {
 
 /// Streams every row as CSV, reading the table page by page: memory stays flat
 /// whatever the number of blocks.
-fn csv_response(db: Db, id: String) -> Response {
+fn csv_response(db: Db, id: String, declared: Option<Vec<String>>) -> Response {
     const PAGE: i64 = 5000;
     struct S {
         db: Db,
         id: String,
         next: i64,
+        declared: Option<Vec<String>>,
         columns: Option<Vec<(String, String, Option<usize>)>>,
         done: bool,
     }
-    let stream = stream::unfold(S { db, id, next: 0, columns: None, done: false }, |mut s| async move {
+    let stream = stream::unfold(S { db, id, next: 0, declared, columns: None, done: false }, |mut s| async move {
         if s.done {
             return None;
         }
@@ -308,12 +318,21 @@ fn csv_response(db: Db, id: String) -> Response {
         if (rows.len() as i64) < PAGE {
             s.done = true;
         }
-        let mut out = String::with_capacity(rows.len() * 160);
-        for (seq, data) in &rows {
+        let parsed: Vec<Map<String, Value>> = rows
+            .iter()
+            .filter_map(|(_, d)| match serde_json::from_str::<Value>(d) {
+                Ok(Value::Object(o)) => Some(o),
+                _ => None,
+            })
+            .collect();
+        if let Some((seq, _)) = rows.last() {
             s.next = seq + 1;
-            let Ok(Value::Object(row)) = serde_json::from_str::<Value>(data) else { continue };
+        }
+        let mut out = String::with_capacity(rows.len() * 160);
+        for row in &parsed {
             if s.columns.is_none() {
-                let cols = csv_columns(&row);
+                let keys = s.declared.clone().unwrap_or_else(|| row.keys().cloned().collect());
+                let cols = csv_columns(&keys, &parsed);
                 out.push_str(&cols.iter().map(|c| c.0.as_str()).collect::<Vec<_>>().join(","));
                 out.push('\n');
                 s.columns = Some(cols);
@@ -402,9 +421,5 @@ pub async fn events(State(state): State<AppState>, Owner(owner): Owner, Path(id)
             }
         }
     });
-    Ok(sse(stream).into_response())
-}
-
-fn sse<S: Stream<Item = Result<Event, Infallible>> + Send + 'static>(s: S) -> Sse<S> {
-    Sse::new(s).keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
+    Ok(Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(15))).into_response())
 }

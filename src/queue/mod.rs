@@ -187,7 +187,12 @@ impl Worker {
             return None;
         }
         match result {
-            Ok(Ok(out)) => Some(Finish::Succeeded { summary: out.summary, rows: out.rows, artifacts: Vec::new() }),
+            Ok(Ok(out)) => Some(Finish::Succeeded {
+                summary: out.summary,
+                rows: out.rows,
+                artifacts: Vec::new(),
+                progress: (progress.done.load(Ordering::Relaxed), progress.total.load(Ordering::Relaxed)),
+            }),
             Ok(Err(JobFailure::Invalid(problem))) => Some(Finish::Failed { error: problem }),
             Ok(Err(JobFailure::Cancelled)) if give_back => {
                 match self.db.release_job(job, &self.id).await {

@@ -142,7 +142,7 @@ pub struct ClaimedJob {
 
 /// How a worker's attempt ended, written with the state change.
 pub enum Finish {
-    Succeeded { summary: serde_json::Value, rows: Vec<String>, artifacts: Vec<Artifact> },
+    Succeeded { summary: serde_json::Value, rows: Vec<String>, artifacts: Vec<Artifact>, progress: (u64, u64) },
     Failed { error: serde_json::Value },
     Cancelled,
 }
@@ -428,7 +428,7 @@ impl Db {
         let done = sqlx::query(
             "UPDATE jobs SET status = ?, summary = ?, error = ?, finished_at = ?, updated_at = ?,
                 lease_owner = NULL, lease_expires_at = NULL,
-                progress_done = CASE WHEN ? = 'succeeded' THEN progress_total ELSE progress_done END
+                progress_done = COALESCE(?, progress_done), progress_total = COALESCE(?, progress_total)
              WHERE id = ? AND lease_owner = ? AND status = 'running' AND attempts = ?",
         )
         .bind(status)
@@ -436,7 +436,8 @@ impl Db {
         .bind(error)
         .bind(now)
         .bind(now)
-        .bind(status)
+        .bind(match &finish { Finish::Succeeded { progress, .. } => Some(progress.0 as i64), _ => None })
+        .bind(match &finish { Finish::Succeeded { progress, .. } => Some(progress.1 as i64), _ => None })
         .bind(&job.id)
         .bind(worker)
         .bind(job.attempt)
@@ -521,10 +522,6 @@ impl Db {
             .bind(limit)
             .fetch_all(&self.pool)
             .await?)
-    }
-
-    pub async fn job_row_count(&self, job_id: &str) -> Result<i64, StoreError> {
-        Ok(sqlx::query_scalar("SELECT COUNT(*) FROM job_rows WHERE job_id = ?").bind(job_id).fetch_one(&self.pool).await?)
     }
 
     pub async fn job_artifact(&self, job_id: &str, name: &str) -> Result<Option<Artifact>, StoreError> {

@@ -9,8 +9,8 @@ use std::time::Duration;
 
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteSynchronous};
 
-pub use jobs::{JobRecord, JobStatus, NewJob};
-pub use resources::{ResourceKind, ResourceRecord};
+pub use jobs::{JobRecord, JobStatus};
+pub use resources::ResourceKind;
 
 static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("./migrations");
 
