@@ -180,7 +180,7 @@ pub async fn list(State(state): State<AppState>, Owner(owner): Owner, req: Reque
 pub async fn delete(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
     let job = find(&state.db, &owner, &id).await?;
     if !job.status.is_terminal() {
-        return Err(ApiError::conflict(format!("job {id} is {}: cancel it first", job.status.as_str())).with("status", job.status.as_str()));
+        return Err(ApiError::conflict(format!("job {id} is {}: cancel it first", job.status.as_str())).with("job_status", job.status.as_str()));
     }
     state.db.delete_job(&owner, &id).await?;
     Ok(StatusCode::NO_CONTENT.into_response())
@@ -189,7 +189,7 @@ pub async fn delete(State(state): State<AppState>, Owner(owner): Owner, Path(id)
 pub async fn cancel(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
     let before = find(&state.db, &owner, &id).await?;
     if before.status.is_terminal() {
-        return Err(ApiError::conflict(format!("job {id} already {}", before.status.as_str())).with("status", before.status.as_str()));
+        return Err(ApiError::conflict(format!("job {id} already {}", before.status.as_str())).with("job_status", before.status.as_str()));
     }
     let job = state.db.cancel_job(&owner, &id).await?.ok_or_else(|| ApiError::not_found("job", &id))?;
     Ok(job_response(StatusCode::ACCEPTED, &job, false))
@@ -213,7 +213,7 @@ async fn succeeded(db: &Db, owner: &str, id: &str) -> Result<JobRecord, ApiError
     let job = find(db, owner, id).await?;
     if job.status != JobStatus::Succeeded {
         return Err(ApiError::conflict(format!("job {id} is {}: results exist once it has succeeded", job.status.as_str()))
-            .with("status", job.status.as_str()));
+            .with("job_status", job.status.as_str()));
     }
     Ok(job)
 }

@@ -25,6 +25,8 @@ impl ApiError {
     }
 
     pub fn with(mut self, key: &str, value: impl Into<Value>) -> Self {
+        // The RFC 9457 members are set from the error itself, never by an extension.
+        debug_assert!(!matches!(key, "type" | "title" | "status" | "detail"), "extension `{key}` would replace a problem member");
         self.extensions.insert(key.to_string(), value.into());
         self
     }
@@ -106,7 +108,15 @@ pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Api
                 .with("line", inner.line())
                 .with("column", inner.column())
         } else {
-            ApiError::invalid_field(path.clone(), format!("`{path}`: {inner}"))
+            // serde reports a missing or unknown field at its parent: name the field itself.
+            let msg = inner.to_string();
+            let named = ["missing field `", "unknown field `"]
+                .iter()
+                .find_map(|p| msg.strip_prefix(p))
+                .and_then(|rest| rest.split('`').next())
+                .map(|f| if path == "." { f.to_string() } else { format!("{path}.{f}") });
+            let field = named.unwrap_or(path);
+            ApiError::invalid_field(field.clone(), format!("`{field}`: {msg}"))
         }
     })
 }
