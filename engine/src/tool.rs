@@ -44,6 +44,7 @@ pub struct Runout {
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Tool {
     #[serde(default)]
     pub name: Option<String>,
@@ -158,10 +159,14 @@ impl Tool {
             }
         };
         finite_pos("diameter", self.diameter)?;
-        if self.diameter > 1000.0 {
-            return Err(bad("diameter", format!("{} mm is not a milling tool", self.diameter)));
+        // Below 0.01 mm or above 1 m the number is a unit mistake, not a milling tool.
+        if !(0.01..=1000.0).contains(&self.diameter) {
+            return Err(bad("diameter", format!("{} mm is not a milling tool diameter (0.01 to 1000 mm)", self.diameter)));
         }
         finite_pos("flute_length", self.flute_length)?;
+        if !(0.01..=2000.0).contains(&self.flute_length) {
+            return Err(bad("flute_length", format!("{} mm is not a flute length (0.01 to 2000 mm)", self.flute_length)));
+        }
         if self.flutes == 0 || self.flutes > 64 {
             return Err(bad("flutes", format!("must be between 1 and 64, got {}", self.flutes)));
         }

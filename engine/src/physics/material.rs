@@ -13,6 +13,7 @@ use super::PhysicsError;
 /// length, mm). Signs are not restricted: identified axial coefficients are sometimes
 /// negative in the literature.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CuttingCoefficients {
     pub ktc: f64,
     pub krc: f64,
@@ -41,6 +42,7 @@ impl CuttingCoefficients {
 
 /// A work material as the force model and the life model need it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Material {
     pub name: String,
     pub coefficients: CuttingCoefficients,
