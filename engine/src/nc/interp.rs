@@ -1521,7 +1521,12 @@ impl<'p> Interp<'p> {
             if let Some((v, i)) = w.vals[li] {
                 if !w.used[li] {
                     let c = (b'A' + li as u8) as char;
-                    return Err(self.err_at(self.word_pos(i), format!("{c}{v} is not used by any code in this block")));
+                    let hint = if c == 'R' && self.motion == Some(Motion::Linear) {
+                        " (Fanuc corner rounding is written ,R; for controls that take R/C without the comma set fanuc_corners_without_comma)"
+                    } else {
+                        ""
+                    };
+                    return Err(self.err_at(self.word_pos(i), format!("{c}{v} is not used by any code in this block{hint}")));
                 }
             }
         }
