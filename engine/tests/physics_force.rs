@@ -250,7 +250,21 @@ fn means_do_not_depend_on_table_grid_or_angular_resolution() {
         .evaluate(&e, &k, &cond(c.c))
         .unwrap();
     let one_shot = cutting_forces(&tool, &e, &k, &cond(c.c), 360).unwrap();
-    assert_eq!(a.fx.mean, one_shot.fx.mean);
+    // Table lookups and on-the-fly slices differ only by rounding.
+    for (x, y) in [
+        (a.fx.mean, one_shot.fx.mean),
+        (a.fy.max, one_shot.fy.max),
+        (a.force.peak, one_shot.force.peak),
+        (a.torque.mean, one_shot.torque.mean),
+    ] {
+        assert!(rel(x, y) < 1e-12, "{x} vs {y}");
+    }
+    // Serializable both ways (serde_json's default float parsing may differ in the last bit).
+    let json = serde_json::to_string(&a).unwrap();
+    let back: millsim_engine::physics::ForceResult = serde_json::from_str(&json).unwrap();
+    assert_eq!(back.samples.len(), a.samples.len());
+    assert_eq!(back.per_tooth.len(), a.per_tooth.len());
+    assert!(rel(back.fy.mean, a.fy.mean) < 1e-15 && rel(back.power.peak, a.power.peak) < 1e-15);
     for (x, y) in [
         (a.fx.mean, b.fx.mean),
         (a.fy.mean, b.fy.mean),

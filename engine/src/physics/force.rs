@@ -39,6 +39,14 @@
 //! Torque T = Σ dFt·r; power P = T·ω, which is Ft·v with the local cutting speed of each edge
 //! point (for a flat end mill exactly Ft·π·D·n/60000).
 //!
+//! Runout simplifications: the radius change enters the chip only (the torque arm and the
+//! tooth's angular position keep their nominal values: effects of order ρ/r).
+//!
+//! Speed: per-slice geometry comes from a [`ToolEdgeTable`] built once per tool; only the
+//! positions where a tooth is inside an engaged arc are visited; without runout, when the
+//! tooth pitch is a whole number of positions (360 positions and 1–6, 8, 9, 10, 12 … teeth),
+//! tooth 1 is computed and the others are copies shifted by whole pitches.
+//!
 //! Means are exact time averages up to the midpoint rule: the samples at the bin centres are
 //! weighted 1, and the two bins an engaged arc cuts through are integrated over their covered
 //! part only, so a 10%-immersion arc is not rounded to whole degrees. Instantaneous samples
@@ -127,7 +135,7 @@ impl EdgeSlice {
     pub fn compute(tool: &Tool, z0: f64, z1: f64) -> Option<EdgeSlice> {
         let za = z0.max(0.0);
         let zb = z1.min(tool.flute_length);
-        if !(zb - za > 1e-12) {
+        if zb - za <= 1e-12 || zb.is_nan() || za.is_nan() {
             return None;
         }
         let z = 0.5 * (za + zb);
@@ -429,7 +437,7 @@ fn unit(field: &str, v: [f64; 3]) -> Result<[f64; 3], PhysicsError> {
         }
     }
     let n = norm(v);
-    if !(n > 1e-12) || !n.is_finite() {
+    if n.is_nan() || n <= 1e-12 || !n.is_finite() {
         return Err(PhysicsError::invalid(field, "must be a non-zero vector"));
     }
     Ok(scale(v, 1.0 / n))
@@ -794,7 +802,7 @@ impl ForceModel {
         let no_steps: [f64; 0] = [];
         // Without runout every tooth repeats tooth 1 one pitch later; when the pitch is a
         // whole number of positions, compute tooth 1 only and copy it shifted.
-        let symmetric = self.table.runout_steps.is_empty() && kpos % n == 0;
+        let symmetric = self.table.runout_steps.is_empty() && kpos.is_multiple_of(n);
         let computed_teeth = if symmetric { 1 } else { n };
 
         for s in &engagement.slices {
@@ -1087,9 +1095,8 @@ fn validate_slices(e: &Engagement) -> Result<(), PhysicsError> {
     Ok(())
 }
 
-/// One-shot convenience: builds a [`ForceModel`] whose table matches nothing in particular
-/// (slices are computed from the engagement) and evaluates once. For repeated use keep a
-/// `ForceModel`.
+/// One-shot convenience: evaluates once with every slice's geometry computed from the
+/// engagement (no table to build). For repeated use keep a [`ForceModel`].
 pub fn cutting_forces(
     tool: &Tool,
     engagement: &Engagement,
@@ -1097,13 +1104,7 @@ pub fn cutting_forces(
     conditions: &CuttingConditions,
     positions: usize,
 ) -> Result<ForceResult, PhysicsError> {
-    let dz = engagement
-        .slices
-        .iter()
-        .map(|s| s.dz)
-        .find(|d| d.is_finite() && *d > 0.0)
-        .unwrap_or(tool.flute_length);
-    let table = ToolEdgeTable::with_slice_height(tool, dz.max(tool.flute_length * 1e-6))?;
+    let table = ToolEdgeTable::with_slice_height(tool, tool.flute_length)?;
     ForceModel::from_table(table, positions)?.evaluate(engagement, coefficients, conditions)
 }
 
