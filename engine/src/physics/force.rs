@@ -632,6 +632,7 @@ fn run_segment(
     fy: &mut [f64],
     fz: &mut [f64],
     tq: &mut [f64],
+    scratch: &mut [f64],
 ) {
     let n = st.len();
     let (ct, fx, fy, fz, tq) = (
@@ -658,11 +659,37 @@ fn run_segment(
             tq[i] += (a[3] * s + b[3]) * on;
         }
     } else {
+        // Runout: the thinnest of the N candidate chips, found one candidate at a time over
+        // the whole run (branch-free selects that vectorize) in scratch buffers.
+        let (sb, rest) = scratch.split_at_mut(n);
+        let (cb, rest) = rest.split_at_mut(n);
+        let (bh, rest) = rest.split_at_mut(n);
+        let (bm, rest) = rest.split_at_mut(n);
+        let bd = &mut rest[..n];
         for i in 0..n {
-            let s = st[i] * ca - ct[i] * sa;
-            let c = ct[i] * ca + st[i] * sa;
-            let (h, x, v) = p.chip(steps, s);
-            let on = if h >= -CHIP_EPS { 1.0 } else { 0.0 };
+            sb[i] = st[i] * ca - ct[i] * sa;
+            cb[i] = ct[i] * ca + st[i] * sa;
+            bh[i] = f64::INFINITY;
+            bm[i] = 0.0;
+            bd[i] = 0.0;
+        }
+        let (hs, hv) = (p.ch * p.sk, p.cv * p.ck);
+        for (m, &d) in steps.iter().enumerate() {
+            let mf = (m + 1) as f64;
+            let e = d * p.sk;
+            for i in 0..n {
+                let h = mf * (hs * sb[i] - hv) + e;
+                let better = h < bh[i];
+                bh[i] = if better { h } else { bh[i] };
+                bm[i] = if better { mf } else { bm[i] };
+                bd[i] = if better { d } else { bd[i] };
+            }
+        }
+        for i in 0..n {
+            let (s, c) = (sb[i], cb[i]);
+            let on = if bh[i] >= -CHIP_EPS { 1.0 } else { 0.0 };
+            let x = bm[i] * p.ch * s + bd[i];
+            let v = bm[i] * p.cv;
             let f = p.force(x, v, s, c);
             fx[i] += f[0] * on;
             fy[i] += f[1] * on;
@@ -705,6 +732,8 @@ pub struct ForceModel {
     acc: Vec<f64>,
     /// Totals over teeth per position, four blocks of K.
     tot: Vec<f64>,
+    /// Five buffers of K for the runout kernel.
+    scratch: Vec<f64>,
     tooth_hmax: Vec<f64>,
     keep_samples: bool,
 }
@@ -736,6 +765,7 @@ impl ForceModel {
             cos_t,
             acc: vec![0.0; 4 * n * positions],
             tot: vec![0.0; 4 * positions],
+            scratch: vec![0.0; 5 * positions],
             tooth_hmax: vec![0.0; n],
             table,
             keep_samples: true,
@@ -849,6 +879,7 @@ impl ForceModel {
                             &mut fy[seg.clone()],
                             &mut fz[seg.clone()],
                             &mut tq[seg],
+                            &mut self.scratch,
                         );
                         if count > first {
                             let seg = 0..count - first;
@@ -861,6 +892,7 @@ impl ForceModel {
                                 &mut fy[seg.clone()],
                                 &mut fz[seg.clone()],
                                 &mut tq[seg],
+                                &mut self.scratch,
                             );
                         }
                         let (h, _, _) = p.chip(steps, max_sin(k_lo * delta - alpha, delta, count));
