@@ -319,7 +319,7 @@ impl Reader {
         m.center = Some(center);
         m.normal = Some(normal);
         m.clockwise = Some(cw);
-        m.arc = Some(ArcGeometry {
+        m.arc = Some(Box::new(ArcGeometry {
             start: m.start,
             end: m.end,
             center,
@@ -330,7 +330,7 @@ impl Reader {
             end_radius: r2,
             clockwise: cw,
             turns: 1,
-        });
+        }));
         self.moves.push(m);
         Ok(())
     }

@@ -545,7 +545,8 @@ pub fn interpret_program(
         params: Params::new(),
         frames: Vec::new(),
         repeat_counts: HashMap::new(),
-        moves: Vec::new(),
+        // Most programs make about one move per block.
+        moves: Vec::with_capacity(prog.blocks().len().min(options.max_moves)),
         warnings: Vec::new(),
         pending_corner: None,
         saved_modal: None,
@@ -1864,7 +1865,7 @@ impl<'p> Interp<'p> {
         m.center = Some(center);
         m.normal = Some(plane.normal());
         m.clockwise = Some(cw);
-        m.arc = Some(geom);
+        m.arc = Some(Box::new(geom));
         self.push(m)?;
         self.cur = end;
         Ok(())
@@ -2217,7 +2218,7 @@ impl<'p> Interp<'p> {
             m.center = Some(center);
             m.normal = Some(p.plane.normal());
             m.clockwise = Some(cw);
-            m.arc = Some(ArcGeometry {
+            m.arc = Some(Box::new(ArcGeometry {
                 start: t1m,
                 end: t2m,
                 center,
@@ -2228,7 +2229,7 @@ impl<'p> Interp<'p> {
                 end_radius: r,
                 clockwise: cw,
                 turns: 1,
-            });
+            }));
         }
         let res = self.push(m);
         self.cur_block = blk;
