@@ -223,6 +223,14 @@ fn g84_in_xz_plane_taps_at_the_hole() {
     assert_end(m[5], inch([7.0, 0.2, 6.0])); // tap out, reversed
     assert_eq!(m[5].spindle_dir, SpindleDir::Ccw);
     assert_eq!(m[5].kind, MoveKind::Linear);
+    // G74 (left hand) needs M4 and reverses to clockwise for the way out.
+    let o = InterpretOptions::default();
+    assert!(fail("S500 M3\nG74 X1 Y1 Z-1 R1 F10\n", &o).2.contains("counterclockwise (M4)"));
+    let i = run("G0 Z5\nS500 M4\nG74 X1 Y1 Z-1 R1 F10\n");
+    let m = motions(&i);
+    assert_end(m[3], [1.0, 1.0, -1.0, 0.0, 0.0, 0.0]);
+    assert_eq!((m[3].spindle_dir, m[5].spindle_dir), (SpindleDir::Ccw, SpindleDir::Cw));
+    assert_end(m[5], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
 }
 
 #[test]

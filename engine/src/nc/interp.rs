@@ -124,7 +124,7 @@ impl Words {
 fn g_group(code: u16) -> Option<u8> {
     Some(match code {
         40 | 100 | 280 | 281 | 300 | 301 | 530 | 920 | 921 | 922 | 923 => 0,
-        0 | 10 | 20 | 30 | 331 | 730 | 800 | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880
+        0 | 10 | 20 | 30 | 331 | 730 | 740 | 800 | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880
         | 890 => 1,
         170 | 180 | 190 => 2,
         900 | 910 => 3,
@@ -158,7 +158,6 @@ fn g_refusal(code: u16) -> &'static str {
         380..=389 => "probing (G38.x) cannot be simulated without a probe model",
         510 | 511 | 500 => "scaling (G50/G51) is not supported",
         680 | 690 => "coordinate rotation (G68/G69) is not supported",
-        740 => "left-hand tapping cycle G74 is not supported",
         760 => "threading cycle G76 is not supported",
         _ => "is not a supported G code",
     }
@@ -1986,11 +1985,12 @@ impl<'p> Interp<'p> {
                 };
                 self.cycle_p = p;
             }
-            84 => {
+            74 | 84 => {
                 p = w.take('P').unwrap_or(self.cycle_p);
                 self.cycle_p = p;
-                if self.spindle != SpindleDir::Cw {
-                    return Err(self.err_block("G84 needs the spindle turning clockwise (M3)"));
+                let (need, m) = if g == 84 { (SpindleDir::Cw, "clockwise (M3)") } else { (SpindleDir::Ccw, "counterclockwise (M4)") };
+                if self.spindle != need {
+                    return Err(self.err_block(format!("G{g} needs the spindle turning {m}")));
                 }
             }
             73 | 83 => {
@@ -2072,12 +2072,14 @@ impl<'p> Interp<'p> {
                     self.cyc_move(false, plane, aa, bb, cc)?;
                     self.cyc_move(true, plane, aa, bb, clear)?;
                 }
-                84 => {
+                74 | 84 => {
+                    // Tap in, reverse the spindle, dwell, feed out, restore the direction.
+                    let (dir, rev) = if g == 84 { (SpindleDir::Cw, SpindleDir::Ccw) } else { (SpindleDir::Ccw, SpindleDir::Cw) };
                     self.cyc_move(false, plane, aa, bb, cc)?;
-                    self.spindle = SpindleDir::Ccw;
+                    self.spindle = rev;
                     self.dwell(p)?;
                     self.cyc_move(false, plane, aa, bb, clear)?;
-                    self.spindle = SpindleDir::Cw;
+                    self.spindle = dir;
                 }
                 85 => {
                     self.cyc_move(false, plane, aa, bb, cc)?;
