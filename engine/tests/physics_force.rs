@@ -699,6 +699,13 @@ fn air_and_bad_inputs() {
     e.slices[2].arcs[0].1 = f64::NAN;
     let err = cutting_forces(&tool, &e, &k, &cond(0.1), 360).unwrap_err();
     assert_eq!(err.field(), "slices[2].arcs[0]");
+    let e = engagement(2.0, 4, &[(1e15, 1e15 + 1.0)]);
+    assert_eq!(
+        cutting_forces(&tool, &e, &k, &cond(0.1), 360)
+            .unwrap_err()
+            .field(),
+        "slices[0].arcs[0]"
+    );
     let mut e = engagement(2.0, 4, &[(0.0, PI)]);
     e.feed_dir = [0.0; 3];
     assert_eq!(

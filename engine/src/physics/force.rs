@@ -1116,10 +1116,13 @@ fn validate_slices(e: &Engagement) -> Result<(), PhysicsError> {
                     value: if p.is_finite() { q } else { p },
                 });
             }
-            if !(q > p && q - p <= TAU + 1e-9) {
+            // The Engagement keeps arcs within [0, 2π); allow a wrapped copy either side.
+            if !(q > p && q - p <= TAU + 1e-9 && p >= -TAU && q <= 2.0 * TAU) {
                 return Err(PhysicsError::invalid(
                     format!("slices[{i}].arcs[{a}]"),
-                    format!("must satisfy entry < exit ≤ entry + 2π, got ({p}, {q})"),
+                    format!(
+                        "must satisfy −2π ≤ entry < exit ≤ min(entry + 2π, 4π), got ({p}, {q})"
+                    ),
                 ));
             }
         }
