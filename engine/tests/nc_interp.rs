@@ -173,9 +173,12 @@ fn g28_g30_home_positions() {
     let m = motions(&i);
     assert_end(m[1], [5.0, 5.0, 10.0, 0.0, 0.0, 0.0]); // intermediate point
     assert_end(m[2], [5.0, 5.0, 0.0, 0.0, 0.0, 0.0]); // Z home only
-    assert_end(m[5], [7.0, 5.0, 0.0, 0.0, 0.0, 0.0]); // all axes to stored G28 position
-    assert_end(m[6], [3.0, 5.0, 0.0, 0.0, 0.0, 0.0]);
-    assert_end(m[7], [0.0, 5.0, 0.0, 0.0, 0.0, 0.0]); // G30 default home is 0
+    // G28 alone: a zero-length move to the "intermediate point" (as LinuxCNC), then all axes
+    // to the stored G28 position.
+    assert_end(m[5], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
+    assert_end(m[6], [7.0, 5.0, 0.0, 0.0, 0.0, 0.0]);
+    assert_end(m[7], [3.0, 5.0, 0.0, 0.0, 0.0, 0.0]);
+    assert_end(m[8], [0.0, 5.0, 0.0, 0.0, 0.0, 0.0]); // G30 default home is 0
 }
 
 #[test]

@@ -1246,8 +1246,11 @@ impl<'p> Interp<'p> {
         // 3. feed mode
         for (code, mode) in [(930, FeedMode::InverseTime), (940, FeedMode::PerMin), (950, FeedMode::PerRev)] {
             if w.g(code).is_some() {
-                if self.feed_mode != mode && mode == FeedMode::InverseTime {
-                    // LinuxCNC: entering G93 forgets the feed; each move must give its own F.
+                if self.feed_mode != mode
+                    && (mode == FeedMode::InverseTime || self.feed_mode == FeedMode::InverseTime)
+                {
+                    // LinuxCNC: entering or leaving G93 forgets the feed, so an inverse-time F
+                    // is never taken as a feed per minute (or the reverse).
                     self.feed_word = 0.0;
                 }
                 self.feed_mode = mode;
@@ -1630,6 +1633,8 @@ impl<'p> Interp<'p> {
                     }
                     self.straight(true, end)?;
                 } else {
+                    // LinuxCNC still makes the (zero-length) move to the intermediate point.
+                    self.straight(true, self.cur)?;
                     let hp = self.from_machine(home);
                     self.straight(true, hp)?;
                 }
@@ -2037,6 +2042,10 @@ impl<'p> Interp<'p> {
             self.straight(true, t)?;
             old_cc = r;
             current_cc = old_cc;
+        }
+        // rs274 (2.9) never positions below the R plane: from below it goes straight to R.
+        if current_cc < r {
+            current_cc = r;
         }
         let clear = if self.retract_r_plane { r } else { old_cc };
         let mut repeat = repeats;
