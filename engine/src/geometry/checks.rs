@@ -169,6 +169,12 @@ pub(crate) fn frustum_hits(
         }
         false
     } else {
+        // Nothing to find when the frustum's lowest point is above the material.
+        let lateral = (1.0 - axis[2] * axis[2]).max(0.0).sqrt() * rmax;
+        let lowest = pos[2] + (axis[2] * f.z0).min(axis[2] * f.z1) - lateral;
+        if lowest >= top_z {
+            return false;
+        }
         // Tilted axis: points on rings of the surface, spaced about one cell.
         let (e1, e2) = frame_around(axis);
         let h = grid.cell;

@@ -5,9 +5,13 @@
 //! `crate::engagement`: clockwise from +y seen from the spindle, x = feed direction).
 //! An edge point is engaged when material that is still there lies at it. Only points
 //! whose outward normal faces the motion can meet material: behind them the tool's
-//! previous position has already removed everything. The point tested is the middle of
-//! the band this step sweeps through at that point (inset along the normal by half the
-//! step's advance along the normal), read from the Z dexels (nearest ray).
+//! previous position has already removed everything. The point tested is the edge point
+//! moved half a cell outward along its normal, read from the Z dexels (nearest ray):
+//! near the tangent points of a slot's sides (φ → 0 or π) the sliver still to be cut is
+//! far thinner than a cell, and the nearest ray to the edge point itself may lie inside
+//! the lane the tool has already cut; half a cell outward, it lies beyond the lane, where
+//! the material that the edge is grazing is. Entry and exit angles where the edge crosses
+//! a wall come out within a bin (the shift moves them by at most h/(2·r·sin φ)).
 
 use std::f64::consts::PI;
 
@@ -132,6 +136,7 @@ pub(crate) fn compute(
     let (sin_t, cos_t): (Vec<f64>, Vec<f64>) =
         (0..nb).map(|m| ((m as f64 + 0.5) * dphi).sin_cos()).unzip();
     let ptop = body.profile_top();
+    let out = 0.5 * grid.cell;
     for j in j0..j_end {
         let z = (j as f64 + 0.5) * dz;
         let Some(ep) = tool.edge_point(z) else {
@@ -157,11 +162,10 @@ pub(crate) fn compute(
             if nv <= 0.0 {
                 continue;
             }
-            let inset = 0.5 * step_len * nv;
             let p = [
-                input.pos[0] + a[0] * z + radial[0] * ep.radius - n[0] * inset,
-                input.pos[1] + a[1] * z + radial[1] * ep.radius - n[1] * inset,
-                input.pos[2] + a[2] * z + radial[2] * ep.radius - n[2] * inset,
+                input.pos[0] + a[0] * z + radial[0] * ep.radius + n[0] * out,
+                input.pos[1] + a[1] * z + radial[1] * ep.radius + n[1] * out,
+                input.pos[2] + a[2] * z + radial[2] * ep.radius + n[2] * out,
             ];
             if grid.material_at(p) {
                 bits[(j - j0) * nb + m] = true;
@@ -182,18 +186,17 @@ pub(crate) fn compute(
                 if nv <= 0.0 {
                     continue;
                 }
-                let rr = r - 0.5 * step_len * nv;
-                let Some(ray) =
-                    grid.z_ray(input.pos[0] + radial[0] * rr, input.pos[1] + radial[1] * rr)
-                else {
+                let Some(ray) = grid.z_ray(
+                    input.pos[0] + radial[0] * (r + out),
+                    input.pos[1] + radial[1] * (r + out),
+                ) else {
                     continue;
                 };
                 for iv in ray.iter() {
                     // Slices whose centre height lies in the material interval.
-                    let lo = ((iv[0] - input.pos[2]) / dz - 0.5).ceil().max(jf0 as f64);
-                    let hi = ((iv[1] - input.pos[2]) / dz - 0.5)
-                        .floor()
-                        .min(j_end as f64 - 1.0);
+                    let base = input.pos[2];
+                    let lo = ((iv[0] - base) / dz - 0.5).ceil().max(jf0 as f64);
+                    let hi = ((iv[1] - base) / dz - 0.5).floor().min(j_end as f64 - 1.0);
                     if lo > hi {
                         continue;
                     }

@@ -130,7 +130,7 @@ pub fn simulate_removal(
     let h = stock.grid.cell;
     let arc_tol = opts.arc_tolerance.unwrap_or(h / 20.0).max(1e-6);
     let axis_tol = opts.axis_tolerance.unwrap_or(h / 2.0).max(1e-6);
-    let max_axis_step = 2.0 * axis_tol / tool.stick_out().max(body.length);
+    let max_axis_step = 2.0 * axis_tol / body.length;
     // Material never rises, so the initial top bounds it for the whole program and lets
     // checks and engagement skip what is above the stock.
     let top_z = stock.grid.max_z();

@@ -85,9 +85,16 @@ impl Mesh {
     /// triangle, closed and consistently oriented.
     pub fn from_stl_bytes(bytes: &[u8]) -> Result<Mesh, StlError> {
         let mut data = bytes.to_vec();
-        if is_binary(bytes)? && data.starts_with(b"solid") {
-            // stl_io decides ASCII by the "solid" prefix; blank it so the binary reader runs.
-            data[..5].copy_from_slice(b"     ");
+        if is_binary(bytes)? {
+            if data.starts_with(b"solid") {
+                // stl_io decides ASCII by the "solid" prefix; blank it so the binary
+                // reader runs.
+                data[..5].copy_from_slice(b"     ");
+            }
+        } else {
+            // ASCII keywords are case-insensitive in practice (FACET, ENDLOOP, ...), stl_io
+            // wants them in lower case; numbers read the same either way.
+            data.make_ascii_lowercase();
         }
         let mut cur = Cursor::new(data);
         let reader =

@@ -370,7 +370,9 @@ pub(crate) struct Sweep<'a> {
     e1: [f64; 3],
     e2: [f64; 3],
     delta_local: [f64; 3],
-    bound_r: f64,
+    cap_a: [f64; 3],
+    cap_b: [f64; 3],
+    cap_r: f64,
 }
 
 impl<'a> Sweep<'a> {
@@ -379,7 +381,24 @@ impl<'a> Sweep<'a> {
         let delta = sub(mv.p1, mv.p0);
         let (e1, e2) = frame_around(mv.axis);
         let delta_local = [dot(delta, e1), dot(delta, e2), dot(delta, mv.axis)];
-        let bound_r = (body.radius * body.radius + 0.25 * body.length * body.length).sqrt();
+        let rc = match body.profile {
+            Profile::Corner { rc } => rc.min(body.length),
+            _ => 0.0,
+        };
+        let mid = [
+            0.5 * (mv.p0[0] + mv.p1[0]),
+            0.5 * (mv.p0[1] + mv.p1[1]),
+            0.5 * (mv.p0[2] + mv.p1[2]),
+        ];
+        let along = |z: f64| {
+            [
+                mid[0] + mv.axis[0] * z,
+                mid[1] + mv.axis[1] * z,
+                mid[2] + mv.axis[2] * z,
+            ]
+        };
+        let (cap_a, cap_b) = (along(rc), along(body.length));
+        let cap_r = body.radius + 0.5 * norm(delta) + 1e-9;
         Sweep {
             body,
             mv,
@@ -388,7 +407,9 @@ impl<'a> Sweep<'a> {
             e1,
             e2,
             delta_local,
-            bound_r,
+            cap_a,
+            cap_b,
+            cap_r,
         }
     }
 
@@ -418,6 +439,7 @@ impl<'a> Sweep<'a> {
         v: f64,
         s_min: f64,
         s_max: f64,
+        material: &Intervals,
     ) -> Option<(f64, f64)> {
         if self.vertical {
             match fam {
@@ -426,7 +448,7 @@ impl<'a> Sweep<'a> {
                 _ => self.h_ray(1, 0, v, u),
             }
         } else {
-            self.general_ray(fam, u, v, s_min, s_max)
+            self.general_ray(fam, u, v, s_min, s_max, material)
         }
     }
 
@@ -553,26 +575,30 @@ impl<'a> Sweep<'a> {
         v: f64,
         s_min: f64,
         s_max: f64,
+        material: &Intervals,
     ) -> Option<(f64, f64)> {
         let (ua, va) = other_axes(fam);
         let mut o = [0.0; 3];
         o[ua] = u;
         o[va] = v;
-        o[fam] = s_min - 1.0;
-        let mut e = [0.0; 3];
-        e[fam] = 1.0;
-        // Cheap rejection: the ray's distance from the path of the tool's mid-axis point
-        // exceeds the tool's bounding sphere.
-        let a = self.mv.axis;
-        let half = 0.5 * self.body.length;
-        let c0 = [
-            self.mv.p0[0] + a[0] * half,
-            self.mv.p0[1] + a[1] * half,
-            self.mv.p0[2] + a[2] * half,
-        ];
-        if line_segment_distance(o, fam, c0, self.delta) > self.bound_r {
+        // Conservative bound first: the cutting part lies within R of its axis from the
+        // corner-arc centre height up (true for flat, ball, bull-nose and chamfer
+        // profiles), so the sub-move lies within R + |Δ|/2 of that segment at the
+        // sub-move's middle. Rays missing that capsule, or whose material lies outside
+        // it, need no GJK cast.
+        let (c_in, c_out) = ray_capsule(o, fam, self.cap_a, self.cap_b, self.cap_r)?;
+        if !material.iter().any(|iv| iv[0] < c_out && c_in < iv[1]) {
             return None;
         }
+        let a = self.mv.axis;
+        let mut e = [0.0; 3];
+        e[fam] = 1.0;
+        let start = c_in.max(s_min) - 1e-3;
+        let span = c_out.min(s_max) + 1e-3 - start;
+        if span <= 0.0 {
+            return None;
+        }
+        o[fam] = start;
         let rel = sub(o, self.mv.p0);
         let to_local = |w: [f64; 3]| [dot(w, self.e1), dot(w, self.e2), dot(w, a)];
         let ol = to_local(rel);
@@ -581,7 +607,6 @@ impl<'a> Sweep<'a> {
             body: self.body,
             delta: self.delta_local,
         };
-        let span = s_max - s_min + 2.0;
         let mut simplex = VoronoiSimplex::new();
         let ray = Ray::new(
             Vector::new(ol[0], ol[1], ol[2]),
@@ -611,26 +636,57 @@ impl<'a> Sweep<'a> {
             span,
             true,
         )?;
-        let s_in = o[fam] + hit_in.time_of_impact;
-        let s_out = o[fam] + span - hit_out.time_of_impact;
+        let s_in = start + hit_in.time_of_impact;
+        let s_out = start + span - hit_out.time_of_impact;
         (s_out >= s_in).then_some((s_in, s_out))
     }
 }
 
-/// Distance between the axis-parallel line through `o` along axis `fam` and the segment
-/// c0 + t·d, t ∈ [0, 1].
-fn line_segment_distance(o: [f64; 3], fam: usize, c0: [f64; 3], d: [f64; 3]) -> f64 {
-    // Project onto the plane perpendicular to the line: a point-to-segment distance in 2-D.
+/// Intersection of the axis-parallel line through `o` along axis `fam` with the capsule
+/// of radius `r` around segment a–b, as an interval of the coordinate along the line.
+fn ray_capsule(o: [f64; 3], fam: usize, a: [f64; 3], b: [f64; 3], r: f64) -> Option<(f64, f64)> {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
     let (ua, va) = other_axes(fam);
-    let (px, py) = (o[ua] - c0[ua], o[va] - c0[va]);
-    let (dx, dy) = (d[ua], d[va]);
-    let dd = dx * dx + dy * dy;
-    let t = if dd > 0.0 {
-        ((px * dx + py * dy) / dd).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    ((px - t * dx).powi(2) + (py - t * dy).powi(2)).sqrt()
+    for c in [a, b] {
+        let d2 = (o[ua] - c[ua]).powi(2) + (o[va] - c[va]).powi(2);
+        if d2 <= r * r {
+            let w = (r * r - d2).sqrt();
+            lo = lo.min(c[fam] - w);
+            hi = hi.max(c[fam] + w);
+        }
+    }
+    // Finite cylinder: distance to the axis line ≤ r with the projection inside a–b.
+    let d = sub(b, a);
+    let dd = dot(d, d);
+    let mut m = sub(o, a);
+    m[fam] = 0.0; // measure along the line from the point level with a
+    let nd = d[fam];
+    let md = dot(m, d);
+    let qa = dd - nd * nd;
+    if qa > 1e-12 * dd {
+        let mn = 0.0; // m has no component along the line
+        let qb = dd * mn - nd * md;
+        let qc = dd * (dot(m, m) - r * r) - md * md;
+        let disc = qb * qb - qa * qc;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
+            // Axial parameter t(s) = (md + s·nd)/dd must lie in [0, 1].
+            if nd.abs() > 1e-15 {
+                let (t0, t1) = ((0.0 - md) / nd, (dd - md) / nd);
+                s0 = s0.max(t0.min(t1));
+                s1 = s1.min(t0.max(t1));
+            } else if md < 0.0 || md > dd {
+                s1 = s0 - 1.0;
+            }
+            if s0 <= s1 {
+                lo = lo.min(a[fam] + s0);
+                hi = hi.max(a[fam] + s1);
+            }
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
 }
 
 /// Rays of fewer than this many are processed on the calling thread.
@@ -665,7 +721,7 @@ pub fn remove_sweep(grid: &mut DexelGrid, body: &ToolBody, mv: &SubMove) -> Remo
                     continue;
                 }
                 let u = ou + (iu as f64 + 0.5) * h;
-                if let Some((a, b)) = sweep.ray_interval(fam, u, v, s_min, s_max) {
+                if let Some((a, b)) = sweep.ray_interval(fam, u, v, s_min, s_max, ray) {
                     let r = subtract(ray, a, b);
                     if r > 0.0 {
                         removed += r;
@@ -741,8 +797,9 @@ mod tests {
             (0, 2.5, -0.7),
             (2, 11.0, 4.0),
         ] {
-            let a = s.ray_interval(fam, u, v, -50.0, 50.0);
-            let b = g.ray_interval(fam, u, v, -50.0, 50.0);
+            let full = Intervals::from_slice(&[[-100.0, 100.0]]);
+            let a = s.ray_interval(fam, u, v, -50.0, 50.0, &full);
+            let b = g.ray_interval(fam, u, v, -50.0, 50.0, &full);
             match (a, b) {
                 (Some(a), Some(b)) => {
                     assert!(
