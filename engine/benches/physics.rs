@@ -55,6 +55,30 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
+    // General path for comparison: with runout every tooth is computed and each chip is the
+    // thinnest over the surfaces left by the previous teeth.
+    let runout = Tool {
+        runout: millsim_engine::tool::Runout {
+            offset: 0.01,
+            angle_deg: 30.0,
+        },
+        ..tool.clone()
+    };
+    let mut model_runout = ForceModel::from_table(
+        millsim_engine::physics::ToolEdgeTable::with_slice_height(&runout, depth / 50.0).unwrap(),
+        360,
+    )
+    .unwrap();
+    let e = engagement(depth, (0.0, PI));
+    let mut out = ForceResult::default();
+    group.bench_function("slot_with_runout", |b| {
+        b.iter(|| {
+            model_runout
+                .evaluate_into(std::hint::black_box(&e), &k, &cond, &mut out)
+                .unwrap();
+            std::hint::black_box(out.force.peak)
+        })
+    });
     group.finish();
 }
 

@@ -124,7 +124,7 @@ impl Words {
 fn g_group(code: u16) -> Option<u8> {
     Some(match code {
         40 | 100 | 280 | 281 | 300 | 301 | 530 | 920 | 921 | 922 | 923 => 0,
-        0 | 10 | 20 | 30 | 331 | 730 | 800 | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880
+        0 | 10 | 20 | 30 | 331 | 730 | 740 | 800 | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880
         | 890 => 1,
         170 | 180 | 190 => 2,
         900 | 910 => 3,
@@ -158,7 +158,6 @@ fn g_refusal(code: u16) -> &'static str {
         380..=389 => "probing (G38.x) cannot be simulated without a probe model",
         510 | 511 | 500 => "scaling (G50/G51) is not supported",
         680 | 690 => "coordinate rotation (G68/G69) is not supported",
-        740 => "left-hand tapping cycle G74 is not supported",
         760 => "threading cycle G76 is not supported",
         _ => "is not a supported G code",
     }
@@ -545,7 +544,8 @@ pub fn interpret_program(
         params: Params::new(),
         frames: Vec::new(),
         repeat_counts: HashMap::new(),
-        moves: Vec::new(),
+        // Most programs make about one move per block.
+        moves: Vec::with_capacity(prog.blocks().len().min(options.max_moves)),
         warnings: Vec::new(),
         pending_corner: None,
         saved_modal: None,
@@ -1246,8 +1246,11 @@ impl<'p> Interp<'p> {
         // 3. feed mode
         for (code, mode) in [(930, FeedMode::InverseTime), (940, FeedMode::PerMin), (950, FeedMode::PerRev)] {
             if w.g(code).is_some() {
-                if self.feed_mode != mode && mode == FeedMode::InverseTime {
-                    // LinuxCNC: entering G93 forgets the feed; each move must give its own F.
+                if self.feed_mode != mode
+                    && (mode == FeedMode::InverseTime || self.feed_mode == FeedMode::InverseTime)
+                {
+                    // LinuxCNC: entering or leaving G93 forgets the feed, so an inverse-time F
+                    // is never taken as a feed per minute (or the reverse).
                     self.feed_word = 0.0;
                 }
                 self.feed_mode = mode;
@@ -1521,7 +1524,12 @@ impl<'p> Interp<'p> {
             if let Some((v, i)) = w.vals[li] {
                 if !w.used[li] {
                     let c = (b'A' + li as u8) as char;
-                    return Err(self.err_at(self.word_pos(i), format!("{c}{v} is not used by any code in this block")));
+                    let hint = if c == 'R' && self.motion == Some(Motion::Linear) {
+                        " (Fanuc corner rounding is written ,R; for controls that take R/C without the comma set fanuc_corners_without_comma)"
+                    } else {
+                        ""
+                    };
+                    return Err(self.err_at(self.word_pos(i), format!("{c}{v} is not used by any code in this block{hint}")));
                 }
             }
         }
@@ -1625,6 +1633,8 @@ impl<'p> Interp<'p> {
                     }
                     self.straight(true, end)?;
                 } else {
+                    // LinuxCNC still makes the (zero-length) move to the intermediate point.
+                    self.straight(true, self.cur)?;
                     let hp = self.from_machine(home);
                     self.straight(true, hp)?;
                 }
@@ -1859,7 +1869,7 @@ impl<'p> Interp<'p> {
         m.center = Some(center);
         m.normal = Some(plane.normal());
         m.clockwise = Some(cw);
-        m.arc = Some(geom);
+        m.arc = Some(Box::new(geom));
         self.push(m)?;
         self.cur = end;
         Ok(())
@@ -1980,11 +1990,12 @@ impl<'p> Interp<'p> {
                 };
                 self.cycle_p = p;
             }
-            84 => {
+            74 | 84 => {
                 p = w.take('P').unwrap_or(self.cycle_p);
                 self.cycle_p = p;
-                if self.spindle != SpindleDir::Cw {
-                    return Err(self.err_block("G84 needs the spindle turning clockwise (M3)"));
+                let (need, m) = if g == 84 { (SpindleDir::Cw, "clockwise (M3)") } else { (SpindleDir::Ccw, "counterclockwise (M4)") };
+                if self.spindle != need {
+                    return Err(self.err_block(format!("G{g} needs the spindle turning {m}")));
                 }
             }
             73 | 83 => {
@@ -2032,6 +2043,10 @@ impl<'p> Interp<'p> {
             old_cc = r;
             current_cc = old_cc;
         }
+        // rs274 (2.9) never positions below the R plane: from below it goes straight to R.
+        if current_cc < r {
+            current_cc = r;
+        }
         let clear = if self.retract_r_plane { r } else { old_cc };
         let mut repeat = repeats;
         while repeat >= 1.0 {
@@ -2066,12 +2081,14 @@ impl<'p> Interp<'p> {
                     self.cyc_move(false, plane, aa, bb, cc)?;
                     self.cyc_move(true, plane, aa, bb, clear)?;
                 }
-                84 => {
+                74 | 84 => {
+                    // Tap in, reverse the spindle, dwell, feed out, restore the direction.
+                    let (dir, rev) = if g == 84 { (SpindleDir::Cw, SpindleDir::Ccw) } else { (SpindleDir::Ccw, SpindleDir::Cw) };
                     self.cyc_move(false, plane, aa, bb, cc)?;
-                    self.spindle = SpindleDir::Ccw;
+                    self.spindle = rev;
                     self.dwell(p)?;
                     self.cyc_move(false, plane, aa, bb, clear)?;
-                    self.spindle = SpindleDir::Cw;
+                    self.spindle = dir;
                 }
                 85 => {
                     self.cyc_move(false, plane, aa, bb, cc)?;
@@ -2212,7 +2229,7 @@ impl<'p> Interp<'p> {
             m.center = Some(center);
             m.normal = Some(p.plane.normal());
             m.clockwise = Some(cw);
-            m.arc = Some(ArcGeometry {
+            m.arc = Some(Box::new(ArcGeometry {
                 start: t1m,
                 end: t2m,
                 center,
@@ -2223,7 +2240,7 @@ impl<'p> Interp<'p> {
                 end_radius: r,
                 clockwise: cw,
                 turns: 1,
-            });
+            }));
         }
         let res = self.push(m);
         self.cur_block = blk;

@@ -195,7 +195,7 @@ pub struct Move {
     pub spindle_dir: SpindleDir,
     /// Full arc geometry (arcs only).
     #[serde(skip)]
-    pub arc: Option<ArcGeometry>,
+    pub arc: Option<Box<ArcGeometry>>,
 }
 
 /// Result of interpreting a program.

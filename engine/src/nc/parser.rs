@@ -80,7 +80,11 @@ impl<'a> LineParser<'a> {
         let (tok, span) = self.lx.next(false)?;
         match tok {
             Tok::Number { value, has_point } => Ok(Expr::Number { value, has_point }),
-            Tok::Minus => Ok(Expr::Neg(Box::new(self.value()?))),
+            // A negative literal stays a literal (no allocation for the common `X-1.5`).
+            Tok::Minus => Ok(match self.value()? {
+                Expr::Number { value, has_point } => Expr::Number { value: -value, has_point },
+                e => Expr::Neg(Box::new(e)),
+            }),
             Tok::Plus => self.value(),
             Tok::LBracket => {
                 let e = self.expr(0)?;
@@ -255,7 +259,8 @@ impl<'a> LineParser<'a> {
 
 /// Split the source into lines and parse each one.
 pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
-    let mut blocks = Vec::new();
+    // One block per line: reserve once instead of growing a large Vec many times.
+    let mut blocks = Vec::with_capacity(source.bytes().filter(|&b| b == b'\n').count() + 1);
     let mut errors = Vec::new();
     let bytes = source.as_bytes();
     let mut start = 0;

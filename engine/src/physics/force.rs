@@ -39,6 +39,14 @@
 //! Torque T = Σ dFt·r; power P = T·ω, which is Ft·v with the local cutting speed of each edge
 //! point (for a flat end mill exactly Ft·π·D·n/60000).
 //!
+//! Runout simplifications: the radius change enters the chip only (the torque arm and the
+//! tooth's angular position keep their nominal values: effects of order ρ/r).
+//!
+//! Speed: per-slice geometry comes from a [`ToolEdgeTable`] built once per tool; only the
+//! positions where a tooth is inside an engaged arc are visited; without runout, when the
+//! tooth pitch is a whole number of positions (360 positions and 1–6, 8, 9, 10, 12 … teeth),
+//! tooth 1 is computed and the others are copies shifted by whole pitches.
+//!
 //! Means are exact time averages up to the midpoint rule: the samples at the bin centres are
 //! weighted 1, and the two bins an engaged arc cuts through are integrated over their covered
 //! part only, so a 10%-immersion arc is not rounded to whole degrees. Instantaneous samples
@@ -127,7 +135,7 @@ impl EdgeSlice {
     pub fn compute(tool: &Tool, z0: f64, z1: f64) -> Option<EdgeSlice> {
         let za = z0.max(0.0);
         let zb = z1.min(tool.flute_length);
-        if !(zb - za > 1e-12) {
+        if zb - za <= 1e-12 || zb.is_nan() || za.is_nan() {
             return None;
         }
         let z = 0.5 * (za + zb);
@@ -429,7 +437,7 @@ fn unit(field: &str, v: [f64; 3]) -> Result<[f64; 3], PhysicsError> {
         }
     }
     let n = norm(v);
-    if !(n > 1e-12) || !n.is_finite() {
+    if n.is_nan() || n <= 1e-12 || !n.is_finite() {
         return Err(PhysicsError::invalid(field, "must be a non-zero vector"));
     }
     Ok(scale(v, 1.0 / n))
@@ -624,6 +632,7 @@ fn run_segment(
     fy: &mut [f64],
     fz: &mut [f64],
     tq: &mut [f64],
+    scratch: &mut [f64],
 ) {
     let n = st.len();
     let (ct, fx, fy, fz, tq) = (
@@ -650,11 +659,37 @@ fn run_segment(
             tq[i] += (a[3] * s + b[3]) * on;
         }
     } else {
+        // Runout: the thinnest of the N candidate chips, found one candidate at a time over
+        // the whole run (branch-free selects that vectorize) in scratch buffers.
+        let (sb, rest) = scratch.split_at_mut(n);
+        let (cb, rest) = rest.split_at_mut(n);
+        let (bh, rest) = rest.split_at_mut(n);
+        let (bm, rest) = rest.split_at_mut(n);
+        let bd = &mut rest[..n];
         for i in 0..n {
-            let s = st[i] * ca - ct[i] * sa;
-            let c = ct[i] * ca + st[i] * sa;
-            let (h, x, v) = p.chip(steps, s);
-            let on = if h >= -CHIP_EPS { 1.0 } else { 0.0 };
+            sb[i] = st[i] * ca - ct[i] * sa;
+            cb[i] = ct[i] * ca + st[i] * sa;
+            bh[i] = f64::INFINITY;
+            bm[i] = 0.0;
+            bd[i] = 0.0;
+        }
+        let (hs, hv) = (p.ch * p.sk, p.cv * p.ck);
+        for (m, &d) in steps.iter().enumerate() {
+            let mf = (m + 1) as f64;
+            let e = d * p.sk;
+            for i in 0..n {
+                let h = mf * (hs * sb[i] - hv) + e;
+                let better = h < bh[i];
+                bh[i] = if better { h } else { bh[i] };
+                bm[i] = if better { mf } else { bm[i] };
+                bd[i] = if better { d } else { bd[i] };
+            }
+        }
+        for i in 0..n {
+            let (s, c) = (sb[i], cb[i]);
+            let on = if bh[i] >= -CHIP_EPS { 1.0 } else { 0.0 };
+            let x = bm[i] * p.ch * s + bd[i];
+            let v = bm[i] * p.cv;
             let f = p.force(x, v, s, c);
             fx[i] += f[0] * on;
             fy[i] += f[1] * on;
@@ -697,6 +732,8 @@ pub struct ForceModel {
     acc: Vec<f64>,
     /// Totals over teeth per position, four blocks of K.
     tot: Vec<f64>,
+    /// Five buffers of K for the runout kernel.
+    scratch: Vec<f64>,
     tooth_hmax: Vec<f64>,
     keep_samples: bool,
 }
@@ -728,6 +765,7 @@ impl ForceModel {
             cos_t,
             acc: vec![0.0; 4 * n * positions],
             tot: vec![0.0; 4 * positions],
+            scratch: vec![0.0; 5 * positions],
             tooth_hmax: vec![0.0; n],
             table,
             keep_samples: true,
@@ -794,7 +832,7 @@ impl ForceModel {
         let no_steps: [f64; 0] = [];
         // Without runout every tooth repeats tooth 1 one pitch later; when the pitch is a
         // whole number of positions, compute tooth 1 only and copy it shifted.
-        let symmetric = self.table.runout_steps.is_empty() && kpos % n == 0;
+        let symmetric = self.table.runout_steps.is_empty() && kpos.is_multiple_of(n);
         let computed_teeth = if symmetric { 1 } else { n };
 
         for s in &engagement.slices {
@@ -841,6 +879,7 @@ impl ForceModel {
                             &mut fy[seg.clone()],
                             &mut fz[seg.clone()],
                             &mut tq[seg],
+                            &mut self.scratch,
                         );
                         if count > first {
                             let seg = 0..count - first;
@@ -853,6 +892,7 @@ impl ForceModel {
                                 &mut fy[seg.clone()],
                                 &mut fz[seg.clone()],
                                 &mut tq[seg],
+                                &mut self.scratch,
                             );
                         }
                         let (h, _, _) = p.chip(steps, max_sin(k_lo * delta - alpha, delta, count));
@@ -1076,10 +1116,13 @@ fn validate_slices(e: &Engagement) -> Result<(), PhysicsError> {
                     value: if p.is_finite() { q } else { p },
                 });
             }
-            if !(q > p && q - p <= TAU + 1e-9) {
+            // The Engagement keeps arcs within [0, 2π); allow a wrapped copy either side.
+            if !(q > p && q - p <= TAU + 1e-9 && p >= -TAU && q <= 2.0 * TAU) {
                 return Err(PhysicsError::invalid(
                     format!("slices[{i}].arcs[{a}]"),
-                    format!("must satisfy entry < exit ≤ entry + 2π, got ({p}, {q})"),
+                    format!(
+                        "must satisfy −2π ≤ entry < exit ≤ min(entry + 2π, 4π), got ({p}, {q})"
+                    ),
                 ));
             }
         }
@@ -1087,9 +1130,8 @@ fn validate_slices(e: &Engagement) -> Result<(), PhysicsError> {
     Ok(())
 }
 
-/// One-shot convenience: builds a [`ForceModel`] whose table matches nothing in particular
-/// (slices are computed from the engagement) and evaluates once. For repeated use keep a
-/// `ForceModel`.
+/// One-shot convenience: evaluates once with every slice's geometry computed from the
+/// engagement (no table to build). For repeated use keep a [`ForceModel`].
 pub fn cutting_forces(
     tool: &Tool,
     engagement: &Engagement,
@@ -1097,13 +1139,7 @@ pub fn cutting_forces(
     conditions: &CuttingConditions,
     positions: usize,
 ) -> Result<ForceResult, PhysicsError> {
-    let dz = engagement
-        .slices
-        .iter()
-        .map(|s| s.dz)
-        .find(|d| d.is_finite() && *d > 0.0)
-        .unwrap_or(tool.flute_length);
-    let table = ToolEdgeTable::with_slice_height(tool, dz.max(tool.flute_length * 1e-6))?;
+    let table = ToolEdgeTable::with_slice_height(tool, tool.flute_length)?;
     ForceModel::from_table(table, positions)?.evaluate(engagement, coefficients, conditions)
 }
 

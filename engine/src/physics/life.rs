@@ -46,7 +46,7 @@ impl TaylorLife {
     /// when the edge does not wear (not cutting: v = 0, or h = 0 with a > 0).
     pub fn life_minutes(&self, v: f64, h: f64) -> Option<f64> {
         let load = v * if self.a > 0.0 { h.powf(self.a) } else { 1.0 };
-        if !(load > 0.0) {
+        if load.is_nan() || load <= 0.0 {
             return None;
         }
         Some((self.c / load).powf(1.0 / self.n))

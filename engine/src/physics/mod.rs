@@ -13,6 +13,31 @@
 //!   [`closed_form_mean_force`].
 //! - [`life`]: [`TaylorLife`], [`tool_life`] (life consumed per block, remaining life).
 //! - [`roughness`]: [`scallop_height`], [`feed_marks`], [`surface_roughness`].
+//!
+//! Typical use at every engagement step of a program:
+//!
+//! ```
+//! use millsim_engine::engagement::{EngagedSlice, Engagement};
+//! use millsim_engine::physics::{CuttingConditions, ForceModel, ForceResult, Material};
+//! use millsim_engine::tool::Tool;
+//!
+//! let tool = Tool::flat(10.0, 4);
+//! let k = Material::builtin("Al7075-T6").unwrap().coefficients;
+//! // Once per tool: edge table with 0.2 mm slices over the flutes, 360 positions per revolution.
+//! let mut model = ForceModel::new(&tool, 150, 360).unwrap();
+//! let step = Engagement {
+//!     slices: (0..25)
+//!         .map(|i| EngagedSlice { z: 0.1 + 0.2 * i as f64, dz: 0.2, arcs: vec![(0.0, std::f64::consts::PI)] })
+//!         .collect(),
+//!     feed_dir: [0.0, 1.0, 0.0],
+//!     tool_axis: [0.0, 0.0, 1.0],
+//! };
+//! let mut out = ForceResult::default();
+//! model
+//!     .evaluate_into(&step, &k, &CuttingConditions { spindle_rpm: 8000.0, feed_per_tooth: 0.08 }, &mut out)
+//!     .unwrap();
+//! assert!(out.force.peak > 0.0 && out.power.mean > 0.0);
+//! ```
 
 pub mod force;
 pub mod identify;
@@ -22,13 +47,17 @@ pub mod roughness;
 
 pub use force::{
     cutting_forces, AxisStats, BlockForces, CuttingConditions, EdgeSlice, ForceModel, ForceResult,
-    ForceSample, MagnitudeStats, ToolEdgeTable, ToothStats, TracePoint, DEFAULT_POSITIONS,
+    ForceSample, MagnitudeStats, ToolEdgeTable, ToolFrame, ToothStats, TracePoint,
+    DEFAULT_POSITIONS,
 };
 pub use identify::{
     closed_form_mean_force, identify_coefficients, AxisFit, ForceMeasurement, Identification,
     IdentificationSetup,
 };
-pub use life::{cutting_speed_m_per_min, tool_life, BlockWear, LifeReport, TaylorLife};
+pub use life::{
+    cutting_speed_m_per_min, effective_diameter, tool_life, BlockLife, BlockWear, LifeReport,
+    TaylorLife,
+};
 pub use material::{builtin_materials, CuttingCoefficients, Material};
 pub use roughness::{
     feed_marks, scallop_height, surface_roughness, FeedMarks, Roughness, SurfaceKind,

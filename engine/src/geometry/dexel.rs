@@ -1,0 +1,352 @@
+//! Tri-dexel grid: three orthogonal families of rays (along X, Y and Z), each ray a
+//! sorted list of disjoint material intervals in absolute coordinates (mm).
+//!
+//! Family `a` runs along axis `a`; its rays sit at the cell centres of the two other
+//! axes `u = (a+1)%3`, `v = (a+2)%3`, ray index `iu + nu·iv`. A ray stands for an
+//! `h × h` column, so the volume seen by one family is Σ length · h²; the stock volume
+//! is the mean over the three families.
+
+use smallvec::SmallVec;
+
+use super::GeometryError;
+
+/// Sorted, disjoint material intervals `[start, end]` along one ray.
+pub type Intervals = SmallVec<[[f64; 2]; 1]>;
+
+/// Default memory limit for a grid: 4 GiB.
+pub const DEFAULT_MEMORY_LIMIT: u64 = 4 << 30;
+
+/// How fine the grid is and how much memory it may take.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridOptions {
+    /// Cell size (ray spacing) in mm; `None` means derive it from the tools.
+    pub cell: Option<f64>,
+    /// Refuse grids whose estimated memory exceeds this many bytes.
+    pub memory_limit: u64,
+}
+
+impl Default for GridOptions {
+    fn default() -> Self {
+        GridOptions {
+            cell: None,
+            memory_limit: DEFAULT_MEMORY_LIMIT,
+        }
+    }
+}
+
+/// Default resolution: the smallest tool radius / 20, clamped to [0.02, 0.5] mm.
+pub fn default_cell(tool_radii: &[f64]) -> f64 {
+    let r = tool_radii
+        .iter()
+        .copied()
+        .filter(|r| r.is_finite() && *r > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    if r.is_finite() {
+        (r / 20.0).clamp(0.02, 0.5)
+    } else {
+        0.5
+    }
+}
+
+/// Size of a grid before it is allocated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridEstimate {
+    pub cells: [usize; 3],
+    pub rays: u64,
+    /// Bytes for the ray headers plus one interval per ray.
+    pub bytes: u64,
+}
+
+/// One family of parallel rays.
+#[derive(Clone, Debug)]
+pub struct Family {
+    pub axis: usize,
+    pub nu: usize,
+    pub nv: usize,
+    pub rays: Vec<Intervals>,
+}
+
+#[derive(Clone, Debug)]
+pub struct DexelGrid {
+    /// Corner of the grid (minimum x, y, z).
+    pub origin: [f64; 3],
+    /// Cell size h, mm.
+    pub cell: f64,
+    /// Cells per axis.
+    pub n: [usize; 3],
+    pub families: [Family; 3],
+}
+
+pub(crate) fn other_axes(a: usize) -> (usize, usize) {
+    ((a + 1) % 3, (a + 2) % 3)
+}
+
+impl DexelGrid {
+    /// Cells and memory of a grid covering `[min, max]` at cell size `cell`.
+    pub fn estimate(
+        min: [f64; 3],
+        max: [f64; 3],
+        cell: f64,
+    ) -> Result<GridEstimate, GeometryError> {
+        if !(cell.is_finite() && cell > 0.0) {
+            return Err(GeometryError::InvalidGrid(format!(
+                "cell size must be a positive number, got {cell}"
+            )));
+        }
+        let mut cells = [0usize; 3];
+        for a in 0..3 {
+            let ext = max[a] - min[a];
+            if !(ext.is_finite() && ext > 0.0) {
+                return Err(GeometryError::InvalidGrid(format!(
+                    "extent along {} must be positive and finite, got {ext}",
+                    ["x", "y", "z"][a]
+                )));
+            }
+            let c = (ext / cell - 1e-9).ceil();
+            if c > 1e7 {
+                return Err(GeometryError::InvalidGrid(format!(
+                    "{c} cells along one axis is absurd"
+                )));
+            }
+            cells[a] = (c as usize).max(1);
+        }
+        let rays = (cells[1] * cells[2] + cells[2] * cells[0] + cells[0] * cells[1]) as u64;
+        let bytes = rays * std::mem::size_of::<Intervals>() as u64;
+        Ok(GridEstimate { cells, rays, bytes })
+    }
+
+    /// An empty grid covering `[min, max]` (after checking the memory limit).
+    pub fn new(
+        min: [f64; 3],
+        max: [f64; 3],
+        cell: f64,
+        memory_limit: u64,
+    ) -> Result<DexelGrid, GeometryError> {
+        let est = Self::estimate(min, max, cell)?;
+        if est.bytes > memory_limit {
+            return Err(GeometryError::GridTooLarge {
+                cells: est.cells,
+                bytes: est.bytes,
+                limit: memory_limit,
+            });
+        }
+        let n = est.cells;
+        let fam = |a: usize| {
+            let (u, v) = other_axes(a);
+            Family {
+                axis: a,
+                nu: n[u],
+                nv: n[v],
+                rays: vec![Intervals::new(); n[u] * n[v]],
+            }
+        };
+        Ok(DexelGrid {
+            origin: min,
+            cell,
+            n,
+            families: [fam(0), fam(1), fam(2)],
+        })
+    }
+
+    /// Upper corner of the grid.
+    pub fn max_corner(&self) -> [f64; 3] {
+        let mut m = self.origin;
+        for a in 0..3 {
+            m[a] += self.n[a] as f64 * self.cell;
+        }
+        m
+    }
+
+    /// Coordinate of cell centre `i` along axis `a`.
+    #[inline]
+    pub fn center(&self, a: usize, i: usize) -> f64 {
+        self.origin[a] + (i as f64 + 0.5) * self.cell
+    }
+
+    /// Index range of cell centres within `[lo, hi]` along axis `a` (half-open).
+    #[inline]
+    pub fn index_range(&self, a: usize, lo: f64, hi: f64) -> (usize, usize) {
+        let h = self.cell;
+        let i0 = ((lo - self.origin[a]) / h - 0.5).ceil().max(0.0);
+        let i1 = ((hi - self.origin[a]) / h - 0.5).floor() + 1.0;
+        let i1 = i1.min(self.n[a] as f64).max(0.0);
+        let i0 = i0.min(i1);
+        (i0 as usize, i1 as usize)
+    }
+
+    /// Index of the cell containing coordinate `x` along axis `a`, if inside.
+    #[inline]
+    pub fn cell_of(&self, a: usize, x: f64) -> Option<usize> {
+        let f = (x - self.origin[a]) / self.cell;
+        if f >= 0.0 && f < self.n[a] as f64 {
+            Some(f as usize)
+        } else {
+            None
+        }
+    }
+
+    /// Volume seen by each family, mm³.
+    pub fn family_volumes(&self) -> [f64; 3] {
+        let h2 = self.cell * self.cell;
+        let mut out = [0.0; 3];
+        for (a, f) in self.families.iter().enumerate() {
+            // Sum per row, then rows in order: the same order whatever the thread count.
+            let s: f64 = f
+                .rays
+                .chunks(f.nu.max(1))
+                .map(|row| row.iter().map(interval_length).sum::<f64>())
+                .sum();
+            out[a] = s * h2;
+        }
+        out
+    }
+
+    /// Stock volume: the mean of the three families' volumes, mm³.
+    pub fn volume(&self) -> f64 {
+        let v = self.family_volumes();
+        (v[0] + v[1] + v[2]) / 3.0
+    }
+
+    /// Whether material is present at point `p`, read from the Z family (nearest ray).
+    #[inline]
+    pub fn material_at(&self, p: [f64; 3]) -> bool {
+        let (Some(i), Some(j)) = (self.cell_of(0, p[0]), self.cell_of(1, p[1])) else {
+            return false;
+        };
+        let f = &self.families[2];
+        contains(&f.rays[i + f.nu * j], p[2])
+    }
+
+    /// The Z ray nearest to (x, y), if inside the grid.
+    #[inline]
+    pub fn z_ray(&self, x: f64, y: f64) -> Option<&Intervals> {
+        let (i, j) = (self.cell_of(0, x)?, self.cell_of(1, y)?);
+        let f = &self.families[2];
+        Some(&f.rays[i + f.nu * j])
+    }
+
+    /// Highest material z over the whole grid (−∞ if empty).
+    pub fn max_z(&self) -> f64 {
+        self.families[2]
+            .rays
+            .iter()
+            .filter_map(|r| r.last().map(|iv| iv[1]))
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// Total number of rays.
+    pub fn ray_count(&self) -> u64 {
+        self.families.iter().map(|f| f.rays.len() as u64).sum()
+    }
+}
+
+#[inline]
+pub fn interval_length(r: &Intervals) -> f64 {
+    r.iter().map(|iv| iv[1] - iv[0]).sum()
+}
+
+#[inline]
+pub fn contains(r: &Intervals, x: f64) -> bool {
+    r.iter().any(|iv| iv[0] <= x && x <= iv[1])
+}
+
+/// Whether any material interval overlaps `[a, b]` (open overlap: touching is not contact).
+#[inline]
+pub fn overlaps(r: &Intervals, a: f64, b: f64) -> bool {
+    r.iter().any(|iv| iv[0] < b && a < iv[1])
+}
+
+/// Removes `[a, b]` from the sorted intervals; returns the length removed.
+#[inline]
+pub fn subtract(r: &mut Intervals, a: f64, b: f64) -> f64 {
+    if !(b > a) {
+        return 0.0;
+    }
+    // Fast rejection: no overlap with any interval.
+    if !r.iter().any(|iv| iv[0] < b && a < iv[1]) {
+        return 0.0;
+    }
+    let mut removed = 0.0;
+    let mut out = Intervals::new();
+    for &iv in r.iter() {
+        if iv[1] <= a || iv[0] >= b {
+            out.push(iv);
+            continue;
+        }
+        removed += iv[1].min(b) - iv[0].max(a);
+        if iv[0] < a {
+            out.push([iv[0], a]);
+        }
+        if iv[1] > b {
+            out.push([b, iv[1]]);
+        }
+    }
+    *r = out;
+    removed
+}
+
+/// Builds sorted disjoint intervals from (position, +1 entry / −1 exit) crossings by
+/// the winding count: material where the count is positive.
+pub fn intervals_from_crossings(hits: &mut [(f64, i32)]) -> Intervals {
+    hits.sort_by(|x, y| x.0.total_cmp(&y.0).then(y.1.cmp(&x.1)));
+    let mut out = Intervals::new();
+    let mut wind = 0i32;
+    let mut start = 0.0;
+    let mut i = 0;
+    while i < hits.len() {
+        // Crossings at the same position are applied together, so a touching entry and
+        // exit neither opens nor closes a zero-length interval.
+        let x = hits[i].0;
+        let before = wind;
+        while i < hits.len() && hits[i].0 == x {
+            wind += hits[i].1;
+            i += 1;
+        }
+        if before <= 0 && wind > 0 {
+            start = x;
+        } else if before > 0 && wind <= 0 && x > start {
+            match out.last_mut() {
+                Some(last) if last[1] >= start => last[1] = x,
+                _ => out.push([start, x]),
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn subtract_splits_and_trims() {
+        let mut r: Intervals = SmallVec::from_slice(&[[0.0, 10.0]]);
+        assert_eq!(subtract(&mut r, 2.0, 3.0), 1.0);
+        assert_eq!(r.as_slice(), &[[0.0, 2.0], [3.0, 10.0]]);
+        assert_eq!(subtract(&mut r, -1.0, 0.5), 0.5);
+        assert_eq!(subtract(&mut r, 1.0, 4.0), 2.0);
+        assert_eq!(r.as_slice(), &[[0.5, 1.0], [4.0, 10.0]]);
+        assert_eq!(subtract(&mut r, 20.0, 30.0), 0.0);
+    }
+
+    #[test]
+    fn crossings_by_winding() {
+        let mut h = vec![
+            (5.0, -1),
+            (1.0, 1),
+            (3.0, 1),
+            (4.0, -1),
+            (5.0, 1),
+            (7.0, -1),
+        ];
+        let r = intervals_from_crossings(&mut h);
+        assert_eq!(r.as_slice(), &[[1.0, 7.0]]);
+    }
+
+    #[test]
+    fn default_cell_is_clamped() {
+        assert_eq!(default_cell(&[5.0]), 0.25);
+        assert_eq!(default_cell(&[100.0]), 0.5);
+        assert_eq!(default_cell(&[0.1, 3.0]), 0.02);
+    }
+}

@@ -1,0 +1,263 @@
+//! Cutter engagement at one step, before the step removes material.
+//!
+//! The cutting edge is cut into axial slices (thickness `axial_step`, centres at
+//! (j + ½)·dz above the tip) and angular bins (φ per the shared convention in
+//! `crate::engagement`: clockwise from +y seen from the spindle, x = feed direction).
+//! An edge point is engaged when material that is still there lies at it. Only points
+//! whose outward normal faces the motion can meet material: behind them the tool's
+//! previous position has already removed everything. The point tested is the edge point
+//! moved half a cell outward along its normal, read from the Z dexels (nearest ray):
+//! near the tangent points of a slot's sides (φ → 0 or π) the sliver still to be cut is
+//! far thinner than a cell, and the nearest ray to the edge point itself may lie inside
+//! the lane the tool has already cut; half a cell outward, it lies beyond the lane, where
+//! the material that the edge is grazing is. Entry and exit angles where the edge crosses
+//! a wall come out within a bin (the shift moves them by at most h/(2·r·sin φ)).
+
+use std::f64::consts::PI;
+
+use super::dexel::DexelGrid;
+use super::path::unit;
+use super::sweep::{frame_around, ToolBody};
+use crate::engagement::{EngagedSlice, Engagement};
+use crate::tool::Tool;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct EngagementOptions {
+    /// Angular bins per revolution (default 180: 2° bins).
+    pub angular_bins: usize,
+    /// Axial slice thickness, mm (default: the grid cell).
+    pub axial_step: Option<f64>,
+}
+
+impl Default for EngagementOptions {
+    fn default() -> Self {
+        EngagementOptions {
+            angular_bins: 180,
+            axial_step: None,
+        }
+    }
+}
+
+/// Scalar summary of one step's engagement.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StepMetrics {
+    /// Axial depth of cut, mm (lowest to highest engaged slice edge).
+    pub axial_depth: f64,
+    /// Radial width of cut, mm: the largest extent across the feed direction of an
+    /// engaged arc, r·(max cos φ − min cos φ).
+    pub radial_width: f64,
+    /// Smallest entry angle and largest exit angle over all slices, radians (0 in air).
+    pub entry_angle: f64,
+    pub exit_angle: f64,
+    /// Chip width in contact: Σ over engaged slices dz / sin κ, mm.
+    pub engaged_edge_length: f64,
+}
+
+/// Reusable buffers.
+#[derive(Default)]
+pub(crate) struct Scratch {
+    bits: Vec<bool>,
+}
+
+pub(crate) struct StepInput {
+    pub pos: [f64; 3],
+    pub axis: [f64; 3],
+    /// Displacement of this step (from the previous position to `pos`).
+    pub motion: [f64; 3],
+    /// Highest material z (an upper bound), to skip slices above the stock.
+    pub top_z: f64,
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+pub(crate) fn compute(
+    grid: &DexelGrid,
+    tool: &Tool,
+    body: &ToolBody,
+    input: &StepInput,
+    opts: &EngagementOptions,
+    scratch: &mut Scratch,
+) -> (Engagement, StepMetrics) {
+    let a = input.axis;
+    let step_len = dot(input.motion, input.motion).sqrt();
+    let v = if step_len > 0.0 {
+        unit(input.motion)
+    } else {
+        [0.0; 3]
+    };
+    // Feed direction: the motion projected perpendicular to the axis; a plunge has none,
+    // so a fixed perpendicular stands in.
+    let vp = [
+        v[0] - dot(v, a) * a[0],
+        v[1] - dot(v, a) * a[1],
+        v[2] - dot(v, a) * a[2],
+    ];
+    let xf = if dot(vp, vp) > 1e-18 {
+        unit(vp)
+    } else {
+        frame_around(a).0
+    };
+    let yf = cross(a, xf);
+    let mut eng = Engagement {
+        slices: Vec::new(),
+        feed_dir: xf,
+        tool_axis: a,
+    };
+    let nb = opts.angular_bins.max(4);
+    let dz = opts.axial_step.unwrap_or(grid.cell).max(1e-6);
+    let dphi = 2.0 * PI / nb as f64;
+    let length = body.length.min(tool.flute_length);
+    // Slices that can meet material: above the grid floor and below the stock's top.
+    let vertical = (a[2] - 1.0).abs() < 1e-12;
+    let (zmin_rel, zmax_rel) = if vertical {
+        (grid.origin[2] - input.pos[2], input.top_z - input.pos[2])
+    } else {
+        (0.0, length)
+    };
+    let j0 = ((zmin_rel.max(0.0) / dz) - 0.5).floor().max(0.0) as usize;
+    let j_end = (((zmax_rel.min(length)) / dz) - 0.5).ceil().max(0.0) as usize + 1;
+    let j_end = j_end.min((length / dz).ceil() as usize);
+    if step_len <= 0.0 || j0 >= j_end {
+        return (eng, StepMetrics::default());
+    }
+    let nz = j_end - j0;
+    scratch.bits.clear();
+    scratch.bits.resize(nz * nb, false);
+    let bits = &mut scratch.bits;
+    let (sin_t, cos_t): (Vec<f64>, Vec<f64>) =
+        (0..nb).map(|m| ((m as f64 + 0.5) * dphi).sin_cos()).unzip();
+    let ptop = body.profile_top();
+    let out = 0.5 * grid.cell;
+    for j in j0..j_end {
+        let z = (j as f64 + 0.5) * dz;
+        let Some(ep) = tool.edge_point(z) else {
+            continue;
+        };
+        let (sk, ck) = ep.kappa.sin_cos();
+        // The flank of a vertical tool: one Z ray per bin serves all flank slices.
+        if vertical && z >= ptop {
+            continue;
+        }
+        for m in 0..nb {
+            let radial = [
+                sin_t[m] * xf[0] + cos_t[m] * yf[0],
+                sin_t[m] * xf[1] + cos_t[m] * yf[1],
+                sin_t[m] * xf[2] + cos_t[m] * yf[2],
+            ];
+            let n = [
+                sk * radial[0] - ck * a[0],
+                sk * radial[1] - ck * a[1],
+                sk * radial[2] - ck * a[2],
+            ];
+            let nv = dot(n, v);
+            if nv <= 0.0 {
+                continue;
+            }
+            let p = [
+                input.pos[0] + a[0] * z + radial[0] * ep.radius + n[0] * out,
+                input.pos[1] + a[1] * z + radial[1] * ep.radius + n[1] * out,
+                input.pos[2] + a[2] * z + radial[2] * ep.radius + n[2] * out,
+            ];
+            if grid.material_at(p) {
+                bits[(j - j0) * nb + m] = true;
+            }
+        }
+    }
+    if vertical {
+        // Flank slices (κ = 90°, radius R): the normal is horizontal.
+        let jf0 = j0.max(((ptop / dz) - 0.5).ceil().max(0.0) as usize);
+        if jf0 < j_end {
+            let r = body.radius;
+            for m in 0..nb {
+                let radial = [
+                    sin_t[m] * xf[0] + cos_t[m] * yf[0],
+                    sin_t[m] * xf[1] + cos_t[m] * yf[1],
+                ];
+                let nv = radial[0] * v[0] + radial[1] * v[1];
+                if nv <= 0.0 {
+                    continue;
+                }
+                let Some(ray) = grid.z_ray(
+                    input.pos[0] + radial[0] * (r + out),
+                    input.pos[1] + radial[1] * (r + out),
+                ) else {
+                    continue;
+                };
+                for iv in ray.iter() {
+                    // Slices whose centre height lies in the material interval.
+                    let base = input.pos[2];
+                    let lo = ((iv[0] - base) / dz - 0.5).ceil().max(jf0 as f64);
+                    let hi = ((iv[1] - base) / dz - 0.5).floor().min(j_end as f64 - 1.0);
+                    if lo > hi {
+                        continue;
+                    }
+                    for j in lo as usize..=hi as usize {
+                        bits[(j - j0) * nb + m] = true;
+                    }
+                }
+            }
+        }
+    }
+    let mut met = StepMetrics {
+        entry_angle: f64::INFINITY,
+        exit_angle: f64::NEG_INFINITY,
+        ..Default::default()
+    };
+    for j in j0..j_end {
+        let row = &bits[(j - j0) * nb..(j - j0 + 1) * nb];
+        if !row.iter().any(|&b| b) {
+            continue;
+        }
+        let z = (j as f64 + 0.5) * dz;
+        let Some(ep) = tool.edge_point(z) else {
+            continue;
+        };
+        let mut arcs = Vec::new();
+        let mut m = 0;
+        while m < nb {
+            if row[m] {
+                let start = m;
+                while m < nb && row[m] {
+                    m += 1;
+                }
+                arcs.push((start as f64 * dphi, m as f64 * dphi));
+            } else {
+                m += 1;
+            }
+        }
+        let (mut cmax, mut cmin) = (f64::NEG_INFINITY, f64::INFINITY);
+        for &(s, e) in &arcs {
+            met.entry_angle = met.entry_angle.min(s);
+            met.exit_angle = met.exit_angle.max(e);
+            let c_hi = if s <= 0.0 || e >= 2.0 * PI - 1e-12 {
+                1.0
+            } else {
+                s.cos().max(e.cos())
+            };
+            let c_lo = if s <= PI && PI <= e {
+                -1.0
+            } else {
+                s.cos().min(e.cos())
+            };
+            cmax = cmax.max(c_hi);
+            cmin = cmin.min(c_lo);
+        }
+        met.radial_width = met.radial_width.max(ep.radius * (cmax - cmin));
+        met.engaged_edge_length += dz / ep.kappa.sin();
+        eng.slices.push(EngagedSlice { z, dz, arcs });
+    }
+    if eng.slices.is_empty() {
+        return (eng, StepMetrics::default());
+    }
+    met.axial_depth = eng.axial_depth();
+    (eng, met)
+}

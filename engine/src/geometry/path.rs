@@ -1,0 +1,360 @@
+//! Tool path input of the geometry engine: straight or circular (helical) segments of
+//! the tool tip, with the tool axis at both ends for 5-axis work. The integrator maps
+//! the NC interpreter's moves to these.
+
+use serde::{Deserialize, Serialize};
+
+use super::sweep::SubMove;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum PathShape {
+    Linear,
+    /// Circular arc around `center` in the plane normal to `normal` (unit), clockwise or
+    /// not as seen looking against the normal (G2 in G17: normal +z, clockwise). `to` may
+    /// differ from `from` along the normal (helix). `from == to` in the plane is a full
+    /// circle.
+    Arc {
+        center: [f64; 3],
+        normal: [f64; 3],
+        clockwise: bool,
+    },
+}
+
+/// One move of the tool tip.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Segment {
+    /// Index of the NC block that produced this move (several segments may share one).
+    pub block: usize,
+    pub shape: PathShape,
+    /// Tool tip at the start and end, part frame, mm.
+    pub from: [f64; 3],
+    pub to: [f64; 3],
+    /// Unit tool axis (tip to spindle) at the start and end; interpolated in between.
+    pub axis_from: [f64; 3],
+    pub axis_to: [f64; 3],
+    /// A positioning move (G0): it should never remove material.
+    pub rapid: bool,
+    /// Feed rate, mm/min (0 when unknown, e.g. for rapids).
+    pub feed: f64,
+    /// Spindle speed, rev/min.
+    pub spindle: f64,
+}
+
+const Z: [f64; 3] = [0.0, 0.0, 1.0];
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+pub(crate) fn unit(a: [f64; 3]) -> [f64; 3] {
+    let n = norm(a);
+    if n > 0.0 {
+        scale(a, 1.0 / n)
+    } else {
+        a
+    }
+}
+
+/// A segment prepared for sampling: position and axis as functions of u ∈ [0, 1].
+#[derive(Clone, Debug)]
+pub(crate) struct Prepared {
+    from: [f64; 3],
+    to: [f64; 3],
+    axis0: [f64; 3],
+    axis1: [f64; 3],
+    /// Angle between the end axes, radians.
+    axis_angle: f64,
+    arc: Option<ArcGeom>,
+    pub length: f64,
+}
+
+#[derive(Clone, Debug)]
+struct ArcGeom {
+    center: [f64; 3],
+    e1: [f64; 3],
+    e2: [f64; 3],
+    normal: [f64; 3],
+    r0: f64,
+    r1: f64,
+    /// Signed sweep angle about the normal, radians.
+    sweep: f64,
+    /// Height of the start along the normal, relative to the centre, and the helix rise.
+    h0: f64,
+    rise: f64,
+}
+
+impl Segment {
+    /// A 3-axis straight feed move.
+    pub fn linear(block: usize, from: [f64; 3], to: [f64; 3], feed: f64, spindle: f64) -> Segment {
+        Segment {
+            block,
+            shape: PathShape::Linear,
+            from,
+            to,
+            axis_from: Z,
+            axis_to: Z,
+            rapid: false,
+            feed,
+            spindle,
+        }
+    }
+
+    /// A 3-axis rapid move.
+    pub fn rapid(block: usize, from: [f64; 3], to: [f64; 3]) -> Segment {
+        Segment {
+            rapid: true,
+            ..Segment::linear(block, from, to, 0.0, 0.0)
+        }
+    }
+
+    /// A 3-axis circular or helical feed move.
+    #[allow(clippy::too_many_arguments)]
+    pub fn arc(
+        block: usize,
+        from: [f64; 3],
+        to: [f64; 3],
+        center: [f64; 3],
+        normal: [f64; 3],
+        clockwise: bool,
+        feed: f64,
+        spindle: f64,
+    ) -> Segment {
+        Segment {
+            shape: PathShape::Arc {
+                center,
+                normal,
+                clockwise,
+            },
+            ..Segment::linear(block, from, to, feed, spindle)
+        }
+    }
+
+    /// The same move with the tool axis going from `a0` to `a1` (5-axis).
+    pub fn with_axes(mut self, a0: [f64; 3], a1: [f64; 3]) -> Segment {
+        self.axis_from = a0;
+        self.axis_to = a1;
+        self
+    }
+
+    pub(crate) fn prepare(&self) -> Result<Prepared, String> {
+        let all = [self.from, self.to, self.axis_from, self.axis_to];
+        if all.iter().flatten().any(|x| !x.is_finite()) {
+            return Err("coordinates must be finite".into());
+        }
+        let (n0, n1) = (norm(self.axis_from), norm(self.axis_to));
+        if (n0 - 1.0).abs() > 1e-6 || (n1 - 1.0).abs() > 1e-6 {
+            return Err(format!(
+                "tool axis must be a unit vector, got lengths {n0} and {n1}"
+            ));
+        }
+        let axis0 = unit(self.axis_from);
+        let axis1 = unit(self.axis_to);
+        let axis_angle = dot(axis0, axis1).clamp(-1.0, 1.0).acos();
+        if axis_angle > std::f64::consts::PI - 1e-6 {
+            return Err("tool axis flips by 180°: the interpolation is undefined".into());
+        }
+        let arc = match self.shape {
+            PathShape::Linear => None,
+            PathShape::Arc {
+                center,
+                normal,
+                clockwise,
+            } => {
+                if center.iter().chain(normal.iter()).any(|x| !x.is_finite()) || norm(normal) < 1e-9
+                {
+                    return Err("arc centre and normal must be finite, normal non-zero".into());
+                }
+                let n = unit(normal);
+                let d0 = sub(self.from, center);
+                let d1 = sub(self.to, center);
+                let h0 = dot(d0, n);
+                let rise = dot(d1, n) - h0;
+                let p0 = sub(d0, scale(n, h0));
+                let p1 = sub(d1, scale(n, dot(d1, n)));
+                let (r0, r1) = (norm(p0), norm(p1));
+                if r0 < 1e-9 || r1 < 1e-9 {
+                    return Err("arc end point on the centre: radius zero".into());
+                }
+                if (r0 - r1).abs() > 0.01 * r0.max(r1) + 0.01 {
+                    return Err(format!("arc radii at start and end differ: {r0} vs {r1}"));
+                }
+                let e1 = scale(p0, 1.0 / r0);
+                let e2 = cross(n, e1);
+                let ang = dot(p1, e2).atan2(dot(p1, e1)); // (−π, π], counter-clockwise
+                let mut ccw = if ang <= 1e-12 {
+                    ang + 2.0 * std::f64::consts::PI
+                } else {
+                    ang
+                };
+                if ccw > 2.0 * std::f64::consts::PI - 1e-12 && norm(sub(p1, p0)) > 1e-9 {
+                    ccw -= 2.0 * std::f64::consts::PI;
+                }
+                let sweep = if clockwise {
+                    ccw - 2.0 * std::f64::consts::PI
+                } else {
+                    ccw
+                };
+                // A full circle: same start and end in the plane.
+                let sweep = if clockwise && sweep.abs() < 1e-12 {
+                    -2.0 * std::f64::consts::PI
+                } else {
+                    sweep
+                };
+                Some(ArcGeom {
+                    center,
+                    e1,
+                    e2,
+                    normal: n,
+                    r0,
+                    r1,
+                    sweep,
+                    h0,
+                    rise,
+                })
+            }
+        };
+        let length = match &arc {
+            None => norm(sub(self.to, self.from)),
+            Some(a) => {
+                let rm = 0.5 * (a.r0 + a.r1);
+                ((a.sweep * rm).powi(2) + a.rise * a.rise).sqrt()
+            }
+        };
+        Ok(Prepared {
+            from: self.from,
+            to: self.to,
+            axis0,
+            axis1,
+            axis_angle,
+            arc,
+            length,
+        })
+    }
+}
+
+impl Prepared {
+    pub fn point(&self, u: f64) -> [f64; 3] {
+        match &self.arc {
+            None => add(self.from, scale(sub(self.to, self.from), u)),
+            Some(a) => {
+                let th = a.sweep * u;
+                let r = a.r0 + (a.r1 - a.r0) * u;
+                let radial = add(scale(a.e1, th.cos()), scale(a.e2, th.sin()));
+                add(
+                    add(a.center, scale(radial, r)),
+                    scale(a.normal, a.h0 + a.rise * u),
+                )
+            }
+        }
+    }
+
+    /// Tool axis at u: spherical interpolation between the end axes.
+    pub fn axis(&self, u: f64) -> [f64; 3] {
+        if self.axis_angle < 1e-12 {
+            return self.axis0;
+        }
+        let s = self.axis_angle.sin();
+        let w0 = ((1.0 - u) * self.axis_angle).sin() / s;
+        let w1 = (u * self.axis_angle).sin() / s;
+        unit(add(scale(self.axis0, w0), scale(self.axis1, w1)))
+    }
+
+    /// Straight sub-moves with fixed axes covering u ∈ [ua, ub], fine enough that the arc's
+    /// chord sagitta stays under `arc_tol` and the axis turns by at most `max_axis_step`
+    /// radians per sub-move (the mid axis is used for the whole sub-move).
+    pub fn sub_moves(
+        &self,
+        ua: f64,
+        ub: f64,
+        arc_tol: f64,
+        max_axis_step: f64,
+        out: &mut Vec<SubMove>,
+    ) {
+        let mut n = 1usize;
+        if let Some(a) = &self.arc {
+            let r = a.r0.max(a.r1);
+            let span = (a.sweep * (ub - ua)).abs();
+            // Sagitta r(1 − cos(θ/2)) ≤ tol  ⇔  θ ≤ 2·acos(1 − tol/r).
+            let max_theta = 2.0 * (1.0 - (arc_tol / r).min(1.0)).acos();
+            n = n.max((span / max_theta.max(1e-6)).ceil() as usize);
+        }
+        if self.axis_angle > 0.0 {
+            let turn = self.axis_angle * (ub - ua);
+            n = n.max((turn / max_axis_step.max(1e-9)).ceil() as usize);
+        }
+        let n = n.min(1_000_000);
+        let mut prev = self.point(ua);
+        for i in 1..=n {
+            let u1 = ua + (ub - ua) * i as f64 / n as f64;
+            let um = ua + (ub - ua) * (i as f64 - 0.5) / n as f64;
+            let p = self.point(u1);
+            out.push(SubMove {
+                p0: prev,
+                p1: p,
+                axis: self.axis(um),
+            });
+            prev = p;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn g2_quarter_circle_is_clockwise() {
+        let s = Segment::arc(
+            0,
+            [10.0, 0.0, 0.0],
+            [0.0, -10.0, 0.0],
+            [0.0; 3],
+            Z,
+            true,
+            100.0,
+            1000.0,
+        );
+        let p = s.prepare().unwrap();
+        assert!((p.length - 10.0 * std::f64::consts::FRAC_PI_2).abs() < 1e-9);
+        let m = p.point(0.5);
+        assert!(
+            (m[0] - 10.0 / 2f64.sqrt()).abs() < 1e-9 && (m[1] + 10.0 / 2f64.sqrt()).abs() < 1e-9
+        );
+    }
+
+    #[test]
+    fn full_helix_turn() {
+        let s = Segment::arc(
+            0,
+            [5.0, 0.0, 0.0],
+            [5.0, 0.0, -2.0],
+            [0.0; 3],
+            Z,
+            false,
+            100.0,
+            1000.0,
+        );
+        let p = s.prepare().unwrap();
+        let m = p.point(0.25);
+        assert!((m[1] - 5.0).abs() < 1e-9 && (m[2] + 0.5).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,360 @@
+//! The removal pass: for each segment, steps along the path; at each step the checks
+//! and the engagement are taken with the material as it is before the step, then the
+//! step's swept volume is removed.
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use super::checks::{check_position, CheckFlags, ToolChecks};
+use super::engagement::{compute, EngagementOptions, Scratch, StepInput, StepMetrics};
+use super::path::Segment;
+use super::stock::Stock;
+use super::sweep::{remove_sweep, RemovalStats, ToolBody};
+use super::GeometryError;
+use crate::engagement::Engagement;
+use crate::job::CancelFlag;
+use crate::tool::Tool;
+
+#[derive(Clone, Debug)]
+pub struct SimOptions {
+    pub engagement: EngagementOptions,
+    /// Compute the engagement at each step (off: removal and checks only).
+    pub compute_engagement: bool,
+    /// Largest chord sagitta when an arc is swept as straight sub-moves, mm
+    /// (default: cell / 20).
+    pub arc_tolerance: Option<f64>,
+    /// Largest displacement of the tool's top due to holding the axis fixed over a 5-axis
+    /// sub-move, mm (default: cell / 2).
+    pub axis_tolerance: Option<f64>,
+    /// Blocks needing at most this many steps at the base step get uniform steps; longer
+    /// blocks adapt the step to how fast the engagement changes.
+    pub max_uniform_steps: usize,
+    /// The adaptive step grows up to this many base steps while engagement is steady.
+    pub max_step_factor: f64,
+    /// Optional fixture, placed in the part frame, checked against the whole tool.
+    pub fixture: Option<Arc<Stock>>,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            engagement: EngagementOptions::default(),
+            compute_engagement: true,
+            arc_tolerance: None,
+            axis_tolerance: None,
+            max_uniform_steps: 64,
+            max_step_factor: 16.0,
+            fixture: None,
+        }
+    }
+}
+
+/// One step along a segment.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StepGeometry {
+    /// Tool tip at the end of the step (where the engagement was taken).
+    pub position: [f64; 3],
+    pub axis: [f64; 3],
+    /// Path length from the segment's start to the end of this step, mm.
+    pub distance: f64,
+    /// Path length of this step, mm.
+    pub length: f64,
+    /// Engagement at `position`, before this step removed material.
+    pub engagement: Engagement,
+    pub metrics: StepMetrics,
+    /// No edge point met material.
+    pub air: bool,
+    /// Volume this step removed, mm³.
+    pub removed_volume: f64,
+    /// Material removal rate, mm³/min (removed volume × feed / step length).
+    pub mrr: f64,
+}
+
+/// What one segment did.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BlockGeometry {
+    /// Index of the segment in the input list.
+    pub segment: usize,
+    /// NC block index carried over from the segment.
+    pub block: usize,
+    pub rapid: bool,
+    pub length: f64,
+    pub removed_volume: f64,
+    pub steps: Vec<StepGeometry>,
+    /// Fraction of the path length whose steps cut air.
+    pub air_fraction: f64,
+    pub max_axial_depth: f64,
+    pub max_radial_width: f64,
+    /// Smallest entry and largest exit angle over the steps, radians (None in air).
+    pub entry_angle: Option<f64>,
+    pub exit_angle: Option<f64>,
+    pub max_engaged_edge_length: f64,
+    pub max_mrr: f64,
+    /// Removed volume × feed / length, mm³/min.
+    pub mean_mrr: f64,
+    pub checks: CheckFlags,
+    /// Dexel rays whose intersection with a swept volume was computed, and rays changed.
+    pub rays_tested: u64,
+    pub rays_changed: u64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SimulationReport {
+    pub blocks: Vec<BlockGeometry>,
+    /// Stock volume after the program, mm³.
+    pub stock_volume: f64,
+    pub rays_tested: u64,
+    pub rays_changed: u64,
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Removal volume below which a rapid is not reported (float noise), mm³.
+const RAPID_VOLUME_EPS: f64 = 1e-6;
+
+/// Simulates the segments on `stock` with `tool`: removes material, and reports per segment
+/// the removed volume, the engagement per step, and the collision checks.
+pub fn simulate_removal(
+    stock: &mut Stock,
+    tool: &Tool,
+    segments: &[Segment],
+    opts: &SimOptions,
+    cancel: &CancelFlag,
+) -> Result<SimulationReport, GeometryError> {
+    tool.validate()?;
+    let body = ToolBody::cutting_part(tool);
+    let checks = ToolChecks::new(tool);
+    let h = stock.grid.cell;
+    let arc_tol = opts.arc_tolerance.unwrap_or(h / 20.0).max(1e-6);
+    let axis_tol = opts.axis_tolerance.unwrap_or(h / 2.0).max(1e-6);
+    let max_axis_step = 2.0 * axis_tol / body.length;
+    // Material never rises, so the initial top bounds it for the whole program and lets
+    // checks and engagement skip what is above the stock.
+    let top_z = stock.grid.max_z();
+    let mut scratch = Scratch::default();
+    let mut blocks = Vec::with_capacity(segments.len());
+    let mut sub_moves = Vec::new();
+    let (mut total_tested, mut total_changed) = (0u64, 0u64);
+    for (index, seg) in segments.iter().enumerate() {
+        if cancel.is_cancelled() {
+            return Err(GeometryError::Cancelled {
+                done: index,
+                total: segments.len(),
+            });
+        }
+        let prep = seg
+            .prepare()
+            .map_err(|message| GeometryError::InvalidSegment {
+                index,
+                block: seg.block,
+                message,
+            })?;
+        if !(seg.feed.is_finite()
+            && seg.feed >= 0.0
+            && seg.spindle.is_finite()
+            && seg.spindle >= 0.0)
+        {
+            return Err(GeometryError::InvalidSegment {
+                index,
+                block: seg.block,
+                message: "feed and spindle speed must be non-negative numbers".into(),
+            });
+        }
+        let len = prep.length;
+        let fz = if seg.feed > 0.0 && seg.spindle > 0.0 {
+            seg.feed / (seg.spindle * tool.flutes as f64)
+        } else {
+            0.0
+        };
+        // At most one step per feed per tooth or per grid cell, whichever is coarser.
+        let base = if seg.rapid {
+            (0.5 * body.radius).max(h)
+        } else {
+            fz.max(h)
+        };
+        let n_uniform = (len / base).ceil().max(1.0) as usize;
+        let adaptive = !seg.rapid && n_uniform > opts.max_uniform_steps;
+        let max_step = base * opts.max_step_factor.max(1.0);
+        let engage = opts.compute_engagement && !seg.rapid;
+
+        let mut block = BlockGeometry {
+            segment: index,
+            block: seg.block,
+            rapid: seg.rapid,
+            length: len,
+            removed_volume: 0.0,
+            steps: Vec::new(),
+            air_fraction: 0.0,
+            max_axial_depth: 0.0,
+            max_radial_width: 0.0,
+            entry_angle: None,
+            exit_angle: None,
+            max_engaged_edge_length: 0.0,
+            max_mrr: 0.0,
+            mean_mrr: 0.0,
+            checks: CheckFlags::default(),
+            rays_tested: 0,
+            rays_changed: 0,
+        };
+        let mut u_prev = 0.0;
+        let mut p_prev = prep.point(0.0);
+        let mut step = if adaptive {
+            base
+        } else {
+            len / n_uniform as f64
+        };
+        let mut prev_metrics: Option<(bool, StepMetrics)> = None;
+        let mut air_len = 0.0;
+        let mut stats = RemovalStats::default();
+        loop {
+            let u = if len > 0.0 {
+                (u_prev + step / len).min(1.0)
+            } else {
+                1.0
+            };
+            // Avoid a sliver of a last step: stretch this one to the end.
+            let u = if len > 0.0 && (1.0 - u) * len < 0.25 * step {
+                1.0
+            } else {
+                u
+            };
+            let pos = prep.point(u);
+            let axis = prep.axis(u);
+            let motion = sub(pos, p_prev);
+            check_position(
+                &stock.grid,
+                &checks,
+                pos,
+                axis,
+                top_z,
+                opts.fixture.as_deref().map(|s| &s.grid),
+                &mut block.checks,
+            );
+            let (engagement, metrics) = if engage {
+                let input = StepInput {
+                    pos,
+                    axis,
+                    motion,
+                    top_z,
+                };
+                compute(
+                    &stock.grid,
+                    tool,
+                    &body,
+                    &input,
+                    &opts.engagement,
+                    &mut scratch,
+                )
+            } else {
+                (
+                    Engagement {
+                        slices: Vec::new(),
+                        feed_dir: [0.0; 3],
+                        tool_axis: axis,
+                    },
+                    StepMetrics::default(),
+                )
+            };
+            sub_moves.clear();
+            prep.sub_moves(u_prev, u, arc_tol, max_axis_step, &mut sub_moves);
+            let mut step_stats = RemovalStats::default();
+            for mv in &sub_moves {
+                step_stats.add(&remove_sweep(&mut stock.grid, &body, mv));
+            }
+            stats.add(&step_stats);
+            let removed = step_stats.volume(h);
+            let this_len = (u - u_prev) * len;
+            let air = engagement.is_air();
+            if air {
+                air_len += this_len;
+            }
+            let mrr = if this_len > 0.0 && seg.feed > 0.0 {
+                removed * seg.feed / this_len
+            } else {
+                0.0
+            };
+            if !air {
+                block.entry_angle = Some(
+                    block
+                        .entry_angle
+                        .map_or(metrics.entry_angle, |e| e.min(metrics.entry_angle)),
+                );
+                block.exit_angle = Some(
+                    block
+                        .exit_angle
+                        .map_or(metrics.exit_angle, |e| e.max(metrics.exit_angle)),
+                );
+            }
+            block.max_axial_depth = block.max_axial_depth.max(metrics.axial_depth);
+            block.max_radial_width = block.max_radial_width.max(metrics.radial_width);
+            block.max_engaged_edge_length = block
+                .max_engaged_edge_length
+                .max(metrics.engaged_edge_length);
+            block.max_mrr = block.max_mrr.max(mrr);
+            block.steps.push(StepGeometry {
+                position: pos,
+                axis,
+                distance: u * len,
+                length: this_len,
+                engagement,
+                metrics,
+                air,
+                removed_volume: removed,
+                mrr,
+            });
+            if adaptive {
+                // Steady engagement lets the step grow; any change brings it back.
+                let steady = prev_metrics.is_some_and(|(pa, pm)| {
+                    let bin =
+                        2.0 * std::f64::consts::PI / opts.engagement.angular_bins.max(4) as f64;
+                    pa == air
+                        && (pm.axial_depth - metrics.axial_depth).abs() <= h
+                        && (pm.radial_width - metrics.radial_width).abs() <= h
+                        && (pm.entry_angle - metrics.entry_angle).abs() <= bin
+                        && (pm.exit_angle - metrics.exit_angle).abs() <= bin
+                });
+                step = if steady {
+                    (step * 2.0).min(max_step)
+                } else {
+                    base
+                };
+                prev_metrics = Some((air, metrics));
+            }
+            u_prev = u;
+            p_prev = pos;
+            if u >= 1.0 {
+                break;
+            }
+        }
+        block.removed_volume = stats.volume(h);
+        block.rays_tested = stats.rays_tested;
+        block.rays_changed = stats.rays_changed;
+        block.air_fraction = if len > 0.0 {
+            air_len / len
+        } else if block.steps.iter().all(|s| s.air) {
+            1.0
+        } else {
+            0.0
+        };
+        block.mean_mrr = if len > 0.0 && seg.feed > 0.0 {
+            block.removed_volume * seg.feed / len
+        } else {
+            0.0
+        };
+        if seg.rapid && block.removed_volume > RAPID_VOLUME_EPS {
+            block.checks.rapid_in_material = true;
+        }
+        total_tested += stats.rays_tested;
+        total_changed += stats.rays_changed;
+        blocks.push(block);
+    }
+    Ok(SimulationReport {
+        blocks,
+        stock_volume: stock.volume(),
+        rays_tested: total_tested,
+        rays_changed: total_changed,
+    })
+}

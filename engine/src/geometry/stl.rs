@@ -1,0 +1,321 @@
+//! STL stock: reading (stl_io), validation, and filling the tri-dexel grid by casting
+//! every ray against the mesh (parry3d TriMesh and its BVH find the candidate triangles).
+//!
+//! Hits are exact for axis-parallel rays: a 2-D point-in-triangle test in the plane
+//! across the ray, with a top-left rule on edges computed from canonically ordered end
+//! points, so a ray through an edge or vertex shared by several triangles is counted
+//! once (coincident hits merged by construction). The sign of the triangle's normal along
+//! the ray tells entry from exit; material is where the winding count is positive.
+
+use std::collections::HashMap;
+use std::io::Cursor;
+
+use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::math::Vector;
+use parry3d_f64::shape::TriMesh;
+use rayon::prelude::*;
+
+use super::dexel::{intervals_from_crossings, other_axes, DexelGrid, GridOptions};
+use super::stock::{Stock, MAX_STOCK_SIZE};
+use super::GeometryError;
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum StlError {
+    #[error("binary STL is truncated: {triangles} triangles announced need {expected} bytes, the file has {actual}")]
+    Truncated {
+        triangles: u32,
+        expected: u64,
+        actual: u64,
+    },
+    #[error("file is too short to be an STL ({0} bytes)")]
+    TooShort(usize),
+    #[error("cannot read STL: {0}")]
+    Parse(String),
+    #[error("STL has no triangles")]
+    Empty,
+    #[error("triangle {triangle} has a vertex that is not a finite number")]
+    NonFinite { triangle: usize },
+    #[error("mesh is not closed: {open_edges} edges are not shared by exactly one pair of opposite triangles (e.g. near {near:?})")]
+    NotClosed { open_edges: usize, near: [f64; 3] },
+    #[error("mesh is degenerate: all triangles have zero area")]
+    Degenerate,
+    #[error("mesh is {size} mm across: larger than {MAX_STOCK_SIZE} mm")]
+    TooLarge { size: f64 },
+    #[error("mesh rejected by the BVH builder: {0}")]
+    Topology(String),
+}
+
+/// An indexed triangle mesh with vertices merged by position.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub vertices: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+fn is_binary(bytes: &[u8]) -> Result<bool, StlError> {
+    if bytes.len() < 84 {
+        // An ASCII file can be short; a binary one cannot.
+        return if bytes.starts_with(b"solid") {
+            Ok(false)
+        } else {
+            Err(StlError::TooShort(bytes.len()))
+        };
+    }
+    let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]);
+    let expected = 84 + 50 * n as u64;
+    if expected == bytes.len() as u64 {
+        // Exactly the binary size: binary, even when the header starts with "solid".
+        return Ok(true);
+    }
+    let text =
+        bytes.starts_with(b"solid") && bytes[..bytes.len().min(1024)].iter().all(|&b| b.is_ascii());
+    if text {
+        Ok(false)
+    } else {
+        Err(StlError::Truncated {
+            triangles: n,
+            expected,
+            actual: bytes.len() as u64,
+        })
+    }
+}
+
+impl Mesh {
+    /// Reads a binary or ASCII STL and checks it: finite vertices, at least one
+    /// triangle, closed and consistently oriented.
+    pub fn from_stl_bytes(bytes: &[u8]) -> Result<Mesh, StlError> {
+        let mut data = bytes.to_vec();
+        if is_binary(bytes)? {
+            if data.starts_with(b"solid") {
+                // stl_io decides ASCII by the "solid" prefix; blank it so the binary
+                // reader runs.
+                data[..5].copy_from_slice(b"     ");
+            }
+        } else {
+            // ASCII keywords are case-insensitive in practice (FACET, ENDLOOP, ...), stl_io
+            // wants them in lower case; numbers read the same either way.
+            data.make_ascii_lowercase();
+        }
+        let mut cur = Cursor::new(data);
+        let reader =
+            stl_io::create_stl_reader(&mut cur).map_err(|e| StlError::Parse(e.to_string()))?;
+        let mut vertices: Vec<[f64; 3]> = Vec::new();
+        let mut index: HashMap<[u64; 3], u32> = HashMap::new();
+        let mut triangles = Vec::new();
+        for (t, tri) in reader.enumerate() {
+            let tri = tri.map_err(|e| StlError::Parse(format!("triangle {t}: {e}")))?;
+            let mut idx = [0u32; 3];
+            for (k, v) in tri.vertices.iter().enumerate() {
+                if v.0.iter().any(|c| !c.is_finite()) {
+                    return Err(StlError::NonFinite { triangle: t });
+                }
+                // +0.0 folds −0.0 into 0.0 so both merge.
+                let p = [
+                    v.0[0] as f64 + 0.0,
+                    v.0[1] as f64 + 0.0,
+                    v.0[2] as f64 + 0.0,
+                ];
+                let key = p.map(f64::to_bits);
+                let next = vertices.len() as u32;
+                idx[k] = *index.entry(key).or_insert_with(|| {
+                    vertices.push(p);
+                    next
+                });
+            }
+            // Triangles collapsed to a segment or a point add nothing to a closed surface.
+            if idx[0] != idx[1] && idx[1] != idx[2] && idx[0] != idx[2] {
+                triangles.push(idx);
+            }
+        }
+        if triangles.is_empty() {
+            return Err(if vertices.is_empty() {
+                StlError::Empty
+            } else {
+                StlError::Degenerate
+            });
+        }
+        let mesh = Mesh {
+            vertices,
+            triangles,
+        };
+        mesh.check_closed()?;
+        Ok(mesh)
+    }
+
+    /// Every directed edge must be matched by the opposite edge of another triangle.
+    fn check_closed(&self) -> Result<(), StlError> {
+        let mut count: HashMap<(u32, u32), i32> = HashMap::new();
+        for t in &self.triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                let (key, s) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
+                *count.entry(key).or_insert(0) += s;
+            }
+        }
+        let open: Vec<_> = count
+            .iter()
+            .filter(|(_, &c)| c != 0)
+            .map(|(k, _)| *k)
+            .collect();
+        if open.is_empty() {
+            Ok(())
+        } else {
+            let near = self.vertices[open.iter().min().unwrap().0 as usize];
+            Err(StlError::NotClosed {
+                open_edges: open.len(),
+                near,
+            })
+        }
+    }
+
+    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for v in &self.vertices {
+            for a in 0..3 {
+                lo[a] = lo[a].min(v[a]);
+                hi[a] = hi[a].max(v[a]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Enclosed volume (divergence theorem), mm³.
+    pub fn volume(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize]);
+                let cr = [
+                    b[1] * c[2] - b[2] * c[1],
+                    b[2] * c[0] - b[0] * c[2],
+                    b[0] * c[1] - b[1] * c[0],
+                ];
+                (a[0] * cr[0] + a[1] * cr[1] + a[2] * cr[2]) / 6.0
+            })
+            .sum()
+    }
+}
+
+/// Signed edge function of point (pu, pv) against edge p→q, exactly antisymmetric in the
+/// edge's direction (computed from the canonically ordered end points).
+#[inline]
+fn edge_fn(p: [f64; 2], q: [f64; 2], r: [f64; 2]) -> f64 {
+    let swap = (q[0], q[1]) < (p[0], p[1]);
+    let (a, b) = if swap { (q, p) } else { (p, q) };
+    let e = (b[0] - a[0]) * (r[1] - a[1]) - (b[1] - a[1]) * (r[0] - a[0]);
+    if swap {
+        -e
+    } else {
+        e
+    }
+}
+
+/// Whether a zero edge function counts as inside (top-left rule for counter-clockwise
+/// triangles): edges going down, or horizontal edges going left.
+#[inline]
+fn top_left(p: [f64; 2], q: [f64; 2]) -> bool {
+    let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+    dy < 0.0 || (dy == 0.0 && dx < 0.0)
+}
+
+impl Stock {
+    /// Stock from an STL file's bytes; `opts.cell` must be set.
+    pub fn from_stl_bytes(bytes: &[u8], opts: &GridOptions) -> Result<Stock, GeometryError> {
+        let mesh = Mesh::from_stl_bytes(bytes)?;
+        Stock::from_mesh(&mesh, opts)
+    }
+
+    pub fn from_mesh(mesh: &Mesh, opts: &GridOptions) -> Result<Stock, GeometryError> {
+        let cell = opts
+            .cell
+            .ok_or_else(|| GeometryError::InvalidGrid("no cell size given".into()))?;
+        let (lo, hi) = mesh.bounds();
+        let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+        if size > MAX_STOCK_SIZE {
+            return Err(StlError::TooLarge { size }.into());
+        }
+        let mut grid = DexelGrid::new(lo, hi, cell, opts.memory_limit)?;
+        let verts: Vec<Vector> = mesh
+            .vertices
+            .iter()
+            .map(|v| Vector::new(v[0], v[1], v[2]))
+            .collect();
+        let tri = TriMesh::new(verts, mesh.triangles.clone())
+            .map_err(|e| StlError::Topology(e.to_string()))?;
+        fill_from_mesh(&mut grid, mesh, &tri);
+        Ok(Stock { grid })
+    }
+}
+
+fn fill_from_mesh(grid: &mut DexelGrid, mesh: &Mesh, tri: &TriMesh) {
+    let h = grid.cell;
+    let gmin = grid.origin;
+    let gmax = grid.max_corner();
+    for fam in 0..3 {
+        let (ua, va) = other_axes(fam);
+        let nu = grid.families[fam].nu;
+        let (ou, ov) = (grid.origin[ua], grid.origin[va]);
+        let rows: Vec<_> = grid.families[fam]
+            .rays
+            .par_chunks_mut(nu)
+            .enumerate()
+            .collect();
+        rows.into_par_iter().for_each(|(iv, row)| {
+            let v = ov + (iv as f64 + 0.5) * h;
+            // One BVH query per row of rays: the slab of the row, thin across it.
+            let mut lo = gmin;
+            let mut hi = gmax;
+            lo[va] = v - 1e-9;
+            hi[va] = v + 1e-9;
+            let aabb = Aabb::new(
+                Vector::new(lo[0], lo[1], lo[2]),
+                Vector::new(hi[0], hi[1], hi[2]),
+            );
+            let mut hits: Vec<Vec<(f64, i32)>> = vec![Vec::new(); nu];
+            for t in tri.bvh().intersect_aabb(&aabb) {
+                let [a, b, c] = mesh.triangles[t as usize].map(|i| mesh.vertices[i as usize]);
+                let mut p = [[a[ua], a[va]], [b[ua], b[va]], [c[ua], c[va]]];
+                let mut s = [a[fam], b[fam], c[fam]];
+                let area = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1])
+                    - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]);
+                if area == 0.0 {
+                    continue; // edge-on to the rays
+                }
+                // Normal along +ray: leaving the solid.
+                let sign = if area > 0.0 { -1 } else { 1 };
+                if area < 0.0 {
+                    p.swap(1, 2);
+                    s.swap(1, 2);
+                }
+                let umin = p.iter().map(|q| q[0]).fold(f64::INFINITY, f64::min);
+                let umax = p.iter().map(|q| q[0]).fold(f64::NEG_INFINITY, f64::max);
+                let i0 = ((umin - ou) / h - 0.5).ceil().max(0.0) as usize;
+                let i1 = (((umax - ou) / h - 0.5).floor() + 1.0).clamp(0.0, nu as f64) as usize;
+                for (iu, hit) in hits.iter_mut().enumerate().take(i1).skip(i0) {
+                    let r = [ou + (iu as f64 + 0.5) * h, v];
+                    let mut w = [0.0; 3];
+                    let mut inside = true;
+                    for k in 0..3 {
+                        let (e0, e1) = (p[(k + 1) % 3], p[(k + 2) % 3]);
+                        let e = edge_fn(e0, e1, r);
+                        if e < 0.0 || (e == 0.0 && !top_left(e0, e1)) {
+                            inside = false;
+                            break;
+                        }
+                        w[k] = e;
+                    }
+                    if !inside {
+                        continue;
+                    }
+                    let sum = w[0] + w[1] + w[2];
+                    let depth = (w[0] * s[0] + w[1] * s[1] + w[2] * s[2]) / sum;
+                    hit.push((depth, sign));
+                }
+            }
+            for (ray, hit) in row.iter_mut().zip(hits.iter_mut()) {
+                *ray = intervals_from_crossings(hit);
+            }
+        });
+    }
+}

@@ -1,0 +1,189 @@
+//! STL stock import (corpus files, broken files) and stock export.
+
+use millsim_engine::geometry::{
+    export_stl, simulate_removal, GeometryError, GridOptions, Mesh, Segment, SimOptions, StlError,
+    Stock,
+};
+use millsim_engine::job::CancelFlag;
+use millsim_engine::tool::Tool;
+
+const CORPUS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/corpus/stl/");
+
+fn corpus(name: &str) -> Vec<u8> {
+    std::fs::read(format!("{CORPUS}{name}")).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+fn grid(cell: f64) -> GridOptions {
+    GridOptions {
+        cell: Some(cell),
+        ..Default::default()
+    }
+}
+
+/// A binary STL from triangles.
+fn binary(tris: &[[[f32; 3]; 3]]) -> Vec<u8> {
+    let mut b = vec![0u8; 80];
+    b.extend_from_slice(&(tris.len() as u32).to_le_bytes());
+    for t in tris {
+        b.extend_from_slice(&[0u8; 12]);
+        for v in t {
+            for c in v {
+                b.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        b.extend_from_slice(&[0, 0]);
+    }
+    b
+}
+
+fn cube_triangles() -> Vec<[[f32; 3]; 3]> {
+    let b = corpus("numpystl_Cube_binary_solid_header.stl");
+    (0..12)
+        .map(|i| {
+            let f = |k: usize| {
+                let o = 84 + 50 * i + 12 + 4 * k;
+                f32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
+            };
+            [[f(0), f(1), f(2)], [f(3), f(4), f(5)], [f(6), f(7), f(8)]]
+        })
+        .collect()
+}
+
+#[test]
+fn cube_with_solid_header_matches_its_mesh_volume() {
+    let bytes = corpus("numpystl_Cube_binary_solid_header.stl");
+    let mesh = Mesh::from_stl_bytes(&bytes).unwrap();
+    assert_eq!(mesh.triangles.len(), 12);
+    let mv = mesh.volume();
+    assert!((mv - 8.0).abs() < 1e-9);
+    // Cells that divide the cube's 2 mm: the rays' columns tile it exactly.
+    for cell in [0.1, 0.05, 0.02] {
+        let stock = Stock::from_stl_bytes(&bytes, &grid(cell)).unwrap();
+        let v = stock.volume();
+        let err = (v - mv) / mv;
+        println!(
+            "cube at {cell}: dexel volume {v:.6}, mesh {mv:.6}, error {:+.4}%",
+            err * 100.0
+        );
+        assert!(err.abs() < 0.001, "{v} vs {mv}");
+    }
+    // A cell that does not divide it: one column of rays more or less per axis, an error
+    // of about h / size per axis (here 1%) that is inherent to the ray spacing.
+    let v = Stock::from_stl_bytes(&bytes, &grid(0.03)).unwrap().volume();
+    println!(
+        "cube at 0.03: dexel volume {v:.6} ({:+.3}%)",
+        (v - mv) / mv * 100.0
+    );
+    assert!(((v - mv) / mv).abs() < 0.03 * 3.0 / 2.0);
+}
+
+#[test]
+fn corpus_meshes_load_and_match_their_volumes() {
+    for (name, cell) in [
+        ("numpystl_Cube_binary_solid_header.stl", 0.05),
+        ("numpystl_rear_case_binary_18808tri.stl", 0.25),
+        ("numpystl_HalfDonut_ascii.stl", 0.01),
+    ] {
+        let bytes = corpus(name);
+        let mesh = Mesh::from_stl_bytes(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let stock = Stock::from_mesh(&mesh, &grid(cell)).unwrap();
+        let (mv, dv) = (mesh.volume(), stock.volume());
+        let f = stock.grid.family_volumes();
+        println!(
+            "{name}: {} triangles, mesh volume {mv:.4}, dexel {dv:.4} ({:+.3}%), families {f:?}",
+            mesh.triangles.len(),
+            (dv - mv) / mv * 100.0
+        );
+        assert!(mv > 0.0);
+        assert!(((dv - mv) / mv).abs() < 0.02, "{name}: {dv} vs {mv}");
+    }
+}
+
+#[test]
+fn broken_stls_are_clear_errors() {
+    let good = corpus("numpystl_Cube_binary_solid_header.stl");
+    // Truncated binary file.
+    let e = Mesh::from_stl_bytes(&good[..good.len() - 20]).unwrap_err();
+    assert!(
+        matches!(e, StlError::Truncated { triangles: 12, .. }),
+        "{e}"
+    );
+    // NaN vertex.
+    let mut tris = cube_triangles();
+    tris[4][1][2] = f32::NAN;
+    assert_eq!(
+        Mesh::from_stl_bytes(&binary(&tris)).unwrap_err(),
+        StlError::NonFinite { triangle: 4 }
+    );
+    // Zero triangles.
+    assert_eq!(
+        Mesh::from_stl_bytes(&binary(&[])).unwrap_err(),
+        StlError::Empty
+    );
+    // An ASCII file with no facets.
+    assert_eq!(
+        Mesh::from_stl_bytes(b"solid empty\nendsolid empty\n").unwrap_err(),
+        StlError::Empty
+    );
+    // A face missing: not closed.
+    let mut tris = cube_triangles();
+    tris.remove(3);
+    let e = Mesh::from_stl_bytes(&binary(&tris)).unwrap_err();
+    assert!(
+        matches!(e, StlError::NotClosed { open_edges: 3, .. }),
+        "{e}"
+    );
+    // Garbage.
+    assert!(Mesh::from_stl_bytes(b"hello").is_err());
+    // Errors carry through the stock constructor and say what is wrong.
+    let e = Stock::from_stl_bytes(&binary(&[]), &grid(0.1)).unwrap_err();
+    assert!(matches!(e, GeometryError::Stl(StlError::Empty)));
+    assert_eq!(e.to_string(), "STL: STL has no triangles");
+}
+
+#[test]
+fn grid_over_the_memory_limit_is_refused_before_allocation() {
+    let bytes = corpus("numpystl_Cube_binary_solid_header.stl");
+    let opts = GridOptions {
+        cell: Some(0.001),
+        memory_limit: 1 << 20,
+    };
+    let e = Stock::from_stl_bytes(&bytes, &opts).unwrap_err();
+    assert!(matches!(e, GeometryError::GridTooLarge { .. }), "{e}");
+    println!("{e}");
+}
+
+#[test]
+fn exported_stock_is_a_closed_mesh_with_the_stock_volume() {
+    let h = 0.1;
+    let mut stock = Stock::block([0.0, -10.0, -6.0], [30.0, 10.0, 0.0], h).unwrap();
+    let segs = [
+        Segment::linear(1, [-5.0, 0.0, -2.0], [35.0, 3.0, -2.0], 800.0, 8000.0),
+        Segment::linear(2, [15.0, -15.0, -3.5], [15.0, 15.0, -3.5], 800.0, 8000.0),
+    ];
+    simulate_removal(
+        &mut stock,
+        &Tool::ball(6.0, 2),
+        &segs,
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap();
+    let mut out = Vec::new();
+    let stats = export_stl(&stock, &mut out).unwrap();
+    assert_eq!(out.len() as u64, 84 + 50 * stats.triangles);
+    // Read back: closed, and its volume is the voxel volume.
+    let mesh = Mesh::from_stl_bytes(&out).unwrap();
+    let mv = mesh.volume();
+    assert!(
+        (mv - stats.volume).abs() < 1e-3 * stats.volume,
+        "{mv} vs {}",
+        stats.volume
+    );
+    let sv = stock.volume();
+    println!(
+        "exported {} triangles, mesh volume {mv:.3}, stock volume {sv:.3}",
+        stats.triangles
+    );
+    assert!(((mv - sv) / sv).abs() < 0.01);
+}
