@@ -3,7 +3,6 @@
 mod config;
 mod http;
 mod metrics;
-mod pending;
 mod queue;
 mod runner;
 mod store;
@@ -314,7 +313,7 @@ fn interpret(args: InterpretArgs) -> ExitCode {
         }
     }
     let result =
-        if validate::looks_like_cls(&text) { crate::pending::read_cls(&text) } else { nc::interpret(&text, &options) };
+        if validate::looks_like_cls(&text) { millsim_engine::cl::read_cls(&text) } else { nc::interpret(&text, &options) };
     match result {
         Ok(out) => {
             for w in &out.warnings {

@@ -99,7 +99,7 @@ fn interpret(options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progres
     })?;
     let engine_opts = opts.engine_options().map_err(|d| JobFailure::Invalid(diagnostics_problem("tool_table", &d)))?;
     let result = if crate::validate::looks_like_cls(&text) {
-        crate::pending::read_cls(&text)
+        millsim_engine::cl::read_cls(&text)
     } else {
         nc::interpret(&text, &engine_opts)
     }

@@ -4,7 +4,7 @@
 
 use serde_json::{json, Value};
 
-use millsim_engine::{machine::Machine, nc, physics::Material, tool::Tool};
+use millsim_engine::{geometry, machine::Machine, nc, physics::Material, tool::Tool};
 
 use crate::http::problem::{parse_json, ApiError};
 
@@ -67,7 +67,7 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
     }
     let lines = text.lines().count();
     if looks_like_cls(text) {
-        let cls = crate::pending::read_cls(text)
+        let cls = millsim_engine::cl::read_cls(text)
             .map_err(|d| diagnostics_problem(file, "CLS file does not read", &d))?;
         return Ok(Validated {
             media_type: "text/plain",
@@ -83,7 +83,7 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
 
 /// STL stock or part: read and checked (closed, finite, sane size) by the engine.
 pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
-    let mesh = crate::pending::Mesh::from_stl_bytes(bytes).map_err(|e| {
+    let mesh = geometry::Mesh::from_stl_bytes(bytes).map_err(|e| {
         ApiError::new(axum::http::StatusCode::UNPROCESSABLE_ENTITY, "invalid-stl", "STL is not usable", format!("{file}: {e}"))
             .with("file", file.to_string())
     })?;
@@ -96,7 +96,7 @@ pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
 
 /// A parametric stock (block or cylinder) as JSON.
 pub fn stock_json(bytes: &[u8]) -> Result<Validated, ApiError> {
-    let shape: crate::pending::StockShape = parse_json(bytes)?;
+    let shape: geometry::StockShape = parse_json(bytes)?;
     let (min, max) = shape.bounds().map_err(|e| ApiError::invalid_field("", e.to_string()))?;
     Ok(Validated { media_type: "application/json", summary: json!({ "format": "parametric", "bounds": { "min": min, "max": max } }) })
 }

@@ -109,6 +109,7 @@ mod tests {
     fn rfc3339_matches_known_instants() {
         assert_eq!(rfc3339(0), "1970-01-01T00:00:00.000Z");
         assert_eq!(rfc3339(951_782_400_000), "2000-02-29T00:00:00.000Z");
-        assert_eq!(rfc3339(1_795_253_580_123), "2026-11-21T10:13:00.123Z");
+        // Epoch milliseconds from Python's datetime for 2026-11-21T10:13:00.123Z.
+        assert_eq!(rfc3339(1_795_255_980_123), "2026-11-21T10:13:00.123Z");
     }
 }
