@@ -2043,11 +2043,12 @@ impl<'p> Interp<'p> {
             old_cc = r;
             current_cc = old_cc;
         }
-        // rs274 (2.9) never positions below the R plane: from below it goes straight to R.
-        if current_cc < r {
-            current_cc = r;
-        }
         let clear = if self.retract_r_plane { r } else { old_cc };
+        // rs274 (2.9) never positions at or below the R plane: from there it positions at
+        // the clearance height (R in G99, the initial level in G98).
+        if current_cc <= r {
+            current_cc = clear;
+        }
         let mut repeat = repeats;
         while repeat >= 1.0 {
             aa += aa_inc;
@@ -2120,14 +2121,17 @@ impl<'p> Interp<'p> {
                     self.spindle = dir;
                 }
                 88 => {
-                    // The operator retracts by hand after the stop; the tool stays at the bottom.
+                    // The control stops at the bottom and the operator retracts by hand; the
+                    // program then goes on as if the tool were at the clearance height. That
+                    // retract is emitted as a rapid (spindle stopped) so the path stays connected.
                     let dir = self.spindle;
                     self.cyc_move(false, plane, aa, bb, cc)?;
                     self.dwell(p)?;
                     self.spindle = SpindleDir::Off;
                     self.warnings.push(self.err_block(
-                        "G88: program stop at the hole bottom for a manual retract; the simulation continues from the bottom",
+                        "G88: program stop at the hole bottom; the operator's manual retract is modelled as a rapid to the clearance height",
                     ));
+                    self.cyc_move(true, plane, aa, bb, clear)?;
                     self.spindle = dir;
                 }
                 89 => {
@@ -2141,7 +2145,8 @@ impl<'p> Interp<'p> {
             current_cc = clear;
             repeat -= 1.0;
         }
-        // LinuxCNC leaves the third axis at the clearance value whatever the last move was.
+        // LinuxCNC leaves the third axis at the clearance value whatever the last move was
+        // (for G88 the operator's manual retract, emitted as a rapid below).
         self.cur[ia] = aa;
         self.cur[ib] = bb;
         self.cur[ic] = clear;
