@@ -1309,11 +1309,11 @@ impl<'p> Interp<'p> {
                         return Err(self.err_at(pos, format!("M{v} is not an M code")));
                     }
                     let code = v as u32;
+                    // Passthrough codes each get a group of their own, above every real one
+                    // (u32: M codes run into the thousands).
                     let group = match m_group(code) {
-                        Some(g) => g,
-                        None if self.opts.passthrough_m_codes.contains(&code) => {
-                            100 + (code % 1000) as u8
-                        }
+                        Some(g) => u32::from(g),
+                        None if self.opts.passthrough_m_codes.contains(&code) => 1000 + code,
                         None => {
                             let why = match code {
                                 98 | 99 => "Fanuc subprogram calls (M98/M99) are not supported".to_string(),
@@ -1325,7 +1325,7 @@ impl<'p> Interp<'p> {
                         }
                     };
                     if let Some(&(other, _)) = w.ms.iter().find(|m| {
-                        let og = m_group(m.0).unwrap_or(100 + (m.0 % 1000) as u8);
+                        let og = m_group(m.0).map(u32::from).unwrap_or(1000 + m.0);
                         og == group
                             && !(group == 8
                                 && (m.0 == 7 || m.0 == 8)
