@@ -17,7 +17,9 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("nc_cameo");
     g.throughput(Throughput::Elements(blocks));
     g.sample_size(20);
-    g.bench_function("parse", |b| b.iter(|| Program::parse(black_box(&src)).unwrap()));
+    g.bench_function("parse", |b| {
+        b.iter(|| Program::parse(black_box(&src)).unwrap())
+    });
     let prog = Program::parse(&src).unwrap();
     g.bench_function("interpret", |b| {
         b.iter(|| interpret_program(black_box(&prog), &opts).unwrap())

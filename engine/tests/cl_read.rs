@@ -35,12 +35,21 @@ fn reads_moves_in_part_frame_with_tool_axes() {
     let i = read_cls(CLS).unwrap();
     let k: Vec<MoveKind> = i.moves.iter().map(|m| m.kind).collect();
     use MoveKind::*;
-    assert_eq!(k, vec![ToolChange, Rapid, Linear, Arc, Arc, Linear, Linear, Dwell]);
+    assert_eq!(
+        k,
+        vec![ToolChange, Rapid, Linear, Arc, Arc, Linear, Linear, Dwell]
+    );
     let m = &i.moves;
     assert_eq!(m[0].tool, 3);
-    assert_eq!((m[1].end, m[1].tool_axis), ([0.0, 0.0, 50.0, 0.0, 0.0, 0.0], Some([0.0, 0.0, 1.0])));
+    assert_eq!(
+        (m[1].end, m[1].tool_axis),
+        ([0.0, 0.0, 50.0, 0.0, 0.0, 0.0], Some([0.0, 0.0, 1.0]))
+    );
     assert_eq!((m[1].spindle, m[1].spindle_dir), (3000.0, SpindleDir::Cw));
-    assert_eq!((m[2].feed, m[2].feed_mode, m[2].line), (500.0, FeedMode::PerMin, 12));
+    assert_eq!(
+        (m[2].feed, m[2].feed_mode, m[2].line),
+        (500.0, FeedMode::PerMin, 12)
+    );
     // CIRCLE with axis +Z: counterclockwise quarter.
     assert_eq!(m[3].center, Some([0.0, 0.0, 5.0]));
     assert_eq!(m[3].clockwise, Some(false));
@@ -64,12 +73,16 @@ fn reads_moves_in_part_frame_with_tool_axes() {
 #[test]
 fn inch_units() {
     let i = read_cls("UNITS/INCHES\nFEDRAT/10\nGOTO/1,2,3\n").unwrap();
-    assert_eq!(i.moves[0].end, [25.4, 50.8, 76.19999999999999, 0.0, 0.0, 0.0]);
+    assert_eq!(
+        i.moves[0].end,
+        [25.4, 50.8, 76.19999999999999, 0.0, 0.0, 0.0]
+    );
 }
 
 #[test]
 fn errors_name_each_bad_record() {
-    let e = read_cls("GOTO/1,2,3\nFOO/1\nFEDRAT/100\nGOTO/1,2\nCIRCLE/0,0,0,1,1,0,5\nGOTO/1,x,3\n").unwrap_err();
+    let e = read_cls("GOTO/1,2,3\nFOO/1\nFEDRAT/100\nGOTO/1,2\nCIRCLE/0,0,0,1,1,0,5\nGOTO/1,x,3\n")
+        .unwrap_err();
     let got: Vec<(u32, String)> = e.0.iter().map(|d| (d.line, d.message.clone())).collect();
     assert_eq!(got.len(), 5, "{e}");
     assert!(got[0].1.contains("before any FEDRAT"));

@@ -29,19 +29,35 @@ fn close(a: &[f64], b: &[f64]) -> bool {
 
 #[track_caller]
 fn assert_end(m: &Move, expect: [f64; 6]) {
-    assert!(close(&m.end, &expect), "line {}: end {:?}, expected {:?}", m.line, m.end, expect);
+    assert!(
+        close(&m.end, &expect),
+        "line {}: end {:?}, expected {:?}",
+        m.line,
+        m.end,
+        expect
+    );
 }
 
 fn motions(i: &Interpretation) -> Vec<&Move> {
-    i.moves.iter().filter(|m| m.kind != MoveKind::ToolChange).collect()
+    i.moves
+        .iter()
+        .filter(|m| m.kind != MoveKind::ToolChange)
+        .collect()
 }
 
 #[test]
 fn json_rows_are_exactly_the_issue_format() {
     let mut opts = InterpretOptions::default();
     opts.tool_table = parse_tool_table("T3 P3 D6.0 Z+50.0 ;flat 6\n").unwrap();
-    let i = run_with("T3 M6\nG43 H3 S1200 M3\nG1 X10 F500\nG2 X20 Y0 I5 J0\nG4 P0.5\n", &opts);
-    let rows: Vec<String> = i.moves.iter().map(|m| serde_json::to_string(m).unwrap()).collect();
+    let i = run_with(
+        "T3 M6\nG43 H3 S1200 M3\nG1 X10 F500\nG2 X20 Y0 I5 J0\nG4 P0.5\n",
+        &opts,
+    );
+    let rows: Vec<String> = i
+        .moves
+        .iter()
+        .map(|m| serde_json::to_string(m).unwrap())
+        .collect();
     assert_eq!(
         rows,
         vec![
@@ -59,15 +75,15 @@ fn json_rows_are_exactly_the_issue_format() {
 #[test]
 fn work_offsets_g10_g92_g53() {
     let i = run(concat!(
-        "G10 L2 P2 X10 Y20 Z-5\n",      // G55 = (10, 20, -5)
-        "G55 G0 X1 Y1 Z1\n",            // -> (11, 21, -4)
-        "G10 L20 P1 X0 Y0\n",           // G54 made so that here is X0 Y0 -> G54 = (11, 21, 0)
-        "G54 G0 X1\n",                  // -> (12, 21, -4)
-        "G92 X0 Y0\n",                  // here is 0,0 -> G92 = (1, 0, 0)
-        "G0 X2 Y2\n",                   // -> (14, 23, -4)
-        "G53 G0 Z0\n",                  // machine Z0
-        "G92.1\nG0 X0 Y0\n",            // G54 only -> (11, 21, 0)
-        "G10 L2 P0 X0 Y0 Z0\nG0 X5\n",  // active system (G54) cleared -> (5, 21, 0)... Y stays
+        "G10 L2 P2 X10 Y20 Z-5\n",     // G55 = (10, 20, -5)
+        "G55 G0 X1 Y1 Z1\n",           // -> (11, 21, -4)
+        "G10 L20 P1 X0 Y0\n",          // G54 made so that here is X0 Y0 -> G54 = (11, 21, 0)
+        "G54 G0 X1\n",                 // -> (12, 21, -4)
+        "G92 X0 Y0\n",                 // here is 0,0 -> G92 = (1, 0, 0)
+        "G0 X2 Y2\n",                  // -> (14, 23, -4)
+        "G53 G0 Z0\n",                 // machine Z0
+        "G92.1\nG0 X0 Y0\n",           // G54 only -> (11, 21, 0)
+        "G10 L2 P0 X0 Y0 Z0\nG0 X5\n", // active system (G54) cleared -> (5, 21, 0)... Y stays
     ));
     let m = motions(&i);
     assert_end(m[0], [11.0, 21.0, -4.0, 0.0, 0.0, 0.0]);
@@ -108,14 +124,14 @@ fn feed_modes() {
 fn arcs_ijk_r_full_helical_and_planes() {
     let i = run(concat!(
         "G0 X10 Y0 Z0\n",
-        "G3 X0 Y10 I-10 J0 F100\n",          // quarter CCW about origin
-        "G2 X0 Y10 I0 J-10\n",               // full circle CW
-        "G3 X0 Y10 I0 J-10 Z-6 P3\n",        // 3-turn helix
-        "G2 X10 Y0 R10\n",                   // R>0: the short way (centre at origin... or 10,10)
-        "G2 X0 Y10 R-10\n",                  // R<0: the long way
-        "G18 G2 X10 Z-6 I5 K0\n",            // XZ plane: centre X5, Z-6
-        "G19 G3 Y20 Z4 J5 K5\n",             // YZ plane (radius check: start (10,-6), c (15,-1))
-        "G17 G90.1 G2 X20 Y20 I15 J20\n",    // absolute centre
+        "G3 X0 Y10 I-10 J0 F100\n",       // quarter CCW about origin
+        "G2 X0 Y10 I0 J-10\n",            // full circle CW
+        "G3 X0 Y10 I0 J-10 Z-6 P3\n",     // 3-turn helix
+        "G2 X10 Y0 R10\n",                // R>0: the short way (centre at origin... or 10,10)
+        "G2 X0 Y10 R-10\n",               // R<0: the long way
+        "G18 G2 X10 Z-6 I5 K0\n",         // XZ plane: centre X5, Z-6
+        "G19 G3 Y20 Z4 J5 K5\n",          // YZ plane (radius check: start (10,-6), c (15,-1))
+        "G17 G90.1 G2 X20 Y20 I15 J20\n", // absolute centre
     ));
     let m = motions(&i);
     let a = m[1].arc.as_ref().unwrap();
@@ -123,7 +139,10 @@ fn arcs_ijk_r_full_helical_and_planes() {
     assert!((a.sweep - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
     let a = m[2].arc.as_ref().unwrap();
     assert_eq!(m[2].center, Some([0.0, 0.0, 0.0]));
-    assert!((a.sweep + std::f64::consts::TAU).abs() < 1e-12, "full circle");
+    assert!(
+        (a.sweep + std::f64::consts::TAU).abs() < 1e-12,
+        "full circle"
+    );
     let a = m[3].arc.as_ref().unwrap();
     assert!((a.sweep - 3.0 * std::f64::consts::TAU).abs() < 1e-12);
     assert_eq!(a.turns, 3);
@@ -161,10 +180,18 @@ fn arcs_ijk_r_full_helical_and_planes() {
 #[test]
 fn arc_errors() {
     let o = InterpretOptions::default();
-    assert!(fail("G0 X0 Y0\nG2 X10 Y0 I3 J0 F1\n", &o).2.contains("radius to end of arc differs"));
-    assert!(fail("G0 X0 Y0\nG2 X10 Y0 R2 F1\n", &o).2.contains("too small"));
-    assert!(fail("G0 X0 Y0\nG2 X10 Y0 K5 F1\n", &o).2.contains("K word in a G17 arc"));
-    assert!(fail("G0 X0 Y0\nG2 X10 Y0 F1\n", &o).2.contains("needs I/J/K"));
+    assert!(fail("G0 X0 Y0\nG2 X10 Y0 I3 J0 F1\n", &o)
+        .2
+        .contains("radius to end of arc differs"));
+    assert!(fail("G0 X0 Y0\nG2 X10 Y0 R2 F1\n", &o)
+        .2
+        .contains("too small"));
+    assert!(fail("G0 X0 Y0\nG2 X10 Y0 K5 F1\n", &o)
+        .2
+        .contains("K word in a G17 arc"));
+    assert!(fail("G0 X0 Y0\nG2 X10 Y0 F1\n", &o)
+        .2
+        .contains("needs I/J/K"));
 }
 
 #[test]
@@ -173,8 +200,8 @@ fn g28_g30_home_positions() {
     let m = motions(&i);
     assert_end(m[1], [5.0, 5.0, 10.0, 0.0, 0.0, 0.0]); // intermediate point
     assert_end(m[2], [5.0, 5.0, 0.0, 0.0, 0.0, 0.0]); // Z home only
-    // G28 alone: a zero-length move to the "intermediate point" (as LinuxCNC), then all axes
-    // to the stored G28 position.
+                                                      // G28 alone: a zero-length move to the "intermediate point" (as LinuxCNC), then all axes
+                                                      // to the stored G28 position.
     assert_end(m[5], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
     assert_end(m[6], [7.0, 5.0, 0.0, 0.0, 0.0, 0.0]);
     assert_end(m[7], [3.0, 5.0, 0.0, 0.0, 0.0, 0.0]);
@@ -188,10 +215,10 @@ fn canned_cycles_hand_computed() {
     let m: Vec<[f64; 6]> = motions(&i)[1..].iter().map(|m| m.end).collect();
     let z = |x: f64, y: f64, z: f64| [x, y, z, 0.0, 0.0, 0.0];
     let expect = vec![
-        z(5.0, 5.0, 10.0),  // position at initial Z
-        z(5.0, 5.0, 2.0),   // down to R
-        z(5.0, 5.0, -3.0),  // drill
-        z(5.0, 5.0, 10.0),  // G98: back to initial Z
+        z(5.0, 5.0, 10.0), // position at initial Z
+        z(5.0, 5.0, 2.0),  // down to R
+        z(5.0, 5.0, -3.0), // drill
+        z(5.0, 5.0, 10.0), // G98: back to initial Z
         // G91 L2: R = initial level (10) + 2 = 12 is above us: up to it, then holes every 10 mm,
         // bottom = R + Z(-3 from the first block, sticky) = 9.
         z(5.0, 5.0, 12.0),
@@ -209,7 +236,13 @@ fn canned_cycles_hand_computed() {
     // G83 peck: Q2 from R2 to Z-3: pecks to 0, -2, then -3, retracting to R between.
     let i = run("G0 X0 Y0 Z5\nG83 X1 Y1 Z-3 R2 Q2 F50\n");
     let zs: Vec<f64> = motions(&i)[1..].iter().map(|m| m.end[2]).collect();
-    assert!(close(&zs, &[5.0, 2.0, 0.0, 2.0, 0.254, -2.0, 2.0, -1.746, -3.0, 2.0]), "{zs:?}");
+    assert!(
+        close(
+            &zs,
+            &[5.0, 2.0, 0.0, 2.0, 0.254, -2.0, 2.0, -1.746, -3.0, 2.0]
+        ),
+        "{zs:?}"
+    );
 }
 
 #[test]
@@ -228,11 +261,16 @@ fn g84_in_xz_plane_taps_at_the_hole() {
     assert_eq!(m[5].kind, MoveKind::Linear);
     // G74 (left hand) needs M4 and reverses to clockwise for the way out.
     let o = InterpretOptions::default();
-    assert!(fail("S500 M3\nG74 X1 Y1 Z-1 R1 F10\n", &o).2.contains("counterclockwise (M4)"));
+    assert!(fail("S500 M3\nG74 X1 Y1 Z-1 R1 F10\n", &o)
+        .2
+        .contains("counterclockwise (M4)"));
     let i = run("G0 Z5\nS500 M4\nG74 X1 Y1 Z-1 R1 F10\n");
     let m = motions(&i);
     assert_end(m[3], [1.0, 1.0, -1.0, 0.0, 0.0, 0.0]);
-    assert_eq!((m[3].spindle_dir, m[5].spindle_dir), (SpindleDir::Ccw, SpindleDir::Cw));
+    assert_eq!(
+        (m[3].spindle_dir, m[5].spindle_dir),
+        (SpindleDir::Ccw, SpindleDir::Cw)
+    );
     assert_end(m[5], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
 }
 
@@ -321,11 +359,15 @@ fn runaway_loops_are_stopped() {
 
 #[test]
 fn fanuc_corner_rounding_and_chamfer_corpus_file() {
-    let src = std::fs::read_to_string(Path::new(CORPUS).join("fanuc_R_arcs_G3R_G1R_G1C.nc")).unwrap();
+    let src =
+        std::fs::read_to_string(Path::new(CORPUS).join("fanuc_R_arcs_G3R_G1R_G1C.nc")).unwrap();
     // Without the CCR option, R on a G1 block is refused with a hint.
     let (line, col, msg) = fail(&src, &InterpretOptions::default());
     assert_eq!((line, col), (13, 10));
-    assert!(msg.contains("R10 is not used") && msg.contains("fanuc_corners_without_comma"), "{msg}");
+    assert!(
+        msg.contains("R10 is not used") && msg.contains("fanuc_corners_without_comma"),
+        "{msg}"
+    );
     let mut o = InterpretOptions::default();
     o.dialect = Dialect::Fanuc;
     o.fanuc_corners_without_comma = true;
@@ -373,7 +415,10 @@ fn fanuc_implied_decimal_and_dwell() {
     let mut o = InterpretOptions::default();
     o.dialect = Dialect::Fanuc;
     o.fanuc_implied_decimal = true;
-    let i = run_with("G0 X1000 Y.5 Z-2500 A90000\nG4 P1500\nG4 X2.5\nG20\nG0 X10000\n", &o);
+    let i = run_with(
+        "G0 X1000 Y.5 Z-2500 A90000\nG4 P1500\nG4 X2.5\nG20\nG0 X10000\n",
+        &o,
+    );
     assert_end(&i.moves[0], [1.0, 0.5, -2.5, 90.0, 0.0, 0.0]);
     assert_eq!(i.moves[1].seconds, Some(1.5));
     assert_eq!(i.moves[2].seconds, Some(2.5));
@@ -388,12 +433,24 @@ fn fanuc_implied_decimal_and_dwell() {
 fn refusals_name_line_column_and_word() {
     let o = InterpretOptions::default();
     let cases: Vec<(&str, (u32, u32), &str)> = vec![
-        ("G0 X0\nG41 D1\n", (2, 1), "G41: cutter radius compensation is not supported"),
-        ("G1 X1 F1\n  G42\n", (2, 3), "G42: cutter radius compensation is not supported"),
+        (
+            "G0 X0\nG41 D1\n",
+            (2, 1),
+            "G41: cutter radius compensation is not supported",
+        ),
+        (
+            "G1 X1 F1\n  G42\n",
+            (2, 3),
+            "G42: cutter radius compensation is not supported",
+        ),
         ("M428\n", (1, 1), "M428"),
         ("G0 U1\n", (1, 4), "U axis is not supported"),
         ("G5.1 X1 I1 J1\n", (1, 1), "G5.1 spline/NURBS motion"),
-        ("G1 X1 F10 I2\n", (1, 11), "I2 is not used by any code in this block"),
+        (
+            "G1 X1 F10 I2\n",
+            (1, 11),
+            "I2 is not used by any code in this block",
+        ),
         ("G80 X1\n", (1, 1), "axis words with G80"),
         ("G0 G1 X1\n", (1, 4), "same modal group"),
         ("G1 X1 X2 F1\n", (1, 7), "two X words"),
@@ -442,11 +499,19 @@ fn corpus_status() {
     assert_end(m[3], [-75.0, -93.703, -6.0, 0.0, 0.0, 0.0]);
     assert_eq!(m[3].feed, 300.0);
     assert_end(m.last().unwrap(), [75.0, 93.297, 2.0, 0.0, 0.0, 0.0]);
-    assert_eq!(cameo.warnings.len(), 1, "G43 H1 with an empty tool table is a warning");
+    assert_eq!(
+        cameo.warnings.len(),
+        1,
+        "G43 H1 with an empty tool table is a warning"
+    );
 
     let adaptive = run(&read("fusion360_2d_adaptive_1055_utab_265bit.nc"));
     assert_eq!(adaptive.moves.len(), 6519);
-    let arc = adaptive.moves.iter().find(|m| m.kind == MoveKind::Arc).unwrap();
+    let arc = adaptive
+        .moves
+        .iter()
+        .find(|m| m.kind == MoveKind::Arc)
+        .unwrap();
     assert_eq!(arc.line, 27); // G3 X21.747 Y39.781 I2.362 J-2.107 from (22.469, 41.176)
     assert!(close(&arc.center.unwrap(), &[24.831, 39.069, -2.0]));
     assert_end(arc, [21.747, 39.781, -2.0, 0.0, 0.0, 0.0]);
@@ -455,13 +520,36 @@ fn corpus_status() {
     assert_eq!(pocket.moves.len(), 4213);
     // Blocks with G2/G3 plus blocks continuing a modal arc with new I/J (SOURCES.md's
     // "1028 arcs" counts G2/G3 words); LinuxCNC makes the same 1280 arcs.
-    assert_eq!(pocket.moves.iter().filter(|m| m.kind == MoveKind::Arc).count(), 1280);
+    assert_eq!(
+        pocket
+            .moves
+            .iter()
+            .filter(|m| m.kind == MoveKind::Arc)
+            .count(),
+        1280
+    );
 
     let cycles = run(&read("rs274_canned_cycles_G81-G89_example3.gcode"));
-    assert_eq!(cycles.moves.len(), 334);
+    // 334 moves as LinuxCNC plus one rapid per G88 hole (4) for the operator's manual retract.
+    assert_eq!(cycles.moves.len(), 338);
+    assert_eq!(
+        cycles
+            .warnings
+            .iter()
+            .filter(|w| w.message.starts_with("G88"))
+            .count(),
+        4
+    );
     // n0030 g81 x3 y4 r0.2 z-1.1 (inch): first hole bottom.
-    let first_feed = cycles.moves.iter().find(|m| m.kind == MoveKind::Linear).unwrap();
-    assert_end(first_feed, [3.0 * 25.4, 4.0 * 25.4, -1.1 * 25.4, 0.0, 0.0, 0.0]);
+    let first_feed = cycles
+        .moves
+        .iter()
+        .find(|m| m.kind == MoveKind::Linear)
+        .unwrap();
+    assert_end(
+        first_feed,
+        [3.0 * 25.4, 4.0 * 25.4, -1.1 * 25.4, 0.0, 0.0, 0.0],
+    );
 
     let (l, c, msg) = fail(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"), &o);
     assert_eq!((l, c), (4, 1));
@@ -470,12 +558,22 @@ fn corpus_status() {
     p.passthrough_m_codes = vec![428, 429];
     let imp = run_with(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"), &p);
     assert_eq!(imp.moves.len(), 4492);
-    assert!(imp.moves.iter().filter(|m| m.kind == MoveKind::Linear).all(|m| m.feed_mode == FeedMode::InverseTime));
-    assert_end(&imp.moves[0], [16.339, -25.409, 33.353, -71.841, 0.0, -35.930]);
+    assert!(imp
+        .moves
+        .iter()
+        .filter(|m| m.kind == MoveKind::Linear)
+        .all(|m| m.feed_mode == FeedMode::InverseTime));
+    assert_end(
+        &imp.moves[0],
+        [16.339, -25.409, 33.353, -71.841, 0.0, -35.930],
+    );
 
     let (l, c, msg) = fail(&read("linuxcnc_mmount_g81_subs.ngc"), &o);
     assert_eq!((l, c), (86, 1));
-    assert!(msg.starts_with("G41: cutter radius compensation is not supported"), "{msg}");
+    assert!(
+        msg.starts_with("G41: cutter radius compensation is not supported"),
+        "{msg}"
+    );
 
     let (l, _, _) = fail(&read("fanuc_R_arcs_G3R_G1R_G1C.nc"), &o);
     assert_eq!(l, 13); // see fanuc_corner_rounding_and_chamfer_corpus_file

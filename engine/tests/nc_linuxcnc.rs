@@ -5,7 +5,9 @@
 //!
 //! Skips (and says why) when LinuxCNC is not installed.
 
-use millsim_engine::nc::{interpret, parse_tool_table, Expr, InterpretOptions, Move, MoveKind, Program};
+use millsim_engine::nc::{
+    interpret, parse_tool_table, Expr, InterpretOptions, Move, MoveKind, Program,
+};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -62,7 +64,10 @@ fn linuxcnc_available() -> Result<(), String> {
     if out.status.success() {
         Ok(())
     } else {
-        Err("LinuxCNC's python module `gcode` is not installed (apt-get install linuxcnc-uspace)".into())
+        Err(
+            "LinuxCNC's python module `gcode` is not installed (apt-get install linuxcnc-uspace)"
+                .into(),
+        )
     }
 }
 
@@ -93,6 +98,8 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
     }
     let out = cmd.output().map_err(|e| e.to_string())?;
     let text = String::from_utf8_lossy(&out.stdout);
+    let source = std::fs::read_to_string(program).unwrap_or_default();
+    let source_lines: Vec<&str> = source.lines().collect();
     let mut g5x = [0.0; 6];
     let mut g92 = [0.0; 6];
     let mut plane = [0usize, 1, 2];
@@ -115,9 +122,16 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
             let r: i32 = f[1].parse().unwrap();
             let min_err: i32 = f[3].parse().unwrap();
             if r >= min_err {
-                let msg = text.lines().find_map(|l| l.strip_prefix("MESSAGE ")).unwrap_or("");
+                let msg = text
+                    .lines()
+                    .find_map(|l| l.strip_prefix("MESSAGE "))
+                    .unwrap_or("");
                 let err = String::from_utf8_lossy(&out.stderr);
-                let detail = err.lines().filter(|l| !l.starts_with("!!!") && !l.contains("link (updating")).last().unwrap_or("");
+                let detail = err
+                    .lines()
+                    .filter(|l| !l.starts_with("!!!") && !l.contains("link (updating"))
+                    .last()
+                    .unwrap_or("");
                 return Err(format!("LinuxCNC error at line {}: {msg} {detail}", f[2]));
             }
             continue;
@@ -137,7 +151,13 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
             }
             "T" | "F" => {
                 let end = to_m(&v, &g5x, &g92);
-                moves.push(Canon { kind: if f[0] == "T" { "rapid" } else { "linear" }, line, end, center: None, seconds: 0.0 });
+                moves.push(Canon {
+                    kind: if f[0] == "T" { "rapid" } else { "linear" },
+                    line,
+                    end,
+                    center: None,
+                    seconds: 0.0,
+                });
                 last = end;
             }
             "A" => {
@@ -160,15 +180,50 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
                 });
                 last = end;
             }
-            "D" => moves.push(Canon { kind: "dwell", line, end: last, center: None, seconds: v[0] }),
+            "D" => {
+                moves.push(Canon {
+                    kind: "dwell",
+                    line,
+                    end: last,
+                    center: None,
+                    seconds: v[0],
+                });
+                // G88 = feed, dwell, stop for the operator's manual retract, which we emit as
+                // a rapid (the gcode module does not report the stop itself).
+                let src_line = source_lines
+                    .get(line as usize - 1)
+                    .map(|l| l.to_ascii_uppercase())
+                    .unwrap_or_default();
+                if src_line.contains("G88") {
+                    moves.push(Canon {
+                        kind: "manual_retract",
+                        line,
+                        end: last,
+                        center: None,
+                        seconds: 0.0,
+                    });
+                }
+            }
             "RT" => {
                 let mut p = [0.0; 6];
                 p[..3].copy_from_slice(&v[..3]);
                 let mut end = to_m(&p, &g5x, &g92);
                 end[3..].copy_from_slice(&last[3..]);
                 let back = last;
-                moves.push(Canon { kind: "linear", line, end, center: None, seconds: 0.0 });
-                moves.push(Canon { kind: "linear", line, end: back, center: None, seconds: 0.0 });
+                moves.push(Canon {
+                    kind: "linear",
+                    line,
+                    end,
+                    center: None,
+                    seconds: 0.0,
+                });
+                moves.push(Canon {
+                    kind: "linear",
+                    line,
+                    end: back,
+                    center: None,
+                    seconds: 0.0,
+                });
                 last = back;
             }
             "P" => return Err(format!("probe move at line {line}")),
@@ -189,41 +244,108 @@ fn kind_name(m: &Move) -> &'static str {
 }
 
 /// Compare move by move; returns the first difference.
+///
+/// Two tolerated differences, both without geometric effect: the rapid we emit for the
+/// operator's manual retract after G88 (LinuxCNC makes none; see `linuxcnc`), and a
+/// zero-length "raise to R" rapid that rs274 emits when float noise puts the tool a hair
+/// below an R plane it is exactly at.
 fn compare(ours: &[Move], theirs: &[Canon], tol: f64) -> Result<(), String> {
-    let ours: Vec<&Move> = ours.iter().filter(|m| m.kind != MoveKind::ToolChange).collect();
-    for (i, (a, b)) in ours.iter().zip(theirs.iter()).enumerate() {
+    let ours: Vec<&Move> = ours
+        .iter()
+        .filter(|m| m.kind != MoveKind::ToolChange)
+        .collect();
+    let (mut i, mut j) = (0, 0);
+    let mut their_last: Option<[f64; 6]> = None;
+    while i < ours.len() && j < theirs.len() {
+        let (a, b) = (ours[i], &theirs[j]);
         let here = || format!("move {i} (our line {}, LinuxCNC line {})", a.line, b.line);
+        if b.kind == "manual_retract" {
+            if a.kind != MoveKind::Rapid || a.line != b.line {
+                return Err(format!(
+                    "{}: expected the G88 manual retract (rapid)",
+                    here()
+                ));
+            }
+            i += 1;
+            j += 1;
+            continue;
+        }
+        let same_end = (0..6).all(|k| (a.end[k] - b.end[k]).abs() <= tol);
+        let matches = kind_name(a) == b.kind && a.line == b.line && (b.kind == "dwell" || same_end);
+        if !matches {
+            let after_dwell =
+                i > 0 && ours[i - 1].kind == MoveKind::Dwell && ours[i - 1].line == a.line;
+            if a.kind == MoveKind::Rapid && after_dwell {
+                i += 1; // our G88 manual retract on a modal G88 line
+                continue;
+            }
+            let zero_len = b.kind == "rapid"
+                && their_last
+                    .map(|l| (0..6).all(|k| (l[k] - b.end[k]).abs() <= tol))
+                    .unwrap_or(false);
+            if zero_len {
+                j += 1;
+                continue;
+            }
+        }
         if kind_name(a) != b.kind {
             return Err(format!("{}: kind {} vs {}", here(), kind_name(a), b.kind));
         }
         if a.line != b.line {
             return Err(format!("{}: different source line", here()));
         }
-        for k in 0..6 {
-            if (a.end[k] - b.end[k]).abs() > tol {
-                return Err(format!("{}: end {:?} vs {:?}", here(), a.end, b.end));
-            }
+        // A dwell's position is not compared: after G88 LinuxCNC assumes the operator
+        // retracted, where its last motion did not go.
+        if b.kind != "dwell" && !same_end {
+            return Err(format!("{}: end {:?} vs {:?}", here(), a.end, b.end));
         }
         if let Some((c, axes, rot)) = b.center {
             let ac = a.center.unwrap();
             let arc = a.arc.as_ref().unwrap();
             assert_eq!(arc.axes, axes, "{}: plane", here());
-            for (j, &ax) in axes[..2].iter().enumerate() {
-                if (ac[ax] - c[j]).abs() > tol {
+            for (jj, &ax) in axes[..2].iter().enumerate() {
+                if (ac[ax] - c[jj]).abs() > tol {
                     return Err(format!("{}: centre {:?} vs {:?}", here(), ac, c));
                 }
             }
-            let our_rot = if arc.clockwise { -(arc.turns as i32) } else { arc.turns as i32 };
+            let our_rot = if arc.clockwise {
+                -(arc.turns as i32)
+            } else {
+                arc.turns as i32
+            };
             if our_rot != rot {
                 return Err(format!("{}: rotation {our_rot} vs {rot}", here()));
             }
         }
         if b.kind == "dwell" && (a.seconds.unwrap() - b.seconds).abs() > 1e-9 {
-            return Err(format!("{}: dwell {:?} vs {}", here(), a.seconds, b.seconds));
+            return Err(format!(
+                "{}: dwell {:?} vs {}",
+                here(),
+                a.seconds,
+                b.seconds
+            ));
         }
+        if b.kind != "dwell" {
+            their_last = Some(b.end);
+        }
+        i += 1;
+        j += 1;
     }
-    if ours.len() != theirs.len() {
-        return Err(format!("{} moves vs LinuxCNC's {}", ours.len(), theirs.len()));
+    // Our G88 manual retract as the very last move.
+    if i + 1 == ours.len()
+        && j == theirs.len()
+        && ours[i].kind == MoveKind::Rapid
+        && i > 0
+        && ours[i - 1].kind == MoveKind::Dwell
+    {
+        i += 1;
+    }
+    if i != ours.len() || j != theirs.len() {
+        return Err(format!(
+            "{} moves vs LinuxCNC's {} (stopped at {i}/{j})",
+            ours.len(),
+            theirs.len()
+        ));
     }
     Ok(())
 }
@@ -254,7 +376,11 @@ fn strip_tools(src: &str) -> String {
     };
     let mut cut: Vec<(usize, usize)> = Vec::new();
     for b in prog.blocks() {
-        let is = |l: char, v: f64| b.words.iter().any(|w| w.letter == l && literal(&w.value) == Some(v));
+        let is = |l: char, v: f64| {
+            b.words
+                .iter()
+                .any(|w| w.letter == l && literal(&w.value) == Some(v))
+        };
         let m61 = is('M', 61.0);
         let g431 = is('G', 43.1);
         for w in &b.words {
@@ -285,7 +411,10 @@ fn strip_tools(src: &str) -> String {
 /// Run both on a program file and compare (1e-6 mm).
 fn check(path: &Path, opts: &InterpretOptions) -> Result<usize, String> {
     let src = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
-    let stripped = tmp_copy(&format!("lcnc_{}", path.file_name().unwrap().to_string_lossy()), &strip_tools(&src));
+    let stripped = tmp_copy(
+        &format!("lcnc_{}", path.file_name().unwrap().to_string_lossy()),
+        &strip_tools(&src),
+    );
     let theirs = linuxcnc(&stripped, None)?;
     let ours = interpret(&src, opts).map_err(|e| format!("ours: {e}"))?;
     compare(&ours.moves, &theirs, 1e-6)?;
@@ -315,7 +444,10 @@ fn corpus_matches_linuxcnc() {
     println!("canned cycles (G84 in G18/G19 blanked): {n} moves identical to LinuxCNC");
 
     // Impeller: M428/M429 are remaps of one LinuxCNC sim config; without them both agree.
-    let src = std::fs::read_to_string(Path::new(CORPUS).join("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc")).unwrap();
+    let src = std::fs::read_to_string(
+        Path::new(CORPUS).join("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"),
+    )
+    .unwrap();
     let stripped: String = src
         .lines()
         .filter(|l| !l.starts_with("M428") && !l.starts_with("M429"))
@@ -326,10 +458,14 @@ fn corpus_matches_linuxcnc() {
     println!("impeller (M428/M429 lines removed): {n} moves identical");
 
     // mmount: we refuse G41; without cutter compensation (G41/D words removed) both agree.
-    let src = std::fs::read_to_string(Path::new(CORPUS).join("linuxcnc_mmount_g81_subs.ngc")).unwrap();
+    let src =
+        std::fs::read_to_string(Path::new(CORPUS).join("linuxcnc_mmount_g81_subs.ngc")).unwrap();
     let mut stripped = String::new();
     for l in src.lines() {
-        let mut s = l.replace("g41 ", "").replace("G41 D15", "").replace("G41 D5", "");
+        let mut s = l
+            .replace("g41 ", "")
+            .replace("G41 D15", "")
+            .replace("G41 D5", "");
         if s.trim() == "G41" {
             s.clear();
         }
@@ -360,7 +496,9 @@ fn linuxcnc_sample_programs() {
     let mut mismatches = Vec::new();
     for p in &files {
         let name = p.file_name().unwrap().to_string_lossy().to_string();
-        let Ok(src) = std::fs::read_to_string(p) else { continue };
+        let Ok(src) = std::fs::read_to_string(p) else {
+            continue;
+        };
         let copy = tmp_copy(&format!("lcnc_{name}"), &strip_tools(&src));
         let theirs = linuxcnc(&copy, None);
         let ours = interpret(&src, &opts);
@@ -379,8 +517,14 @@ fn linuxcnc_sample_programs() {
             }
         }
     }
-    println!("{same} identical, {refused} refused by us, {theirs_fail} failing in LinuxCNC standalone");
-    assert!(mismatches.is_empty(), "different moves:\n{}", mismatches.join("\n"));
+    println!(
+        "{same} identical, {refused} refused by us, {theirs_fail} failing in LinuxCNC standalone"
+    );
+    assert!(
+        mismatches.is_empty(),
+        "different moves:\n{}",
+        mismatches.join("\n")
+    );
 }
 
 /// LinuxCNC 2.9's G84 in the XZ and YZ planes passes its coordinates to the motion in the
@@ -389,10 +533,19 @@ fn linuxcnc_sample_programs() {
 /// those two lines (n0300, n0500), which leaves the other cycles' state unchanged since every
 /// following cycle gives all its words.
 fn cycles_without_g84_bug() -> PathBuf {
-    let src = std::fs::read_to_string(Path::new(CORPUS).join("rs274_canned_cycles_G81-G89_example3.gcode")).unwrap();
+    let src = std::fs::read_to_string(
+        Path::new(CORPUS).join("rs274_canned_cycles_G81-G89_example3.gcode"),
+    )
+    .unwrap();
     let text: String = src
         .lines()
-        .map(|l| if l.starts_with("n0300 g84") || l.starts_with("n0500 g84") { "(blanked)\n".to_string() } else { format!("{l}\n") })
+        .map(|l| {
+            if l.starts_with("n0300 g84") || l.starts_with("n0500 g84") {
+                "(blanked)\n".to_string()
+            } else {
+                format!("{l}\n")
+            }
+        })
         .collect();
     tmp_copy("cycles_no_g84_xz_yz.gcode", &text)
 }
@@ -415,7 +568,10 @@ fn rs274(program: &Path, table: &Path) -> Result<Vec<Canon>, String> {
     for l in text.lines() {
         let Some(open) = l.find('(') else { continue };
         let name = l[..open].split_whitespace().last().unwrap_or("");
-        let args: Vec<&str> = l[open + 1..l.rfind(')').unwrap_or(l.len())].split(',').map(|s| s.trim()).collect();
+        let args: Vec<&str> = l[open + 1..l.rfind(')').unwrap_or(l.len())]
+            .split(',')
+            .map(|s| s.trim())
+            .collect();
         let nums: Vec<f64> = args.iter().filter_map(|a| a.parse().ok()).collect();
         let mm = |v: &[f64], g5x: &[f64; 6], g92: &[f64; 6], unit: f64| {
             let mut m = [0.0; 6];
@@ -432,7 +588,13 @@ fn rs274(program: &Path, table: &Path) -> Result<Vec<Canon>, String> {
             o
         };
         match name {
-            "USE_LENGTH_UNITS" => unit = if args[0].contains("INCHES") { 25.4 } else { 1.0 },
+            "USE_LENGTH_UNITS" => {
+                unit = if args[0].contains("INCHES") {
+                    25.4
+                } else {
+                    1.0
+                }
+            }
             "SET_G5X_OFFSET" => g5x = scale(&nums[1..7], unit),
             "SET_G92_OFFSET" => g92 = scale(&nums[0..6], unit),
             "SELECT_PLANE" => {
@@ -444,8 +606,18 @@ fn rs274(program: &Path, table: &Path) -> Result<Vec<Canon>, String> {
             }
             "STRAIGHT_TRAVERSE" | "STRAIGHT_FEED" => {
                 let end = mm(&nums[0..6], &g5x, &g92, unit);
-                let kind = if name == "STRAIGHT_TRAVERSE" { "rapid" } else { "linear" };
-                moves.push(Canon { kind, line: 0, end, center: None, seconds: 0.0 });
+                let kind = if name == "STRAIGHT_TRAVERSE" {
+                    "rapid"
+                } else {
+                    "linear"
+                };
+                moves.push(Canon {
+                    kind,
+                    line: 0,
+                    end,
+                    center: None,
+                    seconds: 0.0,
+                });
                 last = end;
             }
             "ARC_FEED" => {
@@ -460,20 +632,51 @@ fn rs274(program: &Path, table: &Path) -> Result<Vec<Canon>, String> {
                 c[plane[1]] = nums[3];
                 let cm = mm(&c, &g5x, &g92, unit);
                 let center = Some(([cm[plane[0]], cm[plane[1]]], plane, nums[4] as i32));
-                moves.push(Canon { kind: "arc", line: 0, end, center, seconds: 0.0 });
+                moves.push(Canon {
+                    kind: "arc",
+                    line: 0,
+                    end,
+                    center,
+                    seconds: 0.0,
+                });
                 last = end;
             }
-            "DWELL" => moves.push(Canon { kind: "dwell", line: 0, end: last, center: None, seconds: nums[0] }),
+            "DWELL" => moves.push(Canon {
+                kind: "dwell",
+                line: 0,
+                end: last,
+                center: None,
+                seconds: nums[0],
+            }),
+            "PROGRAM_STOP"
+                if moves
+                    .last()
+                    .map(|m: &Canon| m.kind == "dwell")
+                    .unwrap_or(false) =>
+            {
+                moves.push(Canon {
+                    kind: "manual_retract",
+                    line: 0,
+                    end: last,
+                    center: None,
+                    seconds: 0.0,
+                })
+            }
             _ => {}
         }
     }
     // Canonical lines are "<seq> N<number> CALL(...)"; anything else is an error message.
     let canonical = |l: &str| {
         let mut f = l.split_whitespace();
-        f.next().map(|s| s.chars().all(|c| c.is_ascii_digit())).unwrap_or(false)
+        f.next()
+            .map(|s| s.chars().all(|c| c.is_ascii_digit()))
+            .unwrap_or(false)
             && f.next().map(|s| s.starts_with('N')).unwrap_or(false)
     };
-    if let Some(bad) = text.lines().find(|l| !l.is_empty() && !l.starts_with("executing") && !canonical(l)) {
+    if let Some(bad) = text
+        .lines()
+        .find(|l| !l.is_empty() && !l.starts_with("executing") && !canonical(l))
+    {
         return Err(format!("rs274 reported an error: {bad}"));
     }
     Ok(moves)
@@ -490,7 +693,10 @@ fn tool_length_offsets_match_rs274() {
     let table = tmp_copy("rs274.tbl", "T1 P1 Z0.511 D0.25\n");
     let mut opts = InterpretOptions::default();
     opts.tool_table = parse_tool_table("T1 P1 Z12.9794 D6.35\n").unwrap();
-    for path in [cycles_without_g84_bug(), Path::new(CORPUS).join("camotics_cameo_fanuc_Nnumbers_3d.nc")] {
+    for path in [
+        cycles_without_g84_bug(),
+        Path::new(CORPUS).join("camotics_cameo_fanuc_Nnumbers_3d.nc"),
+    ] {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let theirs = rs274(&path, &table).unwrap();
         let src = std::fs::read_to_string(&path).unwrap();
@@ -504,9 +710,13 @@ fn tool_length_offsets_match_rs274() {
                 c
             })
             .collect();
-        compare(&ours.moves, &theirs, 0.5e-4 * 25.4 + 1e-9).unwrap_or_else(|e| panic!("{name}: {e}"));
+        compare(&ours.moves, &theirs, 0.5e-4 * 25.4 + 1e-9)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(ours.moves.iter().any(|m| m.tool_length == Some(12.9794)));
-        println!("{name}: {} moves agree with rs274 -t (to its 4 decimals)", theirs.len());
+        println!(
+            "{name}: {} moves agree with rs274 -t (to its 4 decimals)",
+            theirs.len()
+        );
     }
 }
 
@@ -520,8 +730,14 @@ fn random_programs_match_linuxcnc() {
         return;
     }
     // NC_DIFF_SEED / NC_DIFF_CASES run other or more programs.
-    let mut seed: u64 = std::env::var("NC_DIFF_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x9E37_79B9_7F4A_7C15);
-    let cases: usize = std::env::var("NC_DIFF_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(150);
+    let mut seed: u64 = std::env::var("NC_DIFF_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0x9E37_79B9_7F4A_7C15);
+    let cases: usize = std::env::var("NC_DIFF_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(150);
     let mut rnd = move |n: u64| {
         seed ^= seed << 13;
         seed ^= seed >> 7;
@@ -529,7 +745,7 @@ fn random_programs_match_linuxcnc() {
         seed % n
     };
     let opts = InterpretOptions::default();
-    let (mut agreed, mut both_fail, mut total_moves) = (0, 0, 0);
+    let (mut agreed, mut both_fail, mut total_moves, mut g84_bug) = (0, 0, 0, 0);
     let mut problems = Vec::new();
     for case in 0..cases {
         let mut src = String::from("M3 S1000 F200\n");
@@ -538,7 +754,7 @@ fn random_programs_match_linuxcnc() {
             format!("{v:.2}")
         };
         for _ in 0..(5 + rnd(20)) {
-            let line = match rnd(24) {
+            let line = match rnd(30) {
                 0 => format!("G0 X{} Y{}", num(&mut rnd, 20), num(&mut rnd, 20)),
                 1 => format!("G0 Z{}", num(&mut rnd, 10)),
                 2 => format!("G1 X{} Y{} Z{}", num(&mut rnd, 20), num(&mut rnd, 20), num(&mut rnd, 5)),
@@ -569,6 +785,12 @@ fn random_programs_match_linuxcnc() {
                 20 => "o<p> call [#1] [2]".to_string(),
                 21 => format!("G4 P{}", rnd(3)),
                 22 => "G93 G1 X1 Y1 F10\nG94 F150".to_string(),
+                24 => format!("G87 X{} Y{} Z-{} R{} I1 J-0.5 K-{}", num(&mut rnd, 10), num(&mut rnd, 10), 4 + rnd(3), 1 + rnd(3), 1 + rnd(2)),
+                25 => format!("G88 X{} Y{} Z-{} R{} P0.5", num(&mut rnd, 10), num(&mut rnd, 10), 1 + rnd(3), rnd(3)),
+                26 => format!("G93 G2 X{} Y{} R{} F{}\nG94 F120", num(&mut rnd, 5), num(&mut rnd, 5), 40 + rnd(10), 1 + rnd(20)),
+                27 => format!("G53 G1 X{} Z{}", num(&mut rnd, 20), num(&mut rnd, 5)),
+                28 => format!("#<v> = {}\no{n} while [#<v> LT 3]\nG91 G0 Y0.5\nG90\n#<v> = [#<v> + 1]\no{n} endwhile", rnd(3), n = 200_000 + rnd(100_000)),
+                29 => format!("G90.1 G17 G2 X#<_x> Y#<_y> I[#<_x> + 1] J#<_y>\nG91.1"),
                 // LinuxCNC wants every O label used once per file.
                 _ => {
                     let n = 100 + rnd(100_000);
@@ -580,7 +802,13 @@ fn random_programs_match_linuxcnc() {
         }
         src.push_str("M2\no<p> sub\nG0 X#1 Y#2\n#<_r> = [#1 + 1]\no<p> endsub\n");
         // The subroutine must be defined before LinuxCNC reads a call to it.
-        let src = format!("o<p> sub\nG0 X#1 Y#2\no<p> endsub\n{}", src.replace("M2\no<p> sub\nG0 X#1 Y#2\n#<_r> = [#1 + 1]\no<p> endsub\n", "M2\n"));
+        let src = format!(
+            "o<p> sub\nG0 X#1 Y#2\no<p> endsub\n{}",
+            src.replace(
+                "M2\no<p> sub\nG0 X#1 Y#2\n#<_r> = [#1 + 1]\no<p> endsub\n",
+                "M2\n"
+            )
+        );
         let path = tmp_copy(&format!("random{case}.ngc"), &src);
         let theirs = linuxcnc(&path, None);
         let ours = interpret(&src, &opts);
@@ -590,9 +818,16 @@ fn random_programs_match_linuxcnc() {
                     agreed += 1;
                     total_moves += t.len();
                 }
+                // LinuxCNC 2.9's G84 outside G17 taps at the wrong place (see
+                // cycles_without_g84_bug); those programs are expected to differ.
+                Err(_) if src.contains("G84") && (src.contains("G18") || src.contains("G19")) => {
+                    g84_bug += 1
+                }
                 Err(e) => problems.push(format!("case {case}: {e}\n{src}")),
             },
-            (Err(e), Ok(_)) => problems.push(format!("case {case}: we refuse what LinuxCNC runs: {e}\n{src}")),
+            (Err(e), Ok(_)) => problems.push(format!(
+                "case {case}: we refuse what LinuxCNC runs: {e}\n{src}"
+            )),
             (Ok(_), Err(e)) => println!("case {case}: LinuxCNC fails ({e}), we accept"),
             (Err(a), Err(b)) => {
                 if std::env::var("NC_DIFF_VERBOSE").is_ok() {
@@ -602,7 +837,12 @@ fn random_programs_match_linuxcnc() {
             }
         }
     }
-    println!("{agreed} random programs identical ({total_moves} moves), {both_fail} refused by both");
-    assert!(problems.is_empty(), "{} differences, first:\n{}", problems.len(), problems[0]);
+    println!("{agreed} random programs identical ({total_moves} moves), {both_fail} refused by both, {g84_bug} differ only by LinuxCNC's G84 plane bug");
+    assert!(
+        problems.is_empty(),
+        "{} differences, first:\n{}",
+        problems.len(),
+        problems[0]
+    );
     assert!(agreed >= 30, "too few programs accepted by both ({agreed})");
 }

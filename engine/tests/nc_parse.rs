@@ -21,12 +21,20 @@ fn corpus_round_trip_is_byte_identical() {
         let src = std::fs::read_to_string(&path).unwrap();
         let prog = Program::parse(&src).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         // Writing back gives the same bytes.
-        assert_eq!(prog.to_string().as_bytes(), src.as_bytes(), "{}", path.display());
+        assert_eq!(
+            prog.to_string().as_bytes(),
+            src.as_bytes(),
+            "{}",
+            path.display()
+        );
         // The blocks tile the source exactly: nothing is lost between spans.
         let mut rebuilt = String::new();
         let mut pos = 0;
         for (i, b) in prog.blocks().iter().enumerate() {
-            assert_eq!(b.span.start, pos, "block {i} starts where the previous ended");
+            assert_eq!(
+                b.span.start, pos,
+                "block {i} starts where the previous ended"
+            );
             assert_eq!(b.line as usize, i + 1);
             rebuilt.push_str(&src[b.span.start..b.end]);
             pos = b.end;
@@ -35,12 +43,20 @@ fn corpus_round_trip_is_byte_identical() {
                 assert!(w.span.start >= b.span.start && w.span.end <= b.span.end);
                 let t = prog.text(w.span);
                 let first = t.chars().next().unwrap();
-                assert!(first.to_ascii_uppercase() == w.letter || (w.comma && first == ','), "{t}");
+                assert!(
+                    first.to_ascii_uppercase() == w.letter || (w.comma && first == ','),
+                    "{t}"
+                );
                 assert!(w.value_span.end == w.span.end);
             }
         }
         assert_eq!(rebuilt, src);
-        assert_eq!(prog.blocks().len(), src.lines().count(), "{}", path.display());
+        assert_eq!(
+            prog.blocks().len(),
+            src.lines().count(),
+            "{}",
+            path.display()
+        );
         // with_feeds with no change is the identity too.
         assert_eq!(prog.with_feeds(&[]).unwrap(), src);
     }
@@ -61,7 +77,10 @@ fn words_numbers_comments_and_case() {
     assert_eq!(b.comments.len(), 2);
     assert_eq!(b.comments[0].text, "a comment");
     // \r\n: the content excludes the terminator, the block end includes it.
-    assert_eq!(&src[b.span.start..b.span.end], "N10 g01x1.5Y-2 z.5 F#<feed> (a comment) ; rest");
+    assert_eq!(
+        &src[b.span.start..b.span.end],
+        "N10 g01x1.5Y-2 z.5 F#<feed> (a comment) ; rest"
+    );
     assert_eq!(b.end, b.span.end + 2);
     let b = &p.blocks()[1];
     assert!(b.block_delete);
@@ -73,10 +92,20 @@ fn words_numbers_comments_and_case() {
 fn o_words() {
     let src = "o100 sub\no<my sub> call [1] [2+3] [#1]\no101 while [#1 LT 3]\nO123 (program number)\no100 endsub [42]\n";
     let p = Program::parse(src).unwrap();
-    let kw: Vec<OKeyword> = p.blocks().iter().map(|b| b.o_word.as_ref().unwrap().keyword).collect();
+    let kw: Vec<OKeyword> = p
+        .blocks()
+        .iter()
+        .map(|b| b.o_word.as_ref().unwrap().keyword)
+        .collect();
     assert_eq!(
         kw,
-        vec![OKeyword::Sub, OKeyword::Call, OKeyword::While, OKeyword::ProgramNumber, OKeyword::EndSub]
+        vec![
+            OKeyword::Sub,
+            OKeyword::Call,
+            OKeyword::While,
+            OKeyword::ProgramNumber,
+            OKeyword::EndSub
+        ]
     );
     assert_eq!(p.blocks()[1].o_word.as_ref().unwrap().args.len(), 3);
     assert_eq!(p.blocks()[4].o_word.as_ref().unwrap().args.len(), 1);
@@ -140,7 +169,9 @@ fn with_feeds_changes_or_inserts_only_f_words() {
 
 #[test]
 fn with_feeds_on_corpus_changes_nothing_else() {
-    let src = std::fs::read_to_string(Path::new(CORPUS).join("fusion360_2d_pocket_contour_bore_1099.nc")).unwrap();
+    let src =
+        std::fs::read_to_string(Path::new(CORPUS).join("fusion360_2d_pocket_contour_bore_1099.nc"))
+            .unwrap();
     let p = Program::parse(&src).unwrap();
     let changes: Vec<(usize, f64)> = (0..p.blocks().len())
         .filter(|&i| !p.blocks()[i].words.is_empty())
@@ -153,15 +184,50 @@ fn with_feeds_on_corpus_changes_nothing_else() {
         let strip = |prog: &Program, blk: &millsim_engine::nc::Block| {
             let mut s = prog.text(blk.span).to_string();
             for w in blk.words.iter().rev().filter(|w| w.letter == 'F') {
-                s.replace_range(w.span.start - blk.span.start..w.span.end - blk.span.start, "");
+                s.replace_range(
+                    w.span.start - blk.span.start..w.span.end - blk.span.start,
+                    "",
+                );
             }
             s.trim_end().to_string()
         };
         assert_eq!(strip(&p, a), strip(&q, b));
     }
     for &(i, _) in &changes {
-        let f = q.blocks()[i].words.iter().find(|w| w.letter == 'F').unwrap();
+        let f = q.blocks()[i]
+            .words
+            .iter()
+            .find(|w| w.letter == 'F')
+            .unwrap();
         // A literal written with a decimal point keeps one ("F333.3" -> "F777.").
-        assert!(matches!(q.text(f.span), "F777" | "F777."), "{}", q.text(f.span));
+        assert!(
+            matches!(q.text(f.span), "F777" | "F777."),
+            "{}",
+            q.text(f.span)
+        );
+    }
+}
+
+#[test]
+fn tool_table_format() {
+    use millsim_engine::nc::parse_tool_table;
+    let t = parse_tool_table("T1 P1 D6.0 Z+50.0 ;flat 6\n\n; only a comment\nT2 P2 Z-12.5 D3 X0.1 ;\nt15 p15 z40.4 d14\n").unwrap();
+    let e = t.get(1).unwrap();
+    assert_eq!((e.pocket, e.z_offset, e.diameter, e.comment.as_str()), (Some(1), 50.0, Some(6.0), "flat 6"));
+    assert_eq!(t.get(2).unwrap().z_offset, -12.5);
+    assert_eq!(t.get(15).unwrap().diameter, Some(14.0));
+    let err = parse_tool_table("T1 Z1\nP2 Z3\nT3 Zx\nT1 Z2\nT4 Q1 K5\n").unwrap_err();
+    let lines: Vec<u32> = err.0.iter().map(|d| d.line).collect();
+    assert_eq!(lines, vec![2, 3, 4, 5], "{err}");
+    assert!(err.0[1].message.contains("'Zx'"));
+    assert_eq!(err.0[1].col, 4);
+}
+
+#[test]
+fn dialect_serde_names() {
+    use millsim_engine::nc::Dialect;
+    for (d, s) in [(Dialect::Auto, "\"auto\""), (Dialect::Fanuc, "\"fanuc\""), (Dialect::LinuxCnc, "\"linuxcnc\"")] {
+        assert_eq!(serde_json::to_string(&d).unwrap(), s);
+        assert_eq!(serde_json::from_str::<Dialect>(s).unwrap(), d);
     }
 }

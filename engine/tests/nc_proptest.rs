@@ -32,22 +32,78 @@ fn gcode_text() -> impl Strategy<Value = String> {
 fn block() -> impl Strategy<Value = String> {
     let num = || (-50i32..50, 0u32..4).prop_map(|(i, d)| format!("{}.{}", i, d));
     prop_oneof![
-        (prop::sample::select(vec!["G0", "G1", "G2", "G3"]), num(), num(), num()).prop_map(|(g, x, y, z)| format!("{g} X{x} Y{y} Z{z} F100")),
-        (prop::sample::select(vec!["G2", "G3"]), num(), num(), num(), num()).prop_map(|(g, x, y, i, j)| format!("{g} X{x} Y{y} I{i} J{j} F50")),
-        (prop::sample::select(vec!["G2", "G3"]), num(), num(), num()).prop_map(|(g, x, y, r)| format!("{g} X{x} Y{y} R{r} F50")),
-        (prop::sample::select(vec!["G81", "G82", "G83", "G73", "G85", "G86", "G89"]), num(), num(), num(), 1u32..4)
-            .prop_map(|(g, x, y, z, l)| format!("M3 S1000\n{g} X{x} Y{y} Z-{z} R5 P0.1 Q0.5 L{l} F100")),
+        (
+            prop::sample::select(vec!["G0", "G1", "G2", "G3"]),
+            num(),
+            num(),
+            num()
+        )
+            .prop_map(|(g, x, y, z)| format!("{g} X{x} Y{y} Z{z} F100")),
+        (
+            prop::sample::select(vec!["G2", "G3"]),
+            num(),
+            num(),
+            num(),
+            num()
+        )
+            .prop_map(|(g, x, y, i, j)| format!("{g} X{x} Y{y} I{i} J{j} F50")),
+        (prop::sample::select(vec!["G2", "G3"]), num(), num(), num())
+            .prop_map(|(g, x, y, r)| format!("{g} X{x} Y{y} R{r} F50")),
+        (
+            prop::sample::select(vec!["G81", "G82", "G83", "G73", "G85", "G86", "G89"]),
+            num(),
+            num(),
+            num(),
+            1u32..4
+        )
+            .prop_map(|(g, x, y, z, l)| format!(
+                "M3 S1000\n{g} X{x} Y{y} Z-{z} R5 P0.1 Q0.5 L{l} F100"
+            )),
         prop::sample::select(vec![
-            "G17", "G18", "G19", "G20", "G21", "G90", "G91", "G90.1", "G91.1", "G93", "G94", "G95",
-            "G98", "G99", "G80", "G54", "G55", "G59.3", "G92 X1 Y2", "G92.1", "G92.2", "G92.3",
-            "G10 L2 P3 X5 Y-5", "G10 L20 P1 Z3", "G28", "G28 Z1", "G30 X0", "G53 G0 Z0", "G43 H1",
-            "G49", "T2 M6", "M3 S500", "M5", "G4 P0.5", "#1 = [#1 + 1]", "#<_a> = [SIN[#1] * 3]",
+            "G17",
+            "G18",
+            "G19",
+            "G20",
+            "G21",
+            "G90",
+            "G91",
+            "G90.1",
+            "G91.1",
+            "G93",
+            "G94",
+            "G95",
+            "G98",
+            "G99",
+            "G80",
+            "G54",
+            "G55",
+            "G59.3",
+            "G92 X1 Y2",
+            "G92.1",
+            "G92.2",
+            "G92.3",
+            "G10 L2 P3 X5 Y-5",
+            "G10 L20 P1 Z3",
+            "G28",
+            "G28 Z1",
+            "G30 X0",
+            "G53 G0 Z0",
+            "G43 H1",
+            "G49",
+            "T2 M6",
+            "M3 S500",
+            "M5",
+            "G4 P0.5",
+            "#1 = [#1 + 1]",
+            "#<_a> = [SIN[#1] * 3]",
             "o1 if [#1 GT 2]\nG0 X#1\no1 else\nG1 Y#1 F10\no1 endif",
             "o2 repeat [3]\nG91 G1 X1 F10\no2 endrepeat\nG90",
             "o3 while [#3 LT 4]\n#3 = [#3 + 1]\no3 endwhile",
             "o4 while [1]\no4 endwhile",
             "o<s> sub\nG0 X#1\no<s> endsub\no<s> call [7]",
-            "O100", "G0 X1 ,R2", "G1 X1 ,C1 F10\nY5",
+            "O100",
+            "G0 X1 ,R2",
+            "G1 X1 ,C1 F10\nY5",
         ])
         .prop_map(|s| s.to_string()),
     ]

@@ -13,10 +13,44 @@ use crate::nc::{
 
 /// Records that do not move the tool or change what a move means.
 const NO_MOTION: &[&str] = &[
-    "PPRINT", "PAINT", "COOLNT", "TLDATA", "MSYS", "TOOL PATH", "END-OF-PATH", "FINI", "PARTNO",
-    "MACHIN", "CLRSRF", "INSERT", "OPSKIP", "DISPLY", "TLON", "SELECT", "OPERATION", "OPNAME",
-    "CUTCOM", "TOLER", "INTOL", "OUTTOL", "AUTOPS", "PLABEL", "CYCLE", "NCDATA", "TRANS", "LINTOL",
-    "TPRINT", "OPSTOP", "STOP", "END", "CHECK", "PART", "COMMENT", "TITLE", "CATIA0", "ORIGIN",
+    "PPRINT",
+    "PAINT",
+    "COOLNT",
+    "TLDATA",
+    "MSYS",
+    "TOOL PATH",
+    "END-OF-PATH",
+    "FINI",
+    "PARTNO",
+    "MACHIN",
+    "CLRSRF",
+    "INSERT",
+    "OPSKIP",
+    "DISPLY",
+    "TLON",
+    "SELECT",
+    "OPERATION",
+    "OPNAME",
+    "CUTCOM",
+    "TOLER",
+    "INTOL",
+    "OUTTOL",
+    "AUTOPS",
+    "PLABEL",
+    "CYCLE",
+    "NCDATA",
+    "TRANS",
+    "LINTOL",
+    "TPRINT",
+    "OPSTOP",
+    "STOP",
+    "END",
+    "CHECK",
+    "PART",
+    "COMMENT",
+    "TITLE",
+    "CATIA0",
+    "ORIGIN",
 ];
 
 struct Reader {
@@ -74,7 +108,11 @@ pub fn read_cls(source: &str) -> Result<Interpretation, Diagnostics> {
         }
     }
     if let Some((_, _, _, l)) = r.circle_next {
-        errors.push(Diagnostic::new(l, 1, "CIRCLE is not followed by a GOTO (its end point)"));
+        errors.push(Diagnostic::new(
+            l,
+            1,
+            "CIRCLE is not followed by a GOTO (its end point)",
+        ));
     }
     if errors.is_empty() {
         Ok(Interpretation {
@@ -145,12 +183,19 @@ impl Reader {
             None => (text.trim().to_ascii_uppercase(), None),
         };
         let args: Vec<&str> = rest.map(|r| r.split(',').collect()).unwrap_or_default();
-        let word = |k: usize| args.get(k).map(|s| s.trim().to_ascii_uppercase()).unwrap_or_default();
+        let word = |k: usize| {
+            args.get(k)
+                .map(|s| s.trim().to_ascii_uppercase())
+                .unwrap_or_default()
+        };
         match major.as_str() {
             "GOTO" => {
                 let v = numbers(&args, "GOTO")?;
                 if v.len() != 3 && v.len() != 6 {
-                    return Err(format!("GOTO needs x,y,z or x,y,z,i,j,k (got {} values)", v.len()));
+                    return Err(format!(
+                        "GOTO needs x,y,z or x,y,z,i,j,k (got {} values)",
+                        v.len()
+                    ));
                 }
                 let p = [v[0] * self.unit, v[1] * self.unit, v[2] * self.unit];
                 if v.len() == 6 {
@@ -163,7 +208,11 @@ impl Reader {
                     if !rapid && self.feed <= 0.0 {
                         return Err("feed move before any FEDRAT".into());
                     }
-                    let kind = if rapid { MoveKind::Rapid } else { MoveKind::Linear };
+                    let kind = if rapid {
+                        MoveKind::Rapid
+                    } else {
+                        MoveKind::Linear
+                    };
                     let m = self.base(kind, block, line, p);
                     self.moves.push(m);
                 }
@@ -244,7 +293,11 @@ impl Reader {
                             "RPM" => {}
                             "CLW" => dir = SpindleDir::Cw,
                             "CCLW" => dir = SpindleDir::Ccw,
-                            "SFM" | "SMM" => return Err(format!("SPINDL/{a}: constant surface speed is not supported")),
+                            "SFM" | "SMM" => {
+                                return Err(format!(
+                                    "SPINDL/{a}: constant surface speed is not supported"
+                                ))
+                            }
                             _ => speed = Some(numbers(&[a.as_str()], "SPINDL")?[0]),
                         }
                     }
@@ -274,7 +327,15 @@ impl Reader {
 
     /// Arc from the current point to `end` about centre `c`, counterclockwise about the axis
     /// `n` (APT convention). Only axis-aligned circles are supported.
-    fn arc(&mut self, block: usize, line: u32, end: [f64; 3], c: [f64; 3], n: [f64; 3], radius: f64) -> Result<(), String> {
+    fn arc(
+        &mut self,
+        block: usize,
+        line: u32,
+        end: [f64; 3],
+        c: [f64; 3],
+        n: [f64; 3],
+        radius: f64,
+    ) -> Result<(), String> {
         if self.feed <= 0.0 {
             return Err("circular move before any FEDRAT".into());
         }

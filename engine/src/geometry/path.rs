@@ -18,6 +18,9 @@ pub enum PathShape {
         center: [f64; 3],
         normal: [f64; 3],
         clockwise: bool,
+        /// Full turns (G2/G3 P word), at least 1: the extra turns are added to the sweep.
+        #[serde(default = "one")]
+        turns: u32,
     },
 }
 
@@ -42,6 +45,10 @@ pub struct Segment {
 }
 
 const Z: [f64; 3] = [0.0, 0.0, 1.0];
+
+fn one() -> u32 {
+    1
+}
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -143,6 +150,7 @@ impl Segment {
                 center,
                 normal,
                 clockwise,
+                turns: 1,
             },
             ..Segment::linear(block, from, to, feed, spindle)
         }
@@ -178,6 +186,7 @@ impl Segment {
                 center,
                 normal,
                 clockwise,
+                turns,
             } => {
                 if center.iter().chain(normal.iter()).any(|x| !x.is_finite()) || norm(normal) < 1e-9
                 {
@@ -218,6 +227,12 @@ impl Segment {
                     -2.0 * std::f64::consts::PI
                 } else {
                     sweep
+                };
+                let extra = 2.0 * std::f64::consts::PI * turns.max(1).saturating_sub(1) as f64;
+                let sweep = if clockwise {
+                    sweep - extra
+                } else {
+                    sweep + extra
                 };
                 Some(ArcGeom {
                     center,

@@ -10,7 +10,7 @@ use super::checks::{check_position, CheckFlags, ToolChecks};
 use super::engagement::{compute, EngagementOptions, Scratch, StepInput, StepMetrics};
 use super::path::Segment;
 use super::stock::Stock;
-use super::sweep::{remove_sweep, RemovalStats, ToolBody};
+use super::sweep::{remove_sweeps, RemovalStats, ToolBody};
 use super::GeometryError;
 use crate::engagement::Engagement;
 use crate::job::CancelFlag;
@@ -94,8 +94,10 @@ pub struct BlockGeometry {
     /// Removed volume × feed / length, mm³/min.
     pub mean_mrr: f64,
     pub checks: CheckFlags,
-    /// Dexel rays whose intersection with a swept volume was computed, and rays changed.
+    /// Dexel rays visited in the sweeps' bounding boxes, rays whose exact intersection was
+    /// computed, and rays whose material changed (see `RemovalStats`).
     pub rays_tested: u64,
+    pub rays_intersected: u64,
     pub rays_changed: u64,
 }
 
@@ -105,6 +107,7 @@ pub struct SimulationReport {
     /// Stock volume after the program, mm³.
     pub stock_volume: f64,
     pub rays_tested: u64,
+    pub rays_intersected: u64,
     pub rays_changed: u64,
 }
 
@@ -137,7 +140,7 @@ pub fn simulate_removal(
     let mut scratch = Scratch::default();
     let mut blocks = Vec::with_capacity(segments.len());
     let mut sub_moves = Vec::new();
-    let (mut total_tested, mut total_changed) = (0u64, 0u64);
+    let (mut total_tested, mut total_intersected, mut total_changed) = (0u64, 0u64, 0u64);
     for (index, seg) in segments.iter().enumerate() {
         if cancel.is_cancelled() {
             return Err(GeometryError::Cancelled {
@@ -197,6 +200,7 @@ pub fn simulate_removal(
             mean_mrr: 0.0,
             checks: CheckFlags::default(),
             rays_tested: 0,
+            rays_intersected: 0,
             rays_changed: 0,
         };
         let mut u_prev = 0.0;
@@ -260,10 +264,7 @@ pub fn simulate_removal(
             };
             sub_moves.clear();
             prep.sub_moves(u_prev, u, arc_tol, max_axis_step, &mut sub_moves);
-            let mut step_stats = RemovalStats::default();
-            for mv in &sub_moves {
-                step_stats.add(&remove_sweep(&mut stock.grid, &body, mv));
-            }
+            let step_stats = remove_sweeps(&mut stock.grid, &body, &sub_moves);
             stats.add(&step_stats);
             let removed = step_stats.volume(h);
             let this_len = (u - u_prev) * len;
@@ -331,6 +332,7 @@ pub fn simulate_removal(
         }
         block.removed_volume = stats.volume(h);
         block.rays_tested = stats.rays_tested;
+        block.rays_intersected = stats.rays_intersected;
         block.rays_changed = stats.rays_changed;
         block.air_fraction = if len > 0.0 {
             air_len / len
@@ -348,6 +350,7 @@ pub fn simulate_removal(
             block.checks.rapid_in_material = true;
         }
         total_tested += stats.rays_tested;
+        total_intersected += stats.rays_intersected;
         total_changed += stats.rays_changed;
         blocks.push(block);
     }
@@ -355,6 +358,7 @@ pub fn simulate_removal(
         blocks,
         stock_volume: stock.volume(),
         rays_tested: total_tested,
+        rays_intersected: total_intersected,
         rays_changed: total_changed,
     })
 }

@@ -195,8 +195,12 @@ pub struct SubMove {
 pub struct RemovalStats {
     /// Length removed per family (mm of ray).
     pub removed_length: [f64; 3],
-    /// Rays whose intersection with the swept volume was computed.
+    /// (Ray, sub-move) pairs visited: rays within a sweep's bounding box (the analogue of
+    /// a Z-map's cell updates).
     pub rays_tested: u64,
+    /// Of those, rays with material within the sweep's extent, whose exact intersection
+    /// with the swept volume was computed.
+    pub rays_intersected: u64,
     /// Rays whose material changed.
     pub rays_changed: u64,
 }
@@ -213,6 +217,7 @@ impl RemovalStats {
             self.removed_length[a] += o.removed_length[a];
         }
         self.rays_tested += o.rays_tested;
+        self.rays_intersected += o.rays_intersected;
         self.rays_changed += o.rays_changed;
     }
 }
@@ -603,6 +608,24 @@ impl<'a> Sweep<'a> {
         let to_local = |w: [f64; 3]| [dot(w, self.e1), dot(w, self.e2), dot(w, a)];
         let ol = to_local(rel);
         let el = to_local(e);
+        // Flat and ball tools: exact closed forms (cylinder and sphere pieces).
+        let body = self.body;
+        let d = self.delta_local;
+        let analytic = match body.profile {
+            Profile::Flat => Some(swept_cylinder(ol, el, d, body.radius, 0.0, body.length)),
+            Profile::Corner { rc } if rc >= body.radius && body.length >= rc => {
+                let c = [0.0, 0.0, rc];
+                let c1 = [d[0], d[1], rc + d[2]];
+                Some(hull(
+                    line_capsule(ol, el, c, c1, rc),
+                    swept_cylinder(ol, el, d, body.radius, rc, body.length),
+                ))
+            }
+            _ => None,
+        };
+        if let Some(iv) = analytic {
+            return iv.map(|(a, b)| (start + a, start + b));
+        }
         let shape = SweptSupport {
             body: self.body,
             delta: self.delta_local,
@@ -640,6 +663,195 @@ impl<'a> Sweep<'a> {
         let s_out = start + span - hit_out.time_of_impact;
         (s_out >= s_in).then_some((s_in, s_out))
     }
+}
+
+fn hull(a: Option<(f64, f64)>, b: Option<(f64, f64)>) -> Option<(f64, f64)> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+        (a, None) => a,
+        (None, b) => b,
+    }
+}
+
+/// Line o + s·e (e unit) against the capsule of radius r around segment a–b.
+fn line_capsule(o: [f64; 3], e: [f64; 3], a: [f64; 3], b: [f64; 3], r: f64) -> Option<(f64, f64)> {
+    let mut out = None;
+    for c in [a, b] {
+        let m = sub(o, c);
+        let me = dot(m, e);
+        let disc = me * me - dot(m, m) + r * r;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            out = hull(out, Some((-me - sq, -me + sq)));
+        }
+    }
+    let d = sub(b, a);
+    let dd = dot(d, d);
+    let m = sub(o, a);
+    let (nd, md, mn) = (dot(e, d), dot(m, d), dot(m, e));
+    let qa = dd - nd * nd;
+    if dd > 0.0 && qa > 1e-12 * dd {
+        let qb = dd * mn - nd * md;
+        let qc = dd * (dot(m, m) - r * r) - md * md;
+        let disc = qb * qb - qa * qc;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
+            // Axial parameter (md + s·nd)/dd within [0, 1].
+            if nd.abs() > 1e-15 {
+                let (t0, t1) = (-md / nd, (dd - md) / nd);
+                s0 = s0.max(t0.min(t1));
+                s1 = s1.min(t0.max(t1));
+            } else if md < 0.0 || md > dd {
+                s1 = s0 - 1.0;
+            }
+            if s0 <= s1 {
+                out = hull(out, Some((s0, s1)));
+            }
+        }
+    }
+    out
+}
+
+/// Line o + s·e (e unit, tool frame) against the volume swept by the cylinder of radius r
+/// between heights z0 and z1 on the z axis when it translates by d: the points
+/// o + s·e = (q, z) + β·d with |q| ≤ r, z0 ≤ z ≤ z1, 0 ≤ β ≤ 1. In the (s, β) plane that
+/// is an ellipse (or a strip) cut by four half-planes; the extreme s lies at an extreme
+/// point of the ellipse, where a half-plane's edge crosses the ellipse, or at a corner
+/// of the half-planes.
+fn swept_cylinder(
+    o: [f64; 3],
+    e: [f64; 3],
+    d: [f64; 3],
+    r: f64,
+    z0: f64,
+    z1: f64,
+) -> Option<(f64, f64)> {
+    if z1 <= z0 {
+        return None;
+    }
+    const TOL: f64 = 1e-9;
+    // Half-planes a_s·s + a_b·β ≤ c.
+    let mut planes: Vec<[f64; 3]> = vec![
+        [0.0, -1.0, 0.0],
+        [0.0, 1.0, 1.0],
+        [-e[2], d[2], o[2] - z0],
+        [e[2], -d[2], z1 - o[2]],
+    ];
+    let c = [o[0], o[1]];
+    // q = c + M·(s, β), M columns (e_xy, −d_xy).
+    let m = [[e[0], -d[0]], [e[1], -d[1]]];
+    let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+    let scale = (e[0].hypot(e[1]) * d[0].hypot(d[1])).max(1e-300);
+    let ellipse = det.abs() > 1e-9 * scale && det.abs() > 1e-15;
+    if !ellipse {
+        // |q| depends on one combination γ of s and β only (or on neither).
+        let (ex, dx) = (e[0].hypot(e[1]), d[0].hypot(d[1]));
+        if ex <= 1e-12 && dx <= 1e-12 {
+            if c[0] * c[0] + c[1] * c[1] > r * r {
+                return None;
+            }
+        } else {
+            let dir = if ex > 1e-12 {
+                [e[0] / ex, e[1] / ex]
+            } else {
+                [d[0] / dx, d[1] / dx]
+            };
+            let (gs, gb) = (
+                e[0] * dir[0] + e[1] * dir[1],
+                -(d[0] * dir[0] + d[1] * dir[1]),
+            );
+            let cd = c[0] * dir[0] + c[1] * dir[1];
+            let disc = r * r - (c[0] * c[0] + c[1] * c[1]) + cd * cd;
+            if disc < 0.0 {
+                return None;
+            }
+            let sq = disc.sqrt();
+            planes.push([gs, gb, -cd + sq]);
+            planes.push([-gs, -gb, cd + sq]);
+        }
+    }
+    let inside_planes = |s: f64, b: f64| planes.iter().all(|p| p[0] * s + p[1] * b <= p[2] + TOL);
+    let in_ellipse = |s: f64, b: f64| {
+        !ellipse || {
+            let qx = c[0] + m[0][0] * s + m[0][1] * b;
+            let qy = c[1] + m[1][0] * s + m[1][1] * b;
+            qx * qx + qy * qy <= r * r * (1.0 + 1e-9) + TOL
+        }
+    };
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let mut take = |s: f64| {
+        lo = lo.min(s);
+        hi = hi.max(s);
+    };
+    // Corners of the half-planes.
+    for i in 0..planes.len() {
+        for j in i + 1..planes.len() {
+            let (p, q) = (planes[i], planes[j]);
+            let dt = p[0] * q[1] - p[1] * q[0];
+            if dt.abs() < 1e-15 {
+                continue;
+            }
+            let s = (p[2] * q[1] - p[1] * q[2]) / dt;
+            let b = (p[0] * q[2] - p[2] * q[0]) / dt;
+            if inside_planes(s, b) && in_ellipse(s, b) {
+                take(s);
+            }
+        }
+    }
+    if ellipse {
+        // Extreme points of the ellipse in s.
+        let m1 = [m[1][1] / det, -m[0][1] / det];
+        let m2 = [-m[1][0] / det, m[0][0] / det];
+        let n1 = m1[0].hypot(m1[1]);
+        for sign in [-1.0, 1.0] {
+            let y = [sign * r * m1[0] / n1, sign * r * m1[1] / n1];
+            let yc = [y[0] - c[0], y[1] - c[1]];
+            let s = m1[0] * yc[0] + m1[1] * yc[1];
+            let b = m2[0] * yc[0] + m2[1] * yc[1];
+            if inside_planes(s, b) {
+                take(s);
+            }
+        }
+        // Half-plane edges crossing the ellipse.
+        for p in &planes {
+            let nn = p[0] * p[0] + p[1] * p[1];
+            if nn < 1e-30 {
+                continue;
+            }
+            let x0 = [p[2] * p[0] / nn, p[2] * p[1] / nn];
+            let t = [-p[1], p[0]];
+            let pt = [
+                c[0] + m[0][0] * x0[0] + m[0][1] * x0[1],
+                c[1] + m[1][0] * x0[0] + m[1][1] * x0[1],
+            ];
+            let w = [
+                m[0][0] * t[0] + m[0][1] * t[1],
+                m[1][0] * t[0] + m[1][1] * t[1],
+            ];
+            let (qa, qb, qc) = (
+                w[0] * w[0] + w[1] * w[1],
+                pt[0] * w[0] + pt[1] * w[1],
+                pt[0] * pt[0] + pt[1] * pt[1] - r * r,
+            );
+            if qa < 1e-30 {
+                continue;
+            }
+            let disc = qb * qb - qa * qc;
+            if disc < 0.0 {
+                continue;
+            }
+            let sq = disc.sqrt();
+            for tau in [(-qb - sq) / qa, (-qb + sq) / qa] {
+                let (s, b) = (x0[0] + tau * t[0], x0[1] + tau * t[1]);
+                if inside_planes(s, b) {
+                    take(s);
+                }
+            }
+        }
+    }
+    (lo <= hi && lo.is_finite() && hi.is_finite()).then_some((lo, hi))
 }
 
 /// Intersection of the axis-parallel line through `o` along axis `fam` with the capsule
@@ -694,56 +906,98 @@ const PARALLEL_MIN_RAYS: usize = 4096;
 
 /// Subtracts the swept volume of one sub-move from all three families.
 pub fn remove_sweep(grid: &mut DexelGrid, body: &ToolBody, mv: &SubMove) -> RemovalStats {
-    let sweep = Sweep::new(body, *mv);
-    let (lo, hi) = sweep.bounds();
+    remove_sweeps(grid, body, std::slice::from_ref(mv))
+}
+
+/// Subtracts the swept volumes of consecutive sub-moves (one step of a path). Each ray is
+/// visited once and meets the sub-moves in order, so the result does not depend on how
+/// the rays are shared among threads.
+pub fn remove_sweeps(grid: &mut DexelGrid, body: &ToolBody, moves: &[SubMove]) -> RemovalStats {
     let mut stats = RemovalStats::default();
+    if moves.is_empty() {
+        return stats;
+    }
+    let sweeps: Vec<(Sweep, [f64; 3], [f64; 3])> = moves
+        .iter()
+        .map(|mv| {
+            let sw = Sweep::new(body, *mv);
+            let (lo, hi) = sw.bounds();
+            (sw, lo, hi)
+        })
+        .collect();
     let gmin = grid.origin;
     let gmax = grid.max_corner();
     for fam in 0..3 {
         let (ua, va) = other_axes(fam);
-        let (iu0, iu1) = grid.index_range(ua, lo[ua], hi[ua]);
-        let (iv0, iv1) = grid.index_range(va, lo[va], hi[va]);
-        if iu0 >= iu1 || iv0 >= iv1 || hi[fam] < gmin[fam] || lo[fam] > gmax[fam] {
+        // Index box of each sub-move on this family, and their union.
+        let mut boxes = Vec::with_capacity(sweeps.len());
+        let (mut u0, mut u1, mut v0, mut v1) = (usize::MAX, 0, usize::MAX, 0);
+        for (k, (_, lo, hi)) in sweeps.iter().enumerate() {
+            let (iu0, iu1) = grid.index_range(ua, lo[ua], hi[ua]);
+            let (iv0, iv1) = grid.index_range(va, lo[va], hi[va]);
+            if iu0 >= iu1 || iv0 >= iv1 || hi[fam] < gmin[fam] || lo[fam] > gmax[fam] {
+                continue;
+            }
+            stats.rays_tested += ((iu1 - iu0) * (iv1 - iv0)) as u64;
+            boxes.push((k, iu0, iu1, iv0, iv1));
+            u0 = u0.min(iu0);
+            u1 = u1.max(iu1);
+            v0 = v0.min(iv0);
+            v1 = v1.max(iv1);
+        }
+        if boxes.is_empty() {
             continue;
         }
         let (h, ou, ov) = (grid.cell, grid.origin[ua], grid.origin[va]);
         let (s_min, s_max) = (gmin[fam], gmax[fam]);
         let f = &mut grid.families[fam];
         let nu = f.nu;
-        let rows = &mut f.rays[iv0 * nu..iv1 * nu];
-        let sweep = &sweep;
-        let do_row = |(k, row): (usize, &mut [Intervals])| -> (f64, u64) {
-            let v = ov + ((iv0 + k) as f64 + 0.5) * h;
+        let rows = &mut f.rays[v0 * nu..v1 * nu];
+        let sweeps = &sweeps;
+        let boxes = &boxes;
+        let do_row = |(k, row): (usize, &mut [Intervals])| -> (f64, u64, u64) {
+            let iv = v0 + k;
+            let v = ov + (iv as f64 + 0.5) * h;
             let mut removed = 0.0;
-            let mut changed = 0u64;
-            for (iu, ray) in row.iter_mut().enumerate().take(iu1).skip(iu0) {
-                if ray.is_empty() {
+            let (mut exact, mut changed) = (0u64, 0u64);
+            for &(m, bu0, bu1, bv0, bv1) in boxes.iter() {
+                if iv < bv0 || iv >= bv1 {
                     continue;
                 }
-                let u = ou + (iu as f64 + 0.5) * h;
-                if let Some((a, b)) = sweep.ray_interval(fam, u, v, s_min, s_max, ray) {
-                    let r = subtract(ray, a, b);
-                    if r > 0.0 {
-                        removed += r;
-                        changed += 1;
+                let (sweep, lo, hi) = &sweeps[m];
+                let (lo_f, hi_f) = (lo[fam], hi[fam]);
+                for (iu, ray) in row.iter_mut().enumerate().take(bu1).skip(bu0) {
+                    // Nothing to do where the ray has no material within the sweep's
+                    // extent along it.
+                    if !ray.iter().any(|r| r[0] < hi_f && lo_f < r[1]) {
+                        continue;
+                    }
+                    let u = ou + (iu as f64 + 0.5) * h;
+                    exact += 1;
+                    if let Some((a, b)) = sweep.ray_interval(fam, u, v, s_min, s_max, ray) {
+                        let r = subtract(ray, a, b);
+                        if r > 0.0 {
+                            removed += r;
+                            changed += 1;
+                        }
                     }
                 }
             }
-            (removed, changed)
+            (removed, exact, changed)
         };
-        let n_rays = (iu1 - iu0) * (iv1 - iv0);
+        let n_rays = (u1 - u0) * (v1 - v0);
         // Per-row results are summed in row order, so the total is the same bit for bit
         // on one thread or many.
-        let per_row: Vec<(f64, u64)> = if n_rays >= PARALLEL_MIN_RAYS {
+        let per_row: Vec<(f64, u64, u64)> = if n_rays >= PARALLEL_MIN_RAYS {
             rows.par_chunks_mut(nu).enumerate().map(do_row).collect()
         } else {
             rows.chunks_mut(nu).enumerate().map(do_row).collect()
         };
-        for (r, c) in per_row {
+        for (r, e, c) in per_row {
             stats.removed_length[fam] += r;
+            stats.rays_intersected += e;
             stats.rays_changed += c;
         }
-        stats.rays_tested += n_rays as u64;
     }
     stats
 }
@@ -810,6 +1064,81 @@ mod tests {
                 (None, None) => {}
                 _ => panic!("{fam} {u} {v}: {a:?} vs {b:?}"),
             }
+        }
+    }
+
+    #[test]
+    fn tilted_flat_and_ball_sweeps_bound_the_swept_points() {
+        // Pseudo-random tilted sweeps; the interval's ends must separate points of the
+        // swept volume (checked by sampling the sweep) from points outside it.
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for tool in [Tool::flat(6.0, 2), Tool::ball(6.0, 2)] {
+            let mut t = tool.clone();
+            t.flute_length = 10.0;
+            let body = ToolBody::cutting_part(&t);
+            let inside = |p: [f64; 3], mv: &SubMove| {
+                let (e1, e2) = frame_around(mv.axis);
+                let d = sub(mv.p1, mv.p0);
+                (0..=4000).any(|k| {
+                    let b = k as f64 / 4000.0;
+                    let w = sub(
+                        p,
+                        [
+                            mv.p0[0] + b * d[0],
+                            mv.p0[1] + b * d[1],
+                            mv.p0[2] + b * d[2],
+                        ],
+                    );
+                    let (x, y, z) = (dot(w, e1), dot(w, e2), dot(w, mv.axis));
+                    (0.0..=body.length).contains(&z) && x.hypot(y) <= body.radius_at(z)
+                })
+            };
+            let full = Intervals::from_slice(&[[-100.0, 100.0]]);
+            let mut checked = 0;
+            for _ in 0..300 {
+                let th = rnd() * 0.8;
+                let ph = rnd() * 6.283;
+                let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                let p1 = [rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0, rnd() * 2.0 - 1.0];
+                let mv = SubMove {
+                    p0: [0.0; 3],
+                    p1,
+                    axis,
+                };
+                let sw = Sweep::new(&body, mv);
+                let fam = (rnd() * 3.0) as usize % 3;
+                let (u, v) = (rnd() * 10.0 - 5.0, rnd() * 10.0 - 3.0);
+                let Some((a, b)) = sw.ray_interval(fam, u, v, -50.0, 50.0, &full) else {
+                    continue;
+                };
+                let (ua, va) = other_axes(fam);
+                let at = |s: f64| {
+                    let mut p = [0.0; 3];
+                    p[ua] = u;
+                    p[va] = v;
+                    p[fam] = s;
+                    p
+                };
+                let eps = 0.02;
+                if b - a > 3.0 * eps {
+                    assert!(
+                        inside(at(a + eps), &mv) && inside(at(b - eps), &mv),
+                        "{mv:?} fam {fam} ({u},{v}): {a} {b}"
+                    );
+                }
+                assert!(
+                    !inside(at(a - eps), &mv) && !inside(at(b + eps), &mv),
+                    "{mv:?} fam {fam} ({u},{v}): {a} {b}"
+                );
+                checked += 1;
+            }
+            assert!(checked > 50, "{checked}");
         }
     }
 }

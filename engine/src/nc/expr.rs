@@ -103,7 +103,9 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
             match op {
                 BinOp::Pow => {
                     if a < 0.0 && b.fract() != 0.0 {
-                        return Err(format!("cannot raise negative number {a} to non-integer power {b}"));
+                        return Err(format!(
+                            "cannot raise negative number {a} to non-integer power {b}"
+                        ));
                     }
                     a.powf(b)
                 }

@@ -71,7 +71,9 @@ impl Plane {
 enum Motion {
     Rapid,
     Linear,
-    Arc { cw: bool },
+    Arc {
+        cw: bool,
+    },
     RigidTap,
     /// G73, G81..G89 (the G number)
     Cycle(u16),
@@ -110,7 +112,8 @@ impl Words {
     }
     /// Axis words not yet used by an earlier step of the block (G4 X, G43.1 Z).
     fn has_axis(&self) -> bool {
-        AXES.iter().any(|&c| self.has(c) && !self.used[letter_index(c)])
+        AXES.iter()
+            .any(|&c| self.has(c) && !self.used[letter_index(c)])
     }
     fn g(&self, code: u16) -> Option<usize> {
         self.gs.iter().find(|g| g.0 == code).map(|g| g.1)
@@ -124,8 +127,8 @@ impl Words {
 fn g_group(code: u16) -> Option<u8> {
     Some(match code {
         40 | 100 | 280 | 281 | 300 | 301 | 530 | 920 | 921 | 922 | 923 => 0,
-        0 | 10 | 20 | 30 | 331 | 730 | 740 | 800 | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880
-        | 890 => 1,
+        0 | 10 | 20 | 30 | 331 | 730 | 740 | 800 | 810 | 820 | 830 | 840 | 850 | 860 | 870
+        | 880 | 890 => 1,
         170 | 180 | 190 => 2,
         900 | 910 => 3,
         901 | 911 => 4,
@@ -204,22 +207,43 @@ struct Modal {
 #[derive(Clone, Debug)]
 enum Link {
     /// `sub`: its `endsub`.
-    Sub { end: usize },
+    Sub {
+        end: usize,
+    },
     EndSub,
     /// `while` opening a while loop.
-    While { end: usize },
-    EndWhile { start: usize },
+    While {
+        end: usize,
+    },
+    EndWhile {
+        start: usize,
+    },
     Do,
     /// `while` closing a do loop.
-    DoWhile { start: usize },
+    DoWhile {
+        start: usize,
+    },
     /// `if` / `elseif` / `else`: the next branch (None: none) and the `endif`.
-    Branch { next: Option<usize>, end: usize },
+    Branch {
+        next: Option<usize>,
+        end: usize,
+    },
     EndIf,
-    Repeat { end: usize },
-    EndRepeat { start: usize },
+    Repeat {
+        end: usize,
+    },
+    EndRepeat {
+        start: usize,
+    },
     /// `break` / `continue`: the loop's start and end lines.
-    Break { start: usize, end: usize },
-    Continue { start: usize, end: usize },
+    Break {
+        start: usize,
+        end: usize,
+    },
+    Continue {
+        start: usize,
+        end: usize,
+    },
     Return,
     Call,
     ProgramNumber,
@@ -259,7 +283,12 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
                 if subs.insert(o.name.clone(), idx).is_some() {
                     errors.push(at(format!("subroutine {} defined twice", o.name)));
                 }
-                stack.push(Open { name: o.name.clone(), kw: OKeyword::Sub, idx, branches: vec![] });
+                stack.push(Open {
+                    name: o.name.clone(),
+                    kw: OKeyword::Sub,
+                    idx,
+                    branches: vec![],
+                });
             }
             OKeyword::EndSub => {
                 if top_is(&stack, OKeyword::Sub) {
@@ -271,7 +300,12 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
                 }
             }
             OKeyword::Do => {
-                stack.push(Open { name: o.name.clone(), kw: OKeyword::Do, idx, branches: vec![] });
+                stack.push(Open {
+                    name: o.name.clone(),
+                    kw: OKeyword::Do,
+                    idx,
+                    branches: vec![],
+                });
                 links.insert(idx, Link::Do);
             }
             OKeyword::While => {
@@ -282,7 +316,12 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
                     links.insert(s.idx, Link::Do);
                     resolve_loop_jumps(&mut links, s.idx, idx);
                 } else {
-                    stack.push(Open { name: o.name.clone(), kw: OKeyword::While, idx, branches: vec![] });
+                    stack.push(Open {
+                        name: o.name.clone(),
+                        kw: OKeyword::While,
+                        idx,
+                        branches: vec![],
+                    });
                 }
             }
             OKeyword::EndWhile => {
@@ -296,7 +335,12 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
                 }
             }
             OKeyword::Repeat => {
-                stack.push(Open { name: o.name.clone(), kw: OKeyword::Repeat, idx, branches: vec![] });
+                stack.push(Open {
+                    name: o.name.clone(),
+                    kw: OKeyword::Repeat,
+                    idx,
+                    branches: vec![],
+                });
             }
             OKeyword::EndRepeat => {
                 if top_is(&stack, OKeyword::Repeat) {
@@ -309,25 +353,42 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
                 }
             }
             OKeyword::If => {
-                stack.push(Open { name: o.name.clone(), kw: OKeyword::If, idx, branches: vec![idx] });
+                stack.push(Open {
+                    name: o.name.clone(),
+                    kw: OKeyword::If,
+                    idx,
+                    branches: vec![idx],
+                });
             }
             OKeyword::ElseIf | OKeyword::Else => {
                 if top_is(&stack, OKeyword::If) {
                     let t = stack.last_mut().expect("checked");
                     let last = *t.branches.last().expect("if has a branch");
-                    if prog.blocks()[last].o_word.as_ref().map(|o| o.keyword) == Some(OKeyword::Else) {
+                    if prog.blocks()[last].o_word.as_ref().map(|o| o.keyword)
+                        == Some(OKeyword::Else)
+                    {
                         errors.push(at(format!("{} {} after else", o.name, kw_name(o.keyword))));
                     }
                     t.branches.push(idx);
                 } else {
-                    errors.push(at(format!("{} {} without matching if", o.name, kw_name(o.keyword))));
+                    errors.push(at(format!(
+                        "{} {} without matching if",
+                        o.name,
+                        kw_name(o.keyword)
+                    )));
                 }
             }
             OKeyword::EndIf => {
                 if top_is(&stack, OKeyword::If) {
                     let s = stack.pop().expect("checked");
                     for (k, &bi) in s.branches.iter().enumerate() {
-                        links.insert(bi, Link::Branch { next: s.branches.get(k + 1).copied(), end: idx });
+                        links.insert(
+                            bi,
+                            Link::Branch {
+                                next: s.branches.get(k + 1).copied(),
+                                end: idx,
+                            },
+                        );
                     }
                     links.insert(idx, Link::EndIf);
                 } else {
@@ -336,16 +397,28 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
             }
             OKeyword::Break | OKeyword::Continue => {
                 let found = stack.iter().rev().find(|s| {
-                    s.name == o.name && matches!(s.kw, OKeyword::While | OKeyword::Do | OKeyword::Repeat)
+                    s.name == o.name
+                        && matches!(s.kw, OKeyword::While | OKeyword::Do | OKeyword::Repeat)
                 });
                 if found.is_none() {
-                    errors.push(at(format!("{} {} outside a loop named {}", o.name, kw_name(o.keyword), o.name)));
+                    errors.push(at(format!(
+                        "{} {} outside a loop named {}",
+                        o.name,
+                        kw_name(o.keyword),
+                        o.name
+                    )));
                 } else {
                     // Resolved when the loop closes; placeholder keeps the keyword.
                     let l = if o.keyword == OKeyword::Break {
-                        Link::Break { start: usize::MAX, end: usize::MAX }
+                        Link::Break {
+                            start: usize::MAX,
+                            end: usize::MAX,
+                        }
                     } else {
-                        Link::Continue { start: usize::MAX, end: usize::MAX }
+                        Link::Continue {
+                            start: usize::MAX,
+                            end: usize::MAX,
+                        }
                     };
                     links.insert(idx, l);
                 }
@@ -389,7 +462,9 @@ fn resolve_loop_jumps(links: &mut HashMap<usize, Link>, start: usize, end: usize
             continue;
         }
         match l {
-            Link::Break { start: s, end: e } | Link::Continue { start: s, end: e } if *s == usize::MAX => {
+            Link::Break { start: s, end: e } | Link::Continue { start: s, end: e }
+                if *s == usize::MAX =>
+            {
                 *s = start;
                 *e = end;
             }
@@ -676,7 +751,11 @@ impl<'p> Interp<'p> {
             return self.offset_param(self.g30[i], i < 3);
         }
         if n == 5210 {
-            return if self.g92_applied && self.g92.iter().any(|&v| v != 0.0) { 1.0 } else { 0.0 };
+            return if self.g92_applied && self.g92.iter().any(|&v| v != 0.0) {
+                1.0
+            } else {
+                0.0
+            };
         }
         if let Some(i) = axis(5210) {
             return self.offset_param(self.g92[i], i < 3);
@@ -723,7 +802,9 @@ impl<'p> Interp<'p> {
             "_rpm" => self.speed,
             "_current_tool" => self.tool as f64,
             "_selected_tool" => self.selected_tool.map(|t| t as f64).unwrap_or(-1.0),
-            "_coord_system" => [540.0, 550.0, 560.0, 570.0, 580.0, 590.0, 591.0, 592.0, 593.0][self.cs],
+            "_coord_system" => [
+                540.0, 550.0, 560.0, 570.0, 580.0, 590.0, 591.0, 592.0, 593.0,
+            ][self.cs],
             "_line" => self.cur_line as f64,
             "_spindle_on" => b(self.spindle != SpindleDir::Off),
             "_spindle_cw_dir" => b(self.spindle == SpindleDir::Cw),
@@ -869,7 +950,11 @@ impl<'p> Interp<'p> {
         }
         let start = self.to_machine(self.cur);
         let end = self.to_machine(to);
-        let kind = if rapid { MoveKind::Rapid } else { MoveKind::Linear };
+        let kind = if rapid {
+            MoveKind::Rapid
+        } else {
+            MoveKind::Linear
+        };
         let m = self.base_move(kind, start, end);
         self.push(m)?;
         self.cur = to;
@@ -879,7 +964,9 @@ impl<'p> Interp<'p> {
     fn check_feed(&self) -> R<()> {
         if self.feed_word <= 0.0 {
             return Err(self.err_block(match self.feed_mode {
-                FeedMode::InverseTime => "feed move in inverse time mode (G93) without an F word".to_string(),
+                FeedMode::InverseTime => {
+                    "feed move in inverse time mode (G93) without an F word".to_string()
+                }
                 _ => "feed move with zero feed rate (no F word yet)".to_string(),
             }));
         }
@@ -952,11 +1039,12 @@ impl<'p> Interp<'p> {
                 "O-word line between a corner rounding/chamfer block and its next move",
             ));
         }
-        let link = control
-            .links
-            .get(&pc)
-            .cloned()
-            .ok_or_else(|| self.err_at(o.span.start, "O-word is not part of a complete control structure"))?;
+        let link = control.links.get(&pc).cloned().ok_or_else(|| {
+            self.err_at(
+                o.span.start,
+                "O-word is not part of a complete control structure",
+            )
+        })?;
         let depth = self.frames.len();
         Ok(match link {
             Link::ProgramNumber => {
@@ -978,7 +1066,15 @@ impl<'p> Interp<'p> {
                     return Err(self.err_at(o.span.start, "endsub/return reached outside a call"));
                 };
                 if o.keyword == OKeyword::EndSub && frame.sub != o.name {
-                    return Err(self.err_at(o.span.start, format!("{} {} inside subroutine {}", o.name, kw_name(o.keyword), frame.sub)));
+                    return Err(self.err_at(
+                        o.span.start,
+                        format!(
+                            "{} {} inside subroutine {}",
+                            o.name,
+                            kw_name(o.keyword),
+                            frame.sub
+                        ),
+                    ));
                 }
                 self.params.numbered[1..=30].copy_from_slice(&frame.saved);
                 if let Some(m) = &frame.auto_restore {
@@ -1006,7 +1102,10 @@ impl<'p> Interp<'p> {
                     ));
                 };
                 if self.frames.len() >= MAX_CALL_DEPTH {
-                    return Err(self.err_at(o.span.start, format!("calls nested deeper than {MAX_CALL_DEPTH}")));
+                    return Err(self.err_at(
+                        o.span.start,
+                        format!("calls nested deeper than {MAX_CALL_DEPTH}"),
+                    ));
                 }
                 if o.args.len() > 30 {
                     return Err(self.err_at(o.span.start, "more than 30 call arguments"));
@@ -1020,7 +1119,12 @@ impl<'p> Interp<'p> {
                     self.params.numbered[i + 1] = args.get(i).copied().unwrap_or(0.0);
                 }
                 self.params.locals.push(HashMap::new());
-                self.frames.push(Frame { return_pc: pc, saved, sub: o.name.clone(), auto_restore: None });
+                self.frames.push(Frame {
+                    return_pc: pc,
+                    saved,
+                    sub: o.name.clone(),
+                    auto_restore: None,
+                });
                 self.params.globals.insert("_value_returned".into(), 0.0);
                 start + 1
             }
@@ -1079,7 +1183,12 @@ impl<'p> Interp<'p> {
                 }
             }
             Link::EndRepeat { start } => {
-                let left = self.repeat_counts.get(&(depth, start)).copied().unwrap_or(1.0) - 1.0;
+                let left = self
+                    .repeat_counts
+                    .get(&(depth, start))
+                    .copied()
+                    .unwrap_or(1.0)
+                    - 1.0;
                 if left >= 1.0 {
                     self.repeat_counts.insert((depth, start), left);
                     start + 1
@@ -1118,18 +1227,49 @@ impl<'p> Interp<'p> {
         for (i, word) in b.words.iter().enumerate() {
             let mut v = self.eval(&word.value, word.value_span.start)?;
             let c = word.letter;
-            if implied && matches!(c, 'X' | 'Y' | 'Z' | 'A' | 'B' | 'C' | 'I' | 'J' | 'K' | 'R' | 'Q' | 'U' | 'V' | 'W') {
-                if let Expr::Number { has_point: false, .. } = strip_neg(&word.value) {
-                    let inc = if matches!(c, 'A' | 'B' | 'C') || self.metric { 1000.0 } else { 10000.0 };
+            if implied
+                && matches!(
+                    c,
+                    'X' | 'Y'
+                        | 'Z'
+                        | 'A'
+                        | 'B'
+                        | 'C'
+                        | 'I'
+                        | 'J'
+                        | 'K'
+                        | 'R'
+                        | 'Q'
+                        | 'U'
+                        | 'V'
+                        | 'W'
+                )
+            {
+                if let Expr::Number {
+                    has_point: false, ..
+                } = strip_neg(&word.value)
+                {
+                    let inc = if matches!(c, 'A' | 'B' | 'C') || self.metric {
+                        1000.0
+                    } else {
+                        10000.0
+                    };
                     v /= inc;
                 }
             }
             let pos = word.span.start;
             if word.comma {
                 if !self.fanuc {
-                    return Err(self.err_at(pos, format!(",{c} is Fanuc corner syntax; not valid with dialect linuxcnc")));
+                    return Err(self.err_at(
+                        pos,
+                        format!(",{c} is Fanuc corner syntax; not valid with dialect linuxcnc"),
+                    ));
                 }
-                let slot = if c == 'R' { &mut w.corner_r } else { &mut w.corner_c };
+                let slot = if c == 'R' {
+                    &mut w.corner_r
+                } else {
+                    &mut w.corner_c
+                };
                 if slot.is_some() {
                     return Err(self.err_at(pos, format!("two ,{c} words in one block")));
                 }
@@ -1144,18 +1284,22 @@ impl<'p> Interp<'p> {
                     }
                     let code = code as u16;
                     let Some(group) = g_group(code) else {
-                        return Err(self.err_at(pos, format!("{} {}", g_name(code), g_refusal(code))));
+                        return Err(
+                            self.err_at(pos, format!("{} {}", g_name(code), g_refusal(code)))
+                        );
                     };
                     // G80 beside another motion code just cancels the cycle first (Fanuc
                     // programs write `G00 ... G80`; LinuxCNC accepts it too).
-                    if let Some(&(other, _)) = w
-                        .gs
-                        .iter()
-                        .find(|g| g_group(g.0) == Some(group) && !(group == 1 && (g.0 == 800 || code == 800)))
-                    {
+                    if let Some(&(other, _)) = w.gs.iter().find(|g| {
+                        g_group(g.0) == Some(group) && !(group == 1 && (g.0 == 800 || code == 800))
+                    }) {
                         return Err(self.err_at(
                             pos,
-                            format!("{} and {} are in the same modal group; only one per block", g_name(other), g_name(code)),
+                            format!(
+                                "{} and {} are in the same modal group; only one per block",
+                                g_name(other),
+                                g_name(code)
+                            ),
                         ));
                     }
                     w.gs.push((code, i));
@@ -1165,9 +1309,11 @@ impl<'p> Interp<'p> {
                         return Err(self.err_at(pos, format!("M{v} is not an M code")));
                     }
                     let code = v as u32;
+                    // Passthrough codes each get a group of their own, above every real one
+                    // (u32: M codes run into the thousands).
                     let group = match m_group(code) {
-                        Some(g) => g,
-                        None if self.opts.passthrough_m_codes.contains(&code) => 100 + (code % 1000) as u8,
+                        Some(g) => u32::from(g),
+                        None if self.opts.passthrough_m_codes.contains(&code) => 1000 + code,
                         None => {
                             let why = match code {
                                 98 | 99 => "Fanuc subprogram calls (M98/M99) are not supported".to_string(),
@@ -1179,8 +1325,12 @@ impl<'p> Interp<'p> {
                         }
                     };
                     if let Some(&(other, _)) = w.ms.iter().find(|m| {
-                        let og = m_group(m.0).unwrap_or(100 + (m.0 % 1000) as u8);
-                        og == group && !(group == 8 && (m.0 == 7 || m.0 == 8) && (code == 7 || code == 8) && m.0 != code)
+                        let og = m_group(m.0).map(u32::from).unwrap_or(1000 + m.0);
+                        og == group
+                            && !(group == 8
+                                && (m.0 == 7 || m.0 == 8)
+                                && (code == 7 || code == 8)
+                                && m.0 != code)
                     }) {
                         return Err(self.err_at(pos, format!("M{other} and M{code} are in the same modal group; only one per block")));
                     }
@@ -1189,9 +1339,14 @@ impl<'p> Interp<'p> {
                     }
                     w.ms.push((code, i));
                 }
-                'N' | 'O' => return Err(self.err_at(pos, format!("{c} word in the middle of a block"))),
+                'N' | 'O' => {
+                    return Err(self.err_at(pos, format!("{c} word in the middle of a block")))
+                }
                 'U' | 'V' | 'W' => {
-                    return Err(self.err_at(pos, format!("{c} axis is not supported (axes are X Y Z A B C)")))
+                    return Err(self.err_at(
+                        pos,
+                        format!("{c} axis is not supported (axes are X Y Z A B C)"),
+                    ))
                 }
                 'E' => return Err(self.err_at(pos, "E word is not supported")),
                 _ => {
@@ -1221,14 +1376,23 @@ impl<'p> Interp<'p> {
         }
         // Fanuc comma-less corners: R and C on a G1 block (CCR parameter).
         if self.fanuc && self.corners_without_comma {
-            let g1 = w.g(10).is_some() || (self.motion == Some(Motion::Linear) && !w.gs.iter().any(|g| g_group(g.0) == Some(1)));
+            let g1 = w.g(10).is_some()
+                || (self.motion == Some(Motion::Linear)
+                    && !w.gs.iter().any(|g| g_group(g.0) == Some(1)));
             if g1 {
                 for c in ['R', 'C'] {
                     let li = letter_index(c);
                     if let Some(v) = w.vals[li].take() {
-                        let slot = if c == 'R' { &mut w.corner_r } else { &mut w.corner_c };
+                        let slot = if c == 'R' {
+                            &mut w.corner_r
+                        } else {
+                            &mut w.corner_c
+                        };
                         if slot.is_some() {
-                            return Err(self.err_at(self.word_pos(v.1), format!("both {c} and ,{c} in one block")));
+                            return Err(self.err_at(
+                                self.word_pos(v.1),
+                                format!("both {c} and ,{c} in one block"),
+                            ));
                         }
                         *slot = Some(v);
                     }
@@ -1240,11 +1404,18 @@ impl<'p> Interp<'p> {
         }
         if w.corner_r.is_some() && w.corner_c.is_some() {
             let (_, i) = w.corner_c.expect("checked");
-            return Err(self.err_at(self.word_pos(i), "corner rounding and chamfer in the same block"));
+            return Err(self.err_at(
+                self.word_pos(i),
+                "corner rounding and chamfer in the same block",
+            ));
         }
 
         // 3. feed mode
-        for (code, mode) in [(930, FeedMode::InverseTime), (940, FeedMode::PerMin), (950, FeedMode::PerRev)] {
+        for (code, mode) in [
+            (930, FeedMode::InverseTime),
+            (940, FeedMode::PerMin),
+            (950, FeedMode::PerRev),
+        ] {
             if w.g(code).is_some() {
                 if self.feed_mode != mode
                     && (mode == FeedMode::InverseTime || self.feed_mode == FeedMode::InverseTime)
@@ -1333,15 +1504,21 @@ impl<'p> Interp<'p> {
         if let Some(i) = w.g(40) {
             let secs = if self.fanuc {
                 match (w.take('P'), w.take('X')) {
-                    (Some(_), Some(_)) => return Err(self.err_at(self.word_pos(i), "G4 with both P and X")),
+                    (Some(_), Some(_)) => {
+                        return Err(self.err_at(self.word_pos(i), "G4 with both P and X"))
+                    }
                     (Some(p), None) => p / 1000.0,
                     (None, Some(x)) => x,
-                    (None, None) => return Err(self.err_at(self.word_pos(i), "G4 needs P (ms) or X (s)")),
+                    (None, None) => {
+                        return Err(self.err_at(self.word_pos(i), "G4 needs P (ms) or X (s)"))
+                    }
                 }
             } else {
                 match w.take('P') {
                     Some(p) => p,
-                    None => return Err(self.err_at(self.word_pos(i), "G4 needs a P word (seconds)")),
+                    None => {
+                        return Err(self.err_at(self.word_pos(i), "G4 needs a P word (seconds)"))
+                    }
                 }
             };
             if secs < 0.0 {
@@ -1358,7 +1535,11 @@ impl<'p> Interp<'p> {
         // 16. units
         for (code, metric) in [(200, false), (210, true)] {
             if w.g(code).is_some() && self.metric != metric {
-                let f = if metric { MM_PER_INCH } else { 1.0 / MM_PER_INCH };
+                let f = if metric {
+                    MM_PER_INCH
+                } else {
+                    1.0 / MM_PER_INCH
+                };
                 for i in 0..3 {
                     self.cur[i] *= f;
                 }
@@ -1414,7 +1595,10 @@ impl<'p> Interp<'p> {
             self.set_tlo(None);
         }
         // 19. coordinate system
-        for (k, code) in [540u16, 550, 560, 570, 580, 590, 591, 592, 593].iter().enumerate() {
+        for (k, code) in [540u16, 550, 560, 570, 580, 590, 591, 592, 593]
+            .iter()
+            .enumerate()
+        {
             if w.g(*code).is_some() {
                 self.change_offsets(|s| s.cs = k);
             }
@@ -1445,17 +1629,19 @@ impl<'p> Interp<'p> {
             self.retract_r_plane = true;
         }
         // 23. group 0 codes that use axis words, and 24. motion.
-        let group0 = w.gs.iter().find(|g| g_group(g.0) == Some(0) && g.0 != 40 && g.0 != 530).copied();
+        let group0 =
+            w.gs.iter()
+                .find(|g| g_group(g.0) == Some(0) && g.0 != 40 && g.0 != 530)
+                .copied();
         if w.g(800).is_some() {
             self.motion = None;
             self.cycle_il = None;
         }
-        let block_motion = w
-            .gs
-            .iter()
-            .find(|g| g_group(g.0) == Some(1) && g.0 != 800)
-            .or_else(|| w.gs.iter().find(|g| g.0 == 800))
-            .copied();
+        let block_motion =
+            w.gs.iter()
+                .find(|g| g_group(g.0) == Some(1) && g.0 != 800)
+                .or_else(|| w.gs.iter().find(|g| g.0 == 800))
+                .copied();
         let g53 = w.g(530);
         if let (Some((g0, i0)), Some((gm, _))) = (group0, block_motion) {
             if matches!(g0, 100 | 280 | 300 | 920) && gm != 800 && w.has_axis() {
@@ -1486,10 +1672,15 @@ impl<'p> Interp<'p> {
             }
         }
         let axis_users = matches!(group0, Some((100 | 280 | 300 | 920, _)));
-        let corner = w.corner_r.or(w.corner_c).map(|(v, i)| (v, i, w.corner_c.is_some()));
+        let corner = w
+            .corner_r
+            .or(w.corner_c)
+            .map(|(v, i)| (v, i, w.corner_c.is_some()));
         if w.has_axis() && !axis_users {
             let Some(motion) = self.motion else {
-                return Err(self.err_block("axis words but no motion mode (G80 is active); give G0/G1/G2/G3 or a cycle"));
+                return Err(self.err_block(
+                    "axis words but no motion mode (G80 is active); give G0/G1/G2/G3 or a cycle",
+                ));
             };
             if let Some(i) = g53 {
                 if !matches!(motion, Motion::Rapid | Motion::Linear) {
@@ -1497,7 +1688,10 @@ impl<'p> Interp<'p> {
                 }
             }
             self.exec_motion(&mut w, motion, g53.is_some(), corner)?;
-        } else if matches!(block_motion, Some((0 | 10 | 20 | 30, _))) && !axis_users && corner.is_none() {
+        } else if matches!(block_motion, Some((0 | 10 | 20 | 30, _)))
+            && !axis_users
+            && corner.is_none()
+        {
             // LinuxCNC: an explicit G0/G1 without axis words still makes a (zero-length) move,
             // and G2/G3 with only a centre makes a full circle.
             let motion = self.motion.expect("set above");
@@ -1507,9 +1701,18 @@ impl<'p> Interp<'p> {
                 return Err(self.err_at(self.word_pos(i), "G53 without axis words"));
             }
         } else if let Some((_, i, _)) = corner {
-            return Err(self.err_at(self.word_pos(i), "corner rounding/chamfer on a block without a G1 move"));
+            return Err(self.err_at(
+                self.word_pos(i),
+                "corner rounding/chamfer on a block without a G1 move",
+            ));
         }
-        if self.pending_corner.as_ref().map(|p| p.block != idx).unwrap_or(false) && w.has_axis() {
+        if self
+            .pending_corner
+            .as_ref()
+            .map(|p| p.block != idx)
+            .unwrap_or(false)
+            && w.has_axis()
+        {
             // exec_motion resolved it or failed; anything left is an error below.
         }
         // 25. stops
@@ -1529,7 +1732,10 @@ impl<'p> Interp<'p> {
                     } else {
                         ""
                     };
-                    return Err(self.err_at(self.word_pos(i), format!("{c}{v} is not used by any code in this block{hint}")));
+                    return Err(self.err_at(
+                        self.word_pos(i),
+                        format!("{c}{v} is not used by any code in this block{hint}"),
+                    ));
                 }
             }
         }
@@ -1554,7 +1760,11 @@ impl<'p> Interp<'p> {
 
     fn restore_modal(&mut self, m: &Modal) {
         if self.metric != m.metric {
-            let f = if m.metric { MM_PER_INCH } else { 1.0 / MM_PER_INCH };
+            let f = if m.metric {
+                MM_PER_INCH
+            } else {
+                1.0 / MM_PER_INCH
+            };
             for i in 0..3 {
                 self.cur[i] *= f;
             }
@@ -1586,8 +1796,12 @@ impl<'p> Interp<'p> {
         let u = self.unit();
         match g {
             100 => {
-                let l = w.take('L').ok_or_else(|| self.err_at(self.word_pos(i), "G10 needs an L word"))?;
-                let p = w.take('P').ok_or_else(|| self.err_at(self.word_pos(i), "G10 needs a P word"))?;
+                let l = w
+                    .take('L')
+                    .ok_or_else(|| self.err_at(self.word_pos(i), "G10 needs an L word"))?;
+                let p = w
+                    .take('P')
+                    .ok_or_else(|| self.err_at(self.word_pos(i), "G10 needs a P word"))?;
                 if l != 2.0 && l != 20.0 {
                     return Err(self.err_at(
                         self.word_pos(i),
@@ -1595,10 +1809,18 @@ impl<'p> Interp<'p> {
                     ));
                 }
                 if w.has('R') {
-                    return Err(self.err_word(w, 'R', "G10 coordinate system rotation (R) is not supported"));
+                    return Err(self.err_word(
+                        w,
+                        'R',
+                        "G10 coordinate system rotation (R) is not supported",
+                    ));
                 }
                 if p.fract() != 0.0 || !(0.0..=9.0).contains(&p) {
-                    return Err(self.err_word(w, 'P', format!("G10 P{p}: coordinate system must be 0..9")));
+                    return Err(self.err_word(
+                        w,
+                        'P',
+                        format!("G10 P{p}: coordinate system must be 0..9"),
+                    ));
                 }
                 let k = if p == 0.0 { self.cs } else { p as usize - 1 };
                 let phys = self.to_machine(self.cur);
@@ -1607,7 +1829,11 @@ impl<'p> Interp<'p> {
                 for (ai, &c) in AXES.iter().enumerate() {
                     if let Some(v) = w.take(c) {
                         let s = if ai < 3 { u } else { 1.0 };
-                        new[ai] = if l == 2.0 { v * s } else { phys[ai] - g92[ai] - v * s };
+                        new[ai] = if l == 2.0 {
+                            v * s
+                        } else {
+                            phys[ai] - g92[ai] - v * s
+                        };
                     }
                 }
                 self.change_offsets(|st| st.g5x[k] = new);
@@ -1710,7 +1936,9 @@ impl<'p> Interp<'p> {
             && matches!(motion, Motion::Linear | Motion::Arc { .. })
             && self.feed_word <= 0.0
         {
-            return Err(self.err_block("G1/G2/G3 in inverse time mode (G93) needs an F word in the same block"));
+            return Err(self.err_block(
+                "G1/G2/G3 in inverse time mode (G93) needs an F word in the same block",
+            ));
         }
         let pending = self.pending_corner.take();
         if pending.is_some() && motion != Motion::Linear {
@@ -1728,10 +1956,14 @@ impl<'p> Interp<'p> {
                 }
                 if let Some((size, i, chamfer)) = corner {
                     if g53 {
-                        return Err(self.err_at(self.word_pos(i), "corner rounding/chamfer with G53"));
+                        return Err(
+                            self.err_at(self.word_pos(i), "corner rounding/chamfer with G53")
+                        );
                     }
                     if motion != Motion::Linear {
-                        return Err(self.err_at(self.word_pos(i), "corner rounding/chamfer needs G1"));
+                        return Err(
+                            self.err_at(self.word_pos(i), "corner rounding/chamfer needs G1")
+                        );
                     }
                     if size <= 0.0 {
                         return Err(self.err_at(self.word_pos(i), "corner size must be positive"));
@@ -1769,7 +2001,11 @@ impl<'p> Interp<'p> {
         let turns = match w.take('P') {
             Some(p) => {
                 if p.fract() != 0.0 || p < 1.0 || p > MAX_ARC_TURNS {
-                    return Err(self.err_word(w, 'P', format!("arc P{p}: turns must be a whole number 1..{MAX_ARC_TURNS}")));
+                    return Err(self.err_word(
+                        w,
+                        'P',
+                        format!("arc P{p}: turns must be a whole number 1..{MAX_ARC_TURNS}"),
+                    ));
                 }
                 p as u32
             }
@@ -1784,14 +2020,22 @@ impl<'p> Interp<'p> {
             }
             let (sx, sy, ex, ey) = (start[a], start[b], end[a], end[b]);
             if ex == sx && ey == sy {
-                return Err(self.err_word(w, 'R', "R-format arc with the end point equal to the start point"));
+                return Err(self.err_word(
+                    w,
+                    'R',
+                    "R-format arc with the end point equal to the start point",
+                ));
             }
             let tol = if inch { 0.00005 } else { 0.00005 * MM_PER_INCH };
             let abs_r = r.abs();
             let (mx, my) = ((ex + sx) / 2.0, (ey + sy) / 2.0);
             let mut half = (mx - ex).hypot(my - ey);
             if half - abs_r > tol {
-                return Err(self.err_word(w, 'R', format!("arc radius {abs_r} too small to reach the end point")));
+                return Err(self.err_word(
+                    w,
+                    'R',
+                    format!("arc radius {abs_r} too small to reach the end point"),
+                ));
             }
             if half / abs_r > 1.0 - 1e-12 {
                 half = abs_r;
@@ -1810,7 +2054,11 @@ impl<'p> Interp<'p> {
             }
             let i = w.take(li).unwrap_or(0.0);
             let j = w.take(lj).unwrap_or(0.0);
-            let c = if self.arc_absolute { (i, j) } else { (start[a] + i, start[b] + j) };
+            let c = if self.arc_absolute {
+                (i, j)
+            } else {
+                (start[a] + i, start[b] + j)
+            };
             let r1 = (c.0 - start[a]).hypot(c.1 - start[b]);
             let r2 = (c.0 - end[a]).hypot(c.1 - end[b]);
             let rtol = if inch { 0.00005 } else { 0.00005 * MM_PER_INCH };
@@ -1819,7 +2067,11 @@ impl<'p> Interp<'p> {
             }
             let abs_err = (r1 - r2).abs();
             let rel = abs_err / r1.max(r2);
-            let atol = if inch { 2.0 * 0.001 * std::f64::consts::SQRT_2 } else { 2.0 * 0.01 * std::f64::consts::SQRT_2 };
+            let atol = if inch {
+                2.0 * 0.001 * std::f64::consts::SQRT_2
+            } else {
+                2.0 * 0.01 * std::f64::consts::SQRT_2
+            };
             // LinuxCNC 2.9: a small spiral is accepted; large or relatively large ones are not.
             if abs_err > atol * 100.0 || (rel > 0.001 && abs_err > atol) {
                 return Err(self.err_block(format!(
@@ -1936,14 +2188,19 @@ impl<'p> Interp<'p> {
         }
         let repeats = match l {
             Some(v) if v.fract() != 0.0 || v < 1.0 => {
-                return Err(self.err_block(format!("repeat count L{v} must be a whole number of at least 1")))
+                return Err(self.err_block(format!(
+                    "repeat count L{v} must be a whole number of at least 1"
+                )))
             }
             Some(v) => v,
             None => 1.0,
         };
         let cc_word = w.get(lc);
         if !same && cc_word.is_none() {
-            return Err(self.err_block(format!("G{g} needs a {lc} word (hole bottom) in {}", plane.name())));
+            return Err(self.err_block(format!(
+                "G{g} needs a {lc} word (hole bottom) in {}",
+                plane.name()
+            )));
         }
         w.take(lc);
         let cc_num = cc_word.unwrap_or(self.cycle_cc);
@@ -1975,7 +2232,9 @@ impl<'p> Interp<'p> {
             bb = self.cur[ib];
         }
         if r < cc {
-            return Err(self.err_block(format!("R ({r}) below the hole bottom {lc} ({cc}) in G{g}")));
+            return Err(
+                self.err_block(format!("R ({r}) below the hole bottom {lc} ({cc}) in G{g}"))
+            );
         }
         // Cycle-specific words (sticky when the cycle repeats).
         let mut p = 0.0;
@@ -1993,7 +2252,11 @@ impl<'p> Interp<'p> {
             74 | 84 => {
                 p = w.take('P').unwrap_or(self.cycle_p);
                 self.cycle_p = p;
-                let (need, m) = if g == 84 { (SpindleDir::Cw, "clockwise (M3)") } else { (SpindleDir::Ccw, "counterclockwise (M4)") };
+                let (need, m) = if g == 84 {
+                    (SpindleDir::Cw, "clockwise (M3)")
+                } else {
+                    (SpindleDir::Ccw, "counterclockwise (M4)")
+                };
                 if self.spindle != need {
                     return Err(self.err_block(format!("G{g} needs the spindle turning {m}")));
                 }
@@ -2016,7 +2279,9 @@ impl<'p> Interp<'p> {
                 if !same {
                     for c in [li, lj, lk] {
                         if !w.has(c) {
-                            return Err(self.err_block(format!("G87 needs {li}, {lj} and {lk} words")));
+                            return Err(
+                                self.err_block(format!("G87 needs {li}, {lj} and {lk} words"))
+                            );
                         }
                     }
                 }
@@ -2043,11 +2308,12 @@ impl<'p> Interp<'p> {
             old_cc = r;
             current_cc = old_cc;
         }
-        // rs274 (2.9) never positions below the R plane: from below it goes straight to R.
-        if current_cc < r {
-            current_cc = r;
-        }
         let clear = if self.retract_r_plane { r } else { old_cc };
+        // rs274 (2.9) never positions at or below the R plane: from there it positions at
+        // the clearance height (R in G99, the initial level in G98).
+        if current_cc <= r {
+            current_cc = clear;
+        }
         let mut repeat = repeats;
         while repeat >= 1.0 {
             aa += aa_inc;
@@ -2083,7 +2349,11 @@ impl<'p> Interp<'p> {
                 }
                 74 | 84 => {
                     // Tap in, reverse the spindle, dwell, feed out, restore the direction.
-                    let (dir, rev) = if g == 84 { (SpindleDir::Cw, SpindleDir::Ccw) } else { (SpindleDir::Ccw, SpindleDir::Cw) };
+                    let (dir, rev) = if g == 84 {
+                        (SpindleDir::Cw, SpindleDir::Ccw)
+                    } else {
+                        (SpindleDir::Ccw, SpindleDir::Cw)
+                    };
                     self.cyc_move(false, plane, aa, bb, cc)?;
                     self.spindle = rev;
                     self.dwell(p)?;
@@ -2120,14 +2390,17 @@ impl<'p> Interp<'p> {
                     self.spindle = dir;
                 }
                 88 => {
-                    // The operator retracts by hand after the stop; the tool stays at the bottom.
+                    // The control stops at the bottom and the operator retracts by hand; the
+                    // program then goes on as if the tool were at the clearance height. That
+                    // retract is emitted as a rapid (spindle stopped) so the path stays connected.
                     let dir = self.spindle;
                     self.cyc_move(false, plane, aa, bb, cc)?;
                     self.dwell(p)?;
                     self.spindle = SpindleDir::Off;
                     self.warnings.push(self.err_block(
-                        "G88: program stop at the hole bottom for a manual retract; the simulation continues from the bottom",
+                        "G88: program stop at the hole bottom; the operator's manual retract is modelled as a rapid to the clearance height",
                     ));
+                    self.cyc_move(true, plane, aa, bb, clear)?;
                     self.spindle = dir;
                 }
                 89 => {
@@ -2141,7 +2414,8 @@ impl<'p> Interp<'p> {
             current_cc = clear;
             repeat -= 1.0;
         }
-        // LinuxCNC leaves the third axis at the clearance value whatever the last move was.
+        // LinuxCNC leaves the third axis at the clearance value whatever the last move was
+        // (for G88 the operator's manual retract, emitted as a rapid below).
         self.cur[ia] = aa;
         self.cur[ib] = bb;
         self.cur[ic] = clear;
@@ -2171,11 +2445,17 @@ impl<'p> Interp<'p> {
         let c = p.corner;
         let fail = |s: &Self, m: &str| s.err_at(p.word_pos, m.to_string());
         if p.plane != self.plane {
-            return Err(fail(self, "plane changed between a corner block and its next move"));
+            return Err(fail(
+                self,
+                "plane changed between a corner block and its next move",
+            ));
         }
         for i in 0..6 {
             if i != a && i != b && (prev_start[i] != c[i] || next_end[i] != c[i]) {
-                return Err(fail(self, "corner rounding/chamfer needs both moves in the selected plane only"));
+                return Err(fail(
+                    self,
+                    "corner rounding/chamfer needs both moves in the selected plane only",
+                ));
             }
         }
         let d1 = [c[a] - prev_start[a], c[b] - prev_start[b]];
@@ -2183,7 +2463,10 @@ impl<'p> Interp<'p> {
         let l1 = d1[0].hypot(d1[1]);
         let l2 = d2[0].hypot(d2[1]);
         if l1 < 1e-9 || l2 < 1e-9 {
-            return Err(fail(self, "corner rounding/chamfer next to a zero-length move"));
+            return Err(fail(
+                self,
+                "corner rounding/chamfer next to a zero-length move",
+            ));
         }
         let u1 = [d1[0] / l1, d1[1] / l1];
         let u2 = [d2[0] / l2, d2[1] / l2];
@@ -2191,11 +2474,21 @@ impl<'p> Interp<'p> {
         let dot = (u1[0] * u2[0] + u1[1] * u2[1]).clamp(-1.0, 1.0);
         let turn = cross.atan2(dot); // signed turning angle
         if turn.abs() < 1e-9 || (std::f64::consts::PI - turn.abs()) < 1e-9 {
-            return Err(fail(self, "corner rounding/chamfer between collinear moves"));
+            return Err(fail(
+                self,
+                "corner rounding/chamfer between collinear moves",
+            ));
         }
-        let dist = if p.chamfer { p.size } else { p.size * (turn.abs() / 2.0).tan() };
+        let dist = if p.chamfer {
+            p.size
+        } else {
+            p.size * (turn.abs() / 2.0).tan()
+        };
         if dist > l1 + 1e-9 || dist > l2 + 1e-9 {
-            return Err(fail(self, "corner rounding/chamfer larger than the moves it joins"));
+            return Err(fail(
+                self,
+                "corner rounding/chamfer larger than the moves it joins",
+            ));
         }
         let mut t1 = c;
         t1[a] = c[a] - u1[0] * dist;
@@ -2210,7 +2503,15 @@ impl<'p> Interp<'p> {
         let (blk, line) = (self.cur_block, self.cur_line);
         self.cur_block = p.block;
         self.cur_line = self.prog.blocks()[p.block].line;
-        let mut m = self.base_move(if p.chamfer { MoveKind::Linear } else { MoveKind::Arc }, t1m, t2m);
+        let mut m = self.base_move(
+            if p.chamfer {
+                MoveKind::Linear
+            } else {
+                MoveKind::Arc
+            },
+            t1m,
+            t2m,
+        );
         // The corner belongs to the corner block, at the corner block's feed.
         let corner_move = &self.moves[p.move_index];
         m.feed = corner_move.feed;

@@ -10,7 +10,10 @@ pub(crate) enum Tok {
     Letter(char),
     /// An alphabetic run, upper-cased (expression mode, O-word keywords).
     Ident(String),
-    Number { value: f64, has_point: bool },
+    Number {
+        value: f64,
+        has_point: bool,
+    },
     Plus,
     Minus,
     Star,
@@ -238,7 +241,10 @@ impl<'a> Lexer<'a> {
                 }
             }
             b'@' | b'^' => {
-                return self.err(start, format!("polar coordinates ('{}' word) are not supported", b as char))
+                return self.err(
+                    start,
+                    format!("polar coordinates ('{}' word) are not supported", b as char),
+                )
             }
             _ => {
                 let ch = self.src[start..].chars().next().unwrap_or('?');

@@ -74,7 +74,10 @@ impl<'a> LineParser<'a> {
                     }
                 }
                 self.lx = save;
-                return err(span.start, "expected a value (number, #parameter or [expression])");
+                return err(
+                    span.start,
+                    "expected a value (number, #parameter or [expression])",
+                );
             }
         }
         let (tok, span) = self.lx.next(false)?;
@@ -82,7 +85,10 @@ impl<'a> LineParser<'a> {
             Tok::Number { value, has_point } => Ok(Expr::Number { value, has_point }),
             // A negative literal stays a literal (no allocation for the common `X-1.5`).
             Tok::Minus => Ok(match self.value()? {
-                Expr::Number { value, has_point } => Expr::Number { value: -value, has_point },
+                Expr::Number { value, has_point } => Expr::Number {
+                    value: -value,
+                    has_point,
+                },
                 e => Expr::Neg(Box::new(e)),
             }),
             Tok::Plus => self.value(),
@@ -94,7 +100,10 @@ impl<'a> LineParser<'a> {
             Tok::Hash => Ok(Expr::Param(Box::new(self.param_ref()?))),
             t => err(
                 span.start,
-                format!("expected a value (number, #parameter or [expression]), found {}", tok_name(&t)),
+                format!(
+                    "expected a value (number, #parameter or [expression]), found {}",
+                    tok_name(&t)
+                ),
             ),
         }
     }
@@ -137,7 +146,10 @@ impl<'a> LineParser<'a> {
             return Ok(Some(Expr::Atan(Box::new(arg), Box::new(x))));
         }
         let _ = at;
-        Ok(Some(Expr::Func(func.expect("checked above"), Box::new(arg))))
+        Ok(Some(Expr::Func(
+            func.expect("checked above"),
+            Box::new(arg),
+        )))
     }
 
     fn expect_rbracket(&mut self) -> PResult<()> {
@@ -171,7 +183,10 @@ impl<'a> LineParser<'a> {
                 Some(e) => Ok(e),
                 None => err(span.start, format!("unknown function or operator '{name}'")),
             },
-            t => err(span.start, format!("expected a value, found {}", tok_name(&t))),
+            t => err(
+                span.start,
+                format!("expected a value, found {}", tok_name(&t)),
+            ),
         };
         self.depth -= 1;
         r
@@ -236,7 +251,9 @@ impl<'a> LineParser<'a> {
         }
         let (tok, span) = self.lx.next(false)?;
         let r = match tok {
-            Tok::Number { value, has_point } => Ok(ParamRef::Numbered(Expr::Number { value, has_point })),
+            Tok::Number { value, has_point } => {
+                Ok(ParamRef::Numbered(Expr::Number { value, has_point }))
+            }
             Tok::Name(n) => Ok(ParamRef::Named(n)),
             Tok::LBracket => {
                 let e = self.expr(0)?;
@@ -249,7 +266,10 @@ impl<'a> LineParser<'a> {
             }
             t => err(
                 span.start,
-                format!("expected a parameter number or <name> after '#', found {}", tok_name(&t)),
+                format!(
+                    "expected a parameter number or <name> after '#', found {}",
+                    tok_name(&t)
+                ),
             ),
         };
         self.depth -= 1;
@@ -271,7 +291,11 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
         let (content_end, end) = match nl {
             Some(i) => {
                 let e = start + i;
-                let ce = if e > start && bytes[e - 1] == b'\r' { e - 1 } else { e };
+                let ce = if e > start && bytes[e - 1] == b'\r' {
+                    e - 1
+                } else {
+                    e
+                };
                 (ce, e + 1)
             }
             None => (source.len(), source.len()),
@@ -285,7 +309,10 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
         if percents >= 2 {
             block.after_end = true;
         } else if let Err(e) = parse_line(source, &mut block) {
-            let col = source[start..e.pos.min(content_end).max(start)].chars().count() as u32 + 1;
+            let col = source[start..e.pos.min(content_end).max(start)]
+                .chars()
+                .count() as u32
+                + 1;
             errors.push(Diagnostic::new(line, col, e.message));
         }
         if block.percent {
@@ -342,7 +369,10 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
             Tok::Comment(text) => block.comments.push(Comment { text, span }),
             Tok::Letter(c) => {
                 if c == 'N' {
-                    return err(span.start, "N word (line number) must be at the start of the block");
+                    return err(
+                        span.start,
+                        "N word (line number) must be at the start of the block",
+                    );
                 }
                 if c == 'O' {
                     return err(span.start, "O word must be at the start of the block");
@@ -364,7 +394,10 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
                     return err(s.start, "expected R or C after ',' (Fanuc corner word)");
                 };
                 if c != 'R' && c != 'C' {
-                    return err(s.start, format!("',{c}' is not a corner word (only ,R and ,C)"));
+                    return err(
+                        s.start,
+                        format!("',{c}' is not a corner word (only ,R and ,C)"),
+                    );
                 }
                 p.lx.skip_ws();
                 let vstart = p.lx.pos;
@@ -381,7 +414,10 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
                 let target = p.param_ref()?;
                 let (t, s) = p.lx.next(false)?;
                 if t != Tok::Equals {
-                    return err(s.start, "expected '=' after a parameter (a parameter can only be set here)");
+                    return err(
+                        s.start,
+                        "expected '=' after a parameter (a parameter can only be set here)",
+                    );
                 }
                 let value = p.value()?;
                 block.assignments.push(Assignment {
@@ -402,7 +438,12 @@ fn rest_comments(p: &mut LineParser, block: &mut Block) -> PResult<()> {
         match tok {
             Tok::End => return Ok(()),
             Tok::Comment(text) => block.comments.push(Comment { text, span }),
-            t => return err(span.start, format!("unexpected {} on this line", tok_name(&t))),
+            t => {
+                return err(
+                    span.start,
+                    format!("unexpected {} on this line", tok_name(&t)),
+                )
+            }
         }
     }
 }
@@ -411,7 +452,9 @@ fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
     let (_, os) = p.lx.next(false)?;
     let (t, s) = p.lx.next(false)?;
     let name = match t {
-        Tok::Number { value, .. } if value.fract() == 0.0 && value <= u32::MAX as f64 => OName::Number(value as u32),
+        Tok::Number { value, .. } if value.fract() == 0.0 && value <= u32::MAX as f64 => {
+            OName::Number(value as u32)
+        }
         Tok::Name(n) => OName::Named(n),
         t => {
             return err(

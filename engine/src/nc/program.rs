@@ -309,7 +309,10 @@ impl Program {
                 errors.push(Diagnostic::new(
                     0,
                     0,
-                    format!("block {index} does not exist (program has {} blocks)", self.blocks.len()),
+                    format!(
+                        "block {index} does not exist (program has {} blocks)",
+                        self.blocks.len()
+                    ),
                 ));
                 continue;
             };

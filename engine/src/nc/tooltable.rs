@@ -58,14 +58,25 @@ pub fn parse_tool_table(text: &str) -> Result<ToolTable, Diagnostics> {
             let letter = chars.next().unwrap_or(' ').to_ascii_uppercase();
             let rest = chars.as_str();
             let num: Result<f64, _> = rest.parse::<f64>();
-            let Ok(v) = num.map_err(|_| ()).and_then(|v| if v.is_finite() { Ok(v) } else { Err(()) }) else {
-                errors.push(Diagnostic::new(line, col, format!("bad tool table field '{field}'")));
+            let Ok(v) = num
+                .map_err(|_| ())
+                .and_then(|v| if v.is_finite() { Ok(v) } else { Err(()) })
+            else {
+                errors.push(Diagnostic::new(
+                    line,
+                    col,
+                    format!("bad tool table field '{field}'"),
+                ));
                 ok = false;
                 break;
             };
             match letter {
                 'T' | 'P' if v < 0.0 || v.fract() != 0.0 || v > u32::MAX as f64 => {
-                    errors.push(Diagnostic::new(line, col, format!("'{field}' must be a whole number")));
+                    errors.push(Diagnostic::new(
+                        line,
+                        col,
+                        format!("'{field}' must be a whole number"),
+                    ));
                     ok = false;
                     break;
                 }
@@ -80,7 +91,11 @@ pub fn parse_tool_table(text: &str) -> Result<ToolTable, Diagnostics> {
                 // Other axes, lathe orientation and angles do not change a milling tool's tip.
                 'Y' | 'A' | 'B' | 'C' | 'U' | 'V' | 'W' | 'I' | 'J' | 'Q' => {}
                 _ => {
-                    errors.push(Diagnostic::new(line, col, format!("unknown tool table field '{field}'")));
+                    errors.push(Diagnostic::new(
+                        line,
+                        col,
+                        format!("unknown tool table field '{field}'"),
+                    ));
                     ok = false;
                     break;
                 }
@@ -92,7 +107,11 @@ pub fn parse_tool_table(text: &str) -> Result<ToolTable, Diagnostics> {
         }
         if ok {
             if table.tools.contains_key(&entry.number) {
-                errors.push(Diagnostic::new(line, 1, format!("tool T{} listed twice", entry.number)));
+                errors.push(Diagnostic::new(
+                    line,
+                    1,
+                    format!("tool T{} listed twice", entry.number),
+                ));
             } else {
                 table.insert(entry);
             }
