@@ -556,6 +556,21 @@ fn corpus_status() {
     assert!(msg.starts_with("M428"), "{msg}");
     let mut p = InterpretOptions::default();
     p.passthrough_m_codes = vec![428, 429];
+    // Passthrough codes: no motion, one group each (two in a block are fine, one twice is not).
+    let i = run_with(
+        "M428 M429
+G0 X1
+",
+        &p,
+    );
+    assert_eq!(i.moves.len(), 1);
+    assert!(fail(
+        "M428 M428
+",
+        &p
+    )
+    .2
+    .contains("same modal group"));
     let imp = run_with(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"), &p);
     assert_eq!(imp.moves.len(), 4492);
     assert!(imp

@@ -1,7 +1,7 @@
 //! Property tests: no panic and no hang on any input; lossless round trip; sane moves.
 
 use millsim_engine::cl::read_cls;
-use millsim_engine::nc::{interpret, InterpretOptions, Program};
+use millsim_engine::nc::{interpret, Dialect, InterpretOptions, Program};
 use proptest::prelude::*;
 
 fn small_limits() -> InterpretOptions {
@@ -130,6 +130,27 @@ proptest! {
         }
         let _ = interpret(&src, &small_limits());
         let _ = read_cls(&src);
+    }
+
+    #[test]
+    fn any_options_never_panic(
+        src in program(),
+        fanuc in any::<bool>(),
+        implied in any::<bool>(),
+        ccr in any::<bool>(),
+        block_delete in any::<bool>(),
+        pass in prop::collection::vec(prop_oneof![Just(0u32), Just(6), Just(428), Just(999), Just(70_000), any::<u32>()], 0..4),
+    ) {
+        let opts = InterpretOptions {
+            dialect: if fanuc { Dialect::Fanuc } else { Dialect::LinuxCnc },
+            fanuc_implied_decimal: implied,
+            fanuc_corners_without_comma: ccr,
+            block_delete,
+            passthrough_m_codes: pass.clone(),
+            ..small_limits()
+        };
+        let with_m: String = pass.iter().map(|m| format!("M{m}\n")).collect::<String>() + &src;
+        let _ = interpret(&with_m, &opts);
     }
 
     #[test]

@@ -17,6 +17,7 @@ fuzz_target!(|data: &[u8]| {
             dialect,
             fanuc_implied_decimal: implied,
             fanuc_corners_without_comma: implied,
+            passthrough_m_codes: vec![428, 429, 100_000],
             max_moves: 10_000,
             max_blocks: 100_000,
             ..InterpretOptions::default()
