@@ -65,6 +65,6 @@ CREATE TABLE job_attempts (
     worker      TEXT    NOT NULL,
     started_at  INTEGER NOT NULL,
     finished_at INTEGER,
-    outcome     TEXT,                          -- succeeded | failed | cancelled | released | lost
+    outcome     TEXT,                          -- succeeded | failed | cancelled | lost (NULL while running)
     PRIMARY KEY (job_id, attempt)
 );

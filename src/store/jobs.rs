@@ -168,7 +168,7 @@ impl Db {
     pub async fn create_job(&self, owner: &str, mut new: NewJob) -> Result<CreateOutcome, StoreError> {
         if let Some(key) = &new.idempotency_key {
             if let Some(existing) = self.job_by_idempotency_key(owner, key).await? {
-                return self.replay_or_conflict(owner, key, &new.request_hash, existing).await;
+                return self.replay_or_conflict(owner, &new.request_hash, existing).await;
             }
         }
         let now = now_ms();
@@ -211,7 +211,7 @@ impl Db {
                 tx.rollback().await?;
                 let key = new.idempotency_key.as_deref().unwrap_or_default();
                 let existing = self.job_by_idempotency_key(owner, key).await?.ok_or(StoreError::Sql(e))?;
-                self.replay_or_conflict(owner, key, &new.request_hash, existing).await
+                self.replay_or_conflict(owner, &new.request_hash, existing).await
             }
             Err(e) => Err(e.into()),
         }
@@ -232,7 +232,6 @@ impl Db {
     async fn replay_or_conflict(
         &self,
         owner: &str,
-        _key: &str,
         hash: &str,
         (id, stored_hash): (String, String),
     ) -> Result<CreateOutcome, StoreError> {
@@ -498,13 +497,7 @@ impl Db {
             tx.rollback().await?;
             return Ok(false);
         }
-        sqlx::query("UPDATE job_attempts SET outcome = 'released', finished_at = ? WHERE job_id = ? AND attempt = ?")
-            .bind(now)
-            .bind(&job.id)
-            .bind(job.attempt)
-            .execute(&mut *tx)
-            .await?;
-        // The released attempt's number is reused by the next claim.
+        // The attempt does not count: its number is reused by the next claim.
         sqlx::query("DELETE FROM job_attempts WHERE job_id = ? AND attempt = ?")
             .bind(&job.id)
             .bind(job.attempt)
