@@ -57,6 +57,8 @@ pub struct StepMetrics {
 #[derive(Default)]
 pub(crate) struct Scratch {
     bits: Vec<bool>,
+    /// sin and cos of the bin centres, kept while the bin count stays the same.
+    trig: Vec<(f64, f64)>,
 }
 
 pub(crate) struct StepInput {
@@ -133,8 +135,12 @@ pub(crate) fn compute(
     scratch.bits.clear();
     scratch.bits.resize(nz * nb, false);
     let bits = &mut scratch.bits;
-    let (sin_t, cos_t): (Vec<f64>, Vec<f64>) =
-        (0..nb).map(|m| ((m as f64 + 0.5) * dphi).sin_cos()).unzip();
+    if scratch.trig.len() != nb {
+        scratch.trig = (0..nb)
+            .map(|m| ((m as f64 + 0.5) * dphi).sin_cos())
+            .collect();
+    }
+    let trig = &scratch.trig;
     let ptop = body.profile_top();
     let out = 0.5 * grid.cell;
     for j in j0..j_end {
@@ -149,9 +155,9 @@ pub(crate) fn compute(
         }
         for m in 0..nb {
             let radial = [
-                sin_t[m] * xf[0] + cos_t[m] * yf[0],
-                sin_t[m] * xf[1] + cos_t[m] * yf[1],
-                sin_t[m] * xf[2] + cos_t[m] * yf[2],
+                trig[m].0 * xf[0] + trig[m].1 * yf[0],
+                trig[m].0 * xf[1] + trig[m].1 * yf[1],
+                trig[m].0 * xf[2] + trig[m].1 * yf[2],
             ];
             let n = [
                 sk * radial[0] - ck * a[0],
@@ -179,8 +185,8 @@ pub(crate) fn compute(
             let r = body.radius;
             for m in 0..nb {
                 let radial = [
-                    sin_t[m] * xf[0] + cos_t[m] * yf[0],
-                    sin_t[m] * xf[1] + cos_t[m] * yf[1],
+                    trig[m].0 * xf[0] + trig[m].1 * yf[0],
+                    trig[m].0 * xf[1] + trig[m].1 * yf[1],
                 ];
                 let nv = radial[0] * v[0] + radial[1] * v[1];
                 if nv <= 0.0 {

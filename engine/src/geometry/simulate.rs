@@ -127,6 +127,19 @@ pub fn simulate_removal(
     opts: &SimOptions,
     cancel: &CancelFlag,
 ) -> Result<SimulationReport, GeometryError> {
+    // Run the whole pass on a worker of the current rayon pool: parallel sections started
+    // from a worker are cheap forks, while from an outside thread each one is a hand-off
+    // to the pool and back (futex wake-ups, thousands of them per program).
+    rayon::scope(|_| simulate_inner(stock, tool, segments, opts, cancel))
+}
+
+fn simulate_inner(
+    stock: &mut Stock,
+    tool: &Tool,
+    segments: &[Segment],
+    opts: &SimOptions,
+    cancel: &CancelFlag,
+) -> Result<SimulationReport, GeometryError> {
     tool.validate()?;
     let body = ToolBody::cutting_part(tool);
     let checks = ToolChecks::new(tool);
@@ -268,7 +281,12 @@ pub fn simulate_removal(
             stats.add(&step_stats);
             let removed = step_stats.volume(h);
             let this_len = (u - u_prev) * len;
-            let air = engagement.is_air();
+            // Without engagement, a step is air when it removed nothing.
+            let air = if engage {
+                engagement.is_air()
+            } else {
+                removed <= 0.0
+            };
             if air {
                 air_len += this_len;
             }
