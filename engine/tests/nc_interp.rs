@@ -593,3 +593,44 @@ G0 X1
     let (l, _, _) = fail(&read("fanuc_R_arcs_G3R_G1R_G1C.nc"), &o);
     assert_eq!(l, 13); // see fanuc_corner_rounding_and_chamfer_corpus_file
 }
+
+#[test]
+fn percent_block_delete_and_program_end() {
+    // Text after the closing % is kept (round trip) but neither parsed nor run.
+    let i = run("%\nG0 X1\n%\nthis is not G-code $$$\n");
+    assert_eq!(i.moves.len(), 1);
+    assert_eq!(i.block_count, 4);
+    // Block delete: off by default (the line runs), on skips it.
+    let src = "G0 X1\n/G0 X2\nG0 X3\n";
+    assert_eq!(run(src).moves.len(), 3);
+    let mut o = InterpretOptions::default();
+    o.block_delete = true;
+    let m: Vec<f64> = run_with(src, &o).moves.iter().map(|m| m.end[0]).collect();
+    assert_eq!(m, vec![1.0, 3.0]);
+    // M30 ends the program; later blocks do not run.
+    assert_eq!(run("G0 X1\nM30\nG0 X2\n").moves.len(), 1);
+}
+
+#[test]
+fn g43_jump_and_g49() {
+    let mut o = InterpretOptions::default();
+    o.tool_table = parse_tool_table("T1 Z40\nT2 Z25\n").unwrap();
+    let i = run_with(
+        "G0 Z10\nT1 M6\nG43 H1\nG0 Z5\nG43 H2\nG0 Z5\nG49\nG0 Z5\n",
+        &o,
+    );
+    let m = motions(&i);
+    // Start points show where the tip is after each change; ends are the programmed tip.
+    assert_eq!(
+        (m[1].start[2], m[1].end[2], m[1].tool_length),
+        (-30.0, 5.0, Some(40.0))
+    );
+    assert_eq!(
+        (m[2].start[2], m[2].end[2], m[2].tool_length),
+        (20.0, 5.0, Some(25.0))
+    );
+    assert_eq!(
+        (m[3].start[2], m[3].end[2], m[3].tool_length),
+        (30.0, 5.0, None)
+    );
+}

@@ -8,6 +8,22 @@
 //!
 //! Anything the interpreter does not support is an error naming the line, column and word;
 //! nothing is skipped silently.
+//!
+//! Semantics follow LinuxCNC 2.9's rs274ngc (checked move by move against it, see
+//! `tests/nc_linuxcnc.rs`), with these deliberate differences:
+//! * G84/G74 outside G17 tap at the programmed hole (LinuxCNC 2.9 swaps the axes there).
+//! * G88's manual retract is emitted as a rapid to the clearance height (with a warning), so the
+//!   path stays connected; LinuxCNC makes no move.
+//! * `G0 ... G80` in one block is accepted (the Fanuc habit); nested `(...)` comments are
+//!   accepted; O labels may be reused by sequential (non-nested) structures.
+//! * Dialect Fanuc: G4 P in milliseconds (X in seconds), `,R`/`,C` corners, K as the cycle
+//!   repeat count, G98 at start, `O1234` program numbers; implied decimals on request.
+//!
+//! Refused with an error: cutter radius compensation (G41/G42/G41.1/G42.1), G33, G76, G5.x
+//! splines, G7/G8, G15/G16 and `@`/`^` polar words, G38.x probing, G50/G51 scaling, G68/G69
+//! rotation, G10 L1/L10/L11 and G10 rotation (R), U V W axes, M98/M99 and external
+//! subroutine files, M60, M62-M68, user/remapped M codes unless listed in
+//! `passthrough_m_codes`, writes to the parameters that hold machine state (#5161-#5426).
 
 mod arc;
 mod expr;
