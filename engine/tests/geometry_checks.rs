@@ -49,8 +49,14 @@ fn rapid_through_the_stock_is_reported_on_its_block() {
         .collect();
     assert_eq!(flagged, vec![13]);
     assert!(rep.blocks[3].removed_volume > 0.0);
-    // A rapid never reports engagement.
-    assert!(rep.blocks[3].steps.iter().all(|s| s.air));
+    // A rapid reports no engagement (no force model applies); its steps that removed
+    // material are not air.
+    assert!(rep.blocks[3]
+        .steps
+        .iter()
+        .all(|s| s.engagement.slices.is_empty()));
+    assert!(rep.blocks[3].air_fraction < 1.0);
+    assert_eq!(rep.blocks[0].air_fraction, 1.0);
 }
 
 #[test]

@@ -352,12 +352,13 @@ fn simulate_inner(
         block.rays_tested = stats.rays_tested;
         block.rays_intersected = stats.rays_intersected;
         block.rays_changed = stats.rays_changed;
-        block.air_fraction = if len > 0.0 {
-            air_len / len
-        } else if block.steps.iter().all(|s| s.air) {
+        // Exact 0 and 1 when no step or every step is air (no rounding of the lengths).
+        block.air_fraction = if block.steps.iter().all(|s| s.air) {
             1.0
-        } else {
+        } else if block.steps.iter().all(|s| !s.air) || len <= 0.0 {
             0.0
+        } else {
+            (air_len / len).clamp(0.0, 1.0)
         };
         block.mean_mrr = if len > 0.0 && seg.feed > 0.0 {
             block.removed_volume * seg.feed / len
