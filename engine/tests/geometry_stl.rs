@@ -187,3 +187,93 @@ fn exported_stock_is_a_closed_mesh_with_the_stock_volume() {
     );
     assert!(((mv - sv) / sv).abs() < 0.01);
 }
+
+/// A closed, outward-oriented box mesh.
+fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
+    let v = |i: usize| {
+        [
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        ]
+    };
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let mut triangles = Vec::new();
+    for q in quads {
+        triangles.push([q[0], q[1], q[2]]);
+        triangles.push([q[0], q[2], q[3]]);
+    }
+    let mesh = Mesh {
+        vertices: (0..8).map(v).collect(),
+        triangles,
+    };
+    assert!(mesh.volume() > 0.0, "outward orientation");
+    mesh
+}
+
+#[test]
+fn gouge_and_allowance_against_the_design_part() {
+    use millsim_engine::geometry::compare_with_part;
+    let h = 0.1;
+    let part = box_mesh([0.0, -10.0, -10.0], [40.0, 10.0, -3.0]);
+    let mut stock = Stock::block([0.0, -10.0, -10.0], [40.0, 10.0, 0.0], h).unwrap();
+    // Face the whole top down to z = −2.5 with a D20 flat mill: 0.5 mm left on the part.
+    let tool = Tool::flat(20.0, 4);
+    let mut segs = Vec::new();
+    for (k, y) in [-10.0, 0.0, 10.0].iter().enumerate() {
+        segs.push(Segment::linear(
+            k,
+            [-15.0, *y, -2.5],
+            [55.0, *y, -2.5],
+            2000.0,
+            6000.0,
+        ));
+    }
+    simulate_removal(
+        &mut stock,
+        &tool,
+        &segs,
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap();
+    let c = compare_with_part(&stock, &part).unwrap();
+    println!("after facing: {c:?}");
+    assert_eq!(c.gouge_volume, 0.0);
+    assert!((c.allowance_min - 0.5).abs() < 1e-9 && (c.allowance_max - 0.5).abs() < 1e-9);
+    assert_eq!(c.max_gouge_depth, 0.0);
+    assert_eq!(c.part_rays, 400 * 200);
+    // A D6 slot 1 mm into the part: a gouge of 30·6·1 + π·9·1 (two half-disc ends).
+    let slot = [Segment::linear(
+        9,
+        [5.0, 0.0, -4.0],
+        [35.0, 0.0, -4.0],
+        800.0,
+        8000.0,
+    )];
+    simulate_removal(
+        &mut stock,
+        &Tool::flat(6.0, 3),
+        &slot,
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap();
+    let c = compare_with_part(&stock, &part).unwrap();
+    println!("after the slot: {c:?}");
+    let want = 30.0 * 6.0 + std::f64::consts::PI * 9.0;
+    assert!(
+        ((c.gouge_volume - want) / want).abs() < 0.01,
+        "{} vs {want}",
+        c.gouge_volume
+    );
+    assert!((c.max_gouge_depth - 1.0).abs() < 1e-9);
+    assert!((c.allowance_min + 1.0).abs() < 1e-9 && (c.allowance_max - 0.5).abs() < 1e-9);
+}

@@ -6,6 +6,7 @@
 //! the NC interpreter's moves to them).
 
 pub mod checks;
+pub mod compare;
 pub mod dexel;
 pub mod engagement;
 pub mod export;
@@ -16,6 +17,7 @@ pub mod stock;
 pub mod sweep;
 
 pub use checks::CheckFlags;
+pub use compare::{compare_with_part, PartComparison};
 pub use dexel::{default_cell, DexelGrid, GridEstimate, GridOptions, DEFAULT_MEMORY_LIMIT};
 pub use engagement::{EngagementOptions, StepMetrics};
 pub use export::{export_stl, ExportStats};

@@ -236,16 +236,22 @@ impl Stock {
             return Err(StlError::TooLarge { size }.into());
         }
         let mut grid = DexelGrid::new(lo, hi, cell, opts.memory_limit)?;
-        let verts: Vec<Vector> = mesh
-            .vertices
-            .iter()
-            .map(|v| Vector::new(v[0], v[1], v[2]))
-            .collect();
-        let tri = TriMesh::new(verts, mesh.triangles.clone())
-            .map_err(|e| StlError::Topology(e.to_string()))?;
-        fill_from_mesh(&mut grid, mesh, &tri);
+        fill_grid(&mut grid, mesh)?;
         Ok(Stock { grid })
     }
+}
+
+/// Fills every ray of `grid` with the mesh's material (whatever the grid's extent).
+pub(crate) fn fill_grid(grid: &mut DexelGrid, mesh: &Mesh) -> Result<(), StlError> {
+    let verts: Vec<Vector> = mesh
+        .vertices
+        .iter()
+        .map(|v| Vector::new(v[0], v[1], v[2]))
+        .collect();
+    let tri = TriMesh::new(verts, mesh.triangles.clone())
+        .map_err(|e| StlError::Topology(e.to_string()))?;
+    fill_from_mesh(grid, mesh, &tri);
+    Ok(())
 }
 
 fn fill_from_mesh(grid: &mut DexelGrid, mesh: &Mesh, tri: &TriMesh) {
