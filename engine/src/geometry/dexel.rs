@@ -11,7 +11,9 @@ use smallvec::SmallVec;
 use super::GeometryError;
 
 /// Sorted, disjoint material intervals `[start, end]` along one ray.
-pub type Intervals = SmallVec<[[f64; 2]; 1]>;
+/// Two inline intervals: a ray through a pocket or a slot has material on both sides,
+/// which then needs no heap allocation.
+pub type Intervals = SmallVec<[[f64; 2]; 2]>;
 
 /// Default memory limit for a grid: 4 GiB.
 pub const DEFAULT_MEMORY_LIMIT: u64 = 4 << 30;
@@ -262,9 +264,29 @@ pub fn subtract(r: &mut Intervals, a: f64, b: f64) -> f64 {
     if !(b > a) {
         return 0.0;
     }
-    // Fast rejection: no overlap with any interval.
-    if !r.iter().any(|iv| iv[0] < b && a < iv[1]) {
+    // No overlap with any interval: nothing to do.
+    let Some(k) = r.iter().position(|iv| iv[0] < b && a < iv[1]) else {
         return 0.0;
+    };
+    // Common cases in place: the removal trims one end of an interval, or splits it.
+    {
+        let iv = r[k];
+        let alone = r.get(k + 1).is_none_or(|n| n[0] >= b);
+        if alone {
+            let removed = iv[1].min(b) - iv[0].max(a);
+            match (iv[0] < a, iv[1] > b) {
+                (true, true) => {
+                    r[k][1] = a;
+                    r.insert(k + 1, [b, iv[1]]);
+                }
+                (true, false) => r[k][1] = a,
+                (false, true) => r[k][0] = b,
+                (false, false) => {
+                    r.remove(k);
+                }
+            }
+            return removed;
+        }
     }
     let mut removed = 0.0;
     let mut out = Intervals::new();

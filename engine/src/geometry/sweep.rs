@@ -312,6 +312,85 @@ fn line_stadium(a: [f64; 2], b: [f64; 2], rho: f64, c0: f64) -> Option<(f64, f64
     (lo <= hi).then_some((lo, hi))
 }
 
+/// A 2-D stadium's segment prepared for many parallel lines (horizontal moves).
+#[derive(Clone, Copy, Debug)]
+struct Stadium {
+    a: [f64; 2],
+    b: [f64; 2],
+    len: f64,
+    u: [f64; 2],
+    inv_u0: f64,
+    inv_n0: f64,
+}
+
+impl Stadium {
+    fn new(a: [f64; 2], b: [f64; 2]) -> Stadium {
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let len = (d[0] * d[0] + d[1] * d[1]).sqrt();
+        let u = if len > 1e-12 {
+            [d[0] / len, d[1] / len]
+        } else {
+            [1.0, 0.0]
+        };
+        let inv = |x: f64| if x.abs() < 1e-15 { 0.0 } else { 1.0 / x };
+        Stadium {
+            a,
+            b,
+            len,
+            u,
+            inv_u0: inv(u[0]),
+            inv_n0: inv(-u[1]),
+        }
+    }
+
+    /// Same as `line_stadium(a, b, rho, c0)`.
+    #[inline]
+    fn line(&self, rho: f64, c0: f64) -> Option<(f64, f64)> {
+        let (a, b) = (self.a, self.b);
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for p in [a, b] {
+            let dy = c0 - p[1];
+            if dy.abs() <= rho {
+                let w = (rho * rho - dy * dy).sqrt();
+                lo = lo.min(p[0] - w);
+                hi = hi.max(p[0] + w);
+            }
+        }
+        if self.len > 1e-12 {
+            let (u, len) = (self.u, self.len);
+            let dy = c0 - a[1];
+            // Along the segment: (x − a0)·u0 + dy·u1 ∈ [0, len].
+            let eu = dy * u[1];
+            let (mut xl, mut xh, mut ok) = (f64::NEG_INFINITY, f64::INFINITY, true);
+            if self.inv_u0 == 0.0 {
+                ok &= (0.0..=len).contains(&eu);
+            } else {
+                let (x0, x1) = (a[0] - eu * self.inv_u0, a[0] + (len - eu) * self.inv_u0);
+                xl = x0.min(x1);
+                xh = x0.max(x1);
+            }
+            // Across it: (x − a0)·n0 + dy·n1 ∈ [−ρ, ρ], n = (−u1, u0).
+            let en = dy * u[0];
+            if self.inv_n0 == 0.0 {
+                ok &= en.abs() <= rho;
+            } else {
+                let (x0, x1) = (
+                    a[0] + (-rho - en) * self.inv_n0,
+                    a[0] + (rho - en) * self.inv_n0,
+                );
+                xl = xl.max(x0.min(x1));
+                xh = xh.min(x0.max(x1));
+            }
+            if ok && xl <= xh {
+                lo = lo.min(xl);
+                hi = hi.max(xh);
+            }
+        }
+        (lo <= hi).then_some((lo, hi))
+    }
+}
+
 struct SweptSupport<'a> {
     body: &'a ToolBody,
     delta: [f64; 3],
@@ -378,6 +457,8 @@ pub(crate) struct Sweep<'a> {
     cap_a: [f64; 3],
     cap_b: [f64; 3],
     cap_r: f64,
+    /// Horizontal moves: the path's stadium seen by X rays and by Y rays.
+    stadium: [Stadium; 2],
 }
 
 impl<'a> Sweep<'a> {
@@ -415,6 +496,10 @@ impl<'a> Sweep<'a> {
             cap_a,
             cap_b,
             cap_r,
+            stadium: [
+                Stadium::new([mv.p0[0], mv.p0[1]], [mv.p1[0], mv.p1[1]]),
+                Stadium::new([mv.p0[1], mv.p0[0]], [mv.p1[1], mv.p1[0]]),
+            ],
         }
     }
 
@@ -514,7 +599,6 @@ impl<'a> Sweep<'a> {
         let p0 = self.mv.p0;
         let d = self.delta;
         let body = self.body;
-        let a = [p0[al], p0[cr]];
         let at = |t: f64| [p0[al] + t * d[al], p0[cr] + t * d[cr]];
         let h0 = z0 - p0[2];
         if d[2] == 0.0 {
@@ -525,7 +609,7 @@ impl<'a> Sweep<'a> {
             if rho <= 0.0 {
                 return None;
             }
-            return line_stadium(a, at(1.0), rho, c0);
+            return self.stadium[al].line(rho, c0);
         }
         // t where the plane is at height h above the tip: h0 − t·dz = h.
         let t_of = |h: f64| (h0 - h) / d[2];
@@ -1139,6 +1223,35 @@ mod tests {
                 checked += 1;
             }
             assert!(checked > 50, "{checked}");
+        }
+    }
+
+    #[test]
+    fn prepared_stadium_matches_line_stadium() {
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 10.0 - 5.0
+        };
+        for k in 0..2000 {
+            let a = [rnd(), rnd()];
+            let b = if k % 7 == 0 {
+                [a[0], rnd()]
+            } else if k % 11 == 0 {
+                [rnd(), a[1]]
+            } else {
+                [rnd(), rnd()]
+            };
+            let (rho, c0) = (rnd().abs() * 0.5 + 0.1, rnd());
+            let x = line_stadium(a, b, rho, c0);
+            let y = Stadium::new(a, b).line(rho, c0);
+            match (x, y) {
+                (Some(x), Some(y)) => assert!((x.0 - y.0).abs() < 1e-9 && (x.1 - y.1).abs() < 1e-9),
+                (None, None) => {}
+                _ => panic!("{a:?} {b:?} {rho} {c0}: {x:?} vs {y:?}"),
+            }
         }
     }
 }

@@ -1213,16 +1213,9 @@ impl<'p> Interp<'p> {
 
     // ----- one block -----
 
-    fn read_words(&mut self, idx: usize) -> R<(Words, Vec<f64>)> {
+    /// Evaluate the block's words into `w` (filled in place: it is large to move around).
+    fn read_words(&mut self, idx: usize, w: &mut Words) -> R<Vec<f64>> {
         let b = &self.prog.blocks()[idx];
-        let mut w = Words {
-            vals: [None; 26],
-            used: [false; 26],
-            gs: Vec::new(),
-            ms: Vec::new(),
-            corner_r: None,
-            corner_c: None,
-        };
         let implied = self.opts.fanuc_implied_decimal;
         for (i, word) in b.words.iter().enumerate() {
             let mut v = self.eval(&word.value, word.value_span.start)?;
@@ -1364,12 +1357,20 @@ impl<'p> Interp<'p> {
         for a in &b.assignments {
             vals.push(self.eval(&a.value, a.span.start)?);
         }
-        Ok((w, vals))
+        Ok(vals)
     }
 
     fn exec_block(&mut self, idx: usize) -> R<()> {
         self.motion_prev = self.motion;
-        let (mut w, avals) = self.read_words(idx)?;
+        let mut w = Words {
+            vals: [None; 26],
+            used: [false; 26],
+            gs: Vec::new(),
+            ms: Vec::new(),
+            corner_r: None,
+            corner_c: None,
+        };
+        let avals = self.read_words(idx, &mut w)?;
         let b = &self.prog.blocks()[idx];
         for (a, v) in b.assignments.iter().zip(avals) {
             self.assign(a, v)?;

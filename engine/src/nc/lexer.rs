@@ -157,9 +157,12 @@ impl<'a> Lexer<'a> {
                     return self.err(start, "'.' is not a number");
                 }
                 let text = &self.src[start..i];
-                let value: f64 = match text.parse() {
-                    Ok(v) => v,
-                    Err(_) => return self.err(start, format!("bad number '{text}'")),
+                let value: f64 = match fast_decimal(text.as_bytes()) {
+                    Some(v) => v,
+                    None => match text.parse() {
+                        Ok(v) => v,
+                        Err(_) => return self.err(start, format!("bad number '{text}'")),
+                    },
                 };
                 self.pos = i;
                 Tok::Number { value, has_point }
@@ -252,5 +255,79 @@ impl<'a> Lexer<'a> {
             }
         };
         Ok((tok, Span::new(start, self.pos)))
+    }
+}
+
+/// Clinger's fast path: with at most 15 significant digits and 22 decimals the value is one
+/// correctly rounded division of two exact doubles, so it equals `str::parse` bit for bit.
+/// Longer numbers return None and go through the general parser.
+fn fast_decimal(s: &[u8]) -> Option<f64> {
+    const POW10: [f64; 23] = [
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+        1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+    ];
+    let mut m: u64 = 0;
+    let mut digits = 0;
+    let mut frac: Option<usize> = None;
+    for &b in s {
+        match b {
+            b'0'..=b'9' => {
+                // Leading zeros do not count towards the 15 digits.
+                if m != 0 || b != b'0' {
+                    digits += 1;
+                }
+                m = m * 10 + u64::from(b - b'0');
+                if let Some(f) = frac.as_mut() {
+                    *f += 1;
+                }
+                if digits > 15 {
+                    return None;
+                }
+            }
+            b'.' => frac = Some(0),
+            _ => return None,
+        }
+    }
+    let k = frac.unwrap_or(0);
+    if k >= POW10.len() {
+        return None;
+    }
+    Some(m as f64 / POW10[k])
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn fast_decimal_matches_std_parse() {
+        let mut x: u64 = 0x2545_F491_4F6C_DD1D;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let int = x % 100_000;
+            let frac = (x >> 20) % 10_000_000;
+            let w = ((x >> 50) % 8) as usize;
+            let s = format!("{int}.{frac:0w$}", w = w.max(1));
+            let s = &s[..s.len().min(18)];
+            let fast = super::fast_decimal(s.as_bytes());
+            let std: f64 = s.parse().unwrap();
+            if let Some(f) = fast {
+                assert_eq!(f.to_bits(), std.to_bits(), "{s}");
+            }
+        }
+        for s in [
+            "0",
+            "0.",
+            ".5",
+            "75.",
+            "-0",
+            "0000.0001",
+            "123456789012345",
+            "1234567890123456",
+        ] {
+            if let (Some(f), Ok(p)) = (super::fast_decimal(s.as_bytes()), s.parse::<f64>()) {
+                assert_eq!(f.to_bits(), p.to_bits(), "{s}");
+            }
+        }
     }
 }

@@ -287,7 +287,8 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
     let mut line = 1u32;
     let mut percents = 0;
     while start < source.len() {
-        let nl = bytes[start..].iter().position(|&b| b == b'\n');
+        // str::find on one ASCII byte uses a vectorised memchr.
+        let nl = source[start..].find('\n');
         let (content_end, end) = match nl {
             Some(i) => {
                 let e = start + i;
@@ -300,15 +301,17 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
             }
             None => (source.len(), source.len()),
         };
-        let mut block = Block {
+        // Built in place at the end of the vector: a Block is large to move.
+        blocks.push(Block {
             line,
             span: Span::new(start, content_end),
             end,
             ..Block::default()
-        };
+        });
+        let block = blocks.last_mut().expect("just pushed");
         if percents >= 2 {
             block.after_end = true;
-        } else if let Err(e) = parse_line(source, &mut block) {
+        } else if let Err(e) = parse_line(source, block) {
             let col = source[start..e.pos.min(content_end).max(start)]
                 .chars()
                 .count() as u32
@@ -318,7 +321,6 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
         if block.percent {
             percents += 1;
         }
-        blocks.push(block);
         start = end;
         line += 1;
     }
