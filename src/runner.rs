@@ -1,24 +1,52 @@
 //! What each job kind does, on a blocking worker thread: the bridge from a stored job
 //! spec and its loaded inputs to the engine, and from the engine's result to stored rows.
 
-use serde::Deserialize;
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
 use millsim_engine::job::{CancelFlag, Progress};
-use millsim_engine::nc;
+use millsim_engine::physics::Material;
+use millsim_engine::simulate::{self, SimulateError, SimulateSpec, StockSource};
+use millsim_engine::tool::Tool;
+use millsim_engine::{geometry, nc};
+
+use crate::store::ResourceKind;
 
 /// Job kinds the API knows. Only the ones whose engine exists run; the others are refused
 /// at submission with a clear "not supported yet".
 pub const KNOWN_KINDS: [&str; 7] = ["interpret", "simulate", "optimize", "stability", "energy", "rotary-feed", "identify"];
 
 pub fn is_supported(kind: &str) -> bool {
-    kind == "interpret"
+    matches!(kind, "interpret" | "simulate")
 }
 
-/// The inputs each kind needs, as (input name, resource kind).
-pub fn required_inputs(kind: &str) -> &'static [(&'static str, crate::store::ResourceKind)] {
+/// One input a job kind takes: its name under `inputs`, the resource kind, and whether
+/// it must be given.
+pub struct InputSpec {
+    pub name: &'static str,
+    pub kind: ResourceKind,
+    pub required: bool,
+}
+
+const fn input(name: &'static str, kind: ResourceKind, required: bool) -> InputSpec {
+    InputSpec { name, kind, required }
+}
+
+/// The inputs each kind takes.
+pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
+    const INTERPRET: [InputSpec; 1] = [input("program", ResourceKind::Program, true)];
+    const SIMULATE: [InputSpec; 4] = [
+        input("program", ResourceKind::Program, true),
+        input("stock", ResourceKind::Stock, true),
+        input("tool", ResourceKind::Tool, true),
+        // Else `options.material` names a built-in material.
+        input("material", ResourceKind::Material, false),
+    ];
     match kind {
-        "interpret" => &[("program", crate::store::ResourceKind::Program)],
+        "interpret" => &INTERPRET,
+        "simulate" => &SIMULATE,
         _ => &[],
     }
 }
@@ -51,15 +79,29 @@ impl InterpretOptions {
     }
 }
 
-/// Inputs a worker loaded from the database for one job.
-pub struct LoadedInputs {
-    pub program: Option<(String, String)>, // (file name, text)
+/// A stored input as a worker loaded it.
+pub struct LoadedInput {
+    pub file_name: Option<String>,
+    pub media_type: String,
+    pub content: Vec<u8>,
+}
+
+/// Inputs a worker loaded from the database for one job, by input name.
+pub type LoadedInputs = BTreeMap<String, LoadedInput>;
+
+/// A result file.
+pub struct OutputFile {
+    pub name: &'static str,
+    pub media_type: &'static str,
+    pub file_name: String,
+    pub content: Vec<u8>,
 }
 
 /// The result of a job attempt that ran to the end.
 pub struct JobOutput {
     pub summary: Value,
     pub rows: Vec<String>,
+    pub files: Vec<OutputFile>,
 }
 
 /// Why a job attempt ended without output.
@@ -83,6 +125,7 @@ fn diagnostics_problem(file: &str, d: &nc::Diagnostics) -> Value {
 pub fn run(kind: &str, options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
     match kind {
         "interpret" => interpret(options, inputs, cancel, progress),
+        "simulate" => simulate_job(options, inputs, cancel, progress),
         other => Err(JobFailure::Invalid(json!({
             "type": "https://millsim.dev/problems/not-supported",
             "title": "Not supported yet",
@@ -92,8 +135,22 @@ pub fn run(kind: &str, options: &Value, inputs: LoadedInputs, cancel: &CancelFla
     }
 }
 
-fn interpret(options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
-    let (file, text) = inputs.program.ok_or_else(|| JobFailure::Invalid(json!({"title": "missing input `program`", "status": 422})))?;
+fn invalid(title: &str, detail: impl Into<String>) -> JobFailure {
+    JobFailure::Invalid(json!({
+        "type": "https://millsim.dev/problems/invalid-input", "title": title, "status": 422, "detail": detail.into(),
+    }))
+}
+
+/// The program input as (file name, text).
+fn program_text(inputs: &mut LoadedInputs) -> Result<(String, String), JobFailure> {
+    let p = inputs.remove("program").ok_or_else(|| invalid("Missing input", "the job has no `program` input"))?;
+    let file = p.file_name.unwrap_or_else(|| "program.nc".into());
+    let text = String::from_utf8(p.content).map_err(|_| invalid("Program is not text", format!("{file} is not UTF-8")))?;
+    Ok((file, text))
+}
+
+fn interpret(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
+    let (file, text) = program_text(&mut inputs)?;
     let opts: InterpretOptions = serde_json::from_value(options.clone()).map_err(|e| {
         JobFailure::Invalid(json!({"title": "Invalid options", "status": 422, "detail": e.to_string()}))
     })?;
@@ -134,5 +191,119 @@ fn interpret(options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progres
     Ok(JobOutput {
         summary: json!({ "file": file, "moves": result.moves.len(), "blocks": result.block_count, "warnings": warnings, "row_columns": columns }),
         rows,
+        files: Vec::new(),
+    })
+}
+
+/// Options of a `simulate` job.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulateOptions {
+    #[serde(default = "default_dialect")]
+    pub dialect: nc::Dialect,
+    #[serde(default)]
+    pub fanuc_implied_decimal: bool,
+    /// A built-in material (TC6, Al7075-T6, Al6082-T6) when no `material` input is given.
+    #[serde(default)]
+    pub material: Option<String>,
+    /// Dexel spacing, mm; default: smallest tool radius / 20 within [0.02, 0.5].
+    #[serde(default)]
+    pub cell_mm: Option<f64>,
+    /// Angular positions per revolution in the force model.
+    #[serde(default = "default_positions")]
+    pub force_positions: usize,
+    /// Refuse grids over this size, MiB.
+    #[serde(default = "default_grid_mib")]
+    pub max_grid_mib: u64,
+}
+
+fn default_positions() -> usize {
+    180
+}
+
+fn default_grid_mib() -> u64 {
+    4096
+}
+
+impl SimulateOptions {
+    /// Checks what can be checked before the job runs; names the option.
+    pub fn check(&self, has_material_input: bool) -> Result<(), (String, String)> {
+        match (&self.material, has_material_input) {
+            (Some(_), true) => return Err(("options.material".into(), "give a `material` input or `options.material`, not both".into())),
+            (None, false) => return Err(("options.material".into(), "name a built-in material (TC6, Al7075-T6, Al6082-T6) or give a `material` input".into())),
+            (Some(name), false) if Material::builtin(name).is_none() => {
+                let names: Vec<String> = millsim_engine::physics::builtin_materials().into_iter().map(|m| m.name).collect();
+                return Err(("options.material".into(), format!("no built-in material `{name}`; one of: {}", names.join(", "))));
+            }
+            _ => {}
+        }
+        if let Some(c) = self.cell_mm {
+            if !(0.005..=5.0).contains(&c) {
+                return Err(("options.cell_mm".into(), format!("must be in [0.005, 5] mm, got {c}")));
+            }
+        }
+        if !(8..=3600).contains(&self.force_positions) {
+            return Err(("options.force_positions".into(), format!("must be in [8, 3600], got {}", self.force_positions)));
+        }
+        if !(1..=16384).contains(&self.max_grid_mib) {
+            return Err(("options.max_grid_mib".into(), "must be in [1, 16384]".into()));
+        }
+        Ok(())
+    }
+}
+
+#[derive(Serialize)]
+struct SimulateSummary<'a> {
+    file: &'a str,
+    #[serde(flatten)]
+    simulation: &'a simulate::SimulationSummary,
+    row_columns: Vec<String>,
+}
+
+fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
+    let opts: SimulateOptions = serde_json::from_value(options.clone()).map_err(|e| invalid("Invalid options", e.to_string()))?;
+    opts.check(inputs.contains_key("material")).map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
+    let (file, text) = program_text(&mut inputs)?;
+    let json_input = |inputs: &mut LoadedInputs, name: &str| -> Result<Vec<u8>, JobFailure> {
+        inputs.remove(name).map(|i| i.content).ok_or_else(|| invalid("Missing input", format!("the job has no `{name}` input")))
+    };
+    let tool: Tool = serde_json::from_slice(&json_input(&mut inputs, "tool")?).map_err(|e| invalid("Invalid tool", e.to_string()))?;
+    let material = match &opts.material {
+        Some(name) => Material::builtin(name).ok_or_else(|| invalid("Unknown material", name.clone()))?,
+        None => serde_json::from_slice(&json_input(&mut inputs, "material")?).map_err(|e| invalid("Invalid material", e.to_string()))?,
+    };
+    let stock = inputs.remove("stock").ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
+    let stock = if stock.media_type == "application/json" {
+        StockSource::Shape(serde_json::from_slice::<geometry::StockShape>(&stock.content).map_err(|e| invalid("Invalid stock", e.to_string()))?)
+    } else {
+        StockSource::Stl(stock.content)
+    };
+    let spec = SimulateSpec {
+        program: text,
+        interpret: nc::InterpretOptions { dialect: opts.dialect, fanuc_implied_decimal: opts.fanuc_implied_decimal, ..Default::default() },
+        stock,
+        tools: BTreeMap::from([(1, tool)]),
+        material,
+        cell: opts.cell_mm,
+        memory_limit: opts.max_grid_mib << 20,
+        force_positions: opts.force_positions,
+    };
+    let out = simulate::simulate(&spec, cancel, progress).map_err(|e| match e {
+        SimulateError::Cancelled => JobFailure::Cancelled,
+        SimulateError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
+        other => invalid("Simulation refused", format!("{file}: {other}")),
+    })?;
+    let rows: Vec<String> = out.rows.iter().map(|r| serde_json::to_string(r).expect("rows serialize")).collect();
+    let row_columns = match serde_json::to_value(out.rows.first().cloned().unwrap_or_default()) {
+        Ok(Value::Object(o)) => o.keys().cloned().collect(),
+        _ => Vec::new(),
+    };
+    let mut stl = Vec::new();
+    geometry::export_stl(&out.stock, &mut stl).map_err(|e| invalid("Stock export failed", e.to_string()))?;
+    let stem = file.rsplit_once('.').map(|(s, _)| s).unwrap_or(&file);
+    Ok(JobOutput {
+        summary: serde_json::to_value(SimulateSummary { file: &file, simulation: &out.summary, row_columns }).expect("summary serializes"),
+        rows,
+        files: vec![OutputFile { name: "stock.stl", media_type: "model/stl", file_name: format!("{stem}.stock.stl"), content: stl }],
     })
 }

@@ -11,4 +11,5 @@ pub mod job;
 pub mod machine;
 pub mod nc;
 pub mod physics;
+pub mod simulate;
 pub mod tool;

@@ -43,17 +43,27 @@ fn job_response(status: StatusCode, job: &JobRecord, replayed: bool) -> Response
 
 /// Checks the options of a kind at submission, so a bad option is a 422 now rather
 /// than a failed job later.
-fn check_options(kind: &str, options: &Value) -> Result<(), ApiError> {
-    if kind == "interpret" {
-        let o: runner::InterpretOptions = parse_json(options.to_string().as_bytes()).map_err(|mut e| {
+fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Result<(), ApiError> {
+    fn parse<T: serde::de::DeserializeOwned>(options: &Value) -> Result<T, ApiError> {
+        parse_json(options.to_string().as_bytes()).map_err(|mut e| {
             let field = e.extensions.get("field").and_then(Value::as_str).unwrap_or("").to_string();
             e.extensions.insert("field".into(), Value::String(format!("options.{field}")));
             e
-        })?;
-        o.engine_options().map_err(|d| {
-            let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
-            ApiError::invalid_field("options.tool_table", format!("tool table: {first}"))
-        })?;
+        })
+    }
+    match kind {
+        "interpret" => {
+            let o: runner::InterpretOptions = parse(options)?;
+            o.engine_options().map_err(|d| {
+                let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
+                ApiError::invalid_field("options.tool_table", format!("tool table: {first}"))
+            })?;
+        }
+        "simulate" => {
+            let o: runner::SimulateOptions = parse(options)?;
+            o.check(has_material_input).map_err(|(field, message)| ApiError::invalid_field(field, message))?;
+        }
+        _ => {}
     }
     Ok(())
 }
@@ -81,27 +91,28 @@ pub async fn create(State(state): State<AppState>, Owner(owner): Owner, headers:
     if !options.is_object() {
         return Err(ApiError::invalid_field("options", "`options` must be a JSON object"));
     }
-    check_options(&request.kind, &options)?;
 
     let mut inputs = Map::new();
     let mut inline = Vec::new();
-    let required = runner::required_inputs(&request.kind);
+    let specs = runner::inputs_of(&request.kind);
     for name in request.inputs.keys() {
-        if !required.iter().any(|(n, _)| n == name) {
+        if !specs.iter().any(|s| s.name == name) {
             return Err(ApiError::invalid_field(format!("inputs.{name}"), format!("a `{}` job takes no input `{name}`", request.kind)));
         }
     }
-    for (name, kind) in required {
+    for spec in specs {
+        let (name, kind) = (spec.name, spec.kind);
         let field = format!("inputs.{name}");
-        match request.inputs.get(*name) {
-            None => return Err(ApiError::invalid_field(field, format!("a `{}` job needs input `{name}`", request.kind))),
+        match request.inputs.get(name) {
+            None if spec.required => return Err(ApiError::invalid_field(field, format!("a `{}` job needs input `{name}`", request.kind))),
+            None => {}
             Some(Value::String(id)) => {
-                if state.db.get_resource(&owner, *kind, id).await?.is_none() {
+                if state.db.get_resource(&owner, kind, id).await?.is_none() {
                     return Err(ApiError::invalid_field(field, format!("no {} with id `{id}`", kind.as_str())).with("id", id.clone()));
                 }
                 inputs.insert(name.to_string(), Value::String(id.clone()));
             }
-            Some(Value::Object(o)) if *kind == ResourceKind::Program => {
+            Some(Value::Object(o)) if kind == ResourceKind::Program => {
                 let content = o.get("content").and_then(Value::as_str).ok_or_else(|| {
                     ApiError::invalid_field(format!("{field}.content"), "an inline program is {\"name\": ..., \"content\": \"G-code text\"}")
                 })?;
@@ -109,7 +120,7 @@ pub async fn create(State(state): State<AppState>, Owner(owner): Owner, headers:
                 let checked = validate::program(content.as_bytes(), &file)?;
                 inline.push(InlineInput {
                     input: name.to_string(),
-                    kind: *kind,
+                    kind,
                     name: Some(file),
                     media_type: checked.media_type,
                     summary: checked.summary,
@@ -121,6 +132,7 @@ pub async fn create(State(state): State<AppState>, Owner(owner): Owner, headers:
             }
         }
     }
+    check_options(&request.kind, &options, request.inputs.contains_key("material"))?;
     let request_hash = hex(&Sha256::digest(&bytes));
     let outcome = state
         .db

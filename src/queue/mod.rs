@@ -14,8 +14,8 @@ use millsim_engine::job::{CancelFlag, Progress};
 use crate::config::QueueConfig;
 use crate::metrics::Metrics;
 use crate::runner::{self, JobFailure, LoadedInputs};
-use crate::store::jobs::{ClaimedJob, Finish, LeaseState};
-use crate::store::{Db, ResourceKind};
+use crate::store::jobs::{Artifact, ClaimedJob, Finish, LeaseState};
+use crate::store::Db;
 
 #[derive(Default)]
 struct SharedProgress {
@@ -92,21 +92,22 @@ impl Worker {
     }
 
     async fn load_inputs(&self, job: &ClaimedJob) -> Result<LoadedInputs, serde_json::Value> {
-        let mut loaded = LoadedInputs { program: None };
-        for (name, kind) in runner::required_inputs(&job.kind) {
-            let id = job.spec["inputs"][*name].as_str().unwrap_or_default();
-            let found = self.db.resource_content(&job.owner, *kind, id).await.map_err(|e| json!({"title": "storage error", "detail": e.to_string(), "status": 503}))?;
-            let Some((file, _, bytes)) = found else {
+        let mut loaded = LoadedInputs::new();
+        for spec in runner::inputs_of(&job.kind) {
+            let Some(id) = job.spec["inputs"][spec.name].as_str() else { continue };
+            let found = self
+                .db
+                .resource_content(&job.owner, spec.kind, id)
+                .await
+                .map_err(|e| json!({"title": "storage error", "detail": e.to_string(), "status": 503}))?;
+            let Some((file_name, media_type, content)) = found else {
                 return Err(json!({
                     "type": "https://millsim.dev/problems/input-gone",
                     "title": "Input deleted", "status": 422,
-                    "detail": format!("input `{name}` ({} {id}) was deleted before the job ran", kind.as_str()),
+                    "detail": format!("input `{}` ({} {id}) was deleted before the job ran", spec.name, spec.kind.as_str()),
                 }));
             };
-            if *kind == ResourceKind::Program {
-                let text = String::from_utf8(bytes).map_err(|_| json!({"title": "program is not UTF-8", "status": 422}))?;
-                loaded.program = Some((file.unwrap_or_else(|| "program.nc".into()), text));
-            }
+            loaded.insert(spec.name.to_string(), runner::LoadedInput { file_name, media_type, content });
         }
         Ok(loaded)
     }
@@ -190,7 +191,11 @@ impl Worker {
             Ok(Ok(out)) => Some(Finish::Succeeded {
                 summary: out.summary,
                 rows: out.rows,
-                artifacts: Vec::new(),
+                artifacts: out
+                    .files
+                    .into_iter()
+                    .map(|f| Artifact { name: f.name.to_string(), media_type: f.media_type.to_string(), file_name: f.file_name, content: f.content })
+                    .collect(),
                 progress: (progress.done.load(Ordering::Relaxed), progress.total.load(Ordering::Relaxed)),
             }),
             Ok(Err(JobFailure::Invalid(problem))) => Some(Finish::Failed { error: problem }),

@@ -1,0 +1,357 @@
+//! The simulate pipeline: interpret the program, sweep each move through the tri-dexel
+//! stock while recording the engagement before removal, evaluate the cutting forces at
+//! every engaged step, and aggregate per move into the rows users read.
+//!
+//! Frames: the stock is given in the machine (G53) frame, the frame of the interpreter's
+//! move end points; with no work offset active the two are the program's own frame.
+
+use std::collections::BTreeMap;
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::geometry::{self, simulate_removal, GridOptions, Segment, SimOptions, Stock, StockShape};
+use crate::job::{CancelFlag, Progress};
+use crate::nc::{self, FeedMode, Move, MoveKind};
+use crate::physics::{CuttingConditions, ForceModel, Material};
+use crate::tool::Tool;
+
+/// Where the stock comes from.
+pub enum StockSource {
+    Shape(StockShape),
+    Stl(Vec<u8>),
+}
+
+pub struct SimulateSpec {
+    pub program: String,
+    pub interpret: nc::InterpretOptions,
+    pub stock: StockSource,
+    /// Tools by T number. A single entry serves every tool number of the program.
+    pub tools: BTreeMap<u32, Tool>,
+    pub material: Material,
+    /// Dexel spacing, mm; default from the smallest tool (radius / 20, within [0.02, 0.5]).
+    pub cell: Option<f64>,
+    pub memory_limit: u64,
+    /// Angular positions per spindle revolution in the force model.
+    pub force_positions: usize,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SimulateError {
+    #[error("{0}")]
+    Program(nc::Diagnostics),
+    #[error("line {line}: tool T{tool} is used but not defined; define it under `tools`")]
+    UnknownTool { tool: u32, line: u32 },
+    #[error("line {line}: rotary axes (A/B/C) move; simulating them needs the machine kinematics, which are not supported yet")]
+    RotaryAxes { line: u32 },
+    #[error("stock: {0}")]
+    Geometry(#[from] geometry::GeometryError),
+    #[error("force model: {0}")]
+    Physics(#[from] crate::physics::PhysicsError),
+    #[error("cancelled")]
+    Cancelled,
+}
+
+/// One row per move.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct MoveRow {
+    pub block: usize,
+    pub line: u32,
+    pub tool: u32,
+    pub kind: &'static str,
+    /// Path length, mm.
+    pub length: f64,
+    /// The F word in force (in the block's feed mode) and the feed it means, mm/min.
+    pub feed: f64,
+    pub feed_mode: &'static str,
+    pub feed_mm_min: f64,
+    pub spindle: f64,
+    pub removed_volume: f64,
+    /// mm³/min at the programmed feed.
+    pub max_mrr: f64,
+    pub max_axial_depth: f64,
+    pub max_radial_width: f64,
+    /// Degrees, over the move's engaged steps (null in air).
+    pub entry_angle_deg: Option<f64>,
+    pub exit_angle_deg: Option<f64>,
+    pub max_chip_thickness: f64,
+    /// |F| over a revolution: peak over the move's steps, and the length-weighted mean of
+    /// the per-step means over the cutting part of the move. N.
+    pub peak_force: f64,
+    pub mean_force: f64,
+    /// Peaks of |Fx|, |Fy|, |Fz| in the machine frame, N.
+    pub peak_fx: f64,
+    pub peak_fy: f64,
+    pub peak_fz: f64,
+    pub peak_torque: f64,
+    pub peak_power: f64,
+    /// Length-weighted mean cutting power over the whole move, W.
+    pub mean_power: f64,
+    pub air_fraction: f64,
+    pub steps: usize,
+    pub rapid_in_material: bool,
+    pub flute_length_exceeded: bool,
+    pub shank_contact: bool,
+    pub holder_contact: bool,
+    /// Material removed while the spindle is stopped.
+    pub spindle_stopped_in_material: bool,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SimulationSummary {
+    pub moves: usize,
+    pub blocks: usize,
+    pub cell_mm: f64,
+    pub stock_volume_before: f64,
+    pub stock_volume_after: f64,
+    pub removed_volume: f64,
+    pub peak_force: f64,
+    pub peak_force_line: Option<u32>,
+    pub cutting_moves: usize,
+    pub air_moves: usize,
+    pub rapid_in_material_moves: usize,
+    pub holder_or_shank_contact_moves: usize,
+    pub flute_length_exceeded_moves: usize,
+    pub force_evaluations: usize,
+}
+
+pub struct SimulationOutput {
+    pub rows: Vec<MoveRow>,
+    pub summary: SimulationSummary,
+    pub stock: Stock,
+}
+
+fn kind_name(k: MoveKind) -> &'static str {
+    match k {
+        MoveKind::Rapid => "rapid",
+        MoveKind::Linear => "linear",
+        MoveKind::Arc => "arc",
+        MoveKind::Dwell => "dwell",
+        MoveKind::ToolChange => "tool_change",
+    }
+}
+
+fn feed_mode_name(m: FeedMode) -> &'static str {
+    match m {
+        FeedMode::PerMin => "per_min",
+        FeedMode::InverseTime => "inverse_time",
+        FeedMode::PerRev => "per_rev",
+    }
+}
+
+fn distance(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// The feed in mm/min a move runs at, whatever its feed mode.
+pub fn feed_mm_per_min(m: &Move, length: f64) -> f64 {
+    match m.feed_mode {
+        FeedMode::PerMin => m.feed,
+        // F is 1/minutes for the whole move.
+        FeedMode::InverseTime => m.feed * length,
+        FeedMode::PerRev => m.feed * m.spindle,
+    }
+}
+
+/// The geometry segment of a cutting or positioning move; None for dwells and tool changes.
+fn segment(m: &Move, length: f64) -> Option<Segment> {
+    let (from, to) = ([m.start[0], m.start[1], m.start[2]], [m.end[0], m.end[1], m.end[2]]);
+    let seg = match m.kind {
+        MoveKind::Rapid => Segment::rapid(m.block, from, to),
+        MoveKind::Linear => Segment::linear(m.block, from, to, feed_mm_per_min(m, length), m.spindle),
+        MoveKind::Arc => {
+            let arc = m.arc.as_ref()?;
+            let mut s = Segment::arc(m.block, from, to, arc.center, arc.normal, arc.clockwise, feed_mm_per_min(m, length), m.spindle);
+            if let geometry::PathShape::Arc { turns, .. } = &mut s.shape {
+                *turns = arc.turns.max(1);
+            }
+            s
+        }
+        MoveKind::Dwell | MoveKind::ToolChange => return None,
+    };
+    Some(seg)
+}
+
+pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progress) -> Result<SimulationOutput, SimulateError> {
+    let interpretation = nc::interpret(&spec.program, &spec.interpret).map_err(SimulateError::Program)?;
+    let moves = &interpretation.moves;
+    let single_tool = if spec.tools.len() == 1 { spec.tools.values().next() } else { None };
+    let tool_for = |m: &Move| -> Result<&Tool, SimulateError> {
+        single_tool.or_else(|| spec.tools.get(&m.tool)).ok_or(SimulateError::UnknownTool { tool: m.tool, line: m.line })
+    };
+    // Before the first tool change no cutter is in the spindle: positioning moves then
+    // sweep nothing; a feed move then is an error (it would cut with nothing).
+    let sweeps = |m: &Move| single_tool.is_some() || m.tool != 0;
+    for m in moves {
+        if (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9) {
+            return Err(SimulateError::RotaryAxes { line: m.line });
+        }
+    }
+    for t in spec.tools.values() {
+        t.validate().map_err(crate::physics::PhysicsError::from)?;
+    }
+    spec.material.validate()?;
+
+    let radii: Vec<f64> = spec.tools.values().map(Tool::radius).collect();
+    let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
+    let grid = GridOptions { cell: Some(cell), memory_limit: spec.memory_limit };
+    let mut stock = match &spec.stock {
+        StockSource::Shape(shape) => Stock::from_shape(shape, &grid)?,
+        StockSource::Stl(bytes) => Stock::from_stl_bytes(bytes, &grid)?,
+    };
+    let volume_before = stock.volume();
+
+    // Rows for every move; geometry for the ones that sweep, in runs of one tool.
+    let lengths: Vec<f64> = moves
+        .iter()
+        .map(|m| match (&m.kind, &m.arc) {
+            (MoveKind::Arc, Some(a)) => {
+                let r = 0.5 * (a.start_radius + a.end_radius);
+                let along = (0..3).map(|i| (m.end[i] - m.start[i]) * a.normal[i]).sum::<f64>();
+                ((a.sweep.abs() * r).powi(2) + along * along).sqrt()
+            }
+            _ => distance(&m.start, &m.end),
+        })
+        .collect();
+    let mut rows: Vec<MoveRow> = moves
+        .iter()
+        .zip(&lengths)
+        .map(|(m, &length)| MoveRow {
+            block: m.block,
+            line: m.line,
+            tool: m.tool,
+            kind: kind_name(m.kind),
+            length,
+            feed: m.feed,
+            feed_mode: feed_mode_name(m.feed_mode),
+            feed_mm_min: if m.kind == MoveKind::Rapid { 0.0 } else { feed_mm_per_min(m, length) },
+            spindle: m.spindle,
+            ..MoveRow::default()
+        })
+        .collect();
+
+    // (move index, tool number, segment) in program order, grouped into same-tool runs.
+    let mut runs: Vec<(u32, Vec<(usize, Segment)>)> = Vec::new();
+    for (i, m) in moves.iter().enumerate() {
+        let Some(seg) = segment(m, lengths[i]) else { continue };
+        if !sweeps(m) {
+            if m.kind != MoveKind::Rapid {
+                return Err(SimulateError::UnknownTool { tool: 0, line: m.line });
+            }
+            continue;
+        }
+        tool_for(m)?;
+        match runs.last_mut() {
+            Some((t, segs)) if *t == m.tool => segs.push((i, seg)),
+            _ => runs.push((m.tool, vec![(i, seg)])),
+        }
+    }
+    let total = moves.len() as u64;
+    let mut steps: Vec<(usize, u32, geometry::StepGeometry)> = Vec::new();
+    let mut done = 0u64;
+    let mut models: BTreeMap<u32, ForceModel> = BTreeMap::new();
+    for (tool_number, segs) in &runs {
+        let tool = tool_for(&moves[segs[0].0])?;
+        if !models.contains_key(tool_number) {
+            models.insert(*tool_number, ForceModel::new(tool, 50, spec.force_positions)?.keep_samples(false));
+        }
+        let only: Vec<Segment> = segs.iter().map(|(_, s)| s.clone()).collect();
+        let report = simulate_removal(&mut stock, tool, &only, &SimOptions::default(), cancel).map_err(|e| match e {
+            geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
+            other => SimulateError::Geometry(other),
+        })?;
+        for ((move_index, _), b) in segs.iter().zip(report.blocks) {
+            let row = &mut rows[*move_index];
+            row.removed_volume = b.removed_volume;
+            row.max_axial_depth = b.max_axial_depth;
+            row.max_radial_width = b.max_radial_width;
+            row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
+            row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
+            // A step that removes nothing is air, even where the edge grazes a wall that
+            // an earlier move cut to exactly the tool's radius.
+            let cut_length: f64 = b.steps.iter().filter(|s| !s.air && s.removed_volume > 0.0).map(|s| s.length).sum();
+            let steps_length: f64 = b.steps.iter().map(|s| s.length).sum();
+            row.air_fraction = if steps_length > 0.0 { 1.0 - cut_length / steps_length } else { 1.0 };
+            row.rapid_in_material = b.checks.rapid_in_material;
+            row.flute_length_exceeded = b.checks.flute_length_exceeded;
+            row.shank_contact = b.checks.shank_contact;
+            row.holder_contact = b.checks.holder_contact;
+            row.steps = b.steps.len();
+            row.max_mrr = b.max_mrr;
+            row.spindle_stopped_in_material = b.removed_volume > 1e-6 && moves[*move_index].spindle <= 0.0 && !b.rapid;
+            steps.extend(b.steps.into_iter().map(|s| (*move_index, *tool_number, s)));
+        }
+        done += segs.len() as u64;
+        progress.report(done.min(total), total);
+    }
+
+    // Forces at every engaged step, in parallel: each step is independent and results are
+    // gathered in step order, so the outcome does not depend on the thread count.
+    let k = spec.material.coefficients;
+    let forces: Vec<Option<crate::physics::ForceResult>> = steps
+        .par_iter()
+        .map_init(
+            || models.clone(),
+            |models, (mi, t, s)| {
+                let m = &moves[*mi];
+                let flutes = models[t].table().flutes() as f64;
+                if s.air || s.removed_volume <= 0.0 || m.spindle <= 0.0 || rows[*mi].feed_mm_min <= 0.0 {
+                    return Ok(None);
+                }
+                let conditions = CuttingConditions { spindle_rpm: m.spindle, feed_per_tooth: rows[*mi].feed_mm_min / (m.spindle * flutes) };
+                models.get_mut(t).expect("model per tool").evaluate(&s.engagement, &k, &conditions).map(Some)
+            },
+        )
+        .collect::<Result<_, _>>()?;
+    if cancel.is_cancelled() {
+        return Err(SimulateError::Cancelled);
+    }
+    let mut weighted: Vec<(f64, f64, f64)> = vec![(0.0, 0.0, 0.0); rows.len()]; // (Σ mean·len, Σ len engaged, Σ power·len)
+    let mut evaluations = 0;
+    for ((mi, _, s), f) in steps.iter().zip(&forces) {
+        let Some(f) = f else { continue };
+        evaluations += 1;
+        let row = &mut rows[*mi];
+        row.peak_force = row.peak_force.max(f.force.peak);
+        row.peak_fx = row.peak_fx.max(f.part[0].peak());
+        row.peak_fy = row.peak_fy.max(f.part[1].peak());
+        row.peak_fz = row.peak_fz.max(f.part[2].peak());
+        row.peak_torque = row.peak_torque.max(f.torque.peak);
+        row.peak_power = row.peak_power.max(f.power.peak);
+        row.max_chip_thickness = row.max_chip_thickness.max(f.max_chip_thickness);
+        let w = &mut weighted[*mi];
+        w.0 += f.force.mean * s.length;
+        w.1 += s.length;
+        w.2 += f.power.mean * s.length;
+    }
+    for (row, (fl, len, pl)) in rows.iter_mut().zip(weighted) {
+        if len > 0.0 {
+            row.mean_force = fl / len;
+        }
+        if row.length > 0.0 {
+            row.mean_power = pl / row.length;
+        }
+    }
+    progress.report(total, total);
+
+    let volume_after = stock.volume();
+    let peak = rows.iter().max_by(|a, b| a.peak_force.total_cmp(&b.peak_force)).filter(|r| r.peak_force > 0.0);
+    let cutting = |r: &&MoveRow| r.kind == "linear" || r.kind == "arc";
+    let summary = SimulationSummary {
+        moves: moves.len(),
+        blocks: interpretation.block_count,
+        cell_mm: cell,
+        stock_volume_before: volume_before,
+        stock_volume_after: volume_after,
+        removed_volume: volume_before - volume_after,
+        peak_force: peak.map(|r| r.peak_force).unwrap_or(0.0),
+        peak_force_line: peak.map(|r| r.line),
+        cutting_moves: rows.iter().filter(cutting).filter(|r| r.removed_volume > 0.0).count(),
+        air_moves: rows.iter().filter(cutting).filter(|r| r.removed_volume <= 0.0).count(),
+        rapid_in_material_moves: rows.iter().filter(|r| r.rapid_in_material).count(),
+        holder_or_shank_contact_moves: rows.iter().filter(|r| r.holder_contact || r.shank_contact).count(),
+        flute_length_exceeded_moves: rows.iter().filter(|r| r.flute_length_exceeded).count(),
+        force_evaluations: evaluations,
+    };
+    Ok(SimulationOutput { rows, summary, stock })
+}

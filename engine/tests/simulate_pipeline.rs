@@ -1,0 +1,84 @@
+//! The simulate pipeline end to end on a slot whose volume and power have closed forms,
+//! plus the checks users rely on: air cuts and rapids through material on the right line.
+
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+
+use millsim_engine::geometry::StockShape;
+use millsim_engine::job::{CancelFlag, NoProgress};
+use millsim_engine::nc::InterpretOptions;
+use millsim_engine::physics::Material;
+use millsim_engine::simulate::{simulate, SimulateSpec, StockSource};
+use millsim_engine::tool::Tool;
+
+fn spec(program: &str) -> SimulateSpec {
+    let mut tool = Tool::flat(10.0, 4);
+    tool.helix_deg = 0.0;
+    tool.flute_length = 20.0;
+    SimulateSpec {
+        program: program.into(),
+        interpret: InterpretOptions::default(),
+        stock: StockSource::Shape(StockShape::Block { min: [0.0, -20.0, -10.0], max: [100.0, 20.0, 0.0] }),
+        tools: BTreeMap::from([(1, tool)]),
+        material: Material::builtin("Al7075-T6").unwrap(),
+        cell: Some(0.25),
+        memory_limit: 1 << 30,
+        force_positions: 360,
+    }
+}
+
+#[test]
+fn slot_volume_and_steady_power_match_closed_forms() {
+    // Enter the slot (line 7), then cut in full slot engagement (line 8).
+    let program = "G21 G90 G17\nT1 M6\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X20 F4000\nG1 X60\nG0 Z5\nM30\n";
+    let out = simulate(&spec(program), &CancelFlag::new(), &NoProgress).unwrap();
+    let removed: f64 = out.rows.iter().map(|r| r.removed_volume).sum();
+    let analytic = 5.0 * (60.0 * 10.0 + PI * 25.0 / 2.0);
+    assert!((removed - analytic).abs() / analytic < 0.005, "removed {removed} vs {analytic}");
+    assert!((out.summary.removed_volume - analytic).abs() / analytic < 0.005);
+
+    let steady = out.rows.iter().find(|r| r.line == 8).unwrap();
+    assert!((steady.max_axial_depth - 5.0).abs() <= 0.25, "{steady:?}");
+    assert!((steady.max_radial_width - 10.0).abs() <= 0.25, "{steady:?}");
+    // Mean torque in a slot, zero helix: T = R·N·a/(2π)·(2·Ktc·c + π·Kte); P = T·ω.
+    let (ktc, kte, n, a, c, r) = (767.01, 27.7, 4.0, 5.0, 0.1, 5.0);
+    let torque = r * n * a / (2.0 * PI) * (2.0 * ktc * c + PI * kte) / 1000.0;
+    let power = torque * 10_000.0 * 2.0 * PI / 60.0;
+    assert!((steady.mean_power - power).abs() / power < 0.02, "mean power {} vs closed form {power}", steady.mean_power);
+    assert!((steady.max_chip_thickness - 0.1).abs() < 1e-6, "{steady:?}");
+    assert_eq!(steady.air_fraction, 0.0);
+    // Reference peak |Fxy| of this slot is 664.2 N; |F| adds the axial part.
+    assert!(steady.peak_force >= 664.2 * 0.99 && steady.peak_force < 664.2 * 1.3, "{steady:?}");
+    assert!(!out.rows.iter().any(|r| r.rapid_in_material || r.holder_contact));
+}
+
+#[test]
+fn a_second_layer_in_the_wrong_order_cuts_air_and_a_rapid_through_stock_is_flagged() {
+    // Layer at Z-5 first, then the Z-3 layer over the same path: it finds no material.
+    let program = "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nG0 X-10\nG0 Z-3\nG1 X60 F4000\nG0 Z5\nG0 X80 Y-15\nG0 Z-8\nG0 Y15\nM30\n";
+    let out = simulate(&spec(program), &CancelFlag::new(), &NoProgress).unwrap();
+    let first = out.rows.iter().find(|r| r.line == 6).unwrap();
+    let second = out.rows.iter().find(|r| r.line == 10).unwrap();
+    assert!(first.removed_volume > 1000.0);
+    assert_eq!(second.removed_volume, 0.0, "{second:?}");
+    assert_eq!(second.air_fraction, 1.0);
+    assert_eq!(second.peak_force, 0.0);
+    assert_eq!(out.summary.air_moves, 1);
+    // The plunge at X80 Y-15 and the traverse to Y15 go through uncut stock at rapid.
+    let flagged: Vec<u32> = out.rows.iter().filter(|r| r.rapid_in_material).map(|r| r.line).collect();
+    assert!(flagged.contains(&13) && flagged.contains(&14), "{flagged:?}");
+    assert!(flagged.iter().all(|l| *l >= 13), "{flagged:?}");
+}
+
+#[test]
+fn errors_name_the_line() {
+    let mut s = spec("G0 X0\nT7 M6\nG1 X10 F100\n");
+    s.tools.insert(2, Tool::flat(6.0, 3));
+    let err = simulate(&s, &CancelFlag::new(), &NoProgress).err().unwrap().to_string();
+    assert!(err.contains("T7") && err.contains("line"), "{err}");
+    let err = simulate(&spec("G0 X0\nG1 A30 F100\n"), &CancelFlag::new(), &NoProgress).err().unwrap().to_string();
+    assert!(err.contains("line 2") && err.contains("rotary"), "{err}");
+    let cancel = CancelFlag::new();
+    cancel.cancel();
+    assert!(simulate(&spec("G0 X0\nG1 X10 F100\n"), &cancel, &NoProgress).is_err());
+}

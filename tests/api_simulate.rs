@@ -1,0 +1,62 @@
+//! The simulate job over HTTP: inputs by id, per-move rows, summary, final stock.
+
+mod common;
+
+use std::time::Duration;
+
+use common::*;
+use serde_json::json;
+
+#[tokio::test]
+async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let id = |v: serde_json::Value| v["id"].as_str().unwrap().to_string();
+    let post_json = |path: &str, body: serde_json::Value| c.post(s.url(path)).json(&body).send();
+    let (st, stock) = json(post_json("/v1/stocks", json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]})).await.unwrap()).await;
+    assert_eq!(st, 201, "{stock}");
+    let (st, tool) = json(
+        post_json("/v1/tools", json!({"shape": "flat", "diameter": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length": 20.0})).await.unwrap(),
+    )
+    .await;
+    assert_eq!(st, 201, "{tool}");
+    let program = "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n";
+    let (st, prog) = json(c.post(s.url("/v1/programs?name=slot.nc")).body(program).send().await.unwrap()).await;
+    assert_eq!(st, 201);
+    let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": id(stock), "tool": id(tool)},
+                      "options": {"material": "Al7075-T6", "cell_mm": 0.25}});
+    let (st, job) = json(post_json("/v1/jobs", body).await.unwrap()).await;
+    assert_eq!(st, 202, "{job}");
+    let job_id = id(job);
+    let done = wait_job(&c, &s, &job_id, Duration::from_secs(120)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let summary = &done["summary"];
+    let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
+    let removed = summary["removed_volume"].as_f64().unwrap();
+    assert!((removed - analytic).abs() / analytic < 0.005, "{summary}");
+    assert_eq!(summary["peak_force_line"], 6);
+    assert_eq!(summary["rapid_in_material_moves"], 0);
+
+    let csv = c.get(s.url(&format!("/v1/jobs/{job_id}/blocks?format=csv"))).send().await.unwrap().text().await.unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    for col in ["block", "line", "tool", "kind", "length", "feed", "removed_volume", "peak_force", "mean_force", "peak_torque", "air_fraction", "rapid_in_material"] {
+        assert!(header.contains(&col), "{col} not in {header:?}");
+    }
+    let (_, page) = json(c.get(s.url(&format!("/v1/jobs/{job_id}/blocks"))).send().await.unwrap()).await;
+    let cut = page["items"].as_array().unwrap().iter().find(|r| r["line"] == 6).unwrap();
+    assert!(cut["peak_force"].as_f64().unwrap() > 600.0, "{cut}");
+
+    let res = c.get(s.url(&format!("/v1/jobs/{job_id}/stock.stl"))).send().await.unwrap();
+    assert_eq!(res.status(), 200);
+    assert!(res.headers()["content-disposition"].to_str().unwrap().contains("slot.stock.stl"));
+    let stl = res.bytes().await.unwrap();
+    let triangles = u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize;
+    assert!(triangles > 12);
+    assert_eq!(stl.len(), 84 + 50 * triangles, "binary STL layout");
+
+    // Options are checked at submission, naming the option.
+    let bad = json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}, "stock": "x", "tool": "y"}, "options": {"material": "Unobtainium"}});
+    let (st, p) = json(post_json("/v1/jobs", bad).await.unwrap()).await;
+    assert_eq!((st, p["field"].as_str()), (422, Some("inputs.stock")), "{p}");
+}

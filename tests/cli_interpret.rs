@@ -1,0 +1,67 @@
+//! `millsim interpret FILE`: one JSON object per move on stdout; errors as
+//! FILE:LINE:COL: message on stderr with a non-zero exit.
+
+mod common;
+
+use std::process::Command;
+
+use common::*;
+
+#[test]
+fn prints_one_json_object_per_move_in_the_documented_shape() {
+    let file = corpus("gcode/fusion360_2d_pocket_contour_bore_1099.nc");
+    let out = Command::new(BIN).arg("interpret").arg(&file).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let moves: Vec<serde_json::Value> =
+        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert!(moves.len() > 1000);
+    for m in &moves {
+        for key in ["block", "line", "kind", "end", "feed", "feed_mode", "spindle", "tool"] {
+            assert!(m.get(key).is_some(), "{key} missing in {m}");
+        }
+        assert_eq!(m["end"].as_array().unwrap().len(), 6);
+        assert!(["rapid", "linear", "arc", "dwell", "tool_change"].contains(&m["kind"].as_str().unwrap()));
+        assert!(["per_min", "inverse_time", "per_rev"].contains(&m["feed_mode"].as_str().unwrap()));
+        if m["kind"] == "arc" {
+            assert_eq!(m["center"].as_array().unwrap().len(), 3);
+            assert_eq!(m["normal"].as_array().unwrap().len(), 3);
+            assert!(m["clockwise"].is_boolean());
+        }
+    }
+    // The block index is the 0-based source line of the block.
+    assert!(moves.iter().all(|m| m["block"].as_u64().unwrap() + 1 == m["line"].as_u64().unwrap()));
+}
+
+#[test]
+fn errors_name_file_line_and_column_and_exit_non_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("bad.nc");
+    std::fs::write(&file, "G21 G90\nG0 X0 Y0\nG1 X10 Y[2+ F100\nG1 Q5 X1\n").unwrap();
+    let out = Command::new(BIN).arg("interpret").arg(&file).output().unwrap();
+    assert!(!out.status.success());
+    assert!(out.stdout.is_empty(), "no moves printed for a program with errors");
+    let err = String::from_utf8(out.stderr).unwrap();
+    let first = err.lines().next().unwrap();
+    let prefix = format!("{}:3:", file.display());
+    assert!(first.starts_with(&prefix), "{err}");
+    let col: u32 = first[prefix.len()..].split(':').next().unwrap().parse().unwrap();
+    assert!(col >= 1);
+    let missing = Command::new(BIN).args(["interpret", "/nonexistent/x.nc"]).output().unwrap();
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).starts_with("/nonexistent/x.nc:"));
+}
+
+#[test]
+fn reads_apt_cls_files_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("op.cls");
+    std::fs::write(&file, "TLAXIS/0,0,1\nRAPID\nGOTO/0,0,10\nFEDRAT/MMPM,500\nGOTO/0,0,0\nGOTO/10,0,0,0,0,1\n").unwrap();
+    let out = Command::new(BIN).arg("interpret").arg(&file).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let moves: Vec<serde_json::Value> =
+        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let last = moves.last().unwrap();
+    assert_eq!(last["end"][0], 10.0);
+    assert_eq!(last["feed"], 500.0);
+    assert_eq!(last["kind"], "linear");
+}
