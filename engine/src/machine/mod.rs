@@ -1,6 +1,10 @@
 //! Machine definitions: what the cycle-time model, the optimizer's limits and the
 //! kinematics need to know about a machine tool.
 
+pub mod cycle_time;
+
+pub use cycle_time::{cycle_time, cycle_time_with, CycleTime, CycleTimeError, CycleTimeOptions};
+
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
