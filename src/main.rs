@@ -1,9 +1,11 @@
 //! millsim: the virtual-machining service and its command line.
 
 mod config;
+mod csv;
 mod http;
 mod metrics;
 mod queue;
+mod run_cli;
 mod runner;
 mod store;
 mod validate;
@@ -44,6 +46,8 @@ enum Command {
     Worker(WorkerArgs),
     /// Interpret an NC program (G-code or APT/CLS) and print one JSON object per move.
     Interpret(InterpretArgs),
+    /// Simulate a program offline: writes summary.json, blocks.csv and stock.stl.
+    Run(run_cli::RunArgs),
     /// Print every HTTP route as `METHOD PATH`, one per line (checked against openapi.yaml).
     #[command(hide = true)]
     Routes,
@@ -152,6 +156,13 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Interpret(args) => interpret(args),
+        Command::Run(args) => match run_cli::run(args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("millsim run: {e}");
+                ExitCode::FAILURE
+            }
+        },
         Command::Routes => {
             for (method, path) in http::route_table() {
                 println!("{method} {path}");

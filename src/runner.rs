@@ -257,6 +257,9 @@ struct SimulateSummary<'a> {
     file: &'a str,
     #[serde(flatten)]
     simulation: &'a simulate::SimulationSummary,
+    /// Wall time per stage on the worker, seconds.
+    timings: &'a simulate::StageTimings,
+    dexel_updates: u64,
     row_columns: Vec<String>,
 }
 
@@ -302,7 +305,14 @@ fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, 
     geometry::export_stl(&out.stock, &mut stl).map_err(|e| invalid("Stock export failed", e.to_string()))?;
     let stem = file.rsplit_once('.').map(|(s, _)| s).unwrap_or(&file);
     Ok(JobOutput {
-        summary: serde_json::to_value(SimulateSummary { file: &file, simulation: &out.summary, row_columns }).expect("summary serializes"),
+        summary: serde_json::to_value(SimulateSummary {
+            file: &file,
+            simulation: &out.summary,
+            timings: &out.timings,
+            dexel_updates: out.rays_tested,
+            row_columns,
+        })
+        .expect("summary serializes"),
         rows,
         files: vec![OutputFile { name: "stock.stl", media_type: "model/stl", file_name: format!("{stem}.stock.stl"), content: stl }],
     })

@@ -115,10 +115,22 @@ pub struct SimulationSummary {
     pub force_evaluations: usize,
 }
 
+/// Wall time of each stage, seconds. Kept apart from the summary, which is deterministic.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct StageTimings {
+    pub interpret_s: f64,
+    pub stock_s: f64,
+    pub removal_and_engagement_s: f64,
+    pub forces_s: f64,
+}
+
 pub struct SimulationOutput {
     pub rows: Vec<MoveRow>,
     pub summary: SimulationSummary,
     pub stock: Stock,
+    pub timings: StageTimings,
+    /// Dexel updates counted by the geometry engine (rays tested against the sweeps).
+    pub rays_tested: u64,
 }
 
 fn kind_name(k: MoveKind) -> &'static str {
@@ -173,7 +185,10 @@ fn segment(m: &Move, length: f64) -> Option<Segment> {
 }
 
 pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progress) -> Result<SimulationOutput, SimulateError> {
+    let mut timings = StageTimings::default();
+    let clock = std::time::Instant::now();
     let interpretation = nc::interpret(&spec.program, &spec.interpret).map_err(SimulateError::Program)?;
+    timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
     let single_tool = if spec.tools.len() == 1 { spec.tools.values().next() } else { None };
     let tool_for = |m: &Move| -> Result<&Tool, SimulateError> {
@@ -195,11 +210,13 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     let radii: Vec<f64> = spec.tools.values().map(Tool::radius).collect();
     let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
     let grid = GridOptions { cell: Some(cell), memory_limit: spec.memory_limit };
+    let clock = std::time::Instant::now();
     let mut stock = match &spec.stock {
         StockSource::Shape(shape) => Stock::from_shape(shape, &grid)?,
         StockSource::Stl(bytes) => Stock::from_stl_bytes(bytes, &grid)?,
     };
     let volume_before = stock.volume();
+    timings.stock_s = clock.elapsed().as_secs_f64();
 
     // Rows for every move; geometry for the ones that sweep, in runs of one tool.
     let lengths: Vec<f64> = moves
@@ -247,6 +264,8 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         }
     }
     let total = moves.len() as u64;
+    let clock = std::time::Instant::now();
+    let mut rays_tested = 0u64;
     let mut steps: Vec<(usize, u32, geometry::StepGeometry)> = Vec::new();
     let mut done = 0u64;
     let mut models: BTreeMap<u32, ForceModel> = BTreeMap::new();
@@ -260,6 +279,7 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
             geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
             other => SimulateError::Geometry(other),
         })?;
+        rays_tested += report.rays_tested;
         for ((move_index, _), b) in segs.iter().zip(report.blocks) {
             let row = &mut rows[*move_index];
             row.removed_volume = b.removed_volume;
@@ -287,6 +307,8 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
 
     // Forces at every engaged step, in parallel: each step is independent and results are
     // gathered in step order, so the outcome does not depend on the thread count.
+    timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
     let k = spec.material.coefficients;
     let forces: Vec<Option<crate::physics::ForceResult>> = steps
         .par_iter()
@@ -333,6 +355,7 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         }
     }
     progress.report(total, total);
+    timings.forces_s = clock.elapsed().as_secs_f64();
 
     let volume_after = stock.volume();
     let peak = rows.iter().max_by(|a, b| a.peak_force.total_cmp(&b.peak_force)).filter(|r| r.peak_force > 0.0);
@@ -353,5 +376,5 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         flute_length_exceeded_moves: rows.iter().filter(|r| r.flute_length_exceeded).count(),
         force_evaluations: evaluations,
     };
-    Ok(SimulationOutput { rows, summary, stock })
+    Ok(SimulationOutput { rows, summary, stock, timings, rays_tested })
 }

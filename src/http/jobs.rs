@@ -18,7 +18,7 @@ use super::auth::hex;
 use super::body::read_limited;
 use super::problem::{parse_json, ApiError};
 use super::{parse_query, AppState, Owner, PageQuery};
-use crate::runner;
+use crate::{csv, runner};
 use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
 use crate::validate;
@@ -272,41 +272,6 @@ pub async fn blocks(State(state): State<AppState>, Owner(owner): Owner, Path(id)
     }
 }
 
-/// CSV columns: the job's declared row keys (else the first row's), where a key whose
-/// value is an array becomes `name_x`, `name_y`, ... columns (sized from the first row
-/// holding it: positions are 6 axes, centres and normals 3).
-fn csv_columns(keys: &[String], sample_rows: &[Map<String, Value>]) -> Vec<(String, String, Option<usize>)> {
-    const AXES: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
-    let mut cols = Vec::new();
-    for k in keys {
-        match sample_rows.iter().find_map(|r| r.get(k).filter(|v| !v.is_null())) {
-            Some(Value::Array(a)) if a.len() <= 6 => {
-                for (i, axis) in AXES.iter().enumerate().take(a.len()) {
-                    cols.push((format!("{k}_{axis}"), k.clone(), Some(i)));
-                }
-            }
-            _ => cols.push((k.clone(), k.clone(), None)),
-        }
-    }
-    cols
-}
-
-fn csv_field(v: Option<&Value>) -> String {
-    match v {
-        None | Some(Value::Null) => String::new(),
-        Some(Value::String(s)) if s.contains([',', '"', '\n']) => format!("\"{}\"", s.replace('"', "\"\"")),
-        Some(Value::String(s)) => s.clone(),
-        Some(other) => {
-            let s = other.to_string();
-            if s.contains([',', '"', '\n']) {
-                format!("\"{}\"", s.replace('"', "\"\""))
-            } else {
-                s
-            }
-        }
-    }
-}
-
 /// Streams every row as CSV, reading the table page by page: memory stays flat
 /// whatever the number of blocks.
 fn csv_response(db: Db, id: String, declared: Option<Vec<String>>) -> Response {
@@ -316,7 +281,7 @@ fn csv_response(db: Db, id: String, declared: Option<Vec<String>>) -> Response {
         id: String,
         next: i64,
         declared: Option<Vec<String>>,
-        columns: Option<Vec<(String, String, Option<usize>)>>,
+        columns: Option<Vec<csv::Column>>,
         done: bool,
     }
     let stream = stream::unfold(S { db, id, next: 0, declared, columns: None, done: false }, |mut s| async move {
@@ -344,23 +309,11 @@ fn csv_response(db: Db, id: String, declared: Option<Vec<String>>) -> Response {
         for row in &parsed {
             if s.columns.is_none() {
                 let keys = s.declared.clone().unwrap_or_else(|| row.keys().cloned().collect());
-                let cols = csv_columns(&keys, &parsed);
-                out.push_str(&cols.iter().map(|c| c.0.as_str()).collect::<Vec<_>>().join(","));
-                out.push('\n');
+                let cols = csv::columns(&keys, &parsed);
+                csv::write_header(&mut out, &cols);
                 s.columns = Some(cols);
             }
-            let cols = s.columns.as_ref().expect("set above");
-            for (i, (_, key, idx)) in cols.iter().enumerate() {
-                if i > 0 {
-                    out.push(',');
-                }
-                let v = row.get(key);
-                out.push_str(&csv_field(match idx {
-                    Some(j) => v.and_then(|a| a.get(*j)),
-                    None => v,
-                }));
-            }
-            out.push('\n');
+            csv::write_row(&mut out, s.columns.as_ref().expect("set above"), row);
         }
         Some((Ok::<_, std::io::Error>(bytes::Bytes::from(out)), s))
     });

@@ -1,0 +1,155 @@
+//! `millsim run`: a simulate job offline, for a CAM workstation. Same runner as the
+//! service's workers; writes summary.json, blocks.csv and stock.stl into --out.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use serde_json::{json, Map, Value};
+
+use millsim_engine::job::{CancelFlag, Progress};
+
+use crate::csv;
+use crate::runner::{self, JobFailure, LoadedInput, LoadedInputs};
+
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// Stock as an STL file.
+    #[arg(long, conflicts_with = "block", required_unless_present = "block")]
+    stock: Option<PathBuf>,
+    /// Stock as a block: X,Y,Z of the lowest corner and DX,DY,DZ sizes, mm.
+    #[arg(long, value_name = "X,Y,Z,DX,DY,DZ")]
+    block: Option<String>,
+    /// The NC program.
+    #[arg(long)]
+    program: PathBuf,
+    /// The tool, as `T1=tool.json` or `tool.json` (JSON as POST /v1/tools takes it).
+    #[arg(long)]
+    tool: Vec<String>,
+    /// A built-in material name (TC6, Al7075-T6, Al6082-T6) or a material JSON file.
+    #[arg(long)]
+    material: String,
+    /// Dexel spacing, mm (default: tool radius / 20 within [0.02, 0.5]).
+    #[arg(long)]
+    cell: Option<f64>,
+    /// Machine definition (JSON): needed for cycle time, which is not supported yet.
+    #[arg(long)]
+    machine: Option<PathBuf>,
+    /// Feed optimization targets, e.g. max_force=800: not supported yet.
+    #[arg(long)]
+    optimize: Option<String>,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+fn read(path: &Path) -> Result<Vec<u8>, String> {
+    std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn file_input(path: &Path, media_type: &str) -> Result<LoadedInput, String> {
+    Ok(LoadedInput {
+        file_name: path.file_name().map(|n| n.to_string_lossy().to_string()),
+        media_type: media_type.into(),
+        content: read(path)?,
+    })
+}
+
+/// Prints progress to stderr every 10%.
+struct StderrProgress(AtomicU64);
+
+impl Progress for StderrProgress {
+    fn report(&self, done: u64, total: u64) {
+        if total == 0 {
+            return;
+        }
+        let decile = done * 10 / total;
+        if self.0.fetch_max(decile + 1, Ordering::Relaxed) < decile + 1 {
+            eprintln!("millsim run: {}% ({done}/{total} moves)", decile * 10);
+        }
+    }
+}
+
+pub fn run(args: RunArgs) -> Result<(), String> {
+    if args.optimize.is_some() {
+        return Err("--optimize: feed optimization is not supported yet; run without it to simulate".into());
+    }
+    if args.machine.is_some() {
+        return Err("--machine: cycle time with a machine model is not supported yet; run without it".into());
+    }
+    let mut inputs = LoadedInputs::new();
+    inputs.insert("program".into(), file_input(&args.program, "text/plain")?);
+    let stock = match (&args.stock, &args.block) {
+        (Some(path), _) => file_input(path, "model/stl")?,
+        (None, Some(spec)) => {
+            let v: Vec<f64> = spec
+                .split(',')
+                .map(|s| s.trim().parse::<f64>().map_err(|_| format!("--block: `{s}` is not a number")))
+                .collect::<Result<_, _>>()?;
+            let [x, y, z, dx, dy, dz] = v[..] else {
+                return Err(format!("--block takes six numbers X,Y,Z,DX,DY,DZ, got {}", v.len()));
+            };
+            if !(dx > 0.0 && dy > 0.0 && dz > 0.0) {
+                return Err("--block: DX, DY and DZ must be positive".into());
+            }
+            let shape = json!({"kind": "block", "min": [x, y, z], "max": [x + dx, y + dy, z + dz]});
+            LoadedInput { file_name: None, media_type: "application/json".into(), content: shape.to_string().into_bytes() }
+        }
+        (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
+    };
+    inputs.insert("stock".into(), stock);
+    match &args.tool[..] {
+        [one] => {
+            let path = one.split_once('=').map(|(_, p)| p).unwrap_or(one);
+            let tool = file_input(Path::new(path), "application/json")?;
+            crate::validate::tool(&tool.content).map_err(|e| format!("{path}: {}", e.detail))?;
+            inputs.insert("tool".into(), tool);
+        }
+        [] => return Err("give the tool: --tool T1=tool.json".into()),
+        _ => return Err("several --tool: programs with several tools are not supported by `run` yet".into()),
+    }
+    let mut options = Map::new();
+    if Path::new(&args.material).is_file() {
+        let m = file_input(Path::new(&args.material), "application/json")?;
+        crate::validate::material(&m.content).map_err(|e| format!("{}: {}", args.material, e.detail))?;
+        inputs.insert("material".into(), m);
+    } else {
+        options.insert("material".into(), Value::String(args.material.clone()));
+    }
+    if let Some(c) = args.cell {
+        options.insert("cell_mm".into(), json!(c));
+    }
+    let options = Value::Object(options);
+    let parsed: runner::SimulateOptions = serde_json::from_value(options.clone()).map_err(|e| e.to_string())?;
+    parsed.check(inputs.contains_key("material")).map_err(|(f, m)| format!("{f}: {m}"))?;
+
+    let started = std::time::Instant::now();
+    let out = runner::run("simulate", &options, inputs, &CancelFlag::new(), &StderrProgress(AtomicU64::new(0)))
+        .map_err(|f| match f {
+            JobFailure::Invalid(problem) => problem["detail"].as_str().map(str::to_string).unwrap_or_else(|| problem.to_string()),
+            JobFailure::Cancelled => "cancelled".into(),
+        })?;
+    let wall = started.elapsed().as_secs_f64();
+
+    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
+    let write = |name: &str, bytes: &[u8]| {
+        let p = args.out.join(name);
+        std::fs::write(&p, bytes).map_err(|e| format!("{}: {e}", p.display()))
+    };
+    let mut summary = out.summary;
+    summary["wall_s"] = json!(wall);
+    write("summary.json", serde_json::to_string_pretty(&summary).expect("JSON").as_bytes())?;
+    let keys: Vec<String> = serde_json::from_value(summary["row_columns"].clone()).unwrap_or_default();
+    let rows: Vec<Map<String, Value>> = out.rows.iter().filter_map(|r| serde_json::from_str(r).ok()).collect();
+    let cols = csv::columns(&keys, &rows);
+    let mut text = String::new();
+    csv::write_header(&mut text, &cols);
+    for r in &rows {
+        csv::write_row(&mut text, &cols, r);
+    }
+    write("blocks.csv", text.as_bytes())?;
+    for f in &out.files {
+        write(f.name, &f.content)?;
+    }
+    eprintln!("millsim run: {} moves in {wall:.2} s; wrote {}", rows.len(), args.out.display());
+    Ok(())
+}

@@ -1,0 +1,51 @@
+//! `millsim run`: the simulate job offline, writing summary.json, blocks.csv, stock.stl.
+
+mod common;
+
+use std::process::Command;
+
+use common::*;
+
+#[test]
+fn run_writes_summary_rows_and_final_stock() {
+    let dir = tempfile::tempdir().unwrap();
+    let program = dir.path().join("slot.nc");
+    std::fs::write(&program, "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n").unwrap();
+    let tool = dir.path().join("tool.json");
+    std::fs::write(&tool, r#"{"shape":"flat","diameter":10,"flutes":4,"helix_deg":0,"flute_length":20}"#).unwrap();
+    let out_dir = dir.path().join("out");
+    let out = Command::new(BIN)
+        .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6", "--cell", "0.25"])
+        .arg("--program")
+        .arg(&program)
+        .arg("--tool")
+        .arg(format!("T1={}", tool.display()))
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
+    let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
+    assert!((summary["removed_volume"].as_f64().unwrap() - analytic).abs() / analytic < 0.005, "{summary}");
+    for stage in ["interpret_s", "removal_and_engagement_s", "forces_s"] {
+        assert!(summary["timings"][stage].as_f64().is_some(), "{summary}");
+    }
+    let csv = std::fs::read_to_string(out_dir.join("blocks.csv")).unwrap();
+    assert_eq!(csv.lines().count() as u64, 1 + summary["moves"].as_u64().unwrap());
+    let stl = std::fs::read(out_dir.join("stock.stl")).unwrap();
+    assert_eq!(stl.len(), 84 + 50 * u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize);
+
+    // What is not built yet says so, and bad values name the flag.
+    let refuse = |extra: &[&str]| {
+        let mut c = Command::new(BIN);
+        c.args(["run", "--material", "Al7075-T6", "--out"]).arg(&out_dir).arg("--program").arg(&program);
+        c.arg("--tool").arg(&tool).args(extra);
+        let o = c.output().unwrap();
+        assert!(!o.status.success());
+        String::from_utf8(o.stderr).unwrap()
+    };
+    assert!(refuse(&["--block=0,0,0,1,1,1", "--optimize", "max_force=800"]).contains("not supported yet"));
+    assert!(refuse(&["--block=0,0,0,1,1"]).contains("six numbers"));
+    assert!(refuse(&["--block=0,0,0,1,1,1", "--cell", "50"]).contains("cell_mm"));
+}
