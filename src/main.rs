@@ -141,6 +141,15 @@ struct InterpretArgs {
     /// Fanuc: length words without a decimal point count in thousandths of a mm.
     #[arg(long)]
     fanuc_implied_decimal: bool,
+    /// Fanuc parameter CCR: corner rounding R and chamfer C written without the comma.
+    #[arg(long)]
+    fanuc_corners_without_comma: bool,
+    /// M codes that do not move the machine and may be skipped, e.g. --passthrough-m 428,429.
+    #[arg(long, value_delimiter = ',')]
+    passthrough_m: Vec<u32>,
+    /// Skip blocks that start with `/` (block-delete switch on).
+    #[arg(long)]
+    block_delete: bool,
 }
 
 fn init_logs(format: LogFormat) {
@@ -306,6 +315,9 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             DialectArg::Linuxcnc => nc::Dialect::LinuxCnc,
         },
         fanuc_implied_decimal: args.fanuc_implied_decimal,
+        fanuc_corners_without_comma: args.fanuc_corners_without_comma,
+        passthrough_m_codes: args.passthrough_m.clone(),
+        block_delete: args.block_delete,
         ..Default::default()
     };
     if let Some(path) = &args.tool_table {

@@ -63,6 +63,15 @@ pub struct InterpretOptions {
     /// A LinuxCNC tool table (`T1 P1 D6 Z50`), for G43 tool lengths.
     #[serde(default)]
     pub tool_table: Option<String>,
+    /// Fanuc parameter CCR: corner rounding R and chamfer C written without the comma.
+    #[serde(default)]
+    pub fanuc_corners_without_comma: bool,
+    /// M codes that do not move the machine (e.g. a control's M428) and may be skipped.
+    #[serde(default)]
+    pub passthrough_m_codes: Vec<u32>,
+    /// Skip blocks that start with `/` (the control's block-delete switch on).
+    #[serde(default)]
+    pub block_delete: bool,
 }
 
 fn default_dialect() -> nc::Dialect {
@@ -71,7 +80,14 @@ fn default_dialect() -> nc::Dialect {
 
 impl InterpretOptions {
     pub fn engine_options(&self) -> Result<nc::InterpretOptions, nc::Diagnostics> {
-        let mut o = nc::InterpretOptions { dialect: self.dialect, fanuc_implied_decimal: self.fanuc_implied_decimal, ..Default::default() };
+        let mut o = nc::InterpretOptions {
+            dialect: self.dialect,
+            fanuc_implied_decimal: self.fanuc_implied_decimal,
+            fanuc_corners_without_comma: self.fanuc_corners_without_comma,
+            passthrough_m_codes: self.passthrough_m_codes.clone(),
+            block_delete: self.block_delete,
+            ..Default::default()
+        };
         if let Some(t) = &self.tool_table {
             o.tool_table = nc::parse_tool_table(t)?;
         }

@@ -65,3 +65,19 @@ fn reads_apt_cls_files_too() {
     assert_eq!(last["feed"], 500.0);
     assert_eq!(last["kind"], "linear");
 }
+
+#[test]
+fn interpreter_options_reach_the_cli() {
+    let impeller = corpus("gcode/linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc");
+    let refused = Command::new(BIN).arg("interpret").arg(&impeller).output().unwrap();
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("M428"));
+    let out = Command::new(BIN).arg("interpret").arg(&impeller).args(["--passthrough-m", "428,429"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let moves = String::from_utf8(out.stdout).unwrap();
+    assert!(moves.lines().count() > 4000);
+    assert!(moves.lines().any(|l| l.contains("\"inverse_time\"")));
+    let fanuc = corpus("gcode/fanuc_R_arcs_G3R_G1R_G1C.nc");
+    let out = Command::new(BIN).arg("interpret").arg(&fanuc).args(["--dialect", "fanuc", "--fanuc-corners-without-comma"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
