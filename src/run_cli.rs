@@ -31,7 +31,8 @@ pub struct RunArgs {
     /// Dexel spacing, mm (default: tool radius / 20 within [0.02, 0.5]).
     #[arg(long)]
     cell: Option<f64>,
-    /// Machine definition (JSON): needed for cycle time, which is not supported yet.
+    /// Machine definition (JSON, as POST /v1/machines takes it) for the cycle time;
+    /// default: a generic 3-axis machine.
     #[arg(long)]
     machine: Option<PathBuf>,
     /// Feed optimization targets, e.g. max_force=800: not supported yet.
@@ -73,9 +74,6 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     if args.optimize.is_some() {
         return Err("--optimize: feed optimization is not supported yet; run without it to simulate".into());
     }
-    if args.machine.is_some() {
-        return Err("--machine: cycle time with a machine model is not supported yet; run without it".into());
-    }
     let mut inputs = LoadedInputs::new();
     inputs.insert("program".into(), file_input(&args.program, "text/plain")?);
     let stock = match (&args.stock, &args.block) {
@@ -106,6 +104,11 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         }
         [] => return Err("give the tool: --tool T1=tool.json".into()),
         _ => return Err("several --tool: programs with several tools are not supported by `run` yet".into()),
+    }
+    if let Some(path) = &args.machine {
+        let m = file_input(path, "application/json")?;
+        crate::validate::machine(&m.content).map_err(|e| format!("{}: {}", path.display(), e.detail))?;
+        inputs.insert("machine".into(), m);
     }
     let mut options = Map::new();
     if Path::new(&args.material).is_file() {

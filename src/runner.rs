@@ -37,12 +37,14 @@ const fn input(name: &'static str, kind: ResourceKind, required: bool) -> InputS
 /// The inputs each kind takes.
 pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
     const INTERPRET: [InputSpec; 1] = [input("program", ResourceKind::Program, true)];
-    const SIMULATE: [InputSpec; 4] = [
+    const SIMULATE: [InputSpec; 5] = [
         input("program", ResourceKind::Program, true),
         input("stock", ResourceKind::Stock, true),
         input("tool", ResourceKind::Tool, true),
         // Else `options.material` names a built-in material.
         input("material", ResourceKind::Material, false),
+        // Else a generic 3-axis machine.
+        input("machine", ResourceKind::Machine, false),
     ];
     match kind {
         "interpret" => &INTERPRET,
@@ -291,6 +293,10 @@ fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, 
         Some(name) => Material::builtin(name).ok_or_else(|| invalid("Unknown material", name.clone()))?,
         None => serde_json::from_slice(&json_input(&mut inputs, "material")?).map_err(|e| invalid("Invalid material", e.to_string()))?,
     };
+    let machine = match inputs.remove("machine") {
+        Some(m) => serde_json::from_slice(&m.content).map_err(|e| invalid("Invalid machine", e.to_string()))?,
+        None => millsim_engine::machine::Machine::generic(),
+    };
     let stock = inputs.remove("stock").ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
     let stock = if stock.media_type == "application/json" {
         StockSource::Shape(serde_json::from_slice::<geometry::StockShape>(&stock.content).map_err(|e| invalid("Invalid stock", e.to_string()))?)
@@ -303,6 +309,7 @@ fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, 
         stock,
         tools: BTreeMap::from([(1, tool)]),
         material,
+        machine,
         cell: opts.cell_mm,
         memory_limit: opts.max_grid_mib << 20,
         force_positions: opts.force_positions,

@@ -28,6 +28,7 @@ fn run_writes_summary_rows_and_final_stock() {
     let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
     let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
     assert!((summary["removed_volume"].as_f64().unwrap() - analytic).abs() / analytic < 0.005, "{summary}");
+    assert!(summary["cycle_time_s"].as_f64().unwrap() > 60.0 / (4000.0 / 60.0), "{summary}");
     for stage in ["interpret_s", "removal_and_engagement_s", "forces_s"] {
         assert!(summary["timings"][stage].as_f64().is_some(), "{summary}");
     }
@@ -47,5 +48,8 @@ fn run_writes_summary_rows_and_final_stock() {
     };
     assert!(refuse(&["--block=0,0,0,1,1,1", "--optimize", "max_force=800"]).contains("not supported yet"));
     assert!(refuse(&["--block=0,0,0,1,1"]).contains("six numbers"));
+    let machine = dir.path().join("machine.json");
+    std::fs::write(&machine, r#"{"name":"m","rapid_rate":0,"max_feed":1,"acceleration":[1,1,1],"spindle_min_rpm":0,"spindle_max_rpm":1,"rated_power":1}"#).unwrap();
+    assert!(refuse(&["--block=0,0,0,1,1,1", "--machine", machine.to_str().unwrap()]).contains("rapid_rate"));
     assert!(refuse(&["--block=0,0,0,1,1,1", "--cell", "50"]).contains("cell_mm"));
 }

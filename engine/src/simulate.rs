@@ -12,6 +12,8 @@ use serde::Serialize;
 
 use crate::geometry::{self, simulate_removal, GridOptions, Segment, SimOptions, Stock, StockShape};
 use crate::job::{CancelFlag, Progress};
+use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length, CycleTimeError};
+use crate::machine::Machine;
 use crate::nc::{self, FeedMode, Move, MoveKind};
 use crate::physics::{CuttingConditions, ForceModel, Material};
 use crate::tool::Tool;
@@ -29,6 +31,8 @@ pub struct SimulateSpec {
     /// Tools by T number. A single entry serves every tool number of the program.
     pub tools: BTreeMap<u32, Tool>,
     pub material: Material,
+    /// For the cycle time (accelerations, junctions, rapid rate, tool change time).
+    pub machine: Machine,
     /// Dexel spacing, mm; default from the smallest tool (radius / 20, within [0.02, 0.5]).
     pub cell: Option<f64>,
     pub memory_limit: u64,
@@ -48,6 +52,8 @@ pub enum SimulateError {
     Geometry(#[from] geometry::GeometryError),
     #[error("force model: {0}")]
     Physics(#[from] crate::physics::PhysicsError),
+    #[error("cycle time: {0}")]
+    CycleTime(#[from] CycleTimeError),
     #[error("cancelled")]
     Cancelled,
 }
@@ -66,6 +72,8 @@ pub struct MoveRow {
     pub feed_mode: &'static str,
     pub feed_mm_min: f64,
     pub spindle: f64,
+    /// Time of the move with the machine's accelerations and junction speeds, s.
+    pub time_s: f64,
     pub removed_volume: f64,
     /// mm³/min at the programmed feed.
     pub max_mrr: f64,
@@ -87,6 +95,8 @@ pub struct MoveRow {
     pub peak_power: f64,
     /// Length-weighted mean cutting power over the whole move, W.
     pub mean_power: f64,
+    /// Cutting energy of the move: mean power × time, J.
+    pub cutting_energy_j: f64,
     pub air_fraction: f64,
     pub steps: usize,
     pub rapid_in_material: bool,
@@ -113,6 +123,13 @@ pub struct SimulationSummary {
     pub holder_or_shank_contact_moves: usize,
     pub flute_length_exceeded_moves: usize,
     pub force_evaluations: usize,
+    /// Cycle time with the machine's accelerations and junction speeds, and its parts, s.
+    pub cycle_time_s: f64,
+    pub cutting_time_s: f64,
+    pub rapid_time_s: f64,
+    /// Σ length / programmed feed: what the naive estimate would say, s.
+    pub nominal_time_s: f64,
+    pub cutting_energy_j: f64,
 }
 
 /// Wall time of each stage, seconds. Kept apart from the summary, which is deterministic.
@@ -151,29 +168,15 @@ fn feed_mode_name(m: FeedMode) -> &'static str {
     }
 }
 
-fn distance(a: &[f64; 6], b: &[f64; 6]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
-/// The feed in mm/min a move runs at, whatever its feed mode.
-pub fn feed_mm_per_min(m: &Move, length: f64) -> f64 {
-    match m.feed_mode {
-        FeedMode::PerMin => m.feed,
-        // F is 1/minutes for the whole move.
-        FeedMode::InverseTime => m.feed * length,
-        FeedMode::PerRev => m.feed * m.spindle,
-    }
-}
-
 /// The geometry segment of a cutting or positioning move; None for dwells and tool changes.
-fn segment(m: &Move, length: f64) -> Option<Segment> {
+fn segment(m: &Move) -> Option<Segment> {
     let (from, to) = ([m.start[0], m.start[1], m.start[2]], [m.end[0], m.end[1], m.end[2]]);
     let seg = match m.kind {
         MoveKind::Rapid => Segment::rapid(m.block, from, to),
-        MoveKind::Linear => Segment::linear(m.block, from, to, feed_mm_per_min(m, length), m.spindle),
+        MoveKind::Linear => Segment::linear(m.block, from, to, feed_velocity(m), m.spindle),
         MoveKind::Arc => {
             let arc = m.arc.as_ref()?;
-            let mut s = Segment::arc(m.block, from, to, arc.center, arc.normal, arc.clockwise, feed_mm_per_min(m, length), m.spindle);
+            let mut s = Segment::arc(m.block, from, to, arc.center, arc.normal, arc.clockwise, feed_velocity(m), m.spindle);
             if let geometry::PathShape::Arc { turns, .. } = &mut s.shape {
                 *turns = arc.turns.max(1);
             }
@@ -219,21 +222,13 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     timings.stock_s = clock.elapsed().as_secs_f64();
 
     // Rows for every move; geometry for the ones that sweep, in runs of one tool.
-    let lengths: Vec<f64> = moves
-        .iter()
-        .map(|m| match (&m.kind, &m.arc) {
-            (MoveKind::Arc, Some(a)) => {
-                let r = 0.5 * (a.start_radius + a.end_radius);
-                let along = (0..3).map(|i| (m.end[i] - m.start[i]) * a.normal[i]).sum::<f64>();
-                ((a.sweep.abs() * r).powi(2) + along * along).sqrt()
-            }
-            _ => distance(&m.start, &m.end),
-        })
-        .collect();
+    let lengths: Vec<f64> = moves.iter().map(move_length).collect();
+    let times = cycle_time(moves, &spec.machine, None)?;
     let mut rows: Vec<MoveRow> = moves
         .iter()
         .zip(&lengths)
-        .map(|(m, &length)| MoveRow {
+        .enumerate()
+        .map(|(i, (m, &length))| MoveRow {
             block: m.block,
             line: m.line,
             tool: m.tool,
@@ -241,8 +236,9 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
             length,
             feed: m.feed,
             feed_mode: feed_mode_name(m.feed_mode),
-            feed_mm_min: if m.kind == MoveKind::Rapid { 0.0 } else { feed_mm_per_min(m, length) },
+            feed_mm_min: if m.kind == MoveKind::Rapid { 0.0 } else { feed_velocity(m) },
             spindle: m.spindle,
+            time_s: times.per_move_s[i],
             ..MoveRow::default()
         })
         .collect();
@@ -250,7 +246,7 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     // (move index, tool number, segment) in program order, grouped into same-tool runs.
     let mut runs: Vec<(u32, Vec<(usize, Segment)>)> = Vec::new();
     for (i, m) in moves.iter().enumerate() {
-        let Some(seg) = segment(m, lengths[i]) else { continue };
+        let Some(seg) = segment(m) else { continue };
         if !sweeps(m) {
             if m.kind != MoveKind::Rapid {
                 return Err(SimulateError::UnknownTool { tool: 0, line: m.line });
@@ -353,6 +349,7 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         if row.length > 0.0 {
             row.mean_power = pl / row.length;
         }
+        row.cutting_energy_j = row.mean_power * row.time_s;
     }
     progress.report(total, total);
     timings.forces_s = clock.elapsed().as_secs_f64();
@@ -375,6 +372,11 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         holder_or_shank_contact_moves: rows.iter().filter(|r| r.holder_contact || r.shank_contact).count(),
         flute_length_exceeded_moves: rows.iter().filter(|r| r.flute_length_exceeded).count(),
         force_evaluations: evaluations,
+        cycle_time_s: times.total_s,
+        cutting_time_s: times.cutting_s,
+        rapid_time_s: times.rapid_s,
+        nominal_time_s: times.nominal_s,
+        cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
     };
     Ok(SimulationOutput { rows, summary, stock, timings, rays_tested })
 }

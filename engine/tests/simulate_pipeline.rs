@@ -6,6 +6,7 @@ use std::f64::consts::PI;
 
 use millsim_engine::geometry::StockShape;
 use millsim_engine::job::{CancelFlag, NoProgress};
+use millsim_engine::machine::Machine;
 use millsim_engine::nc::InterpretOptions;
 use millsim_engine::physics::Material;
 use millsim_engine::simulate::{simulate, SimulateSpec, StockSource};
@@ -21,6 +22,7 @@ fn spec(program: &str) -> SimulateSpec {
         stock: StockSource::Shape(StockShape::Block { min: [0.0, -20.0, -10.0], max: [100.0, 20.0, 0.0] }),
         tools: BTreeMap::from([(1, tool)]),
         material: Material::builtin("Al7075-T6").unwrap(),
+        machine: Machine::generic(),
         cell: Some(0.25),
         memory_limit: 1 << 30,
         force_positions: 360,
@@ -47,6 +49,12 @@ fn slot_volume_and_steady_power_match_closed_forms() {
     assert!((steady.mean_power - power).abs() / power < 0.02, "mean power {} vs closed form {power}", steady.mean_power);
     assert!((steady.max_chip_thickness - 0.1).abs() < 1e-6, "{steady:?}");
     assert_eq!(steady.air_fraction, 0.0);
+    // 40 mm at 4000 mm/min, entered at speed from line 7 and braking to a stop at its end:
+    // at least the cruise time, at most cruise plus the deceleration ramp (v/2a).
+    let (cruise, ramp) = (40.0 / (4000.0 / 60.0), (4000.0 / 60.0) / (2.0 * 2000.0));
+    assert!(steady.time_s >= cruise && steady.time_s <= cruise + ramp + 1e-9, "{}", steady.time_s);
+    assert!((steady.cutting_energy_j - steady.mean_power * steady.time_s).abs() < 1e-9);
+    assert!(out.summary.cycle_time_s > out.summary.nominal_time_s);
     // Reference peak |Fxy| of this slot is 664.2 N; |F| adds the axial part.
     assert!(steady.peak_force >= 664.2 * 0.99 && steady.peak_force < 664.2 * 1.3, "{steady:?}");
     assert!(!out.rows.iter().any(|r| r.rapid_in_material || r.holder_contact));
