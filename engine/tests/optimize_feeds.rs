@@ -285,6 +285,7 @@ fn several_steps_take_the_worst_and_split_plan_finds_the_change() {
     let limits = FeedLimits {
         max_force: Some(500.0),
         max_feed: 50_000.0,
+        exact_step_limits: true,
         ..Default::default()
     };
     let s = optimize_feeds(&mv, std::slice::from_ref(&sg), &[cutter()], &limits).unwrap();
@@ -643,4 +644,42 @@ fn bad_limits_and_indices_are_errors() {
         ..Default::default()
     };
     assert!(optimize_feeds(&mv, &[s], &[cutter()], &limits).is_err());
+}
+
+#[test]
+fn schedule_is_the_same_whatever_the_thread_count() {
+    let mut src = String::from("G21 G90 G94\nG0 X0 Y0 Z0\nG1 X0.5 F1000\n");
+    for i in 2..300 {
+        src.push_str(&format!("X{}\n", i as f64 * 0.5));
+    }
+    let mv = moves(&src);
+    let es = [slot(), half(), tenth(), Engagement::default()];
+    let segs: Vec<Segment> = (1..mv.len())
+        .map(|i| seg(i, vec![es[i % 4].clone(), es[(i / 3) % 4].clone()]))
+        .collect();
+    let limits = FeedLimits {
+        max_force: Some(450.0),
+        air_feed: Some(4000.0),
+        entry_feed_factor: 0.6,
+        min_chip_thickness: Some(0.02),
+        ..Default::default()
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| optimize_feeds(&mv, &segs, &[cutter()], &limits).unwrap())
+    };
+    let one = run(1);
+    assert_eq!(one, run(2));
+    assert_eq!(one, run(3));
+    // Every engaged step is at or under the limit at its segment's feed.
+    for s in one.segments.iter().filter(|s| s.engaged) {
+        for st in &segs[s.move_index - 1].steps {
+            if !st.engagement.is_air() {
+                assert!(force_at(&st.engagement, s.feed).force.peak <= 450.0);
+            }
+        }
+    }
 }

@@ -104,6 +104,9 @@ pub struct FeedLimits {
     /// Accept a feed once the governing ratio is in [1 − tolerance, 1].
     pub tolerance: f64,
     pub max_iterations: usize,
+    /// Solve every step's own limit (for [`split_plan`]); otherwise steps that do not bind get
+    /// a lower bound of theirs (one evaluation), which is all the block feed needs.
+    pub exact_step_limits: bool,
 }
 
 impl Default for FeedLimits {
@@ -122,6 +125,7 @@ impl Default for FeedLimits {
             min_change: 0.0,
             tolerance: 0.005,
             max_iterations: 12,
+            exact_step_limits: false,
         }
     }
 }
@@ -300,7 +304,8 @@ pub struct SegmentFeed {
     /// The feed this segment should run at after entry reduction and floor.
     pub feed: f64,
     pub governing: Governing,
-    /// Limiting feed of each step (same order as the steps; air steps: `max_feed`).
+    /// Limiting feed of each step (same order as the steps; air steps: `max_feed`); a lower
+    /// bound for steps that do not bind unless `exact_step_limits` is set.
     pub step_limits: Vec<f64>,
     /// Force-model evaluations spent.
     pub evaluations: usize,
@@ -361,161 +366,203 @@ struct StepSolution {
     limit: f64,
     governing: Governing,
     ratio: f64,
-    floor: f64,
+    /// Last evaluation: feed and largest chip there.
+    last: (f64, f64),
+    /// Relative slope (dG/df)/G measured by the last secant pair, if any.
+    sensitivity: Option<f64>,
+}
+
+/// One model evaluation at feed `v` (mm/min): (governing ratio, which, max chip thickness).
+fn evaluate(
+    cutter: &mut Cutter,
+    step: &EngagementStep,
+    limits: &FeedLimits,
+    v: f64,
+    out: &mut ForceResult,
+    evals: &mut usize,
+) -> Result<(f64, Governing, f64), PhysicsError> {
+    *evals += 1;
+    let teeth = cutter.model.table().flutes() as f64;
+    let c = CuttingConditions {
+        spindle_rpm: step.spindle_rpm,
+        feed_per_tooth: v / (teeth * step.spindle_rpm),
+    };
+    cutter
+        .model
+        .evaluate_into(&step.engagement, &cutter.coefficients, &c, out)?;
+    let (g, which) = limits.ratio(out);
+    Ok((g, which, out.max_chip_thickness))
 }
 
 /// Largest feed in [min_feed, max_feed] with every limit met at this step, starting the secant
-/// iteration at `start` (mm/min).
+/// iteration at `start` (mm/min). With `stop_if_feasible`, a feasible start is returned as is
+/// (a lower bound of the step's own limit: enough when an earlier step already binds lower).
 fn solve_step(
     cutter: &mut Cutter,
     step: &EngagementStep,
     limits: &FeedLimits,
     start: f64,
+    stop_if_feasible: bool,
+    sensitivity: Option<f64>,
     out: &mut ForceResult,
     evals: &mut usize,
 ) -> Result<StepSolution, PhysicsError> {
-    let teeth = cutter.model.table().flutes() as f64;
-    let rpm = step.spindle_rpm;
-    let mut eval = |v: f64, out: &mut ForceResult| -> Result<(f64, Governing, f64), PhysicsError> {
-        *evals += 1;
-        let c = CuttingConditions {
-            spindle_rpm: rpm,
-            feed_per_tooth: v / (teeth * rpm),
-        };
-        cutter
-            .model
-            .evaluate_into(&step.engagement, &cutter.coefficients, &c, out)?;
-        let (g, which) = limits.ratio(out);
-        Ok((g, which, out.max_chip_thickness))
-    };
     let (lo_f, hi_f) = (limits.min_feed, limits.max_feed);
     let tol = limits.tolerance;
-    let mut sol = StepSolution {
-        limit: hi_f,
-        governing: Governing::MaxFeed,
-        ratio: 0.0,
-        floor: 0.0,
+    let mut a = start.clamp(lo_f, hi_f);
+    if !limits.has_upper_limit() {
+        let (_, _, h) = evaluate(cutter, step, limits, hi_f, out, evals)?;
+        return Ok(StepSolution {
+            limit: hi_f,
+            governing: Governing::MaxFeed,
+            ratio: 0.0,
+            last: (hi_f, h),
+            sensitivity: None,
+        });
+    }
+    let (mut ga, wa, ha) = evaluate(cutter, step, limits, a, out, evals)?;
+    let mut last = (a, ha);
+    // Best feasible (largest feed with G ≤ 1) and smallest infeasible seen.
+    let mut feas: Option<(f64, f64, Governing)> = None;
+    let mut infeas: Option<(f64, f64)> = None;
+    let note = |v: f64,
+                g: f64,
+                w: Governing,
+                feas: &mut Option<(f64, f64, Governing)>,
+                infeas: &mut Option<(f64, f64)>| {
+        if g <= 1.0 {
+            if feas.is_none_or(|f| v > f.0) {
+                *feas = Some((v, g, w));
+            }
+        } else if infeas.is_none_or(|f| v < f.0) {
+            *infeas = Some((v, g));
+        }
     };
-    // Last evaluation, for the rubbing floor.
-    let mut last = (0.0, 0.0);
-    if limits.has_upper_limit() {
-        let mut a = start.clamp(lo_f, hi_f);
-        let (mut ga, mut wa, ha) = eval(a, out)?;
-        last = (a, ha);
-        // Best feasible (largest feed with G ≤ 1) and smallest infeasible seen.
-        let mut feas: Option<(f64, f64, Governing)> = None;
-        let mut infeas: Option<(f64, f64)> = None;
-        let mut done = false;
-        let note = |v: f64,
-                    g: f64,
-                    w: Governing,
-                    feas: &mut Option<(f64, f64, Governing)>,
-                    infeas: &mut Option<(f64, f64)>| {
-            if g <= 1.0 {
-                if feas.is_none_or(|f| v > f.0) {
-                    *feas = Some((v, g, w));
-                }
-            } else if infeas.is_none_or(|f| v < f.0) {
-                *infeas = Some((v, g));
-            }
-        };
-        note(a, ga, wa, &mut feas, &mut infeas);
-        let accept = |v: f64, g: f64| g <= 1.0 && (g >= 1.0 - tol || v >= hi_f);
-        if accept(a, ga) || (ga > 1.0 && a <= lo_f) {
-            done = true;
+    note(a, ga, wa, &mut feas, &mut infeas);
+    let accept = |v: f64, g: f64| g <= 1.0 && (g >= 1.0 - tol || v >= hi_f);
+    let done = accept(a, ga) || (ga > 1.0 && a <= lo_f) || (stop_if_feasible && ga <= 1.0);
+    // First guess: from a neighbouring step's relative slope when known (its edge-force share
+    // is alike), else proportional (exact without edge forces).
+    let mut b = match sensitivity {
+        Some(k) if k > 0.0 && ga > 0.0 => a + (1.0 - ga) / (k * ga),
+        _ if ga > 0.0 => a / ga,
+        _ => hi_f,
+    };
+    let mut slope: Option<f64> = None;
+    for _ in 1..limits.max_iterations {
+        if done {
+            break;
         }
-        // First guess: proportional (exact without edge forces).
-        let mut b = if ga > 0.0 { a / ga } else { hi_f };
-        for _ in 1..limits.max_iterations {
-            if done {
-                break;
-            }
-            b = b.clamp(lo_f, hi_f);
-            // Keep the guess inside the bracket; bisect when the secant leaves it.
-            if let (Some(f), Some(i)) = (feas, infeas) {
+        b = b.clamp(lo_f, hi_f);
+        // Keep the guess inside the bracket; regula falsi when the secant leaves it (below
+        // the root for a convex G), bisection as the last resort.
+        if let (Some(f), Some(i)) = (feas, infeas) {
+            if !(b > f.0 && b < i.0) {
+                let t = (1.0 - f.1) / (i.1 - f.1);
+                b = f.0 + t * (i.0 - f.0);
                 if !(b > f.0 && b < i.0) {
-                    // Regula falsi on the bracket: below the root for a convex G.
-                    let t = (1.0 - f.1) / (i.1 - f.1);
-                    b = f.0 + t * (i.0 - f.0);
-                    if !(b > f.0 && b < i.0) {
-                        b = 0.5 * (f.0 + i.0);
-                    }
+                    b = 0.5 * (f.0 + i.0);
                 }
             }
-            if b == a {
-                // Clamped onto the last point: the range end decides.
-                break;
-            }
-            let (gb, wb, hb) = eval(b, out)?;
-            last = (b, hb);
-            note(b, gb, wb, &mut feas, &mut infeas);
-            if accept(b, gb) || (gb > 1.0 && b <= lo_f) {
-                break;
-            }
-            let next = if gb != ga {
-                b + (b - a) / (gb - ga) * (1.0 - gb)
-            } else if gb > 1.0 {
-                0.5 * b
-            } else {
-                2.0 * b
-            };
-            a = b;
-            ga = gb;
-            wa = wb;
-            b = if next.is_finite() {
-                next
-            } else {
-                0.5 * (a + lo_f)
-            };
         }
-        let _ = wa;
-        match feas {
-            Some((v, g, w)) => {
-                sol.limit = v;
-                sol.ratio = g;
-                sol.governing = if v >= hi_f && g < 1.0 - tol {
-                    Governing::MaxFeed
-                } else {
-                    w
-                };
-            }
-            None => {
-                // Even min_feed is over a limit: the feed range wins, flagged.
-                sol.limit = lo_f;
-                sol.ratio = infeas.map(|i| i.1).unwrap_or(f64::NAN);
-                sol.governing = Governing::MinFeed;
-            }
+        if b == a {
+            break; // clamped onto the last point: the range end decides
         }
+        let (gb, wb, hb) = evaluate(cutter, step, limits, b, out, evals)?;
+        last = (b, hb);
+        if gb != ga && gb > 0.0 {
+            slope = Some((gb - ga) / (b - a) / gb);
+        }
+        note(b, gb, wb, &mut feas, &mut infeas);
+        if accept(b, gb) || (gb > 1.0 && b <= lo_f) {
+            break;
+        }
+        let next = if gb != ga {
+            b + (b - a) / (gb - ga) * (1.0 - gb)
+        } else if gb > 1.0 {
+            0.5 * b
+        } else {
+            2.0 * b
+        };
+        a = b;
+        ga = gb;
+        b = if next.is_finite() {
+            next
+        } else {
+            0.5 * (a + lo_f)
+        };
     }
-    if let Some(hmin) = limits.min_chip_thickness {
-        // Chip thickness is linear in the feed per tooth (affine with runout): proportional
-        // guess, then secant steps until the chip reaches the floor.
-        if last.1 <= 0.0 {
-            let (_, _, h) = eval(sol.limit, out)?;
-            last = (sol.limit, h);
-        }
-        let mut v = last.0 * hmin / last.1.max(1e-300);
-        let mut prev = last;
-        for _ in 0..limits.max_iterations {
-            let (_, _, h) = eval(v, out)?;
-            if h >= hmin * (1.0 - 1e-9) && h <= hmin * (1.0 + tol) {
+    Ok(match feas {
+        Some((v, g, w)) => StepSolution {
+            limit: v,
+            governing: if v >= hi_f && g < 1.0 - tol {
+                Governing::MaxFeed
+            } else {
+                w
+            },
+            ratio: g,
+            last,
+            sensitivity: slope,
+        },
+        // Even min_feed is over a limit: the feed range wins, flagged.
+        None => StepSolution {
+            limit: lo_f,
+            governing: Governing::MinFeed,
+            ratio: infeas.map(|i| i.1).unwrap_or(f64::NAN),
+            last,
+            sensitivity: slope,
+        },
+    })
+}
+
+/// Smallest feed at which this step's thickest chip reaches `hmin` (the rubbing floor), from
+/// the evaluation `last` (feed, chip): linear in the feed per tooth (affine with runout), so a
+/// proportional guess and secant steps; only verified feeds are returned when one was found.
+fn solve_floor(
+    cutter: &mut Cutter,
+    step: &EngagementStep,
+    limits: &FeedLimits,
+    hmin: f64,
+    last: (f64, f64),
+    out: &mut ForceResult,
+    evals: &mut usize,
+) -> Result<f64, PhysicsError> {
+    let mut prev = last;
+    let mut v = last.0 * hmin / last.1.max(1e-300);
+    if cutter
+        .model
+        .table()
+        .tooth_offsets()
+        .iter()
+        .all(|&d| d == 0.0)
+        && last.1 > 0.0
+    {
+        // Without runout every chip is h = fz·(c_h·sin φ·sin κ − c_v·cos κ): homogeneous in the
+        // feed, so scaling the evaluated chip is exact.
+        return Ok(v);
+    }
+    let mut ok: Option<f64> = None;
+    for _ in 0..limits.max_iterations {
+        let (_, _, h) = evaluate(cutter, step, limits, v, out, evals)?;
+        if h >= hmin * (1.0 - 1e-9) {
+            ok = Some(ok.map_or(v, |o: f64| o.min(v)));
+            if h <= hmin * (1.0 + limits.tolerance) {
                 break;
             }
-            let next = if h != prev.1 {
-                v + (v - prev.0) / (h - prev.1) * (hmin - h)
-            } else {
-                v * hmin / h.max(1e-300)
-            };
-            prev = (v, h);
-            v = if next.is_finite() && next > 0.0 {
-                next
-            } else {
-                v * 2.0
-            };
         }
-        sol.floor = v;
+        let next = if h != prev.1 {
+            v + (v - prev.0) / (h - prev.1) * (hmin - h)
+        } else {
+            v * hmin / h.max(1e-300)
+        };
+        prev = (v, h);
+        v = if next.is_finite() && next > 0.0 {
+            next
+        } else {
+            v * 2.0
+        };
     }
-    Ok(sol)
+    Ok(ok.unwrap_or(v))
 }
 
 /// Per-segment solve without the sequence-dependent policies (entry, floor application).
@@ -550,15 +597,31 @@ fn solve_segment(
         return Ok(res);
     }
     let mut start = programmed;
-    let mut floor = f64::INFINITY;
-    for step in &seg.steps {
+    let mut bound_found = false;
+    let mut sensitivity: Option<f64> = None;
+    // Step with the thickest chip per unit feed: it needs the least feed to reach the floor.
+    let mut floor_step: Option<(f64, usize, (f64, f64))> = None;
+    for (k, step) in seg.steps.iter().enumerate() {
         if step.engagement.is_air() {
             res.step_limits.push(limits.max_feed);
             continue;
         }
-        let s = solve_step(cutter, step, limits, start, out, &mut evals)?;
-        // Neighbouring steps are alike: the last answer is a good start.
-        start = s.limit;
+        // After the first engaged step, start at the lowest limit so far: a step that is
+        // feasible there does not bind (one evaluation) unless exact step limits are wanted.
+        let skip = bound_found && !limits.exact_step_limits;
+        let s = solve_step(
+            cutter,
+            step,
+            limits,
+            start,
+            skip,
+            sensitivity,
+            out,
+            &mut evals,
+        )?;
+        if s.sensitivity.is_some() {
+            sensitivity = s.sensitivity;
+        }
         res.step_limits.push(s.limit);
         let first_bound = res.limit_governing == Governing::MaxFeed
             && s.governing != Governing::MaxFeed
@@ -568,13 +631,21 @@ fn solve_segment(
             res.limit_governing = s.governing;
             res.ratio = s.ratio;
         }
-        if limits.min_chip_thickness.is_some() {
-            // The thickest chip of the move must reach the floor: the step that needs the
-            // least feed for it decides.
-            floor = floor.min(s.floor);
+        bound_found = true;
+        // Neighbouring steps are alike: the running limit is a good start.
+        start = if limits.exact_step_limits {
+            s.limit
+        } else {
+            res.limit_feed
+        };
+        let per_feed = s.last.1 / s.last.0;
+        if floor_step.is_none_or(|f| per_feed > f.0) {
+            floor_step = Some((per_feed, k, s.last));
         }
     }
-    res.floor_feed = if floor.is_finite() { floor } else { 0.0 };
+    if let (Some(hmin), Some((_, k, last))) = (limits.min_chip_thickness, floor_step) {
+        res.floor_feed = solve_floor(cutter, &seg.steps[k], limits, hmin, last, out, &mut evals)?;
+    }
     res.evaluations = evals;
     Ok(res)
 }
@@ -803,7 +874,8 @@ pub struct SplitPlan {
 /// Split decision for one solved segment: parts of at least `min_length` mm, at most
 /// `max_parts`, each at the smallest step limit inside it; proposed only when it saves at least
 /// `min_saving` (fraction) of the move's time. Steps are taken to cover the move from their
-/// `at` to the next step's `at` (the last to the move's end).
+/// `at` to the next step's `at` (the last to the move's end). Solve with `exact_step_limits`:
+/// with lower bounds the plan is safe but finds less.
 pub fn split_plan(
     seg: &Segment,
     solved: &SegmentFeed,

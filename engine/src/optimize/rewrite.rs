@@ -143,8 +143,12 @@ pub fn rewrite_program(
     // Written values of the optimized blocks.
     let mut written: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
     let step = options.feed_step;
+    let mut first_move: BTreeMap<usize, &Move> = BTreeMap::new();
+    for m in moves {
+        first_move.entry(m.block).or_insert(m);
+    }
     for bf in schedule.blocks.iter().filter(|b| b.changed) {
-        let Some(m) = moves.iter().find(|m| m.block == bf.block) else {
+        let Some(&m) = first_move.get(&bf.block) else {
             continue;
         };
         let per_min = bf.feed_mode == FeedMode::PerMin;
@@ -237,11 +241,7 @@ pub fn rewrite_program(
         if !same(lo, hi) {
             ambiguous.push(b);
         }
-        let mode = moves
-            .iter()
-            .find(|m| m.block == b)
-            .map(|m| m.feed_mode)
-            .unwrap_or_default();
+        let mode = first_move.get(&b).map(|m| m.feed_mode).unwrap_or_default();
         let native = match mode {
             FeedMode::InverseTime => lo,
             _ => lo * factor[b],
