@@ -230,11 +230,14 @@ impl Stock {
         let cell = opts
             .cell
             .ok_or_else(|| GeometryError::InvalidGrid("no cell size given".into()))?;
-        let (lo, hi) = mesh.bounds();
+        let (mut lo, hi) = mesh.bounds();
         let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
         if size > MAX_STOCK_SIZE {
             return Err(StlError::TooLarge { size }.into());
         }
+        // As for parametric stock: the top of the mesh on a cell boundary.
+        let nz = DexelGrid::estimate(lo, hi, cell)?.cells[2];
+        lo[2] = hi[2] - nz as f64 * cell;
         let mut grid = DexelGrid::new(lo, hi, cell, opts.memory_limit)?;
         fill_grid(&mut grid, mesh)?;
         Ok(Stock { grid })
