@@ -445,7 +445,7 @@ fn rewritten_program_differs_only_in_f_words_and_keeps_modal_feeds() {
         if let Some(e) = e {
             let f = force_at(&e, m.feed).force.peak;
             assert!(
-                f <= 500.0 && f >= 0.98 * 500.0 || m.line == 11,
+                (0.98 * 500.0..=500.0).contains(&f) || m.line == 11,
                 "line {}: {f}",
                 m.line
             );

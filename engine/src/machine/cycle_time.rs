@@ -171,7 +171,7 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
     match m.kind {
         MoveKind::Dwell => return stop(m.seconds.unwrap_or(0.0).max(0.0)),
         MoveKind::ToolChange => return stop(machine.tool_change_time),
-        _ if !(len > 1e-9) => return stop(0.0),
+        _ if len.is_nan() || len <= 1e-9 => return stop(0.0),
         _ => {}
     }
     let v_prog = match m.kind {

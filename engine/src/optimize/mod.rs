@@ -397,6 +397,7 @@ fn evaluate(
 /// Largest feed in [min_feed, max_feed] with every limit met at this step, starting the secant
 /// iteration at `start` (mm/min). With `stop_if_feasible`, a feasible start is returned as is
 /// (a lower bound of the step's own limit: enough when an earlier step already binds lower).
+#[allow(clippy::too_many_arguments)]
 fn solve_step(
     cutter: &mut Cutter,
     step: &EngagementStep,

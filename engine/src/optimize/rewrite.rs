@@ -96,8 +96,8 @@ pub fn rewrite_program(
     for (i, b) in blocks.iter().enumerate() {
         for w in &b.words {
             match (w.letter, number(&w.value)) {
-                ('G', Some(v)) if v == 20.0 => f = 25.4,
-                ('G', Some(v)) if v == 21.0 => f = 1.0,
+                ('G', Some(20.0)) => f = 25.4,
+                ('G', Some(21.0)) => f = 1.0,
                 ('M', Some(v)) if v == 98.0 || v == 99.0 => jump[i] = true,
                 ('F', v) if !w.comma => {
                     has_f[i] = true;
