@@ -272,6 +272,7 @@ fn rubbing_floor_lifts_reduced_feeds_but_never_above_the_limit() {
     let s = optimize_feeds(&mv, &[seg(1, vec![e.clone()])], &[cutter()], &limits).unwrap();
     let sf = &s.segments[0];
     assert_eq!(sf.feed, sf.limit_feed);
+    assert_eq!(sf.governing, Governing::Force);
     assert!(force_at(&e, sf.feed).force.peak <= 600.0);
 }
 

@@ -730,8 +730,13 @@ pub fn optimize_feeds(
             }
             if s.floor_feed > f {
                 // Never above the limit: safety wins over rubbing.
-                f = s.floor_feed.min(s.limit_feed);
-                s.governing = Governing::RubbingFloor;
+                if s.floor_feed < s.limit_feed {
+                    f = s.floor_feed;
+                    s.governing = Governing::RubbingFloor;
+                } else {
+                    f = s.limit_feed;
+                    s.governing = s.limit_governing;
+                }
             }
             s.feed = f;
             prev_engaged = true;
