@@ -223,3 +223,44 @@ fn every_move_entry_and_exit_is_reachable() {
     assert!(ct.total_s >= ct.nominal_s);
     assert_eq!(*ct.exit_speed.last().unwrap(), 0.0);
 }
+
+#[test]
+fn jerk_limited_ramps_match_s_curve_closed_forms() {
+    let (a, j) = (2000.0, 50_000.0);
+    let m = Machine {
+        jerk: Some([j; 3]),
+        ..machine(a)
+    };
+    // Long move, v = 100 mm/s ≥ a²/J = 80 mm/s: each ramp takes v/a + a/J, t = L/v + v/a + a/J.
+    let mv = moves("G21 G90 G94\nG1 X1000 F6000\n");
+    let ct = cycle_time(&mv, &m, None).unwrap();
+    close(ct.total_s, 1000.0 / 100.0 + 100.0 / a + a / j, 1e-9);
+    // Short move whose peak stays below a²/J: both ramps are pure jerk, peak
+    // vp = (L·sqrt(J)/2)^(2/3), t = 4·sqrt(vp/J).
+    let mv = moves("G21 G90 G94\nG1 X0.1 F6000\n");
+    let ct = cycle_time(&mv, &m, None).unwrap();
+    let vp = (0.1 * j.sqrt() / 2.0).powf(2.0 / 3.0);
+    assert!(vp < a * a / j);
+    close(ct.total_s, 4.0 * (vp / j).sqrt(), 1e-9);
+    // A huge jerk gives the constant-acceleration answer; jerk never makes a program faster.
+    let src = "G21 G90 G94 G17\nG1 X50 F3000\nG2 X70 Y20 I0 J20\nG1 Y80\nX0 Y0\n";
+    let mv = moves(src);
+    let plain = cycle_time(&mv, &machine(a), None).unwrap().total_s;
+    let stiff = Machine {
+        jerk: Some([1e13; 3]),
+        ..machine(a)
+    };
+    close(cycle_time(&mv, &stiff, None).unwrap().total_s, plain, 1e-6);
+    let soft = cycle_time(&mv, &m, None).unwrap();
+    assert!(soft.total_s > plain);
+    for i in 0..mv.len() {
+        let l = move_length(&mv[i]);
+        let (v0, v1) = (soft.entry_speed[i] / 60.0, soft.exit_speed[i] / 60.0);
+        assert!(
+            millsim_engine::machine::cycle_time::ramp_distance(v0, v1, a, j)
+                <= l * (1.0 + 1e-9) + 1e-9
+                || mv[i].kind == MoveKind::Arc,
+            "move {i}"
+        );
+    }
+}

@@ -19,9 +19,14 @@
 //!   exit speeds are reachable with its acceleration; the program starts and ends at rest, and
 //!   dwells and tool changes stop the motion and add their own time.
 //!
-//! Not modelled: jerk limits (S-curves; `Machine::jerk` is ignored), finite look-ahead
-//! buffers, rotary-axis acceleration (pure rotary moves use the smallest linear acceleration in
-//! deg/s²), exact-stop modes (G61).
+//! * With `Machine::jerk` given (mm/s³, projected on the move like the acceleration), every
+//!   speed change is a symmetric S-curve (trapezoidal acceleration): Δv takes Δv/a + a/J when
+//!   Δv ≥ a²/J, else 2·sqrt(Δv/J), over the distance (v0 + v1)/2 times that; the look-ahead
+//!   and the profiles use these ramps (peak speeds found by bisection). Without jerk the ramps
+//!   are the constant-acceleration closed forms.
+//!
+//! Not modelled: finite look-ahead buffers, rotary-axis acceleration (pure rotary moves use the
+//! smallest linear acceleration in deg/s²), exact-stop modes (G61).
 
 use super::Machine;
 use crate::nc::{FeedMode, Move, MoveKind};
@@ -119,6 +124,8 @@ struct Seg {
     /// Nominal (cruise) speed and path acceleration, mm/s and mm/s².
     v: f64,
     a: f64,
+    /// Path jerk, mm/s³ (infinite without a jerk limit).
+    j: f64,
     u_in: [f64; 3],
     u_out: [f64; 3],
     fixed: f64,
@@ -163,6 +170,7 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
         len: 0.0,
         v: 0.0,
         a: 1.0,
+        j: f64::INFINITY,
         u_in: [0.0; 3],
         u_out: [0.0; 3],
         fixed,
@@ -182,7 +190,9 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
     };
     let mut v = v_prog / 60.0;
     let min_acc = acc.iter().cloned().fold(f64::INFINITY, f64::min);
-    let (a, u_in, u_out) = if let (Some(g), Some(ti), Some(to)) =
+    let jerk = machine.jerk.unwrap_or([f64::INFINITY; 3]);
+    let min_jerk = jerk.iter().cloned().fold(f64::INFINITY, f64::min);
+    let (a, j, u_in, u_out) = if let (Some(g), Some(ti), Some(to)) =
         (m.arc.as_ref(), arc_tangent(m, 0.0), arc_tangent(m, 1.0))
     {
         let [pa, pb, pn] = g.axes;
@@ -190,16 +200,19 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
         // the centripetal acceleration; a helix's normal axis is limited in proportion.
         let a_plane = acc[pa].min(acc[pb]);
         let un = (g.end[pn] - g.start[pn]).abs() / len;
-        let a_t = if un > 1e-12 {
-            a_plane.min(acc[pn] / un)
+        let (a_t, j_t) = if un > 1e-12 {
+            (
+                a_plane.min(acc[pn] / un),
+                jerk[pa].min(jerk[pb]).min(jerk[pn] / un),
+            )
         } else {
-            a_plane
+            (a_plane, jerk[pa].min(jerk[pb]))
         };
         let r = g.start_radius.max(g.end_radius);
         if r > 0.0 {
             v = v.min((a_plane * r).sqrt());
         }
-        (a_t, ti, to)
+        (a_t, j_t, ti, to)
     } else {
         let d = [
             m.end[0] - m.start[0],
@@ -207,9 +220,9 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
             m.end[2] - m.start[2],
         ];
         match unit(d) {
-            Some(u) => (axis_limited(acc, u), u, u),
+            Some(u) => (axis_limited(acc, u), axis_limited(jerk, u), u, u),
             // Pure rotary move: no rotary accelerations in the machine model.
-            None => (min_acc, [0.0; 3], [0.0; 3]),
+            None => (min_acc, min_jerk, [0.0; 3], [0.0; 3]),
         }
     };
     Seg {
@@ -217,6 +230,7 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
         len,
         v,
         a,
+        j,
         u_in,
         u_out,
         fixed: 0.0,
@@ -247,6 +261,72 @@ fn junction_speed(p: &Seg, q: &Seg, acc: [f64; 3], delta: f64) -> f64 {
         .unwrap_or(f64::INFINITY);
     let v2 = a_j * delta * sin_half / (1.0 - sin_half);
     v2.sqrt().min(cap)
+}
+
+/// Time to change speed by `dv` with acceleration `a` and jerk `j` (S-curve; `j` infinite: Δv/a).
+pub fn ramp_time(dv: f64, a: f64, j: f64) -> f64 {
+    let dv = dv.abs();
+    if j.is_infinite() || dv >= a * a / j {
+        dv / a + if j.is_infinite() { 0.0 } else { a / j }
+    } else {
+        2.0 * (dv / j).sqrt()
+    }
+}
+
+/// Distance covered while changing speed from v0 to v1 (symmetric ramp: mean speed × time).
+pub fn ramp_distance(v0: f64, v1: f64, a: f64, j: f64) -> f64 {
+    0.5 * (v0 + v1) * ramp_time(v1 - v0, a, j)
+}
+
+/// Largest speed reachable from `v_from` within `len`.
+fn reach(v_from: f64, len: f64, a: f64, j: f64) -> f64 {
+    let hi = (v_from * v_from + 2.0 * a * len).sqrt();
+    if j.is_infinite() {
+        return hi;
+    }
+    // Jerk only slows the ramp: bisection below the constant-acceleration answer.
+    let (mut lo, mut hi) = (v_from, hi);
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if ramp_distance(v_from, mid, a, j) <= len {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo <= 1e-12 * hi.max(1.0) {
+            break;
+        }
+    }
+    lo
+}
+
+/// Time of a profile over `len` from v0 to v1, cruise speed `v`, acceleration `a`, jerk `j`
+/// (S-curve ramps; see the module doc). v0, v1 must be reachable.
+pub fn profile_time_jerk(len: f64, v0: f64, v1: f64, v: f64, a: f64, j: f64) -> f64 {
+    if j.is_infinite() {
+        return profile_time(len, v0, v1, v, a);
+    }
+    if len <= 0.0 {
+        return 0.0;
+    }
+    let d = ramp_distance(v0, v, a, j) + ramp_distance(v, v1, a, j);
+    if d <= len {
+        return ramp_time(v - v0, a, j) + ramp_time(v - v1, a, j) + (len - d) / v;
+    }
+    // No cruise: the peak speed where both ramps fill the move.
+    let (mut lo, mut hi) = (v0.max(v1), v);
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if ramp_distance(v0, mid, a, j) + ramp_distance(mid, v1, a, j) <= len {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo <= 1e-12 * hi.max(1.0) {
+            break;
+        }
+    }
+    ramp_time(lo - v0, a, j) + ramp_time(lo - v1, a, j)
 }
 
 /// Time of a trapezoidal (or triangular) profile over `len` from speed v0 to v1 with cruise speed
@@ -352,7 +432,7 @@ pub fn cycle_time_with(
         }
         let exit = next_motion[i].map(|j| v_in[j]).unwrap_or(0.0);
         let s = &segs[i];
-        v_in[i] = v_in[i].min((exit * exit + 2.0 * s.a * s.len).sqrt());
+        v_in[i] = v_in[i].min(reach(exit, s.len, s.a, s.j));
     }
     // Forward pass: each next entry must be reachable from this entry.
     for i in 0..n {
@@ -361,7 +441,7 @@ pub fn cycle_time_with(
         }
         if let Some(j) = next_motion[i] {
             let s = &segs[i];
-            v_in[j] = v_in[j].min((v_in[i] * v_in[i] + 2.0 * s.a * s.len).sqrt());
+            v_in[j] = v_in[j].min(reach(v_in[i], s.len, s.a, s.j));
         }
     }
     let mut out = CycleTime {
@@ -376,7 +456,7 @@ pub fn cycle_time_with(
             let v0 = v_in[i];
             let v1 = next_motion[i].map(|j| v_in[j]).unwrap_or(0.0);
             out.nominal_s += s.len / s.v;
-            (profile_time(s.len, v0, v1, s.v, s.a), v0, v1)
+            (profile_time_jerk(s.len, v0, v1, s.v, s.a, s.j), v0, v1)
         } else {
             (0.0, 0.0, 0.0)
         };
