@@ -684,3 +684,18 @@ fn schedule_is_the_same_whatever_the_thread_count() {
         }
     }
 }
+
+#[test]
+fn repeated_identical_steps_cost_no_extra_evaluations() {
+    let mv = moves("G21 G90 G94\nG1 X100 F1000\n");
+    let limits = FeedLimits {
+        max_force: Some(500.0),
+        max_feed: 50_000.0,
+        ..Default::default()
+    };
+    let one = optimize_feeds(&mv, &[seg(0, vec![slot()])], &[cutter()], &limits).unwrap();
+    let ten = optimize_feeds(&mv, &[seg(0, vec![slot(); 10])], &[cutter()], &limits).unwrap();
+    assert_eq!(one.segments[0].feed, ten.segments[0].feed);
+    assert_eq!(one.evaluations, ten.evaluations);
+    assert_eq!(ten.segments[0].step_limits, vec![one.segments[0].feed; 10]);
+}

@@ -599,6 +599,7 @@ fn solve_segment(
     }
     let mut start = programmed;
     let mut bound_found = false;
+    let mut last_engaged: Option<usize> = None;
     let mut sensitivity: Option<f64> = None;
     // Step with the thickest chip per unit feed: it needs the least feed to reach the floor.
     let mut floor_step: Option<(f64, usize, (f64, f64))> = None;
@@ -607,6 +608,16 @@ fn solve_segment(
             res.step_limits.push(limits.max_feed);
             continue;
         }
+        // Same engagement and speed as the last engaged step (steady cutting on the grid): the
+        // model would give the same numbers, so its answer stands.
+        if let Some(pk) = last_engaged {
+            let p: &EngagementStep = &seg.steps[pk];
+            if p.spindle_rpm == step.spindle_rpm && p.engagement == step.engagement {
+                res.step_limits.push(res.step_limits[pk]);
+                continue;
+            }
+        }
+        last_engaged = Some(k);
         // After the first engaged step, start at the lowest limit so far: a step that is
         // feasible there does not bind (one evaluation) unless exact step limits are wanted.
         let skip = bound_found && !limits.exact_step_limits;
