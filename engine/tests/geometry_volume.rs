@@ -1,5 +1,6 @@
 //! Removed volumes against analytic values at 0.1 and 0.05 mm grids (issue 4 acceptance).
-//! Heavy: run with `cargo test --release --test geometry_volume` (ignored in debug builds).
+//! Debug builds check the 0.1 mm grid only; `cargo test --release --test geometry_volume`
+//! checks 0.1 and 0.05 mm.
 
 use std::f64::consts::PI;
 
@@ -8,6 +9,16 @@ use millsim_engine::job::CancelFlag;
 use millsim_engine::tool::Tool;
 
 const Z: [f64; 3] = [0.0, 0.0, 1.0];
+
+/// Grid sizes checked: both in release builds; the coarser one in debug builds, where
+/// the engine runs unoptimised.
+fn cells() -> &'static [f64] {
+    if cfg!(debug_assertions) {
+        &[0.1]
+    } else {
+        &[0.1, 0.05]
+    }
+}
 
 fn removed(stock: &mut Stock, tool: &Tool, segs: &[Segment]) -> f64 {
     let opts = SimOptions {
@@ -50,11 +61,10 @@ fn cap_volume(r: f64, a: f64) -> f64 {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn straight_slot_flat_end_mill() {
     let (d, a, l) = (10.0, 3.0, 30.0);
     let tool = Tool::flat(d, 4);
-    for h in [0.1, 0.05] {
+    for &h in cells() {
         let mut stock = Stock::block([0.0, -10.0, -10.0], [50.0, 10.0, 0.0], h).unwrap();
         let segs = [
             Segment::linear(1, [10.0, 0.0, 5.0], [10.0, 0.0, -a], 300.0, 8000.0),
@@ -67,12 +77,11 @@ fn straight_slot_flat_end_mill() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn ball_end_groove() {
     let (d, a, l) = (10.0, 3.0, 30.0);
     let r = d / 2.0;
     let tool = Tool::ball(d, 2);
-    for h in [0.1, 0.05] {
+    for &h in cells() {
         let mut stock = Stock::block([0.0, -10.0, -10.0], [50.0, 10.0, 0.0], h).unwrap();
         let segs = [
             Segment::linear(1, [10.0, 0.0, 5.0], [10.0, 0.0, -a], 300.0, 8000.0),
@@ -115,7 +124,6 @@ fn point_segment_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn bull_nose_pocket() {
     // A zig-zag pocket at constant depth: three passes 3 mm apart joined at the ends.
     let (d, rc, a) = (10.0, 2.0, 3.0);
@@ -148,7 +156,7 @@ fn bull_nose_pocket() {
         }
     }
     want *= q * q;
-    for h in [0.1, 0.05] {
+    for &h in cells() {
         let mut stock = Stock::block([0.0, -12.0, -10.0], [50.0, 12.0, 0.0], h).unwrap();
         let mut segs = vec![Segment::linear(
             1,
@@ -172,12 +180,11 @@ fn bull_nose_pocket() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn helical_bore_with_arcs() {
     // A 6 mm flat end mill on a 4 mm radius helix, 1 mm pitch, 4 turns (G2), then a flat
     // circle at the bottom: removes the annulus 1 mm < r < 7 mm, 4 mm deep.
     let tool = Tool::flat(6.0, 3);
-    for h in [0.1, 0.05] {
+    for &h in cells() {
         let mut stock = Stock::block([-10.0, -10.0, -8.0], [10.0, 10.0, 0.0], h).unwrap();
         let mut segs = vec![Segment::linear(
             1,
@@ -215,7 +222,6 @@ fn helical_bore_with_arcs() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn five_axis_tilting_ball_mill() {
     // The ball's centre runs straight 2 mm above the surface while the axis tilts from
     // vertical to 20° toward the feed; only the ball reaches below the surface (the shank
@@ -233,7 +239,7 @@ fn five_axis_tilting_ball_mill() {
         let (c, ax) = (centre(k), axis(k));
         [c[0] - r * ax[0], c[1] - r * ax[1], c[2] - r * ax[2]]
     };
-    for h in [0.1, 0.05] {
+    for &h in cells() {
         let mut stock = Stock::block([0.0, -10.0, -10.0], [50.0, 10.0, 0.0], h).unwrap();
         let segs: Vec<Segment> = (0..n)
             .map(|k| {
@@ -252,16 +258,14 @@ fn five_axis_tilting_ball_mill() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn cylinder_stock_volume() {
-    for h in [0.1, 0.05] {
+    for &h in cells() {
         let s = Stock::cylinder([0.0, 0.0, 0.0], 10.0, 20.0, h).unwrap();
         check("cylinder stock", s.volume(), PI * 100.0 * 20.0, h);
     }
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn removal_is_deterministic_across_thread_counts() {
     let tool = Tool::bull_nose(8.0, 1.0, 4);
     let segs = [
@@ -284,7 +288,12 @@ fn removal_is_deterministic_across_thread_counts() {
             .build()
             .unwrap();
         pool.install(|| {
-            let mut stock = Stock::block([-40.0, -40.0, -10.0], [40.0, 40.0, 0.0], 0.05).unwrap();
+            let mut stock = Stock::block(
+                [-40.0, -40.0, -10.0],
+                [40.0, 40.0, 0.0],
+                if cfg!(debug_assertions) { 0.2 } else { 0.05 },
+            )
+            .unwrap();
             let rep = simulate_removal(
                 &mut stock,
                 &tool,
@@ -306,7 +315,6 @@ fn removal_is_deterministic_across_thread_counts() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn chamfer_v_groove() {
     // 90° V-bit (45° half angle, sharp tip) 2 mm deep: a triangular groove a²·tan α in
     // section plus a cone at the ends (two half cones).
@@ -316,7 +324,7 @@ fn chamfer_v_groove() {
     tool.tip_diameter = 0.0;
     tool.taper_half_angle_deg = 45.0;
     let r = a * 45f64.to_radians().tan();
-    for h in [0.1, 0.05] {
+    for &h in cells() {
         let mut stock = Stock::block([0.0, -10.0, -10.0], [50.0, 10.0, 0.0], h).unwrap();
         // The 45° flanks run parallel to diagonals of the ray lattice; centred on a ray
         // row they would pass exactly through whole rows of rays (all in or all out).
@@ -332,14 +340,13 @@ fn chamfer_v_groove() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn ball_plunge() {
     // Vertical plunge of a D10 ball 8 mm deep: a cylinder over a half sphere (the
     // Z rays see a pure vertical move, the X and Y rays the ball's varying radius).
     let (d, a) = (10.0, 8.0);
     let r = d / 2.0;
     let tool = Tool::ball(d, 2);
-    for h in [0.1, 0.05] {
+    for &h in cells() {
         let mut stock = Stock::block([0.0, -10.0, -12.0], [45.0, 10.0, 0.0], h).unwrap();
         let plunge = [Segment::linear(
             1,
