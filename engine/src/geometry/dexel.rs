@@ -168,12 +168,7 @@ impl DexelGrid {
     /// Index range of cell centres within `[lo, hi]` along axis `a` (half-open).
     #[inline]
     pub fn index_range(&self, a: usize, lo: f64, hi: f64) -> (usize, usize) {
-        let h = self.cell;
-        let i0 = ((lo - self.origin[a]) / h - 0.5).ceil().max(0.0);
-        let i1 = ((hi - self.origin[a]) / h - 0.5).floor() + 1.0;
-        let i1 = i1.min(self.n[a] as f64).max(0.0);
-        let i0 = i0.min(i1);
-        (i0 as usize, i1 as usize)
+        index_range(self.origin[a], self.cell, self.n[a], lo, hi)
     }
 
     /// Index of the cell containing coordinate `x` along axis `a`, if inside.
@@ -240,6 +235,16 @@ impl DexelGrid {
     pub fn ray_count(&self) -> u64 {
         self.families.iter().map(|f| f.rays.len() as u64).sum()
     }
+}
+
+/// Index range of cell centres `origin + (i + ½)·cell`, i < n, within `[lo, hi]`.
+#[inline]
+pub fn index_range(origin: f64, cell: f64, n: usize, lo: f64, hi: f64) -> (usize, usize) {
+    let i0 = ((lo - origin) / cell - 0.5).ceil().max(0.0);
+    let i1 = ((hi - origin) / cell - 0.5).floor() + 1.0;
+    let i1 = i1.min(n as f64).max(0.0);
+    let i0 = i0.min(i1);
+    (i0 as usize, i1 as usize)
 }
 
 #[inline]

@@ -13,8 +13,15 @@
 //! - X and Y rays (horizontal, at height z0): the plane z0 cuts the tool at time t in a
 //!   disk of centre c(t) and radius r(z0 − z_tip(t)); with a constant radius the union is
 //!   a stadium (exact), otherwise entry/exit are convex/concave in t (golden section).
-//! Any other axis (5-axis sub-steps): GJK ray cast (parry3d) against the support function
-//! of the swept body, which is the tool's support plus the move when it points forward.
+//!
+//! Any other axis (5-axis sub-steps): flat and ball tools in closed form (the swept
+//! cylinder is an ellipse cut by half-planes in the (s, β) plane of ray parameter and
+//! move fraction; the swept sphere is a capsule); bull-nose and chamfer tools by a GJK
+//! ray cast (parry3d) against the support function of the swept body, which is the
+//! tool's support plus the move when it points forward. A conservative capsule around
+//! the tool axis skips rays whose material the sweep cannot reach.
+//!
+//! Arcs and 5-axis moves are cut into such straight sub-moves by `path.rs`.
 
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::details::local_ray_intersection_with_support_map_with_params;
@@ -23,7 +30,7 @@ use parry3d_f64::query::Ray;
 use parry3d_f64::shape::SupportMap;
 use rayon::prelude::*;
 
-use super::dexel::{other_axes, subtract, DexelGrid, Intervals};
+use super::dexel::{index_range, other_axes, subtract, DexelGrid, Family, Intervals};
 use crate::tool::{Tool, ToolShape};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -1009,79 +1016,137 @@ pub fn remove_sweeps(grid: &mut DexelGrid, body: &ToolBody, moves: &[SubMove]) -
             (sw, lo, hi)
         })
         .collect();
-    let gmin = grid.origin;
-    let gmax = grid.max_corner();
-    for fam in 0..3 {
-        let (ua, va) = other_axes(fam);
-        // Index box of each sub-move on this family, and their union.
-        let mut boxes = Vec::with_capacity(sweeps.len());
-        let (mut u0, mut u1, mut v0, mut v1) = (usize::MAX, 0, usize::MAX, 0);
-        for (k, (_, lo, hi)) in sweeps.iter().enumerate() {
-            let (iu0, iu1) = grid.index_range(ua, lo[ua], hi[ua]);
-            let (iv0, iv1) = grid.index_range(va, lo[va], hi[va]);
-            if iu0 >= iu1 || iv0 >= iv1 || hi[fam] < gmin[fam] || lo[fam] > gmax[fam] {
-                continue;
-            }
-            stats.rays_tested += ((iu1 - iu0) * (iv1 - iv0)) as u64;
-            boxes.push((k, iu0, iu1, iv0, iv1));
-            u0 = u0.min(iu0);
-            u1 = u1.max(iu1);
-            v0 = v0.min(iv0);
-            v1 = v1.max(iv1);
+    let frame = Frame {
+        origin: grid.origin,
+        max: grid.max_corner(),
+        cell: grid.cell,
+        n: grid.n,
+    };
+    // The three families are independent: one task each (plus row parallelism inside
+    // large sweeps); their statistics are added in family order.
+    let [f0, f1, f2] = &mut grid.families;
+    let sweeps = &sweeps;
+    let frame = &frame;
+    // Rays the sweeps may touch, from their joint bounds: small steps stay on this thread
+    // (a fork costs more than it saves there, and more still when cores are shared).
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for (_, l, u) in sweeps.iter() {
+        for k in 0..3 {
+            lo[k] = lo[k].min(l[k]);
+            hi[k] = hi[k].max(u[k]);
         }
-        if boxes.is_empty() {
+    }
+    let cells =
+        |k: usize| ((hi[k].min(frame.max[k]) - lo[k].max(frame.origin[k])) / frame.cell).max(0.0);
+    let estimate = cells(0) * cells(1) + cells(1) * cells(2) + cells(2) * cells(0);
+    let (s0, (s1, s2)) = if estimate >= PARALLEL_MIN_RAYS as f64 {
+        rayon::join(
+            || remove_family(frame, f0, sweeps),
+            || {
+                rayon::join(
+                    || remove_family(frame, f1, sweeps),
+                    || remove_family(frame, f2, sweeps),
+                )
+            },
+        )
+    } else {
+        (
+            remove_family(frame, f0, sweeps),
+            (
+                remove_family(frame, f1, sweeps),
+                remove_family(frame, f2, sweeps),
+            ),
+        )
+    };
+    for s in [s0, s1, s2] {
+        stats.add(&s);
+    }
+    stats
+}
+
+/// The grid's placement, shared read-only by the family tasks.
+struct Frame {
+    origin: [f64; 3],
+    max: [f64; 3],
+    cell: f64,
+    n: [usize; 3],
+}
+
+fn remove_family(
+    g: &Frame,
+    f: &mut Family,
+    sweeps: &[(Sweep, [f64; 3], [f64; 3])],
+) -> RemovalStats {
+    let mut stats = RemovalStats::default();
+    let fam = f.axis;
+    let (ua, va) = other_axes(fam);
+    let (gmin, gmax) = (g.origin, g.max);
+    // Index box of each sub-move on this family, and their union.
+    let mut boxes = Vec::with_capacity(sweeps.len());
+    let (mut u0, mut u1, mut v0, mut v1) = (usize::MAX, 0, usize::MAX, 0);
+    for (k, (_, lo, hi)) in sweeps.iter().enumerate() {
+        let (iu0, iu1) = index_range(g.origin[ua], g.cell, g.n[ua], lo[ua], hi[ua]);
+        let (iv0, iv1) = index_range(g.origin[va], g.cell, g.n[va], lo[va], hi[va]);
+        if iu0 >= iu1 || iv0 >= iv1 || hi[fam] < gmin[fam] || lo[fam] > gmax[fam] {
             continue;
         }
-        let (h, ou, ov) = (grid.cell, grid.origin[ua], grid.origin[va]);
-        let (s_min, s_max) = (gmin[fam], gmax[fam]);
-        let f = &mut grid.families[fam];
-        let nu = f.nu;
-        let rows = &mut f.rays[v0 * nu..v1 * nu];
-        let sweeps = &sweeps;
-        let boxes = &boxes;
-        let do_row = |(k, row): (usize, &mut [Intervals])| -> (f64, u64, u64) {
-            let iv = v0 + k;
-            let v = ov + (iv as f64 + 0.5) * h;
-            let mut removed = 0.0;
-            let (mut exact, mut changed) = (0u64, 0u64);
-            for &(m, bu0, bu1, bv0, bv1) in boxes.iter() {
-                if iv < bv0 || iv >= bv1 {
+        stats.rays_tested += ((iu1 - iu0) * (iv1 - iv0)) as u64;
+        boxes.push((k, iu0, iu1, iv0, iv1));
+        u0 = u0.min(iu0);
+        u1 = u1.max(iu1);
+        v0 = v0.min(iv0);
+        v1 = v1.max(iv1);
+    }
+    if boxes.is_empty() {
+        return stats;
+    }
+    let (h, ou, ov) = (g.cell, g.origin[ua], g.origin[va]);
+    let (s_min, s_max) = (gmin[fam], gmax[fam]);
+    let nu = f.nu;
+    let rows = &mut f.rays[v0 * nu..v1 * nu];
+    let boxes = &boxes;
+    let do_row = |(k, row): (usize, &mut [Intervals])| -> (f64, u64, u64) {
+        let iv = v0 + k;
+        let v = ov + (iv as f64 + 0.5) * h;
+        let mut removed = 0.0;
+        let (mut exact, mut changed) = (0u64, 0u64);
+        for &(m, bu0, bu1, bv0, bv1) in boxes.iter() {
+            if iv < bv0 || iv >= bv1 {
+                continue;
+            }
+            let (sweep, lo, hi) = &sweeps[m];
+            let (lo_f, hi_f) = (lo[fam], hi[fam]);
+            for (iu, ray) in row.iter_mut().enumerate().take(bu1).skip(bu0) {
+                // Nothing to do where the ray has no material within the sweep's extent
+                // along it.
+                if !ray.iter().any(|r| r[0] < hi_f && lo_f < r[1]) {
                     continue;
                 }
-                let (sweep, lo, hi) = &sweeps[m];
-                let (lo_f, hi_f) = (lo[fam], hi[fam]);
-                for (iu, ray) in row.iter_mut().enumerate().take(bu1).skip(bu0) {
-                    // Nothing to do where the ray has no material within the sweep's
-                    // extent along it.
-                    if !ray.iter().any(|r| r[0] < hi_f && lo_f < r[1]) {
-                        continue;
-                    }
-                    let u = ou + (iu as f64 + 0.5) * h;
-                    exact += 1;
-                    if let Some((a, b)) = sweep.ray_interval(fam, u, v, s_min, s_max, ray) {
-                        let r = subtract(ray, a, b);
-                        if r > 0.0 {
-                            removed += r;
-                            changed += 1;
-                        }
+                let u = ou + (iu as f64 + 0.5) * h;
+                exact += 1;
+                if let Some((a, b)) = sweep.ray_interval(fam, u, v, s_min, s_max, ray) {
+                    let r = subtract(ray, a, b);
+                    if r > 0.0 {
+                        removed += r;
+                        changed += 1;
                     }
                 }
             }
-            (removed, exact, changed)
-        };
-        let n_rays = (u1 - u0) * (v1 - v0);
-        // Per-row results are summed in row order, so the total is the same bit for bit
-        // on one thread or many.
-        let per_row: Vec<(f64, u64, u64)> = if n_rays >= PARALLEL_MIN_RAYS {
-            rows.par_chunks_mut(nu).enumerate().map(do_row).collect()
-        } else {
-            rows.chunks_mut(nu).enumerate().map(do_row).collect()
-        };
-        for (r, e, c) in per_row {
-            stats.removed_length[fam] += r;
-            stats.rays_intersected += e;
-            stats.rays_changed += c;
         }
+        (removed, exact, changed)
+    };
+    let n_rays = (u1 - u0) * (v1 - v0);
+    // Per-row results are summed in row order, so the total is the same bit for bit on
+    // one thread or many.
+    let per_row: Vec<(f64, u64, u64)> = if n_rays >= PARALLEL_MIN_RAYS {
+        rows.par_chunks_mut(nu).enumerate().map(do_row).collect()
+    } else {
+        rows.chunks_mut(nu).enumerate().map(do_row).collect()
+    };
+    for (r, e, c) in per_row {
+        stats.removed_length[fam] += r;
+        stats.rays_intersected += e;
+        stats.rays_changed += c;
     }
     stats
 }
@@ -1187,7 +1252,7 @@ mod tests {
             let mut checked = 0;
             for _ in 0..300 {
                 let th = rnd() * 0.8;
-                let ph = rnd() * 6.283;
+                let ph = rnd() * std::f64::consts::TAU;
                 let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
                 let p1 = [rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0, rnd() * 2.0 - 1.0];
                 let mv = SubMove {
