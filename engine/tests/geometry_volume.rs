@@ -1,5 +1,5 @@
 //! Removed volumes against analytic values at 0.1 and 0.05 mm grids (issue 4 acceptance).
-//! Heavy: run with `cargo test --release --test geometry_volume` (ignored in debug builds).
+//! Heavy: the engine is built with opt-level 2 in test builds too (see Cargo.toml).
 
 use std::f64::consts::PI;
 
@@ -50,7 +50,6 @@ fn cap_volume(r: f64, a: f64) -> f64 {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn straight_slot_flat_end_mill() {
     let (d, a, l) = (10.0, 3.0, 30.0);
     let tool = Tool::flat(d, 4);
@@ -67,7 +66,6 @@ fn straight_slot_flat_end_mill() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn ball_end_groove() {
     let (d, a, l) = (10.0, 3.0, 30.0);
     let r = d / 2.0;
@@ -115,7 +113,6 @@ fn point_segment_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn bull_nose_pocket() {
     // A zig-zag pocket at constant depth: three passes 3 mm apart joined at the ends.
     let (d, rc, a) = (10.0, 2.0, 3.0);
@@ -172,7 +169,6 @@ fn bull_nose_pocket() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn helical_bore_with_arcs() {
     // A 6 mm flat end mill on a 4 mm radius helix, 1 mm pitch, 4 turns (G2), then a flat
     // circle at the bottom: removes the annulus 1 mm < r < 7 mm, 4 mm deep.
@@ -215,7 +211,6 @@ fn helical_bore_with_arcs() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn five_axis_tilting_ball_mill() {
     // The ball's centre runs straight 2 mm above the surface while the axis tilts from
     // vertical to 20° toward the feed; only the ball reaches below the surface (the shank
@@ -252,7 +247,6 @@ fn five_axis_tilting_ball_mill() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn cylinder_stock_volume() {
     for h in [0.1, 0.05] {
         let s = Stock::cylinder([0.0, 0.0, 0.0], 10.0, 20.0, h).unwrap();
@@ -261,7 +255,6 @@ fn cylinder_stock_volume() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn removal_is_deterministic_across_thread_counts() {
     let tool = Tool::bull_nose(8.0, 1.0, 4);
     let segs = [
