@@ -141,8 +141,22 @@ pub struct StageTimings {
     pub forces_s: f64,
 }
 
+/// The force at one engaged step, for plotting along a move.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct StepSample {
+    /// Distance of the step from the start of the move, mm.
+    pub at: f64,
+    pub peak_force: f64,
+    pub mean_force: f64,
+    pub peak_torque: f64,
+    pub mean_power: f64,
+    pub max_chip_thickness: f64,
+}
+
 pub struct SimulationOutput {
     pub rows: Vec<MoveRow>,
+    /// Per move (same order as `rows`), the force at each engaged step.
+    pub samples: Vec<Vec<StepSample>>,
     pub summary: SimulationSummary,
     pub stock: Stock,
     pub timings: StageTimings,
@@ -326,9 +340,18 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     }
     let mut weighted: Vec<(f64, f64, f64)> = vec![(0.0, 0.0, 0.0); rows.len()]; // (Σ mean·len, Σ len engaged, Σ power·len)
     let mut evaluations = 0;
+    let mut samples: Vec<Vec<StepSample>> = vec![Vec::new(); rows.len()];
     for ((mi, _, s), f) in steps.iter().zip(&forces) {
         let Some(f) = f else { continue };
         evaluations += 1;
+        samples[*mi].push(StepSample {
+            at: s.distance,
+            peak_force: f.force.peak,
+            mean_force: f.force.mean,
+            peak_torque: f.torque.peak,
+            mean_power: f.power.mean,
+            max_chip_thickness: f.max_chip_thickness,
+        });
         let row = &mut rows[*mi];
         row.peak_force = row.peak_force.max(f.force.peak);
         row.peak_fx = row.peak_fx.max(f.part[0].peak());
@@ -378,5 +401,5 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         nominal_time_s: times.nominal_s,
         cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
     };
-    Ok(SimulationOutput { rows, summary, stock, timings, rays_tested })
+    Ok(SimulationOutput { rows, samples, summary, stock, timings, rays_tested })
 }
