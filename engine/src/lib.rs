@@ -10,6 +10,7 @@ pub mod geometry;
 pub mod job;
 pub mod machine;
 pub mod nc;
+pub mod optimize;
 pub mod physics;
 pub mod simulate;
 pub mod tool;

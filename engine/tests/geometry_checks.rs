@@ -151,3 +151,63 @@ fn tool_touching_the_fixture_is_reported() {
     assert!(!flags[0].fixture_contact);
     assert!(flags[1].fixture_contact);
 }
+
+#[test]
+fn bad_input_and_cancellation_are_clear_errors() {
+    use millsim_engine::geometry::GeometryError;
+    let tool = Tool::flat(6.0, 3);
+    let mut stock = Stock::block([0.0, 0.0, -10.0], [40.0, 40.0, 0.0], 0.5).unwrap();
+    let good = Segment::linear(3, [0.0, 0.0, 1.0], [10.0, 0.0, 1.0], 800.0, 8000.0);
+    let bad = Segment::linear(4, [0.0, f64::NAN, 1.0], [10.0, 0.0, 1.0], 800.0, 8000.0);
+    let e = simulate_removal(
+        &mut stock,
+        &tool,
+        &[good.clone(), bad],
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            GeometryError::InvalidSegment {
+                index: 1,
+                block: 4,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    let tilted = good.clone().with_axes([0.0, 0.0, 2.0], [0.0, 0.0, 1.0]);
+    let e = simulate_removal(
+        &mut stock,
+        &tool,
+        &[tilted],
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("unit vector"), "{e}");
+    let mut broken = tool.clone();
+    broken.flutes = 0;
+    let e = simulate_removal(
+        &mut stock,
+        &broken,
+        &[good.clone()],
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap_err();
+    assert!(matches!(e, GeometryError::Tool(_)), "{e}");
+    let cancel = CancelFlag::new();
+    cancel.cancel();
+    let e =
+        simulate_removal(&mut stock, &tool, &[good], &SimOptions::default(), &cancel).unwrap_err();
+    assert!(
+        matches!(e, GeometryError::Cancelled { done: 0, total: 1 }),
+        "{e}"
+    );
+    // Parametric stock errors name what is wrong.
+    let e = Stock::block([0.0, 0.0, 0.0], [10.0, 0.0, 5.0], 0.1).unwrap_err();
+    assert!(e.to_string().contains("empty along y"), "{e}");
+}

@@ -198,3 +198,61 @@ fn steps_follow_feed_per_tooth_on_short_blocks_and_adapt_on_long_ones() {
         .fold(0.0, f64::max);
     assert!(max_step <= 16.0 * 0.1 + 1e-9);
 }
+
+#[test]
+fn ball_slot_engages_the_front_half_over_the_depth() {
+    // D10 ball, 2 mm deep slot: every slice up to 2 mm engaged on [0, π]; radial width
+    // 2·√(R² − (R − a)²) = 8 mm; edge in contact = the profile arc R·acos((R − a)/R).
+    let (d, a) = (10.0, 2.0);
+    let r = d / 2.0;
+    let tool = Tool::ball(d, 2);
+    let mut stock = Stock::block([0.0, -10.0, -10.0], [60.0, 10.0, 0.0], H).unwrap();
+    let segs = [Segment::linear(
+        1,
+        [-10.0, 0.0, -a],
+        [50.0, 0.0, -a],
+        1000.0,
+        10000.0,
+    )];
+    let rep = simulate_removal(
+        &mut stock,
+        &tool,
+        &segs,
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap();
+    let want_edge = r * ((r - a) / r).acos();
+    let st = steady(&rep.blocks[0]);
+    assert!(st.len() > 10);
+    for s in st {
+        let m = s.metrics;
+        assert!(
+            (m.axial_depth - a).abs() <= H + 1e-9,
+            "axial depth {}",
+            m.axial_depth
+        );
+        assert!(
+            m.entry_angle <= bin() && (m.exit_angle - PI).abs() <= bin(),
+            "{m:?}"
+        );
+        assert!(
+            (m.radial_width - 8.0).abs() < 0.1,
+            "radial width {}",
+            m.radial_width
+        );
+        assert!(
+            ((m.engaged_edge_length - want_edge) / want_edge).abs() < 0.03,
+            "edge {} want {want_edge}",
+            m.engaged_edge_length
+        );
+        // Each slice's arc is the front half.
+        for sl in &s.engagement.slices {
+            assert_eq!(sl.arcs.len(), 1, "{sl:?}");
+            assert!(
+                sl.arcs[0].0 <= bin() && (sl.arcs[0].1 - PI).abs() <= bin(),
+                "{sl:?}"
+            );
+        }
+    }
+}

@@ -297,3 +297,56 @@ fn removal_is_deterministic_across_thread_counts() {
     };
     assert_eq!(run(1), run(2));
 }
+
+#[test]
+#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
+fn chamfer_v_groove() {
+    // 90° V-bit (45° half angle, sharp tip) 2 mm deep: a triangular groove a²·tan α in
+    // section plus a cone at the ends (two half cones).
+    let (a, l) = (2.0, 30.0);
+    let mut tool = Tool::flat(10.0, 2);
+    tool.shape = millsim_engine::tool::ToolShape::Chamfer;
+    tool.tip_diameter = 0.0;
+    tool.taper_half_angle_deg = 45.0;
+    let r = a * 45f64.to_radians().tan();
+    for h in [0.1, 0.05] {
+        let mut stock = Stock::block([0.0, -10.0, -10.0], [50.0, 10.0, 0.0], h).unwrap();
+        // The 45° flanks run parallel to diagonals of the ray lattice; centred on a ray
+        // row they would pass exactly through whole rows of rays (all in or all out).
+        // Offset by half a cell they lie midway, as the slot's walls do.
+        let y0 = h / 2.0;
+        let segs = [
+            Segment::linear(1, [10.0, y0, 5.0], [10.0, y0, -a], 300.0, 8000.0),
+            Segment::linear(2, [10.0, y0, -a], [10.0 + l, y0, -a], 1200.0, 8000.0),
+        ];
+        let got = removed(&mut stock, &tool, &segs);
+        check("chamfer V-groove", got, l * a * r + PI * r * r * a / 3.0, h);
+    }
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
+fn ball_plunge() {
+    // Vertical plunge of a D10 ball 8 mm deep: a cylinder over a half sphere (the
+    // Z rays see a pure vertical move, the X and Y rays the ball's varying radius).
+    let (d, a) = (10.0, 8.0);
+    let r = d / 2.0;
+    let tool = Tool::ball(d, 2);
+    for h in [0.1, 0.05] {
+        let mut stock = Stock::block([0.0, -10.0, -12.0], [45.0, 10.0, 0.0], h).unwrap();
+        let plunge = [Segment::linear(
+            1,
+            [10.0, 0.0, 5.0],
+            [10.0, 0.0, -a],
+            300.0,
+            8000.0,
+        )];
+        let got = removed(&mut stock, &tool, &plunge);
+        check(
+            "ball plunge",
+            got,
+            PI * r * r * (a - r) + 2.0 / 3.0 * PI * r * r * r,
+            h,
+        );
+    }
+}

@@ -49,7 +49,9 @@ pub struct StepMetrics {
     /// Smallest entry angle and largest exit angle over all slices, radians (0 in air).
     pub entry_angle: f64,
     pub exit_angle: f64,
-    /// Chip width in contact: Σ over engaged slices dz / sin κ, mm.
+    /// Length of cutting edge in contact: the profile's arc length over the engaged
+    /// slices, mm (dz / sin κ on straight parts, exact on the corner arc, where the slice
+    /// midpoint's dz / sin κ would miss the steep part near the tip).
     pub engaged_edge_length: f64,
 }
 
@@ -258,7 +260,7 @@ pub(crate) fn compute(
             cmin = cmin.min(c_lo);
         }
         met.radial_width = met.radial_width.max(ep.radius * (cmax - cmin));
-        met.engaged_edge_length += dz / ep.kappa.sin();
+        met.engaged_edge_length += body.profile_length(z - 0.5 * dz, z + 0.5 * dz);
         eng.slices.push(EngagedSlice { z, dz, arcs });
     }
     if eng.slices.is_empty() {

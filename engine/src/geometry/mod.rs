@@ -3,7 +3,35 @@
 //! export of the final stock.
 //!
 //! Entry point: [`simulate_removal`] over a list of [`Segment`]s (the integrator maps
-//! the NC interpreter's moves to them).
+//! the NC interpreter's moves to them: tool tip positions, arcs with centre/normal/
+//! direction/turns, tool axis at both ends, rapid flag, block index, feed and speed).
+//!
+//! ```
+//! use millsim_engine::geometry::{default_cell, simulate_removal, Segment, SimOptions, Stock};
+//! use millsim_engine::{job::CancelFlag, tool::Tool};
+//!
+//! let tool = Tool::flat(6.0, 3);
+//! assert_eq!(default_cell(&[tool.radius()]), 0.15); // R/20, the default resolution
+//! let cell = 0.1;
+//! let mut stock = Stock::block([0.0, 0.0, -10.0], [30.0, 20.0, 0.0], cell).unwrap();
+//! let moves = [
+//!     Segment::rapid(0, [-5.0, 10.0, 5.0], [-5.0, 10.0, -2.0]),
+//!     Segment::linear(1, [-5.0, 10.0, -2.0], [35.0, 10.0, -2.0], 900.0, 9000.0),
+//! ];
+//! let report =
+//!     simulate_removal(&mut stock, &tool, &moves, &SimOptions::default(), &CancelFlag::new())
+//!         .unwrap();
+//! let slot = &report.blocks[1];
+//! // Exact to the grid: the X and Y rays sample the depth in whole cells.
+//! assert!((slot.removed_volume - 30.0 * 6.0 * 2.0).abs() < 0.01 * 360.0);
+//! assert!((slot.max_axial_depth - 2.0).abs() <= cell);
+//! assert!(!report.blocks[0].checks.rapid_in_material);
+//! ```
+//!
+//! Modules: `dexel` (grid, intervals, memory estimate), `stock` (block, cylinder),
+//! `stl` (STL import), `path` (segments, arcs, 5-axis sub-steps), `sweep` (swept volume
+//! per ray, removal), `engagement` (per step), `checks` (rapid, flutes, shank, holder,
+//! fixture), `compare` (gouge and allowance against a design part), `export` (STL).
 
 pub mod checks;
 pub mod compare;

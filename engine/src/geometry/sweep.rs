@@ -125,6 +125,27 @@ impl ToolBody {
         }
     }
 
+    /// Length of the profile curve (the cutting edge's trace in a plane through the
+    /// axis) between heights z0 < z1.
+    pub fn profile_length(&self, z0: f64, z1: f64) -> f64 {
+        let (z0, z1) = (z0.max(0.0), z1.min(self.length));
+        if z1 <= z0 {
+            return 0.0;
+        }
+        match self.profile {
+            Profile::Flat => z1 - z0,
+            Profile::Corner { rc } => {
+                // On the corner arc z = rc − rc·cos ψ, so the arc length is rc·Δψ.
+                let psi = |z: f64| ((rc - z.min(rc)) / rc).clamp(-1.0, 1.0).acos();
+                rc * (psi(z1) - psi(z0)) + (z1 - z0.max(rc)).max(0.0)
+            }
+            Profile::Cone { tan, ztop, .. } => {
+                let cone = (z1.min(ztop) - z0).max(0.0);
+                cone * (1.0 + tan * tan).sqrt() + (z1 - z0.max(ztop)).max(0.0)
+            }
+        }
+    }
+
     /// Lowest height where the profile reaches radius ρ (ρ ≤ top_radius).
     #[inline]
     fn zlow(&self, rho: f64) -> f64 {
@@ -1318,5 +1339,23 @@ mod tests {
                 _ => panic!("{a:?} {b:?} {rho} {c0}: {x:?} vs {y:?}"),
             }
         }
+    }
+
+    #[test]
+    fn profile_lengths() {
+        let b = ToolBody::cutting_part(&Tool::ball(10.0, 2));
+        assert!((b.profile_length(0.0, 5.0) - 5.0 * std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!(
+            (b.profile_length(0.0, 7.0) - (5.0 * std::f64::consts::FRAC_PI_2 + 2.0)).abs() < 1e-12
+        );
+        let mut t = Tool::flat(10.0, 2);
+        t.shape = crate::tool::ToolShape::Chamfer;
+        t.taper_half_angle_deg = 45.0;
+        let c = ToolBody::cutting_part(&t);
+        assert!((c.profile_length(0.0, 5.0) - 5.0 * 2f64.sqrt()).abs() < 1e-9);
+        assert!(
+            (ToolBody::cutting_part(&Tool::flat(6.0, 2)).profile_length(1.0, 3.0) - 2.0).abs()
+                < 1e-12
+        );
     }
 }
