@@ -299,7 +299,6 @@ fn removal_is_deterministic_across_thread_counts() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn chamfer_v_groove() {
     // 90° V-bit (45° half angle, sharp tip) 2 mm deep: a triangular groove a²·tan α in
     // section plus a cone at the ends (two half cones).
@@ -325,7 +324,6 @@ fn chamfer_v_groove() {
 }
 
 #[test]
-#[cfg_attr(debug_assertions, ignore = "heavy: run with --release")]
 fn ball_plunge() {
     // Vertical plunge of a D10 ball 8 mm deep: a cylinder over a half sphere (the
     // Z rays see a pure vertical move, the X and Y rays the ball's varying radius).
