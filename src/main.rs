@@ -308,7 +308,17 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let mut options = nc::InterpretOptions {
+    let tool_table = match &args.tool_table {
+        Some(path) => match std::fs::read_to_string(path) {
+            Ok(t) => Some(t),
+            Err(e) => {
+                eprintln!("{}: {e}", path.display());
+                return ExitCode::from(2);
+            }
+        },
+        None => None,
+    };
+    let job_options = runner::InterpretOptions {
         dialect: match args.dialect {
             DialectArg::Auto => nc::Dialect::Auto,
             DialectArg::Fanuc => nc::Dialect::Fanuc,
@@ -318,23 +328,19 @@ fn interpret(args: InterpretArgs) -> ExitCode {
         fanuc_corners_without_comma: args.fanuc_corners_without_comma,
         passthrough_m_codes: args.passthrough_m.clone(),
         block_delete: args.block_delete,
-        ..Default::default()
+        tool_table,
     };
-    if let Some(path) = &args.tool_table {
-        let table_file = path.display().to_string();
-        let parsed = std::fs::read_to_string(path).map_err(|e| vec![format!("{table_file}: {e}")]).and_then(|t| {
-            nc::parse_tool_table(&t).map_err(|d| d.0.iter().map(|e| format!("{table_file}:{e}")).collect())
-        });
-        match parsed {
-            Ok(t) => options.tool_table = t,
-            Err(lines) => {
-                for l in lines {
-                    eprintln!("{l}");
-                }
-                return ExitCode::FAILURE;
+    // The same options a job gets; only the tool table's errors name its own file.
+    let options = match job_options.engine_options() {
+        Ok(o) => o,
+        Err(diags) => {
+            let table = args.tool_table.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+            for d in &diags.0 {
+                eprintln!("{table}:{d}");
             }
+            return ExitCode::FAILURE;
         }
-    }
+    };
     let result =
         if validate::looks_like_cls(&text) { millsim_engine::cl::read_cls(&text) } else { nc::interpret(&text, &options) };
     match result {

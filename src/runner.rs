@@ -119,6 +119,8 @@ pub struct OutputFile {
 pub struct JobOutput {
     pub summary: Value,
     pub rows: Vec<String>,
+    /// Per-step samples as (row seq, JSON array), for rows that have any.
+    pub samples: Vec<(usize, String)>,
     pub files: Vec<OutputFile>,
 }
 
@@ -209,6 +211,7 @@ fn interpret(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, pro
     Ok(JobOutput {
         summary: json!({ "file": file, "moves": result.moves.len(), "blocks": result.block_count, "warnings": warnings, "row_columns": columns }),
         rows,
+        samples: Vec::new(),
         files: Vec::new(),
     })
 }
@@ -320,6 +323,13 @@ fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, 
         other => invalid("Simulation refused", format!("{file}: {other}")),
     })?;
     let rows: Vec<String> = out.rows.iter().map(|r| serde_json::to_string(r).expect("rows serialize")).collect();
+    let samples: Vec<(usize, String)> = out
+        .samples
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| !s.is_empty())
+        .map(|(i, s)| (i, serde_json::to_string(s).expect("samples serialize")))
+        .collect();
     let row_columns = match serde_json::to_value(out.rows.first().cloned().unwrap_or_default()) {
         Ok(Value::Object(o)) => o.keys().cloned().collect(),
         _ => Vec::new(),
@@ -337,6 +347,7 @@ fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, 
         })
         .expect("summary serializes"),
         rows,
+        samples,
         files: vec![OutputFile { name: "stock.stl", media_type: "model/stl", file_name: format!("{stem}.stock.stl"), content: stl }],
     })
 }

@@ -47,6 +47,22 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let cut = page["items"].as_array().unwrap().iter().find(|r| r["line"] == 6).unwrap();
     assert!(cut["peak_force"].as_f64().unwrap() > 600.0, "{cut}");
 
+    // Per-step samples of a row range; their largest peak is the row's peak.
+    let (st, samples) = json(c.get(s.url(&format!("/v1/jobs/{job_id}/blocks/0-100/samples"))).send().await.unwrap()).await;
+    assert_eq!(st, 200, "{samples}");
+    let rows = page["items"].as_array().unwrap();
+    let cut_seq = rows.iter().position(|r| r["line"] == 6).unwrap();
+    let item = samples["items"].as_array().unwrap().iter().find(|i| i["row"] == cut_seq).unwrap();
+    let steps = item["samples"].as_array().unwrap();
+    assert!(steps.len() > 10);
+    let max = steps.iter().map(|x| x["peak_force"].as_f64().unwrap()).fold(0.0, f64::max);
+    assert_eq!(max, cut["peak_force"].as_f64().unwrap());
+    assert!(steps.windows(2).all(|w| w[0]["at"].as_f64() < w[1]["at"].as_f64()));
+    for bad in ["5-2", "x-3", "0-20000"] {
+        let (st, p) = json(c.get(s.url(&format!("/v1/jobs/{job_id}/blocks/{bad}/samples"))).send().await.unwrap()).await;
+        assert_eq!((st, p["field"].as_str()), (422, Some("range")), "{bad}: {p}");
+    }
+
     let res = c.get(s.url(&format!("/v1/jobs/{job_id}/stock.stl"))).send().await.unwrap();
     assert_eq!(res.status(), 200);
     assert!(res.headers()["content-disposition"].to_str().unwrap().contains("slot.stock.stl"));

@@ -18,6 +18,9 @@ use crate::nc::{self, FeedMode, Move, MoveKind};
 use crate::physics::{CuttingConditions, ForceModel, Material};
 use crate::tool::Tool;
 
+/// Moves swept between two progress reports (and cancellation checks).
+const PROGRESS_CHUNK: usize = 256;
+
 /// Where the stock comes from.
 pub enum StockSource {
     Shape(StockShape),
@@ -141,8 +144,22 @@ pub struct StageTimings {
     pub forces_s: f64,
 }
 
+/// The force at one engaged step, for plotting along a move.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct StepSample {
+    /// Distance of the step from the start of the move, mm.
+    pub at: f64,
+    pub peak_force: f64,
+    pub mean_force: f64,
+    pub peak_torque: f64,
+    pub mean_power: f64,
+    pub max_chip_thickness: f64,
+}
+
 pub struct SimulationOutput {
     pub rows: Vec<MoveRow>,
+    /// Per move (same order as `rows`), the force at each engaged step.
+    pub samples: Vec<Vec<StepSample>>,
     pub summary: SimulationSummary,
     pub stock: Stock,
     pub timings: StageTimings,
@@ -270,39 +287,41 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         if !models.contains_key(tool_number) {
             models.insert(*tool_number, ForceModel::new(tool, 50, spec.force_positions)?.keep_samples(false));
         }
-        let only: Vec<Segment> = segs.iter().map(|(_, s)| s.clone()).collect();
-        let report = simulate_removal(&mut stock, tool, &only, &SimOptions::default(), cancel).map_err(|e| match e {
-            geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
-            other => SimulateError::Geometry(other),
-        })?;
-        rays_tested += report.rays_tested;
-        for ((move_index, _), b) in segs.iter().zip(report.blocks) {
-            let row = &mut rows[*move_index];
-            row.removed_volume = b.removed_volume;
-            row.max_axial_depth = b.max_axial_depth;
-            row.max_radial_width = b.max_radial_width;
-            row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
-            row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
-            // A step that removes nothing is air, even where the edge grazes a wall that
-            // an earlier move cut to exactly the tool's radius.
-            let cut_length: f64 = b.steps.iter().filter(|s| !s.air && s.removed_volume > 0.0).map(|s| s.length).sum();
-            let steps_length: f64 = b.steps.iter().map(|s| s.length).sum();
-            row.air_fraction = if steps_length > 0.0 { 1.0 - cut_length / steps_length } else { 1.0 };
-            row.rapid_in_material = b.checks.rapid_in_material;
-            row.flute_length_exceeded = b.checks.flute_length_exceeded;
-            row.shank_contact = b.checks.shank_contact;
-            row.holder_contact = b.checks.holder_contact;
-            row.steps = b.steps.len();
-            row.max_mrr = b.max_mrr;
-            row.spindle_stopped_in_material = b.removed_volume > 1e-6 && moves[*move_index].spindle <= 0.0 && !b.rapid;
-            steps.extend(b.steps.into_iter().map(|s| (*move_index, *tool_number, s)));
+        // In chunks, so that progress and cancellation come every few hundred moves
+        // (the removal keeps no state from one segment to the next).
+        for chunk in segs.chunks(PROGRESS_CHUNK) {
+            let only: Vec<Segment> = chunk.iter().map(|(_, s)| s.clone()).collect();
+            let report = simulate_removal(&mut stock, tool, &only, &SimOptions::default(), cancel).map_err(|e| match e {
+                geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
+                other => SimulateError::Geometry(other),
+            })?;
+            rays_tested += report.rays_tested;
+            for ((move_index, _), b) in chunk.iter().zip(report.blocks) {
+                let row = &mut rows[*move_index];
+                row.removed_volume = b.removed_volume;
+                row.max_axial_depth = b.max_axial_depth;
+                row.max_radial_width = b.max_radial_width;
+                row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
+                row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
+                // A step that removes nothing is air, even where the edge grazes a wall that
+                // an earlier move cut to exactly the tool's radius.
+                let cut_length: f64 = b.steps.iter().filter(|s| !s.air && s.removed_volume > 0.0).map(|s| s.length).sum();
+                let steps_length: f64 = b.steps.iter().map(|s| s.length).sum();
+                row.air_fraction = if steps_length > 0.0 { 1.0 - cut_length / steps_length } else { 1.0 };
+                row.rapid_in_material = b.checks.rapid_in_material;
+                row.flute_length_exceeded = b.checks.flute_length_exceeded;
+                row.shank_contact = b.checks.shank_contact;
+                row.holder_contact = b.checks.holder_contact;
+                row.steps = b.steps.len();
+                row.max_mrr = b.max_mrr;
+                row.spindle_stopped_in_material = b.removed_volume > 1e-6 && moves[*move_index].spindle <= 0.0 && !b.rapid;
+                steps.extend(b.steps.into_iter().map(|s| (*move_index, *tool_number, s)));
+            }
+            // The last tenth of the progress is the force evaluation.
+            done += chunk.len() as u64;
+            progress.report(done * 9 / 10, total);
         }
-        done += segs.len() as u64;
-        progress.report(done.min(total), total);
     }
-
-    // Forces at every engaged step, in parallel: each step is independent and results are
-    // gathered in step order, so the outcome does not depend on the thread count.
     timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let k = spec.material.coefficients;
@@ -326,9 +345,18 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     }
     let mut weighted: Vec<(f64, f64, f64)> = vec![(0.0, 0.0, 0.0); rows.len()]; // (Σ mean·len, Σ len engaged, Σ power·len)
     let mut evaluations = 0;
+    let mut samples: Vec<Vec<StepSample>> = vec![Vec::new(); rows.len()];
     for ((mi, _, s), f) in steps.iter().zip(&forces) {
         let Some(f) = f else { continue };
         evaluations += 1;
+        samples[*mi].push(StepSample {
+            at: s.distance,
+            peak_force: f.force.peak,
+            mean_force: f.force.mean,
+            peak_torque: f.torque.peak,
+            mean_power: f.power.mean,
+            max_chip_thickness: f.max_chip_thickness,
+        });
         let row = &mut rows[*mi];
         row.peak_force = row.peak_force.max(f.force.peak);
         row.peak_fx = row.peak_fx.max(f.part[0].peak());
@@ -378,5 +406,5 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         nominal_time_s: times.nominal_s,
         cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
     };
-    Ok(SimulationOutput { rows, summary, stock, timings, rays_tested })
+    Ok(SimulationOutput { rows, samples, summary, stock, timings, rays_tested })
 }

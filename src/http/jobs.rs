@@ -324,6 +324,29 @@ fn csv_response(db: Db, id: String, declared: Option<Vec<String>>) -> Response {
         .into_response()
 }
 
+/// Largest block range one samples request may ask for.
+const MAX_SAMPLE_RANGE: i64 = 10_000;
+
+/// Per-step force samples of rows `from` to `to` (row seq numbers, inclusive), e.g.
+/// `/blocks/100-250/samples`. Rows without engaged steps are left out.
+pub async fn samples(State(state): State<AppState>, Owner(owner): Owner, Path((id, range)): Path<(String, String)>) -> Result<Response, ApiError> {
+    let bad = || ApiError::invalid_field("range", format!("`{range}` is not a block range FROM-TO (row numbers, FROM <= TO, at most {MAX_SAMPLE_RANGE} rows)"));
+    let (from, to) = range.split_once('-').ok_or_else(bad)?;
+    let (from, to) = (from.parse::<i64>().map_err(|_| bad())?, to.parse::<i64>().map_err(|_| bad())?);
+    if from < 0 || to < from || to - from >= MAX_SAMPLE_RANGE {
+        return Err(bad());
+    }
+    succeeded(&state.db, &owner, &id).await?;
+    let items: Vec<Value> = state
+        .db
+        .job_samples(&id, from, to)
+        .await?
+        .into_iter()
+        .map(|(seq, data)| json!({ "row": seq, "samples": serde_json::from_str::<Value>(&data).unwrap_or(Value::Null) }))
+        .collect();
+    Ok(Json(json!({ "from": from, "to": to, "items": items })).into_response())
+}
+
 async fn artifact(state: &AppState, owner: &str, id: &str, name: &str, what: &str) -> Result<Response, ApiError> {
     let job = succeeded(&state.db, owner, id).await?;
     let a = state.db.job_artifact(id, name).await?.ok_or_else(|| {

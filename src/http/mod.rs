@@ -66,6 +66,7 @@ pub fn route_table() -> Vec<(Method, String)> {
         (Method::GET, "/v1/jobs/{id}/attempts"),
         (Method::GET, "/v1/jobs/{id}/summary"),
         (Method::GET, "/v1/jobs/{id}/blocks"),
+        (Method::GET, "/v1/jobs/{id}/blocks/{range}/samples"),
         (Method::GET, "/v1/jobs/{id}/program"),
         (Method::GET, "/v1/jobs/{id}/stock.stl"),
     ] {
@@ -100,6 +101,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs/{id}/attempts", get(jobs::attempts))
         .route("/v1/jobs/{id}/summary", get(jobs::summary))
         .route("/v1/jobs/{id}/blocks", get(jobs::blocks))
+        .route("/v1/jobs/{id}/blocks/{range}/samples", get(jobs::samples))
         .route("/v1/jobs/{id}/program", get(jobs::program))
         .route("/v1/jobs/{id}/stock.stl", get(jobs::stock_stl))
         .layer(timeout(limits.upload_timeout_secs))

@@ -191,6 +191,7 @@ impl Worker {
             Ok(Ok(out)) => Some(Finish::Succeeded {
                 summary: out.summary,
                 rows: out.rows,
+                samples: out.samples,
                 artifacts: out
                     .files
                     .into_iter()

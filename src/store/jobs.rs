@@ -142,7 +142,7 @@ pub struct ClaimedJob {
 
 /// How a worker's attempt ended, written with the state change.
 pub enum Finish {
-    Succeeded { summary: serde_json::Value, rows: Vec<String>, artifacts: Vec<Artifact>, progress: (u64, u64) },
+    Succeeded { summary: serde_json::Value, rows: Vec<String>, samples: Vec<(usize, String)>, artifacts: Vec<Artifact>, progress: (u64, u64) },
     Failed { error: serde_json::Value },
     Cancelled,
 }
@@ -446,15 +446,18 @@ impl Db {
             tx.rollback().await?;
             return Ok(false);
         }
-        if let Finish::Succeeded { rows, artifacts, .. } = finish {
-            sqlx::query("DELETE FROM job_rows WHERE job_id = ?").bind(&job.id).execute(&mut *tx).await?;
-            // Multi-row inserts: one statement per 400 rows instead of one per row.
-            for (chunk_index, chunk) in rows.chunks(400).enumerate() {
-                let mut q = sqlx::QueryBuilder::new("INSERT INTO job_rows (job_id, seq, data) ");
-                q.push_values(chunk.iter().enumerate(), |mut b, (i, data)| {
-                    b.push_bind(&job.id).push_bind((chunk_index * 400 + i) as i64).push_bind(data);
-                });
-                q.build().execute(&mut *tx).await?;
+        if let Finish::Succeeded { rows, samples, artifacts, .. } = finish {
+            let numbered: Vec<(usize, String)> = rows.into_iter().enumerate().collect();
+            for (table, items) in [("job_rows", numbered), ("job_samples", samples)] {
+                sqlx::query(&format!("DELETE FROM {table} WHERE job_id = ?")).bind(&job.id).execute(&mut *tx).await?;
+                // Multi-row inserts: one statement per 400 rows instead of one per row.
+                for chunk in items.chunks(400) {
+                    let mut q = sqlx::QueryBuilder::new(format!("INSERT INTO {table} (job_id, seq, data) "));
+                    q.push_values(chunk, |mut b, (seq, data)| {
+                        b.push_bind(&job.id).push_bind(*seq as i64).push_bind(data);
+                    });
+                    q.build().execute(&mut *tx).await?;
+                }
             }
             for a in artifacts {
                 sqlx::query("INSERT INTO job_artifacts (job_id, name, media_type, file_name, content) VALUES (?, ?, ?, ?, ?)")
@@ -513,6 +516,16 @@ impl Db {
             .bind(job_id)
             .bind(from)
             .bind(limit)
+            .fetch_all(&self.pool)
+            .await?)
+    }
+
+    /// Per-step samples of the rows with seq in [from, to], in seq order.
+    pub async fn job_samples(&self, job_id: &str, from: i64, to: i64) -> Result<Vec<(i64, String)>, StoreError> {
+        Ok(sqlx::query_as("SELECT seq, data FROM job_samples WHERE job_id = ? AND seq >= ? AND seq <= ? ORDER BY seq")
+            .bind(job_id)
+            .bind(from)
+            .bind(to)
             .fetch_all(&self.pool)
             .await?)
     }
