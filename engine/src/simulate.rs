@@ -15,8 +15,36 @@ use crate::job::{CancelFlag, Progress};
 use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length, CycleTimeError};
 use crate::machine::Machine;
 use crate::nc::{self, FeedMode, Move, MoveKind};
-use crate::physics::{CuttingConditions, ForceModel, Material};
+use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
+use crate::physics::{CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, Material};
 use crate::tool::Tool;
+
+/// Forces at every step that removes material, at each move's feed (mm/min), in parallel:
+/// each step is independent and results come back in step order, so the outcome does not
+/// depend on the thread count.
+fn evaluate_forces(
+    steps: &[(usize, u32, geometry::StepGeometry)],
+    moves: &[Move],
+    feeds: &[f64],
+    models: &BTreeMap<u32, ForceModel>,
+    k: &CuttingCoefficients,
+) -> Result<Vec<Option<ForceResult>>, crate::physics::PhysicsError> {
+    steps
+        .par_iter()
+        .map_init(
+            || models.clone(),
+            |models, (mi, t, s)| {
+                let m = &moves[*mi];
+                let flutes = models[t].table().flutes() as f64;
+                if s.air || s.removed_volume <= 0.0 || m.spindle <= 0.0 || feeds[*mi] <= 0.0 {
+                    return Ok(None);
+                }
+                let conditions = CuttingConditions { spindle_rpm: m.spindle, feed_per_tooth: feeds[*mi] / (m.spindle * flutes) };
+                models.get_mut(t).expect("model per tool").evaluate(&s.engagement, k, &conditions).map(Some)
+            },
+        )
+        .collect()
+}
 
 /// Moves swept between two progress reports (and cancellation checks).
 const PROGRESS_CHUNK: usize = 256;
@@ -41,6 +69,8 @@ pub struct SimulateSpec {
     pub memory_limit: u64,
     /// Angular positions per spindle revolution in the force model.
     pub force_positions: usize,
+    /// Optimize the feeds to these limits and rewrite the program.
+    pub optimize: Option<FeedLimits>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -57,6 +87,10 @@ pub enum SimulateError {
     Physics(#[from] crate::physics::PhysicsError),
     #[error("cycle time: {0}")]
     CycleTime(#[from] CycleTimeError),
+    #[error("feed optimization: {0}")]
+    Optimize(#[from] optimize::OptimizeError),
+    #[error("rewriting the program: {0}")]
+    Rewrite(String),
     #[error("cancelled")]
     Cancelled,
 }
@@ -108,6 +142,12 @@ pub struct MoveRow {
     pub holder_contact: bool,
     /// Material removed while the spindle is stopped.
     pub spindle_stopped_in_material: bool,
+    /// With optimization: the move's feed, time and peak |F| in the rewritten program, and
+    /// what set its feed (force, power, torque, chip, air, entry, max_feed, ...).
+    pub feed_after_mm_min: Option<f64>,
+    pub time_after_s: Option<f64>,
+    pub peak_force_after: Option<f64>,
+    pub governing: Option<String>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -156,8 +196,32 @@ pub struct StepSample {
     pub max_chip_thickness: f64,
 }
 
+/// What the feed optimization did, with the benchmarks it is judged against.
+#[derive(Clone, Debug, Serialize)]
+pub struct OptimizationSummary {
+    pub limits: FeedLimits,
+    /// Cycle times with the same machine model, s: the program as written, every feed move
+    /// at the best constant feed that keeps every limit, the rewritten program, and every
+    /// move at its own limiting feed (the ideal bound).
+    pub cycle_time_before_s: f64,
+    pub cycle_time_constant_feed_s: f64,
+    pub cycle_time_after_s: f64,
+    pub cycle_time_ideal_s: f64,
+    pub best_constant_feed_mm_min: f64,
+    pub peak_force_before: f64,
+    pub peak_force_after: f64,
+    pub changed_blocks: usize,
+    pub restored_f_words: usize,
+    /// Blocks written with the smallest of several different feeds (loops, subroutines).
+    pub ambiguous_blocks: Vec<usize>,
+    pub evaluations: usize,
+}
+
 pub struct SimulationOutput {
     pub rows: Vec<MoveRow>,
+    /// With optimization: the rewritten program and what it changed.
+    pub optimized_program: Option<String>,
+    pub optimization: Option<OptimizationSummary>,
     /// Per move (same order as `rows`), the force at each engaged step.
     pub samples: Vec<Vec<StepSample>>,
     pub summary: SimulationSummary,
@@ -325,21 +389,8 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let k = spec.material.coefficients;
-    let forces: Vec<Option<crate::physics::ForceResult>> = steps
-        .par_iter()
-        .map_init(
-            || models.clone(),
-            |models, (mi, t, s)| {
-                let m = &moves[*mi];
-                let flutes = models[t].table().flutes() as f64;
-                if s.air || s.removed_volume <= 0.0 || m.spindle <= 0.0 || rows[*mi].feed_mm_min <= 0.0 {
-                    return Ok(None);
-                }
-                let conditions = CuttingConditions { spindle_rpm: m.spindle, feed_per_tooth: rows[*mi].feed_mm_min / (m.spindle * flutes) };
-                models.get_mut(t).expect("model per tool").evaluate(&s.engagement, &k, &conditions).map(Some)
-            },
-        )
-        .collect::<Result<_, _>>()?;
+    let feeds: Vec<f64> = rows.iter().map(|r| r.feed_mm_min).collect();
+    let forces = evaluate_forces(&steps, moves, &feeds, &models, &k)?;
     if cancel.is_cancelled() {
         return Err(SimulateError::Cancelled);
     }
@@ -382,6 +433,14 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     progress.report(total, total);
     timings.forces_s = clock.elapsed().as_secs_f64();
 
+    let (optimized_program, optimization) = match &spec.optimize {
+        Some(limits) => {
+            let (text, summary) = optimize_stage(spec, limits, moves, &mut rows, &steps, &models, &times)?;
+            (Some(text), Some(summary))
+        }
+        None => (None, None),
+    };
+
     let volume_after = stock.volume();
     let peak = rows.iter().max_by(|a, b| a.peak_force.total_cmp(&b.peak_force)).filter(|r| r.peak_force > 0.0);
     let cutting = |r: &&MoveRow| r.kind == "linear" || r.kind == "arc";
@@ -406,5 +465,81 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         nominal_time_s: times.nominal_s,
         cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
     };
-    Ok(SimulationOutput { rows, samples, summary, stock, timings, rays_tested })
+    Ok(SimulationOutput { rows, optimized_program, optimization, samples, summary, stock, timings, rays_tested })
+}
+
+/// Feed scheduling on the engagement the removal pass recorded, the rewrite, and the
+/// rewritten program re-interpreted, checked and re-evaluated at its new feeds.
+fn optimize_stage(
+    spec: &SimulateSpec,
+    limits: &FeedLimits,
+    moves: &[Move],
+    rows: &mut [MoveRow],
+    steps: &[(usize, u32, geometry::StepGeometry)],
+    models: &BTreeMap<u32, ForceModel>,
+    before: &crate::machine::cycle_time::CycleTime,
+) -> Result<(String, OptimizationSummary), SimulateError> {
+    let limits = limits.clone().with_machine(&spec.machine);
+    let k = spec.material.coefficients;
+    let cutter_index: BTreeMap<u32, usize> = models.keys().enumerate().map(|(i, t)| (*t, i)).collect();
+    let cutters: Vec<Cutter> = models.values().map(|m| Cutter { model: m.clone(), coefficients: k }).collect();
+    // One segment per swept feed move (possibly without engaged steps: air), in move order.
+    let mut segments: Vec<optimize::Segment> = Vec::new();
+    for (mi, t, s) in steps {
+        if !matches!(moves[*mi].kind, MoveKind::Linear | MoveKind::Arc) {
+            continue;
+        }
+        if segments.last().map(|g| g.move_index) != Some(*mi) {
+            segments.push(optimize::Segment { move_index: *mi, cutter: cutter_index[t], steps: Vec::new() });
+        }
+        if !s.air && s.removed_volume > 0.0 {
+            let seg = segments.last_mut().expect("pushed above");
+            seg.steps.push(EngagementStep { engagement: s.engagement.clone(), spindle_rpm: moves[*mi].spindle, at: s.distance });
+        }
+    }
+    let schedule = optimize::optimize_feeds(moves, &segments, &cutters, &limits)?;
+    let program = nc::Program::parse(&spec.program).map_err(SimulateError::Program)?;
+    let rewrite = optimize::rewrite_program(&program, moves, &schedule, &RewriteOptions { feed_step: limits.feed_step })
+        .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
+    let after = nc::interpret(&rewrite.text, &spec.interpret).map_err(|d| SimulateError::Rewrite(d.to_string()))?.moves;
+    optimize::verify_rewrite(moves, &after, &rewrite).map_err(SimulateError::Rewrite)?;
+
+    let feeds_after: Vec<f64> = after.iter().map(|m| if m.kind == MoveKind::Rapid { 0.0 } else { feed_velocity(m) }).collect();
+    let forces_after = evaluate_forces(steps, moves, &feeds_after, models, &k)?;
+    let times_after = cycle_time(&after, &spec.machine, None)?;
+    let constant = cycle_time(moves, &spec.machine, Some(&schedule.constant_velocities(moves)))?;
+    let ideal = cycle_time(moves, &spec.machine, Some(&schedule.ideal_velocities(moves)))?;
+    let governing: BTreeMap<usize, String> = schedule
+        .segments
+        .iter()
+        .map(|g| (g.move_index, serde_json::to_value(g.governing).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_default()))
+        .collect();
+    for (i, row) in rows.iter_mut().enumerate() {
+        row.feed_after_mm_min = Some(feeds_after[i]);
+        row.time_after_s = Some(times_after.per_move_s[i]);
+        row.peak_force_after = Some(0.0);
+        row.governing = governing.get(&i).cloned();
+    }
+    for ((mi, _, _), f) in steps.iter().zip(&forces_after) {
+        if let Some(f) = f {
+            let p = rows[*mi].peak_force_after.get_or_insert(0.0);
+            *p = p.max(f.force.peak);
+        }
+    }
+    let peak = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
+    let summary = OptimizationSummary {
+        cycle_time_before_s: before.total_s,
+        cycle_time_constant_feed_s: constant.total_s,
+        cycle_time_after_s: times_after.total_s,
+        cycle_time_ideal_s: ideal.total_s,
+        best_constant_feed_mm_min: schedule.best_constant_feed,
+        peak_force_before: peak(&mut rows.iter().map(|r| r.peak_force)),
+        peak_force_after: peak(&mut rows.iter().filter_map(|r| r.peak_force_after)),
+        changed_blocks: rewrite.changes.iter().filter(|c| !c.restore).count(),
+        restored_f_words: rewrite.changes.iter().filter(|c| c.restore).count(),
+        ambiguous_blocks: rewrite.ambiguous.clone(),
+        evaluations: schedule.evaluations,
+        limits,
+    };
+    Ok((rewrite.text, summary))
 }

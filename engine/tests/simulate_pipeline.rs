@@ -26,6 +26,7 @@ fn spec(program: &str) -> SimulateSpec {
         cell: Some(0.25),
         memory_limit: 1 << 30,
         force_positions: 360,
+        optimize: None,
     }
 }
 
@@ -89,4 +90,65 @@ fn errors_name_the_line() {
     let cancel = CancelFlag::new();
     cancel.cancel();
     assert!(simulate(&spec("G0 X0\nG1 X10 F100\n"), &cancel, &NoProgress).is_err());
+}
+
+/// Removes every F word (and the spaces before it) so two programs can be compared on
+/// everything else.
+fn without_f_words(text: &str) -> String {
+    let mut out = String::new();
+    let b = text.as_bytes();
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'F' && (i == 0 || !b[i - 1].is_ascii_alphabetic()) {
+            let mut j = i + 1;
+            while j < b.len() && (b[j].is_ascii_digit() || b[j] == b'.' || b[j] == b'-') {
+                j += 1;
+            }
+            while out.ends_with(' ') {
+                out.pop();
+            }
+            i = j;
+            continue;
+        }
+        out.push(b[i] as char);
+        i += 1;
+    }
+    out
+}
+
+#[test]
+fn optimize_holds_the_force_limit_speeds_up_air_and_changes_only_f_words() {
+    use millsim_engine::optimize::FeedLimits;
+    // A slot (line 6, full immersion), a side cut next to it (line 9), and a second layer
+    // over the slot that finds no material (line 12).
+    let program = "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nG0 X-10 Y8\nG1 Z-5 F800\nG1 X60 F4000\nG0 Z5\nG0 X-10 Y0\nG0 Z-3\nG1 X60 F1000\nG0 Z5\nM30\n";
+    let mut s = spec(program);
+    s.optimize = Some(FeedLimits { max_force: Some(500.0), air_feed: Some(6000.0), max_feed: 8000.0, ..FeedLimits::default() });
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let opt = out.optimization.as_ref().unwrap();
+    let text = out.optimized_program.as_ref().unwrap();
+    // Re-evaluated on the real model at the new feeds: no move above the limit by more than 2%.
+    for r in &out.rows {
+        assert!(r.peak_force_after.unwrap() <= 500.0 * 1.02, "{r:?}");
+    }
+    assert!(opt.peak_force_before > 600.0 && opt.peak_force_after <= 510.0, "{opt:?}");
+    let slot = out.rows.iter().find(|r| r.line == 6).unwrap();
+    assert!(slot.feed_after_mm_min.unwrap() < 4000.0, "the slot must slow down: {slot:?}");
+    assert!(slot.peak_force_after.unwrap() > 480.0, "and run near the limit: {slot:?}");
+    let air = out.rows.iter().find(|r| r.line == 14).unwrap();
+    assert_eq!(air.removed_volume, 0.0);
+    assert_eq!(air.feed_after_mm_min, Some(6000.0), "{air:?}");
+    assert_eq!(air.governing.as_deref(), Some("air"));
+    // Only F words differ, and the rewritten program moves the tool along the same path.
+    assert_ne!(text, program);
+    assert_eq!(without_f_words(text), without_f_words(program));
+    let a = millsim_engine::nc::interpret(program, &InterpretOptions::default()).unwrap().moves;
+    let b = millsim_engine::nc::interpret(text, &InterpretOptions::default()).unwrap().moves;
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        assert!((0..6).all(|i| (x.end[i] - y.end[i]).abs() < 1e-9));
+    }
+    // The optimized time lies between the ideal bound and the best constant safe feed.
+    assert!(opt.cycle_time_ideal_s <= opt.cycle_time_after_s + 1e-9, "{opt:?}");
+    assert!(opt.cycle_time_after_s <= opt.cycle_time_constant_feed_s + 1e-9, "{opt:?}");
 }
