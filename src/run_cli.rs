@@ -35,7 +35,8 @@ pub struct RunArgs {
     /// default: a generic 3-axis machine.
     #[arg(long)]
     machine: Option<PathBuf>,
-    /// Feed optimization targets, e.g. max_force=800: not supported yet.
+    /// Optimize the feeds: comma-separated limits, e.g. max_force=800,air_feed=5000,feed_step=10
+    /// (any field of the job's options.limits). Writes the rewritten program too.
     #[arg(long)]
     optimize: Option<String>,
     /// Output folder.
@@ -71,9 +72,6 @@ impl Progress for StderrProgress {
 }
 
 pub fn run(args: RunArgs) -> Result<(), String> {
-    if args.optimize.is_some() {
-        return Err("--optimize: feed optimization is not supported yet; run without it to simulate".into());
-    }
     let mut inputs = LoadedInputs::new();
     inputs.insert("program".into(), file_input(&args.program, "text/plain")?);
     let stock = match (&args.stock, &args.block) {
@@ -121,12 +119,24 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     if let Some(c) = args.cell {
         options.insert("cell_mm".into(), json!(c));
     }
+    if let Some(spec) = &args.optimize {
+        let mut limits = Map::new();
+        for pair in spec.split(',').filter(|p| !p.trim().is_empty()) {
+            let (k, v) = pair.split_once('=').ok_or_else(|| format!("--optimize: `{pair}` is not NAME=VALUE"))?;
+            let v: f64 = v.trim().parse().map_err(|_| format!("--optimize: `{v}` is not a number (in `{pair}`)"))?;
+            // Counts (max_iterations) are integers in the options.
+            let value = if v.fract() == 0.0 && v.abs() < 1e15 { json!(v as i64) } else { json!(v) };
+            limits.insert(k.trim().to_string(), value);
+        }
+        options.insert("limits".into(), Value::Object(limits));
+    }
+    let kind = if args.optimize.is_some() { "optimize" } else { "simulate" };
     let options = Value::Object(options);
-    let parsed: runner::SimulateOptions = serde_json::from_value(options.clone()).map_err(|e| e.to_string())?;
-    parsed.check(inputs.contains_key("material")).map_err(|(f, m)| format!("{f}: {m}"))?;
+    let parsed: runner::SimulateOptions = serde_json::from_value(options.clone()).map_err(|e| format!("--optimize: {e}"))?;
+    parsed.check(kind == "optimize", inputs.contains_key("material")).map_err(|(f, m)| format!("{f}: {m}"))?;
 
     let started = std::time::Instant::now();
-    let out = runner::run("simulate", &options, inputs, &CancelFlag::new(), &StderrProgress(AtomicU64::new(0)))
+    let out = runner::run(kind, &options, inputs, &CancelFlag::new(), &StderrProgress(AtomicU64::new(0)))
         .map_err(|f| match f {
             JobFailure::Invalid(problem) => problem["detail"].as_str().map(str::to_string).unwrap_or_else(|| problem.to_string()),
             JobFailure::Cancelled => "cancelled".into(),
@@ -151,7 +161,8 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     }
     write("blocks.csv", text.as_bytes())?;
     for f in &out.files {
-        write(f.name, &f.content)?;
+        // The rewritten program keeps the input's name with .opt before the extension.
+        write(if f.name == "program" { &f.file_name } else { f.name }, &f.content)?;
     }
     eprintln!("millsim run: {} moves in {wall:.2} s; wrote {}", rows.len(), args.out.display());
     Ok(())

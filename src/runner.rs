@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
 use millsim_engine::job::{CancelFlag, Progress};
+use millsim_engine::optimize::FeedLimits;
 use millsim_engine::physics::Material;
 use millsim_engine::simulate::{self, SimulateError, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
@@ -19,7 +20,7 @@ use crate::store::ResourceKind;
 pub const KNOWN_KINDS: [&str; 7] = ["interpret", "simulate", "optimize", "stability", "energy", "rotary-feed", "identify"];
 
 pub fn is_supported(kind: &str) -> bool {
-    matches!(kind, "interpret" | "simulate")
+    matches!(kind, "interpret" | "simulate" | "optimize")
 }
 
 /// One input a job kind takes: its name under `inputs`, the resource kind, and whether
@@ -48,7 +49,7 @@ pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
     ];
     match kind {
         "interpret" => &INTERPRET,
-        "simulate" => &SIMULATE,
+        "simulate" | "optimize" => &SIMULATE,
         _ => &[],
     }
 }
@@ -145,7 +146,7 @@ fn diagnostics_problem(file: &str, d: &nc::Diagnostics) -> Value {
 pub fn run(kind: &str, options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
     match kind {
         "interpret" => interpret(options, inputs, cancel, progress),
-        "simulate" => simulate_job(options, inputs, cancel, progress),
+        "simulate" | "optimize" => simulate_job(kind == "optimize", options, inputs, cancel, progress),
         other => Err(JobFailure::Invalid(json!({
             "type": "https://millsim.dev/problems/not-supported",
             "title": "Not supported yet",
@@ -236,6 +237,9 @@ pub struct SimulateOptions {
     /// Refuse grids over this size, MiB.
     #[serde(default = "default_grid_mib")]
     pub max_grid_mib: u64,
+    /// optimize jobs: the targets and bounds of the feed optimization.
+    #[serde(default)]
+    pub limits: Option<FeedLimits>,
 }
 
 fn default_positions() -> usize {
@@ -248,7 +252,18 @@ fn default_grid_mib() -> u64 {
 
 impl SimulateOptions {
     /// Checks what can be checked before the job runs; names the option.
-    pub fn check(&self, has_material_input: bool) -> Result<(), (String, String)> {
+    pub fn check(&self, optimize: bool, has_material_input: bool) -> Result<(), (String, String)> {
+        match (&self.limits, optimize) {
+            (None, true) => return Err(("options.limits".into(), "an optimize job needs limits, e.g. {\"max_force\": 800}".into())),
+            (Some(_), false) => return Err(("options.limits".into(), "limits are for optimize jobs; submit kind `optimize`".into())),
+            (Some(l), true) => {
+                l.validate().map_err(|e| ("options.limits".to_string(), e.to_string()))?;
+                if l.max_force.is_none() && l.max_power.is_none() && l.max_torque.is_none() && l.max_chip_thickness.is_none() {
+                    return Err(("options.limits".into(), "give at least one target: max_force, max_power, max_torque or max_chip_thickness".into()));
+                }
+            }
+            (None, false) => {}
+        }
         match (&self.material, has_material_input) {
             (Some(_), true) => return Err(("options.material".into(), "give a `material` input or `options.material`, not both".into())),
             (None, false) => return Err(("options.material".into(), "name a built-in material (TC6, Al7075-T6, Al6082-T6) or give a `material` input".into())),
@@ -281,12 +296,14 @@ struct SimulateSummary<'a> {
     /// Wall time per stage on the worker, seconds.
     timings: &'a simulate::StageTimings,
     dexel_updates: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    optimization: Option<&'a simulate::OptimizationSummary>,
     row_columns: Vec<String>,
 }
 
-fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
+fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
     let opts: SimulateOptions = serde_json::from_value(options.clone()).map_err(|e| invalid("Invalid options", e.to_string()))?;
-    opts.check(inputs.contains_key("material")).map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
+    opts.check(optimize, inputs.contains_key("material")).map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
     let (file, text) = program_text(&mut inputs)?;
     let json_input = |inputs: &mut LoadedInputs, name: &str| -> Result<Vec<u8>, JobFailure> {
         inputs.remove(name).map(|i| i.content).ok_or_else(|| invalid("Missing input", format!("the job has no `{name}` input")))
@@ -316,6 +333,7 @@ fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, 
         cell: opts.cell_mm,
         memory_limit: opts.max_grid_mib << 20,
         force_positions: opts.force_positions,
+        optimize: opts.limits.clone(),
     };
     let out = simulate::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,
@@ -336,18 +354,23 @@ fn simulate_job(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, 
     };
     let mut stl = Vec::new();
     geometry::export_stl(&out.stock, &mut stl).map_err(|e| invalid("Stock export failed", e.to_string()))?;
-    let stem = file.rsplit_once('.').map(|(s, _)| s).unwrap_or(&file);
+    let (stem, ext) = file.rsplit_once('.').map(|(s, e)| (s, format!(".{e}"))).unwrap_or((&file, String::new()));
+    let mut files = vec![OutputFile { name: "stock.stl", media_type: "model/stl", file_name: format!("{stem}.stock.stl"), content: stl }];
+    if let Some(text) = out.optimized_program {
+        files.push(OutputFile { name: "program", media_type: "text/plain; charset=utf-8", file_name: format!("{stem}.opt{ext}"), content: text.into_bytes() });
+    }
     Ok(JobOutput {
         summary: serde_json::to_value(SimulateSummary {
             file: &file,
             simulation: &out.summary,
             timings: &out.timings,
             dexel_updates: out.rays_tested,
+            optimization: out.optimization.as_ref(),
             row_columns,
         })
         .expect("summary serializes"),
         rows,
         samples,
-        files: vec![OutputFile { name: "stock.stl", media_type: "model/stl", file_name: format!("{stem}.stock.stl"), content: stl }],
+        files,
     })
 }

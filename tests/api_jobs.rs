@@ -113,7 +113,7 @@ async fn jobs_are_validated_at_submission() {
         (json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}, "options": {"speed": 1}}), 422, "options."),
         (json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}, "stock": "x"}}), 422, "inputs.stock"),
         (json!({"kind": "teleport"}), 422, "kind"),
-        (json!({"kind": "optimize"}), 422, "kind"),
+        (json!({"kind": "stability"}), 422, "kind"),
         (json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}}}), 422, "inputs.stock"),
         (json!({"kind": "interpret", "extra": 1}), 422, "extra"),
     ];
@@ -122,7 +122,7 @@ async fn jobs_are_validated_at_submission() {
         assert_eq!(st, status, "{body} -> {p}");
         assert!(p["field"].as_str().unwrap_or("").starts_with(field), "{body} -> {p}");
     }
-    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "optimize"})).send().await.unwrap()).await;
+    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability"})).send().await.unwrap()).await;
     assert_eq!((st, p["type"].as_str()), (422, Some("https://millsim.dev/problems/not-supported")));
 }
 

@@ -76,3 +76,50 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let (st, p) = json(post_json("/v1/jobs", bad).await.unwrap()).await;
     assert_eq!((st, p["field"].as_str()), (422, Some("inputs.stock")), "{p}");
 }
+
+#[tokio::test]
+async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let id = |v: serde_json::Value| v["id"].as_str().unwrap().to_string();
+    let (_, stock) = json(c.post(s.url("/v1/stocks")).json(&json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]})).send().await.unwrap()).await;
+    let (_, tool) = json(
+        c.post(s.url("/v1/tools")).json(&json!({"shape": "flat", "diameter": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length": 20.0})).send().await.unwrap(),
+    )
+    .await;
+    let program = "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nG0 X-10\nG0 Z-3\nG1 X60 F1000\nG0 Z5\nM30\n";
+    let (_, prog) = json(c.post(s.url("/v1/programs?name=part.nc")).body(program).send().await.unwrap()).await;
+    let inputs = json!({"program": id(prog), "stock": id(stock), "tool": id(tool)});
+    // Limits are required for optimize and refused for simulate, naming the option.
+    for (kind, opts) in [("optimize", json!({"material": "Al7075-T6"})), ("simulate", json!({"material": "Al7075-T6", "limits": {"max_force": 500}}))] {
+        let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": kind, "inputs": inputs, "options": opts})).send().await.unwrap()).await;
+        assert_eq!((st, p["field"].as_str()), (422, Some("options.limits")), "{p}");
+    }
+    let body = json!({"kind": "optimize", "inputs": inputs,
+                      "options": {"material": "Al7075-T6", "cell_mm": 0.25, "limits": {"max_force": 500, "air_feed": 6000}}});
+    let (st, job) = json(c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap()).await;
+    assert_eq!(st, 202, "{job}");
+    let job_id = id(job);
+    let done = wait_job(&c, &s, &job_id, Duration::from_secs(120)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let opt = &done["summary"]["optimization"];
+    assert!(opt["peak_force_after"].as_f64().unwrap() <= 510.0, "{opt}");
+    assert!(opt["cycle_time_after_s"].as_f64().unwrap() <= opt["cycle_time_constant_feed_s"].as_f64().unwrap() + 1e-9);
+
+    let res = c.get(s.url(&format!("/v1/jobs/{job_id}/program"))).send().await.unwrap();
+    assert_eq!(res.status(), 200);
+    assert!(res.headers()["content-type"].to_str().unwrap().starts_with("text/plain"));
+    assert!(res.headers()["content-disposition"].to_str().unwrap().contains("part.opt.nc"));
+    let text = res.text().await.unwrap();
+    assert_eq!(text.lines().count(), program.lines().count());
+    for (a, b) in program.lines().zip(text.lines()) {
+        // Only F words change.
+        let strip = |l: &str| l.split_whitespace().filter(|w| !w.starts_with('F')).collect::<Vec<_>>().join(" ");
+        assert_eq!(strip(a), strip(b));
+    }
+    let (_, page) = json(c.get(s.url(&format!("/v1/jobs/{job_id}/blocks"))).send().await.unwrap()).await;
+    let air = page["items"].as_array().unwrap().iter().find(|r| r["line"] == 10).unwrap();
+    assert_eq!(air["feed_after_mm_min"], 6000.0, "{air}");
+    assert_eq!(air["governing"], "air");
+}

@@ -37,7 +37,24 @@ fn run_writes_summary_rows_and_final_stock() {
     let stl = std::fs::read(out_dir.join("stock.stl")).unwrap();
     assert_eq!(stl.len(), 84 + 50 * u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize);
 
-    // What is not built yet says so, and bad values name the flag.
+    // --optimize writes the rewritten program next to the results, named like the input.
+    let out = Command::new(BIN)
+        .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6", "--cell", "0.25", "--optimize", "max_force=500,air_feed=6000"])
+        .arg("--program")
+        .arg(&program)
+        .arg("--tool")
+        .arg(&tool)
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let optimized = std::fs::read_to_string(out_dir.join("slot.opt.nc")).unwrap();
+    assert!(optimized.contains("G1 X60 F") && !optimized.contains("F4000"), "{optimized}");
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
+    assert!(summary["optimization"]["peak_force_after"].as_f64().unwrap() <= 510.0, "{summary}");
+
+    // Bad values name the flag.
     let refuse = |extra: &[&str]| {
         let mut c = Command::new(BIN);
         c.args(["run", "--material", "Al7075-T6", "--out"]).arg(&out_dir).arg("--program").arg(&program);
@@ -46,7 +63,8 @@ fn run_writes_summary_rows_and_final_stock() {
         assert!(!o.status.success());
         String::from_utf8(o.stderr).unwrap()
     };
-    assert!(refuse(&["--block=0,0,0,1,1,1", "--optimize", "max_force=800"]).contains("not supported yet"));
+    assert!(refuse(&["--block=0,0,0,1,1,1", "--optimize", "max_force"]).contains("NAME=VALUE"));
+    assert!(refuse(&["--block=0,0,0,1,1,1", "--optimize", "air_feed=3000"]).contains("at least one target"));
     assert!(refuse(&["--block=0,0,0,1,1"]).contains("six numbers"));
     let machine = dir.path().join("machine.json");
     std::fs::write(&machine, r#"{"name":"m","rapid_rate":0,"max_feed":1,"acceleration":[1,1,1],"spindle_min_rpm":0,"spindle_max_rpm":1,"rated_power":1}"#).unwrap();
