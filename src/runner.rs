@@ -295,6 +295,7 @@ struct SimulateSummary<'a> {
     simulation: &'a simulate::SimulationSummary,
     /// Wall time per stage on the worker, seconds.
     timings: &'a simulate::StageTimings,
+    stock_export_s: f64,
     dexel_updates: u64,
     #[serde(skip_serializing_if = "Option::is_none")]
     optimization: Option<&'a simulate::OptimizationSummary>,
@@ -352,8 +353,10 @@ fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cance
         Ok(Value::Object(o)) => o.keys().cloned().collect(),
         _ => Vec::new(),
     };
+    let clock = std::time::Instant::now();
     let mut stl = Vec::new();
     geometry::export_stl(&out.stock, &mut stl).map_err(|e| invalid("Stock export failed", e.to_string()))?;
+    let export_s = clock.elapsed().as_secs_f64();
     let (stem, ext) = file.rsplit_once('.').map(|(s, e)| (s, format!(".{e}"))).unwrap_or((&file, String::new()));
     let mut files = vec![OutputFile { name: "stock.stl", media_type: "model/stl", file_name: format!("{stem}.stock.stl"), content: stl }];
     if let Some(text) = out.optimized_program {
@@ -364,6 +367,7 @@ fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cance
             file: &file,
             simulation: &out.summary,
             timings: &out.timings,
+            stock_export_s: export_s,
             dexel_updates: out.rays_tested,
             optimization: out.optimization.as_ref(),
             row_columns,

@@ -182,6 +182,8 @@ pub struct StageTimings {
     pub stock_s: f64,
     pub removal_and_engagement_s: f64,
     pub forces_s: f64,
+    /// Feed scheduling, rewrite, re-interpretation and forces at the new feeds.
+    pub optimize_s: f64,
 }
 
 /// The force at one engaged step, for plotting along a move.
@@ -212,6 +214,10 @@ pub struct OptimizationSummary {
     pub peak_force_after: f64,
     pub changed_blocks: usize,
     pub restored_f_words: usize,
+    /// Moves whose peak |F| stays above max_force even at the new feed (the edge forces
+    /// alone exceed it, or min_feed binds): the limit cannot be met there. Lines listed.
+    pub force_limit_unreachable_moves: usize,
+    pub force_limit_unreachable_lines: Vec<u32>,
     /// Blocks written with the smallest of several different feeds (loops, subroutines).
     pub ambiguous_blocks: Vec<usize>,
     pub evaluations: usize,
@@ -433,6 +439,7 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     progress.report(total, total);
     timings.forces_s = clock.elapsed().as_secs_f64();
 
+    let clock = std::time::Instant::now();
     let (optimized_program, optimization) = match &spec.optimize {
         Some(limits) => {
             let (text, summary) = optimize_stage(spec, limits, moves, &mut rows, &steps, &models, &times)?;
@@ -440,6 +447,7 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         }
         None => (None, None),
     };
+    timings.optimize_s = clock.elapsed().as_secs_f64();
 
     let volume_after = stock.volume();
     let peak = rows.iter().max_by(|a, b| a.peak_force.total_cmp(&b.peak_force)).filter(|r| r.peak_force > 0.0);
@@ -527,6 +535,12 @@ fn optimize_stage(
         }
     }
     let peak = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
+    // The optimizer accepts feeds within its tolerance below the limit; above that, the
+    // limit was out of reach for the move.
+    let over: Vec<u32> = match limits.max_force {
+        Some(f) => rows.iter().filter(|r| r.peak_force_after.unwrap_or(0.0) > f * (1.0 + limits.tolerance)).map(|r| r.line).collect(),
+        None => Vec::new(),
+    };
     let summary = OptimizationSummary {
         cycle_time_before_s: before.total_s,
         cycle_time_constant_feed_s: constant.total_s,
@@ -537,6 +551,8 @@ fn optimize_stage(
         peak_force_after: peak(&mut rows.iter().filter_map(|r| r.peak_force_after)),
         changed_blocks: rewrite.changes.iter().filter(|c| !c.restore).count(),
         restored_f_words: rewrite.changes.iter().filter(|c| c.restore).count(),
+        force_limit_unreachable_moves: over.len(),
+        force_limit_unreachable_lines: over.into_iter().take(100).collect(),
         ambiguous_blocks: rewrite.ambiguous.clone(),
         evaluations: schedule.evaluations,
         limits,

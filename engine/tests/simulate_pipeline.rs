@@ -132,6 +132,13 @@ fn optimize_holds_the_force_limit_speeds_up_air_and_changes_only_f_words() {
         assert!(r.peak_force_after.unwrap() <= 500.0 * 1.02, "{r:?}");
     }
     assert!(opt.peak_force_before > 600.0 && opt.peak_force_after <= 510.0, "{opt:?}");
+    assert_eq!(opt.force_limit_unreachable_moves, 0);
+    // A limit below what the edge forces alone give cannot be met: it is reported, per line.
+    let mut tight = spec(program);
+    tight.optimize = Some(FeedLimits { max_force: Some(100.0), ..FeedLimits::default() });
+    let t = simulate(&tight, &CancelFlag::new(), &NoProgress).unwrap();
+    let o = t.optimization.unwrap();
+    assert!(o.force_limit_unreachable_lines.contains(&6), "{o:?}");
     let slot = out.rows.iter().find(|r| r.line == 6).unwrap();
     assert!(slot.feed_after_mm_min.unwrap() < 4000.0, "the slot must slow down: {slot:?}");
     assert!(slot.peak_force_after.unwrap() > 480.0, "and run near the limit: {slot:?}");
