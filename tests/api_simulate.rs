@@ -122,4 +122,24 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
     let air = page["items"].as_array().unwrap().iter().find(|r| r["line"] == 10).unwrap();
     assert_eq!(air["feed_after_mm_min"], 6000.0, "{air}");
     assert_eq!(air["governing"], "air");
+
+    // Re-simulate the optimized program with the same inputs: no move above the limit by
+    // more than 2%, and the same path (same removed volume).
+    let (st, opt_prog) = json(c.post(s.url("/v1/programs?name=part.opt.nc")).body(text).send().await.unwrap()).await;
+    assert_eq!(st, 201);
+    let mut again = inputs.clone();
+    again["program"] = opt_prog["id"].clone();
+    let (_, job) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(&json!({"kind": "simulate", "inputs": again, "options": {"material": "Al7075-T6", "cell_mm": 0.25}}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    let resim = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(120)).await;
+    assert_eq!(resim["status"], "succeeded", "{resim}");
+    assert!(resim["summary"]["peak_force"].as_f64().unwrap() <= 500.0 * 1.02, "{resim}");
+    let (v0, v1) = (done["summary"]["removed_volume"].as_f64().unwrap(), resim["summary"]["removed_volume"].as_f64().unwrap());
+    assert_eq!(v0, v1);
 }
