@@ -79,6 +79,8 @@ pub enum SimulateError {
     Program(nc::Diagnostics),
     #[error("line {line}: tool T{tool} is used but not defined; define it under `tools`")]
     UnknownTool { tool: u32, line: u32 },
+    #[error("line {line}: the program changes to T{tool} but one tool was given; give a tool for each T number used ({used})")]
+    OneToolForSeveral { tool: u32, line: u32, used: String },
     #[error("line {line}: rotary axes (A/B/C) move; simulating them needs the machine kinematics, which are not supported yet")]
     RotaryAxes { line: u32 },
     #[error("stock: {0}")]
@@ -281,6 +283,20 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
     let single_tool = if spec.tools.len() == 1 { spec.tools.values().next() } else { None };
+    // One tool serves a program that uses one tool number; a second number would be cut
+    // with the wrong tool, so it is an error, never a guess.
+    if single_tool.is_some() {
+        let mut used: Vec<(u32, u32)> = Vec::new();
+        for m in moves.iter().filter(|m| m.tool != 0 && m.kind != MoveKind::Dwell) {
+            if !used.iter().any(|(t, _)| *t == m.tool) {
+                used.push((m.tool, m.line));
+            }
+        }
+        if let Some(&(tool, line)) = used.get(1) {
+            let list: Vec<String> = used.iter().map(|(t, _)| format!("T{t}")).collect();
+            return Err(SimulateError::OneToolForSeveral { tool, line, used: list.join(", ") });
+        }
+    }
     let tool_for = |m: &Move| -> Result<&Tool, SimulateError> {
         single_tool.or_else(|| spec.tools.get(&m.tool)).ok_or(SimulateError::UnknownTool { tool: m.tool, line: m.line })
     };

@@ -85,6 +85,9 @@ fn errors_name_the_line() {
     s.tools.insert(2, Tool::flat(6.0, 3));
     let err = simulate(&s, &CancelFlag::new(), &NoProgress).err().unwrap().to_string();
     assert!(err.contains("T7") && err.contains("line"), "{err}");
+    // One tool given, two used: an error naming the change, never the wrong cutter.
+    let err = simulate(&spec("T1 M6\nG0 X0 Z5\nT2 M6\nG0 X10\n"), &CancelFlag::new(), &NoProgress).err().unwrap().to_string();
+    assert!(err.contains("line 3") && err.contains("T1, T2"), "{err}");
     let err = simulate(&spec("G0 X0\nG1 A30 F100\n"), &CancelFlag::new(), &NoProgress).err().unwrap().to_string();
     assert!(err.contains("line 2") && err.contains("rotary"), "{err}");
     let cancel = CancelFlag::new();
