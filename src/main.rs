@@ -255,6 +255,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     let metrics = Arc::new(metrics::Metrics::default());
     let wake = Arc::new(Notify::new());
     let limits = Limits { max_stl_bytes: args.max_upload_bytes, ..Limits::default() };
+    let shutdown = shutdown_signal();
     let state = http::AppState {
         db: db.clone(),
         limits: Arc::new(limits),
@@ -262,10 +263,10 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
         auth: Arc::new(auth),
         job_submitted: wake.clone(),
         max_attempts: queue.max_attempts,
+        shutdown: shutdown.clone(),
     };
     let listener = tokio::net::TcpListener::bind(args.bind).await.map_err(|e| format!("cannot bind {}: {e}", args.bind))?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
-    let shutdown = shutdown_signal();
     let workers = tokio::spawn(queue::run_workers(db, queue, metrics, wake, shutdown.clone()));
     tracing::info!(%addr, "listening");
     // Tests and scripts read the bound address (the port may have been 0) from stdout.

@@ -123,8 +123,11 @@ async fn sigterm_gives_a_running_job_back_and_exits_cleanly() {
     for _ in 0..5 {
         let s = server.take().unwrap();
         let id = submit_interpret(&c, &s, &program).await["id"].as_str().unwrap().to_string();
+        // A client following the job's events must not keep the server from stopping.
+        let events = c.get(s.url(&format!("/v1/jobs/{id}/events"))).send().await.unwrap();
         wait_running(&c, &s, &id, 1).await;
         assert!(s.terminate(), "serve did not exit 0 on SIGTERM");
+        drop(events);
         let s = Server::start(&db, &["--workers", "0"]);
         let (_, job) = json(c.get(s.url(&format!("/v1/jobs/{id}"))).send().await.unwrap()).await;
         if job["status"] == "queued" {

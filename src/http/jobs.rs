@@ -376,8 +376,10 @@ pub async fn events(State(state): State<AppState>, Owner(owner): Owner, Path(id)
         last: Option<(String, i64, i64)>,
         first: Option<JobRecord>,
         finished: bool,
+        shutdown: tokio::sync::watch::Receiver<bool>,
     }
-    let stream = stream::unfold(S { db: state.db.clone(), owner, id, last: None, first: Some(job), finished: false }, |mut s| async move {
+    let start = S { db: state.db.clone(), owner, id, last: None, first: Some(job), finished: false, shutdown: state.shutdown.clone() };
+    let stream = stream::unfold(start, |mut s| async move {
         if s.finished {
             return None;
         }
@@ -385,7 +387,12 @@ pub async fn events(State(state): State<AppState>, Owner(owner): Owner, Path(id)
             let job = match s.first.take() {
                 Some(j) => j,
                 None => {
-                    tokio::time::sleep(Duration::from_millis(200)).await;
+                    // The server is stopping: end the stream (the client reconnects to
+                    // another instance or after the restart; the job itself is safe).
+                    tokio::select! {
+                        _ = tokio::time::sleep(Duration::from_millis(200)) => {}
+                        _ = s.shutdown.wait_for(|v| *v) => return None,
+                    }
                     match s.db.get_job(&s.owner, &s.id).await {
                         Ok(Some(j)) => j,
                         // Deleted or unreadable: end the stream.

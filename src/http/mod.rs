@@ -34,6 +34,8 @@ pub struct AppState {
     pub auth: Arc<auth::Auth>,
     /// Wakes this process's idle workers when a job is submitted.
     pub job_submitted: Arc<Notify>,
+    /// Turns true on SIGTERM/SIGINT: long responses (event streams) end so the server can stop.
+    pub shutdown: tokio::sync::watch::Receiver<bool>,
     pub max_attempts: i64,
 }
 
