@@ -2,8 +2,11 @@
 //! kinematics need to know about a machine tool.
 
 pub mod cycle_time;
+pub mod kinematics;
 
 pub use cycle_time::{cycle_time, cycle_time_with, CycleTime, CycleTimeError, CycleTimeOptions};
+
+pub use kinematics::{KinematicChain, MachineKinematics, Pose, PoseIssue, PoseIssueKind};
 
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +49,13 @@ pub struct Machine {
     /// Travel limits [min, max] per axis X, Y, Z, mm.
     #[serde(default)]
     pub travel: Option<[[f64; 2]; 3]>,
+    /// Rotary centre offsets, head pivot length and rotary axis limits (multi-axis machines;
+    /// absent: pivots at the origin, no limits). See [`kinematics`].
+    #[serde(default)]
+    pub kinematic_chain: Option<KinematicChain>,
+    /// Fastest rotary axis rate, degrees/min (absent: no limit).
+    #[serde(default)]
+    pub max_rotary_speed_deg_min: Option<f64>,
 }
 
 fn default_kinematics() -> Kinematics {
@@ -81,6 +91,8 @@ impl Machine {
             axis_thrust_limit: Some(5_000.0),
             tool_change_time: 4.0,
             travel: None,
+            kinematic_chain: None,
+            max_rotary_speed_deg_min: None,
         }
     }
 
@@ -132,6 +144,27 @@ impl Machine {
             for (i, [lo, hi]) in t.iter().enumerate() {
                 if !(lo.is_finite() && hi.is_finite() && lo < hi) {
                     return err(&format!("travel[{i}]"), "must be [min, max] with min < max".into());
+                }
+            }
+        }
+        if let Some(v) = self.max_rotary_speed_deg_min {
+            if !v.is_finite() || v <= 0.0 {
+                return err("max_rotary_speed_deg_min", format!("must be a positive number, got {v}"));
+            }
+        }
+        if let Some(c) = &self.kinematic_chain {
+            let finite = c.tilt_pivot.iter().chain(c.rotary_center.iter()).all(|v| v.is_finite());
+            if !finite {
+                return err("kinematic_chain", "pivot and centre coordinates must be finite".into());
+            }
+            if !c.pivot_length.is_finite() || c.pivot_length < 0.0 {
+                return err("kinematic_chain.pivot_length", "must be a non-negative number".into());
+            }
+            for (field, l) in [("a_limits", c.a_limits), ("b_limits", c.b_limits), ("c_limits", c.c_limits)] {
+                if let Some([lo, hi]) = l {
+                    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                        return err(&format!("kinematic_chain.{field}"), "must be [min, max] with min < max".into());
+                    }
                 }
             }
         }
