@@ -44,6 +44,7 @@ pub mod identify;
 pub mod life;
 pub mod material;
 pub mod roughness;
+pub mod stability;
 
 pub use force::{
     cutting_forces, AxisStats, BlockForces, CuttingConditions, EdgeSlice, ForceModel, ForceResult,
