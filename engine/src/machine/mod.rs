@@ -3,6 +3,8 @@
 
 pub mod cycle_time;
 pub mod kinematics;
+pub mod post;
+pub mod rotary_feed;
 
 pub use cycle_time::{cycle_time, cycle_time_with, CycleTime, CycleTimeError, CycleTimeOptions};
 
