@@ -234,6 +234,39 @@ fn corpus_impeller_tool_tip_speeds_on_xyzac_table_table() {
         .collect();
     let mut p = programmed.clone();
     p.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    // The G93 program corrected in place for this machine (F words only).
+    let (text, report) = correct_program(
+        &src,
+        &io,
+        &machine,
+        &RotaryFeedOptions {
+            output: FeedOutput::InverseTime,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let again = nc::interpret(&text, &io).unwrap();
+    assert_eq!(again.moves.len(), interp.moves.len());
+    let after = tool_tip_speeds(&again.moves, &machine, &RotaryFeedOptions::default());
+    for (s, mf) in after.iter().zip(&report.moves) {
+        assert_eq!(s.move_index, mf.move_index);
+        let f = mf.intended_feed;
+        assert!(
+            (s.speed - f).abs() <= 0.01 * f,
+            "line {}: {} vs {f}",
+            s.line,
+            s.speed
+        );
+    }
+    let changed = text
+        .lines()
+        .zip(src.lines())
+        .filter(|(a, b)| a != b)
+        .count();
+    eprintln!(
+        "impeller corrected for XYZAC (no TCP): {changed} lines with a new F; {} blocks",
+        report.blocks.len()
+    );
     eprintln!(
         "impeller: {} feed moves; tool-tip speed min {:.1} median {:.1} max {:.1} mm/min; \
          machine-axis rate (F·I) min {:.1} median {:.1} max {:.1}",

@@ -53,10 +53,10 @@ pub struct Machine {
     pub travel: Option<[[f64; 2]; 3]>,
     /// Rotary centre offsets, head pivot length and rotary axis limits (multi-axis machines;
     /// absent: pivots at the origin, no limits). See [`kinematics`].
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kinematic_chain: Option<KinematicChain>,
     /// Fastest rotary axis rate, degrees/min (absent: no limit).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_rotary_speed_deg_min: Option<f64>,
 }
 
