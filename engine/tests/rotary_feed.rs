@@ -102,6 +102,29 @@ fn check_case(src: &str, output: FeedOutput) {
     }
     let (text, report) = correct_program(src, &io, &machine, &opts).unwrap();
     assert_eq!(report.blocks.len(), MOVES.len());
+    for m in &report.moves {
+        // Steps add up to the move: Σi, ΣI, Σt; no limit binds here, so t = Σ i/f.
+        let si: f64 = m.steps.iter().map(|s| s.tip_length).sum();
+        let sbig: f64 = m.steps.iter().map(|s| s.machine_length).sum();
+        let st: f64 = m.steps.iter().map(|s| s.time_min).sum();
+        assert!((si - m.tip_length).abs() < 1e-9 && (sbig - m.machine_length).abs() < 1e-9);
+        assert!((st - m.time_min).abs() < 1e-12 && m.limited_by.is_none());
+        if output == FeedOutput::PerMin {
+            // Each step's F = I_k/t_k lies around the move's F (the tip speed varies within it).
+            let (lo, hi) = m.steps.iter().fold((f64::MAX, 0.0f64), |(l, h), s| {
+                (l.min(s.feed), h.max(s.feed))
+            });
+            assert!(
+                lo <= m.feed * (1.0 + 1e-9) && hi >= m.feed * (1.0 - 1e-9),
+                "{lo} {} {hi}",
+                m.feed
+            );
+        } else {
+            // Step inverse times F_k = 1/t_k: the move's 1/t is 1/Σ(1/F_k).
+            let t: f64 = m.steps.iter().map(|s| 1.0 / s.feed).sum();
+            assert!((1.0 / t - m.feed).abs() <= 1e-9 * m.feed);
+        }
+    }
     let after = nc::interpret(&text, &io).unwrap();
     assert_eq!(after.moves.len(), before.moves.len());
     for (a, b) in after.moves.iter().zip(&before.moves) {

@@ -62,6 +62,9 @@ pub struct FeedStep {
     pub machine_length: f64,
     /// Intended time i/f, min.
     pub time_min: f64,
+    /// The step's own corrected feed before limits: I/t (mm/min) or 1/t (G93, 1/min); the
+    /// move's single F is computed from the sums over its steps.
+    pub feed: f64,
 }
 
 /// What made a move slower than the intended tool-tip feed.
@@ -253,6 +256,11 @@ pub fn correct_moves(
                 tip_length: d,
                 machine_length: big_i / n as f64,
                 time_min: d / f,
+                feed: match opts.output {
+                    _ if d <= 0.0 => f64::INFINITY,
+                    FeedOutput::PerMin => big_i / n as f64 / (d / f),
+                    FeedOutput::InverseTime => f / d,
+                },
             });
         }
         let mut t = i_sum / f;
