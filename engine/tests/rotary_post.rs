@@ -168,3 +168,30 @@ fn cls_with_two_operations_posts_two_programs_g94() {
 fn cls_with_two_operations_posts_two_programs_g93_with_n_numbers() {
     check(FeedOutput::InverseTime, Some((10, 10)));
 }
+
+#[test]
+fn unreachable_tool_axis_is_an_error_naming_the_cls_line() {
+    let src = "LOADTL/1\nFEDRAT/MMPM,500\nGOTO/0,0,10,0,0,1\nGOTO/5,0,10,0,0.6,0.8\n";
+    let m = Machine {
+        kinematics: Kinematics::XyzB,
+        ..Machine::generic()
+    };
+    let e = post_cls(src, &m, &PostOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("CLS line 4"), "{e}");
+    // The same file on a 3-axis machine fails on the same line; with a vertical axis it posts.
+    let e = post_cls(src, &Machine::generic(), &PostOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("CLS line 4"), "{e}");
+    let ok = post_cls(
+        "LOADTL/1\nFEDRAT/MMPM,500\nGOTO/0,0,10\nGOTO/5,0,10\n",
+        &Machine::generic(),
+        &PostOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(ok.len(), 1);
+    // Modal words: the second move writes only X (same G1, same F).
+    assert!(
+        ok[0].text.contains("G1 X0. Y0. Z10. F500.\nX5.\n"),
+        "{}",
+        ok[0].text
+    );
+}
