@@ -94,6 +94,36 @@ fn low_immersion_k80_matches_reference() {
 }
 
 #[test]
+fn full_discretization_matches_reference() {
+    // Ding et al.'s full discretization converges to the same boundary; with k = 80 it stays
+    // within 3% of the (semi-discretization) reference at 10,000–25,000 rpm, every 1,000 rpm.
+    for (immersion, name, at, min) in [
+        (1.0, "lobe_aD1.0_k80.csv", 15750.0, 0.320),
+        (0.05, "lobe_aD0.05_k80.csv", 18000.0, 1.301),
+    ] {
+        let sys = benchmark(immersion);
+        let refc = reference(name);
+        let rpms: Vec<f64> = (10..=25).map(|i| i as f64 * 1000.0).collect();
+        let got = sys.fd_lobes(&rpms, 80, &SearchOptions::default()).unwrap();
+        let (mut worst, mut worst_rpm) = (0.0f64, 0.0);
+        for (rpm, a) in rpms.iter().zip(&got) {
+            let r = refc[&(*rpm as u32)];
+            if rel(*a, r) > worst {
+                (worst, worst_rpm) = (rel(*a, r), *rpm);
+            }
+        }
+        let a_min = sys.fd_lobes(&[at], 80, &SearchOptions::default()).unwrap()[0];
+        eprintln!(
+            "fdm k=80 {name}: worst error {:.2}% (at {worst_rpm} rpm), at {at} rpm {a_min:.4} mm vs {min} ({:.2}%)",
+            worst * 100.0,
+            rel(a_min, min) * 100.0
+        );
+        assert!(worst < 0.03, "{name}: {worst}");
+        assert!(rel(a_min, min) < 0.02);
+    }
+}
+
+#[test]
 fn converges_as_steps_per_period_grow() {
     // Slot at 5,000 rpm moves most with k (reference: 0.480 mm at k = 40, 0.425 at k = 80).
     let sys = benchmark(1.0);

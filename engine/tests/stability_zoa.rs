@@ -124,5 +124,4 @@ fn json_input_runs_and_validation_names_fields() {
         "\"modes_x\":[]",
         "modes_x",
     );
-    bad("\"method\":\"zoa\"", "\"method\":\"fdm\"", "method");
 }

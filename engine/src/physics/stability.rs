@@ -24,6 +24,8 @@
 //!   coordinates (any number of x and y modes), Floquet multipliers of the one-period transition
 //!   matrix by nalgebra's Schur decomposition (iteration cap), critical depth by a scan and
 //!   bisection on depth, parallel over speeds (rayon; results do not depend on the scheduling).
+//! - [`StabilitySystem::fd_lobes`]: first-order full discretization (Ding et al. 2010), same
+//!   state, Floquet analysis and depth search.
 //! - [`recommend_spindle_speed`]: the centre of the widest stable pocket near a requested speed.
 //!
 //! The JSON input of the `stability` job and of `millsim stability` is [`StabilityInput`];
@@ -142,7 +144,7 @@ pub enum Method {
     Zoa,
     /// First-order semi-discretization (Insperger–Stépán).
     Sdm,
-    /// Full discretization (Ding et al. 2010) — not implemented yet; rejected by validation.
+    /// First-order full discretization (Ding et al. 2010).
     Fdm,
 }
 
@@ -219,12 +221,6 @@ pub struct StabilityInput {
 impl StabilityInput {
     /// Checks every field; the error names the offending one.
     pub fn validate(&self) -> Result<(), PhysicsError> {
-        if self.method == Method::Fdm {
-            return Err(PhysicsError::invalid(
-                "method",
-                "fdm (full discretization) is not implemented yet; use sdm or zoa",
-            ));
-        }
         self.rpm.validate()?;
         if let Some(k) = self.steps_per_period {
             if !(4..=400).contains(&k) {
@@ -297,7 +293,11 @@ pub fn compute_lobes(input: &StabilityInput) -> Result<LobeCurve, PhysicsError> 
             input.steps_per_period.unwrap_or(DEFAULT_STEPS_PER_PERIOD) as usize,
             &SearchOptions::default(),
         )?,
-        Method::Fdm => unreachable!("rejected by validate"),
+        Method::Fdm => sys.fd_lobes(
+            &rpms,
+            input.steps_per_period.unwrap_or(DEFAULT_STEPS_PER_PERIOD) as usize,
+            &SearchOptions::default(),
+        )?,
     };
     Ok(LobeCurve {
         method: input.method,
@@ -562,7 +562,44 @@ impl StabilitySystem {
 
     /// Semi-discretization model for `steps` steps per tooth period.
     pub fn sd_model(&self, steps: usize) -> Result<SdModel, PhysicsError> {
-        SdModel::new(self, steps)
+        SdModel::new(self, steps, false)
+    }
+
+    /// Full-discretization model (Ding et al. 2010, first order) for `steps` steps per tooth
+    /// period; the same interface as the semi-discretization one.
+    pub fn fd_model(&self, steps: usize) -> Result<SdModel, PhysicsError> {
+        SdModel::new(self, steps, true)
+    }
+
+    /// Full-discretization lobes: the critical depth (mm) at each speed, parallel over speeds.
+    pub fn fd_lobes(
+        &self,
+        rpms: &[f64],
+        steps: usize,
+        opts: &SearchOptions,
+    ) -> Result<Vec<f64>, PhysicsError> {
+        let model = self.fd_model(steps)?;
+        rpms.par_iter()
+            .map(|&rpm| model.critical_depth_mm(rpm, opts))
+            .collect()
+    }
+
+    /// H at one cutter angle (sum over the teeth in the cut), N/m².
+    fn h_at(&self, phi: f64) -> [[f64; 2]; 2] {
+        let mut h = [[0.0; 2]; 2];
+        for j in 0..self.teeth {
+            let p = (phi + 2.0 * PI * j as f64 / self.teeth as f64).rem_euclid(2.0 * PI);
+            if p >= self.phi_entry && p < self.phi_exit {
+                let (sp, cp) = p.sin_cos();
+                let t = self.kt * cp + self.kn * sp;
+                let r = -self.kt * sp + self.kn * cp;
+                h[0][0] += sp * t;
+                h[0][1] += cp * t;
+                h[1][0] += sp * r;
+                h[1][1] += cp * r;
+            }
+        }
+        h
     }
 
     /// Semi-discretization lobes: the critical depth (mm) at each speed, parallel over speeds.
@@ -579,7 +616,10 @@ impl StabilitySystem {
     }
 }
 
-/// First-order semi-discretization of the regenerative milling model in modal coordinates.
+/// First-order semi-discretization (Insperger–Stépán: H averaged over each step, the delayed
+/// term interpolated linearly) or first-order full discretization (Ding et al. 2010: H sampled
+/// at the step ends, both the present and the delayed terms interpolated linearly, one small
+/// linear solve per step) of the regenerative milling model in modal coordinates.
 /// State per step: modal displacements and velocities z (2·n), and the modal displacements
 /// of the last `steps` sampling instants (delay τ = steps·Δt).
 #[derive(Debug, Clone)]
@@ -590,8 +630,18 @@ pub struct SdModel {
     n: usize,
     /// Direction (0 = x, 1 = y), ω, ζ, 1/m of every mode.
     modes: Vec<(usize, f64, f64, f64)>,
-    /// Mean of H over each step (N/m²), per step.
+    /// Semi-discretization: mean of H over each step; full discretization: H at the start
+    /// of each step (N/m²).
     h_steps: Vec<[[f64; 2]; 2]>,
+    /// Full discretization.
+    full: bool,
+}
+
+/// Matrices of the uncut system for the full discretization (row-major).
+struct FreeBlocks {
+    phi0: Vec<f64>,
+    v0: Vec<f64>,
+    v1: Vec<f64>,
 }
 
 /// Per-step matrices: Φ0 (d×d), W1 and W0 (d×n) multiplying q(i−m+1) and q(i−m).
@@ -602,7 +652,7 @@ struct StepMaps {
 }
 
 impl SdModel {
-    fn new(sys: &StabilitySystem, steps: usize) -> Result<SdModel, PhysicsError> {
+    fn new(sys: &StabilitySystem, steps: usize, full: bool) -> Result<SdModel, PhysicsError> {
         if !(4..=400).contains(&steps) {
             return Err(PhysicsError::invalid(
                 "steps_per_period",
@@ -617,6 +667,9 @@ impl SdModel {
         let dphi = 2.0 * PI / (teeth * steps) as f64;
         let h_steps = (0..steps)
             .map(|i| {
+                if full {
+                    return sys.h_at(i as f64 * dphi);
+                }
                 let mut h = [[0.0; 2]; 2];
                 for j in 0..teeth {
                     let a = i as f64 * dphi + 2.0 * PI * j as f64 / teeth as f64;
@@ -636,6 +689,7 @@ impl SdModel {
             n: modes.len(),
             modes,
             h_steps,
+            full,
         })
     }
 
@@ -656,7 +710,9 @@ impl SdModel {
         k
     }
 
-    fn step_maps(&self, kc: &[f64], dt: f64) -> StepMaps {
+    /// exp(G·Δt) of the augmented generator G = [[A, I, 0], [0, 0, I], [0, 0, 0]] with
+    /// A = [[0, I], [−Ω² − K̃, −2ZΩ]]: blocks Φ0, Φ1 = ∫e^{A(Δt−s)}ds, Φ2 = ∫e^{A(Δt−s)}s ds.
+    fn augmented_exp(&self, kc: &[f64], dt: f64) -> DMatrix<f64> {
         let n = self.n;
         let d = 2 * n;
         // Augmented generator [[A, I, 0], [0, 0, I], [0, 0, 0]]·dt.
@@ -675,7 +731,13 @@ impl SdModel {
             g[(i, d + i)] = 1.0;
             g[(d + i, 2 * d + i)] = 1.0;
         }
-        let e = (g * dt).exp();
+        (g * dt).exp()
+    }
+
+    fn step_maps(&self, kc: &[f64], dt: f64) -> StepMaps {
+        let n = self.n;
+        let d = 2 * n;
+        let e = self.augmented_exp(kc, dt);
         let mut phi0 = vec![0.0; d * d];
         let mut w1 = vec![0.0; d * n];
         let mut w0 = vec![0.0; d * n];
@@ -700,6 +762,73 @@ impl SdModel {
         StepMaps { phi0, w1, w0 }
     }
 
+    /// Full-discretization step from t_k to t_k+1 with cutting matrices K̃k, K̃k+1 and the free
+    /// matrices: (I + V1·K̃k+1·E)·z_k+1 = (Φ0 − V0·K̃k·E)·z_k + V1·K̃k+1·q_k+1−m + V0·K̃k·q_k−m,
+    /// E selecting the displacements, V0 = (Φ1 − Φ2/Δt)·[0; I], V1 = (Φ2/Δt)·[0; I].
+    fn fd_step_maps(&self, free: &FreeBlocks, k0: &[f64], k1: &[f64]) -> StepMaps {
+        let n = self.n;
+        let d = 2 * n;
+        let mut lhs = DMatrix::<f64>::identity(d, d);
+        let mut rhs = DMatrix::<f64>::zeros(d, d + 2 * n);
+        for r in 0..d {
+            for c in 0..d {
+                rhs[(r, c)] = free.phi0[r * d + c];
+            }
+            for q in 0..n {
+                let (mut a1, mut a0) = (0.0, 0.0);
+                for p in 0..n {
+                    a1 += free.v1[r * n + p] * k1[p * n + q];
+                    a0 += free.v0[r * n + p] * k0[p * n + q];
+                }
+                lhs[(r, q)] += a1;
+                rhs[(r, q)] -= a0;
+                rhs[(r, d + q)] = a1;
+                rhs[(r, d + n + q)] = a0;
+            }
+        }
+        let sol = lhs.lu().solve(&rhs).unwrap_or(rhs);
+        let mut maps = StepMaps {
+            phi0: vec![0.0; d * d],
+            w1: vec![0.0; d * n],
+            w0: vec![0.0; d * n],
+        };
+        for r in 0..d {
+            for c in 0..d {
+                maps.phi0[r * d + c] = sol[(r, c)];
+            }
+            for q in 0..n {
+                maps.w1[r * n + q] = sol[(r, d + q)];
+                maps.w0[r * n + q] = sol[(r, d + n + q)];
+            }
+        }
+        maps
+    }
+
+    /// Φ0 and the velocity columns of Φ1 − Φ2/Δt and Φ2/Δt of the uncut system.
+    fn free_blocks(&self, dt: f64) -> FreeBlocks {
+        let n = self.n;
+        let d = 2 * n;
+        let zero = vec![0.0; n * n];
+        let e = self.augmented_exp(&zero, dt);
+        let mut phi0 = vec![0.0; d * d];
+        for r in 0..d {
+            for c in 0..d {
+                phi0[r * d + c] = e[(r, c)];
+            }
+        }
+        let mut v0 = vec![0.0; d * n];
+        let mut v1 = vec![0.0; d * n];
+        for r in 0..d {
+            for p in 0..n {
+                let phi1 = e[(r, d + n + p)];
+                let phi2 = e[(r, 2 * d + n + p)] / dt;
+                v1[r * n + p] = phi2;
+                v0[r * n + p] = phi1 - phi2;
+            }
+        }
+        FreeBlocks { phi0, v0, v1 }
+    }
+
     /// One-period transition matrix (column-major, dimension² entries).
     pub fn transition_matrix(&self, rpm: f64, depth_mm: f64) -> DMatrix<f64> {
         let n = self.n;
@@ -711,6 +840,12 @@ impl SdModel {
         let a = depth_mm * 1e-3;
         let zero = vec![0.0; n * n];
         let free = self.step_maps(&zero, dt);
+        let blocks = if self.full {
+            Some(self.free_blocks(dt))
+        } else {
+            None
+        };
+        let is_cut = |h: &[[f64; 2]; 2]| h.iter().flatten().any(|&v| v != 0.0) && a != 0.0;
         let mut x = vec![0.0; dim * dim];
         for i in 0..dim {
             x[i * dim + i] = 1.0;
@@ -718,14 +853,20 @@ impl SdModel {
         let mut y = vec![0.0; dim * dim];
         let slot = |s: usize| d + (s - 1) * n;
         let (s_new, s_old) = (slot(m - 1), slot(m));
-        for h in &self.h_steps {
-            let engaged = h.iter().flatten().any(|&v| v != 0.0) && a != 0.0;
+        for (i, h) in self.h_steps.iter().enumerate() {
             let owned;
-            let maps = if engaged {
-                owned = self.step_maps(&self.cutting_matrix(h, a), dt);
-                &owned
-            } else {
-                &free
+            let (engaged, maps) = match &blocks {
+                None if is_cut(h) => {
+                    owned = self.step_maps(&self.cutting_matrix(h, a), dt);
+                    (true, &owned)
+                }
+                Some(b) if is_cut(h) || is_cut(&self.h_steps[(i + 1) % m]) => {
+                    let k0 = self.cutting_matrix(h, a);
+                    let k1 = self.cutting_matrix(&self.h_steps[(i + 1) % m], a);
+                    owned = self.fd_step_maps(b, &k0, &k1);
+                    (true, &owned)
+                }
+                _ => (false, &free),
             };
             for c in 0..dim {
                 let xc = &x[c * dim..(c + 1) * dim];
@@ -931,17 +1072,16 @@ mod tests {
     #[test]
     fn gelfand_fallback_agrees_with_schur() {
         // A rotation-like block (complex pair of modulus 0.9) and a real eigenvalue −0.5.
-        let m = DMatrix::from_row_slice(
-            3,
-            3,
-            &[0.0, -0.9, 3.0, 0.9, 0.0, -1.0, 0.0, 0.0, -0.5],
-        );
+        let m = DMatrix::from_row_slice(3, 3, &[0.0, -0.9, 3.0, 0.9, 0.0, -1.0, 0.0, 0.0, -0.5]);
         let schur = nalgebra::Schur::new(m.clone())
             .complex_eigenvalues()
             .iter()
             .map(|l| l.norm())
             .fold(0.0, f64::max);
         let g = gelfand_spectral_radius(m);
-        assert!((schur - 0.9).abs() < 1e-12 && (g - 0.9).abs() < 1e-6, "{schur} {g}");
+        assert!(
+            (schur - 0.9).abs() < 1e-12 && (g - 0.9).abs() < 1e-6,
+            "{schur} {g}"
+        );
     }
 }
