@@ -47,6 +47,21 @@ mod tests {
         let min = rows.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
         assert!((min - 0.298).abs() / 0.298 < 0.01, "{min}");
 
+        // Semi-discretization, k = 40, around the slot minimum (reference: 0.323 mm at 15,750).
+        let sdm = INPUT
+            .replace("\"zoa\"", "\"sdm\"")
+            .replace("\"from\":5000,\"to\":25000", "\"from\":15500,\"to\":16000");
+        std::fs::write(&path, sdm).unwrap();
+        let csv = run(&path).unwrap();
+        assert_eq!(csv.lines().count(), 4);
+        let at_15750: f64 = csv
+            .lines()
+            .find_map(|l| l.strip_prefix("15750,"))
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!((at_15750 - 0.323).abs() / 0.323 < 0.03, "{at_15750}");
+
         std::fs::write(&path, INPUT.replace("\"teeth\":2", "\"teeth\":\"two\"")).unwrap();
         let err = run(&path).unwrap_err();
         assert!(err.contains("teeth"), "{err}");
