@@ -222,6 +222,12 @@ fn machine_json_without_the_new_fields_still_parses_and_chain_validates() {
     o.remove("max_rotary_speed_deg_min");
     let back: Machine = serde_json::from_value(v).unwrap();
     assert_eq!(back, g);
+    // Machines without the new fields serialize exactly as before (the API's Machine schema).
+    let text = serde_json::to_string(&g).unwrap();
+    assert!(
+        !text.contains("kinematic_chain") && !text.contains("max_rotary_speed"),
+        "{text}"
+    );
     let json = r#"{"name":"5ax","kinematics":"xyz_ac","rapid_rate":20000,"max_feed":8000,
         "acceleration":[1000,1000,1000],"spindle_min_rpm":0,"spindle_max_rpm":20000,"rated_power":9000,
         "max_rotary_speed_deg_min":7200,

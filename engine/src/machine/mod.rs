@@ -3,6 +3,8 @@
 
 pub mod cycle_time;
 pub mod kinematics;
+pub mod post;
+pub mod rotary_feed;
 
 pub use cycle_time::{cycle_time, cycle_time_with, CycleTime, CycleTimeError, CycleTimeOptions};
 
@@ -51,10 +53,10 @@ pub struct Machine {
     pub travel: Option<[[f64; 2]; 3]>,
     /// Rotary centre offsets, head pivot length and rotary axis limits (multi-axis machines;
     /// absent: pivots at the origin, no limits). See [`kinematics`].
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kinematic_chain: Option<KinematicChain>,
     /// Fastest rotary axis rate, degrees/min (absent: no limit).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_rotary_speed_deg_min: Option<f64>,
 }
 
