@@ -315,7 +315,7 @@ impl MachineKinematics {
                             let w = v + 360.0 * k as f64;
                             if w >= lo
                                 && w <= hi
-                                && alt.map_or(true, |a| {
+                                && alt.is_none_or(|a| {
                                     (w - previous[s]).abs() < (a - previous[s]).abs()
                                 })
                             {
@@ -337,12 +337,12 @@ impl MachineKinematics {
             let violations = (0..6)
                 .filter(|&s| {
                     self.limits(s)
-                        .map_or(false, |[lo, hi]| axes[s] < lo - 1e-9 || axes[s] > hi + 1e-9)
+                        .is_some_and(|[lo, hi]| axes[s] < lo - 1e-9 || axes[s] > hi + 1e-9)
                 })
                 .count();
             if best
                 .as_ref()
-                .map_or(true, |b| (violations, score) < (b.1, b.2))
+                .is_none_or(|b| (violations, score) < (b.1, b.2))
             {
                 best = Some((axes, violations, score));
             }

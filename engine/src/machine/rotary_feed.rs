@@ -398,9 +398,10 @@ pub fn correct_program(
     let block_feed: std::collections::HashMap<usize, f64> =
         report.blocks.iter().map(|b| (b.block, b.feed)).collect();
     let has_f = |block: usize| {
-        program.blocks().get(block).map_or(false, |b| {
-            b.words.iter().any(|w| w.letter == 'F' && !w.comma)
-        })
+        program
+            .blocks()
+            .get(block)
+            .is_some_and(|b| b.words.iter().any(|w| w.letter == 'F' && !w.comma))
     };
     let mut listed: std::collections::BTreeMap<usize, f64> = std::collections::BTreeMap::new();
     let mut modal: Option<f64> = None;
