@@ -8,6 +8,7 @@ use serde_json::{json, Value};
 
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::optimize::FeedLimits;
+use millsim_engine::physics::stability::{compute_lobes, StabilityInput};
 use millsim_engine::physics::Material;
 use millsim_engine::simulate::{self, SimulateError, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
@@ -20,7 +21,7 @@ use crate::store::ResourceKind;
 pub const KNOWN_KINDS: [&str; 7] = ["interpret", "simulate", "optimize", "stability", "energy", "rotary-feed", "identify"];
 
 pub fn is_supported(kind: &str) -> bool {
-    matches!(kind, "interpret" | "simulate" | "optimize")
+    matches!(kind, "interpret" | "simulate" | "optimize" | "stability")
 }
 
 /// One input a job kind takes: its name under `inputs`, the resource kind, and whether
@@ -147,6 +148,7 @@ pub fn run(kind: &str, options: &Value, inputs: LoadedInputs, cancel: &CancelFla
     match kind {
         "interpret" => interpret(options, inputs, cancel, progress),
         "simulate" | "optimize" => simulate_job(kind == "optimize", options, inputs, cancel, progress),
+        "stability" => stability_job(options, progress),
         other => Err(JobFailure::Invalid(json!({
             "type": "https://millsim.dev/problems/not-supported",
             "title": "Not supported yet",
@@ -376,5 +378,32 @@ fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cance
         rows,
         samples,
         files,
+    })
+}
+
+/// Options of a `stability` job: the same object `millsim stability INPUT.json` reads.
+pub fn stability_options(options: &Value) -> Result<StabilityInput, (String, String)> {
+    let input: StabilityInput = serde_path_to_error::deserialize(options.clone())
+        .map_err(|e| (format!("options.{}", e.path()), e.inner().to_string()))?;
+    input.validate().map_err(|e| (format!("options.{}", e.field()), e.to_string()))?;
+    Ok(input)
+}
+
+/// Lobes as rows (rpm, critical depth): /blocks serves them as JSON pages and CSV.
+fn stability_job(options: &Value, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
+    let input = stability_options(options).map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
+    let curve = compute_lobes(&input).map_err(|e| invalid("Stability refused", e.to_string()))?;
+    progress.report(curve.points.len() as u64, curve.points.len() as u64);
+    let rows = curve.points.iter().map(|p| json!({"rpm": p.rpm, "depth_mm": p.depth_mm}).to_string()).collect();
+    Ok(JobOutput {
+        summary: json!({
+            "method": curve.method,
+            "speeds": curve.points.len(),
+            "minimum": curve.minimum(),
+            "row_columns": ["rpm", "depth_mm"],
+        }),
+        rows,
+        samples: Vec::new(),
+        files: Vec::new(),
     })
 }

@@ -113,7 +113,7 @@ async fn jobs_are_validated_at_submission() {
         (json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}, "options": {"speed": 1}}), 422, "options."),
         (json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}, "stock": "x"}}), 422, "inputs.stock"),
         (json!({"kind": "teleport"}), 422, "kind"),
-        (json!({"kind": "stability"}), 422, "kind"),
+        (json!({"kind": "energy"}), 422, "kind"),
         (json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}}}), 422, "inputs.stock"),
         (json!({"kind": "interpret", "extra": 1}), 422, "extra"),
     ];
@@ -122,7 +122,7 @@ async fn jobs_are_validated_at_submission() {
         assert_eq!(st, status, "{body} -> {p}");
         assert!(p["field"].as_str().unwrap_or("").starts_with(field), "{body} -> {p}");
     }
-    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability"})).send().await.unwrap()).await;
+    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "energy"})).send().await.unwrap()).await;
     assert_eq!((st, p["type"].as_str()), (422, Some("https://millsim.dev/problems/not-supported")));
 }
 
@@ -237,4 +237,37 @@ async fn server_sent_events_deliver_progress_and_the_final_state() {
     assert_eq!(last["status"], "succeeded");
     assert_eq!(last["id"], id.as_str());
     assert_eq!(events.iter().filter(|e| e.0 == "status").count(), 1);
+}
+
+#[tokio::test]
+async fn stability_job_serves_lobes_as_rows_and_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    // REFERENCE.md's 1-DOF benchmark, slot, zero-order: the lobes' floor is the absolute
+    // limit 0.298 mm.
+    let options = json!({"method": "zoa", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200, "radial_immersion": 1.0, "milling": "down",
+        "modes_x": [{"freq_hz": 922, "damping": 0.011, "stiffness_n_m": 1.34005e6}], "modes_y": [],
+        "rpm": {"from": 5000, "to": 25000, "step": 50}, "steps_per_period": 40});
+    let (st, job) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability", "options": options})).send().await.unwrap()).await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(done["summary"]["speeds"], 401);
+    let min = done["summary"]["minimum"]["depth_mm"].as_f64().unwrap();
+    assert!((min - 0.298).abs() / 0.298 < 0.02, "{done}");
+    let csv = c.get(s.url(&format!("/v1/jobs/{id}/blocks?format=csv"))).send().await.unwrap().text().await.unwrap();
+    assert_eq!(csv.lines().next(), Some("rpm,depth_mm"));
+    assert_eq!(csv.lines().count(), 402);
+    // Bad options are refused at submission, naming the field.
+    let mut bad = options.clone();
+    bad["teeth"] = json!(0);
+    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability", "options": bad})).send().await.unwrap()).await;
+    assert_eq!(st, 422, "{p}");
+    assert!(p["field"].as_str().unwrap().contains("teeth"), "{p}");
+    let mut bad = options.clone();
+    bad["method"] = json!("guess");
+    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability", "options": bad})).send().await.unwrap()).await;
+    assert_eq!((st, p["field"].as_str()), (422, Some("options.method")), "{p}");
 }

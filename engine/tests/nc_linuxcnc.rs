@@ -749,7 +749,7 @@ fn random_programs_match_linuxcnc() {
     let mut problems = Vec::new();
     for case in 0..cases {
         let mut src = String::from("M3 S1000 F200\n");
-        let mut num = |r: &mut dyn FnMut(u64) -> u64, span: u64| {
+        let num = |r: &mut dyn FnMut(u64) -> u64, span: u64| {
             let v = r(span * 200) as f64 / 100.0 - span as f64;
             format!("{v:.2}")
         };
