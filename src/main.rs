@@ -48,6 +48,8 @@ enum Command {
     Interpret(InterpretArgs),
     /// Simulate a program offline: writes summary.json, blocks.csv and stock.stl.
     Run(run_cli::RunArgs),
+    /// Post an APT/CLS file for a machine: one G-code file per operation, rotary feeds corrected.
+    Post(PostArgs),
     /// Print every HTTP route as `METHOD PATH`, one per line (checked against openapi.yaml).
     #[command(hide = true)]
     Routes,
@@ -122,6 +124,27 @@ struct WorkerArgs {
     queue: QueueArgs,
 }
 
+#[derive(clap::Args)]
+struct PostArgs {
+    /// The APT/CLS file.
+    file: std::path::PathBuf,
+    /// Machine definition (JSON, as POST /v1/machines takes it), with its kinematics.
+    #[arg(long)]
+    machine: std::path::PathBuf,
+    /// Write inverse-time feeds (G93, F = 1/t) instead of corrected mm/min (G94).
+    #[arg(long)]
+    inverse_time: bool,
+    /// Number the blocks N10, N20, ...
+    #[arg(long)]
+    n_numbers: bool,
+    /// Decimals of X Y Z and of A B C.
+    #[arg(long, default_value_t = 4)]
+    decimals: usize,
+    /// Output folder: FILE-STEM.op1.nc, .op2.nc, ...
+    #[arg(long)]
+    out: std::path::PathBuf,
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum DialectArg {
     Auto,
@@ -165,6 +188,13 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Interpret(args) => interpret(args),
+        Command::Post(args) => match post(args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("millsim post: {e}");
+                ExitCode::FAILURE
+            }
+        },
         Command::Run(args) => match run_cli::run(args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
@@ -368,4 +398,36 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn post(args: PostArgs) -> Result<(), String> {
+    use millsim_engine::machine::post::{post_cls, PostOptions};
+    use millsim_engine::machine::rotary_feed::{FeedOutput, RotaryFeedOptions};
+    let file = args.file.display().to_string();
+    let cls = std::fs::read_to_string(&args.file).map_err(|e| format!("{file}: {e}"))?;
+    let machine_bytes = std::fs::read(&args.machine).map_err(|e| format!("{}: {e}", args.machine.display()))?;
+    validate::machine(&machine_bytes).map_err(|e| format!("{}: {}", args.machine.display(), e.detail))?;
+    let machine: millsim_engine::machine::Machine = serde_json::from_slice(&machine_bytes).map_err(|e| e.to_string())?;
+    if !(1..=9).contains(&args.decimals) {
+        return Err(format!("--decimals must be 1 to 9, got {}", args.decimals));
+    }
+    let options = PostOptions {
+        n_numbers: args.n_numbers.then_some((10, 10)),
+        linear_decimals: args.decimals,
+        angle_decimals: args.decimals,
+        feed: RotaryFeedOptions { output: if args.inverse_time { FeedOutput::InverseTime } else { FeedOutput::PerMin }, ..Default::default() },
+        ..Default::default()
+    };
+    let posted = post_cls(&cls, &machine, &options).map_err(|e| format!("{file}: {e}"))?;
+    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
+    let stem = args.file.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "program".into());
+    for p in &posted {
+        let path = args.out.join(format!("{stem}.op{}.nc", p.operation));
+        std::fs::write(&path, &p.text).map_err(|e| format!("{}: {e}", path.display()))?;
+        for issue in &p.issues {
+            eprintln!("{file}:{}: {:?}", issue.index, issue.kind);
+        }
+        eprintln!("millsim post: operation {} (T{}): {} moves -> {}", p.operation, p.tool, p.axes.len(), path.display());
+    }
+    Ok(())
 }

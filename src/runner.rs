@@ -9,6 +9,8 @@ use serde_json::{json, Value};
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::optimize::FeedLimits;
 use millsim_engine::physics::stability::{compute_lobes, StabilityInput};
+use millsim_engine::machine::rotary_feed::{correct_program, FeedOutput, RotaryFeedError, RotaryFeedOptions};
+use millsim_engine::machine::Machine;
 use millsim_engine::physics::Material;
 use millsim_engine::simulate::{self, SimulateError, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
@@ -21,7 +23,7 @@ use crate::store::ResourceKind;
 pub const KNOWN_KINDS: [&str; 7] = ["interpret", "simulate", "optimize", "stability", "energy", "rotary-feed", "identify"];
 
 pub fn is_supported(kind: &str) -> bool {
-    matches!(kind, "interpret" | "simulate" | "optimize" | "stability")
+    matches!(kind, "interpret" | "simulate" | "optimize" | "stability" | "rotary-feed")
 }
 
 /// One input a job kind takes: its name under `inputs`, the resource kind, and whether
@@ -48,8 +50,10 @@ pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
         // Else a generic 3-axis machine.
         input("machine", ResourceKind::Machine, false),
     ];
+    const ROTARY_FEED: [InputSpec; 2] = [input("program", ResourceKind::Program, true), input("machine", ResourceKind::Machine, true)];
     match kind {
         "interpret" => &INTERPRET,
+        "rotary-feed" => &ROTARY_FEED,
         "simulate" | "optimize" => &SIMULATE,
         _ => &[],
     }
@@ -149,6 +153,7 @@ pub fn run(kind: &str, options: &Value, inputs: LoadedInputs, cancel: &CancelFla
         "interpret" => interpret(options, inputs, cancel, progress),
         "simulate" | "optimize" => simulate_job(kind == "optimize", options, inputs, cancel, progress),
         "stability" => stability_job(options, progress),
+        "rotary-feed" => rotary_feed_job(options, inputs),
         other => Err(JobFailure::Invalid(json!({
             "type": "https://millsim.dev/problems/not-supported",
             "title": "Not supported yet",
@@ -318,7 +323,7 @@ fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cance
     };
     let machine = match inputs.remove("machine") {
         Some(m) => serde_json::from_slice(&m.content).map_err(|e| invalid("Invalid machine", e.to_string()))?,
-        None => millsim_engine::machine::Machine::generic(),
+        None => Machine::generic(),
     };
     let stock = inputs.remove("stock").ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
     let stock = if stock.media_type == "application/json" {
@@ -405,5 +410,58 @@ fn stability_job(options: &Value, progress: &dyn Progress) -> Result<JobOutput, 
         rows,
         samples: Vec::new(),
         files: Vec::new(),
+    })
+}
+
+/// Options of a `rotary-feed` job.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotaryFeedJobOptions {
+    /// `per_min` (G94, F = I/t) or `inverse_time` (G93, F = 1/t; the program must be in G93).
+    #[serde(default)]
+    pub output: FeedOutput,
+    #[serde(default = "default_dialect")]
+    pub dialect: nc::Dialect,
+    /// M codes that do not move the machine (e.g. LinuxCNC's M428/M429).
+    #[serde(default)]
+    pub passthrough_m_codes: Vec<u32>,
+}
+
+/// Rotary-axis feed correction of a G-code program: F words rewritten so the tool tip moves
+/// at the programmed feed; rows are the corrected feed per block.
+fn rotary_feed_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
+    let opts: RotaryFeedJobOptions = serde_json::from_value(options.clone()).map_err(|e| invalid("Invalid options", e.to_string()))?;
+    let (file, text) = program_text(&mut inputs)?;
+    if crate::validate::looks_like_cls(&text) {
+        return Err(invalid(
+            "Not supported yet",
+            format!("{file} is an APT/CLS file: post it with `millsim post {file} --machine M.json`; the rotary-feed job takes G-code"),
+        ));
+    }
+    let machine: Machine = inputs
+        .remove("machine")
+        .map(|m| serde_json::from_slice(&m.content))
+        .transpose()
+        .map_err(|e| invalid("Invalid machine", e.to_string()))?
+        .ok_or_else(|| invalid("Missing input", "the job has no `machine` input"))?;
+    let interpret = nc::InterpretOptions { dialect: opts.dialect, passthrough_m_codes: opts.passthrough_m_codes.clone(), ..Default::default() };
+    let feed = RotaryFeedOptions { output: opts.output, ..RotaryFeedOptions::default() };
+    let (corrected, report) = correct_program(&text, &interpret, &machine, &feed).map_err(|e| match e {
+        RotaryFeedError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
+        other => invalid("Rotary feed correction refused", format!("{file}: {other}")),
+    })?;
+    let rows: Vec<String> = report.blocks.iter().map(|b| serde_json::to_string(b).expect("rows serialize")).collect();
+    let (stem, ext) = file.rsplit_once('.').map(|(s, e)| (s, format!(".{e}"))).unwrap_or((&file, String::new()));
+    Ok(JobOutput {
+        summary: json!({
+            "file": file,
+            "blocks": report.blocks.len(),
+            "limited_blocks": report.blocks.iter().filter(|b| b.limited).count(),
+            "skipped_moves": report.skipped.len(),
+            "row_columns": ["block", "line", "feed", "output", "limited"],
+        }),
+        rows,
+        samples: Vec::new(),
+        files: vec![OutputFile { name: "program", media_type: "text/plain; charset=utf-8", file_name: format!("{stem}.rotary{ext}"), content: corrected.into_bytes() }],
     })
 }

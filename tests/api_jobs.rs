@@ -271,3 +271,34 @@ async fn stability_job_serves_lobes_as_rows_and_csv() {
     let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability", "options": bad})).send().await.unwrap()).await;
     assert_eq!((st, p["field"].as_str()), (422, Some("options.method")), "{p}");
 }
+
+#[tokio::test]
+async fn rotary_feed_job_corrects_f_so_the_tool_tip_moves_at_the_programmed_feed() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let machine = json!({"name": "B table", "kinematics": "xyz_b", "rapid_rate": 20000.0, "max_feed": 10000.0,
+        "acceleration": [1000.0, 1000.0, 1000.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0});
+    let (st, m) = json(c.post(s.url("/v1/machines")).json(&machine).send().await.unwrap()).await;
+    assert_eq!(st, 201, "{m}");
+    // The tip sits 50 mm from the B axis and turns 90° at F500: it travels π/2·50 mm, so the
+    // move must take (π/2·50)/500 min and F (deg/min) = 90 / that.
+    let program = "G21 G90 G94\nG0 X50 Y0 Z0 B0\nG1 B90 F500\nM30\n";
+    let body = json!({"kind": "rotary-feed", "inputs": {"program": {"name": "b.nc", "content": program}, "machine": m["id"]}});
+    let (st, job) = json(c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap()).await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let expected = 90.0 / (std::f64::consts::FRAC_PI_2 * 50.0 / 500.0);
+    let (_, rows) = json(c.get(s.url(&format!("/v1/jobs/{id}/blocks"))).send().await.unwrap()).await;
+    let row = rows["items"].as_array().unwrap().iter().find(|r| r["line"] == 3).unwrap();
+    assert!((row["feed"].as_f64().unwrap() - expected).abs() / expected < 0.01, "{row} vs {expected}");
+    let res = c.get(s.url(&format!("/v1/jobs/{id}/program"))).send().await.unwrap();
+    assert!(res.headers()["content-disposition"].to_str().unwrap().contains("b.rotary.nc"));
+    let text = res.text().await.unwrap();
+    let line3 = text.lines().nth(2).unwrap();
+    let f: f64 = line3.split_whitespace().find_map(|w| w.strip_prefix('F')).unwrap().parse().unwrap();
+    assert!((f - expected).abs() / expected < 0.01, "{line3}");
+    assert_eq!(text.lines().nth(1), program.lines().nth(1), "other lines unchanged");
+}

@@ -81,3 +81,37 @@ fn interpreter_options_reach_the_cli() {
     let out = Command::new(BIN).arg("interpret").arg(&fanuc).args(["--dialect", "fanuc", "--fanuc-corners-without-comma"]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+#[test]
+fn post_writes_one_program_per_operation_that_re_interprets_to_the_cls_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let cls = dir.path().join("part.cls");
+    std::fs::write(
+        &cls,
+        "LOADTL/1\nTLAXIS/0,0,1\nRAPID\nGOTO/0,0,10\nFEDRAT/MMPM,800\nGOTO/0,0,-1\nGOTO/20.5,0,-1\nGOTO/20.5,7.25,-1\nLOADTL/2\nRAPID\nGOTO/5,5,10\nFEDRAT/MMPM,300\nGOTO/5,5,-2.125\n",
+    )
+    .unwrap();
+    let machine = dir.path().join("m.json");
+    std::fs::write(&machine, r#"{"name":"3-axis","rapid_rate":20000,"max_feed":10000,"acceleration":[1000,1000,1000],"spindle_min_rpm":0,"spindle_max_rpm":12000,"rated_power":10000}"#).unwrap();
+    let out_dir = dir.path().join("out");
+    let out = Command::new(BIN).arg("post").arg(&cls).arg("--machine").arg(&machine).arg("--out").arg(&out_dir).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let expected: [&[[f64; 3]]; 2] = [&[[0.0, 0.0, 10.0], [0.0, 0.0, -1.0], [20.5, 0.0, -1.0], [20.5, 7.25, -1.0]], &[[5.0, 5.0, 10.0], [5.0, 5.0, -2.125]]];
+    for (op, points) in expected.iter().enumerate() {
+        let nc = out_dir.join(format!("part.op{}.nc", op + 1));
+        let moves = Command::new(BIN).arg("interpret").arg(&nc).output().unwrap();
+        assert!(moves.status.success(), "{}", String::from_utf8_lossy(&moves.stderr));
+        let ends: Vec<[f64; 3]> = String::from_utf8(moves.stdout)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|m| m["kind"] == "rapid" || m["kind"] == "linear")
+            .map(|m| [m["end"][0].as_f64().unwrap(), m["end"][1].as_f64().unwrap(), m["end"][2].as_f64().unwrap()])
+            .collect();
+        let tail = &ends[ends.len() - points.len()..];
+        for (a, b) in tail.iter().zip(points.iter()) {
+            assert!((0..3).all(|i| (a[i] - b[i]).abs() < 1e-6), "op {}: {a:?} vs {b:?}", op + 1);
+        }
+    }
+    assert!(!out_dir.join("part.op3.nc").exists());
+}

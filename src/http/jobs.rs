@@ -59,6 +59,9 @@ fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Resul
                 ApiError::invalid_field("options.tool_table", format!("tool table: {first}"))
             })?;
         }
+        "rotary-feed" => {
+            let _: runner::RotaryFeedJobOptions = parse(options)?;
+        }
         "stability" => {
             runner::stability_options(options).map_err(|(field, message)| ApiError::invalid_field(field, message))?;
         }
