@@ -527,7 +527,7 @@ impl StabilitySystem {
         let speed = |w: f64, eps: f64, k: usize| 60.0 * w / (n_teeth * (eps + 2.0 * PI * k as f64));
         for k in 0.. {
             let mut any = false;
-            for branch in 0..2 {
+            for branch in [0usize, 1] {
                 for s in 1..ws.len() {
                     let (Some((a0, e0)), Some((a1, e1))) = (eig[s - 1][branch], eig[s][branch])
                     else {
@@ -871,18 +871,16 @@ impl SdModel {
             for c in 0..dim {
                 let xc = &x[c * dim..(c + 1) * dim];
                 let yc = &mut y[c * dim..(c + 1) * dim];
-                for r in 0..d {
-                    let mut v = 0.0;
-                    for k in 0..d {
-                        v += maps.phi0[r * d + k] * xc[k];
-                    }
+                for (r, out) in yc[..d].iter_mut().enumerate() {
+                    let row = &maps.phi0[r * d..(r + 1) * d];
+                    let mut v: f64 = row.iter().zip(&xc[..d]).map(|(p, q)| p * q).sum();
                     if engaged {
                         for q in 0..n {
                             v += maps.w1[r * n + q] * xc[s_new + q]
                                 + maps.w0[r * n + q] * xc[s_old + q];
                         }
                     }
-                    yc[r] = v;
+                    *out = v;
                 }
                 yc[d..d + n].copy_from_slice(&xc[..n]);
                 yc[d + n..dim].copy_from_slice(&xc[d..dim - n]);
