@@ -7,6 +7,7 @@ mod metrics;
 mod queue;
 mod run_cli;
 mod runner;
+mod stability_cli;
 mod store;
 mod validate;
 
@@ -48,6 +49,11 @@ enum Command {
     Interpret(InterpretArgs),
     /// Simulate a program offline: writes summary.json, blocks.csv and stock.stl.
     Run(run_cli::RunArgs),
+    /// Stability lobes: prints CSV rpm,depth_mm for INPUT.json (the `stability` job's options).
+    Stability {
+        /// The lobe input: method (zoa|sdm|fdm), teeth, coefficients, immersion, modes, speeds.
+        input: std::path::PathBuf,
+    },
     /// Post an APT/CLS file for a machine: one G-code file per operation, rotary feeds corrected.
     Post(PostArgs),
     /// Print every HTTP route as `METHOD PATH`, one per line (checked against openapi.yaml).
@@ -188,6 +194,16 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Interpret(args) => interpret(args),
+        Command::Stability { input } => match stability_cli::run(&input) {
+            Ok(csv) => {
+                print!("{csv}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("{e}");
+                ExitCode::FAILURE
+            }
+        },
         Command::Post(args) => match post(args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
