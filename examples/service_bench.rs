@@ -21,20 +21,37 @@ async fn main() {
     let db_url = format!("sqlite://{}", db.display());
     let bin = std::env::var("MILLSIM_BIN").unwrap_or_else(|_| "target/release/millsim".into());
     let mut child = std::process::Command::new(&bin)
-        .args(["serve", "--bind", "127.0.0.1:0", "--database", &db_url, "--workers", "2"])
+        .args([
+            "serve",
+            "--bind",
+            "127.0.0.1:0",
+            "--database",
+            &db_url,
+            "--workers",
+            "2",
+        ])
         .env("RUST_LOG", "warn")
         .stdout(std::process::Stdio::piped())
         .spawn()
         .unwrap_or_else(|e| panic!("start {bin}: {e} (build it with cargo build --release)"));
     let mut line = String::new();
-    std::io::BufRead::read_line(&mut std::io::BufReader::new(child.stdout.take().unwrap()), &mut line).unwrap();
-    let base = line.trim().strip_prefix("millsim listening on ").unwrap().to_string();
+    std::io::BufRead::read_line(
+        &mut std::io::BufReader::new(child.stdout.take().unwrap()),
+        &mut line,
+    )
+    .unwrap();
+    let base = line
+        .trim()
+        .strip_prefix("millsim listening on ")
+        .unwrap()
+        .to_string();
     let c = reqwest::Client::new();
 
     // 1. Pickup latency with the queue idle: one job at a time, submit -> running, from the
     // server's own timestamps (created_at at insert, started_at at claim; ms resolution),
     // and as the client sees it (submit returns -> first poll that is not queued).
-    let program = json!({"name": "one.nc", "content": "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10\nM30\n"});
+    let program =
+        json!({"name": "one.nc", "content": "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10\nM30\n"});
     let mut server_ms = Vec::new();
     for _ in 0..200 {
         let job: Value = c
@@ -48,7 +65,14 @@ async fn main() {
             .unwrap();
         let id = job["id"].as_str().unwrap();
         let done = loop {
-            let j: Value = c.get(format!("{base}/v1/jobs/{id}")).send().await.unwrap().json().await.unwrap();
+            let j: Value = c
+                .get(format!("{base}/v1/jobs/{id}"))
+                .send()
+                .await
+                .unwrap()
+                .json()
+                .await
+                .unwrap();
             if j["status"] == "succeeded" {
                 break j;
             }
@@ -59,7 +83,9 @@ async fn main() {
             // ...THH:MM:SS.mmmZ -> seconds of the day, enough for a difference.
             let hms = &s[11..23];
             let (h, m, sec) = (&hms[0..2], &hms[3..5], &hms[6..]);
-            h.parse::<f64>().unwrap() * 3600.0 + m.parse::<f64>().unwrap() * 60.0 + sec.parse::<f64>().unwrap()
+            h.parse::<f64>().unwrap() * 3600.0
+                + m.parse::<f64>().unwrap() * 60.0
+                + sec.parse::<f64>().unwrap()
         };
         server_ms.push((t("started_at") - t("created_at")) * 1000.0);
     }
@@ -73,7 +99,16 @@ async fn main() {
 
     // 2. GET /v1/jobs/{id} with 64 concurrent clients for 10 s.
     let id = {
-        let (_, page): (u16, Value) = (0, c.get(format!("{base}/v1/jobs?limit=1")).send().await.unwrap().json().await.unwrap());
+        let (_, page): (u16, Value) = (
+            0,
+            c.get(format!("{base}/v1/jobs?limit=1"))
+                .send()
+                .await
+                .unwrap()
+                .json()
+                .await
+                .unwrap(),
+        );
         page["items"][0]["id"].as_str().unwrap().to_string()
     };
     let url = format!("{base}/v1/jobs/{id}");
@@ -128,7 +163,14 @@ async fn main() {
     // First run right after seeding (cold cache, WAL not yet checkpointed), then warm.
     for run in ["cold", "warm"] {
         let t = Instant::now();
-        let body = c.get(format!("{base}/v1/jobs/seeded-100k/blocks?format=csv")).send().await.unwrap().bytes().await.unwrap();
+        let body = c
+            .get(format!("{base}/v1/jobs/seeded-100k/blocks?format=csv"))
+            .send()
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
         let elapsed = t.elapsed().as_secs_f64();
         let lines = body.iter().filter(|&&b| b == b'\n').count();
         assert_eq!(lines, 100_001, "header + 100,000 rows");

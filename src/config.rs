@@ -11,7 +11,12 @@ pub struct Limits {
 
 impl Default for Limits {
     fn default() -> Self {
-        Limits { max_stl_bytes: 256 << 20, max_program_bytes: 64 << 20, max_json_bytes: 1 << 20, upload_timeout_secs: 600 }
+        Limits {
+            max_stl_bytes: 256 << 20,
+            max_program_bytes: 64 << 20,
+            max_json_bytes: 1 << 20,
+            upload_timeout_secs: 600,
+        }
     }
 }
 

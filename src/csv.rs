@@ -16,13 +16,24 @@ pub fn columns(keys: &[String], sample_rows: &[Map<String, Value>]) -> Vec<Colum
     const AXES: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
     let mut cols = Vec::new();
     for k in keys {
-        match sample_rows.iter().find_map(|r| r.get(k).filter(|v| !v.is_null())) {
+        match sample_rows
+            .iter()
+            .find_map(|r| r.get(k).filter(|v| !v.is_null()))
+        {
             Some(Value::Array(a)) if a.len() <= 6 => {
                 for (i, axis) in AXES.iter().enumerate().take(a.len()) {
-                    cols.push(Column { header: format!("{k}_{axis}"), key: k.clone(), index: Some(i) });
+                    cols.push(Column {
+                        header: format!("{k}_{axis}"),
+                        key: k.clone(),
+                        index: Some(i),
+                    });
                 }
             }
-            _ => cols.push(Column { header: k.clone(), key: k.clone(), index: None }),
+            _ => cols.push(Column {
+                header: k.clone(),
+                key: k.clone(),
+                index: None,
+            }),
         }
     }
     cols
@@ -42,7 +53,13 @@ fn field(v: Option<&Value>) -> String {
 }
 
 pub fn write_header(out: &mut String, cols: &[Column]) {
-    out.push_str(&cols.iter().map(|c| c.header.as_str()).collect::<Vec<_>>().join(","));
+    out.push_str(
+        &cols
+            .iter()
+            .map(|c| c.header.as_str())
+            .collect::<Vec<_>>()
+            .join(","),
+    );
     out.push('\n');
 }
 
@@ -68,8 +85,13 @@ mod tests {
     #[test]
     fn arrays_spread_over_axis_columns_and_text_is_quoted() {
         let row = json!({"line": 3, "end": [1.0, 2.0, 3.0, 0.0, 0.0, 0.0], "note": "a,\"b\""});
-        let Value::Object(row) = row else { unreachable!() };
-        let keys: Vec<String> = ["line", "end", "note", "center"].iter().map(|s| s.to_string()).collect();
+        let Value::Object(row) = row else {
+            unreachable!()
+        };
+        let keys: Vec<String> = ["line", "end", "note", "center"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
         let cols = columns(&keys, std::slice::from_ref(&row));
         let mut out = String::new();
         write_header(&mut out, &cols);

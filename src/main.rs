@@ -24,10 +24,20 @@ use http::auth::{hash_key, hex, Auth};
 use millsim_engine::nc;
 
 #[derive(Parser)]
-#[command(name = "millsim", version, about = "Virtual machining: material removal, cutting forces, feed optimization")]
+#[command(
+    name = "millsim",
+    version,
+    about = "Virtual machining: material removal, cutting forces, feed optimization"
+)]
 struct Cli {
     /// Log format on stderr.
-    #[arg(long, global = true, env = "MILLSIM_LOG_FORMAT", value_enum, default_value = "text")]
+    #[arg(
+        long,
+        global = true,
+        env = "MILLSIM_LOG_FORMAT",
+        value_enum,
+        default_value = "text"
+    )]
     log_format: LogFormat,
     #[command(subcommand)]
     command: Command,
@@ -88,13 +98,22 @@ struct QueueArgs {
 impl QueueArgs {
     fn config(&self, default_workers: usize) -> Result<QueueConfig, String> {
         if !(self.lease_secs >= 0.2 && self.lease_secs <= 3600.0) {
-            return Err(format!("--lease-secs must be in [0.2, 3600], got {}", self.lease_secs));
+            return Err(format!(
+                "--lease-secs must be in [0.2, 3600], got {}",
+                self.lease_secs
+            ));
         }
         if !(1..=100).contains(&self.max_attempts) {
-            return Err(format!("--max-attempts must be in [1, 100], got {}", self.max_attempts));
+            return Err(format!(
+                "--max-attempts must be in [1, 100], got {}",
+                self.max_attempts
+            ));
         }
         if !(self.shutdown_grace_secs >= 0.0 && self.shutdown_grace_secs <= 86_400.0) {
-            return Err(format!("--shutdown-grace-secs must be in [0, 86400], got {}", self.shutdown_grace_secs));
+            return Err(format!(
+                "--shutdown-grace-secs must be in [0, 86400], got {}",
+                self.shutdown_grace_secs
+            ));
         }
         Ok(QueueConfig {
             workers: self.workers.unwrap_or(default_workers),
@@ -182,8 +201,11 @@ struct InterpretArgs {
 }
 
 fn init_logs(format: LogFormat) {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info,sqlx=warn,tower_http=info".into());
-    let builder = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr);
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| "info,sqlx=warn,tower_http=info".into());
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
     match format {
         LogFormat::Json => builder.json().init(),
         LogFormat::Text => builder.init(),
@@ -229,7 +251,11 @@ fn main() -> ExitCode {
                 eprintln!("millsim api-key: the name must be one word");
                 return ExitCode::from(2);
             }
-            let key = format!("ms_{}{}", uuid::Uuid::new_v4().simple(), uuid::Uuid::new_v4().simple());
+            let key = format!(
+                "ms_{}{}",
+                uuid::Uuid::new_v4().simple(),
+                uuid::Uuid::new_v4().simple()
+            );
             println!("key: {key}");
             println!("key file line: {name} {}", hex(&hash_key(&key)));
             ExitCode::SUCCESS
@@ -246,7 +272,10 @@ fn main() -> ExitCode {
 }
 
 fn run_async(f: impl std::future::Future<Output = Result<(), String>>) -> ExitCode {
-    let rt = match tokio::runtime::Builder::new_multi_thread().enable_all().build() {
+    let rt = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
         Ok(rt) => rt,
         Err(e) => {
             eprintln!("millsim: cannot start the runtime: {e}");
@@ -267,26 +296,32 @@ fn shutdown_signal() -> watch::Receiver<bool> {
     let (tx, rx) = watch::channel(false);
     tokio::spawn(async move {
         let ctrl_c = tokio::signal::ctrl_c();
-        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).expect("SIGTERM handler");
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+            .expect("SIGTERM handler");
         tokio::select! {
             _ = ctrl_c => {}
             _ = term.recv() => {}
         }
-        tracing::info!("shutdown requested: no new jobs are claimed; running jobs finish or are given back");
+        tracing::info!(
+            "shutdown requested: no new jobs are claimed; running jobs finish or are given back"
+        );
         let _ = tx.send(true);
     });
     rx
 }
 
 fn cores() -> usize {
-    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
 }
 
 async fn serve(args: ServeArgs) -> Result<(), String> {
     let queue = args.queue.config(cores())?;
     let auth = match &args.api_key_file {
         Some(path) => {
-            let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+            let text =
+                std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
             Auth::from_key_file(&path.display().to_string(), &text).map_err(|e| e.to_string())?
         }
         None => Auth::disabled(),
@@ -297,10 +332,15 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
             args.bind
         ));
     }
-    let db = store::Db::open(&args.queue.database).await.map_err(|e| format!("{}: {e}", args.queue.database))?;
+    let db = store::Db::open(&args.queue.database)
+        .await
+        .map_err(|e| format!("{}: {e}", args.queue.database))?;
     let metrics = Arc::new(metrics::Metrics::default());
     let wake = Arc::new(Notify::new());
-    let limits = Limits { max_stl_bytes: args.max_upload_bytes, ..Limits::default() };
+    let limits = Limits {
+        max_stl_bytes: args.max_upload_bytes,
+        ..Limits::default()
+    };
     let shutdown = shutdown_signal();
     let state = http::AppState {
         db: db.clone(),
@@ -311,9 +351,17 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
         max_attempts: queue.max_attempts,
         shutdown: shutdown.clone(),
     };
-    let listener = tokio::net::TcpListener::bind(args.bind).await.map_err(|e| format!("cannot bind {}: {e}", args.bind))?;
+    let listener = tokio::net::TcpListener::bind(args.bind)
+        .await
+        .map_err(|e| format!("cannot bind {}: {e}", args.bind))?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
-    let workers = tokio::spawn(queue::run_workers(db, queue, metrics, wake, shutdown.clone()));
+    let workers = tokio::spawn(queue::run_workers(
+        db,
+        queue,
+        metrics,
+        wake,
+        shutdown.clone(),
+    ));
     tracing::info!(%addr, "listening");
     // Tests and scripts read the bound address (the port may have been 0) from stdout.
     println!("millsim listening on http://{addr}");
@@ -334,9 +382,18 @@ async fn worker(args: WorkerArgs) -> Result<(), String> {
     if queue.workers == 0 {
         return Err("--workers must be at least 1 for `millsim worker`".into());
     }
-    let db = store::Db::open(&args.queue.database).await.map_err(|e| format!("{}: {e}", args.queue.database))?;
+    let db = store::Db::open(&args.queue.database)
+        .await
+        .map_err(|e| format!("{}: {e}", args.queue.database))?;
     let shutdown = shutdown_signal();
-    queue::run_workers(db, queue, Arc::new(metrics::Metrics::default()), Arc::new(Notify::new()), shutdown).await;
+    queue::run_workers(
+        db,
+        queue,
+        Arc::new(metrics::Metrics::default()),
+        Arc::new(Notify::new()),
+        shutdown,
+    )
+    .await;
     Ok(())
 }
 
@@ -346,7 +403,10 @@ fn interpret(args: InterpretArgs) -> ExitCode {
         Ok(bytes) => match String::from_utf8(bytes) {
             Ok(t) => t,
             Err(e) => {
-                eprintln!("{file}: not UTF-8 text (byte {})", e.utf8_error().valid_up_to());
+                eprintln!(
+                    "{file}: not UTF-8 text (byte {})",
+                    e.utf8_error().valid_up_to()
+                );
                 return ExitCode::from(2);
             }
         },
@@ -381,15 +441,22 @@ fn interpret(args: InterpretArgs) -> ExitCode {
     let options = match job_options.engine_options() {
         Ok(o) => o,
         Err(diags) => {
-            let table = args.tool_table.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+            let table = args
+                .tool_table
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default();
             for d in &diags.0 {
                 eprintln!("{table}:{d}");
             }
             return ExitCode::FAILURE;
         }
     };
-    let result =
-        if validate::looks_like_cls(&text) { millsim_engine::cl::read_cls(&text) } else { nc::interpret(&text, &options) };
+    let result = if validate::looks_like_cls(&text) {
+        millsim_engine::cl::read_cls(&text)
+    } else {
+        nc::interpret(&text, &options)
+    };
     match result {
         Ok(out) => {
             for w in &out.warnings {
@@ -421,9 +488,12 @@ fn post(args: PostArgs) -> Result<(), String> {
     use millsim_engine::machine::rotary_feed::{FeedOutput, RotaryFeedOptions};
     let file = args.file.display().to_string();
     let cls = std::fs::read_to_string(&args.file).map_err(|e| format!("{file}: {e}"))?;
-    let machine_bytes = std::fs::read(&args.machine).map_err(|e| format!("{}: {e}", args.machine.display()))?;
-    validate::machine(&machine_bytes).map_err(|e| format!("{}: {}", args.machine.display(), e.detail))?;
-    let machine: millsim_engine::machine::Machine = serde_json::from_slice(&machine_bytes).map_err(|e| e.to_string())?;
+    let machine_bytes =
+        std::fs::read(&args.machine).map_err(|e| format!("{}: {e}", args.machine.display()))?;
+    validate::machine(&machine_bytes)
+        .map_err(|e| format!("{}: {}", args.machine.display(), e.detail))?;
+    let machine: millsim_engine::machine::Machine =
+        serde_json::from_slice(&machine_bytes).map_err(|e| e.to_string())?;
     if !(1..=9).contains(&args.decimals) {
         return Err(format!("--decimals must be 1 to 9, got {}", args.decimals));
     }
@@ -431,19 +501,36 @@ fn post(args: PostArgs) -> Result<(), String> {
         n_numbers: args.n_numbers.then_some((10, 10)),
         linear_decimals: args.decimals,
         angle_decimals: args.decimals,
-        feed: RotaryFeedOptions { output: if args.inverse_time { FeedOutput::InverseTime } else { FeedOutput::PerMin }, ..Default::default() },
+        feed: RotaryFeedOptions {
+            output: if args.inverse_time {
+                FeedOutput::InverseTime
+            } else {
+                FeedOutput::PerMin
+            },
+            ..Default::default()
+        },
         ..Default::default()
     };
     let posted = post_cls(&cls, &machine, &options).map_err(|e| format!("{file}: {e}"))?;
     std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
-    let stem = args.file.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "program".into());
+    let stem = args
+        .file
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "program".into());
     for p in &posted {
         let path = args.out.join(format!("{stem}.op{}.nc", p.operation));
         std::fs::write(&path, &p.text).map_err(|e| format!("{}: {e}", path.display()))?;
         for issue in &p.issues {
             eprintln!("{file}:{}: {:?}", issue.index, issue.kind);
         }
-        eprintln!("millsim post: operation {} (T{}): {} moves -> {}", p.operation, p.tool, p.axes.len(), path.display());
+        eprintln!(
+            "millsim post: operation {} (T{}): {} moves -> {}",
+            p.operation,
+            p.tool,
+            p.axes.len(),
+            path.display()
+        );
     }
     Ok(())
 }

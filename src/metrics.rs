@@ -36,7 +36,11 @@ impl Histogram {
             let c = self.counts.get(i).copied().unwrap_or(0);
             let _ = writeln!(out, "{name}_bucket{{{labels}{sep}le=\"{b}\"}} {c}");
         }
-        let _ = writeln!(out, "{name}_bucket{{{labels}{sep}le=\"+Inf\"}} {}", self.count);
+        let _ = writeln!(
+            out,
+            "{name}_bucket{{{labels}{sep}le=\"+Inf\"}} {}",
+            self.count
+        );
         let _ = writeln!(out, "{name}_sum{{{labels}}} {}", self.sum);
         let _ = writeln!(out, "{name}_count{{{labels}}} {}", self.count);
     }
@@ -51,8 +55,16 @@ pub struct Metrics {
 
 impl Metrics {
     pub fn observe_request(&self, method: &str, route: &str, status: u16, elapsed: Duration) {
-        *self.requests.lock().unwrap().entry((method.to_string(), route.to_string(), status)).or_default() += 1;
-        self.request_seconds.lock().unwrap().observe(&REQUEST_BUCKETS, elapsed.as_secs_f64());
+        *self
+            .requests
+            .lock()
+            .unwrap()
+            .entry((method.to_string(), route.to_string(), status))
+            .or_default() += 1;
+        self.request_seconds
+            .lock()
+            .unwrap()
+            .observe(&REQUEST_BUCKETS, elapsed.as_secs_f64());
     }
 
     pub fn observe_job(&self, kind: &str, outcome: &str, elapsed: Duration) {
@@ -67,26 +79,53 @@ impl Metrics {
     /// Prometheus text format; `job_counts` are (status, count) from the database.
     pub fn render(&self, job_counts: &[(String, i64)]) -> String {
         let mut out = String::new();
-        out.push_str("# HELP millsim_http_requests_total HTTP requests by method, route and status.\n");
+        out.push_str(
+            "# HELP millsim_http_requests_total HTTP requests by method, route and status.\n",
+        );
         out.push_str("# TYPE millsim_http_requests_total counter\n");
         for ((m, r, s), n) in self.requests.lock().unwrap().iter() {
-            let _ = writeln!(out, "millsim_http_requests_total{{method=\"{m}\",route=\"{r}\",status=\"{s}\"}} {n}");
+            let _ = writeln!(
+                out,
+                "millsim_http_requests_total{{method=\"{m}\",route=\"{r}\",status=\"{s}\"}} {n}"
+            );
         }
         out.push_str("# HELP millsim_http_request_duration_seconds HTTP request latency.\n");
         out.push_str("# TYPE millsim_http_request_duration_seconds histogram\n");
-        self.request_seconds.lock().unwrap().render(&mut out, "millsim_http_request_duration_seconds", "", &REQUEST_BUCKETS);
-        out.push_str("# HELP millsim_jobs Jobs in the database by status.\n# TYPE millsim_jobs gauge\n");
+        self.request_seconds.lock().unwrap().render(
+            &mut out,
+            "millsim_http_request_duration_seconds",
+            "",
+            &REQUEST_BUCKETS,
+        );
+        out.push_str(
+            "# HELP millsim_jobs Jobs in the database by status.\n# TYPE millsim_jobs gauge\n",
+        );
         for status in crate::store::JobStatus::ALL {
-            let n = job_counts.iter().find(|(s, _)| s == status.as_str()).map(|(_, n)| *n).unwrap_or(0);
+            let n = job_counts
+                .iter()
+                .find(|(s, _)| s == status.as_str())
+                .map(|(_, n)| *n)
+                .unwrap_or(0);
             let _ = writeln!(out, "millsim_jobs{{status=\"{}\"}} {n}", status.as_str());
         }
-        let queued = job_counts.iter().find(|(s, _)| s == "queued").map(|(_, n)| *n).unwrap_or(0);
+        let queued = job_counts
+            .iter()
+            .find(|(s, _)| s == "queued")
+            .map(|(_, n)| *n)
+            .unwrap_or(0);
         out.push_str("# HELP millsim_queue_depth Jobs waiting for a worker.\n# TYPE millsim_queue_depth gauge\n");
         let _ = writeln!(out, "millsim_queue_depth {queued}");
-        out.push_str("# HELP millsim_job_duration_seconds Wall time of job attempts run by this process.\n");
+        out.push_str(
+            "# HELP millsim_job_duration_seconds Wall time of job attempts run by this process.\n",
+        );
         out.push_str("# TYPE millsim_job_duration_seconds histogram\n");
         for ((kind, outcome), h) in self.job_seconds.lock().unwrap().iter() {
-            h.render(&mut out, "millsim_job_duration_seconds", &format!("kind=\"{kind}\",outcome=\"{outcome}\""), &JOB_BUCKETS);
+            h.render(
+                &mut out,
+                "millsim_job_duration_seconds",
+                &format!("kind=\"{kind}\",outcome=\"{outcome}\""),
+                &JOB_BUCKETS,
+            );
         }
         out
     }

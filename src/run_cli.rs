@@ -79,16 +79,27 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         (None, Some(spec)) => {
             let v: Vec<f64> = spec
                 .split(',')
-                .map(|s| s.trim().parse::<f64>().map_err(|_| format!("--block: `{s}` is not a number")))
+                .map(|s| {
+                    s.trim()
+                        .parse::<f64>()
+                        .map_err(|_| format!("--block: `{s}` is not a number"))
+                })
                 .collect::<Result<_, _>>()?;
             let [x, y, z, dx, dy, dz] = v[..] else {
-                return Err(format!("--block takes six numbers X,Y,Z,DX,DY,DZ, got {}", v.len()));
+                return Err(format!(
+                    "--block takes six numbers X,Y,Z,DX,DY,DZ, got {}",
+                    v.len()
+                ));
             };
             if !(dx > 0.0 && dy > 0.0 && dz > 0.0) {
                 return Err("--block: DX, DY and DZ must be positive".into());
             }
             let shape = json!({"kind": "block", "min": [x, y, z], "max": [x + dx, y + dy, z + dz]});
-            LoadedInput { file_name: None, media_type: "application/json".into(), content: shape.to_string().into_bytes() }
+            LoadedInput {
+                file_name: None,
+                media_type: "application/json".into(),
+                content: shape.to_string().into_bytes(),
+            }
         }
         (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
     };
@@ -101,17 +112,23 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             inputs.insert("tool".into(), tool);
         }
         [] => return Err("give the tool: --tool T1=tool.json".into()),
-        _ => return Err("several --tool: programs with several tools are not supported by `run` yet".into()),
+        _ => {
+            return Err(
+                "several --tool: programs with several tools are not supported by `run` yet".into(),
+            )
+        }
     }
     if let Some(path) = &args.machine {
         let m = file_input(path, "application/json")?;
-        crate::validate::machine(&m.content).map_err(|e| format!("{}: {}", path.display(), e.detail))?;
+        crate::validate::machine(&m.content)
+            .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
         inputs.insert("machine".into(), m);
     }
     let mut options = Map::new();
     if Path::new(&args.material).is_file() {
         let m = file_input(Path::new(&args.material), "application/json")?;
-        crate::validate::material(&m.content).map_err(|e| format!("{}: {}", args.material, e.detail))?;
+        crate::validate::material(&m.content)
+            .map_err(|e| format!("{}: {}", args.material, e.detail))?;
         inputs.insert("material".into(), m);
     } else {
         options.insert("material".into(), Value::String(args.material.clone()));
@@ -122,25 +139,50 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     if let Some(spec) = &args.optimize {
         let mut limits = Map::new();
         for pair in spec.split(',').filter(|p| !p.trim().is_empty()) {
-            let (k, v) = pair.split_once('=').ok_or_else(|| format!("--optimize: `{pair}` is not NAME=VALUE"))?;
-            let v: f64 = v.trim().parse().map_err(|_| format!("--optimize: `{v}` is not a number (in `{pair}`)"))?;
+            let (k, v) = pair
+                .split_once('=')
+                .ok_or_else(|| format!("--optimize: `{pair}` is not NAME=VALUE"))?;
+            let v: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| format!("--optimize: `{v}` is not a number (in `{pair}`)"))?;
             // Counts (max_iterations) are integers in the options.
-            let value = if v.fract() == 0.0 && v.abs() < 1e15 { json!(v as i64) } else { json!(v) };
+            let value = if v.fract() == 0.0 && v.abs() < 1e15 {
+                json!(v as i64)
+            } else {
+                json!(v)
+            };
             limits.insert(k.trim().to_string(), value);
         }
         options.insert("limits".into(), Value::Object(limits));
     }
-    let kind = if args.optimize.is_some() { "optimize" } else { "simulate" };
+    let kind = if args.optimize.is_some() {
+        "optimize"
+    } else {
+        "simulate"
+    };
     let options = Value::Object(options);
-    let parsed: runner::SimulateOptions = serde_json::from_value(options.clone()).map_err(|e| format!("--optimize: {e}"))?;
-    parsed.check(kind == "optimize", inputs.contains_key("material")).map_err(|(f, m)| format!("{f}: {m}"))?;
+    let parsed: runner::SimulateOptions =
+        serde_json::from_value(options.clone()).map_err(|e| format!("--optimize: {e}"))?;
+    parsed
+        .check(kind == "optimize", inputs.contains_key("material"))
+        .map_err(|(f, m)| format!("{f}: {m}"))?;
 
     let started = std::time::Instant::now();
-    let out = runner::run(kind, &options, inputs, &CancelFlag::new(), &StderrProgress(AtomicU64::new(0)))
-        .map_err(|f| match f {
-            JobFailure::Invalid(problem) => problem["detail"].as_str().map(str::to_string).unwrap_or_else(|| problem.to_string()),
-            JobFailure::Cancelled => "cancelled".into(),
-        })?;
+    let out = runner::run(
+        kind,
+        &options,
+        inputs,
+        &CancelFlag::new(),
+        &StderrProgress(AtomicU64::new(0)),
+    )
+    .map_err(|f| match f {
+        JobFailure::Invalid(problem) => problem["detail"]
+            .as_str()
+            .map(str::to_string)
+            .unwrap_or_else(|| problem.to_string()),
+        JobFailure::Cancelled => "cancelled".into(),
+    })?;
     let wall = started.elapsed().as_secs_f64();
 
     std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
@@ -150,9 +192,19 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     };
     let mut summary = out.summary;
     summary["wall_s"] = json!(wall);
-    write("summary.json", serde_json::to_string_pretty(&summary).expect("JSON").as_bytes())?;
-    let keys: Vec<String> = serde_json::from_value(summary["row_columns"].clone()).unwrap_or_default();
-    let rows: Vec<Map<String, Value>> = out.rows.iter().filter_map(|r| serde_json::from_str(r).ok()).collect();
+    write(
+        "summary.json",
+        serde_json::to_string_pretty(&summary)
+            .expect("JSON")
+            .as_bytes(),
+    )?;
+    let keys: Vec<String> =
+        serde_json::from_value(summary["row_columns"].clone()).unwrap_or_default();
+    let rows: Vec<Map<String, Value>> = out
+        .rows
+        .iter()
+        .filter_map(|r| serde_json::from_str(r).ok())
+        .collect();
     let cols = csv::columns(&keys, &rows);
     let mut text = String::new();
     csv::write_header(&mut text, &cols);
@@ -162,8 +214,19 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     write("blocks.csv", text.as_bytes())?;
     for f in &out.files {
         // The rewritten program keeps the input's name with .opt before the extension.
-        write(if f.name == "program" { &f.file_name } else { f.name }, &f.content)?;
+        write(
+            if f.name == "program" {
+                &f.file_name
+            } else {
+                f.name
+            },
+            &f.content,
+        )?;
     }
-    eprintln!("millsim run: {} moves in {wall:.2} s; wrote {}", rows.len(), args.out.display());
+    eprintln!(
+        "millsim run: {} moves in {wall:.2} s; wrote {}",
+        rows.len(),
+        args.out.display()
+    );
     Ok(())
 }

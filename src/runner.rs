@@ -7,10 +7,12 @@ use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
 use millsim_engine::job::{CancelFlag, Progress};
+use millsim_engine::machine::rotary_feed::{
+    correct_program, FeedOutput, RotaryFeedError, RotaryFeedOptions,
+};
+use millsim_engine::machine::Machine;
 use millsim_engine::optimize::FeedLimits;
 use millsim_engine::physics::stability::{compute_lobes, StabilityInput};
-use millsim_engine::machine::rotary_feed::{correct_program, FeedOutput, RotaryFeedError, RotaryFeedOptions};
-use millsim_engine::machine::Machine;
 use millsim_engine::physics::Material;
 use millsim_engine::simulate::{self, SimulateError, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
@@ -20,10 +22,21 @@ use crate::store::ResourceKind;
 
 /// Job kinds the API knows. Only the ones whose engine exists run; the others are refused
 /// at submission with a clear "not supported yet".
-pub const KNOWN_KINDS: [&str; 7] = ["interpret", "simulate", "optimize", "stability", "energy", "rotary-feed", "identify"];
+pub const KNOWN_KINDS: [&str; 7] = [
+    "interpret",
+    "simulate",
+    "optimize",
+    "stability",
+    "energy",
+    "rotary-feed",
+    "identify",
+];
 
 pub fn is_supported(kind: &str) -> bool {
-    matches!(kind, "interpret" | "simulate" | "optimize" | "stability" | "rotary-feed")
+    matches!(
+        kind,
+        "interpret" | "simulate" | "optimize" | "stability" | "rotary-feed"
+    )
 }
 
 /// One input a job kind takes: its name under `inputs`, the resource kind, and whether
@@ -35,7 +48,11 @@ pub struct InputSpec {
 }
 
 const fn input(name: &'static str, kind: ResourceKind, required: bool) -> InputSpec {
-    InputSpec { name, kind, required }
+    InputSpec {
+        name,
+        kind,
+        required,
+    }
 }
 
 /// The inputs each kind takes.
@@ -50,7 +67,10 @@ pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
         // Else a generic 3-axis machine.
         input("machine", ResourceKind::Machine, false),
     ];
-    const ROTARY_FEED: [InputSpec; 2] = [input("program", ResourceKind::Program, true), input("machine", ResourceKind::Machine, true)];
+    const ROTARY_FEED: [InputSpec; 2] = [
+        input("program", ResourceKind::Program, true),
+        input("machine", ResourceKind::Machine, true),
+    ];
     match kind {
         "interpret" => &INTERPRET,
         "rotary-feed" => &ROTARY_FEED,
@@ -148,10 +168,18 @@ fn diagnostics_problem(file: &str, d: &nc::Diagnostics) -> Value {
     })
 }
 
-pub fn run(kind: &str, options: &Value, inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
+pub fn run(
+    kind: &str,
+    options: &Value,
+    inputs: LoadedInputs,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<JobOutput, JobFailure> {
     match kind {
         "interpret" => interpret(options, inputs, cancel, progress),
-        "simulate" | "optimize" => simulate_job(kind == "optimize", options, inputs, cancel, progress),
+        "simulate" | "optimize" => {
+            simulate_job(kind == "optimize", options, inputs, cancel, progress)
+        }
         "stability" => stability_job(options, progress),
         "rotary-feed" => rotary_feed_job(options, inputs),
         other => Err(JobFailure::Invalid(json!({
@@ -171,18 +199,30 @@ fn invalid(title: &str, detail: impl Into<String>) -> JobFailure {
 
 /// The program input as (file name, text).
 fn program_text(inputs: &mut LoadedInputs) -> Result<(String, String), JobFailure> {
-    let p = inputs.remove("program").ok_or_else(|| invalid("Missing input", "the job has no `program` input"))?;
+    let p = inputs
+        .remove("program")
+        .ok_or_else(|| invalid("Missing input", "the job has no `program` input"))?;
     let file = p.file_name.unwrap_or_else(|| "program.nc".into());
-    let text = String::from_utf8(p.content).map_err(|_| invalid("Program is not text", format!("{file} is not UTF-8")))?;
+    let text = String::from_utf8(p.content)
+        .map_err(|_| invalid("Program is not text", format!("{file} is not UTF-8")))?;
     Ok((file, text))
 }
 
-fn interpret(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
+fn interpret(
+    options: &Value,
+    mut inputs: LoadedInputs,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<JobOutput, JobFailure> {
     let (file, text) = program_text(&mut inputs)?;
     let opts: InterpretOptions = serde_json::from_value(options.clone()).map_err(|e| {
-        JobFailure::Invalid(json!({"title": "Invalid options", "status": 422, "detail": e.to_string()}))
+        JobFailure::Invalid(
+            json!({"title": "Invalid options", "status": 422, "detail": e.to_string()}),
+        )
     })?;
-    let engine_opts = opts.engine_options().map_err(|d| JobFailure::Invalid(diagnostics_problem("tool_table", &d)))?;
+    let engine_opts = opts
+        .engine_options()
+        .map_err(|d| JobFailure::Invalid(diagnostics_problem("tool_table", &d)))?;
     let result = if crate::validate::looks_like_cls(&text) {
         millsim_engine::cl::read_cls(&text)
     } else {
@@ -214,8 +254,11 @@ fn interpret(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, pro
         }
     }
     progress.report(total, total);
-    let warnings: Vec<Value> =
-        result.warnings.iter().map(|w| json!({"line": w.line, "column": w.col, "message": w.message})).collect();
+    let warnings: Vec<Value> = result
+        .warnings
+        .iter()
+        .map(|w| json!({"line": w.line, "column": w.col, "message": w.message}))
+        .collect();
     Ok(JobOutput {
         summary: json!({ "file": file, "moves": result.moves.len(), "blocks": result.block_count, "warnings": warnings, "row_columns": columns }),
         rows,
@@ -261,35 +304,77 @@ impl SimulateOptions {
     /// Checks what can be checked before the job runs; names the option.
     pub fn check(&self, optimize: bool, has_material_input: bool) -> Result<(), (String, String)> {
         match (&self.limits, optimize) {
-            (None, true) => return Err(("options.limits".into(), "an optimize job needs limits, e.g. {\"max_force\": 800}".into())),
-            (Some(_), false) => return Err(("options.limits".into(), "limits are for optimize jobs; submit kind `optimize`".into())),
+            (None, true) => {
+                return Err((
+                    "options.limits".into(),
+                    "an optimize job needs limits, e.g. {\"max_force\": 800}".into(),
+                ))
+            }
+            (Some(_), false) => {
+                return Err((
+                    "options.limits".into(),
+                    "limits are for optimize jobs; submit kind `optimize`".into(),
+                ))
+            }
             (Some(l), true) => {
-                l.validate().map_err(|e| ("options.limits".to_string(), e.to_string()))?;
-                if l.max_force.is_none() && l.max_power.is_none() && l.max_torque.is_none() && l.max_chip_thickness.is_none() {
+                l.validate()
+                    .map_err(|e| ("options.limits".to_string(), e.to_string()))?;
+                if l.max_force.is_none()
+                    && l.max_power.is_none()
+                    && l.max_torque.is_none()
+                    && l.max_chip_thickness.is_none()
+                {
                     return Err(("options.limits".into(), "give at least one target: max_force, max_power, max_torque or max_chip_thickness".into()));
                 }
             }
             (None, false) => {}
         }
         match (&self.material, has_material_input) {
-            (Some(_), true) => return Err(("options.material".into(), "give a `material` input or `options.material`, not both".into())),
-            (None, false) => return Err(("options.material".into(), "name a built-in material (TC6, Al7075-T6, Al6082-T6) or give a `material` input".into())),
+            (Some(_), true) => {
+                return Err((
+                    "options.material".into(),
+                    "give a `material` input or `options.material`, not both".into(),
+                ))
+            }
+            (None, false) => return Err((
+                "options.material".into(),
+                "name a built-in material (TC6, Al7075-T6, Al6082-T6) or give a `material` input"
+                    .into(),
+            )),
             (Some(name), false) if Material::builtin(name).is_none() => {
-                let names: Vec<String> = millsim_engine::physics::builtin_materials().into_iter().map(|m| m.name).collect();
-                return Err(("options.material".into(), format!("no built-in material `{name}`; one of: {}", names.join(", "))));
+                let names: Vec<String> = millsim_engine::physics::builtin_materials()
+                    .into_iter()
+                    .map(|m| m.name)
+                    .collect();
+                return Err((
+                    "options.material".into(),
+                    format!(
+                        "no built-in material `{name}`; one of: {}",
+                        names.join(", ")
+                    ),
+                ));
             }
             _ => {}
         }
         if let Some(c) = self.cell_mm {
             if !(0.005..=5.0).contains(&c) {
-                return Err(("options.cell_mm".into(), format!("must be in [0.005, 5] mm, got {c}")));
+                return Err((
+                    "options.cell_mm".into(),
+                    format!("must be in [0.005, 5] mm, got {c}"),
+                ));
             }
         }
         if !(8..=3600).contains(&self.force_positions) {
-            return Err(("options.force_positions".into(), format!("must be in [8, 3600], got {}", self.force_positions)));
+            return Err((
+                "options.force_positions".into(),
+                format!("must be in [8, 3600], got {}", self.force_positions),
+            ));
         }
         if !(1..=16384).contains(&self.max_grid_mib) {
-            return Err(("options.max_grid_mib".into(), "must be in [1, 16384]".into()));
+            return Err((
+                "options.max_grid_mib".into(),
+                "must be in [1, 16384]".into(),
+            ));
         }
         Ok(())
     }
@@ -309,31 +394,56 @@ struct SimulateSummary<'a> {
     row_columns: Vec<String>,
 }
 
-fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
-    let opts: SimulateOptions = serde_json::from_value(options.clone()).map_err(|e| invalid("Invalid options", e.to_string()))?;
-    opts.check(optimize, inputs.contains_key("material")).map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
+fn simulate_job(
+    optimize: bool,
+    options: &Value,
+    mut inputs: LoadedInputs,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<JobOutput, JobFailure> {
+    let opts: SimulateOptions = serde_json::from_value(options.clone())
+        .map_err(|e| invalid("Invalid options", e.to_string()))?;
+    opts.check(optimize, inputs.contains_key("material"))
+        .map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
     let (file, text) = program_text(&mut inputs)?;
     let json_input = |inputs: &mut LoadedInputs, name: &str| -> Result<Vec<u8>, JobFailure> {
-        inputs.remove(name).map(|i| i.content).ok_or_else(|| invalid("Missing input", format!("the job has no `{name}` input")))
+        inputs
+            .remove(name)
+            .map(|i| i.content)
+            .ok_or_else(|| invalid("Missing input", format!("the job has no `{name}` input")))
     };
-    let tool: Tool = serde_json::from_slice(&json_input(&mut inputs, "tool")?).map_err(|e| invalid("Invalid tool", e.to_string()))?;
+    let tool: Tool = serde_json::from_slice(&json_input(&mut inputs, "tool")?)
+        .map_err(|e| invalid("Invalid tool", e.to_string()))?;
     let material = match &opts.material {
-        Some(name) => Material::builtin(name).ok_or_else(|| invalid("Unknown material", name.clone()))?,
-        None => serde_json::from_slice(&json_input(&mut inputs, "material")?).map_err(|e| invalid("Invalid material", e.to_string()))?,
+        Some(name) => {
+            Material::builtin(name).ok_or_else(|| invalid("Unknown material", name.clone()))?
+        }
+        None => serde_json::from_slice(&json_input(&mut inputs, "material")?)
+            .map_err(|e| invalid("Invalid material", e.to_string()))?,
     };
     let machine = match inputs.remove("machine") {
-        Some(m) => serde_json::from_slice(&m.content).map_err(|e| invalid("Invalid machine", e.to_string()))?,
+        Some(m) => serde_json::from_slice(&m.content)
+            .map_err(|e| invalid("Invalid machine", e.to_string()))?,
         None => Machine::generic(),
     };
-    let stock = inputs.remove("stock").ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
+    let stock = inputs
+        .remove("stock")
+        .ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
     let stock = if stock.media_type == "application/json" {
-        StockSource::Shape(serde_json::from_slice::<geometry::StockShape>(&stock.content).map_err(|e| invalid("Invalid stock", e.to_string()))?)
+        StockSource::Shape(
+            serde_json::from_slice::<geometry::StockShape>(&stock.content)
+                .map_err(|e| invalid("Invalid stock", e.to_string()))?,
+        )
     } else {
         StockSource::Stl(stock.content)
     };
     let spec = SimulateSpec {
         program: text,
-        interpret: nc::InterpretOptions { dialect: opts.dialect, fanuc_implied_decimal: opts.fanuc_implied_decimal, ..Default::default() },
+        interpret: nc::InterpretOptions {
+            dialect: opts.dialect,
+            fanuc_implied_decimal: opts.fanuc_implied_decimal,
+            ..Default::default()
+        },
         stock,
         tools: BTreeMap::from([(1, tool)]),
         material,
@@ -348,7 +458,11 @@ fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cance
         SimulateError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
         other => invalid("Simulation refused", format!("{file}: {other}")),
     })?;
-    let rows: Vec<String> = out.rows.iter().map(|r| serde_json::to_string(r).expect("rows serialize")).collect();
+    let rows: Vec<String> = out
+        .rows
+        .iter()
+        .map(|r| serde_json::to_string(r).expect("rows serialize"))
+        .collect();
     let samples: Vec<(usize, String)> = out
         .samples
         .iter()
@@ -362,12 +476,26 @@ fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cance
     };
     let clock = std::time::Instant::now();
     let mut stl = Vec::new();
-    geometry::export_stl(&out.stock, &mut stl).map_err(|e| invalid("Stock export failed", e.to_string()))?;
+    geometry::export_stl(&out.stock, &mut stl)
+        .map_err(|e| invalid("Stock export failed", e.to_string()))?;
     let export_s = clock.elapsed().as_secs_f64();
-    let (stem, ext) = file.rsplit_once('.').map(|(s, e)| (s, format!(".{e}"))).unwrap_or((&file, String::new()));
-    let mut files = vec![OutputFile { name: "stock.stl", media_type: "model/stl", file_name: format!("{stem}.stock.stl"), content: stl }];
+    let (stem, ext) = file
+        .rsplit_once('.')
+        .map(|(s, e)| (s, format!(".{e}")))
+        .unwrap_or((&file, String::new()));
+    let mut files = vec![OutputFile {
+        name: "stock.stl",
+        media_type: "model/stl",
+        file_name: format!("{stem}.stock.stl"),
+        content: stl,
+    }];
     if let Some(text) = out.optimized_program {
-        files.push(OutputFile { name: "program", media_type: "text/plain; charset=utf-8", file_name: format!("{stem}.opt{ext}"), content: text.into_bytes() });
+        files.push(OutputFile {
+            name: "program",
+            media_type: "text/plain; charset=utf-8",
+            file_name: format!("{stem}.opt{ext}"),
+            content: text.into_bytes(),
+        });
     }
     Ok(JobOutput {
         summary: serde_json::to_value(SimulateSummary {
@@ -390,16 +518,23 @@ fn simulate_job(optimize: bool, options: &Value, mut inputs: LoadedInputs, cance
 pub fn stability_options(options: &Value) -> Result<StabilityInput, (String, String)> {
     let input: StabilityInput = serde_path_to_error::deserialize(options.clone())
         .map_err(|e| (format!("options.{}", e.path()), e.inner().to_string()))?;
-    input.validate().map_err(|e| (format!("options.{}", e.field()), e.to_string()))?;
+    input
+        .validate()
+        .map_err(|e| (format!("options.{}", e.field()), e.to_string()))?;
     Ok(input)
 }
 
 /// Lobes as rows (rpm, critical depth): /blocks serves them as JSON pages and CSV.
 fn stability_job(options: &Value, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
-    let input = stability_options(options).map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
+    let input = stability_options(options)
+        .map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
     let curve = compute_lobes(&input).map_err(|e| invalid("Stability refused", e.to_string()))?;
     progress.report(curve.points.len() as u64, curve.points.len() as u64);
-    let rows = curve.points.iter().map(|p| json!({"rpm": p.rpm, "depth_mm": p.depth_mm}).to_string()).collect();
+    let rows = curve
+        .points
+        .iter()
+        .map(|p| json!({"rpm": p.rpm, "depth_mm": p.depth_mm}).to_string())
+        .collect();
     Ok(JobOutput {
         summary: json!({
             "method": curve.method,
@@ -430,7 +565,8 @@ pub struct RotaryFeedJobOptions {
 /// Rotary-axis feed correction of a G-code program: F words rewritten so the tool tip moves
 /// at the programmed feed; rows are the corrected feed per block.
 fn rotary_feed_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
-    let opts: RotaryFeedJobOptions = serde_json::from_value(options.clone()).map_err(|e| invalid("Invalid options", e.to_string()))?;
+    let opts: RotaryFeedJobOptions = serde_json::from_value(options.clone())
+        .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let (file, text) = program_text(&mut inputs)?;
     if crate::validate::looks_like_cls(&text) {
         return Err(invalid(
@@ -444,14 +580,29 @@ fn rotary_feed_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutpu
         .transpose()
         .map_err(|e| invalid("Invalid machine", e.to_string()))?
         .ok_or_else(|| invalid("Missing input", "the job has no `machine` input"))?;
-    let interpret = nc::InterpretOptions { dialect: opts.dialect, passthrough_m_codes: opts.passthrough_m_codes.clone(), ..Default::default() };
-    let feed = RotaryFeedOptions { output: opts.output, ..RotaryFeedOptions::default() };
-    let (corrected, report) = correct_program(&text, &interpret, &machine, &feed).map_err(|e| match e {
-        RotaryFeedError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
-        other => invalid("Rotary feed correction refused", format!("{file}: {other}")),
-    })?;
-    let rows: Vec<String> = report.blocks.iter().map(|b| serde_json::to_string(b).expect("rows serialize")).collect();
-    let (stem, ext) = file.rsplit_once('.').map(|(s, e)| (s, format!(".{e}"))).unwrap_or((&file, String::new()));
+    let interpret = nc::InterpretOptions {
+        dialect: opts.dialect,
+        passthrough_m_codes: opts.passthrough_m_codes.clone(),
+        ..Default::default()
+    };
+    let feed = RotaryFeedOptions {
+        output: opts.output,
+        ..RotaryFeedOptions::default()
+    };
+    let (corrected, report) =
+        correct_program(&text, &interpret, &machine, &feed).map_err(|e| match e {
+            RotaryFeedError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
+            other => invalid("Rotary feed correction refused", format!("{file}: {other}")),
+        })?;
+    let rows: Vec<String> = report
+        .blocks
+        .iter()
+        .map(|b| serde_json::to_string(b).expect("rows serialize"))
+        .collect();
+    let (stem, ext) = file
+        .rsplit_once('.')
+        .map(|(s, e)| (s, format!(".{e}")))
+        .unwrap_or((&file, String::new()));
     Ok(JobOutput {
         summary: json!({
             "file": file,
@@ -462,6 +613,11 @@ fn rotary_feed_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutpu
         }),
         rows,
         samples: Vec::new(),
-        files: vec![OutputFile { name: "program", media_type: "text/plain; charset=utf-8", file_name: format!("{stem}.rotary{ext}"), content: corrected.into_bytes() }],
+        files: vec![OutputFile {
+            name: "program",
+            media_type: "text/plain; charset=utf-8",
+            file_name: format!("{stem}.rotary{ext}"),
+            content: corrected.into_bytes(),
+        }],
     })
 }

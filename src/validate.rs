@@ -16,8 +16,13 @@ pub struct Validated {
 
 fn diagnostics_problem(file: &str, what: &'static str, d: &nc::Diagnostics) -> ApiError {
     let errors: Vec<Value> =
-        d.0.iter().map(|e| json!({ "line": e.line, "column": e.col, "message": e.message })).collect();
-    let first = d.0.first().map(|e| format!("{file}:{}:{}: {}", e.line, e.col, e.message)).unwrap_or_default();
+        d.0.iter()
+            .map(|e| json!({ "line": e.line, "column": e.col, "message": e.message }))
+            .collect();
+    let first =
+        d.0.first()
+            .map(|e| format!("{file}:{}:{}: {}", e.line, e.col, e.message))
+            .unwrap_or_default();
     let mut err = ApiError::new(
         axum::http::StatusCode::UNPROCESSABLE_ENTITY,
         "invalid-program",
@@ -36,7 +41,13 @@ fn diagnostics_problem(file: &str, what: &'static str, d: &nc::Diagnostics) -> A
 fn line_col(bytes: &[u8], offset: usize) -> (usize, usize) {
     let before = &bytes[..offset.min(bytes.len())];
     let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
-    let col = offset - before.iter().rposition(|&b| b == b'\n').map(|p| p + 1).unwrap_or(0) + 1;
+    let col = offset
+        - before
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map(|p| p + 1)
+            .unwrap_or(0)
+        + 1;
     (line, col)
 }
 
@@ -44,7 +55,10 @@ fn line_col(bytes: &[u8], offset: usize) -> (usize, usize) {
 pub fn looks_like_cls(text: &str) -> bool {
     text.lines().take(200).any(|l| {
         let l = l.trim_start().to_ascii_uppercase();
-        l.starts_with("GOTO/") || l.starts_with("TLAXIS/") || l.starts_with("FEDRAT/") || l.starts_with("LOADTL/")
+        l.starts_with("GOTO/")
+            || l.starts_with("TLAXIS/")
+            || l.starts_with("FEDRAT/")
+            || l.starts_with("LOADTL/")
     })
 }
 
@@ -56,14 +70,20 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
             axum::http::StatusCode::UNPROCESSABLE_ENTITY,
             "invalid-program",
             "Program is not text",
-            format!("{file}:{line}:{column}: byte 0x{:02x} is not UTF-8 text", bytes[e.valid_up_to()]),
+            format!(
+                "{file}:{line}:{column}: byte 0x{:02x} is not UTF-8 text",
+                bytes[e.valid_up_to()]
+            ),
         )
         .with("file", file.to_string())
         .with("line", line)
         .with("column", column)
     })?;
     if text.trim().is_empty() {
-        return Err(ApiError::invalid_field("content", format!("{file}: the program is empty")));
+        return Err(ApiError::invalid_field(
+            "content",
+            format!("{file}: the program is empty"),
+        ));
     }
     let lines = text.lines().count();
     if looks_like_cls(text) {
@@ -74,7 +94,8 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
             summary: json!({ "format": "cls", "lines": lines, "moves": cls.moves.len() }),
         });
     }
-    let parsed = nc::Program::parse(text).map_err(|d| diagnostics_problem(file, "G-code does not parse", &d))?;
+    let parsed = nc::Program::parse(text)
+        .map_err(|d| diagnostics_problem(file, "G-code does not parse", &d))?;
     Ok(Validated {
         media_type: "text/plain",
         summary: json!({ "format": "gcode", "lines": lines, "blocks": parsed.blocks().len() }),
@@ -84,8 +105,13 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
 /// STL stock or part: read and checked (closed, finite, sane size) by the engine.
 pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
     let mesh = geometry::Mesh::from_stl_bytes(bytes).map_err(|e| {
-        ApiError::new(axum::http::StatusCode::UNPROCESSABLE_ENTITY, "invalid-stl", "STL is not usable", format!("{file}: {e}"))
-            .with("file", file.to_string())
+        ApiError::new(
+            axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid-stl",
+            "STL is not usable",
+            format!("{file}: {e}"),
+        )
+        .with("file", file.to_string())
     })?;
     let (min, max) = mesh.bounds();
     Ok(Validated {
@@ -97,13 +123,19 @@ pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
 /// A parametric stock (block or cylinder) as JSON.
 pub fn stock_json(bytes: &[u8]) -> Result<Validated, ApiError> {
     let shape: geometry::StockShape = parse_json(bytes)?;
-    let (min, max) = shape.bounds().map_err(|e| ApiError::invalid_field("", e.to_string()))?;
-    Ok(Validated { media_type: "application/json", summary: json!({ "format": "parametric", "bounds": { "min": min, "max": max } }) })
+    let (min, max) = shape
+        .bounds()
+        .map_err(|e| ApiError::invalid_field("", e.to_string()))?;
+    Ok(Validated {
+        media_type: "application/json",
+        summary: json!({ "format": "parametric", "bounds": { "min": min, "max": max } }),
+    })
 }
 
 pub fn tool(bytes: &[u8]) -> Result<Validated, ApiError> {
     let tool: Tool = parse_json(bytes)?;
-    tool.validate().map_err(|e| ApiError::invalid_field(e.field, e.to_string()))?;
+    tool.validate()
+        .map_err(|e| ApiError::invalid_field(e.field, e.to_string()))?;
     Ok(Validated {
         media_type: "application/json",
         summary: json!({ "shape": tool.shape, "diameter": tool.diameter, "flutes": tool.flutes }),
@@ -112,14 +144,22 @@ pub fn tool(bytes: &[u8]) -> Result<Validated, ApiError> {
 
 pub fn material(bytes: &[u8]) -> Result<Validated, ApiError> {
     let m: Material = parse_json(bytes)?;
-    m.validate().map_err(|e| ApiError::invalid_field(e.field().to_string(), e.to_string()))?;
-    Ok(Validated { media_type: "application/json", summary: json!({ "name": m.name, "source": m.source }) })
+    m.validate()
+        .map_err(|e| ApiError::invalid_field(e.field().to_string(), e.to_string()))?;
+    Ok(Validated {
+        media_type: "application/json",
+        summary: json!({ "name": m.name, "source": m.source }),
+    })
 }
 
 pub fn machine(bytes: &[u8]) -> Result<Validated, ApiError> {
     let m: Machine = parse_json(bytes)?;
-    m.validate().map_err(|e| ApiError::invalid_field(e.field.clone(), e.to_string()))?;
-    Ok(Validated { media_type: "application/json", summary: json!({ "name": m.name, "kinematics": m.kinematics }) })
+    m.validate()
+        .map_err(|e| ApiError::invalid_field(e.field.clone(), e.to_string()))?;
+    Ok(Validated {
+        media_type: "application/json",
+        summary: json!({ "name": m.name, "kinematics": m.kinematics }),
+    })
 }
 
 #[cfg(test)]

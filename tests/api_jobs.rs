@@ -12,12 +12,25 @@ async fn interpret_job_runs_and_serves_its_rows_as_json_pages_and_csv() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let program = upload_program(&c, &s, &corpus("gcode/fusion360_2d_pocket_contour_bore_1099.nc")).await;
-    let res = c.post(s.url("/v1/jobs")).json(&json!({"kind": "interpret", "inputs": {"program": program}})).send().await.unwrap();
+    let program = upload_program(
+        &c,
+        &s,
+        &corpus("gcode/fusion360_2d_pocket_contour_bore_1099.nc"),
+    )
+    .await;
+    let res = c
+        .post(s.url("/v1/jobs"))
+        .json(&json!({"kind": "interpret", "inputs": {"program": program}}))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(res.status(), 202);
     let location = res.headers()["location"].to_str().unwrap().to_string();
     let (_, job) = json(res).await;
-    assert_eq!(location, format!("/v1/jobs/{}", job["id"].as_str().unwrap()));
+    assert_eq!(
+        location,
+        format!("/v1/jobs/{}", job["id"].as_str().unwrap())
+    );
     assert_eq!(job["status"], "queued");
     let id = job["id"].as_str().unwrap();
     let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
@@ -31,8 +44,17 @@ async fn interpret_job_runs_and_serves_its_rows_as_json_pages_and_csv() {
     let mut rows = Vec::new();
     let mut cursor: Option<String> = None;
     loop {
-        let q = cursor.as_ref().map(|c| format!("&cursor={c}")).unwrap_or_default();
-        let (st, page) = json(c.get(s.url(&format!("/v1/jobs/{id}/blocks?limit=1000{q}"))).send().await.unwrap()).await;
+        let q = cursor
+            .as_ref()
+            .map(|c| format!("&cursor={c}"))
+            .unwrap_or_default();
+        let (st, page) = json(
+            c.get(s.url(&format!("/v1/jobs/{id}/blocks?limit=1000{q}")))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
         assert_eq!(st, 200);
         rows.extend(page["items"].as_array().unwrap().iter().cloned());
         match page["next_cursor"].as_str() {
@@ -41,16 +63,33 @@ async fn interpret_job_runs_and_serves_its_rows_as_json_pages_and_csv() {
         }
     }
     assert_eq!(rows.len() as u64, moves);
-    assert!(rows.iter().any(|r| r["kind"] == "arc" && r["center"].is_array()));
-    assert!(rows.windows(2).all(|w| w[0]["line"].as_u64() <= w[1]["line"].as_u64()));
+    assert!(rows
+        .iter()
+        .any(|r| r["kind"] == "arc" && r["center"].is_array()));
+    assert!(rows
+        .windows(2)
+        .all(|w| w[0]["line"].as_u64() <= w[1]["line"].as_u64()));
 
     // CSV: a header, then one line per move, arcs with their centre columns.
-    let res = c.get(s.url(&format!("/v1/jobs/{id}/blocks?format=csv"))).send().await.unwrap();
+    let res = c
+        .get(s.url(&format!("/v1/jobs/{id}/blocks?format=csv")))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(res.headers()["content-type"], "text/csv; charset=utf-8");
     let csv = res.text().await.unwrap();
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    for col in ["block", "line", "kind", "end_x", "end_c", "feed", "center_x", "clockwise"] {
+    for col in [
+        "block",
+        "line",
+        "kind",
+        "end_x",
+        "end_c",
+        "feed",
+        "center_x",
+        "clockwise",
+    ] {
         assert!(header.contains(&col), "{col} missing from {header:?}");
     }
     let body: Vec<&str> = lines.collect();
@@ -58,11 +97,29 @@ async fn interpret_job_runs_and_serves_its_rows_as_json_pages_and_csv() {
     assert!(body.iter().all(|l| l.split(',').count() == header.len()));
 
     // Results this kind does not produce are a clear 404.
-    let (st, p) = json(c.get(s.url(&format!("/v1/jobs/{id}/program"))).send().await.unwrap()).await;
+    let (st, p) = json(
+        c.get(s.url(&format!("/v1/jobs/{id}/program")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 404, "{p}");
-    let (st, _) = json(c.get(s.url(&format!("/v1/jobs/{id}/stock.stl"))).send().await.unwrap()).await;
+    let (st, _) = json(
+        c.get(s.url(&format!("/v1/jobs/{id}/stock.stl")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 404);
-    let (st, summary) = json(c.get(s.url(&format!("/v1/jobs/{id}/summary"))).send().await.unwrap()).await;
+    let (st, summary) = json(
+        c.get(s.url(&format!("/v1/jobs/{id}/summary")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!((st, summary["moves"].as_u64()), (200, Some(moves)));
 }
 
@@ -72,7 +129,12 @@ async fn idempotency_key_returns_the_same_job_and_refuses_another_body() {
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
     let c = client();
     let body = json!({"kind": "interpret", "inputs": {"program": {"name": "a.nc", "content": "G0 X1 Y2\nG1 Z-1 F100\nM30\n"}}});
-    let post = |b: serde_json::Value| c.post(s.url("/v1/jobs")).header("Idempotency-Key", "mes-order-42").json(&b).send();
+    let post = |b: serde_json::Value| {
+        c.post(s.url("/v1/jobs"))
+            .header("Idempotency-Key", "mes-order-42")
+            .json(&b)
+            .send()
+    };
     let (st1, j1) = json(post(body.clone()).await.unwrap()).await;
     let res = post(body.clone()).await.unwrap();
     assert_eq!(res.headers()["idempotent-replayed"], "true");
@@ -80,9 +142,17 @@ async fn idempotency_key_returns_the_same_job_and_refuses_another_body() {
     assert_eq!((st1, st2), (202, 202));
     assert_eq!(j1["id"], j2["id"]);
     let (_, list) = json(c.get(s.url("/v1/jobs")).send().await.unwrap()).await;
-    assert_eq!(list["items"].as_array().unwrap().len(), 1, "one job for one key");
+    assert_eq!(
+        list["items"].as_array().unwrap().len(),
+        1,
+        "one job for one key"
+    );
     let (_, programs) = json(c.get(s.url("/v1/programs")).send().await.unwrap()).await;
-    assert_eq!(programs["items"].as_array().unwrap().len(), 1, "the inline program is stored once");
+    assert_eq!(
+        programs["items"].as_array().unwrap().len(),
+        1,
+        "the inline program is stored once"
+    );
     let mut other = body.clone();
     other["inputs"]["program"]["content"] = json!("G0 X5\n");
     let (st3, p) = json(post(other).await.unwrap()).await;
@@ -90,7 +160,12 @@ async fn idempotency_key_returns_the_same_job_and_refuses_another_body() {
     assert_eq!(p["job_id"], j1["id"]);
     // Concurrent first use of one key still makes one job.
     let key_body = json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X9\n"}}});
-    let futs = (0..8).map(|_| c.post(s.url("/v1/jobs")).header("Idempotency-Key", "race").json(&key_body).send());
+    let futs = (0..8).map(|_| {
+        c.post(s.url("/v1/jobs"))
+            .header("Idempotency-Key", "race")
+            .json(&key_body)
+            .send()
+    });
     let results = futures_util::future::join_all(futs).await;
     let mut ids = std::collections::BTreeSet::new();
     for r in results {
@@ -108,22 +183,55 @@ async fn jobs_are_validated_at_submission() {
     let c = client();
     let cases = [
         (json!({"kind": "interpret"}), 422, "inputs.program"),
-        (json!({"kind": "interpret", "inputs": {"program": "missing-id"}}), 422, "inputs.program"),
-        (json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}, "options": {"dialect": "heidenhain"}}), 422, "options.dialect"),
-        (json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}, "options": {"speed": 1}}), 422, "options."),
-        (json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}, "stock": "x"}}), 422, "inputs.stock"),
+        (
+            json!({"kind": "interpret", "inputs": {"program": "missing-id"}}),
+            422,
+            "inputs.program",
+        ),
+        (
+            json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}, "options": {"dialect": "heidenhain"}}),
+            422,
+            "options.dialect",
+        ),
+        (
+            json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}, "options": {"speed": 1}}),
+            422,
+            "options.",
+        ),
+        (
+            json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}, "stock": "x"}}),
+            422,
+            "inputs.stock",
+        ),
         (json!({"kind": "teleport"}), 422, "kind"),
         (json!({"kind": "energy"}), 422, "kind"),
-        (json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}}}), 422, "inputs.stock"),
+        (
+            json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}}}),
+            422,
+            "inputs.stock",
+        ),
         (json!({"kind": "interpret", "extra": 1}), 422, "extra"),
     ];
     for (body, status, field) in cases {
         let (st, p) = json(c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap()).await;
         assert_eq!(st, status, "{body} -> {p}");
-        assert!(p["field"].as_str().unwrap_or("").starts_with(field), "{body} -> {p}");
+        assert!(
+            p["field"].as_str().unwrap_or("").starts_with(field),
+            "{body} -> {p}"
+        );
     }
-    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "energy"})).send().await.unwrap()).await;
-    assert_eq!((st, p["type"].as_str()), (422, Some("https://millsim.dev/problems/not-supported")));
+    let (st, p) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(&json!({"kind": "energy"}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(
+        (st, p["type"].as_str()),
+        (422, Some("https://millsim.dev/problems/not-supported"))
+    );
 }
 
 #[tokio::test]
@@ -133,7 +241,14 @@ async fn a_program_that_does_not_interpret_fails_with_its_line_and_is_not_retrie
     let c = client();
     // Syntax is fine (it uploads); G41 without compensation support is refused by the interpreter.
     let job = submit_interpret(&c, &s, &{
-        let (st, v) = json(c.post(s.url("/v1/programs?name=comp.nc")).body("G21 G90\nG0 X0 Y0\nG41 D1 G1 X10 F100\nM30\n").send().await.unwrap()).await;
+        let (st, v) = json(
+            c.post(s.url("/v1/programs?name=comp.nc"))
+                .body("G21 G90\nG0 X0 Y0\nG41 D1 G1 X10 F100\nM30\n")
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
         assert_eq!(st, 201, "{v}");
         v["id"].as_str().unwrap().to_string()
     })
@@ -150,29 +265,75 @@ async fn cancel_a_queued_job_and_refuse_to_cancel_a_finished_one() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
     let c = client();
-    let job = c.post(s.url("/v1/jobs")).json(&json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}})).send().await.unwrap();
+    let job = c
+        .post(s.url("/v1/jobs"))
+        .json(&json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}}))
+        .send()
+        .await
+        .unwrap();
     let (_, job) = json(job).await;
     let id = job["id"].as_str().unwrap();
-    let (st, j) = json(c.post(s.url(&format!("/v1/jobs/{id}/cancel"))).send().await.unwrap()).await;
+    let (st, j) = json(
+        c.post(s.url(&format!("/v1/jobs/{id}/cancel")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!((st, j["status"].as_str()), (202, Some("cancelled")));
-    let (st, p) = json(c.post(s.url(&format!("/v1/jobs/{id}/cancel"))).send().await.unwrap()).await;
+    let (st, p) = json(
+        c.post(s.url(&format!("/v1/jobs/{id}/cancel")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!((st, p["status"].as_u64()), (409, Some(409)));
-    let (st, _) = json(c.get(s.url(&format!("/v1/jobs/{id}/blocks"))).send().await.unwrap()).await;
+    let (st, _) = json(
+        c.get(s.url(&format!("/v1/jobs/{id}/blocks")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 409, "no results for a cancelled job");
-    let (_, list) = json(c.get(s.url("/v1/jobs?status=cancelled")).send().await.unwrap()).await;
+    let (_, list) = json(
+        c.get(s.url("/v1/jobs?status=cancelled"))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(list["items"].as_array().unwrap().len(), 1);
-    let (_, list) = json(c.get(s.url("/v1/jobs?status=queued&kind=interpret")).send().await.unwrap()).await;
+    let (_, list) = json(
+        c.get(s.url("/v1/jobs?status=queued&kind=interpret"))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(list["items"].as_array().unwrap().len(), 0);
-    assert_eq!(c.delete(s.url(&format!("/v1/jobs/{id}"))).send().await.unwrap().status(), 204);
+    assert_eq!(
+        c.delete(s.url(&format!("/v1/jobs/{id}")))
+            .send()
+            .await
+            .unwrap()
+            .status(),
+        204
+    );
 }
 
 #[tokio::test]
 async fn cancel_a_running_job_stops_it() {
     let dir = tempfile::tempdir().unwrap();
     // One worker; a long program keeps it busy while we cancel.
-    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1", "--lease-secs", "0.6"]);
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "1", "--lease-secs", "0.6"],
+    );
     let c = client();
-    let program = upload_program(&c, &s, &corpus("gcode/camotics_cameo_fanuc_Nnumbers_3d.nc")).await;
+    let program =
+        upload_program(&c, &s, &corpus("gcode/camotics_cameo_fanuc_Nnumbers_3d.nc")).await;
     let mut cancelled_running = false;
     for _ in 0..5 {
         let job = submit_interpret(&c, &s, &program).await;
@@ -180,14 +341,26 @@ async fn cancel_a_running_job_stops_it() {
         // Wait until it runs, then cancel.
         let deadline = std::time::Instant::now() + Duration::from_secs(30);
         loop {
-            let (_, v) = json(c.get(s.url(&format!("/v1/jobs/{id}"))).send().await.unwrap()).await;
+            let (_, v) = json(
+                c.get(s.url(&format!("/v1/jobs/{id}")))
+                    .send()
+                    .await
+                    .unwrap(),
+            )
+            .await;
             if v["status"] != "queued" {
                 break;
             }
             assert!(std::time::Instant::now() < deadline);
             tokio::time::sleep(Duration::from_millis(2)).await;
         }
-        let (st, j) = json(c.post(s.url(&format!("/v1/jobs/{id}/cancel"))).send().await.unwrap()).await;
+        let (st, j) = json(
+            c.post(s.url(&format!("/v1/jobs/{id}/cancel")))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
         if st == 409 {
             continue; // it finished first; try again
         }
@@ -195,7 +368,13 @@ async fn cancel_a_running_job_stops_it() {
         let done = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
         if done["status"] == "cancelled" {
             cancelled_running = true;
-            let (_, att) = json(c.get(s.url(&format!("/v1/jobs/{id}/attempts"))).send().await.unwrap()).await;
+            let (_, att) = json(
+                c.get(s.url(&format!("/v1/jobs/{id}/attempts")))
+                    .send()
+                    .await
+                    .unwrap(),
+            )
+            .await;
             assert_eq!(att["items"][0]["outcome"], "cancelled");
             break;
         }
@@ -208,18 +387,30 @@ async fn server_sent_events_deliver_progress_and_the_final_state() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
     let c = client();
-    let program = upload_program(&c, &s, &corpus("gcode/fusion360_2d_adaptive_1055_utab_265bit.nc")).await;
+    let program = upload_program(
+        &c,
+        &s,
+        &corpus("gcode/fusion360_2d_adaptive_1055_utab_265bit.nc"),
+    )
+    .await;
     let job = submit_interpret(&c, &s, &program).await;
     let id = job["id"].as_str().unwrap().to_string();
     // Subscribe while the job is still queued, then start a worker process on the same database.
-    let res = c.get(s.url(&format!("/v1/jobs/{id}/events"))).send().await.unwrap();
+    let res = c
+        .get(s.url(&format!("/v1/jobs/{id}/events")))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(res.headers()["content-type"], "text/event-stream");
     let mut worker = std::process::Command::new(BIN)
         .args(["worker", "--database", &s.db_url, "--workers", "1"])
         .env("RUST_LOG", "warn")
         .spawn()
         .unwrap();
-    let text = tokio::time::timeout(Duration::from_secs(60), res.text()).await.expect("stream ends after the final state").unwrap();
+    let text = tokio::time::timeout(Duration::from_secs(60), res.text())
+        .await
+        .expect("stream ends after the final state")
+        .unwrap();
     let _ = worker.kill();
     let _ = worker.wait();
     let events: Vec<(String, serde_json::Value)> = text
@@ -230,7 +421,11 @@ async fn server_sent_events_deliver_progress_and_the_final_state() {
             Some((name.to_string(), serde_json::from_str(data).unwrap()))
         })
         .collect();
-    assert_eq!(events.first().map(|e| e.0.as_str()), Some("progress"), "{text}");
+    assert_eq!(
+        events.first().map(|e| e.0.as_str()),
+        Some("progress"),
+        "{text}"
+    );
     assert_eq!(events[0].1["status"], "queued");
     let (last_name, last) = events.last().unwrap();
     assert_eq!(last_name, "status");
@@ -249,7 +444,14 @@ async fn stability_job_serves_lobes_as_rows_and_csv() {
     let options = json!({"method": "zoa", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200, "radial_immersion": 1.0, "milling": "down",
         "modes_x": [{"freq_hz": 922, "damping": 0.011, "stiffness_n_m": 1.34005e6}], "modes_y": [],
         "rpm": {"from": 5000, "to": 25000, "step": 50}, "steps_per_period": 40});
-    let (st, job) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability", "options": options})).send().await.unwrap()).await;
+    let (st, job) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(&json!({"kind": "stability", "options": options}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 202, "{job}");
     let id = job["id"].as_str().unwrap();
     let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
@@ -257,19 +459,44 @@ async fn stability_job_serves_lobes_as_rows_and_csv() {
     assert_eq!(done["summary"]["speeds"], 401);
     let min = done["summary"]["minimum"]["depth_mm"].as_f64().unwrap();
     assert!((min - 0.298).abs() / 0.298 < 0.02, "{done}");
-    let csv = c.get(s.url(&format!("/v1/jobs/{id}/blocks?format=csv"))).send().await.unwrap().text().await.unwrap();
+    let csv = c
+        .get(s.url(&format!("/v1/jobs/{id}/blocks?format=csv")))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
     assert_eq!(csv.lines().next(), Some("rpm,depth_mm"));
     assert_eq!(csv.lines().count(), 402);
     // Bad options are refused at submission, naming the field.
     let mut bad = options.clone();
     bad["teeth"] = json!(0);
-    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability", "options": bad})).send().await.unwrap()).await;
+    let (st, p) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(&json!({"kind": "stability", "options": bad}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 422, "{p}");
     assert!(p["field"].as_str().unwrap().contains("teeth"), "{p}");
     let mut bad = options.clone();
     bad["method"] = json!("guess");
-    let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": "stability", "options": bad})).send().await.unwrap()).await;
-    assert_eq!((st, p["field"].as_str()), (422, Some("options.method")), "{p}");
+    let (st, p) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(&json!({"kind": "stability", "options": bad}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(
+        (st, p["field"].as_str()),
+        (422, Some("options.method")),
+        "{p}"
+    );
 }
 
 #[tokio::test]
@@ -279,7 +506,14 @@ async fn rotary_feed_job_corrects_f_so_the_tool_tip_moves_at_the_programmed_feed
     let c = client();
     let machine = json!({"name": "B table", "kinematics": "xyz_b", "rapid_rate": 20000.0, "max_feed": 10000.0,
         "acceleration": [1000.0, 1000.0, 1000.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0});
-    let (st, m) = json(c.post(s.url("/v1/machines")).json(&machine).send().await.unwrap()).await;
+    let (st, m) = json(
+        c.post(s.url("/v1/machines"))
+            .json(&machine)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 201, "{m}");
     // The tip sits 50 mm from the B axis and turns 90° at F500: it travels π/2·50 mm, so the
     // move must take (π/2·50)/500 min and F (deg/min) = 90 / that.
@@ -291,14 +525,44 @@ async fn rotary_feed_job_corrects_f_so_the_tool_tip_moves_at_the_programmed_feed
     let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
     assert_eq!(done["status"], "succeeded", "{done}");
     let expected = 90.0 / (std::f64::consts::FRAC_PI_2 * 50.0 / 500.0);
-    let (_, rows) = json(c.get(s.url(&format!("/v1/jobs/{id}/blocks"))).send().await.unwrap()).await;
-    let row = rows["items"].as_array().unwrap().iter().find(|r| r["line"] == 3).unwrap();
-    assert!((row["feed"].as_f64().unwrap() - expected).abs() / expected < 0.01, "{row} vs {expected}");
-    let res = c.get(s.url(&format!("/v1/jobs/{id}/program"))).send().await.unwrap();
-    assert!(res.headers()["content-disposition"].to_str().unwrap().contains("b.rotary.nc"));
+    let (_, rows) = json(
+        c.get(s.url(&format!("/v1/jobs/{id}/blocks")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    let row = rows["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["line"] == 3)
+        .unwrap();
+    assert!(
+        (row["feed"].as_f64().unwrap() - expected).abs() / expected < 0.01,
+        "{row} vs {expected}"
+    );
+    let res = c
+        .get(s.url(&format!("/v1/jobs/{id}/program")))
+        .send()
+        .await
+        .unwrap();
+    assert!(res.headers()["content-disposition"]
+        .to_str()
+        .unwrap()
+        .contains("b.rotary.nc"));
     let text = res.text().await.unwrap();
     let line3 = text.lines().nth(2).unwrap();
-    let f: f64 = line3.split_whitespace().find_map(|w| w.strip_prefix('F')).unwrap().parse().unwrap();
+    let f: f64 = line3
+        .split_whitespace()
+        .find_map(|w| w.strip_prefix('F'))
+        .unwrap()
+        .parse()
+        .unwrap();
     assert!((f - expected).abs() / expected < 0.01, "{line3}");
-    assert_eq!(text.lines().nth(1), program.lines().nth(1), "other lines unchanged");
+    assert_eq!(
+        text.lines().nth(1),
+        program.lines().nth(1),
+        "other lines unchanged"
+    );
 }

@@ -22,34 +22,113 @@ async fn json_resources_create_get_list_delete() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
     let c = client();
-    for (coll, body) in [("tools", tool()), ("materials", material()), ("machines", machine()), ("stocks", json!({"kind": "block", "min": [0, 0, -10], "max": [100, 50, 0]}))] {
+    for (coll, body) in [
+        ("tools", tool()),
+        ("materials", material()),
+        ("machines", machine()),
+        (
+            "stocks",
+            json!({"kind": "block", "min": [0, 0, -10], "max": [100, 50, 0]}),
+        ),
+    ] {
         let mut ids = Vec::new();
         for _ in 0..3 {
-            let res = c.post(s.url(&format!("/v1/{coll}"))).json(&body).send().await.unwrap();
-            let location = res.headers().get("location").unwrap().to_str().unwrap().to_string();
+            let res = c
+                .post(s.url(&format!("/v1/{coll}")))
+                .json(&body)
+                .send()
+                .await
+                .unwrap();
+            let location = res
+                .headers()
+                .get("location")
+                .unwrap()
+                .to_str()
+                .unwrap()
+                .to_string();
             let (status, v) = json(res).await;
             assert_eq!(status, 201, "{coll}: {v}");
-            assert_eq!(location, format!("/v1/{coll}/{}", v["id"].as_str().unwrap()));
+            assert_eq!(
+                location,
+                format!("/v1/{coll}/{}", v["id"].as_str().unwrap())
+            );
             ids.push(v["id"].as_str().unwrap().to_string());
         }
-        let (status, got) = json(c.get(s.url(&format!("/v1/{coll}/{}", ids[0]))).send().await.unwrap()).await;
+        let (status, got) = json(
+            c.get(s.url(&format!("/v1/{coll}/{}", ids[0])))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
         assert_eq!(status, 200);
-        assert_eq!(got["definition"], body, "{coll}: definition stored unchanged");
+        assert_eq!(
+            got["definition"], body,
+            "{coll}: definition stored unchanged"
+        );
         // Cursor pages of 2: ids come back in creation order, then the cursor runs out.
-        let (_, p1) = json(c.get(s.url(&format!("/v1/{coll}?limit=2"))).send().await.unwrap()).await;
+        let (_, p1) = json(
+            c.get(s.url(&format!("/v1/{coll}?limit=2")))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
         assert_eq!(p1["items"].as_array().unwrap().len(), 2);
         let cursor = p1["next_cursor"].as_str().unwrap();
-        let (_, p2) = json(c.get(s.url(&format!("/v1/{coll}?limit=2&cursor={cursor}"))).send().await.unwrap()).await;
-        let all: Vec<&str> = p1["items"].as_array().unwrap().iter().chain(p2["items"].as_array().unwrap()).map(|v| v["id"].as_str().unwrap()).collect();
+        let (_, p2) = json(
+            c.get(s.url(&format!("/v1/{coll}?limit=2&cursor={cursor}")))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
+        let all: Vec<&str> = p1["items"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .chain(p2["items"].as_array().unwrap())
+            .map(|v| v["id"].as_str().unwrap())
+            .collect();
         assert_eq!(all, ids.iter().map(String::as_str).collect::<Vec<_>>());
         assert!(p2["next_cursor"].is_null());
-        let content = c.get(s.url(&format!("/v1/{coll}/{}/content", ids[1]))).send().await.unwrap().bytes().await.unwrap();
-        assert_eq!(serde_json::from_slice::<serde_json::Value>(&content).unwrap(), body);
-        assert_eq!(c.delete(s.url(&format!("/v1/{coll}/{}", ids[0]))).send().await.unwrap().status(), 204);
-        let (status, p) = json(c.get(s.url(&format!("/v1/{coll}/{}", ids[0]))).send().await.unwrap()).await;
+        let content = c
+            .get(s.url(&format!("/v1/{coll}/{}/content", ids[1])))
+            .send()
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        assert_eq!(
+            serde_json::from_slice::<serde_json::Value>(&content).unwrap(),
+            body
+        );
+        assert_eq!(
+            c.delete(s.url(&format!("/v1/{coll}/{}", ids[0])))
+                .send()
+                .await
+                .unwrap()
+                .status(),
+            204
+        );
+        let (status, p) = json(
+            c.get(s.url(&format!("/v1/{coll}/{}", ids[0])))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
         assert_eq!(status, 404);
         assert_eq!(p["status"], 404);
-        assert_eq!(c.delete(s.url(&format!("/v1/{coll}/{}", ids[0]))).send().await.unwrap().status(), 404);
+        assert_eq!(
+            c.delete(s.url(&format!("/v1/{coll}/{}", ids[0])))
+                .send()
+                .await
+                .unwrap()
+                .status(),
+            404
+        );
     }
 }
 
@@ -61,23 +140,63 @@ async fn files_are_stored_unchanged_with_their_names() {
     // A program, raw body.
     let path = corpus("gcode/fanuc_R_arcs_G3R_G1R_G1C.nc");
     let id = upload_program(&c, &s, &path).await;
-    let (_, meta) = json(c.get(s.url(&format!("/v1/programs/{id}"))).send().await.unwrap()).await;
+    let (_, meta) = json(
+        c.get(s.url(&format!("/v1/programs/{id}")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(meta["name"], "fanuc_R_arcs_G3R_G1R_G1C.nc");
-    let back = c.get(s.url(&format!("/v1/programs/{id}/content"))).send().await.unwrap().bytes().await.unwrap();
+    let back = c
+        .get(s.url(&format!("/v1/programs/{id}/content")))
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
     assert_eq!(back.as_ref(), std::fs::read(&path).unwrap().as_slice());
     // An STL, multipart, whose binary header starts with "solid".
     let stl = std::fs::read(corpus("stl/numpystl_Cube_binary_solid_header.stl")).unwrap();
-    let form = reqwest::multipart::Form::new()
-        .part("file", reqwest::multipart::Part::bytes(stl.clone()).file_name("cube.stl"));
-    let (status, v) = json(c.post(s.url("/v1/stocks")).multipart(form).send().await.unwrap()).await;
+    let form = reqwest::multipart::Form::new().part(
+        "file",
+        reqwest::multipart::Part::bytes(stl.clone()).file_name("cube.stl"),
+    );
+    let (status, v) = json(
+        c.post(s.url("/v1/stocks"))
+            .multipart(form)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(status, 201, "{v}");
     assert_eq!(v["name"], "cube.stl");
     assert_eq!(v["summary"]["triangles"], 12);
-    let back = c.get(s.url(&format!("/v1/stocks/{}/content", v["id"].as_str().unwrap()))).send().await.unwrap().bytes().await.unwrap();
+    let back = c
+        .get(s.url(&format!("/v1/stocks/{}/content", v["id"].as_str().unwrap())))
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
     assert_eq!(back.as_ref(), stl.as_slice());
     // An ASCII STL and a real part, raw bodies.
-    for f in ["stl/numpystl_HalfDonut_ascii.stl", "stl/numpystl_rear_case_binary_18808tri.stl"] {
-        let (status, v) = json(c.post(s.url("/v1/stocks?name=x.stl")).header("content-type", "model/stl").body(std::fs::read(corpus(f)).unwrap()).send().await.unwrap()).await;
+    for f in [
+        "stl/numpystl_HalfDonut_ascii.stl",
+        "stl/numpystl_rear_case_binary_18808tri.stl",
+    ] {
+        let (status, v) = json(
+            c.post(s.url("/v1/stocks?name=x.stl"))
+                .header("content-type", "model/stl")
+                .body(std::fs::read(corpus(f)).unwrap())
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
         assert_eq!(status, 201, "{f}: {v}");
     }
 }
@@ -85,17 +204,31 @@ async fn files_are_stored_unchanged_with_their_names() {
 #[tokio::test]
 async fn bad_input_is_a_problem_document_naming_what_and_where() {
     let dir = tempfile::tempdir().unwrap();
-    let s = Server::start(&dir.path().join("t.db"), &["--workers", "0", "--max-upload-bytes", "4096"]);
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "0", "--max-upload-bytes", "4096"],
+    );
     let c = client();
     let problem = |res: reqwest::Response| async move {
-        let ct = res.headers().get("content-type").map(|v| v.to_str().unwrap().to_string());
+        let ct = res
+            .headers()
+            .get("content-type")
+            .map(|v| v.to_str().unwrap().to_string());
         let (status, v) = json(res).await;
         assert_eq!(ct.as_deref(), Some("application/problem+json"), "{v}");
         assert_eq!(v["status"], status);
         (status, v)
     };
     // Malformed JSON: 400 with line and column.
-    let (st, v) = problem(c.post(s.url("/v1/tools")).header("content-type", "application/json").body("{\"shape\": \"flat\",\n \"diameter\": }").send().await.unwrap()).await;
+    let (st, v) = problem(
+        c.post(s.url("/v1/tools"))
+            .header("content-type", "application/json")
+            .body("{\"shape\": \"flat\",\n \"diameter\": }")
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 400);
     assert_eq!(v["line"], 2);
     // Bad enum value: 422 naming the field.
@@ -111,30 +244,81 @@ async fn bad_input_is_a_problem_document_naming_what_and_where() {
     assert_eq!((st, v["field"].as_str()), (422, Some("flutes")));
     let mut m = material();
     m.as_object_mut().unwrap().remove("source");
-    let (st, v) = problem(c.post(s.url("/v1/materials")).json(&m).send().await.unwrap()).await;
+    let (st, v) = problem(
+        c.post(s.url("/v1/materials"))
+            .json(&m)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!((st, v["field"].as_str()), (422, Some("source")), "{v}");
     // Unknown ids.
-    for path in ["/v1/tools/nope", "/v1/programs/nope/content", "/v1/jobs/nope", "/v1/jobs/nope/blocks"] {
+    for path in [
+        "/v1/tools/nope",
+        "/v1/programs/nope/content",
+        "/v1/jobs/nope",
+        "/v1/jobs/nope/blocks",
+    ] {
         let (st, _) = problem(c.get(s.url(path)).send().await.unwrap()).await;
         assert_eq!(st, 404, "{path}");
     }
     // Oversized body: 413, whether announced by Content-Length or streamed. The server
     // closes such a connection without reading the rest, so these use their own client.
-    let once = || reqwest::Client::builder().pool_max_idle_per_host(0).build().unwrap();
-    let (st, v) = problem(once().post(s.url("/v1/stocks")).header("content-type", "model/stl").body(vec![0u8; 10_000]).send().await.unwrap()).await;
+    let once = || {
+        reqwest::Client::builder()
+            .pool_max_idle_per_host(0)
+            .build()
+            .unwrap()
+    };
+    let (st, v) = problem(
+        once()
+            .post(s.url("/v1/stocks"))
+            .header("content-type", "model/stl")
+            .body(vec![0u8; 10_000])
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 413);
     assert_eq!(v["limit_bytes"], 4096);
-    let chunks = futures_util::stream::iter((0..10).map(|_| Ok::<_, std::io::Error>(vec![0u8; 1000])));
-    let (st, _) = problem(once().post(s.url("/v1/stocks")).header("content-type", "model/stl").body(reqwest::Body::wrap_stream(chunks)).send().await.unwrap()).await;
+    let chunks =
+        futures_util::stream::iter((0..10).map(|_| Ok::<_, std::io::Error>(vec![0u8; 1000])));
+    let (st, _) = problem(
+        once()
+            .post(s.url("/v1/stocks"))
+            .header("content-type", "model/stl")
+            .body(reqwest::Body::wrap_stream(chunks))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 413);
     // A broken STL: 422 saying what is wrong.
     let mut stl = std::fs::read(corpus("stl/numpystl_Cube_binary_solid_header.stl")).unwrap();
     stl.truncate(300);
-    let (st, v) = problem(c.post(s.url("/v1/stocks?name=cut.stl")).header("content-type", "model/stl").body(stl).send().await.unwrap()).await;
+    let (st, v) = problem(
+        c.post(s.url("/v1/stocks?name=cut.stl"))
+            .header("content-type", "model/stl")
+            .body(stl)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 422);
     assert!(v["detail"].as_str().unwrap().contains("cut.stl"), "{v}");
     // A program with a syntax error: every error with its line.
-    let (st, v) = problem(c.post(s.url("/v1/programs?name=bad.nc")).body("G0 X1\nG1 X[1+ F100\nG1 Y2 Q\n").send().await.unwrap()).await;
+    let (st, v) = problem(
+        c.post(s.url("/v1/programs?name=bad.nc"))
+            .body("G0 X1\nG1 X[1+ F100\nG1 Y2 Q\n")
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 422, "{v}");
     assert_eq!(v["file"], "bad.nc");
     assert_eq!(v["errors"][0]["line"], 2);

@@ -14,7 +14,15 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let c = client();
     let id = |v: serde_json::Value| v["id"].as_str().unwrap().to_string();
     let post_json = |path: &str, body: serde_json::Value| c.post(s.url(path)).json(&body).send();
-    let (st, stock) = json(post_json("/v1/stocks", json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]})).await.unwrap()).await;
+    let (st, stock) = json(
+        post_json(
+            "/v1/stocks",
+            json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
+        )
+        .await
+        .unwrap(),
+    )
+    .await;
     assert_eq!(st, 201, "{stock}");
     let (st, tool) = json(
         post_json("/v1/tools", json!({"shape": "flat", "diameter": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length": 20.0})).await.unwrap(),
@@ -22,7 +30,14 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     .await;
     assert_eq!(st, 201, "{tool}");
     let program = "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n";
-    let (st, prog) = json(c.post(s.url("/v1/programs?name=slot.nc")).body(program).send().await.unwrap()).await;
+    let (st, prog) = json(
+        c.post(s.url("/v1/programs?name=slot.nc"))
+            .body(program)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 201);
     let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": id(stock), "tool": id(tool)},
                       "options": {"material": "Al7075-T6", "cell_mm": 0.25}});
@@ -38,34 +53,98 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     assert_eq!(summary["peak_force_line"], 6);
     assert_eq!(summary["rapid_in_material_moves"], 0);
 
-    let csv = c.get(s.url(&format!("/v1/jobs/{job_id}/blocks?format=csv"))).send().await.unwrap().text().await.unwrap();
+    let csv = c
+        .get(s.url(&format!("/v1/jobs/{job_id}/blocks?format=csv")))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
-    for col in ["block", "line", "tool", "kind", "length", "feed", "removed_volume", "peak_force", "mean_force", "peak_torque", "air_fraction", "rapid_in_material"] {
+    for col in [
+        "block",
+        "line",
+        "tool",
+        "kind",
+        "length",
+        "feed",
+        "removed_volume",
+        "peak_force",
+        "mean_force",
+        "peak_torque",
+        "air_fraction",
+        "rapid_in_material",
+    ] {
         assert!(header.contains(&col), "{col} not in {header:?}");
     }
-    let (_, page) = json(c.get(s.url(&format!("/v1/jobs/{job_id}/blocks"))).send().await.unwrap()).await;
-    let cut = page["items"].as_array().unwrap().iter().find(|r| r["line"] == 6).unwrap();
+    let (_, page) = json(
+        c.get(s.url(&format!("/v1/jobs/{job_id}/blocks")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    let cut = page["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["line"] == 6)
+        .unwrap();
     assert!(cut["peak_force"].as_f64().unwrap() > 600.0, "{cut}");
 
     // Per-step samples of a row range; their largest peak is the row's peak.
-    let (st, samples) = json(c.get(s.url(&format!("/v1/jobs/{job_id}/blocks/0-100/samples"))).send().await.unwrap()).await;
+    let (st, samples) = json(
+        c.get(s.url(&format!("/v1/jobs/{job_id}/blocks/0-100/samples")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 200, "{samples}");
     let rows = page["items"].as_array().unwrap();
     let cut_seq = rows.iter().position(|r| r["line"] == 6).unwrap();
-    let item = samples["items"].as_array().unwrap().iter().find(|i| i["row"] == cut_seq).unwrap();
+    let item = samples["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|i| i["row"] == cut_seq)
+        .unwrap();
     let steps = item["samples"].as_array().unwrap();
     assert!(steps.len() > 10);
-    let max = steps.iter().map(|x| x["peak_force"].as_f64().unwrap()).fold(0.0, f64::max);
+    let max = steps
+        .iter()
+        .map(|x| x["peak_force"].as_f64().unwrap())
+        .fold(0.0, f64::max);
     assert_eq!(max, cut["peak_force"].as_f64().unwrap());
-    assert!(steps.windows(2).all(|w| w[0]["at"].as_f64() < w[1]["at"].as_f64()));
+    assert!(steps
+        .windows(2)
+        .all(|w| w[0]["at"].as_f64() < w[1]["at"].as_f64()));
     for bad in ["5-2", "x-3", "0-20000"] {
-        let (st, p) = json(c.get(s.url(&format!("/v1/jobs/{job_id}/blocks/{bad}/samples"))).send().await.unwrap()).await;
-        assert_eq!((st, p["field"].as_str()), (422, Some("range")), "{bad}: {p}");
+        let (st, p) = json(
+            c.get(s.url(&format!("/v1/jobs/{job_id}/blocks/{bad}/samples")))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
+        assert_eq!(
+            (st, p["field"].as_str()),
+            (422, Some("range")),
+            "{bad}: {p}"
+        );
     }
 
-    let res = c.get(s.url(&format!("/v1/jobs/{job_id}/stock.stl"))).send().await.unwrap();
+    let res = c
+        .get(s.url(&format!("/v1/jobs/{job_id}/stock.stl")))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(res.status(), 200);
-    assert!(res.headers()["content-disposition"].to_str().unwrap().contains("slot.stock.stl"));
+    assert!(res.headers()["content-disposition"]
+        .to_str()
+        .unwrap()
+        .contains("slot.stock.stl"));
     let stl = res.bytes().await.unwrap();
     let triangles = u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize;
     assert!(triangles > 12);
@@ -74,7 +153,11 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     // Options are checked at submission, naming the option.
     let bad = json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}, "stock": "x", "tool": "y"}, "options": {"material": "Unobtainium"}});
     let (st, p) = json(post_json("/v1/jobs", bad).await.unwrap()).await;
-    assert_eq!((st, p["field"].as_str()), (422, Some("inputs.stock")), "{p}");
+    assert_eq!(
+        (st, p["field"].as_str()),
+        (422, Some("inputs.stock")),
+        "{p}"
+    );
 }
 
 #[tokio::test]
@@ -83,18 +166,49 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
     let id = |v: serde_json::Value| v["id"].as_str().unwrap().to_string();
-    let (_, stock) = json(c.post(s.url("/v1/stocks")).json(&json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]})).send().await.unwrap()).await;
+    let (_, stock) = json(
+        c.post(s.url("/v1/stocks"))
+            .json(&json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     let (_, tool) = json(
         c.post(s.url("/v1/tools")).json(&json!({"shape": "flat", "diameter": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length": 20.0})).send().await.unwrap(),
     )
     .await;
     let program = "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nG0 X-10\nG0 Z-3\nG1 X60 F1000\nG0 Z5\nM30\n";
-    let (_, prog) = json(c.post(s.url("/v1/programs?name=part.nc")).body(program).send().await.unwrap()).await;
+    let (_, prog) = json(
+        c.post(s.url("/v1/programs?name=part.nc"))
+            .body(program)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     let inputs = json!({"program": id(prog), "stock": id(stock), "tool": id(tool)});
     // Limits are required for optimize and refused for simulate, naming the option.
-    for (kind, opts) in [("optimize", json!({"material": "Al7075-T6"})), ("simulate", json!({"material": "Al7075-T6", "limits": {"max_force": 500}}))] {
-        let (st, p) = json(c.post(s.url("/v1/jobs")).json(&json!({"kind": kind, "inputs": inputs, "options": opts})).send().await.unwrap()).await;
-        assert_eq!((st, p["field"].as_str()), (422, Some("options.limits")), "{p}");
+    for (kind, opts) in [
+        ("optimize", json!({"material": "Al7075-T6"})),
+        (
+            "simulate",
+            json!({"material": "Al7075-T6", "limits": {"max_force": 500}}),
+        ),
+    ] {
+        let (st, p) = json(
+            c.post(s.url("/v1/jobs"))
+                .json(&json!({"kind": kind, "inputs": inputs, "options": opts}))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
+        assert_eq!(
+            (st, p["field"].as_str()),
+            (422, Some("options.limits")),
+            "{p}"
+        );
     }
     let body = json!({"kind": "optimize", "inputs": inputs,
                       "options": {"material": "Al7075-T6", "cell_mm": 0.25, "limits": {"max_force": 500, "air_feed": 6000}}});
@@ -105,27 +219,63 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
     assert_eq!(done["status"], "succeeded", "{done}");
     let opt = &done["summary"]["optimization"];
     assert!(opt["peak_force_after"].as_f64().unwrap() <= 510.0, "{opt}");
-    assert!(opt["cycle_time_after_s"].as_f64().unwrap() <= opt["cycle_time_constant_feed_s"].as_f64().unwrap() + 1e-9);
+    assert!(
+        opt["cycle_time_after_s"].as_f64().unwrap()
+            <= opt["cycle_time_constant_feed_s"].as_f64().unwrap() + 1e-9
+    );
 
-    let res = c.get(s.url(&format!("/v1/jobs/{job_id}/program"))).send().await.unwrap();
+    let res = c
+        .get(s.url(&format!("/v1/jobs/{job_id}/program")))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(res.status(), 200);
-    assert!(res.headers()["content-type"].to_str().unwrap().starts_with("text/plain"));
-    assert!(res.headers()["content-disposition"].to_str().unwrap().contains("part.opt.nc"));
+    assert!(res.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .starts_with("text/plain"));
+    assert!(res.headers()["content-disposition"]
+        .to_str()
+        .unwrap()
+        .contains("part.opt.nc"));
     let text = res.text().await.unwrap();
     assert_eq!(text.lines().count(), program.lines().count());
     for (a, b) in program.lines().zip(text.lines()) {
         // Only F words change.
-        let strip = |l: &str| l.split_whitespace().filter(|w| !w.starts_with('F')).collect::<Vec<_>>().join(" ");
+        let strip = |l: &str| {
+            l.split_whitespace()
+                .filter(|w| !w.starts_with('F'))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
         assert_eq!(strip(a), strip(b));
     }
-    let (_, page) = json(c.get(s.url(&format!("/v1/jobs/{job_id}/blocks"))).send().await.unwrap()).await;
-    let air = page["items"].as_array().unwrap().iter().find(|r| r["line"] == 10).unwrap();
+    let (_, page) = json(
+        c.get(s.url(&format!("/v1/jobs/{job_id}/blocks")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    let air = page["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["line"] == 10)
+        .unwrap();
     assert_eq!(air["feed_after_mm_min"], 6000.0, "{air}");
     assert_eq!(air["governing"], "air");
 
     // Re-simulate the optimized program with the same inputs: no move above the limit by
     // more than 2%, and the same path (same removed volume).
-    let (st, opt_prog) = json(c.post(s.url("/v1/programs?name=part.opt.nc")).body(text).send().await.unwrap()).await;
+    let (st, opt_prog) = json(
+        c.post(s.url("/v1/programs?name=part.opt.nc"))
+            .body(text)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(st, 201);
     let mut again = inputs.clone();
     again["program"] = opt_prog["id"].clone();
@@ -137,9 +287,21 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
             .unwrap(),
     )
     .await;
-    let resim = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(120)).await;
+    let resim = wait_job(
+        &c,
+        &s,
+        job["id"].as_str().unwrap(),
+        Duration::from_secs(120),
+    )
+    .await;
     assert_eq!(resim["status"], "succeeded", "{resim}");
-    assert!(resim["summary"]["peak_force"].as_f64().unwrap() <= 500.0 * 1.02, "{resim}");
-    let (v0, v1) = (done["summary"]["removed_volume"].as_f64().unwrap(), resim["summary"]["removed_volume"].as_f64().unwrap());
+    assert!(
+        resim["summary"]["peak_force"].as_f64().unwrap() <= 500.0 * 1.02,
+        "{resim}"
+    );
+    let (v0, v1) = (
+        done["summary"]["removed_volume"].as_f64().unwrap(),
+        resim["summary"]["removed_volume"].as_f64().unwrap(),
+    );
     assert_eq!(v0, v1);
 }

@@ -10,17 +10,38 @@ use common::*;
 #[test]
 fn prints_one_json_object_per_move_in_the_documented_shape() {
     let file = corpus("gcode/fusion360_2d_pocket_contour_bore_1099.nc");
-    let out = Command::new(BIN).arg("interpret").arg(&file).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let moves: Vec<serde_json::Value> =
-        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let out = Command::new(BIN)
+        .arg("interpret")
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let moves: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     assert!(moves.len() > 1000);
     for m in &moves {
-        for key in ["block", "line", "kind", "end", "feed", "feed_mode", "spindle", "tool"] {
+        for key in [
+            "block",
+            "line",
+            "kind",
+            "end",
+            "feed",
+            "feed_mode",
+            "spindle",
+            "tool",
+        ] {
             assert!(m.get(key).is_some(), "{key} missing in {m}");
         }
         assert_eq!(m["end"].as_array().unwrap().len(), 6);
-        assert!(["rapid", "linear", "arc", "dwell", "tool_change"].contains(&m["kind"].as_str().unwrap()));
+        assert!(["rapid", "linear", "arc", "dwell", "tool_change"]
+            .contains(&m["kind"].as_str().unwrap()));
         assert!(["per_min", "inverse_time", "per_rev"].contains(&m["feed_mode"].as_str().unwrap()));
         if m["kind"] == "arc" {
             assert_eq!(m["center"].as_array().unwrap().len(), 3);
@@ -29,7 +50,9 @@ fn prints_one_json_object_per_move_in_the_documented_shape() {
         }
     }
     // The block index is the 0-based source line of the block.
-    assert!(moves.iter().all(|m| m["block"].as_u64().unwrap() + 1 == m["line"].as_u64().unwrap()));
+    assert!(moves
+        .iter()
+        .all(|m| m["block"].as_u64().unwrap() + 1 == m["line"].as_u64().unwrap()));
 }
 
 #[test]
@@ -37,16 +60,31 @@ fn errors_name_file_line_and_column_and_exit_non_zero() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("bad.nc");
     std::fs::write(&file, "G21 G90\nG0 X0 Y0\nG1 X10 Y[2+ F100\nG1 Q5 X1\n").unwrap();
-    let out = Command::new(BIN).arg("interpret").arg(&file).output().unwrap();
+    let out = Command::new(BIN)
+        .arg("interpret")
+        .arg(&file)
+        .output()
+        .unwrap();
     assert!(!out.status.success());
-    assert!(out.stdout.is_empty(), "no moves printed for a program with errors");
+    assert!(
+        out.stdout.is_empty(),
+        "no moves printed for a program with errors"
+    );
     let err = String::from_utf8(out.stderr).unwrap();
     let first = err.lines().next().unwrap();
     let prefix = format!("{}:3:", file.display());
     assert!(first.starts_with(&prefix), "{err}");
-    let col: u32 = first[prefix.len()..].split(':').next().unwrap().parse().unwrap();
+    let col: u32 = first[prefix.len()..]
+        .split(':')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
     assert!(col >= 1);
-    let missing = Command::new(BIN).args(["interpret", "/nonexistent/x.nc"]).output().unwrap();
+    let missing = Command::new(BIN)
+        .args(["interpret", "/nonexistent/x.nc"])
+        .output()
+        .unwrap();
     assert!(!missing.status.success());
     assert!(String::from_utf8_lossy(&missing.stderr).starts_with("/nonexistent/x.nc:"));
 }
@@ -55,11 +93,26 @@ fn errors_name_file_line_and_column_and_exit_non_zero() {
 fn reads_apt_cls_files_too() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("op.cls");
-    std::fs::write(&file, "TLAXIS/0,0,1\nRAPID\nGOTO/0,0,10\nFEDRAT/MMPM,500\nGOTO/0,0,0\nGOTO/10,0,0,0,0,1\n").unwrap();
-    let out = Command::new(BIN).arg("interpret").arg(&file).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let moves: Vec<serde_json::Value> =
-        String::from_utf8(out.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    std::fs::write(
+        &file,
+        "TLAXIS/0,0,1\nRAPID\nGOTO/0,0,10\nFEDRAT/MMPM,500\nGOTO/0,0,0\nGOTO/10,0,0,0,0,1\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .arg("interpret")
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let moves: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     let last = moves.last().unwrap();
     assert_eq!(last["end"][0], 10.0);
     assert_eq!(last["feed"], 500.0);
@@ -69,17 +122,39 @@ fn reads_apt_cls_files_too() {
 #[test]
 fn interpreter_options_reach_the_cli() {
     let impeller = corpus("gcode/linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc");
-    let refused = Command::new(BIN).arg("interpret").arg(&impeller).output().unwrap();
+    let refused = Command::new(BIN)
+        .arg("interpret")
+        .arg(&impeller)
+        .output()
+        .unwrap();
     assert!(!refused.status.success());
     assert!(String::from_utf8_lossy(&refused.stderr).contains("M428"));
-    let out = Command::new(BIN).arg("interpret").arg(&impeller).args(["--passthrough-m", "428,429"]).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = Command::new(BIN)
+        .arg("interpret")
+        .arg(&impeller)
+        .args(["--passthrough-m", "428,429"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let moves = String::from_utf8(out.stdout).unwrap();
     assert!(moves.lines().count() > 4000);
     assert!(moves.lines().any(|l| l.contains("\"inverse_time\"")));
     let fanuc = corpus("gcode/fanuc_R_arcs_G3R_G1R_G1C.nc");
-    let out = Command::new(BIN).arg("interpret").arg(&fanuc).args(["--dialect", "fanuc", "--fanuc-corners-without-comma"]).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = Command::new(BIN)
+        .arg("interpret")
+        .arg(&fanuc)
+        .args(["--dialect", "fanuc", "--fanuc-corners-without-comma"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 #[test]
@@ -94,23 +169,61 @@ fn post_writes_one_program_per_operation_that_re_interprets_to_the_cls_points() 
     let machine = dir.path().join("m.json");
     std::fs::write(&machine, r#"{"name":"3-axis","rapid_rate":20000,"max_feed":10000,"acceleration":[1000,1000,1000],"spindle_min_rpm":0,"spindle_max_rpm":12000,"rated_power":10000}"#).unwrap();
     let out_dir = dir.path().join("out");
-    let out = Command::new(BIN).arg("post").arg(&cls).arg("--machine").arg(&machine).arg("--out").arg(&out_dir).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let expected: [&[[f64; 3]]; 2] = [&[[0.0, 0.0, 10.0], [0.0, 0.0, -1.0], [20.5, 0.0, -1.0], [20.5, 7.25, -1.0]], &[[5.0, 5.0, 10.0], [5.0, 5.0, -2.125]]];
+    let out = Command::new(BIN)
+        .arg("post")
+        .arg(&cls)
+        .arg("--machine")
+        .arg(&machine)
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let expected: [&[[f64; 3]]; 2] = [
+        &[
+            [0.0, 0.0, 10.0],
+            [0.0, 0.0, -1.0],
+            [20.5, 0.0, -1.0],
+            [20.5, 7.25, -1.0],
+        ],
+        &[[5.0, 5.0, 10.0], [5.0, 5.0, -2.125]],
+    ];
     for (op, points) in expected.iter().enumerate() {
         let nc = out_dir.join(format!("part.op{}.nc", op + 1));
-        let moves = Command::new(BIN).arg("interpret").arg(&nc).output().unwrap();
-        assert!(moves.status.success(), "{}", String::from_utf8_lossy(&moves.stderr));
+        let moves = Command::new(BIN)
+            .arg("interpret")
+            .arg(&nc)
+            .output()
+            .unwrap();
+        assert!(
+            moves.status.success(),
+            "{}",
+            String::from_utf8_lossy(&moves.stderr)
+        );
         let ends: Vec<[f64; 3]> = String::from_utf8(moves.stdout)
             .unwrap()
             .lines()
             .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
             .filter(|m| m["kind"] == "rapid" || m["kind"] == "linear")
-            .map(|m| [m["end"][0].as_f64().unwrap(), m["end"][1].as_f64().unwrap(), m["end"][2].as_f64().unwrap()])
+            .map(|m| {
+                [
+                    m["end"][0].as_f64().unwrap(),
+                    m["end"][1].as_f64().unwrap(),
+                    m["end"][2].as_f64().unwrap(),
+                ]
+            })
             .collect();
         let tail = &ends[ends.len() - points.len()..];
         for (a, b) in tail.iter().zip(points.iter()) {
-            assert!((0..3).all(|i| (a[i] - b[i]).abs() < 1e-6), "op {}: {a:?} vs {b:?}", op + 1);
+            assert!(
+                (0..3).all(|i| (a[i] - b[i]).abs() < 1e-6),
+                "op {}: {a:?} vs {b:?}",
+                op + 1
+            );
         }
     }
     assert!(!out_dir.join("part.op3.nc").exists());

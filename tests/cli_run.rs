@@ -10,12 +10,27 @@ use common::*;
 fn run_writes_summary_rows_and_final_stock() {
     let dir = tempfile::tempdir().unwrap();
     let program = dir.path().join("slot.nc");
-    std::fs::write(&program, "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n").unwrap();
+    std::fs::write(
+        &program,
+        "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n",
+    )
+    .unwrap();
     let tool = dir.path().join("tool.json");
-    std::fs::write(&tool, r#"{"shape":"flat","diameter":10,"flutes":4,"helix_deg":0,"flute_length":20}"#).unwrap();
+    std::fs::write(
+        &tool,
+        r#"{"shape":"flat","diameter":10,"flutes":4,"helix_deg":0,"flute_length":20}"#,
+    )
+    .unwrap();
     let out_dir = dir.path().join("out");
     let out = Command::new(BIN)
-        .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6", "--cell", "0.25"])
+        .args([
+            "run",
+            "--block=0,-20,-10,100,40,10",
+            "--material",
+            "Al7075-T6",
+            "--cell",
+            "0.25",
+        ])
         .arg("--program")
         .arg(&program)
         .arg("--tool")
@@ -24,22 +39,48 @@ fn run_writes_summary_rows_and_final_stock() {
         .arg(&out_dir)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
     let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
-    assert!((summary["removed_volume"].as_f64().unwrap() - analytic).abs() / analytic < 0.005, "{summary}");
-    assert!(summary["cycle_time_s"].as_f64().unwrap() > 60.0 / (4000.0 / 60.0), "{summary}");
+    assert!(
+        (summary["removed_volume"].as_f64().unwrap() - analytic).abs() / analytic < 0.005,
+        "{summary}"
+    );
+    assert!(
+        summary["cycle_time_s"].as_f64().unwrap() > 60.0 / (4000.0 / 60.0),
+        "{summary}"
+    );
     for stage in ["interpret_s", "removal_and_engagement_s", "forces_s"] {
         assert!(summary["timings"][stage].as_f64().is_some(), "{summary}");
     }
     let csv = std::fs::read_to_string(out_dir.join("blocks.csv")).unwrap();
-    assert_eq!(csv.lines().count() as u64, 1 + summary["moves"].as_u64().unwrap());
+    assert_eq!(
+        csv.lines().count() as u64,
+        1 + summary["moves"].as_u64().unwrap()
+    );
     let stl = std::fs::read(out_dir.join("stock.stl")).unwrap();
-    assert_eq!(stl.len(), 84 + 50 * u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize);
+    assert_eq!(
+        stl.len(),
+        84 + 50 * u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize
+    );
 
     // --optimize writes the rewritten program next to the results, named like the input.
     let out = Command::new(BIN)
-        .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6", "--cell", "0.25", "--optimize", "max_force=500,air_feed=6000"])
+        .args([
+            "run",
+            "--block=0,-20,-10,100,40,10",
+            "--material",
+            "Al7075-T6",
+            "--cell",
+            "0.25",
+            "--optimize",
+            "max_force=500,air_feed=6000",
+        ])
         .arg("--program")
         .arg(&program)
         .arg("--tool")
@@ -48,26 +89,51 @@ fn run_writes_summary_rows_and_final_stock() {
         .arg(&out_dir)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let optimized = std::fs::read_to_string(out_dir.join("slot.opt.nc")).unwrap();
-    assert!(optimized.contains("G1 X60 F") && !optimized.contains("F4000"), "{optimized}");
-    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
-    assert!(summary["optimization"]["peak_force_after"].as_f64().unwrap() <= 510.0, "{summary}");
+    assert!(
+        optimized.contains("G1 X60 F") && !optimized.contains("F4000"),
+        "{optimized}"
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
+    assert!(
+        summary["optimization"]["peak_force_after"]
+            .as_f64()
+            .unwrap()
+            <= 510.0,
+        "{summary}"
+    );
 
     // Bad values name the flag.
     let refuse = |extra: &[&str]| {
         let mut c = Command::new(BIN);
-        c.args(["run", "--material", "Al7075-T6", "--out"]).arg(&out_dir).arg("--program").arg(&program);
+        c.args(["run", "--material", "Al7075-T6", "--out"])
+            .arg(&out_dir)
+            .arg("--program")
+            .arg(&program);
         c.arg("--tool").arg(&tool).args(extra);
         let o = c.output().unwrap();
         assert!(!o.status.success());
         String::from_utf8(o.stderr).unwrap()
     };
     assert!(refuse(&["--block=0,0,0,1,1,1", "--optimize", "max_force"]).contains("NAME=VALUE"));
-    assert!(refuse(&["--block=0,0,0,1,1,1", "--optimize", "air_feed=3000"]).contains("at least one target"));
+    assert!(
+        refuse(&["--block=0,0,0,1,1,1", "--optimize", "air_feed=3000"])
+            .contains("at least one target")
+    );
     assert!(refuse(&["--block=0,0,0,1,1"]).contains("six numbers"));
     let machine = dir.path().join("machine.json");
     std::fs::write(&machine, r#"{"name":"m","rapid_rate":0,"max_feed":1,"acceleration":[1,1,1],"spindle_min_rpm":0,"spindle_max_rpm":1,"rated_power":1}"#).unwrap();
-    assert!(refuse(&["--block=0,0,0,1,1,1", "--machine", machine.to_str().unwrap()]).contains("rapid_rate"));
+    assert!(refuse(&[
+        "--block=0,0,0,1,1,1",
+        "--machine",
+        machine.to_str().unwrap()
+    ])
+    .contains("rapid_rate"));
     assert!(refuse(&["--block=0,0,0,1,1,1", "--cell", "50"]).contains("cell_mm"));
 }

@@ -10,7 +10,8 @@ use common::*;
 /// (METHOD, path) pairs of openapi.yaml's `paths`, read from its block layout: paths at
 /// two spaces of indent, operations at four.
 fn contract_operations() -> BTreeSet<(String, String)> {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/openapi.yaml")).unwrap();
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/openapi.yaml")).unwrap();
     let mut ops = BTreeSet::new();
     let mut in_paths = false;
     let mut path = String::new();
@@ -34,7 +35,10 @@ fn contract_operations() -> BTreeSet<(String, String)> {
 }
 
 fn router_operations() -> BTreeSet<(String, String)> {
-    let out = std::process::Command::new(BIN).arg("routes").output().unwrap();
+    let out = std::process::Command::new(BIN)
+        .arg("routes")
+        .output()
+        .unwrap();
     assert!(out.status.success());
     String::from_utf8(out.stdout)
         .unwrap()
@@ -53,8 +57,14 @@ fn every_route_is_in_the_contract_and_back() {
     assert!(router.len() > 30, "route table looks empty: {router:?}");
     let missing: Vec<_> = router.difference(&contract).collect();
     let extra: Vec<_> = contract.difference(&router).collect();
-    assert!(missing.is_empty(), "routes served but not in openapi.yaml: {missing:?}");
-    assert!(extra.is_empty(), "operations in openapi.yaml but not in the route table: {extra:?}");
+    assert!(
+        missing.is_empty(),
+        "routes served but not in openapi.yaml: {missing:?}"
+    );
+    assert!(
+        extra.is_empty(),
+        "operations in openapi.yaml but not in the route table: {extra:?}"
+    );
 }
 
 #[tokio::test]
@@ -65,11 +75,18 @@ async fn the_live_router_serves_every_route_of_the_table() {
     for (method, path) in router_operations() {
         let url = s.url(&path.replace("{id}", "00000000-0000-0000-0000-000000000000"));
         let req = c.request(method.parse().unwrap(), &url);
-        let req = if method == "POST" { req.header("content-type", "application/json").body("{}") } else { req };
+        let req = if method == "POST" {
+            req.header("content-type", "application/json").body("{}")
+        } else {
+            req
+        };
         let res = req.send().await.unwrap();
         let status = res.status().as_u16();
         let body = res.text().await.unwrap_or_default();
         assert_ne!(status, 405, "{method} {path}: method not routed");
-        assert!(!body.contains("problems/no-route"), "{method} {path}: not routed: {body}");
+        assert!(
+            !body.contains("problems/no-route"),
+            "{method} {path}: not routed: {body}"
+        );
     }
 }

@@ -44,8 +44,12 @@ impl Engagement {
     /// Axial depth of cut: from the lowest to the highest engaged slice edge, mm.
     pub fn axial_depth(&self) -> f64 {
         let engaged = || self.slices.iter().filter(|s| !s.arcs.is_empty());
-        let lo = engaged().map(|s| s.z - s.dz / 2.0).fold(f64::INFINITY, f64::min);
-        let hi = engaged().map(|s| s.z + s.dz / 2.0).fold(f64::NEG_INFINITY, f64::max);
+        let lo = engaged()
+            .map(|s| s.z - s.dz / 2.0)
+            .fold(f64::INFINITY, f64::min);
+        let hi = engaged()
+            .map(|s| s.z + s.dz / 2.0)
+            .fold(f64::NEG_INFINITY, f64::max);
         if hi > lo {
             hi - lo
         } else {

@@ -10,7 +10,9 @@ use std::collections::BTreeMap;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::geometry::{self, simulate_removal, GridOptions, Segment, SimOptions, Stock, StockShape};
+use crate::geometry::{
+    self, simulate_removal, GridOptions, Segment, SimOptions, Stock, StockShape,
+};
 use crate::job::{CancelFlag, Progress};
 use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length, CycleTimeError};
 use crate::machine::Machine;
@@ -39,8 +41,15 @@ fn evaluate_forces(
                 if s.air || s.removed_volume <= 0.0 || m.spindle <= 0.0 || feeds[*mi] <= 0.0 {
                     return Ok(None);
                 }
-                let conditions = CuttingConditions { spindle_rpm: m.spindle, feed_per_tooth: feeds[*mi] / (m.spindle * flutes) };
-                models.get_mut(t).expect("model per tool").evaluate(&s.engagement, k, &conditions).map(Some)
+                let conditions = CuttingConditions {
+                    spindle_rpm: m.spindle,
+                    feed_per_tooth: feeds[*mi] / (m.spindle * flutes),
+                };
+                models
+                    .get_mut(t)
+                    .expect("model per tool")
+                    .evaluate(&s.engagement, k, &conditions)
+                    .map(Some)
             },
         )
         .collect()
@@ -259,13 +268,25 @@ fn feed_mode_name(m: FeedMode) -> &'static str {
 
 /// The geometry segment of a cutting or positioning move; None for dwells and tool changes.
 fn segment(m: &Move) -> Option<Segment> {
-    let (from, to) = ([m.start[0], m.start[1], m.start[2]], [m.end[0], m.end[1], m.end[2]]);
+    let (from, to) = (
+        [m.start[0], m.start[1], m.start[2]],
+        [m.end[0], m.end[1], m.end[2]],
+    );
     let seg = match m.kind {
         MoveKind::Rapid => Segment::rapid(m.block, from, to),
         MoveKind::Linear => Segment::linear(m.block, from, to, feed_velocity(m), m.spindle),
         MoveKind::Arc => {
             let arc = m.arc.as_ref()?;
-            let mut s = Segment::arc(m.block, from, to, arc.center, arc.normal, arc.clockwise, feed_velocity(m), m.spindle);
+            let mut s = Segment::arc(
+                m.block,
+                from,
+                to,
+                arc.center,
+                arc.normal,
+                arc.clockwise,
+                feed_velocity(m),
+                m.spindle,
+            );
             if let geometry::PathShape::Arc { turns, .. } = &mut s.shape {
                 *turns = arc.turns.max(1);
             }
@@ -276,29 +297,50 @@ fn segment(m: &Move) -> Option<Segment> {
     Some(seg)
 }
 
-pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progress) -> Result<SimulationOutput, SimulateError> {
+pub fn simulate(
+    spec: &SimulateSpec,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<SimulationOutput, SimulateError> {
     let mut timings = StageTimings::default();
     let clock = std::time::Instant::now();
-    let interpretation = nc::interpret(&spec.program, &spec.interpret).map_err(SimulateError::Program)?;
+    let interpretation =
+        nc::interpret(&spec.program, &spec.interpret).map_err(SimulateError::Program)?;
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
-    let single_tool = if spec.tools.len() == 1 { spec.tools.values().next() } else { None };
+    let single_tool = if spec.tools.len() == 1 {
+        spec.tools.values().next()
+    } else {
+        None
+    };
     // One tool serves a program that uses one tool number; a second number would be cut
     // with the wrong tool, so it is an error, never a guess.
     if single_tool.is_some() {
         let mut used: Vec<(u32, u32)> = Vec::new();
-        for m in moves.iter().filter(|m| m.tool != 0 && m.kind != MoveKind::Dwell) {
+        for m in moves
+            .iter()
+            .filter(|m| m.tool != 0 && m.kind != MoveKind::Dwell)
+        {
             if !used.iter().any(|(t, _)| *t == m.tool) {
                 used.push((m.tool, m.line));
             }
         }
         if let Some(&(tool, line)) = used.get(1) {
             let list: Vec<String> = used.iter().map(|(t, _)| format!("T{t}")).collect();
-            return Err(SimulateError::OneToolForSeveral { tool, line, used: list.join(", ") });
+            return Err(SimulateError::OneToolForSeveral {
+                tool,
+                line,
+                used: list.join(", "),
+            });
         }
     }
     let tool_for = |m: &Move| -> Result<&Tool, SimulateError> {
-        single_tool.or_else(|| spec.tools.get(&m.tool)).ok_or(SimulateError::UnknownTool { tool: m.tool, line: m.line })
+        single_tool
+            .or_else(|| spec.tools.get(&m.tool))
+            .ok_or(SimulateError::UnknownTool {
+                tool: m.tool,
+                line: m.line,
+            })
     };
     // Before the first tool change no cutter is in the spindle: positioning moves then
     // sweep nothing; a feed move then is an error (it would cut with nothing).
@@ -315,7 +357,10 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
 
     let radii: Vec<f64> = spec.tools.values().map(Tool::radius).collect();
     let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
-    let grid = GridOptions { cell: Some(cell), memory_limit: spec.memory_limit };
+    let grid = GridOptions {
+        cell: Some(cell),
+        memory_limit: spec.memory_limit,
+    };
     let clock = std::time::Instant::now();
     let mut stock = match &spec.stock {
         StockSource::Shape(shape) => Stock::from_shape(shape, &grid)?,
@@ -339,7 +384,11 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
             length,
             feed: m.feed,
             feed_mode: feed_mode_name(m.feed_mode),
-            feed_mm_min: if m.kind == MoveKind::Rapid { 0.0 } else { feed_velocity(m) },
+            feed_mm_min: if m.kind == MoveKind::Rapid {
+                0.0
+            } else {
+                feed_velocity(m)
+            },
             spindle: m.spindle,
             time_s: times.per_move_s[i],
             ..MoveRow::default()
@@ -352,7 +401,10 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         let Some(seg) = segment(m) else { continue };
         if !sweeps(m) {
             if m.kind != MoveKind::Rapid {
-                return Err(SimulateError::UnknownTool { tool: 0, line: m.line });
+                return Err(SimulateError::UnknownTool {
+                    tool: 0,
+                    line: m.line,
+                });
             }
             continue;
         }
@@ -371,16 +423,20 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     for (tool_number, segs) in &runs {
         let tool = tool_for(&moves[segs[0].0])?;
         if !models.contains_key(tool_number) {
-            models.insert(*tool_number, ForceModel::new(tool, 50, spec.force_positions)?.keep_samples(false));
+            models.insert(
+                *tool_number,
+                ForceModel::new(tool, 50, spec.force_positions)?.keep_samples(false),
+            );
         }
         // In chunks, so that progress and cancellation come every few hundred moves
         // (the removal keeps no state from one segment to the next).
         for chunk in segs.chunks(PROGRESS_CHUNK) {
             let only: Vec<Segment> = chunk.iter().map(|(_, s)| s.clone()).collect();
-            let report = simulate_removal(&mut stock, tool, &only, &SimOptions::default(), cancel).map_err(|e| match e {
-                geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
-                other => SimulateError::Geometry(other),
-            })?;
+            let report = simulate_removal(&mut stock, tool, &only, &SimOptions::default(), cancel)
+                .map_err(|e| match e {
+                    geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
+                    other => SimulateError::Geometry(other),
+                })?;
             rays_tested += report.rays_tested;
             for ((move_index, _), b) in chunk.iter().zip(report.blocks) {
                 let row = &mut rows[*move_index];
@@ -391,16 +447,26 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
                 row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
                 // A step that removes nothing is air, even where the edge grazes a wall that
                 // an earlier move cut to exactly the tool's radius.
-                let cut_length: f64 = b.steps.iter().filter(|s| !s.air && s.removed_volume > 0.0).map(|s| s.length).sum();
+                let cut_length: f64 = b
+                    .steps
+                    .iter()
+                    .filter(|s| !s.air && s.removed_volume > 0.0)
+                    .map(|s| s.length)
+                    .sum();
                 let steps_length: f64 = b.steps.iter().map(|s| s.length).sum();
-                row.air_fraction = if steps_length > 0.0 { 1.0 - cut_length / steps_length } else { 1.0 };
+                row.air_fraction = if steps_length > 0.0 {
+                    1.0 - cut_length / steps_length
+                } else {
+                    1.0
+                };
                 row.rapid_in_material = b.checks.rapid_in_material;
                 row.flute_length_exceeded = b.checks.flute_length_exceeded;
                 row.shank_contact = b.checks.shank_contact;
                 row.holder_contact = b.checks.holder_contact;
                 row.steps = b.steps.len();
                 row.max_mrr = b.max_mrr;
-                row.spindle_stopped_in_material = b.removed_volume > 1e-6 && moves[*move_index].spindle <= 0.0 && !b.rapid;
+                row.spindle_stopped_in_material =
+                    b.removed_volume > 1e-6 && moves[*move_index].spindle <= 0.0 && !b.rapid;
                 steps.extend(b.steps.into_iter().map(|s| (*move_index, *tool_number, s)));
             }
             // The last tenth of the progress is the force evaluation.
@@ -458,7 +524,8 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     let clock = std::time::Instant::now();
     let (optimized_program, optimization) = match &spec.optimize {
         Some(limits) => {
-            let (text, summary) = optimize_stage(spec, limits, moves, &mut rows, &steps, &models, &times)?;
+            let (text, summary) =
+                optimize_stage(spec, limits, moves, &mut rows, &steps, &models, &times)?;
             (Some(text), Some(summary))
         }
         None => (None, None),
@@ -466,7 +533,10 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
     timings.optimize_s = clock.elapsed().as_secs_f64();
 
     let volume_after = stock.volume();
-    let peak = rows.iter().max_by(|a, b| a.peak_force.total_cmp(&b.peak_force)).filter(|r| r.peak_force > 0.0);
+    let peak = rows
+        .iter()
+        .max_by(|a, b| a.peak_force.total_cmp(&b.peak_force))
+        .filter(|r| r.peak_force > 0.0);
     let cutting = |r: &&MoveRow| r.kind == "linear" || r.kind == "arc";
     let summary = SimulationSummary {
         moves: moves.len(),
@@ -477,10 +547,21 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         removed_volume: volume_before - volume_after,
         peak_force: peak.map(|r| r.peak_force).unwrap_or(0.0),
         peak_force_line: peak.map(|r| r.line),
-        cutting_moves: rows.iter().filter(cutting).filter(|r| r.removed_volume > 0.0).count(),
-        air_moves: rows.iter().filter(cutting).filter(|r| r.removed_volume <= 0.0).count(),
+        cutting_moves: rows
+            .iter()
+            .filter(cutting)
+            .filter(|r| r.removed_volume > 0.0)
+            .count(),
+        air_moves: rows
+            .iter()
+            .filter(cutting)
+            .filter(|r| r.removed_volume <= 0.0)
+            .count(),
         rapid_in_material_moves: rows.iter().filter(|r| r.rapid_in_material).count(),
-        holder_or_shank_contact_moves: rows.iter().filter(|r| r.holder_contact || r.shank_contact).count(),
+        holder_or_shank_contact_moves: rows
+            .iter()
+            .filter(|r| r.holder_contact || r.shank_contact)
+            .count(),
         flute_length_exceeded_moves: rows.iter().filter(|r| r.flute_length_exceeded).count(),
         force_evaluations: evaluations,
         cycle_time_s: times.total_s,
@@ -489,7 +570,16 @@ pub fn simulate(spec: &SimulateSpec, cancel: &CancelFlag, progress: &dyn Progres
         nominal_time_s: times.nominal_s,
         cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
     };
-    Ok(SimulationOutput { rows, optimized_program, optimization, samples, summary, stock, timings, rays_tested })
+    Ok(SimulationOutput {
+        rows,
+        optimized_program,
+        optimization,
+        samples,
+        summary,
+        stock,
+        timings,
+        rays_tested,
+    })
 }
 
 /// Feed scheduling on the engagement the removal pass recorded, the rewrite, and the
@@ -505,8 +595,15 @@ fn optimize_stage(
 ) -> Result<(String, OptimizationSummary), SimulateError> {
     let limits = limits.clone().with_machine(&spec.machine);
     let k = spec.material.coefficients;
-    let cutter_index: BTreeMap<u32, usize> = models.keys().enumerate().map(|(i, t)| (*t, i)).collect();
-    let cutters: Vec<Cutter> = models.values().map(|m| Cutter { model: m.clone(), coefficients: k }).collect();
+    let cutter_index: BTreeMap<u32, usize> =
+        models.keys().enumerate().map(|(i, t)| (*t, i)).collect();
+    let cutters: Vec<Cutter> = models
+        .values()
+        .map(|m| Cutter {
+            model: m.clone(),
+            coefficients: k,
+        })
+        .collect();
     // One segment per swept feed move (possibly without engaged steps: air), in move order.
     let mut segments: Vec<optimize::Segment> = Vec::new();
     for (mi, t, s) in steps {
@@ -514,29 +611,71 @@ fn optimize_stage(
             continue;
         }
         if segments.last().map(|g| g.move_index) != Some(*mi) {
-            segments.push(optimize::Segment { move_index: *mi, cutter: cutter_index[t], steps: Vec::new() });
+            segments.push(optimize::Segment {
+                move_index: *mi,
+                cutter: cutter_index[t],
+                steps: Vec::new(),
+            });
         }
         if !s.air && s.removed_volume > 0.0 {
             let seg = segments.last_mut().expect("pushed above");
-            seg.steps.push(EngagementStep { engagement: s.engagement.clone(), spindle_rpm: moves[*mi].spindle, at: s.distance });
+            seg.steps.push(EngagementStep {
+                engagement: s.engagement.clone(),
+                spindle_rpm: moves[*mi].spindle,
+                at: s.distance,
+            });
         }
     }
     let schedule = optimize::optimize_feeds(moves, &segments, &cutters, &limits)?;
     let program = nc::Program::parse(&spec.program).map_err(SimulateError::Program)?;
-    let rewrite = optimize::rewrite_program(&program, moves, &schedule, &RewriteOptions { feed_step: limits.feed_step })
-        .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
-    let after = nc::interpret(&rewrite.text, &spec.interpret).map_err(|d| SimulateError::Rewrite(d.to_string()))?.moves;
+    let rewrite = optimize::rewrite_program(
+        &program,
+        moves,
+        &schedule,
+        &RewriteOptions {
+            feed_step: limits.feed_step,
+        },
+    )
+    .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
+    let after = nc::interpret(&rewrite.text, &spec.interpret)
+        .map_err(|d| SimulateError::Rewrite(d.to_string()))?
+        .moves;
     optimize::verify_rewrite(moves, &after, &rewrite).map_err(SimulateError::Rewrite)?;
 
-    let feeds_after: Vec<f64> = after.iter().map(|m| if m.kind == MoveKind::Rapid { 0.0 } else { feed_velocity(m) }).collect();
+    let feeds_after: Vec<f64> = after
+        .iter()
+        .map(|m| {
+            if m.kind == MoveKind::Rapid {
+                0.0
+            } else {
+                feed_velocity(m)
+            }
+        })
+        .collect();
     let forces_after = evaluate_forces(steps, moves, &feeds_after, models, &k)?;
     let times_after = cycle_time(&after, &spec.machine, None)?;
-    let constant = cycle_time(moves, &spec.machine, Some(&schedule.constant_velocities(moves)))?;
-    let ideal = cycle_time(moves, &spec.machine, Some(&schedule.ideal_velocities(moves)))?;
+    let constant = cycle_time(
+        moves,
+        &spec.machine,
+        Some(&schedule.constant_velocities(moves)),
+    )?;
+    let ideal = cycle_time(
+        moves,
+        &spec.machine,
+        Some(&schedule.ideal_velocities(moves)),
+    )?;
     let governing: BTreeMap<usize, String> = schedule
         .segments
         .iter()
-        .map(|g| (g.move_index, serde_json::to_value(g.governing).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_default()))
+        .map(|g| {
+            (
+                g.move_index,
+                serde_json::to_value(g.governing)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string))
+                    .unwrap_or_default(),
+            )
+        })
         .collect();
     for (i, row) in rows.iter_mut().enumerate() {
         row.feed_after_mm_min = Some(feeds_after[i]);
@@ -554,7 +693,11 @@ fn optimize_stage(
     // The optimizer accepts feeds within its tolerance below the limit; above that, the
     // limit was out of reach for the move.
     let over: Vec<u32> = match limits.max_force {
-        Some(f) => rows.iter().filter(|r| r.peak_force_after.unwrap_or(0.0) > f * (1.0 + limits.tolerance)).map(|r| r.line).collect(),
+        Some(f) => rows
+            .iter()
+            .filter(|r| r.peak_force_after.unwrap_or(0.0) > f * (1.0 + limits.tolerance))
+            .map(|r| r.line)
+            .collect(),
         None => Vec::new(),
     };
     let summary = OptimizationSummary {

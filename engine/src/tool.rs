@@ -95,7 +95,10 @@ pub struct ToolError {
 }
 
 fn bad(field: &'static str, message: impl Into<String>) -> ToolError {
-    ToolError { field, message: message.into() }
+    ToolError {
+        field,
+        message: message.into(),
+    }
 }
 
 impl Tool {
@@ -120,12 +123,20 @@ impl Tool {
 
     /// A ball end mill.
     pub fn ball(diameter: f64, flutes: u32) -> Tool {
-        Tool { shape: ToolShape::Ball, corner_radius: diameter / 2.0, ..Tool::flat(diameter, flutes) }
+        Tool {
+            shape: ToolShape::Ball,
+            corner_radius: diameter / 2.0,
+            ..Tool::flat(diameter, flutes)
+        }
     }
 
     /// A bull-nose end mill with corner radius `corner_radius`.
     pub fn bull_nose(diameter: f64, corner_radius: f64, flutes: u32) -> Tool {
-        Tool { shape: ToolShape::BullNose, corner_radius, ..Tool::flat(diameter, flutes) }
+        Tool {
+            shape: ToolShape::BullNose,
+            corner_radius,
+            ..Tool::flat(diameter, flutes)
+        }
     }
 
     pub fn radius(&self) -> f64 {
@@ -146,7 +157,8 @@ impl Tool {
     }
 
     pub fn stick_out(&self) -> f64 {
-        self.stick_out.unwrap_or(self.flute_length + 2.0 * self.diameter)
+        self.stick_out
+            .unwrap_or(self.flute_length + 2.0 * self.diameter)
     }
 
     /// Checks that the numbers describe a tool that can exist; names the field that is wrong.
@@ -161,17 +173,35 @@ impl Tool {
         finite_pos("diameter", self.diameter)?;
         // Below 0.01 mm or above 1 m the number is a unit mistake, not a milling tool.
         if !(0.01..=1000.0).contains(&self.diameter) {
-            return Err(bad("diameter", format!("{} mm is not a milling tool diameter (0.01 to 1000 mm)", self.diameter)));
+            return Err(bad(
+                "diameter",
+                format!(
+                    "{} mm is not a milling tool diameter (0.01 to 1000 mm)",
+                    self.diameter
+                ),
+            ));
         }
         finite_pos("flute_length", self.flute_length)?;
         if !(0.01..=2000.0).contains(&self.flute_length) {
-            return Err(bad("flute_length", format!("{} mm is not a flute length (0.01 to 2000 mm)", self.flute_length)));
+            return Err(bad(
+                "flute_length",
+                format!(
+                    "{} mm is not a flute length (0.01 to 2000 mm)",
+                    self.flute_length
+                ),
+            ));
         }
         if self.flutes == 0 || self.flutes > 64 {
-            return Err(bad("flutes", format!("must be between 1 and 64, got {}", self.flutes)));
+            return Err(bad(
+                "flutes",
+                format!("must be between 1 and 64, got {}", self.flutes),
+            ));
         }
         if !self.helix_deg.is_finite() || !(0.0..80.0).contains(&self.helix_deg.abs()) {
-            return Err(bad("helix_deg", format!("must be in [0, 80) degrees, got {}", self.helix_deg)));
+            return Err(bad(
+                "helix_deg",
+                format!("must be in [0, 80) degrees, got {}", self.helix_deg),
+            ));
         }
         match self.shape {
             ToolShape::BullNose => {
@@ -181,7 +211,10 @@ impl Tool {
                 }
             }
             ToolShape::Chamfer => {
-                if !self.tip_diameter.is_finite() || self.tip_diameter < 0.0 || self.tip_diameter >= self.diameter {
+                if !self.tip_diameter.is_finite()
+                    || self.tip_diameter < 0.0
+                    || self.tip_diameter >= self.diameter
+                {
                     return Err(bad("tip_diameter", "must be in [0, diameter)"));
                 }
                 if !(self.taper_half_angle_deg > 0.0 && self.taper_half_angle_deg < 89.0) {
@@ -204,7 +237,10 @@ impl Tool {
             finite_pos("holder.bottom_diameter", seg.bottom_diameter)?;
             finite_pos("holder.top_diameter", seg.top_diameter)?;
         }
-        if !self.runout.offset.is_finite() || self.runout.offset < 0.0 || self.runout.offset > 0.1 * self.diameter {
+        if !self.runout.offset.is_finite()
+            || self.runout.offset < 0.0
+            || self.runout.offset > 0.1 * self.diameter
+        {
             return Err(bad("runout.offset", "must be in [0, D/10] mm"));
         }
         if !self.runout.angle_deg.is_finite() {
@@ -219,7 +255,8 @@ impl Tool {
             ToolShape::Flat => 0.0,
             ToolShape::Ball | ToolShape::BullNose => self.effective_corner_radius(),
             ToolShape::Chamfer => {
-                (self.radius() - self.tip_diameter / 2.0) / self.taper_half_angle_deg.to_radians().tan()
+                (self.radius() - self.tip_diameter / 2.0)
+                    / self.taper_half_angle_deg.to_radians().tan()
             }
         }
     }

@@ -283,12 +283,7 @@ fn removal_is_deterministic_across_thread_counts() {
             .build()
             .unwrap();
         pool.install(|| {
-            let mut stock = Stock::block(
-                [-40.0, -40.0, -10.0],
-                [40.0, 40.0, 0.0],
-                0.05,
-            )
-            .unwrap();
+            let mut stock = Stock::block([-40.0, -40.0, -10.0], [40.0, 40.0, 0.0], 0.05).unwrap();
             let rep = simulate_removal(
                 &mut stock,
                 &tool,

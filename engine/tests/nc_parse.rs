@@ -213,7 +213,10 @@ fn tool_table_format() {
     use millsim_engine::nc::parse_tool_table;
     let t = parse_tool_table("T1 P1 D6.0 Z+50.0 ;flat 6\n\n; only a comment\nT2 P2 Z-12.5 D3 X0.1 ;\nt15 p15 z40.4 d14\n").unwrap();
     let e = t.get(1).unwrap();
-    assert_eq!((e.pocket, e.z_offset, e.diameter, e.comment.as_str()), (Some(1), 50.0, Some(6.0), "flat 6"));
+    assert_eq!(
+        (e.pocket, e.z_offset, e.diameter, e.comment.as_str()),
+        (Some(1), 50.0, Some(6.0), "flat 6")
+    );
     assert_eq!(t.get(2).unwrap().z_offset, -12.5);
     assert_eq!(t.get(15).unwrap().diameter, Some(14.0));
     let err = parse_tool_table("T1 Z1\nP2 Z3\nT3 Zx\nT1 Z2\nT4 Q1 K5\n").unwrap_err();
@@ -226,7 +229,11 @@ fn tool_table_format() {
 #[test]
 fn dialect_serde_names() {
     use millsim_engine::nc::Dialect;
-    for (d, s) in [(Dialect::Auto, "\"auto\""), (Dialect::Fanuc, "\"fanuc\""), (Dialect::LinuxCnc, "\"linuxcnc\"")] {
+    for (d, s) in [
+        (Dialect::Auto, "\"auto\""),
+        (Dialect::Fanuc, "\"fanuc\""),
+        (Dialect::LinuxCnc, "\"linuxcnc\""),
+    ] {
         assert_eq!(serde_json::to_string(&d).unwrap(), s);
         assert_eq!(serde_json::from_str::<Dialect>(s).unwrap(), d);
     }

@@ -19,7 +19,10 @@ fn spec(program: &str) -> SimulateSpec {
     SimulateSpec {
         program: program.into(),
         interpret: InterpretOptions::default(),
-        stock: StockSource::Shape(StockShape::Block { min: [0.0, -20.0, -10.0], max: [100.0, 20.0, 0.0] }),
+        stock: StockSource::Shape(StockShape::Block {
+            min: [0.0, -20.0, -10.0],
+            max: [100.0, 20.0, 0.0],
+        }),
         tools: BTreeMap::from([(1, tool)]),
         material: Material::builtin("Al7075-T6").unwrap(),
         machine: Machine::generic(),
@@ -37,7 +40,10 @@ fn slot_volume_and_steady_power_match_closed_forms() {
     let out = simulate(&spec(program), &CancelFlag::new(), &NoProgress).unwrap();
     let removed: f64 = out.rows.iter().map(|r| r.removed_volume).sum();
     let analytic = 5.0 * (60.0 * 10.0 + PI * 25.0 / 2.0);
-    assert!((removed - analytic).abs() / analytic < 0.005, "removed {removed} vs {analytic}");
+    assert!(
+        (removed - analytic).abs() / analytic < 0.005,
+        "removed {removed} vs {analytic}"
+    );
     assert!((out.summary.removed_volume - analytic).abs() / analytic < 0.005);
 
     let steady = out.rows.iter().find(|r| r.line == 8).unwrap();
@@ -47,18 +53,32 @@ fn slot_volume_and_steady_power_match_closed_forms() {
     let (ktc, kte, n, a, c, r) = (767.01, 27.7, 4.0, 5.0, 0.1, 5.0);
     let torque = r * n * a / (2.0 * PI) * (2.0 * ktc * c + PI * kte) / 1000.0;
     let power = torque * 10_000.0 * 2.0 * PI / 60.0;
-    assert!((steady.mean_power - power).abs() / power < 0.02, "mean power {} vs closed form {power}", steady.mean_power);
+    assert!(
+        (steady.mean_power - power).abs() / power < 0.02,
+        "mean power {} vs closed form {power}",
+        steady.mean_power
+    );
     assert!((steady.max_chip_thickness - 0.1).abs() < 1e-6, "{steady:?}");
     assert_eq!(steady.air_fraction, 0.0);
     // 40 mm at 4000 mm/min, entered at speed from line 7 and braking to a stop at its end:
     // at least the cruise time, at most cruise plus the deceleration ramp (v/2a).
     let (cruise, ramp) = (40.0 / (4000.0 / 60.0), (4000.0 / 60.0) / (2.0 * 2000.0));
-    assert!(steady.time_s >= cruise && steady.time_s <= cruise + ramp + 1e-9, "{}", steady.time_s);
+    assert!(
+        steady.time_s >= cruise && steady.time_s <= cruise + ramp + 1e-9,
+        "{}",
+        steady.time_s
+    );
     assert!((steady.cutting_energy_j - steady.mean_power * steady.time_s).abs() < 1e-9);
     assert!(out.summary.cycle_time_s > out.summary.nominal_time_s);
     // Reference peak |Fxy| of this slot is 664.2 N; |F| adds the axial part.
-    assert!(steady.peak_force >= 664.2 * 0.99 && steady.peak_force < 664.2 * 1.3, "{steady:?}");
-    assert!(!out.rows.iter().any(|r| r.rapid_in_material || r.holder_contact));
+    assert!(
+        steady.peak_force >= 664.2 * 0.99 && steady.peak_force < 664.2 * 1.3,
+        "{steady:?}"
+    );
+    assert!(!out
+        .rows
+        .iter()
+        .any(|r| r.rapid_in_material || r.holder_contact));
 }
 
 #[test]
@@ -74,8 +94,16 @@ fn a_second_layer_in_the_wrong_order_cuts_air_and_a_rapid_through_stock_is_flagg
     assert_eq!(second.peak_force, 0.0);
     assert_eq!(out.summary.air_moves, 1);
     // The plunge at X80 Y-15 and the traverse to Y15 go through uncut stock at rapid.
-    let flagged: Vec<u32> = out.rows.iter().filter(|r| r.rapid_in_material).map(|r| r.line).collect();
-    assert!(flagged.contains(&13) && flagged.contains(&14), "{flagged:?}");
+    let flagged: Vec<u32> = out
+        .rows
+        .iter()
+        .filter(|r| r.rapid_in_material)
+        .map(|r| r.line)
+        .collect();
+    assert!(
+        flagged.contains(&13) && flagged.contains(&14),
+        "{flagged:?}"
+    );
     assert!(flagged.iter().all(|l| *l >= 13), "{flagged:?}");
 }
 
@@ -83,12 +111,29 @@ fn a_second_layer_in_the_wrong_order_cuts_air_and_a_rapid_through_stock_is_flagg
 fn errors_name_the_line() {
     let mut s = spec("G0 X0\nT7 M6\nG1 X10 F100\n");
     s.tools.insert(2, Tool::flat(6.0, 3));
-    let err = simulate(&s, &CancelFlag::new(), &NoProgress).err().unwrap().to_string();
+    let err = simulate(&s, &CancelFlag::new(), &NoProgress)
+        .err()
+        .unwrap()
+        .to_string();
     assert!(err.contains("T7") && err.contains("line"), "{err}");
     // One tool given, two used: an error naming the change, never the wrong cutter.
-    let err = simulate(&spec("T1 M6\nG0 X0 Z5\nT2 M6\nG0 X10\n"), &CancelFlag::new(), &NoProgress).err().unwrap().to_string();
+    let err = simulate(
+        &spec("T1 M6\nG0 X0 Z5\nT2 M6\nG0 X10\n"),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .err()
+    .unwrap()
+    .to_string();
     assert!(err.contains("line 3") && err.contains("T1, T2"), "{err}");
-    let err = simulate(&spec("G0 X0\nG1 A30 F100\n"), &CancelFlag::new(), &NoProgress).err().unwrap().to_string();
+    let err = simulate(
+        &spec("G0 X0\nG1 A30 F100\n"),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .err()
+    .unwrap()
+    .to_string();
     assert!(err.contains("line 2") && err.contains("rotary"), "{err}");
     let cancel = CancelFlag::new();
     cancel.cancel();
@@ -126,7 +171,12 @@ fn optimize_holds_the_force_limit_speeds_up_air_and_changes_only_f_words() {
     // over the slot that finds no material (line 12).
     let program = "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nG0 X-10 Y8\nG1 Z-5 F800\nG1 X60 F4000\nG0 Z5\nG0 X-10 Y0\nG0 Z-3\nG1 X60 F1000\nG0 Z5\nM30\n";
     let mut s = spec(program);
-    s.optimize = Some(FeedLimits { max_force: Some(500.0), air_feed: Some(6000.0), max_feed: 8000.0, ..FeedLimits::default() });
+    s.optimize = Some(FeedLimits {
+        max_force: Some(500.0),
+        air_feed: Some(6000.0),
+        max_feed: 8000.0,
+        ..FeedLimits::default()
+    });
     let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
     let opt = out.optimization.as_ref().unwrap();
     let text = out.optimized_program.as_ref().unwrap();
@@ -134,17 +184,29 @@ fn optimize_holds_the_force_limit_speeds_up_air_and_changes_only_f_words() {
     for r in &out.rows {
         assert!(r.peak_force_after.unwrap() <= 500.0 * 1.02, "{r:?}");
     }
-    assert!(opt.peak_force_before > 600.0 && opt.peak_force_after <= 510.0, "{opt:?}");
+    assert!(
+        opt.peak_force_before > 600.0 && opt.peak_force_after <= 510.0,
+        "{opt:?}"
+    );
     assert_eq!(opt.force_limit_unreachable_moves, 0);
     // A limit below what the edge forces alone give cannot be met: it is reported, per line.
     let mut tight = spec(program);
-    tight.optimize = Some(FeedLimits { max_force: Some(100.0), ..FeedLimits::default() });
+    tight.optimize = Some(FeedLimits {
+        max_force: Some(100.0),
+        ..FeedLimits::default()
+    });
     let t = simulate(&tight, &CancelFlag::new(), &NoProgress).unwrap();
     let o = t.optimization.unwrap();
     assert!(o.force_limit_unreachable_lines.contains(&6), "{o:?}");
     let slot = out.rows.iter().find(|r| r.line == 6).unwrap();
-    assert!(slot.feed_after_mm_min.unwrap() < 4000.0, "the slot must slow down: {slot:?}");
-    assert!(slot.peak_force_after.unwrap() > 480.0, "and run near the limit: {slot:?}");
+    assert!(
+        slot.feed_after_mm_min.unwrap() < 4000.0,
+        "the slot must slow down: {slot:?}"
+    );
+    assert!(
+        slot.peak_force_after.unwrap() > 480.0,
+        "and run near the limit: {slot:?}"
+    );
     let air = out.rows.iter().find(|r| r.line == 14).unwrap();
     assert_eq!(air.removed_volume, 0.0);
     assert_eq!(air.feed_after_mm_min, Some(6000.0), "{air:?}");
@@ -152,13 +214,23 @@ fn optimize_holds_the_force_limit_speeds_up_air_and_changes_only_f_words() {
     // Only F words differ, and the rewritten program moves the tool along the same path.
     assert_ne!(text, program);
     assert_eq!(without_f_words(text), without_f_words(program));
-    let a = millsim_engine::nc::interpret(program, &InterpretOptions::default()).unwrap().moves;
-    let b = millsim_engine::nc::interpret(text, &InterpretOptions::default()).unwrap().moves;
+    let a = millsim_engine::nc::interpret(program, &InterpretOptions::default())
+        .unwrap()
+        .moves;
+    let b = millsim_engine::nc::interpret(text, &InterpretOptions::default())
+        .unwrap()
+        .moves;
     assert_eq!(a.len(), b.len());
     for (x, y) in a.iter().zip(&b) {
         assert!((0..6).all(|i| (x.end[i] - y.end[i]).abs() < 1e-9));
     }
     // The optimized time lies between the ideal bound and the best constant safe feed.
-    assert!(opt.cycle_time_ideal_s <= opt.cycle_time_after_s + 1e-9, "{opt:?}");
-    assert!(opt.cycle_time_after_s <= opt.cycle_time_constant_feed_s + 1e-9, "{opt:?}");
+    assert!(
+        opt.cycle_time_ideal_s <= opt.cycle_time_after_s + 1e-9,
+        "{opt:?}"
+    );
+    assert!(
+        opt.cycle_time_after_s <= opt.cycle_time_constant_feed_s + 1e-9,
+        "{opt:?}"
+    );
 }

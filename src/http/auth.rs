@@ -48,22 +48,33 @@ impl Auth {
             if line.is_empty() || line.starts_with('#') {
                 continue;
             }
-            let err = |message: &str| KeyFileError { file: file.into(), line: i + 1, message: message.into() };
+            let err = |message: &str| KeyFileError {
+                file: file.into(),
+                line: i + 1,
+                message: message.into(),
+            };
             let mut parts = line.split_whitespace();
             let (Some(name), Some(hash), None) = (parts.next(), parts.next(), parts.next()) else {
                 return Err(err("expected `NAME SHA256HEX`"));
             };
             if hash.len() != 64 || !hash.bytes().all(|b| b.is_ascii_hexdigit()) {
-                return Err(err("the hash must be 64 hexadecimal digits (the SHA-256 of the key)"));
+                return Err(err(
+                    "the hash must be 64 hexadecimal digits (the SHA-256 of the key)",
+                ));
             }
             let mut h = [0u8; 32];
             for (j, byte) in h.iter_mut().enumerate() {
-                *byte = u8::from_str_radix(&hash[2 * j..2 * j + 2], 16).map_err(|_| err("bad hex digit"))?;
+                *byte = u8::from_str_radix(&hash[2 * j..2 * j + 2], 16)
+                    .map_err(|_| err("bad hex digit"))?;
             }
             keys.push((name.to_string(), h));
         }
         if keys.is_empty() {
-            return Err(KeyFileError { file: file.into(), line: 0, message: "the file holds no keys".into() });
+            return Err(KeyFileError {
+                file: file.into(),
+                line: 0,
+                message: "the file holds no keys".into(),
+            });
         }
         Ok(Auth { keys })
     }
@@ -92,8 +103,10 @@ pub async fn require_key(State(state): State<AppState>, mut req: Request, next: 
         match presented.and_then(|k| state.auth.owner_of(k.trim())) {
             Some(name) => name,
             None => {
-                return ApiError::unauthorized("send a valid API key as `Authorization: Bearer KEY` or `X-API-Key: KEY`")
-                    .into_response()
+                return ApiError::unauthorized(
+                    "send a valid API key as `Authorization: Bearer KEY` or `X-API-Key: KEY`",
+                )
+                .into_response()
             }
         }
     } else {
@@ -109,7 +122,11 @@ mod tests {
 
     #[test]
     fn key_file_maps_keys_to_names() {
-        let line = format!("cam {}\n# comment\nmes {}\n", hex(&hash_key("k1")), hex(&hash_key("k2")));
+        let line = format!(
+            "cam {}\n# comment\nmes {}\n",
+            hex(&hash_key("k1")),
+            hex(&hash_key("k2"))
+        );
         let auth = Auth::from_key_file("keys", &line).unwrap();
         assert_eq!(auth.owner_of("k1").as_deref(), Some("cam"));
         assert_eq!(auth.owner_of("k2").as_deref(), Some("mes"));

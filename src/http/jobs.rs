@@ -18,10 +18,10 @@ use super::auth::hex;
 use super::body::read_limited;
 use super::problem::{parse_json, ApiError};
 use super::{parse_query, AppState, Owner, PageQuery};
-use crate::{csv, runner};
 use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
 use crate::validate;
+use crate::{csv, runner};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -34,9 +34,17 @@ struct JobRequest {
 }
 
 fn job_response(status: StatusCode, job: &JobRecord, replayed: bool) -> Response {
-    let mut res = (status, [(header::LOCATION, format!("/v1/jobs/{}", job.id))], Json(job)).into_response();
+    let mut res = (
+        status,
+        [(header::LOCATION, format!("/v1/jobs/{}", job.id))],
+        Json(job),
+    )
+        .into_response();
     if replayed {
-        res.headers_mut().insert("idempotent-replayed", header::HeaderValue::from_static("true"));
+        res.headers_mut().insert(
+            "idempotent-replayed",
+            header::HeaderValue::from_static("true"),
+        );
     }
     res
 }
@@ -46,8 +54,14 @@ fn job_response(status: StatusCode, job: &JobRecord, replayed: bool) -> Response
 fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Result<(), ApiError> {
     fn parse<T: serde::de::DeserializeOwned>(options: &Value) -> Result<T, ApiError> {
         parse_json(options.to_string().as_bytes()).map_err(|mut e| {
-            let field = e.extensions.get("field").and_then(Value::as_str).unwrap_or("").to_string();
-            e.extensions.insert("field".into(), Value::String(format!("options.{field}")));
+            let field = e
+                .extensions
+                .get("field")
+                .and_then(Value::as_str)
+                .unwrap_or("")
+                .to_string();
+            e.extensions
+                .insert("field".into(), Value::String(format!("options.{field}")));
             e
         })
     }
@@ -63,39 +77,65 @@ fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Resul
             let _: runner::RotaryFeedJobOptions = parse(options)?;
         }
         "stability" => {
-            runner::stability_options(options).map_err(|(field, message)| ApiError::invalid_field(field, message))?;
+            runner::stability_options(options)
+                .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
         }
         "simulate" | "optimize" => {
             let o: runner::SimulateOptions = parse(options)?;
-            o.check(kind == "optimize", has_material_input).map_err(|(field, message)| ApiError::invalid_field(field, message))?;
+            o.check(kind == "optimize", has_material_input)
+                .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
         }
         _ => {}
     }
     Ok(())
 }
 
-pub async fn create(State(state): State<AppState>, Owner(owner): Owner, headers: HeaderMap, req: Request) -> Result<Response, ApiError> {
+pub async fn create(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    headers: HeaderMap,
+    req: Request,
+) -> Result<Response, ApiError> {
     let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes).await?;
     let request: JobRequest = parse_json(&bytes)?;
     let key = match headers.get("idempotency-key") {
         None => None,
         Some(v) => {
-            let k = v.to_str().map_err(|_| ApiError::bad_request("Idempotency-Key must be visible ASCII"))?.trim();
+            let k = v
+                .to_str()
+                .map_err(|_| ApiError::bad_request("Idempotency-Key must be visible ASCII"))?
+                .trim();
             if k.is_empty() || k.len() > 255 {
-                return Err(ApiError::bad_request("Idempotency-Key must be 1 to 255 characters"));
+                return Err(ApiError::bad_request(
+                    "Idempotency-Key must be 1 to 255 characters",
+                ));
             }
             Some(k.to_string())
         }
     };
     if !runner::KNOWN_KINDS.contains(&request.kind.as_str()) {
-        return Err(ApiError::invalid_field("kind", format!("unknown job kind `{}`; one of: {}", request.kind, runner::KNOWN_KINDS.join(", "))));
+        return Err(ApiError::invalid_field(
+            "kind",
+            format!(
+                "unknown job kind `{}`; one of: {}",
+                request.kind,
+                runner::KNOWN_KINDS.join(", ")
+            ),
+        ));
     }
     if !runner::is_supported(&request.kind) {
-        return Err(ApiError::not_supported(format!("job kind `{}` is not supported yet by this server", request.kind)).with("field", "kind"));
+        return Err(ApiError::not_supported(format!(
+            "job kind `{}` is not supported yet by this server",
+            request.kind
+        ))
+        .with("field", "kind"));
     }
     let options = request.options.clone().unwrap_or_else(|| json!({}));
     if !options.is_object() {
-        return Err(ApiError::invalid_field("options", "`options` must be a JSON object"));
+        return Err(ApiError::invalid_field(
+            "options",
+            "`options` must be a JSON object",
+        ));
     }
 
     let mut inputs = Map::new();
@@ -103,26 +143,45 @@ pub async fn create(State(state): State<AppState>, Owner(owner): Owner, headers:
     let specs = runner::inputs_of(&request.kind);
     for name in request.inputs.keys() {
         if !specs.iter().any(|s| s.name == name) {
-            return Err(ApiError::invalid_field(format!("inputs.{name}"), format!("a `{}` job takes no input `{name}`", request.kind)));
+            return Err(ApiError::invalid_field(
+                format!("inputs.{name}"),
+                format!("a `{}` job takes no input `{name}`", request.kind),
+            ));
         }
     }
     for spec in specs {
         let (name, kind) = (spec.name, spec.kind);
         let field = format!("inputs.{name}");
         match request.inputs.get(name) {
-            None if spec.required => return Err(ApiError::invalid_field(field, format!("a `{}` job needs input `{name}`", request.kind))),
+            None if spec.required => {
+                return Err(ApiError::invalid_field(
+                    field,
+                    format!("a `{}` job needs input `{name}`", request.kind),
+                ))
+            }
             None => {}
             Some(Value::String(id)) => {
                 if state.db.get_resource(&owner, kind, id).await?.is_none() {
-                    return Err(ApiError::invalid_field(field, format!("no {} with id `{id}`", kind.as_str())).with("id", id.clone()));
+                    return Err(ApiError::invalid_field(
+                        field,
+                        format!("no {} with id `{id}`", kind.as_str()),
+                    )
+                    .with("id", id.clone()));
                 }
                 inputs.insert(name.to_string(), Value::String(id.clone()));
             }
             Some(Value::Object(o)) if kind == ResourceKind::Program => {
                 let content = o.get("content").and_then(Value::as_str).ok_or_else(|| {
-                    ApiError::invalid_field(format!("{field}.content"), "an inline program is {\"name\": ..., \"content\": \"G-code text\"}")
+                    ApiError::invalid_field(
+                        format!("{field}.content"),
+                        "an inline program is {\"name\": ..., \"content\": \"G-code text\"}",
+                    )
                 })?;
-                let file = o.get("name").and_then(Value::as_str).unwrap_or("program.nc").to_string();
+                let file = o
+                    .get("name")
+                    .and_then(Value::as_str)
+                    .unwrap_or("program.nc")
+                    .to_string();
                 let checked = validate::program(content.as_bytes(), &file)?;
                 inline.push(InlineInput {
                     input: name.to_string(),
@@ -134,11 +193,21 @@ pub async fn create(State(state): State<AppState>, Owner(owner): Owner, headers:
                 });
             }
             Some(_) => {
-                return Err(ApiError::invalid_field(field, format!("input `{name}` must be the id of a {} (a string)", kind.as_str())))
+                return Err(ApiError::invalid_field(
+                    field,
+                    format!(
+                        "input `{name}` must be the id of a {} (a string)",
+                        kind.as_str()
+                    ),
+                ))
             }
         }
     }
-    check_options(&request.kind, &options, request.inputs.contains_key("material"))?;
+    check_options(
+        &request.kind,
+        &options,
+        request.inputs.contains_key("material"),
+    )?;
     let request_hash = hex(&Sha256::digest(&bytes));
     let outcome = state
         .db
@@ -171,49 +240,102 @@ pub async fn create(State(state): State<AppState>, Owner(owner): Owner, headers:
 }
 
 async fn find(db: &Db, owner: &str, id: &str) -> Result<JobRecord, ApiError> {
-    db.get_job(owner, id).await?.ok_or_else(|| ApiError::not_found("job", id))
+    db.get_job(owner, id)
+        .await?
+        .ok_or_else(|| ApiError::not_found("job", id))
 }
 
-pub async fn get_one(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Json<JobRecord>, ApiError> {
+pub async fn get_one(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Json<JobRecord>, ApiError> {
     Ok(Json(find(&state.db, &owner, &id).await?))
 }
 
-pub async fn list(State(state): State<AppState>, Owner(owner): Owner, req: Request) -> Result<Response, ApiError> {
+pub async fn list(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    req: Request,
+) -> Result<Response, ApiError> {
     let q: PageQuery = parse_query(req.uri().query())?;
     let status = match &q.status {
         None => None,
         Some(s) => Some(JobStatus::parse(s).ok_or_else(|| {
-            ApiError::invalid_field("status", format!("unknown status `{s}`; one of: queued, running, succeeded, failed, cancelled"))
+            ApiError::invalid_field(
+                "status",
+                format!(
+                    "unknown status `{s}`; one of: queued, running, succeeded, failed, cancelled"
+                ),
+            )
         })?),
     };
     if let Some(k) = &q.kind {
         if !runner::KNOWN_KINDS.contains(&k.as_str()) {
-            return Err(ApiError::invalid_field("kind", format!("unknown job kind `{k}`; one of: {}", runner::KNOWN_KINDS.join(", "))));
+            return Err(ApiError::invalid_field(
+                "kind",
+                format!(
+                    "unknown job kind `{k}`; one of: {}",
+                    runner::KNOWN_KINDS.join(", ")
+                ),
+            ));
         }
     }
-    let (items, next) = state.db.list_jobs(&owner, status, q.kind.as_deref(), q.cursor.as_deref(), q.limit()?).await?;
+    let (items, next) = state
+        .db
+        .list_jobs(
+            &owner,
+            status,
+            q.kind.as_deref(),
+            q.cursor.as_deref(),
+            q.limit()?,
+        )
+        .await?;
     Ok(Json(json!({ "items": items, "next_cursor": next })).into_response())
 }
 
-pub async fn delete(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+pub async fn delete(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     let job = find(&state.db, &owner, &id).await?;
     if !job.status.is_terminal() {
-        return Err(ApiError::conflict(format!("job {id} is {}: cancel it first", job.status.as_str())).with("job_status", job.status.as_str()));
+        return Err(ApiError::conflict(format!(
+            "job {id} is {}: cancel it first",
+            job.status.as_str()
+        ))
+        .with("job_status", job.status.as_str()));
     }
     state.db.delete_job(&owner, &id).await?;
     Ok(StatusCode::NO_CONTENT.into_response())
 }
 
-pub async fn cancel(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+pub async fn cancel(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     let before = find(&state.db, &owner, &id).await?;
     if before.status.is_terminal() {
-        return Err(ApiError::conflict(format!("job {id} already {}", before.status.as_str())).with("job_status", before.status.as_str()));
+        return Err(
+            ApiError::conflict(format!("job {id} already {}", before.status.as_str()))
+                .with("job_status", before.status.as_str()),
+        );
     }
-    let job = state.db.cancel_job(&owner, &id).await?.ok_or_else(|| ApiError::not_found("job", &id))?;
+    let job = state
+        .db
+        .cancel_job(&owner, &id)
+        .await?
+        .ok_or_else(|| ApiError::not_found("job", &id))?;
     Ok(job_response(StatusCode::ACCEPTED, &job, false))
 }
 
-pub async fn attempts(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+pub async fn attempts(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     find(&state.db, &owner, &id).await?;
     let rows = state.db.job_attempts(&id).await?;
     let items: Vec<Value> = rows
@@ -230,13 +352,20 @@ pub async fn attempts(State(state): State<AppState>, Owner(owner): Owner, Path(i
 async fn succeeded(db: &Db, owner: &str, id: &str) -> Result<JobRecord, ApiError> {
     let job = find(db, owner, id).await?;
     if job.status != JobStatus::Succeeded {
-        return Err(ApiError::conflict(format!("job {id} is {}: results exist once it has succeeded", job.status.as_str()))
-            .with("job_status", job.status.as_str()));
+        return Err(ApiError::conflict(format!(
+            "job {id} is {}: results exist once it has succeeded",
+            job.status.as_str()
+        ))
+        .with("job_status", job.status.as_str()));
     }
     Ok(job)
 }
 
-pub async fn summary(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+pub async fn summary(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     let job = succeeded(&state.db, &owner, &id).await?;
     Ok(Json(job.summary.unwrap_or(Value::Null)).into_response())
 }
@@ -249,21 +378,41 @@ struct BlocksQuery {
     limit: Option<String>,
 }
 
-pub async fn blocks(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>, req: Request) -> Result<Response, ApiError> {
+pub async fn blocks(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+    req: Request,
+) -> Result<Response, ApiError> {
     let q: BlocksQuery = parse_query(req.uri().query())?;
     let job = succeeded(&state.db, &owner, &id).await?;
     match q.format.as_deref().unwrap_or("json") {
         "json" => {
             let from = match &q.cursor {
                 None => 0,
-                Some(c) => c.parse::<i64>().ok().filter(|v| *v >= 0).ok_or_else(|| ApiError::invalid_field("cursor", format!("not a cursor of this route: `{c}`")))?,
+                Some(c) => c.parse::<i64>().ok().filter(|v| *v >= 0).ok_or_else(|| {
+                    ApiError::invalid_field("cursor", format!("not a cursor of this route: `{c}`"))
+                })?,
             };
-            let limit = PageQuery { cursor: None, limit: q.limit.clone(), status: None, kind: None }.limit()?;
+            let limit = PageQuery {
+                cursor: None,
+                limit: q.limit.clone(),
+                status: None,
+                kind: None,
+            }
+            .limit()?;
             let rows = state.db.job_rows(&id, from, i64::from(limit) + 1).await?;
             let more = rows.len() > limit as usize;
-            let items: Vec<Value> =
-                rows.iter().take(limit as usize).map(|(_, d)| serde_json::from_str(d).unwrap_or(Value::Null)).collect();
-            let next = if more { rows.get(limit as usize).map(|(seq, _)| seq.to_string()) } else { None };
+            let items: Vec<Value> = rows
+                .iter()
+                .take(limit as usize)
+                .map(|(_, d)| serde_json::from_str(d).unwrap_or(Value::Null))
+                .collect();
+            let next = if more {
+                rows.get(limit as usize).map(|(seq, _)| seq.to_string())
+            } else {
+                None
+            };
             Ok(Json(json!({ "items": items, "next_cursor": next })).into_response())
         }
         "csv" => {
@@ -274,7 +423,10 @@ pub async fn blocks(State(state): State<AppState>, Owner(owner): Owner, Path(id)
                 .and_then(|c| serde_json::from_value(c.clone()).ok());
             Ok(csv_response(state.db.clone(), id, declared))
         }
-        other => Err(ApiError::invalid_field("format", format!("unknown format `{other}`; one of: json, csv"))),
+        other => Err(ApiError::invalid_field(
+            "format",
+            format!("unknown format `{other}`; one of: json, csv"),
+        )),
     }
 }
 
@@ -290,41 +442,65 @@ fn csv_response(db: Db, id: String, declared: Option<Vec<String>>) -> Response {
         columns: Option<Vec<csv::Column>>,
         done: bool,
     }
-    let stream = stream::unfold(S { db, id, next: 0, declared, columns: None, done: false }, |mut s| async move {
-        if s.done {
-            return None;
-        }
-        let rows = match s.db.job_rows(&s.id, s.next, PAGE).await {
-            Ok(r) => r,
-            Err(e) => return Some((Err(std::io::Error::other(e.to_string())), S { done: true, ..s })),
-        };
-        if (rows.len() as i64) < PAGE {
-            s.done = true;
-        }
-        let parsed: Vec<Map<String, Value>> = rows
-            .iter()
-            .filter_map(|(_, d)| match serde_json::from_str::<Value>(d) {
-                Ok(Value::Object(o)) => Some(o),
-                _ => None,
-            })
-            .collect();
-        if let Some((seq, _)) = rows.last() {
-            s.next = seq + 1;
-        }
-        let mut out = String::with_capacity(rows.len() * 160);
-        for row in &parsed {
-            if s.columns.is_none() {
-                let keys = s.declared.clone().unwrap_or_else(|| row.keys().cloned().collect());
-                let cols = csv::columns(&keys, &parsed);
-                csv::write_header(&mut out, &cols);
-                s.columns = Some(cols);
+    let stream = stream::unfold(
+        S {
+            db,
+            id,
+            next: 0,
+            declared,
+            columns: None,
+            done: false,
+        },
+        |mut s| async move {
+            if s.done {
+                return None;
             }
-            csv::write_row(&mut out, s.columns.as_ref().expect("set above"), row);
-        }
-        Some((Ok::<_, std::io::Error>(bytes::Bytes::from(out)), s))
-    });
+            let rows = match s.db.job_rows(&s.id, s.next, PAGE).await {
+                Ok(r) => r,
+                Err(e) => {
+                    return Some((
+                        Err(std::io::Error::other(e.to_string())),
+                        S { done: true, ..s },
+                    ))
+                }
+            };
+            if (rows.len() as i64) < PAGE {
+                s.done = true;
+            }
+            let parsed: Vec<Map<String, Value>> = rows
+                .iter()
+                .filter_map(|(_, d)| match serde_json::from_str::<Value>(d) {
+                    Ok(Value::Object(o)) => Some(o),
+                    _ => None,
+                })
+                .collect();
+            if let Some((seq, _)) = rows.last() {
+                s.next = seq + 1;
+            }
+            let mut out = String::with_capacity(rows.len() * 160);
+            for row in &parsed {
+                if s.columns.is_none() {
+                    let keys = s
+                        .declared
+                        .clone()
+                        .unwrap_or_else(|| row.keys().cloned().collect());
+                    let cols = csv::columns(&keys, &parsed);
+                    csv::write_header(&mut out, &cols);
+                    s.columns = Some(cols);
+                }
+                csv::write_row(&mut out, s.columns.as_ref().expect("set above"), row);
+            }
+            Some((Ok::<_, std::io::Error>(bytes::Bytes::from(out)), s))
+        },
+    );
     (
-        [(header::CONTENT_TYPE, "text/csv; charset=utf-8"), (header::CONTENT_DISPOSITION, "attachment; filename=\"blocks.csv\"")],
+        [
+            (header::CONTENT_TYPE, "text/csv; charset=utf-8"),
+            (
+                header::CONTENT_DISPOSITION,
+                "attachment; filename=\"blocks.csv\"",
+            ),
+        ],
         Body::from_stream(stream),
     )
         .into_response()
@@ -335,10 +511,19 @@ const MAX_SAMPLE_RANGE: i64 = 10_000;
 
 /// Per-step force samples of rows `from` to `to` (row seq numbers, inclusive), e.g.
 /// `/blocks/100-250/samples`. Rows without engaged steps are left out.
-pub async fn samples(State(state): State<AppState>, Owner(owner): Owner, Path((id, range)): Path<(String, String)>) -> Result<Response, ApiError> {
-    let bad = || ApiError::invalid_field("range", format!("`{range}` is not a block range FROM-TO (row numbers, FROM <= TO, at most {MAX_SAMPLE_RANGE} rows)"));
+pub async fn samples(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path((id, range)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    let bad = || {
+        ApiError::invalid_field("range", format!("`{range}` is not a block range FROM-TO (row numbers, FROM <= TO, at most {MAX_SAMPLE_RANGE} rows)"))
+    };
     let (from, to) = range.split_once('-').ok_or_else(bad)?;
-    let (from, to) = (from.parse::<i64>().map_err(|_| bad())?, to.parse::<i64>().map_err(|_| bad())?);
+    let (from, to) = (
+        from.parse::<i64>().map_err(|_| bad())?,
+        to.parse::<i64>().map_err(|_| bad())?,
+    );
     if from < 0 || to < from || to - from >= MAX_SAMPLE_RANGE {
         return Err(bad());
     }
@@ -353,27 +538,60 @@ pub async fn samples(State(state): State<AppState>, Owner(owner): Owner, Path((i
     Ok(Json(json!({ "from": from, "to": to, "items": items })).into_response())
 }
 
-async fn artifact(state: &AppState, owner: &str, id: &str, name: &str, what: &str) -> Result<Response, ApiError> {
+async fn artifact(
+    state: &AppState,
+    owner: &str,
+    id: &str,
+    name: &str,
+    what: &str,
+) -> Result<Response, ApiError> {
     let job = succeeded(&state.db, owner, id).await?;
     let a = state.db.job_artifact(id, name).await?.ok_or_else(|| {
-        ApiError::new(StatusCode::NOT_FOUND, "no-result", "No such result", format!("job {id} ({}) produced no {what}: only optimize/simulate jobs do", job.kind))
+        ApiError::new(
+            StatusCode::NOT_FOUND,
+            "no-result",
+            "No such result",
+            format!(
+                "job {id} ({}) produced no {what}: only optimize/simulate jobs do",
+                job.kind
+            ),
+        )
     })?;
     let disposition = format!("attachment; filename=\"{}\"", a.file_name.replace('"', ""));
-    Ok(([(header::CONTENT_TYPE, a.media_type), (header::CONTENT_DISPOSITION, disposition)], a.content).into_response())
+    Ok((
+        [
+            (header::CONTENT_TYPE, a.media_type),
+            (header::CONTENT_DISPOSITION, disposition),
+        ],
+        a.content,
+    )
+        .into_response())
 }
 
-pub async fn program(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+pub async fn program(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     artifact(&state, &owner, &id, "program", "optimized program").await
 }
 
-pub async fn stock_stl(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+pub async fn stock_stl(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     artifact(&state, &owner, &id, "stock.stl", "final stock").await
 }
 
 /// Server-sent events: `progress` whenever it changes, then one `status` event with the
 /// final job, then the stream ends. Reads the database, so progress from workers in other
 /// processes arrives too.
-pub async fn events(State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+pub async fn events(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     let job = find(&state.db, &owner, &id).await?;
     struct S {
         db: Db,
@@ -384,7 +602,15 @@ pub async fn events(State(state): State<AppState>, Owner(owner): Owner, Path(id)
         finished: bool,
         shutdown: tokio::sync::watch::Receiver<bool>,
     }
-    let start = S { db: state.db.clone(), owner, id, last: None, first: Some(job), finished: false, shutdown: state.shutdown.clone() };
+    let start = S {
+        db: state.db.clone(),
+        owner,
+        id,
+        last: None,
+        first: Some(job),
+        finished: false,
+        shutdown: state.shutdown.clone(),
+    };
     let stream = stream::unfold(start, |mut s| async move {
         if s.finished {
             return None;
@@ -408,10 +634,17 @@ pub async fn events(State(state): State<AppState>, Owner(owner): Owner, Path(id)
             };
             if job.status.is_terminal() {
                 s.finished = true;
-                let ev = Event::default().event("status").json_data(&job).unwrap_or_default();
+                let ev = Event::default()
+                    .event("status")
+                    .json_data(&job)
+                    .unwrap_or_default();
                 return Some((Ok::<_, Infallible>(ev), s));
             }
-            let now = (job.status.as_str().to_string(), job.progress.done, job.progress.total);
+            let now = (
+                job.status.as_str().to_string(),
+                job.progress.done,
+                job.progress.total,
+            );
             if s.last.as_ref() != Some(&now) {
                 s.last = Some(now);
                 let ev = Event::default()
@@ -422,5 +655,7 @@ pub async fn events(State(state): State<AppState>, Owner(owner): Owner, Path(id)
             }
         }
     });
-    Ok(Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(15))).into_response())
+    Ok(Sse::new(stream)
+        .keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
+        .into_response())
 }

@@ -78,7 +78,9 @@ pub fn route_table() -> Vec<(Method, String)> {
 }
 
 pub fn router(state: AppState) -> Router {
-    let timeout = |secs: u64| TimeoutLayer::with_status_code(StatusCode::REQUEST_TIMEOUT, Duration::from_secs(secs));
+    let timeout = |secs: u64| {
+        TimeoutLayer::with_status_code(StatusCode::REQUEST_TIMEOUT, Duration::from_secs(secs))
+    };
     let limits = state.limits.clone();
 
     let mut api = Router::new();
@@ -88,13 +90,18 @@ pub fn router(state: AppState) -> Router {
         api = api
             .route(
                 &format!("/v1/{c}"),
-                post(move |s, o, r| resources::create(kind, s, o, r)).get(move |s, o, r| resources::list(kind, s, o, r)),
+                post(move |s, o, r| resources::create(kind, s, o, r))
+                    .get(move |s, o, r| resources::list(kind, s, o, r)),
             )
             .route(
                 &format!("/v1/{c}/{{id}}"),
-                get(move |s, o, p| resources::get_one(kind, s, o, p)).delete(move |s, o, p| resources::delete(kind, s, o, p)),
+                get(move |s, o, p| resources::get_one(kind, s, o, p))
+                    .delete(move |s, o, p| resources::delete(kind, s, o, p)),
             )
-            .route(&format!("/v1/{c}/{{id}}/content"), get(move |s, o, p| resources::content(kind, s, o, p)));
+            .route(
+                &format!("/v1/{c}/{{id}}/content"),
+                get(move |s, o, p| resources::content(kind, s, o, p)),
+            );
     }
     let api = api
         .route("/v1/jobs", post(jobs::create).get(jobs::list))
@@ -111,7 +118,10 @@ pub fn router(state: AppState) -> Router {
         .layer(DefaultBodyLimit::max(limits.max_stl_bytes as usize))
         // Server-sent events last as long as the job: no request timeout.
         .route("/v1/jobs/{id}/events", get(jobs::events))
-        .route_layer(middleware::from_fn_with_state(state.clone(), auth::require_key));
+        .route_layer(middleware::from_fn_with_state(
+            state.clone(),
+            auth::require_key,
+        ));
 
     let ops = Router::new()
         .route("/", get(ops::index))
@@ -143,7 +153,12 @@ pub fn router(state: AppState) -> Router {
 }
 
 async fn fallback(req: Request) -> ApiError {
-    ApiError::new(StatusCode::NOT_FOUND, "no-route", "No such route", format!("no route for {} {}", req.method(), req.uri().path()))
+    ApiError::new(
+        StatusCode::NOT_FOUND,
+        "no-route",
+        "No such route",
+        format!("no route for {} {}", req.method(), req.uri().path()),
+    )
 }
 
 async fn method_not_allowed(req: Request) -> ApiError {
@@ -156,11 +171,20 @@ async fn method_not_allowed(req: Request) -> ApiError {
 }
 
 async fn record_metrics(State(state): State<AppState>, req: Request, next: Next) -> Response {
-    let route = req.extensions().get::<MatchedPath>().map(|p| p.as_str().to_string()).unwrap_or_else(|| "unmatched".into());
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map(|p| p.as_str().to_string())
+        .unwrap_or_else(|| "unmatched".into());
     let method = req.method().clone();
     let start = std::time::Instant::now();
     let res = next.run(req).await;
-    state.metrics.observe_request(method.as_str(), &route, res.status().as_u16(), start.elapsed());
+    state.metrics.observe_request(
+        method.as_str(),
+        &route,
+        res.status().as_u16(),
+        start.elapsed(),
+    );
     res
 }
 
@@ -170,8 +194,15 @@ pub struct Owner(pub String);
 
 impl<S: Send + Sync> axum::extract::FromRequestParts<S> for Owner {
     type Rejection = ApiError;
-    async fn from_request_parts(parts: &mut axum::http::request::Parts, _: &S) -> Result<Self, Self::Rejection> {
-        parts.extensions.get::<Owner>().cloned().ok_or_else(|| ApiError::unauthorized("no API key"))
+    async fn from_request_parts(
+        parts: &mut axum::http::request::Parts,
+        _: &S,
+    ) -> Result<Self, Self::Rejection> {
+        parts
+            .extensions
+            .get::<Owner>()
+            .cloned()
+            .ok_or_else(|| ApiError::unauthorized("no API key"))
     }
 }
 
@@ -191,7 +222,10 @@ impl PageQuery {
             None => Ok(50),
             Some(s) => match s.parse::<u32>() {
                 Ok(n) if (1..=1000).contains(&n) => Ok(n),
-                _ => Err(ApiError::invalid_field("limit", format!("`limit` must be an integer from 1 to 1000, got `{s}`"))),
+                _ => Err(ApiError::invalid_field(
+                    "limit",
+                    format!("`limit` must be an integer from 1 to 1000, got `{s}`"),
+                )),
             },
         }
     }
@@ -204,7 +238,11 @@ pub fn parse_query<T: serde::de::DeserializeOwned>(query: Option<&str>) -> Resul
 }
 
 fn serde_urlencoded_parse<T: serde::de::DeserializeOwned>(q: &str) -> Result<T, ApiError> {
-    axum::extract::Query::<T>::try_from_uri(&format!("/?{q}").parse().map_err(|_| ApiError::bad_request("malformed query string"))?)
-        .map(|axum::extract::Query(v)| v)
-        .map_err(|e| ApiError::bad_request(format!("query string: {}", e.body_text())))
+    axum::extract::Query::<T>::try_from_uri(
+        &format!("/?{q}")
+            .parse()
+            .map_err(|_| ApiError::bad_request("malformed query string"))?,
+    )
+    .map(|axum::extract::Query(v)| v)
+    .map_err(|e| ApiError::bad_request(format!("query string: {}", e.body_text())))
 }

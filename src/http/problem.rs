@@ -20,30 +20,60 @@ pub struct ApiError {
 }
 
 impl ApiError {
-    pub fn new(status: StatusCode, slug: &'static str, title: &'static str, detail: impl Into<String>) -> Self {
-        ApiError { status, slug, title, detail: detail.into(), extensions: Map::new() }
+    pub fn new(
+        status: StatusCode,
+        slug: &'static str,
+        title: &'static str,
+        detail: impl Into<String>,
+    ) -> Self {
+        ApiError {
+            status,
+            slug,
+            title,
+            detail: detail.into(),
+            extensions: Map::new(),
+        }
     }
 
     pub fn with(mut self, key: &str, value: impl Into<Value>) -> Self {
         // The RFC 9457 members are set from the error itself, never by an extension.
-        debug_assert!(!matches!(key, "type" | "title" | "status" | "detail"), "extension `{key}` would replace a problem member");
+        debug_assert!(
+            !matches!(key, "type" | "title" | "status" | "detail"),
+            "extension `{key}` would replace a problem member"
+        );
         self.extensions.insert(key.to_string(), value.into());
         self
     }
 
     pub fn bad_request(detail: impl Into<String>) -> Self {
-        Self::new(StatusCode::BAD_REQUEST, "bad-request", "Bad request", detail)
+        Self::new(
+            StatusCode::BAD_REQUEST,
+            "bad-request",
+            "Bad request",
+            detail,
+        )
     }
 
     /// The body parsed but a value is not acceptable; `field` is a JSON path.
     pub fn invalid_field(field: impl Into<String>, detail: impl Into<String>) -> Self {
         let field = field.into();
-        Self::new(StatusCode::UNPROCESSABLE_ENTITY, "invalid-field", "Invalid field", detail).with("field", field)
+        Self::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid-field",
+            "Invalid field",
+            detail,
+        )
+        .with("field", field)
     }
 
     pub fn not_found(what: &str, id: &str) -> Self {
-        Self::new(StatusCode::NOT_FOUND, "not-found", "Not found", format!("no {what} with id `{id}`"))
-            .with("id", id.to_string())
+        Self::new(
+            StatusCode::NOT_FOUND,
+            "not-found",
+            "Not found",
+            format!("no {what} with id `{id}`"),
+        )
+        .with("id", id.to_string())
     }
 
     pub fn too_large(limit: u64) -> Self {
@@ -61,11 +91,21 @@ impl ApiError {
     }
 
     pub fn not_supported(detail: impl Into<String>) -> Self {
-        Self::new(StatusCode::UNPROCESSABLE_ENTITY, "not-supported", "Not supported yet", detail)
+        Self::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "not-supported",
+            "Not supported yet",
+            detail,
+        )
     }
 
     pub fn unauthorized(detail: impl Into<String>) -> Self {
-        Self::new(StatusCode::UNAUTHORIZED, "unauthorized", "Unauthorized", detail)
+        Self::new(
+            StatusCode::UNAUTHORIZED,
+            "unauthorized",
+            "Unauthorized",
+            detail,
+        )
     }
 
     pub fn to_json(&self) -> Value {
@@ -84,7 +124,12 @@ impl ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        (self.status, [(header::CONTENT_TYPE, PROBLEM_JSON)], self.to_json().to_string()).into_response()
+        (
+            self.status,
+            [(header::CONTENT_TYPE, PROBLEM_JSON)],
+            self.to_json().to_string(),
+        )
+            .into_response()
     }
 }
 
@@ -92,7 +137,12 @@ impl From<StoreError> for ApiError {
     fn from(e: StoreError) -> Self {
         // Storage failures are ours, not the client's; the log has the cause.
         tracing::error!(error = %e, "storage error");
-        ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "storage", "Storage unavailable", "the database could not complete the request; retry later")
+        ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "storage",
+            "Storage unavailable",
+            "the database could not complete the request; retry later",
+        )
     }
 }
 
@@ -114,7 +164,13 @@ pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Api
                 .iter()
                 .find_map(|p| msg.strip_prefix(p))
                 .and_then(|rest| rest.split('`').next())
-                .map(|f| if path == "." { f.to_string() } else { format!("{path}.{f}") });
+                .map(|f| {
+                    if path == "." {
+                        f.to_string()
+                    } else {
+                        format!("{path}.{f}")
+                    }
+                });
             let field = named.unwrap_or(path);
             ApiError::invalid_field(field.clone(), format!("`{field}`: {msg}"))
         }

@@ -24,7 +24,15 @@ struct UploadQuery {
 fn disposition_name(headers: &HeaderMap) -> Option<String> {
     let v = headers.get(header::CONTENT_DISPOSITION)?.to_str().ok()?;
     let at = v.find("filename=")?;
-    Some(v[at + 9..].split(';').next()?.trim().trim_matches('"').to_string()).filter(|s| !s.is_empty())
+    Some(
+        v[at + 9..]
+            .split(';')
+            .next()?
+            .trim()
+            .trim_matches('"')
+            .to_string(),
+    )
+    .filter(|s| !s.is_empty())
 }
 
 /// Reads the uploaded bytes: the raw body, or the `file` part (else the first part) of
@@ -35,7 +43,11 @@ async fn upload_bytes(req: Request, limit: u64) -> Result<(Vec<u8>, Option<Strin
         let mut form = Multipart::from_request(req, &())
             .await
             .map_err(|e| ApiError::bad_request(format!("multipart form: {}", e.body_text())))?;
-        while let Some(mut field) = form.next_field().await.map_err(|e| multipart_error(e, limit))? {
+        while let Some(mut field) = form
+            .next_field()
+            .await
+            .map_err(|e| multipart_error(e, limit))?
+        {
             let is_file = field.name() == Some("file") || field.file_name().is_some();
             if !is_file {
                 continue;
@@ -50,7 +62,10 @@ async fn upload_bytes(req: Request, limit: u64) -> Result<(Vec<u8>, Option<Strin
             }
             return Ok((out, name));
         }
-        return Err(ApiError::invalid_field("file", "the multipart form has no `file` part"));
+        return Err(ApiError::invalid_field(
+            "file",
+            "the multipart form has no `file` part",
+        ));
     }
     let name = disposition_name(&headers);
     let bytes = read_limited(&headers, req.into_body(), limit).await?;
@@ -65,31 +80,53 @@ fn multipart_error(e: axum::extract::multipart::MultipartError, limit: u64) -> A
     }
 }
 
-pub async fn create(kind: ResourceKind, State(state): State<AppState>, Owner(owner): Owner, req: Request) -> Result<Response, ApiError> {
+pub async fn create(
+    kind: ResourceKind,
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    req: Request,
+) -> Result<Response, ApiError> {
     let query: UploadQuery = parse_query(req.uri().query())?;
     let limits = state.limits.clone();
     let mt = media_type(req.headers());
     let (bytes, file_name, checked): (Vec<u8>, Option<String>, Validated) = match kind {
         ResourceKind::Stock if mt == "application/json" => {
-            let bytes = read_limited(&req.headers().clone(), req.into_body(), limits.max_json_bytes).await?;
+            let bytes = read_limited(
+                &req.headers().clone(),
+                req.into_body(),
+                limits.max_json_bytes,
+            )
+            .await?;
             let v = validate::stock_json(&bytes)?;
             (bytes, None, v)
         }
         ResourceKind::Stock => {
             let (bytes, name) = upload_bytes(req, limits.max_stl_bytes).await?;
-            let file = query.name.clone().or(name.clone()).unwrap_or_else(|| "stock.stl".into());
+            let file = query
+                .name
+                .clone()
+                .or(name.clone())
+                .unwrap_or_else(|| "stock.stl".into());
             // STL parsing and the closedness check are CPU work: keep them off the runtime.
-            let v = tokio::task::spawn_blocking(move || validate::stl(&bytes, &file).map(|v| (bytes, v)))
-                .await
-                .map_err(|_| ApiError::bad_request("the STL could not be read"))??;
+            let v = tokio::task::spawn_blocking(move || {
+                validate::stl(&bytes, &file).map(|v| (bytes, v))
+            })
+            .await
+            .map_err(|_| ApiError::bad_request("the STL could not be read"))??;
             (v.0, name, v.1)
         }
         ResourceKind::Program => {
             let (bytes, name) = upload_bytes(req, limits.max_program_bytes).await?;
-            let file = query.name.clone().or(name.clone()).unwrap_or_else(|| "program.nc".into());
-            let v = tokio::task::spawn_blocking(move || validate::program(&bytes, &file).map(|v| (bytes, v)))
-                .await
-                .map_err(|_| ApiError::bad_request("the program could not be read"))??;
+            let file = query
+                .name
+                .clone()
+                .or(name.clone())
+                .unwrap_or_else(|| "program.nc".into());
+            let v = tokio::task::spawn_blocking(move || {
+                validate::program(&bytes, &file).map(|v| (bytes, v))
+            })
+            .await
+            .map_err(|_| ApiError::bad_request("the program could not be read"))??;
             (v.0, name, v.1)
         }
         ResourceKind::Tool | ResourceKind::Material | ResourceKind::Machine => {
@@ -98,10 +135,18 @@ pub async fn create(kind: ResourceKind, State(state): State<AppState>, Owner(own
                     StatusCode::UNSUPPORTED_MEDIA_TYPE,
                     "unsupported-media-type",
                     "Unsupported media type",
-                    format!("a {} is JSON: send Content-Type: application/json, not `{mt}`", kind.as_str()),
+                    format!(
+                        "a {} is JSON: send Content-Type: application/json, not `{mt}`",
+                        kind.as_str()
+                    ),
                 ));
             }
-            let bytes = read_limited(&req.headers().clone(), req.into_body(), limits.max_json_bytes).await?;
+            let bytes = read_limited(
+                &req.headers().clone(),
+                req.into_body(),
+                limits.max_json_bytes,
+            )
+            .await?;
             let v = match kind {
                 ResourceKind::Tool => validate::tool(&bytes)?,
                 ResourceKind::Material => validate::material(&bytes)?,
@@ -113,32 +158,77 @@ pub async fn create(kind: ResourceKind, State(state): State<AppState>, Owner(own
     let name = query.name.or(file_name);
     let record = state
         .db
-        .create_resource(&owner, &NewResource { kind, name: name.as_deref(), media_type: checked.media_type, summary: checked.summary, content: &bytes })
+        .create_resource(
+            &owner,
+            &NewResource {
+                kind,
+                name: name.as_deref(),
+                media_type: checked.media_type,
+                summary: checked.summary,
+                content: &bytes,
+            },
+        )
         .await?;
     let location = format!("/v1/{}/{}", kind.collection(), record.id);
-    Ok((StatusCode::CREATED, [(header::LOCATION, location)], Json(record)).into_response())
+    Ok((
+        StatusCode::CREATED,
+        [(header::LOCATION, location)],
+        Json(record),
+    )
+        .into_response())
 }
 
-pub async fn list(kind: ResourceKind, State(state): State<AppState>, Owner(owner): Owner, req: Request) -> Result<Response, ApiError> {
+pub async fn list(
+    kind: ResourceKind,
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    req: Request,
+) -> Result<Response, ApiError> {
     let q: PageQuery = parse_query(req.uri().query())?;
     if q.status.is_some() || q.kind.is_some() {
-        return Err(ApiError::invalid_field("status", "`status` and `kind` filter jobs, not resources"));
+        return Err(ApiError::invalid_field(
+            "status",
+            "`status` and `kind` filter jobs, not resources",
+        ));
     }
-    let (items, next) = state.db.list_resources(&owner, kind, q.cursor.as_deref(), q.limit()?).await?;
+    let (items, next) = state
+        .db
+        .list_resources(&owner, kind, q.cursor.as_deref(), q.limit()?)
+        .await?;
     Ok(Json(json!({ "items": items, "next_cursor": next })).into_response())
 }
 
-pub async fn get_one(kind: ResourceKind, State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
-    let r = state.db.get_resource(&owner, kind, &id).await?.ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
+pub async fn get_one(
+    kind: ResourceKind,
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let r = state
+        .db
+        .get_resource(&owner, kind, &id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
     Ok(Json(r).into_response())
 }
 
-pub async fn content(kind: ResourceKind, State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
-    let (name, mt, bytes) =
-        state.db.resource_content(&owner, kind, &id).await?.ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
+pub async fn content(
+    kind: ResourceKind,
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let (name, mt, bytes) = state
+        .db
+        .resource_content(&owner, kind, &id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
     let mut res = ([(header::CONTENT_TYPE, mt)], bytes).into_response();
     if let Some(name) = name {
-        let safe: String = name.chars().filter(|c| !matches!(c, '"' | '\\' | '\r' | '\n')).collect();
+        let safe: String = name
+            .chars()
+            .filter(|c| !matches!(c, '"' | '\\' | '\r' | '\n'))
+            .collect();
         if let Ok(v) = format!("attachment; filename=\"{safe}\"").parse() {
             res.headers_mut().insert(header::CONTENT_DISPOSITION, v);
         }
@@ -146,7 +236,12 @@ pub async fn content(kind: ResourceKind, State(state): State<AppState>, Owner(ow
     Ok(res)
 }
 
-pub async fn delete(kind: ResourceKind, State(state): State<AppState>, Owner(owner): Owner, Path(id): Path<String>) -> Result<Response, ApiError> {
+pub async fn delete(
+    kind: ResourceKind,
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
     if state.db.delete_resource(&owner, kind, &id).await? {
         Ok(StatusCode::NO_CONTENT.into_response())
     } else {

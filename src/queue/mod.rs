@@ -33,12 +33,22 @@ impl Progress for SharedProgress {
 /// A name for this process's workers, unique across processes and restarts.
 pub fn process_worker_prefix() -> String {
     let host = std::env::var("HOSTNAME").unwrap_or_else(|_| "host".into());
-    format!("{host}-{}-{}", std::process::id(), &uuid::Uuid::now_v7().simple().to_string()[20..])
+    format!(
+        "{host}-{}-{}",
+        std::process::id(),
+        &uuid::Uuid::now_v7().simple().to_string()[20..]
+    )
 }
 
 /// Runs `config.workers` workers until `shutdown` turns true, then lets running jobs
 /// finish within the grace period or gives their leases back.
-pub async fn run_workers(db: Db, config: QueueConfig, metrics: Arc<Metrics>, wake: Arc<Notify>, shutdown: watch::Receiver<bool>) {
+pub async fn run_workers(
+    db: Db,
+    config: QueueConfig,
+    metrics: Arc<Metrics>,
+    wake: Arc<Notify>,
+    shutdown: watch::Receiver<bool>,
+) {
     let prefix = process_worker_prefix();
     let mut handles = Vec::new();
     for i in 0..config.workers {
@@ -94,12 +104,16 @@ impl Worker {
     async fn load_inputs(&self, job: &ClaimedJob) -> Result<LoadedInputs, serde_json::Value> {
         let mut loaded = LoadedInputs::new();
         for spec in runner::inputs_of(&job.kind) {
-            let Some(id) = job.spec["inputs"][spec.name].as_str() else { continue };
+            let Some(id) = job.spec["inputs"][spec.name].as_str() else {
+                continue;
+            };
             let found = self
                 .db
                 .resource_content(&job.owner, spec.kind, id)
                 .await
-                .map_err(|e| json!({"title": "storage error", "detail": e.to_string(), "status": 503}))?;
+                .map_err(
+                    |e| json!({"title": "storage error", "detail": e.to_string(), "status": 503}),
+                )?;
             let Some((file_name, media_type, content)) = found else {
                 return Err(json!({
                     "type": "https://millsim.dev/problems/input-gone",
@@ -107,7 +121,14 @@ impl Worker {
                     "detail": format!("input `{}` ({} {id}) was deleted before the job ran", spec.name, spec.kind.as_str()),
                 }));
             };
-            loaded.insert(spec.name.to_string(), runner::LoadedInput { file_name, media_type, content });
+            loaded.insert(
+                spec.name.to_string(),
+                runner::LoadedInput {
+                    file_name,
+                    media_type,
+                    content,
+                },
+            );
         }
         Ok(loaded)
     }
@@ -130,11 +151,16 @@ impl Worker {
         };
         match self.db.finish_job(&job, &self.id, outcome).await {
             Ok(true) => {
-                self.metrics.observe_job(&job.kind, label, started.elapsed());
+                self.metrics
+                    .observe_job(&job.kind, label, started.elapsed());
                 tracing::info!(worker = %self.id, job = %job.id, outcome = label, seconds = started.elapsed().as_secs_f64(), "job finished");
             }
-            Ok(false) => tracing::warn!(worker = %self.id, job = %job.id, "lease lost before commit; result dropped"),
-            Err(e) => tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not commit the job's outcome"),
+            Ok(false) => {
+                tracing::warn!(worker = %self.id, job = %job.id, "lease lost before commit; result dropped")
+            }
+            Err(e) => {
+                tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not commit the job's outcome")
+            }
         }
     }
 
@@ -144,8 +170,15 @@ impl Worker {
         let cancel = CancelFlag::new();
         let progress = Arc::new(SharedProgress::default());
         let mut engine = {
-            let (cancel, progress, kind, options) = (cancel.clone(), progress.clone(), job.kind.clone(), job.spec["options"].clone());
-            tokio::task::spawn_blocking(move || runner::run(&kind, &options, inputs, &cancel, progress.as_ref()))
+            let (cancel, progress, kind, options) = (
+                cancel.clone(),
+                progress.clone(),
+                job.kind.clone(),
+                job.spec["options"].clone(),
+            );
+            tokio::task::spawn_blocking(move || {
+                runner::run(&kind, &options, inputs, &cancel, progress.as_ref())
+            })
         };
         let beat = Duration::from_millis((self.config.lease_ms as u64 / 3).clamp(100, 1000));
         let mut ticker = tokio::time::interval(beat);
@@ -195,15 +228,27 @@ impl Worker {
                 artifacts: out
                     .files
                     .into_iter()
-                    .map(|f| Artifact { name: f.name.to_string(), media_type: f.media_type.to_string(), file_name: f.file_name, content: f.content })
+                    .map(|f| Artifact {
+                        name: f.name.to_string(),
+                        media_type: f.media_type.to_string(),
+                        file_name: f.file_name,
+                        content: f.content,
+                    })
                     .collect(),
-                progress: (progress.done.load(Ordering::Relaxed), progress.total.load(Ordering::Relaxed)),
+                progress: (
+                    progress.done.load(Ordering::Relaxed),
+                    progress.total.load(Ordering::Relaxed),
+                ),
             }),
             Ok(Err(JobFailure::Invalid(problem))) => Some(Finish::Failed { error: problem }),
             Ok(Err(JobFailure::Cancelled)) if give_back => {
                 match self.db.release_job(job, &self.id).await {
-                    Ok(_) => tracing::info!(worker = %self.id, job = %job.id, "job given back to the queue"),
-                    Err(e) => tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not give the job back; its lease will expire"),
+                    Ok(_) => {
+                        tracing::info!(worker = %self.id, job = %job.id, "job given back to the queue")
+                    }
+                    Err(e) => {
+                        tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not give the job back; its lease will expire")
+                    }
                 }
                 None
             }

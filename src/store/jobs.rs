@@ -19,8 +19,13 @@ pub enum JobStatus {
 }
 
 impl JobStatus {
-    pub const ALL: [JobStatus; 5] =
-        [JobStatus::Queued, JobStatus::Running, JobStatus::Succeeded, JobStatus::Failed, JobStatus::Cancelled];
+    pub const ALL: [JobStatus; 5] = [
+        JobStatus::Queued,
+        JobStatus::Running,
+        JobStatus::Succeeded,
+        JobStatus::Failed,
+        JobStatus::Cancelled,
+    ];
 
     pub fn as_str(self) -> &'static str {
         match self {
@@ -37,7 +42,10 @@ impl JobStatus {
     }
 
     pub fn is_terminal(self) -> bool {
-        matches!(self, JobStatus::Succeeded | JobStatus::Failed | JobStatus::Cancelled)
+        matches!(
+            self,
+            JobStatus::Succeeded | JobStatus::Failed | JobStatus::Cancelled
+        )
     }
 }
 
@@ -82,9 +90,18 @@ fn job_record(row: &sqlx::sqlite::SqliteRow) -> Result<JobRecord, StoreError> {
         id: row.try_get("id")?,
         kind: row.try_get("kind")?,
         status: JobStatus::parse(&status).unwrap_or(JobStatus::Failed),
-        inputs: spec.get("inputs").cloned().unwrap_or(serde_json::Value::Null),
-        options: spec.get("options").cloned().unwrap_or(serde_json::Value::Null),
-        progress: Progress { done: row.try_get("progress_done")?, total: row.try_get("progress_total")? },
+        inputs: spec
+            .get("inputs")
+            .cloned()
+            .unwrap_or(serde_json::Value::Null),
+        options: spec
+            .get("options")
+            .cloned()
+            .unwrap_or(serde_json::Value::Null),
+        progress: Progress {
+            done: row.try_get("progress_done")?,
+            total: row.try_get("progress_total")?,
+        },
         attempts: row.try_get("attempts")?,
         max_attempts: row.try_get("max_attempts")?,
         cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
@@ -142,8 +159,16 @@ pub struct ClaimedJob {
 
 /// How a worker's attempt ended, written with the state change.
 pub enum Finish {
-    Succeeded { summary: serde_json::Value, rows: Vec<String>, samples: Vec<(usize, String)>, artifacts: Vec<Artifact>, progress: (u64, u64) },
-    Failed { error: serde_json::Value },
+    Succeeded {
+        summary: serde_json::Value,
+        rows: Vec<String>,
+        samples: Vec<(usize, String)>,
+        artifacts: Vec<Artifact>,
+        progress: (u64, u64),
+    },
+    Failed {
+        error: serde_json::Value,
+    },
     Cancelled,
 }
 
@@ -165,10 +190,16 @@ fn is_unique_violation(e: &sqlx::Error) -> bool {
 }
 
 impl Db {
-    pub async fn create_job(&self, owner: &str, mut new: NewJob) -> Result<CreateOutcome, StoreError> {
+    pub async fn create_job(
+        &self,
+        owner: &str,
+        mut new: NewJob,
+    ) -> Result<CreateOutcome, StoreError> {
         if let Some(key) = &new.idempotency_key {
             if let Some(existing) = self.job_by_idempotency_key(owner, key).await? {
-                return self.replay_or_conflict(owner, &new.request_hash, existing).await;
+                return self
+                    .replay_or_conflict(owner, &new.request_hash, existing)
+                    .await;
             }
         }
         let now = now_ms();
@@ -183,7 +214,8 @@ impl Db {
                 content: &inline.content,
             };
             let rid = insert_resource(&mut *tx, owner, &resource).await?;
-            new.inputs.insert(inline.input.clone(), serde_json::Value::String(rid));
+            new.inputs
+                .insert(inline.input.clone(), serde_json::Value::String(rid));
         }
         let spec = serde_json::json!({ "inputs": new.inputs, "options": new.options });
         let inserted = sqlx::query(
@@ -204,27 +236,43 @@ impl Db {
         match inserted {
             Ok(_) => {
                 tx.commit().await?;
-                Ok(CreateOutcome::Created(self.get_job(owner, &id).await?.expect("job just inserted")))
+                Ok(CreateOutcome::Created(
+                    self.get_job(owner, &id).await?.expect("job just inserted"),
+                ))
             }
             // Two requests with one key raced; the other one won.
             Err(e) if is_unique_violation(&e) && new.idempotency_key.is_some() => {
                 tx.rollback().await?;
                 let key = new.idempotency_key.as_deref().unwrap_or_default();
-                let existing = self.job_by_idempotency_key(owner, key).await?.ok_or(StoreError::Sql(e))?;
-                self.replay_or_conflict(owner, &new.request_hash, existing).await
+                let existing = self
+                    .job_by_idempotency_key(owner, key)
+                    .await?
+                    .ok_or(StoreError::Sql(e))?;
+                self.replay_or_conflict(owner, &new.request_hash, existing)
+                    .await
             }
             Err(e) => Err(e.into()),
         }
     }
 
-    async fn job_by_idempotency_key(&self, owner: &str, key: &str) -> Result<Option<(String, String)>, StoreError> {
-        let row = sqlx::query("SELECT id, request_hash FROM jobs WHERE owner = ? AND idempotency_key = ?")
-            .bind(owner)
-            .bind(key)
-            .fetch_optional(&self.pool)
-            .await?;
+    async fn job_by_idempotency_key(
+        &self,
+        owner: &str,
+        key: &str,
+    ) -> Result<Option<(String, String)>, StoreError> {
+        let row = sqlx::query(
+            "SELECT id, request_hash FROM jobs WHERE owner = ? AND idempotency_key = ?",
+        )
+        .bind(owner)
+        .bind(key)
+        .fetch_optional(&self.pool)
+        .await?;
         Ok(match row {
-            Some(r) => Some((r.try_get("id")?, r.try_get::<Option<String>, _>("request_hash")?.unwrap_or_default())),
+            Some(r) => Some((
+                r.try_get("id")?,
+                r.try_get::<Option<String>, _>("request_hash")?
+                    .unwrap_or_default(),
+            )),
             None => None,
         })
     }
@@ -236,7 +284,11 @@ impl Db {
         (id, stored_hash): (String, String),
     ) -> Result<CreateOutcome, StoreError> {
         let job = self.get_job(owner, &id).await?.expect("job found by key");
-        Ok(if stored_hash == hash { CreateOutcome::Replayed(job) } else { CreateOutcome::KeyConflict(job) })
+        Ok(if stored_hash == hash {
+            CreateOutcome::Replayed(job)
+        } else {
+            CreateOutcome::KeyConflict(job)
+        })
     }
 
     pub async fn get_job(&self, owner: &str, id: &str) -> Result<Option<JobRecord>, StoreError> {
@@ -332,7 +384,11 @@ impl Db {
     /// Claims the oldest claimable job in one atomic UPDATE … RETURNING: a queued job,
     /// or a running one whose lease expired (its worker died). Cancelled-while-dead jobs
     /// are settled first.
-    pub async fn claim_job(&self, worker: &str, lease_ms: i64) -> Result<Option<ClaimedJob>, StoreError> {
+    pub async fn claim_job(
+        &self,
+        worker: &str,
+        lease_ms: i64,
+    ) -> Result<Option<ClaimedJob>, StoreError> {
         let now = now_ms();
         self.fail_exhausted().await?;
         sqlx::query(
@@ -377,20 +433,29 @@ impl Db {
             .bind(&job.id)
             .execute(&mut *tx)
             .await?;
-        sqlx::query("INSERT INTO job_attempts (job_id, attempt, worker, started_at) VALUES (?, ?, ?, ?)")
-            .bind(&job.id)
-            .bind(job.attempt)
-            .bind(worker)
-            .bind(now)
-            .execute(&mut *tx)
-            .await?;
+        sqlx::query(
+            "INSERT INTO job_attempts (job_id, attempt, worker, started_at) VALUES (?, ?, ?, ?)",
+        )
+        .bind(&job.id)
+        .bind(job.attempt)
+        .bind(worker)
+        .bind(now)
+        .execute(&mut *tx)
+        .await?;
         tx.commit().await?;
         Ok(Some(job))
     }
 
     /// Extends the lease and records progress; tells the worker whether it still holds
     /// the job and whether someone asked to cancel it.
-    pub async fn heartbeat(&self, job: &ClaimedJob, worker: &str, lease_ms: i64, done: u64, total: u64) -> Result<LeaseState, StoreError> {
+    pub async fn heartbeat(
+        &self,
+        job: &ClaimedJob,
+        worker: &str,
+        lease_ms: i64,
+        done: u64,
+        total: u64,
+    ) -> Result<LeaseState, StoreError> {
         let now = now_ms();
         let row: Option<(i64,)> = sqlx::query_as(
             "UPDATE jobs SET lease_expires_at = ?, progress_done = ?, progress_total = ?, updated_at = ?
@@ -407,17 +472,26 @@ impl Db {
         .fetch_optional(&self.pool)
         .await?;
         Ok(match row {
-            Some((c,)) => LeaseState::Held { cancel_requested: c != 0 },
+            Some((c,)) => LeaseState::Held {
+                cancel_requested: c != 0,
+            },
             None => LeaseState::Lost,
         })
     }
 
     /// Writes the outcome and the results in one transaction, only if this worker still
     /// holds this attempt's lease. Returns false (and writes nothing) when it does not.
-    pub async fn finish_job(&self, job: &ClaimedJob, worker: &str, finish: Finish) -> Result<bool, StoreError> {
+    pub async fn finish_job(
+        &self,
+        job: &ClaimedJob,
+        worker: &str,
+        finish: Finish,
+    ) -> Result<bool, StoreError> {
         let now = now_ms();
         let (status, summary, error, outcome) = match &finish {
-            Finish::Succeeded { summary, .. } => ("succeeded", Some(summary.to_string()), None, "succeeded"),
+            Finish::Succeeded { summary, .. } => {
+                ("succeeded", Some(summary.to_string()), None, "succeeded")
+            }
             Finish::Failed { error } => ("failed", None, Some(error.to_string()), "failed"),
             Finish::Cancelled => ("cancelled", None, None, "cancelled"),
         };
@@ -446,13 +520,24 @@ impl Db {
             tx.rollback().await?;
             return Ok(false);
         }
-        if let Finish::Succeeded { rows, samples, artifacts, .. } = finish {
+        if let Finish::Succeeded {
+            rows,
+            samples,
+            artifacts,
+            ..
+        } = finish
+        {
             let numbered: Vec<(usize, String)> = rows.into_iter().enumerate().collect();
             for (table, items) in [("job_rows", numbered), ("job_samples", samples)] {
-                sqlx::query(&format!("DELETE FROM {table} WHERE job_id = ?")).bind(&job.id).execute(&mut *tx).await?;
+                sqlx::query(&format!("DELETE FROM {table} WHERE job_id = ?"))
+                    .bind(&job.id)
+                    .execute(&mut *tx)
+                    .await?;
                 // Multi-row inserts: one statement per 400 rows instead of one per row.
                 for chunk in items.chunks(400) {
-                    let mut q = sqlx::QueryBuilder::new(format!("INSERT INTO {table} (job_id, seq, data) "));
+                    let mut q = sqlx::QueryBuilder::new(format!(
+                        "INSERT INTO {table} (job_id, seq, data) "
+                    ));
                     q.push_values(chunk, |mut b, (seq, data)| {
                         b.push_bind(&job.id).push_bind(*seq as i64).push_bind(data);
                     });
@@ -470,13 +555,15 @@ impl Db {
                     .await?;
             }
         }
-        sqlx::query("UPDATE job_attempts SET outcome = ?, finished_at = ? WHERE job_id = ? AND attempt = ?")
-            .bind(outcome)
-            .bind(now)
-            .bind(&job.id)
-            .bind(job.attempt)
-            .execute(&mut *tx)
-            .await?;
+        sqlx::query(
+            "UPDATE job_attempts SET outcome = ?, finished_at = ? WHERE job_id = ? AND attempt = ?",
+        )
+        .bind(outcome)
+        .bind(now)
+        .bind(&job.id)
+        .bind(job.attempt)
+        .execute(&mut *tx)
+        .await?;
         tx.commit().await?;
         Ok(true)
     }
@@ -511,17 +598,29 @@ impl Db {
     }
 
     /// One page of a finished job's per-block rows, raw JSON text, from `from` on.
-    pub async fn job_rows(&self, job_id: &str, from: i64, limit: i64) -> Result<Vec<(i64, String)>, StoreError> {
-        Ok(sqlx::query_as("SELECT seq, data FROM job_rows WHERE job_id = ? AND seq >= ? ORDER BY seq LIMIT ?")
-            .bind(job_id)
-            .bind(from)
-            .bind(limit)
-            .fetch_all(&self.pool)
-            .await?)
+    pub async fn job_rows(
+        &self,
+        job_id: &str,
+        from: i64,
+        limit: i64,
+    ) -> Result<Vec<(i64, String)>, StoreError> {
+        Ok(sqlx::query_as(
+            "SELECT seq, data FROM job_rows WHERE job_id = ? AND seq >= ? ORDER BY seq LIMIT ?",
+        )
+        .bind(job_id)
+        .bind(from)
+        .bind(limit)
+        .fetch_all(&self.pool)
+        .await?)
     }
 
     /// Per-step samples of the rows with seq in [from, to], in seq order.
-    pub async fn job_samples(&self, job_id: &str, from: i64, to: i64) -> Result<Vec<(i64, String)>, StoreError> {
+    pub async fn job_samples(
+        &self,
+        job_id: &str,
+        from: i64,
+        to: i64,
+    ) -> Result<Vec<(i64, String)>, StoreError> {
         Ok(sqlx::query_as("SELECT seq, data FROM job_samples WHERE job_id = ? AND seq >= ? AND seq <= ? ORDER BY seq")
             .bind(job_id)
             .bind(from)
@@ -530,7 +629,11 @@ impl Db {
             .await?)
     }
 
-    pub async fn job_artifact(&self, job_id: &str, name: &str) -> Result<Option<Artifact>, StoreError> {
+    pub async fn job_artifact(
+        &self,
+        job_id: &str,
+        name: &str,
+    ) -> Result<Option<Artifact>, StoreError> {
         let row = sqlx::query("SELECT name, media_type, file_name, content FROM job_artifacts WHERE job_id = ? AND name = ?")
             .bind(job_id)
             .bind(name)
@@ -548,25 +651,33 @@ impl Db {
     }
 
     pub async fn delete_job(&self, owner: &str, id: &str) -> Result<bool, StoreError> {
-        let done = sqlx::query("DELETE FROM jobs WHERE owner = ? AND id = ? AND status NOT IN ('queued', 'running')")
-            .bind(owner)
-            .bind(id)
-            .execute(&self.pool)
-            .await?;
+        let done = sqlx::query(
+            "DELETE FROM jobs WHERE owner = ? AND id = ? AND status NOT IN ('queued', 'running')",
+        )
+        .bind(owner)
+        .bind(id)
+        .execute(&self.pool)
+        .await?;
         Ok(done.rows_affected() > 0)
     }
 
     /// Job counts by status, over all owners, for /metrics.
     pub async fn job_counts(&self) -> Result<Vec<(String, i64)>, StoreError> {
-        Ok(sqlx::query_as("SELECT status, COUNT(*) FROM jobs GROUP BY status").fetch_all(&self.pool).await?)
+        Ok(
+            sqlx::query_as("SELECT status, COUNT(*) FROM jobs GROUP BY status")
+                .fetch_all(&self.pool)
+                .await?,
+        )
     }
 
     /// The attempts log of a job: (attempt, worker, started, finished, outcome).
-    pub async fn job_attempts(&self, job_id: &str) -> Result<Vec<(i64, String, i64, Option<i64>, Option<String>)>, StoreError> {
+    pub async fn job_attempts(
+        &self,
+        job_id: &str,
+    ) -> Result<Vec<(i64, String, i64, Option<i64>, Option<String>)>, StoreError> {
         Ok(sqlx::query_as("SELECT attempt, worker, started_at, finished_at, outcome FROM job_attempts WHERE job_id = ? ORDER BY attempt")
             .bind(job_id)
             .fetch_all(&self.pool)
             .await?)
     }
 }
-

@@ -7,7 +7,9 @@ pub mod resources;
 use std::str::FromStr;
 use std::time::Duration;
 
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteSynchronous};
+use sqlx::sqlite::{
+    SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteSynchronous,
+};
 
 pub use jobs::{JobRecord, JobStatus};
 pub use resources::ResourceKind;
@@ -51,13 +53,17 @@ impl Db {
 
     /// True when the database answers and every embedded migration is applied.
     pub async fn ready(&self) -> Result<(), String> {
-        let applied: Vec<i64> = sqlx::query_scalar("SELECT version FROM _sqlx_migrations WHERE success = 1")
-            .fetch_all(&self.pool)
-            .await
-            .map_err(|e| format!("database unreachable: {e}"))?;
+        let applied: Vec<i64> =
+            sqlx::query_scalar("SELECT version FROM _sqlx_migrations WHERE success = 1")
+                .fetch_all(&self.pool)
+                .await
+                .map_err(|e| format!("database unreachable: {e}"))?;
         for m in MIGRATOR.iter() {
             if !applied.contains(&m.version) {
-                return Err(format!("migration {} ({}) not applied", m.version, m.description));
+                return Err(format!(
+                    "migration {} ({}) not applied",
+                    m.version, m.description
+                ));
             }
         }
         Ok(())

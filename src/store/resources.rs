@@ -15,8 +15,13 @@ pub enum ResourceKind {
 }
 
 impl ResourceKind {
-    pub const ALL: [ResourceKind; 5] =
-        [ResourceKind::Stock, ResourceKind::Tool, ResourceKind::Material, ResourceKind::Machine, ResourceKind::Program];
+    pub const ALL: [ResourceKind; 5] = [
+        ResourceKind::Stock,
+        ResourceKind::Tool,
+        ResourceKind::Material,
+        ResourceKind::Machine,
+        ResourceKind::Program,
+    ];
 
     pub fn as_str(self) -> &'static str {
         match self {
@@ -63,7 +68,11 @@ pub struct NewResource<'a> {
     pub content: &'a [u8],
 }
 
-fn record(kind: ResourceKind, row: &sqlx::sqlite::SqliteRow, with_definition: bool) -> Result<ResourceRecord, StoreError> {
+fn record(
+    kind: ResourceKind,
+    row: &sqlx::sqlite::SqliteRow,
+    with_definition: bool,
+) -> Result<ResourceRecord, StoreError> {
     let media_type: String = row.try_get("media_type")?;
     let definition = if with_definition && media_type == "application/json" {
         let content: Vec<u8> = row.try_get("content")?;
@@ -84,7 +93,11 @@ fn record(kind: ResourceKind, row: &sqlx::sqlite::SqliteRow, with_definition: bo
 }
 
 /// Inserts a resource inside an open transaction or on the pool.
-pub async fn insert<'e, E>(exec: E, owner: &str, new: &NewResource<'_>) -> Result<String, StoreError>
+pub async fn insert<'e, E>(
+    exec: E,
+    owner: &str,
+    new: &NewResource<'_>,
+) -> Result<String, StoreError>
 where
     E: sqlx::Executor<'e, Database = sqlx::Sqlite>,
 {
@@ -108,12 +121,24 @@ where
 }
 
 impl Db {
-    pub async fn create_resource(&self, owner: &str, new: &NewResource<'_>) -> Result<ResourceRecord, StoreError> {
+    pub async fn create_resource(
+        &self,
+        owner: &str,
+        new: &NewResource<'_>,
+    ) -> Result<ResourceRecord, StoreError> {
         let id = insert(&self.pool, owner, new).await?;
-        Ok(self.get_resource(owner, new.kind, &id).await?.expect("row just inserted"))
+        Ok(self
+            .get_resource(owner, new.kind, &id)
+            .await?
+            .expect("row just inserted"))
     }
 
-    pub async fn get_resource(&self, owner: &str, kind: ResourceKind, id: &str) -> Result<Option<ResourceRecord>, StoreError> {
+    pub async fn get_resource(
+        &self,
+        owner: &str,
+        kind: ResourceKind,
+        id: &str,
+    ) -> Result<Option<ResourceRecord>, StoreError> {
         let row = sqlx::query("SELECT * FROM resources WHERE owner = ? AND kind = ? AND id = ?")
             .bind(owner)
             .bind(kind.as_str())
@@ -137,7 +162,11 @@ impl Db {
             .fetch_optional(&self.pool)
             .await?;
         Ok(match row {
-            Some(r) => Some((r.try_get("name")?, r.try_get("media_type")?, r.try_get("content")?)),
+            Some(r) => Some((
+                r.try_get("name")?,
+                r.try_get("media_type")?,
+                r.try_get("content")?,
+            )),
             None => None,
         })
     }
@@ -160,7 +189,10 @@ impl Db {
         .bind(i64::from(limit) + 1)
         .fetch_all(&self.pool)
         .await?;
-        let mut items = rows.iter().map(|r| record(kind, r, false)).collect::<Result<Vec<_>, _>>()?;
+        let mut items = rows
+            .iter()
+            .map(|r| record(kind, r, false))
+            .collect::<Result<Vec<_>, _>>()?;
         let next = if items.len() > limit as usize {
             items.truncate(limit as usize);
             items.last().map(|r| r.id.clone())
@@ -171,7 +203,12 @@ impl Db {
     }
 
     /// Deletes a resource; false when there was none.
-    pub async fn delete_resource(&self, owner: &str, kind: ResourceKind, id: &str) -> Result<bool, StoreError> {
+    pub async fn delete_resource(
+        &self,
+        owner: &str,
+        kind: ResourceKind,
+        id: &str,
+    ) -> Result<bool, StoreError> {
         let done = sqlx::query("DELETE FROM resources WHERE owner = ? AND kind = ? AND id = ?")
             .bind(owner)
             .bind(kind.as_str())

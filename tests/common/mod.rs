@@ -12,7 +12,9 @@ use serde_json::Value;
 pub const BIN: &str = env!("CARGO_BIN_EXE_millsim");
 
 pub fn corpus(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/corpus")
+        .join(rel)
 }
 
 pub struct Server {
@@ -35,9 +37,19 @@ impl Server {
             .expect("start millsim serve");
         let stdout = child.stdout.take().unwrap();
         let mut line = String::new();
-        BufReader::new(stdout).read_line(&mut line).expect("read the listening line");
-        let base = line.trim().strip_prefix("millsim listening on ").unwrap_or_else(|| panic!("unexpected first line: {line:?}")).to_string();
-        Server { child, base, db_url }
+        BufReader::new(stdout)
+            .read_line(&mut line)
+            .expect("read the listening line");
+        let base = line
+            .trim()
+            .strip_prefix("millsim listening on ")
+            .unwrap_or_else(|| panic!("unexpected first line: {line:?}"))
+            .to_string();
+        Server {
+            child,
+            base,
+            db_url,
+        }
     }
 
     pub fn url(&self, path: &str) -> String {
@@ -71,31 +83,51 @@ impl Drop for Server {
 
 /// Sends a signal with the `kill` command (no libc dependency for one call).
 pub fn unsafe_kill(pid: i32, signal: i32) {
-    let _ = Command::new("kill").args([format!("-{signal}"), pid.to_string()]).status();
+    let _ = Command::new("kill")
+        .args([format!("-{signal}"), pid.to_string()])
+        .status();
 }
 
 pub fn client() -> reqwest::Client {
-    reqwest::Client::builder().timeout(Duration::from_secs(60)).build().unwrap()
+    reqwest::Client::builder()
+        .timeout(Duration::from_secs(60))
+        .build()
+        .unwrap()
 }
 
 pub async fn json(res: reqwest::Response) -> (u16, Value) {
     let status = res.status().as_u16();
     let text = res.text().await.unwrap();
-    (status, serde_json::from_str(&text).unwrap_or(Value::String(text)))
+    (
+        status,
+        serde_json::from_str(&text).unwrap_or(Value::String(text)),
+    )
 }
 
 /// Uploads a program file and returns its id.
 pub async fn upload_program(c: &reqwest::Client, s: &Server, path: &Path) -> String {
     let name = path.file_name().unwrap().to_string_lossy().to_string();
     let body = std::fs::read(path).unwrap();
-    let (status, v) = json(c.post(s.url(&format!("/v1/programs?name={name}"))).header("content-type", "text/plain").body(body).send().await.unwrap()).await;
+    let (status, v) = json(
+        c.post(s.url(&format!("/v1/programs?name={name}")))
+            .header("content-type", "text/plain")
+            .body(body)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
     assert_eq!(status, 201, "{v}");
     v["id"].as_str().unwrap().to_string()
 }
 
 pub async fn submit_interpret(c: &reqwest::Client, s: &Server, program: &str) -> Value {
     let (status, v) = json(
-        c.post(s.url("/v1/jobs")).json(&serde_json::json!({"kind": "interpret", "inputs": {"program": program}})).send().await.unwrap(),
+        c.post(s.url("/v1/jobs"))
+            .json(&serde_json::json!({"kind": "interpret", "inputs": {"program": program}}))
+            .send()
+            .await
+            .unwrap(),
     )
     .await;
     assert_eq!(status, 202, "{v}");
@@ -106,11 +138,23 @@ pub async fn submit_interpret(c: &reqwest::Client, s: &Server, program: &str) ->
 pub async fn wait_job(c: &reqwest::Client, s: &Server, id: &str, within: Duration) -> Value {
     let deadline = Instant::now() + within;
     loop {
-        let (_, v) = json(c.get(s.url(&format!("/v1/jobs/{id}"))).send().await.unwrap()).await;
-        if matches!(v["status"].as_str(), Some("succeeded" | "failed" | "cancelled")) {
+        let (_, v) = json(
+            c.get(s.url(&format!("/v1/jobs/{id}")))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
+        if matches!(
+            v["status"].as_str(),
+            Some("succeeded" | "failed" | "cancelled")
+        ) {
             return v;
         }
-        assert!(Instant::now() < deadline, "job {id} did not finish in {within:?}: {v}");
+        assert!(
+            Instant::now() < deadline,
+            "job {id} did not finish in {within:?}: {v}"
+        );
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
 }

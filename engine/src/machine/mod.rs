@@ -100,7 +100,12 @@ impl Machine {
 
     /// Checks that the numbers describe a machine that can exist; names the field.
     pub fn validate(&self) -> Result<(), MachineError> {
-        let err = |field: &str, message: String| Err(MachineError { field: field.to_string(), message });
+        let err = |field: &str, message: String| {
+            Err(MachineError {
+                field: field.to_string(),
+                message,
+            })
+        };
         let positive = [
             ("rapid_rate", self.rapid_rate),
             ("max_feed", self.max_feed),
@@ -118,16 +123,28 @@ impl Machine {
         if self.name.trim().is_empty() {
             return err("name", "must not be empty".into());
         }
-        if !self.spindle_min_rpm.is_finite() || self.spindle_min_rpm < 0.0 || self.spindle_min_rpm > self.spindle_max_rpm {
+        if !self.spindle_min_rpm.is_finite()
+            || self.spindle_min_rpm < 0.0
+            || self.spindle_min_rpm > self.spindle_max_rpm
+        {
             return err("spindle_min_rpm", "must be in [0, spindle_max_rpm]".into());
         }
         if self.max_feed > self.rapid_rate * 2.0 {
-            return err("max_feed", format!("{} mm/min is more than twice the rapid rate", self.max_feed));
+            return err(
+                "max_feed",
+                format!("{} mm/min is more than twice the rapid rate", self.max_feed),
+            );
         }
         if !(self.efficiency > 0.0 && self.efficiency <= 1.0) {
-            return err("efficiency", format!("must be in (0, 1], got {}", self.efficiency));
+            return err(
+                "efficiency",
+                format!("must be in (0, 1], got {}", self.efficiency),
+            );
         }
-        for (field, v) in [("torque_limit", self.torque_limit), ("axis_thrust_limit", self.axis_thrust_limit)] {
+        for (field, v) in [
+            ("torque_limit", self.torque_limit),
+            ("axis_thrust_limit", self.axis_thrust_limit),
+        ] {
             if let Some(v) = v {
                 if !v.is_finite() || v <= 0.0 {
                     return err(field, format!("must be a positive number, got {v}"));
@@ -145,27 +162,50 @@ impl Machine {
         if let Some(t) = self.travel {
             for (i, [lo, hi]) in t.iter().enumerate() {
                 if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                    return err(&format!("travel[{i}]"), "must be [min, max] with min < max".into());
+                    return err(
+                        &format!("travel[{i}]"),
+                        "must be [min, max] with min < max".into(),
+                    );
                 }
             }
         }
         if let Some(v) = self.max_rotary_speed_deg_min {
             if !v.is_finite() || v <= 0.0 {
-                return err("max_rotary_speed_deg_min", format!("must be a positive number, got {v}"));
+                return err(
+                    "max_rotary_speed_deg_min",
+                    format!("must be a positive number, got {v}"),
+                );
             }
         }
         if let Some(c) = &self.kinematic_chain {
-            let finite = c.tilt_pivot.iter().chain(c.rotary_center.iter()).all(|v| v.is_finite());
+            let finite = c
+                .tilt_pivot
+                .iter()
+                .chain(c.rotary_center.iter())
+                .all(|v| v.is_finite());
             if !finite {
-                return err("kinematic_chain", "pivot and centre coordinates must be finite".into());
+                return err(
+                    "kinematic_chain",
+                    "pivot and centre coordinates must be finite".into(),
+                );
             }
             if !c.pivot_length.is_finite() || c.pivot_length < 0.0 {
-                return err("kinematic_chain.pivot_length", "must be a non-negative number".into());
+                return err(
+                    "kinematic_chain.pivot_length",
+                    "must be a non-negative number".into(),
+                );
             }
-            for (field, l) in [("a_limits", c.a_limits), ("b_limits", c.b_limits), ("c_limits", c.c_limits)] {
+            for (field, l) in [
+                ("a_limits", c.a_limits),
+                ("b_limits", c.b_limits),
+                ("c_limits", c.c_limits),
+            ] {
                 if let Some([lo, hi]) = l {
                     if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                        return err(&format!("kinematic_chain.{field}"), "must be [min, max] with min < max".into());
+                        return err(
+                            &format!("kinematic_chain.{field}"),
+                            "must be [min, max] with min < max".into(),
+                        );
                     }
                 }
             }
