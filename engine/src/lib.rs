@@ -14,3 +14,4 @@ pub mod optimize;
 pub mod physics;
 pub mod simulate;
 pub mod tool;
+mod vec3;

@@ -15,6 +15,7 @@ use super::GeometryError;
 use crate::engagement::Engagement;
 use crate::job::CancelFlag;
 use crate::tool::Tool;
+use crate::vec3::sub;
 
 #[derive(Clone, Debug)]
 pub struct SimOptions {
@@ -109,10 +110,6 @@ pub struct SimulationReport {
     pub rays_tested: u64,
     pub rays_intersected: u64,
     pub rays_changed: u64,
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 /// Removal volume below which a rapid is not reported (float noise), mm³.

@@ -32,6 +32,7 @@ use rayon::prelude::*;
 
 use super::dexel::{index_range, other_axes, subtract, DexelGrid, Family, Intervals};
 use crate::tool::{Tool, ToolShape};
+use crate::vec3::{cross, dot, norm, sub};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Profile {
@@ -435,27 +436,6 @@ impl SupportMap for SweptSupport<'_> {
         }
         Vector::new(p[0], p[1], p[2])
     }
-}
-
-#[inline]
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-#[inline]
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 /// An orthonormal frame (e1, e2, axis) around a unit axis.

@@ -30,6 +30,7 @@
 
 use super::Machine;
 use crate::nc::{FeedMode, Move, MoveKind};
+use crate::vec3::norm;
 
 /// Tunables of the cycle-time model.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -129,10 +130,6 @@ struct Seg {
     u_in: [f64; 3],
     u_out: [f64; 3],
     fixed: f64,
-}
-
-fn norm(v: [f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 fn unit(v: [f64; 3]) -> Option<[f64; 3]> {

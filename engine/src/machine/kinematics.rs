@@ -18,6 +18,7 @@
 //! B head + C table `(sin B·cos C, −sin B·sin C, cos B)`.
 
 use super::{Kinematics, Machine};
+use crate::vec3::{add, scale, sub};
 use serde::{Deserialize, Serialize};
 
 /// Offsets, pivot length and rotary limits of a multi-axis machine. All lengths in mm in the
@@ -108,16 +109,6 @@ pub struct MachineKinematics {
 }
 
 type V3 = [f64; 3];
-
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn add(a: V3, b: V3) -> V3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn scale(a: V3, s: f64) -> V3 {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
 
 /// Right-handed rotation of `v` about the coordinate axis `k` (0 X, 1 Y, 2 Z) by `deg`.
 fn rot(k: usize, deg: f64, v: V3) -> V3 {

@@ -59,6 +59,7 @@ use super::material::CuttingCoefficients;
 use super::{non_negative, positive, PhysicsError};
 use crate::engagement::Engagement;
 use crate::tool::{Tool, ToolShape};
+use crate::vec3::{cross, dot, norm, scale, sub};
 
 /// Angular positions per revolution when the caller has no preference (1° steps).
 pub const DEFAULT_POSITIONS: usize = 360;
@@ -408,25 +409,6 @@ impl ToolFrame {
     }
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
 fn unit(field: &str, v: [f64; 3]) -> Result<[f64; 3], PhysicsError> {
     for (i, c) in v.iter().enumerate() {
         if !c.is_finite() {
