@@ -78,13 +78,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     ] {
         assert!(header.contains(&col), "{col} not in {header:?}");
     }
-    let (_, page) = json(
-        c.get(s.url(&format!("/v1/jobs/{job_id}/blocks")))
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let page = get_json(&c, &s, &format!("/v1/jobs/{job_id}/blocks")).await;
     let cut = page["items"]
         .as_array()
         .unwrap()
@@ -250,13 +244,7 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
         };
         assert_eq!(strip(a), strip(b));
     }
-    let (_, page) = json(
-        c.get(s.url(&format!("/v1/jobs/{job_id}/blocks")))
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let page = get_json(&c, &s, &format!("/v1/jobs/{job_id}/blocks")).await;
     let air = page["items"]
         .as_array()
         .unwrap()

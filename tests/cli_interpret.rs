@@ -10,21 +10,7 @@ use common::*;
 #[test]
 fn prints_one_json_object_per_move_in_the_documented_shape() {
     let file = corpus("gcode/fusion360_2d_pocket_contour_bore_1099.nc");
-    let out = Command::new(BIN)
-        .arg("interpret")
-        .arg(&file)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let moves: Vec<serde_json::Value> = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let moves = interpret_moves(&file, &[]);
     assert!(moves.len() > 1000);
     for m in &moves {
         for key in [
@@ -98,21 +84,7 @@ fn reads_apt_cls_files_too() {
         "TLAXIS/0,0,1\nRAPID\nGOTO/0,0,10\nFEDRAT/MMPM,500\nGOTO/0,0,0\nGOTO/10,0,0,0,0,1\n",
     )
     .unwrap();
-    let out = Command::new(BIN)
-        .arg("interpret")
-        .arg(&file)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let moves: Vec<serde_json::Value> = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let moves = interpret_moves(&file, &[]);
     let last = moves.last().unwrap();
     assert_eq!(last["end"][0], 10.0);
     assert_eq!(last["feed"], 500.0);
@@ -194,20 +166,8 @@ fn post_writes_one_program_per_operation_that_re_interprets_to_the_cls_points() 
     ];
     for (op, points) in expected.iter().enumerate() {
         let nc = out_dir.join(format!("part.op{}.nc", op + 1));
-        let moves = Command::new(BIN)
-            .arg("interpret")
-            .arg(&nc)
-            .output()
-            .unwrap();
-        assert!(
-            moves.status.success(),
-            "{}",
-            String::from_utf8_lossy(&moves.stderr)
-        );
-        let ends: Vec<[f64; 3]> = String::from_utf8(moves.stdout)
-            .unwrap()
-            .lines()
-            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        let ends: Vec<[f64; 3]> = interpret_moves(&nc, &[])
+            .into_iter()
             .filter(|m| m["kind"] == "rapid" || m["kind"] == "linear")
             .map(|m| {
                 [

@@ -158,3 +158,29 @@ pub async fn wait_job(c: &reqwest::Client, s: &Server, id: &str, within: Duratio
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
 }
+
+/// Runs `millsim interpret FILE ARGS...`, asserts it succeeded, and returns its moves.
+pub fn interpret_moves(file: &Path, args: &[&str]) -> Vec<Value> {
+    let out = std::process::Command::new(BIN)
+        .arg("interpret")
+        .arg(file)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}: {}",
+        file.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+/// GET a JSON document from the server.
+pub async fn get_json(c: &reqwest::Client, s: &Server, path: &str) -> Value {
+    json(c.get(s.url(path)).send().await.unwrap()).await.1
+}
