@@ -7,6 +7,27 @@ use std::time::Duration;
 use common::*;
 use serde_json::json;
 
+/// The block stock (100 × 40 × 10 mm, top at z = 0) and flat D10 4-flute zero-helix tool both
+/// tests cut their slot with; returns their ids.
+async fn slot_stock_and_tool(c: &reqwest::Client, s: &Server) -> (String, String) {
+    let mut ids = Vec::new();
+    for (path, body) in [
+        (
+            "/v1/stocks",
+            json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
+        ),
+        (
+            "/v1/tools",
+            json!({"shape": "flat", "diameter": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length": 20.0}),
+        ),
+    ] {
+        let (st, v) = json(c.post(s.url(path)).json(&body).send().await.unwrap()).await;
+        assert_eq!(st, 201, "{path}: {v}");
+        ids.push(v["id"].as_str().unwrap().to_string());
+    }
+    (ids.remove(0), ids.remove(0))
+}
+
 #[tokio::test]
 async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let dir = tempfile::tempdir().unwrap();
@@ -14,21 +35,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let c = client();
     let id = |v: serde_json::Value| v["id"].as_str().unwrap().to_string();
     let post_json = |path: &str, body: serde_json::Value| c.post(s.url(path)).json(&body).send();
-    let (st, stock) = json(
-        post_json(
-            "/v1/stocks",
-            json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-        )
-        .await
-        .unwrap(),
-    )
-    .await;
-    assert_eq!(st, 201, "{stock}");
-    let (st, tool) = json(
-        post_json("/v1/tools", json!({"shape": "flat", "diameter": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length": 20.0})).await.unwrap(),
-    )
-    .await;
-    assert_eq!(st, 201, "{tool}");
+    let (stock, tool) = slot_stock_and_tool(&c, &s).await;
     let program = "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n";
     let (st, prog) = json(
         c.post(s.url("/v1/programs?name=slot.nc"))
@@ -39,7 +46,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     )
     .await;
     assert_eq!(st, 201);
-    let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": id(stock), "tool": id(tool)},
+    let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": stock, "tool": tool},
                       "options": {"material": "Al7075-T6", "cell_mm": 0.25}});
     let (st, job) = json(post_json("/v1/jobs", body).await.unwrap()).await;
     assert_eq!(st, 202, "{job}");
@@ -160,18 +167,7 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
     let id = |v: serde_json::Value| v["id"].as_str().unwrap().to_string();
-    let (_, stock) = json(
-        c.post(s.url("/v1/stocks"))
-            .json(&json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}))
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
-    let (_, tool) = json(
-        c.post(s.url("/v1/tools")).json(&json!({"shape": "flat", "diameter": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length": 20.0})).send().await.unwrap(),
-    )
-    .await;
+    let (stock, tool) = slot_stock_and_tool(&c, &s).await;
     let program = "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nG0 X-10\nG0 Z-3\nG1 X60 F1000\nG0 Z5\nM30\n";
     let (_, prog) = json(
         c.post(s.url("/v1/programs?name=part.nc"))
@@ -181,7 +177,7 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
             .unwrap(),
     )
     .await;
-    let inputs = json!({"program": id(prog), "stock": id(stock), "tool": id(tool)});
+    let inputs = json!({"program": id(prog), "stock": stock, "tool": tool});
     // Limits are required for optimize and refused for simulate, naming the option.
     for (kind, opts) in [
         ("optimize", json!({"material": "Al7075-T6"})),
