@@ -266,8 +266,10 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
     let mut links = HashMap::new();
     let mut subs = HashMap::new();
     let mut errors = Vec::new();
-    for (idx, b) in prog.blocks().iter().enumerate() {
-        let Some(o) = &b.o_word else { continue };
+    for &idx in &prog.summary().o_word_blocks {
+        let Some(o) = &prog.blocks()[idx].o_word else {
+            continue;
+        };
         let at = |m: String| prog.diag(o.span.start, m);
         let top_is = |stack: &Vec<Open>, kw: OKeyword| {
             stack
@@ -641,35 +643,8 @@ pub fn interpret_program(
 
 /// Fanuc-only syntax, and no LinuxCNC-only syntax.
 fn detect_fanuc(prog: &Program) -> bool {
-    let mut fanuc = false;
-    for b in prog.blocks() {
-        if let Some(o) = &b.o_word {
-            if o.keyword == OKeyword::ProgramNumber {
-                fanuc = true;
-            } else {
-                return false;
-            }
-        }
-        if b.words.iter().any(|w| w.comma) {
-            fanuc = true;
-        }
-        for w in &b.words {
-            if w.letter == 'M' {
-                if let Expr::Number { value, .. } = w.value {
-                    if value == 98.0 || value == 99.0 {
-                        fanuc = true;
-                    }
-                }
-            }
-            if !matches!(w.value, Expr::Number { .. } | Expr::Neg(_)) {
-                return false;
-            }
-        }
-        if !b.assignments.is_empty() {
-            return false;
-        }
-    }
-    fanuc
+    let summary = prog.summary();
+    summary.fanuc_syntax && !summary.linuxcnc_syntax
 }
 
 /// Read-only view used while evaluating expressions.

@@ -53,7 +53,7 @@ impl<'a> Lexer<'a> {
         }
     }
 
-    fn byte(&self, i: usize) -> Option<u8> {
+    pub fn byte(&self, i: usize) -> Option<u8> {
         if i < self.end {
             Some(self.src.as_bytes()[i])
         } else {
@@ -61,14 +61,16 @@ impl<'a> Lexer<'a> {
         }
     }
 
-    pub fn skip_ws(&mut self) {
-        while let Some(b) = self.byte(self.pos) {
-            if b == b' ' || b == b'\t' || b == b'\r' {
-                self.pos += 1;
-            } else {
-                break;
-            }
+    /// First position at or after `i` that is not a blank.
+    pub fn after_blanks(&self, mut i: usize) -> usize {
+        while matches!(self.byte(i), Some(b' ' | b'\t' | b'\r')) {
+            i += 1;
         }
+        i
+    }
+
+    pub fn skip_ws(&mut self) {
+        self.pos = self.after_blanks(self.pos);
     }
 
     /// Next non-blank byte without consuming it.
@@ -98,6 +100,38 @@ impl<'a> Lexer<'a> {
             pos,
             message: message.into(),
         })
+    }
+
+    /// The number literal at `start` (digits with at most one '.'), without consuming it:
+    /// its value, whether it has a point, and where it ends.
+    pub fn number_at(&self, start: usize) -> Result<(f64, bool, usize), LexError> {
+        let bytes = &self.src.as_bytes()[..self.end];
+        let mut i = start;
+        let mut has_point = false;
+        let mut digits = 0;
+        while let Some(&c) = bytes.get(i) {
+            if c.is_ascii_digit() {
+                digits += 1;
+                i += 1;
+            } else if c == b'.' && !has_point {
+                has_point = true;
+                i += 1;
+            } else {
+                break;
+            }
+        }
+        if digits == 0 {
+            return self.err(start, "'.' is not a number");
+        }
+        let text = &self.src[start..i];
+        let value = match fast_decimal(text.as_bytes()) {
+            Some(v) => v,
+            None => match text.parse() {
+                Ok(v) => v,
+                Err(_) => return self.err(start, format!("bad number '{text}'")),
+            },
+        };
+        Ok((value, has_point, i))
     }
 
     /// Next token; `names` selects expression mode (alphabetic runs are one token).
@@ -139,32 +173,8 @@ impl<'a> Lexer<'a> {
                 Tok::Comment(self.src[start + 1..self.end].to_string())
             }
             b'0'..=b'9' | b'.' => {
-                let mut i = start;
-                let mut has_point = false;
-                let mut digits = 0;
-                while let Some(c) = self.byte(i) {
-                    if c.is_ascii_digit() {
-                        digits += 1;
-                        i += 1;
-                    } else if c == b'.' && !has_point {
-                        has_point = true;
-                        i += 1;
-                    } else {
-                        break;
-                    }
-                }
-                if digits == 0 {
-                    return self.err(start, "'.' is not a number");
-                }
-                let text = &self.src[start..i];
-                let value: f64 = match fast_decimal(text.as_bytes()) {
-                    Some(v) => v,
-                    None => match text.parse() {
-                        Ok(v) => v,
-                        Err(_) => return self.err(start, format!("bad number '{text}'")),
-                    },
-                };
-                self.pos = i;
+                let (value, has_point, end) = self.number_at(start)?;
+                self.pos = end;
                 Tok::Number { value, has_point }
             }
             b'+' => {
