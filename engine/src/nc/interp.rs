@@ -10,6 +10,7 @@ use super::{
     Diagnostic, Diagnostics, Dialect, FeedMode, InterpretOptions, Interpretation, Move, MoveKind,
     SpindleDir,
 };
+use smallvec::SmallVec;
 use std::collections::HashMap;
 
 const MM_PER_INCH: f64 = 25.4;
@@ -90,8 +91,8 @@ struct Words {
     vals: [Option<(f64, usize)>; 26],
     used: [bool; 26],
     /// G codes times ten (G43.1 -> 431) with the word index.
-    gs: Vec<(u16, usize)>,
-    ms: Vec<(u32, usize)>,
+    gs: SmallVec<[(u16, usize); 4]>,
+    ms: SmallVec<[(u32, usize); 4]>,
     corner_r: Option<(f64, usize)>,
     corner_c: Option<(f64, usize)>,
 }
@@ -1193,7 +1194,11 @@ impl<'p> Interp<'p> {
         let b = &self.prog.blocks()[idx];
         let implied = self.opts.fanuc_implied_decimal;
         for (i, word) in b.words.iter().enumerate() {
-            let mut v = self.eval(&word.value, word.value_span.start)?;
+            let mut v = match word.value {
+                // Most words are plain numbers: skip the expression evaluator.
+                Expr::Number { value, .. } if value.is_finite() => value,
+                ref e => self.eval(e, word.value_span.start)?,
+            };
             let c = word.letter;
             if implied
                 && matches!(
@@ -1340,8 +1345,8 @@ impl<'p> Interp<'p> {
         let mut w = Words {
             vals: [None; 26],
             used: [false; 26],
-            gs: Vec::new(),
-            ms: Vec::new(),
+            gs: SmallVec::new(),
+            ms: SmallVec::new(),
             corner_r: None,
             corner_c: None,
         };

@@ -335,7 +335,10 @@ impl<'a> LineParser<'a> {
 /// Split the source into lines and parse each one.
 pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Summary, Vec<Diagnostic>) {
     // One block per line: reserve once instead of growing a large Vec many times.
-    let mut blocks = Vec::with_capacity(source.bytes().filter(|&b| b == b'\n').count() + 1);
+    let mut blocks = Vec::with_capacity(count_newlines(source.as_bytes()) + 1);
+    // Words of the current line, moved into an exactly sized Vec per block: blocks have few
+    // words, and growing each block's Vec would reserve room for four.
+    let mut words = Vec::new();
     let mut errors = Vec::new();
     let mut summary = Summary::default();
     let bytes = source.as_bytes();
@@ -368,7 +371,11 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Summary, Vec<Diagnostic
         let block = blocks.last_mut().expect("just pushed");
         if percents >= 2 {
             block.after_end = true;
-        } else if let Err(e) = parse_line(source, block) {
+        } else if let Err(e) = {
+            let parsed = parse_line(source, block, &mut words);
+            block.words = words.drain(..).collect();
+            parsed
+        } {
             let col = source[start..e.pos.min(content_end).max(start)]
                 .chars()
                 .count() as u32
@@ -385,7 +392,15 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Summary, Vec<Diagnostic
     (blocks, summary, errors)
 }
 
-fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
+/// Number of `\n` bytes; counts in byte-wide lanes so that it vectorises.
+fn count_newlines(bytes: &[u8]) -> usize {
+    bytes
+        .chunks(255)
+        .map(|chunk| usize::from(chunk.iter().fold(0u8, |n, &b| n + u8::from(b == b'\n'))))
+        .sum::<usize>()
+}
+
+fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult<()> {
     let mut p = LineParser {
         lx: Lexer::new(source, block.span.start, block.span.end),
         depth: 0,
@@ -402,21 +417,21 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
     }
     // N word: only first in the block.
     if matches!(p.lx.peek_byte(), Some(b'n' | b'N')) {
-        let (_, ls) = p.lx.next(false)?;
-        let vstart = {
-            p.lx.skip_ws();
-            p.lx.pos
-        };
-        let (t, s) = p.lx.next(false)?;
-        let Tok::Number { value, has_point } = t else {
+        let letter_start = p.lx.pos;
+        let vstart = p.lx.after_blanks(letter_start + 1);
+        p.lx.pos = vstart;
+        if !matches!(p.lx.byte(vstart), Some(b'0'..=b'9' | b'.')) {
+            let (_, s) = p.lx.next(false)?;
             return err(s.start, "N must be followed by a line number");
-        };
+        }
+        let (value, has_point, end) = p.lx.number_at(vstart)?;
+        p.lx.pos = end;
         block.line_number = Some(Word {
             letter: 'N',
             comma: false,
             value: Expr::Number { value, has_point },
-            span: Span::new(ls.start, s.end),
-            value_span: Span::new(vstart, s.end),
+            span: Span::new(letter_start, end),
+            value_span: Span::new(vstart, end),
         });
     }
     if matches!(p.lx.peek_byte(), Some(b'o' | b'O')) {
@@ -424,8 +439,11 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
     }
     loop {
         if let Some(word) = p.plain_word() {
-            block.words.push(word);
+            words.push(word);
             continue;
+        }
+        if p.lx.peek_byte().is_none() {
+            break;
         }
         let (tok, span) = p.lx.next(false)?;
         match tok {
@@ -433,7 +451,7 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
             Tok::Comment(text) => block.comments.push(Comment { text, span }),
             Tok::Letter(c) => {
                 let word = p.letter_word(c, span.start)?;
-                block.words.push(word);
+                words.push(word);
             }
             Tok::Comma => {
                 let (t, s) = p.lx.next(false)?;
@@ -449,7 +467,7 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
                 p.lx.skip_ws();
                 let vstart = p.lx.pos;
                 let value = p.value()?;
-                block.words.push(Word {
+                words.push(Word {
                     letter: c,
                     comma: true,
                     value,
