@@ -268,3 +268,125 @@ pub fn arc_immersion(entry_rad: f64, exit_rad: f64) -> (f64, Milling) {
     };
     (imm, milling)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::stability::{compute_lobes, DepthSearch, RpmRange};
+
+    /// The 1-DOF benchmark of ../shared/REFERENCE.md.
+    fn benchmark(method: Method) -> ChatterModel {
+        ChatterModel::new(
+            vec![Mode::with_mass(922.0, 0.011, 0.03993)],
+            vec![],
+            2,
+            600.0,
+            200.0,
+            method,
+            20,
+        )
+        .unwrap()
+    }
+
+    fn lobes_at(method: Method, rpm: f64, immersion: f64, milling: Milling) -> f64 {
+        let input = StabilityInput {
+            method,
+            teeth: 2,
+            ktc_n_mm2: 600.0,
+            krc_n_mm2: 200.0,
+            radial_immersion: immersion,
+            milling,
+            modes_x: vec![Mode::with_mass(922.0, 0.011, 0.03993)],
+            modes_y: vec![],
+            rpm: RpmRange {
+                from: rpm,
+                to: rpm,
+                step: 1.0,
+            },
+            steps_per_period: Some(20),
+            search: DepthSearch::Bisection,
+            scan_step_mm: None,
+        };
+        compute_lobes(&input).unwrap().points[0].depth_mm
+    }
+
+    #[test]
+    fn cached_value_is_the_direct_lobe_computation_at_the_rounded_conditions() {
+        let m = benchmark(Method::Sdm);
+        let a = m.critical_depth(10_000.4, 0.504, Milling::Down).unwrap();
+        assert_eq!(a, lobes_at(Method::Sdm, 10_000.0, 0.5, Milling::Down));
+        assert_eq!(m.cached(), 1);
+        // Same key: a lookup.
+        let b = m.critical_depth(9_999.6, 0.496, Milling::Down).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(m.cached(), 1);
+        // Up milling is another key and another value.
+        let up = m.critical_depth(10_000.0, 0.5, Milling::Up).unwrap();
+        assert_eq!(up, lobes_at(Method::Sdm, 10_000.0, 0.5, Milling::Up));
+        assert_eq!(m.cached(), 2);
+        // Margin: axial depth / critical depth; above 1 flags chatter.
+        let over = m.margin(2.0 * a, 10_000.0, 0.5, Milling::Down).unwrap();
+        assert!((over.margin - 2.0).abs() < 1e-12 && over.chatter);
+        let under = m.margin(0.5 * a, 10_000.0, 0.5, Milling::Down).unwrap();
+        assert!((under.margin - 0.5).abs() < 1e-12 && !under.chatter);
+        assert_eq!(
+            m.margin(1.0, 10_000.0, 0.0, Milling::Down).unwrap().margin,
+            0.0
+        );
+        assert_eq!(
+            m.critical_depth(0.0, 0.5, Milling::Down)
+                .unwrap_err()
+                .field(),
+            "rpm"
+        );
+    }
+
+    #[test]
+    fn many_blocks_few_conditions_cost_few_computations() {
+        let m = benchmark(Method::Zoa);
+        let conds = [
+            (8000.0, 1.0, Milling::Down),
+            (12000.0, 0.25, Milling::Down),
+            (12000.0, 0.25, Milling::Up),
+        ];
+        let blocks: Vec<(f64, f64, Milling)> = (0..3000)
+            .map(|i| {
+                let (n, a, d) = conds[i % 3];
+                // Jitter below the rounding: same keys.
+                (
+                    n + 0.3 * ((i % 7) as f64 / 7.0 - 0.5),
+                    a + 0.004 * ((i % 5) as f64 / 5.0 - 0.5),
+                    d,
+                )
+            })
+            .collect();
+        m.prefetch(&blocks).unwrap();
+        assert_eq!(m.cached(), 3);
+        for &(n, a, d) in &blocks {
+            let c = m.critical_depth(n, a, d).unwrap();
+            assert!(c > 0.0);
+        }
+        assert_eq!(m.cached(), 3);
+        for (n, a, d) in conds {
+            assert_eq!(
+                m.critical_depth(n, a, d).unwrap(),
+                lobes_at(Method::Zoa, n, a, d)
+            );
+        }
+        // Slot at 8000 rpm, zero-order: at least the absolute limit 0.298 mm of REFERENCE.md.
+        assert!(m.critical_depth(8000.0, 1.0, Milling::Down).unwrap() >= 0.298 * 0.99);
+    }
+
+    #[test]
+    fn arcs_map_to_straight_cut_immersions() {
+        let (i, d) = arc_immersion(PI / 2.0, PI);
+        assert!((i - 0.5).abs() < 1e-12 && d == Milling::Down);
+        let (i, d) = arc_immersion(0.0, PI / 2.0);
+        assert!((i - 0.5).abs() < 1e-12 && d == Milling::Up);
+        let (i, d) = arc_immersion(0.0, PI);
+        assert!((i - 1.0).abs() < 1e-12 && d == Milling::Down);
+        // Down milling at aD = 0.05: entry acos(2·0.05 − 1).
+        let (i, d) = arc_immersion((2.0f64 * 0.05 - 1.0).acos(), PI);
+        assert!((i - 0.05).abs() < 1e-12 && d == Milling::Down);
+    }
+}
