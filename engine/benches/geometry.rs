@@ -9,6 +9,7 @@
 //! ones whose material actually changed.
 //!
 //! Run: `CARGO_TARGET_DIR=/work/target-geom cargo bench -p millsim-engine --bench geometry`
+//! (with `GEOMETRY_BENCH_QUICK=1`: only the single-thread pass, for profiling).
 
 use std::time::Instant;
 
@@ -117,12 +118,17 @@ fn bench(c: &mut Criterion) {
         compute_engagement: false,
         ..Default::default()
     };
-    timed(&segs, &base, &with_eng, "removal+engagement, all threads");
-    timed(&segs, &base, &removal_only, "removal only, all threads");
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .unwrap();
+    if std::env::var_os("GEOMETRY_BENCH_QUICK").is_some() {
+        // For profiling: the single-thread pass only.
+        one.install(|| timed(&segs, &base, &with_eng, "removal+engagement, 1 thread"));
+        return;
+    }
+    timed(&segs, &base, &with_eng, "removal+engagement, all threads");
+    timed(&segs, &base, &removal_only, "removal only, all threads");
     one.install(|| timed(&segs, &base, &with_eng, "removal+engagement, 1 thread"));
 
     let mut g = c.benchmark_group("geometry_fusion360_adaptive_0.05mm");
