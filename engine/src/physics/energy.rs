@@ -298,11 +298,14 @@ fn default_resolution() -> u32 {
 }
 
 /// Default semi-/full-discretization steps per tooth period of the search's lobes.
-pub const DEFAULT_SEARCH_STEPS: u32 = 30;
+pub const DEFAULT_SEARCH_STEPS: u32 = 20;
 /// Default number of speeds of the search's lobe table (per radial width).
-pub const DEFAULT_STABILITY_RPM_POINTS: u32 = 41;
+pub const DEFAULT_STABILITY_RPM_POINTS: u32 = 31;
 /// Default largest number of axial passes.
 pub const DEFAULT_MAX_AXIAL_PASSES: u32 = 8;
+/// Bisection tolerance of the search's lobe tables, mm (the linear interpolation between
+/// table speeds is the coarser approximation).
+pub const DEPTH_TOLERANCE_MM: f64 = 1e-3;
 /// Height of the engagement slices of the force model, at most, mm.
 const SLICE_MM: f64 = 0.1;
 
@@ -355,10 +358,10 @@ pub struct EnergySearchOptions {
     /// Lobe method for a_lim (default `sdm`).
     #[serde(default = "default_sdm")]
     pub stability_method: Method,
-    /// Steps per tooth period of `sdm`/`fdm` (default 30).
+    /// Steps per tooth period of `sdm`/`fdm` (default 20).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub steps_per_period: Option<u32>,
-    /// Speeds of the lobe table over the spindle range (default 41); a_lim between them
+    /// Speeds of the lobe table over the spindle range (default 31); a_lim between them
     /// is interpolated linearly.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stability_rpm_points: Option<u32>,
@@ -768,6 +771,7 @@ impl EnergyProblem {
         let ap_max = o.depth_mm / self.pz_range.0 as f64;
         let mut search = o.depth_search.options(None);
         search.max_depth_mm = search.max_depth_mm.max(1.01 * ap_max / lambda);
+        search.tolerance_mm = DEPTH_TOLERANCE_MM;
         for pw in self.pw_range.0..=self.pw_range.1 {
             let imm = (o.width_mm / pw as f64 / self.diameter).min(1.0);
             let sys = StabilitySystem::new(
