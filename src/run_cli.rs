@@ -22,15 +22,17 @@ pub struct RunArgs {
     /// The NC program.
     #[arg(long)]
     program: PathBuf,
-    /// The tool, as `T1=tool.json` or `tool.json` (JSON as POST /v1/tools takes it).
+    /// A tool, as `T1=tool.json` (the tool of T1) or `tool.json`; repeat for each tool
+    /// number the program uses (JSON as POST /v1/tools takes it).
     #[arg(long)]
     tool: Vec<String>,
     /// A built-in material name (TC6, Al7075-T6, Al6082-T6) or a material JSON file.
     #[arg(long)]
     material: String,
-    /// Dexel spacing, mm (default: tool radius / 20 within [0.02, 0.5]).
-    #[arg(long)]
-    cell: Option<f64>,
+    /// Dexel spacing (grid resolution), mm (default: smallest tool radius / 20 within
+    /// [0.02, 0.5]).
+    #[arg(long, alias = "cell")]
+    resolution: Option<f64>,
     /// Machine definition (JSON, as POST /v1/machines takes it) for the cycle time;
     /// default: a generic 3-axis machine.
     #[arg(long)]
@@ -39,6 +41,13 @@ pub struct RunArgs {
     /// (any field of the job's options.limits). Writes the rewritten program too.
     #[arg(long)]
     optimize: Option<String>,
+    /// On a machine with rotary axes: `machine` (X..C are machine axes) or `tool_tip`
+    /// (tool-centre-point control: X Y Z are the tool tip in the part frame).
+    #[arg(long, default_value = "machine")]
+    axes: String,
+    /// M codes that do not move the machine and may be skipped, e.g. 428,429.
+    #[arg(long, value_delimiter = ',')]
+    passthrough_m: Vec<u32>,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -104,20 +113,40 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
     };
     inputs.insert("stock".into(), stock);
-    match &args.tool[..] {
-        [one] => {
-            let path = one.split_once('=').map(|(_, p)| p).unwrap_or(one);
-            let tool = file_input(Path::new(path), "application/json")?;
-            crate::validate::tool(&tool.content).map_err(|e| format!("{path}: {}", e.detail))?;
+    if args.tool.is_empty() {
+        return Err("give the tool: --tool T1=tool.json (one --tool per tool number)".into());
+    }
+    for spec in &args.tool {
+        // `T3=file.json` is the tool of T3; a bare file serves every tool number.
+        let (name, path) = match spec.split_once('=') {
+            Some((t, p)) => {
+                let name = t.trim().to_ascii_uppercase();
+                if runner::tool_number_input("simulate", &name).is_none() {
+                    return Err(format!("--tool {spec}: `{t}` is not a tool number like T1"));
+                }
+                (name, p)
+            }
+            None => ("tool".to_string(), spec.as_str()),
+        };
+        if inputs.contains_key(&name) {
+            return Err(format!("--tool: {name} is given twice"));
+        }
+        let tool = file_input(Path::new(path), "application/json")?;
+        crate::validate::tool(&tool.content).map_err(|e| format!("{path}: {}", e.detail))?;
+        inputs.insert(name, tool);
+    }
+    if args.tool.len() == 1 {
+        // One tool: it serves every tool number of the program, whatever it is named.
+        if let Some(k) = inputs
+            .keys()
+            .find(|k| runner::tool_number_input("simulate", k).is_some())
+            .cloned()
+        {
+            let tool = inputs.remove(&k).expect("key found above");
             inputs.insert("tool".into(), tool);
         }
-        [] => return Err("give the tool: --tool T1=tool.json".into()),
-        _ => {
-            return Err(
-                "several --tool: programs with several tools are not supported by `run` yet".into(),
-            )
-        }
     }
+    runner::check_tool_inputs("simulate", inputs.keys()).map_err(|(_, m)| m)?;
     if let Some(path) = &args.machine {
         let m = file_input(path, "application/json")?;
         crate::validate::machine(&m.content)
@@ -133,7 +162,11 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     } else {
         options.insert("material".into(), Value::String(args.material.clone()));
     }
-    if let Some(c) = args.cell {
+    options.insert("axes".into(), Value::String(args.axes.clone()));
+    if !args.passthrough_m.is_empty() {
+        options.insert("passthrough_m_codes".into(), json!(args.passthrough_m));
+    }
+    if let Some(c) = args.resolution {
         options.insert("cell_mm".into(), json!(c));
     }
     if let Some(spec) = &args.optimize {
@@ -162,8 +195,8 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         "simulate"
     };
     let options = Value::Object(options);
-    let parsed: runner::SimulateOptions =
-        serde_json::from_value(options.clone()).map_err(|e| format!("--optimize: {e}"))?;
+    let parsed: runner::SimulateOptions = serde_json::from_value(options.clone())
+        .map_err(|e| format!("--optimize or --axes: {e}"))?;
     parsed
         .check(kind == "optimize", inputs.contains_key("material"))
         .map_err(|(f, m)| format!("{f}: {m}"))?;

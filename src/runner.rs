@@ -61,7 +61,9 @@ pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
     const SIMULATE: [InputSpec; 5] = [
         input("program", ResourceKind::Program, true),
         input("stock", ResourceKind::Stock, true),
-        input("tool", ResourceKind::Tool, true),
+        // The tool for every T number; or one input per number, `T1`, `T2`, ...
+        // (see `tool_number_input`): one of the two forms is required.
+        input("tool", ResourceKind::Tool, false),
         // Else `options.material` names a built-in material.
         input("material", ResourceKind::Material, false),
         // Else a generic 3-axis machine.
@@ -76,6 +78,45 @@ pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
         "rotary-feed" => &ROTARY_FEED,
         "simulate" | "optimize" => &SIMULATE,
         _ => &[],
+    }
+}
+
+/// For `simulate` and `optimize`: an input named `T<n>` (n in 1..=9999) is the tool for
+/// tool number n of the program.
+pub fn tool_number_input(kind: &str, name: &str) -> Option<u32> {
+    if !matches!(kind, "simulate" | "optimize") {
+        return None;
+    }
+    let digits = name.strip_prefix('T')?;
+    if digits.is_empty() || digits.len() > 4 || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok().filter(|n| (1..=9999).contains(n))
+}
+
+/// Checks that a simulate/optimize job names its tools one way: `tool`, or `T1`, `T2`, ...
+pub fn check_tool_inputs<'a>(
+    kind: &str,
+    names: impl Iterator<Item = &'a String> + Clone,
+) -> Result<(), (String, String)> {
+    if !matches!(kind, "simulate" | "optimize") {
+        return Ok(());
+    }
+    let numbered = names
+        .clone()
+        .filter(|n| tool_number_input(kind, n).is_some())
+        .count();
+    let single = names.clone().any(|n| n == "tool");
+    match (single, numbered) {
+        (false, 0) => Err((
+            "inputs.tool".into(),
+            format!("a `{kind}` job needs input `tool` (or one input per tool number: `T1`, `T2`, ...)"),
+        )),
+        (true, n) if n > 0 => Err((
+            "inputs.tool".into(),
+            "give `tool` (one tool for the whole program) or `T1`, `T2`, ... (one per tool number), not both".into(),
+        )),
+        _ => Ok(()),
     }
 }
 
@@ -290,6 +331,13 @@ pub struct SimulateOptions {
     /// optimize jobs: the targets and bounds of the feed optimization.
     #[serde(default)]
     pub limits: Option<FeedLimits>,
+    /// M codes that do not move the machine (e.g. a control's M428) and may be skipped.
+    #[serde(default)]
+    pub passthrough_m_codes: Vec<u32>,
+    /// On a machine with rotary axes: `machine` (X..C are machine axes, the default) or
+    /// `tool_tip` (tool-centre-point control: X Y Z are the tip in the part frame).
+    #[serde(default)]
+    pub axes: simulate::AxisReading,
 }
 
 fn default_positions() -> usize {
@@ -389,6 +437,12 @@ struct SimulateSummary<'a> {
     timings: &'a simulate::StageTimings,
     stock_export_s: f64,
     dexel_updates: u64,
+    /// The optimized program's cycle time and peak |F| (optimize jobs), also inside
+    /// `optimization` with the benchmarks they are judged against.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cycle_time_opt_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    force_peak_opt_n: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     optimization: Option<&'a simulate::OptimizationSummary>,
     row_columns: Vec<String>,
@@ -412,8 +466,26 @@ fn simulate_job(
             .map(|i| i.content)
             .ok_or_else(|| invalid("Missing input", format!("the job has no `{name}` input")))
     };
-    let tool: Tool = serde_json::from_slice(&json_input(&mut inputs, "tool")?)
-        .map_err(|e| invalid("Invalid tool", e.to_string()))?;
+    // Key 0: one tool serves every tool number; else the tool of each number.
+    let mut tools = BTreeMap::new();
+    let names: Vec<String> = inputs.keys().cloned().collect();
+    for name in names {
+        let number = if name == "tool" {
+            0
+        } else if let Some(n) =
+            tool_number_input(if optimize { "optimize" } else { "simulate" }, &name)
+        {
+            n
+        } else {
+            continue;
+        };
+        let tool: Tool = serde_json::from_slice(&json_input(&mut inputs, &name)?)
+            .map_err(|e| invalid("Invalid tool", format!("input `{name}`: {e}")))?;
+        tools.insert(number, tool);
+    }
+    if tools.is_empty() {
+        return Err(invalid("Missing input", "the job has no `tool` input"));
+    }
     let material = match &opts.material {
         Some(name) => {
             Material::builtin(name).ok_or_else(|| invalid("Unknown material", name.clone()))?
@@ -442,16 +514,18 @@ fn simulate_job(
         interpret: nc::InterpretOptions {
             dialect: opts.dialect,
             fanuc_implied_decimal: opts.fanuc_implied_decimal,
+            passthrough_m_codes: opts.passthrough_m_codes.clone(),
             ..Default::default()
         },
         stock,
-        tools: BTreeMap::from([(1, tool)]),
+        tools,
         material,
         machine,
         cell: opts.cell_mm,
         memory_limit: opts.max_grid_mib << 20,
         force_positions: opts.force_positions,
         optimize: opts.limits.clone(),
+        axes: opts.axes,
     };
     let out = simulate::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,
@@ -504,6 +578,8 @@ fn simulate_job(
             timings: &out.timings,
             stock_export_s: export_s,
             dexel_updates: out.rays_tested,
+            cycle_time_opt_s: out.optimization.as_ref().map(|o| o.cycle_time_after_s),
+            force_peak_opt_n: out.optimization.as_ref().map(|o| o.peak_force_after),
             optimization: out.optimization.as_ref(),
             row_columns,
         })

@@ -210,6 +210,11 @@ async fn jobs_are_validated_at_submission() {
             422,
             "inputs.stock",
         ),
+        (
+            json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}, "T0": "x"}}),
+            422,
+            "inputs.T0",
+        ),
         (json!({"kind": "interpret", "extra": 1}), 422, "extra"),
     ];
     for (body, status, field) in cases {

@@ -7,6 +7,10 @@ use std::time::Duration;
 use common::*;
 use serde_json::json;
 
+/// The blocks.csv columns outside checks read; optimize jobs add OPT_COLUMNS.
+const INTERFACE_COLUMNS: &str = "block,line,tool,kind,length_mm,feed_mm_min,spindle_rpm,time_s,removed_mm3,mrr_mm3_s,axial_depth_mm,radial_width_mm,entry_deg,exit_deg,chip_max_mm,force_peak_n,force_mean_n,fx_mean_n,fy_mean_n,fz_mean_n,torque_peak_nm,power_peak_w,energy_j,air_fraction,flags";
+const OPT_COLUMNS: &str = "feed_opt_mm_min,time_opt_s,force_peak_opt_n";
+
 /// The block stock (100 × 40 × 10 mm, top at z = 0) and flat D10 4-flute zero-helix tool both
 /// tests cut their slot with; returns their ids.
 async fn slot_stock_and_tool(c: &reqwest::Client, s: &Server) -> (String, String) {
@@ -18,7 +22,7 @@ async fn slot_stock_and_tool(c: &reqwest::Client, s: &Server) -> (String, String
         ),
         (
             "/v1/tools",
-            json!({"shape": "flat", "diameter": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length": 20.0}),
+            json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length_mm": 20.0}),
         ),
     ] {
         let (st, v) = json(c.post(s.url(path)).json(&body).send().await.unwrap()).await;
@@ -55,10 +59,16 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     assert_eq!(done["status"], "succeeded", "{done}");
     let summary = &done["summary"];
     let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
-    let removed = summary["removed_volume"].as_f64().unwrap();
+    let removed = summary["removed_volume_mm3"].as_f64().unwrap();
     assert!((removed - analytic).abs() / analytic < 0.005, "{summary}");
-    assert_eq!(summary["peak_force_line"], 6);
+    assert_eq!(summary["force_peak_line"], 6);
     assert_eq!(summary["rapid_in_material_moves"], 0);
+    assert_eq!(summary["collisions"], json!([]));
+    assert!(summary["blocks"].as_u64().unwrap() >= 8, "{summary}");
+    assert!(
+        summary["force_peak_n"].as_f64().unwrap() > 600.0,
+        "{summary}"
+    );
 
     let csv = c
         .get(s.url(&format!("/v1/jobs/{job_id}/blocks?format=csv")))
@@ -69,20 +79,8 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
         .await
         .unwrap();
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
-    for col in [
-        "block",
-        "line",
-        "tool",
-        "kind",
-        "length",
-        "feed",
-        "removed_volume",
-        "peak_force",
-        "mean_force",
-        "peak_torque",
-        "air_fraction",
-        "rapid_in_material",
-    ] {
+    // The interface outside checks read (issue 6), in this order of importance.
+    for col in INTERFACE_COLUMNS.split(',') {
         assert!(header.contains(&col), "{col} not in {header:?}");
     }
     let page = get_json(&c, &s, &format!("/v1/jobs/{job_id}/blocks")).await;
@@ -92,7 +90,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
         .iter()
         .find(|r| r["line"] == 6)
         .unwrap();
-    assert!(cut["peak_force"].as_f64().unwrap() > 600.0, "{cut}");
+    assert!(cut["force_peak_n"].as_f64().unwrap() > 600.0, "{cut}");
 
     // Per-step samples of a row range; their largest peak is the row's peak.
     let (st, samples) = json(
@@ -117,7 +115,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
         .iter()
         .map(|x| x["peak_force"].as_f64().unwrap())
         .fold(0.0, f64::max);
-    assert_eq!(max, cut["peak_force"].as_f64().unwrap());
+    assert_eq!(max, cut["force_peak_n"].as_f64().unwrap());
     assert!(steps
         .windows(2)
         .all(|w| w[0]["at"].as_f64() < w[1]["at"].as_f64()));
@@ -247,8 +245,27 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
         .iter()
         .find(|r| r["line"] == 10)
         .unwrap();
-    assert_eq!(air["feed_after_mm_min"], 6000.0, "{air}");
+    assert_eq!(air["feed_opt_mm_min"], 6000.0, "{air}");
     assert_eq!(air["governing"], "air");
+    assert_eq!(air["flags"], "air", "{air}");
+    let summary = &done["summary"];
+    assert_eq!(
+        summary["cycle_time_opt_s"], opt["cycle_time_after_s"],
+        "{summary}"
+    );
+    assert_eq!(summary["force_peak_opt_n"], opt["peak_force_after"]);
+    let csv = c
+        .get(s.url(&format!("/v1/jobs/{job_id}/blocks?format=csv")))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    for col in INTERFACE_COLUMNS.split(',').chain(OPT_COLUMNS.split(',')) {
+        assert!(header.contains(&col), "{col} not in {header:?}");
+    }
 
     // Re-simulate the optimized program with the same inputs: no move above the limit by
     // more than 2%, and the same path (same removed volume).
@@ -280,12 +297,77 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
     .await;
     assert_eq!(resim["status"], "succeeded", "{resim}");
     assert!(
-        resim["summary"]["peak_force"].as_f64().unwrap() <= 500.0 * 1.02,
+        resim["summary"]["force_peak_n"].as_f64().unwrap() <= 500.0 * 1.02,
         "{resim}"
     );
     let (v0, v1) = (
-        done["summary"]["removed_volume"].as_f64().unwrap(),
-        resim["summary"]["removed_volume"].as_f64().unwrap(),
+        done["summary"]["removed_volume_mm3"].as_f64().unwrap(),
+        resim["summary"]["removed_volume_mm3"].as_f64().unwrap(),
     );
     assert_eq!(v0, v1);
+}
+
+#[tokio::test]
+async fn each_tool_number_gets_its_own_tool_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let (stock, t1) = slot_stock_and_tool(&c, &s).await;
+    // T2: a Ø6 bull-nose in the older field names, which stay accepted.
+    let (st, t2) = json(
+        c.post(s.url("/v1/tools"))
+            .json(&json!({"shape": "bull_nose", "diameter": 6.0, "corner_radius": 0.5, "flutes": 3, "flute_length": 15.0}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 201, "{t2}");
+    let program = "G21 G90\nT1 M6\nS10000 M3\nG0 Z5\nG0 X10 Y-10\nG0 Z-5\nG1 X50 F2000\nG0 Z5\nT2 M6\nS12000 M3\nG0 X10 Y10\nG0 Z-3\nG1 X50 F1500\nG0 Z5\nM30\n";
+    let inline = json!({"name": "two.nc", "content": program});
+    let both = json!({"program": inline, "stock": stock, "tool": t1, "T2": t2["id"]});
+    let (st, p) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(
+                &json!({"kind": "simulate", "inputs": both, "options": {"material": "Al7075-T6"}}),
+            )
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!((st, p["field"].as_str()), (422, Some("inputs.tool")), "{p}");
+    let inputs = json!({"program": inline, "stock": stock, "T1": t1, "T2": t2["id"]});
+    let (st, job) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(&json!({"kind": "simulate", "inputs": inputs, "options": {"material": "Al7075-T6", "cell_mm": 0.25}}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let done = wait_job(
+        &c,
+        &s,
+        job["id"].as_str().unwrap(),
+        Duration::from_secs(120),
+    )
+    .await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let page = get_json(
+        &c,
+        &s,
+        &format!("/v1/jobs/{}/blocks?limit=100", job["id"].as_str().unwrap()),
+    )
+    .await;
+    let rows = page["items"].as_array().unwrap();
+    let at = |line: u32| rows.iter().find(|r| r["line"] == line).unwrap();
+    assert_eq!(
+        (at(7)["tool"].clone(), at(13)["tool"].clone()),
+        (json!(1), json!(2))
+    );
+    // Each slot as wide as its own tool.
+    assert!((at(7)["radial_width_mm"].as_f64().unwrap() - 10.0).abs() <= 0.25);
+    assert!((at(13)["radial_width_mm"].as_f64().unwrap() - 6.0).abs() <= 0.25);
 }

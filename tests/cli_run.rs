@@ -18,7 +18,7 @@ fn run_writes_summary_rows_and_final_stock() {
     let tool = dir.path().join("tool.json");
     std::fs::write(
         &tool,
-        r#"{"shape":"flat","diameter":10,"flutes":4,"helix_deg":0,"flute_length":20}"#,
+        r#"{"type":"flat","diameter_mm":10,"flutes":4,"helix_deg":0,"flute_length_mm":20,"runout_um":0}"#,
     )
     .unwrap();
     let out_dir = dir.path().join("out");
@@ -48,7 +48,7 @@ fn run_writes_summary_rows_and_final_stock() {
         serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
     let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
     assert!(
-        (summary["removed_volume"].as_f64().unwrap() - analytic).abs() / analytic < 0.005,
+        (summary["removed_volume_mm3"].as_f64().unwrap() - analytic).abs() / analytic < 0.005,
         "{summary}"
     );
     assert!(
@@ -69,14 +69,28 @@ fn run_writes_summary_rows_and_final_stock() {
         84 + 50 * u32::from_le_bytes(stl[80..84].try_into().unwrap()) as usize
     );
 
+    // The interface's columns, in the CSV header.
+    let header = csv.lines().next().unwrap();
+    for col in "block,line,tool,kind,length_mm,feed_mm_min,spindle_rpm,time_s,removed_mm3,mrr_mm3_s,axial_depth_mm,radial_width_mm,entry_deg,exit_deg,chip_max_mm,force_peak_n,force_mean_n,fx_mean_n,fy_mean_n,fz_mean_n,torque_peak_nm,power_peak_w,energy_j,air_fraction,flags".split(',') {
+        assert!(header.split(',').any(|h| h == col), "{col} not in {header}");
+    }
+
     // --optimize writes the rewritten program next to the results, named like the input.
+    // The material as a file with only the six coefficients (Al7075-T6's), the grid
+    // as --resolution.
+    let material = dir.path().join("al7075.json");
+    std::fs::write(
+        &material,
+        r#"{"ktc":767.01,"krc":168.8,"kac":222.0,"kte":27.7,"kre":26.6,"kae":0.7}"#,
+    )
+    .unwrap();
     let out = Command::new(BIN)
         .args([
             "run",
             "--block=0,-20,-10,100,40,10",
             "--material",
-            "Al7075-T6",
-            "--cell",
+            material.to_str().unwrap(),
+            "--resolution",
             "0.25",
             "--optimize",
             "max_force=500,air_feed=6000",
@@ -102,10 +116,7 @@ fn run_writes_summary_rows_and_final_stock() {
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
     assert!(
-        summary["optimization"]["peak_force_after"]
-            .as_f64()
-            .unwrap()
-            <= 510.0,
+        summary["force_peak_opt_n"].as_f64().unwrap() <= 510.0,
         "{summary}"
     );
 

@@ -8,14 +8,14 @@
 use std::collections::BTreeMap;
 
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::geometry::{
     self, simulate_removal, GridOptions, Segment, SimOptions, Stock, StockShape,
 };
 use crate::job::{CancelFlag, Progress};
 use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length, CycleTimeError};
-use crate::machine::Machine;
+use crate::machine::{Kinematics, Machine, MachineKinematics, Pose};
 use crate::nc::{self, FeedMode, Move, MoveKind};
 use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
 use crate::physics::{CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, Material};
@@ -64,11 +64,26 @@ pub enum StockSource {
     Stl(Vec<u8>),
 }
 
+/// How a program's X Y Z A B C words relate to the part on a multi-axis machine.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisReading {
+    /// Machine axes: the machine's kinematics give the tool tip and axis in the part frame
+    /// (a plain 4/5-axis program without tool-centre-point control).
+    #[default]
+    Machine,
+    /// X Y Z are the tool tip in the part frame and A B C set the tool axis: a control
+    /// running tool-centre-point control (Fanuc G43.4, Heidenhain M128, LinuxCNC TCP
+    /// kinematics such as the impeller sample's M428), which moves the tip on a straight line.
+    ToolTip,
+}
+
 pub struct SimulateSpec {
     pub program: String,
     pub interpret: nc::InterpretOptions,
     pub stock: StockSource,
-    /// Tools by T number. A single entry serves every tool number of the program.
+    /// Tools by T number; the tool under key 0 (given alone) serves every tool number of
+    /// a program that uses one.
     pub tools: BTreeMap<u32, Tool>,
     pub material: Material,
     /// For the cycle time (accelerations, junctions, rapid rate, tool change time).
@@ -80,6 +95,8 @@ pub struct SimulateSpec {
     pub force_positions: usize,
     /// Optimize the feeds to these limits and rewrite the program.
     pub optimize: Option<FeedLimits>,
+    /// On a machine with rotary axes: how the program's axis words are read.
+    pub axes: AxisReading,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -90,8 +107,12 @@ pub enum SimulateError {
     UnknownTool { tool: u32, line: u32 },
     #[error("line {line}: the program changes to T{tool} but one tool was given; give a tool for each T number used ({used})")]
     OneToolForSeveral { tool: u32, line: u32, used: String },
-    #[error("line {line}: rotary axes (A/B/C) move; simulating them needs the machine kinematics, which are not supported yet")]
+    #[error("a tool for every number (key 0) cannot be combined with tools for given numbers")]
+    ToolZeroWithOthers,
+    #[error("line {line}: rotary axes (A/B/C) move, but the machine has none (kinematics xyz); give a machine with kinematics xyz_a, xyz_b, xyz_ac, xyz_bc or head_table")]
     RotaryAxes { line: u32 },
+    #[error("line {line}: feed optimization of moves where rotary axes turn is not supported yet; simulate the program, or correct its feeds with a rotary-feed job")]
+    OptimizeRotary { line: u32 },
     #[error("stock: {0}")]
     Geometry(#[from] geometry::GeometryError),
     #[error("force model: {0}")]
@@ -106,60 +127,134 @@ pub enum SimulateError {
     Cancelled,
 }
 
-/// One row per move.
+/// One row per move. The serialized names are the columns of `blocks.csv`, with units.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct MoveRow {
     pub block: usize,
     pub line: u32,
     pub tool: u32,
     pub kind: &'static str,
-    /// Path length, mm.
+    /// Path length of the machine axes (XYZ, or the rotary angle of a rotary-only move), mm.
+    #[serde(rename = "length_mm")]
     pub length: f64,
     /// The F word in force (in the block's feed mode) and the feed it means, mm/min.
     pub feed: f64,
     pub feed_mode: &'static str,
     pub feed_mm_min: f64,
+    /// Tool-tip path in the part frame and the tip speed at the programmed feed (they equal
+    /// length and feed on a 3-axis machine; they differ when rotary axes turn).
+    pub tip_length_mm: f64,
+    pub tip_speed_mm_min: f64,
+    #[serde(rename = "spindle_rpm")]
     pub spindle: f64,
     /// Time of the move with the machine's accelerations and junction speeds, s.
     pub time_s: f64,
+    #[serde(rename = "removed_mm3")]
     pub removed_volume: f64,
-    /// mm³/min at the programmed feed.
+    /// Material removal rate averaged over the move's time, and its peak over the steps, mm³/s.
+    pub mrr_mm3_s: f64,
+    #[serde(rename = "mrr_peak_mm3_s")]
     pub max_mrr: f64,
+    #[serde(rename = "axial_depth_mm")]
     pub max_axial_depth: f64,
+    #[serde(rename = "radial_width_mm")]
     pub max_radial_width: f64,
     /// Degrees, over the move's engaged steps (null in air).
+    #[serde(rename = "entry_deg")]
     pub entry_angle_deg: Option<f64>,
+    #[serde(rename = "exit_deg")]
     pub exit_angle_deg: Option<f64>,
+    #[serde(rename = "chip_max_mm")]
     pub max_chip_thickness: f64,
-    /// |F| over a revolution: peak over the move's steps, and the length-weighted mean of
-    /// the per-step means over the cutting part of the move. N.
+    /// |F| over a revolution: peak over the move's steps, and the mean over the move's
+    /// cutting time (steps weighted by length, at the move's constant feed). N.
+    #[serde(rename = "force_peak_n")]
     pub peak_force: f64,
+    #[serde(rename = "force_mean_n")]
     pub mean_force: f64,
-    /// Peaks of |Fx|, |Fy|, |Fz| in the machine frame, N.
+    /// Machine-frame X, Y, Z force components: means over the cutting time and peaks, N.
+    pub fx_mean_n: f64,
+    pub fy_mean_n: f64,
+    pub fz_mean_n: f64,
+    #[serde(rename = "fx_peak_n")]
     pub peak_fx: f64,
+    #[serde(rename = "fy_peak_n")]
     pub peak_fy: f64,
+    #[serde(rename = "fz_peak_n")]
     pub peak_fz: f64,
+    #[serde(rename = "torque_peak_nm")]
     pub peak_torque: f64,
+    #[serde(rename = "power_peak_w")]
     pub peak_power: f64,
-    /// Length-weighted mean cutting power over the whole move, W.
+    /// Mean cutting power over the whole move (air included), W.
+    #[serde(rename = "power_mean_w")]
     pub mean_power: f64,
     /// Cutting energy of the move: mean power × time, J.
+    #[serde(rename = "energy_j")]
     pub cutting_energy_j: f64,
     pub air_fraction: f64,
+    /// What to look at, `|`-separated: air, rapid_in_material, flute_length_exceeded,
+    /// shank_contact, holder_contact, spindle_stopped_in_material.
+    pub flags: String,
     pub steps: usize,
+    #[serde(skip)]
     pub rapid_in_material: bool,
+    #[serde(skip)]
     pub flute_length_exceeded: bool,
+    #[serde(skip)]
     pub shank_contact: bool,
+    #[serde(skip)]
     pub holder_contact: bool,
     /// Material removed while the spindle is stopped.
+    #[serde(skip)]
     pub spindle_stopped_in_material: bool,
     /// With optimization: the move's feed, time and peak |F| in the rewritten program, and
     /// what set its feed (force, power, torque, chip, air, entry, max_feed, ...).
+    #[serde(rename = "feed_opt_mm_min", skip_serializing_if = "Option::is_none")]
     pub feed_after_mm_min: Option<f64>,
+    #[serde(rename = "time_opt_s", skip_serializing_if = "Option::is_none")]
     pub time_after_s: Option<f64>,
+    #[serde(rename = "force_peak_opt_n", skip_serializing_if = "Option::is_none")]
     pub peak_force_after: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub governing: Option<String>,
 }
+
+impl MoveRow {
+    /// True for a feed move that removed nothing.
+    pub fn is_air_cut(&self) -> bool {
+        matches!(self.kind, "linear" | "arc") && self.removed_volume <= 0.0
+    }
+
+    fn set_flags(&mut self) {
+        let flags = [
+            (self.is_air_cut(), "air"),
+            (self.rapid_in_material, "rapid_in_material"),
+            (self.flute_length_exceeded, "flute_length_exceeded"),
+            (self.shank_contact, "shank_contact"),
+            (self.holder_contact, "holder_contact"),
+            (
+                self.spindle_stopped_in_material,
+                "spindle_stopped_in_material",
+            ),
+        ];
+        let on: Vec<&str> = flags.iter().filter(|(f, _)| *f).map(|(_, n)| *n).collect();
+        self.flags = on.join("|");
+    }
+}
+
+/// A move where the tool, shank or holder met material it must not meet.
+#[derive(Clone, Debug, Serialize)]
+pub struct Collision {
+    pub block: usize,
+    pub line: u32,
+    /// rapid_in_material, shank_contact, holder_contact, flute_length_exceeded or
+    /// spindle_stopped_in_material.
+    pub kind: &'static str,
+}
+
+/// At most this many collisions are listed in the summary (the counts cover all).
+const MAX_LISTED_COLLISIONS: usize = 1000;
 
 #[derive(Clone, Debug, Serialize)]
 pub struct SimulationSummary {
@@ -168,14 +263,20 @@ pub struct SimulationSummary {
     pub cell_mm: f64,
     pub stock_volume_before: f64,
     pub stock_volume_after: f64,
+    #[serde(rename = "removed_volume_mm3")]
     pub removed_volume: f64,
+    #[serde(rename = "force_peak_n")]
     pub peak_force: f64,
+    #[serde(rename = "force_peak_line")]
     pub peak_force_line: Option<u32>,
     pub cutting_moves: usize,
     pub air_moves: usize,
     pub rapid_in_material_moves: usize,
     pub holder_or_shank_contact_moves: usize,
     pub flute_length_exceeded_moves: usize,
+    /// Every move where the tool, shank or holder met material it must not meet (the first
+    /// 1000; the counts above cover all).
+    pub collisions: Vec<Collision>,
     pub force_evaluations: usize,
     /// Cycle time with the machine's accelerations and junction speeds, and its parts, s.
     pub cycle_time_s: f64,
@@ -266,6 +367,149 @@ fn feed_mode_name(m: FeedMode) -> &'static str {
     }
 }
 
+/// Maps the machine's axis positions to tool tip and axis in the part frame, where the
+/// stock is, and cuts moves whose rotary axes turn into pieces short enough that the
+/// curved tip path stays within `tolerance` of them.
+struct PartFrame {
+    /// None on a 3-axis machine: the part frame is the machine (G53) frame.
+    kinematics: Option<MachineKinematics>,
+    reading: AxisReading,
+    /// Largest distance between the true tip path and its pieces, mm.
+    tolerance: f64,
+    /// Largest angle between the true tool axis and its interpolation, radians.
+    axis_tolerance: f64,
+}
+
+/// A move cut into at most 2^MAX_DEPTH pieces.
+const MAX_DEPTH: u32 = 12;
+
+impl PartFrame {
+    fn new(machine: &Machine, reading: AxisReading, cell: f64, reach: f64) -> PartFrame {
+        PartFrame {
+            kinematics: (machine.kinematics != Kinematics::Xyz)
+                .then(|| MachineKinematics::of(machine)),
+            reading,
+            // As the geometry engine's arcs: chords inside a curve over-cut by their sagitta.
+            tolerance: cell / 20.0,
+            // The axis error moves the edge by angle × distance from the tip.
+            axis_tolerance: cell / 20.0 / reach.max(1.0),
+        }
+    }
+
+    fn pose(&self, axes: &[f64; 6]) -> Pose {
+        let tip = [axes[0], axes[1], axes[2]];
+        match (&self.kinematics, self.reading) {
+            (None, _) => Pose {
+                tip,
+                axis: [0.0, 0.0, 1.0],
+            },
+            (Some(k), AxisReading::Machine) => k.forward(axes),
+            (Some(k), AxisReading::ToolTip) => Pose {
+                tip,
+                axis: k.forward(axes).axis,
+            },
+        }
+    }
+
+    /// The move's geometry in the part frame: segments with the distance of each one's
+    /// start along the move, and the tip path length. None for dwells and tool changes.
+    fn segments(&self, m: &Move) -> Option<(Vec<(Segment, f64)>, f64)> {
+        let machine_segment = segment(m)?;
+        let Some(_) = &self.kinematics else {
+            let length = move_length(m);
+            return Some((vec![(machine_segment, 0.0)], length));
+        };
+        let rotary_turns = (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9);
+        if !rotary_turns {
+            // Fixed angles: a rigid motion, so lines stay lines and arcs stay arcs.
+            let p0 = self.pose(&m.start);
+            let p1 = self.pose(&m.end);
+            let mut seg = machine_segment;
+            seg.from = p0.tip;
+            seg.to = p1.tip;
+            seg.axis_from = p0.axis;
+            seg.axis_to = p1.axis;
+            if let geometry::PathShape::Arc { center, normal, .. } = &mut seg.shape {
+                let mut at = m.start;
+                at[..3].copy_from_slice(center);
+                let c = self.pose(&at).tip;
+                at[..3].copy_from_slice(&crate::vec3::add(*center, *normal));
+                *normal = crate::vec3::sub(self.pose(&at).tip, c);
+                *center = c;
+            }
+            return Some((vec![(seg, 0.0)], move_length(m)));
+        }
+        // Rotary axes turn: the control interpolates every axis together, so the tip
+        // follows a curve in the part frame. Sample it adaptively.
+        let at = |u: f64| -> [f64; 6] {
+            match &m.arc {
+                Some(arc) => arc.point_at(u),
+                None => std::array::from_fn(|i| m.start[i] + (m.end[i] - m.start[i]) * u),
+            }
+        };
+        let mut knots = vec![(0.0, self.pose(&m.start))];
+        self.refine(
+            &at,
+            0.0,
+            self.pose(&m.start),
+            1.0,
+            self.pose(&m.end),
+            0,
+            &mut knots,
+        );
+        let (feed, rapid) = (machine_segment.feed, machine_segment.rapid);
+        let mut pieces = Vec::with_capacity(knots.len() - 1);
+        let mut along = 0.0;
+        for w in knots.windows(2) {
+            let (a, b) = (&w[0].1, &w[1].1);
+            let mut seg = if rapid {
+                Segment::rapid(m.block, a.tip, b.tip)
+            } else {
+                Segment::linear(m.block, a.tip, b.tip, feed, m.spindle)
+            };
+            seg = seg.with_axes(a.axis, b.axis);
+            pieces.push((seg, along));
+            along += crate::vec3::norm(crate::vec3::sub(b.tip, a.tip));
+        }
+        Some((pieces, along))
+    }
+
+    /// Appends the knots after `u0` up to and including `u1`, splitting until the midpoint
+    /// of each piece is within tolerance of the chord and of the interpolated axis.
+    #[allow(clippy::too_many_arguments)]
+    fn refine(
+        &self,
+        at: &dyn Fn(f64) -> [f64; 6],
+        u0: f64,
+        p0: Pose,
+        u1: f64,
+        p1: Pose,
+        depth: u32,
+        out: &mut Vec<(f64, Pose)>,
+    ) {
+        use crate::vec3::{add, dot, norm, scale, sub};
+        let um = 0.5 * (u0 + u1);
+        let pm = self.pose(&at(um));
+        let chord_mid = scale(add(p0.tip, p1.tip), 0.5);
+        let tip_error = norm(sub(pm.tip, chord_mid));
+        let axis_mid = add(p0.axis, p1.axis);
+        let axis_error = if norm(axis_mid) > 1e-12 {
+            let a = scale(axis_mid, 1.0 / norm(axis_mid));
+            dot(a, pm.axis).clamp(-1.0, 1.0).acos()
+        } else {
+            std::f64::consts::PI
+        };
+        // Depth ≥ 2 first: a symmetric curve can pass through its chord's midpoint.
+        let fine = tip_error <= self.tolerance && axis_error <= self.axis_tolerance;
+        if depth >= MAX_DEPTH || (depth >= 2 && fine) {
+            out.push((u1, p1));
+            return;
+        }
+        self.refine(at, u0, p0, um, pm, depth + 1, out);
+        self.refine(at, um, pm, u1, p1, depth + 1, out);
+    }
+}
+
 /// The geometry segment of a cutting or positioning move; None for dwells and tool changes.
 fn segment(m: &Move) -> Option<Segment> {
     let (from, to) = (
@@ -308,10 +552,10 @@ pub fn simulate(
         nc::interpret(&spec.program, &spec.interpret).map_err(SimulateError::Program)?;
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
-    let single_tool = if spec.tools.len() == 1 {
-        spec.tools.values().next()
-    } else {
-        None
+    let single_tool = match (spec.tools.len(), spec.tools.get(&0)) {
+        (1, Some(t)) => Some(t),
+        (_, None) => None,
+        _ => return Err(SimulateError::ToolZeroWithOthers),
     };
     // One tool serves a program that uses one tool number; a second number would be cut
     // with the wrong tool, so it is an error, never a guess.
@@ -345,9 +589,13 @@ pub fn simulate(
     // Before the first tool change no cutter is in the spindle: positioning moves then
     // sweep nothing; a feed move then is an error (it would cut with nothing).
     let sweeps = |m: &Move| single_tool.is_some() || m.tool != 0;
-    for m in moves {
-        if (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9) {
+    let turns_rotary = |m: &Move| (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9);
+    if let Some(m) = moves.iter().find(|m| turns_rotary(m)) {
+        if spec.machine.kinematics == Kinematics::Xyz {
             return Err(SimulateError::RotaryAxes { line: m.line });
+        }
+        if spec.optimize.is_some() {
+            return Err(SimulateError::OptimizeRotary { line: m.line });
         }
     }
     for t in spec.tools.values() {
@@ -395,10 +643,25 @@ pub fn simulate(
         })
         .collect();
 
-    // (move index, tool number, segment) in program order, grouped into same-tool runs.
-    let mut runs: Vec<(u32, Vec<(usize, Segment)>)> = Vec::new();
+    // (move index, segment, distance of its start along the move) in program order,
+    // grouped into same-tool runs; a move whose rotary axes turn gives several segments.
+    let reach = spec
+        .tools
+        .values()
+        .map(|t| t.flute_length)
+        .fold(0.0, f64::max);
+    let frame = PartFrame::new(&spec.machine, spec.axes, cell, reach);
+    let mut runs: Vec<(u32, Vec<(usize, Segment, f64)>)> = Vec::new();
     for (i, m) in moves.iter().enumerate() {
-        let Some(seg) = segment(m) else { continue };
+        let Some((pieces, tip_length)) = frame.segments(m) else {
+            continue;
+        };
+        let row = &mut rows[i];
+        row.tip_length_mm = tip_length;
+        if m.kind != MoveKind::Rapid && row.length > 0.0 {
+            // The move takes length / feed whatever the tip does.
+            row.tip_speed_mm_min = row.feed_mm_min * tip_length / row.length;
+        }
         if !sweeps(m) {
             if m.kind != MoveKind::Rapid {
                 return Err(SimulateError::UnknownTool {
@@ -409,11 +672,16 @@ pub fn simulate(
             continue;
         }
         tool_for(m)?;
-        match runs.last_mut() {
-            Some((t, segs)) if *t == m.tool => segs.push((i, seg)),
-            _ => runs.push((m.tool, vec![(i, seg)])),
+        if runs.last().map(|(t, _)| *t) != Some(m.tool) {
+            runs.push((m.tool, Vec::new()));
         }
+        let run = &mut runs.last_mut().expect("pushed above").1;
+        run.extend(pieces.into_iter().map(|(seg, at)| (i, seg, at)));
     }
+    let segments_total: usize = runs.iter().map(|(_, r)| r.len()).sum();
+    // Per move: (length of steps that cut, length of all steps).
+    let mut step_lengths = vec![(0.0, 0.0); moves.len()];
+    let mut swept = vec![false; moves.len()];
     let total = moves.len() as u64;
     let clock = std::time::Instant::now();
     let mut rays_tested = 0u64;
@@ -431,58 +699,79 @@ pub fn simulate(
         // In chunks, so that progress and cancellation come every few hundred moves
         // (the removal keeps no state from one segment to the next).
         for chunk in segs.chunks(PROGRESS_CHUNK) {
-            let only: Vec<Segment> = chunk.iter().map(|(_, s)| s.clone()).collect();
+            let only: Vec<Segment> = chunk.iter().map(|(_, s, _)| s.clone()).collect();
             let report = simulate_removal(&mut stock, tool, &only, &SimOptions::default(), cancel)
                 .map_err(|e| match e {
                     geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
                     other => SimulateError::Geometry(other),
                 })?;
             rays_tested += report.rays_tested;
-            for ((move_index, _), b) in chunk.iter().zip(report.blocks) {
+            for ((move_index, _, along), b) in chunk.iter().zip(report.blocks) {
                 let row = &mut rows[*move_index];
-                row.removed_volume = b.removed_volume;
-                row.max_axial_depth = b.max_axial_depth;
-                row.max_radial_width = b.max_radial_width;
-                row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
-                row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
+                swept[*move_index] = true;
+                row.removed_volume += b.removed_volume;
+                row.max_axial_depth = row.max_axial_depth.max(b.max_axial_depth);
+                row.max_radial_width = row.max_radial_width.max(b.max_radial_width);
+                // The first piece of the move that engages gives the angles.
+                if row.entry_angle_deg.is_none() && row.exit_angle_deg.is_none() {
+                    row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
+                    row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
+                }
                 // A step that removes nothing is air, even where the edge grazes a wall that
                 // an earlier move cut to exactly the tool's radius.
-                let cut_length: f64 = b
-                    .steps
-                    .iter()
-                    .filter(|s| !s.air && s.removed_volume > 0.0)
-                    .map(|s| s.length)
-                    .sum();
-                let steps_length: f64 = b.steps.iter().map(|s| s.length).sum();
-                row.air_fraction = if steps_length > 0.0 {
-                    1.0 - cut_length / steps_length
-                } else {
-                    1.0
-                };
-                row.rapid_in_material = b.checks.rapid_in_material;
-                row.flute_length_exceeded = b.checks.flute_length_exceeded;
-                row.shank_contact = b.checks.shank_contact;
-                row.holder_contact = b.checks.holder_contact;
-                row.steps = b.steps.len();
-                row.max_mrr = b.max_mrr;
-                row.spindle_stopped_in_material =
-                    b.removed_volume > 1e-6 && moves[*move_index].spindle <= 0.0 && !b.rapid;
-                steps.extend(b.steps.into_iter().map(|s| (*move_index, *tool_number, s)));
+                let lengths = &mut step_lengths[*move_index];
+                for s in &b.steps {
+                    if !s.air && s.removed_volume > 0.0 {
+                        lengths.0 += s.length;
+                    }
+                    lengths.1 += s.length;
+                }
+                row.rapid_in_material |= b.checks.rapid_in_material;
+                row.flute_length_exceeded |= b.checks.flute_length_exceeded;
+                row.shank_contact |= b.checks.shank_contact;
+                row.holder_contact |= b.checks.holder_contact;
+                row.steps += b.steps.len();
+                row.max_mrr = row.max_mrr.max(b.max_mrr / 60.0);
+                steps.extend(b.steps.into_iter().map(|mut s| {
+                    s.distance += along;
+                    (*move_index, *tool_number, s)
+                }));
             }
             // The last tenth of the progress is the force evaluation.
             done += chunk.len() as u64;
-            progress.report(done * 9 / 10, total);
+            progress.report(
+                done * 9 * total / (10 * segments_total as u64).max(1),
+                total,
+            );
         }
+    }
+    for (i, row) in rows.iter_mut().enumerate() {
+        if !swept[i] {
+            continue;
+        }
+        let (cut, all) = step_lengths[i];
+        row.air_fraction = if all > 0.0 { 1.0 - cut / all } else { 1.0 };
+        row.spindle_stopped_in_material = row.removed_volume > 1e-6
+            && moves[i].spindle <= 0.0
+            && moves[i].kind != MoveKind::Rapid;
     }
     timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let k = spec.material.coefficients;
-    let feeds: Vec<f64> = rows.iter().map(|r| r.feed_mm_min).collect();
+    let feeds: Vec<f64> = rows.iter().map(|r| r.tip_speed_mm_min).collect();
     let forces = evaluate_forces(&steps, moves, &feeds, &models, &k)?;
     if cancel.is_cancelled() {
         return Err(SimulateError::Cancelled);
     }
-    let mut weighted: Vec<(f64, f64, f64)> = vec![(0.0, 0.0, 0.0); rows.len()]; // (Σ mean·len, Σ len engaged, Σ power·len)
+    // Length-weighted sums per move (a move runs at one feed, so length stands for time).
+    #[derive(Clone, Copy, Default)]
+    struct Weighted {
+        force: f64,
+        components: [f64; 3],
+        engaged_length: f64,
+        power: f64,
+    }
+    let mut weighted = vec![Weighted::default(); rows.len()];
     let mut evaluations = 0;
     let mut samples: Vec<Vec<StepSample>> = vec![Vec::new(); rows.len()];
     for ((mi, _, s), f) in steps.iter().zip(&forces) {
@@ -505,18 +794,28 @@ pub fn simulate(
         row.peak_power = row.peak_power.max(f.power.peak);
         row.max_chip_thickness = row.max_chip_thickness.max(f.max_chip_thickness);
         let w = &mut weighted[*mi];
-        w.0 += f.force.mean * s.length;
-        w.1 += s.length;
-        w.2 += f.power.mean * s.length;
+        w.force += f.force.mean * s.length;
+        for (c, part) in w.components.iter_mut().zip(&f.part) {
+            *c += part.mean * s.length;
+        }
+        w.engaged_length += s.length;
+        w.power += f.power.mean * s.length;
     }
-    for (row, (fl, len, pl)) in rows.iter_mut().zip(weighted) {
-        if len > 0.0 {
-            row.mean_force = fl / len;
+    for (row, w) in rows.iter_mut().zip(weighted) {
+        if w.engaged_length > 0.0 {
+            row.mean_force = w.force / w.engaged_length;
+            row.fx_mean_n = w.components[0] / w.engaged_length;
+            row.fy_mean_n = w.components[1] / w.engaged_length;
+            row.fz_mean_n = w.components[2] / w.engaged_length;
         }
         if row.length > 0.0 {
-            row.mean_power = pl / row.length;
+            row.mean_power = w.power / row.length;
         }
         row.cutting_energy_j = row.mean_power * row.time_s;
+        if row.time_s > 0.0 {
+            row.mrr_mm3_s = row.removed_volume / row.time_s;
+        }
+        row.set_flags();
     }
     progress.report(total, total);
     timings.forces_s = clock.elapsed().as_secs_f64();
@@ -563,6 +862,7 @@ pub fn simulate(
             .filter(|r| r.holder_contact || r.shank_contact)
             .count(),
         flute_length_exceeded_moves: rows.iter().filter(|r| r.flute_length_exceeded).count(),
+        collisions: collisions(&rows),
         force_evaluations: evaluations,
         cycle_time_s: times.total_s,
         cutting_time_s: times.cutting_s,
@@ -580,6 +880,28 @@ pub fn simulate(
         timings,
         rays_tested,
     })
+}
+
+fn collisions(rows: &[MoveRow]) -> Vec<Collision> {
+    rows.iter()
+        .flat_map(|r| {
+            [
+                (r.rapid_in_material, "rapid_in_material"),
+                (r.shank_contact, "shank_contact"),
+                (r.holder_contact, "holder_contact"),
+                (r.flute_length_exceeded, "flute_length_exceeded"),
+                (r.spindle_stopped_in_material, "spindle_stopped_in_material"),
+            ]
+            .into_iter()
+            .filter(|(on, _)| *on)
+            .map(|(_, kind)| Collision {
+                block: r.block,
+                line: r.line,
+                kind,
+            })
+        })
+        .take(MAX_LISTED_COLLISIONS)
+        .collect()
 }
 
 /// Feed scheduling on the engagement the removal pass recorded, the rewrite, and the

@@ -17,6 +17,7 @@ pub enum ToolShape {
     /// Ball end mill: corner radius = diameter / 2.
     Ball,
     /// Bull-nose (torus) end mill with `corner_radius`.
+    #[serde(rename = "bull", alias = "bull_nose")]
     BullNose,
     /// Chamfer/taper mill: cone from `tip_diameter` widening at `taper_half_angle_deg`
     /// from the axis until it reaches `diameter`, cylindrical above.
@@ -25,6 +26,7 @@ pub enum ToolShape {
 
 /// One piece of the holder stack, from the bottom (nearest the tool) up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "HolderJson", into = "HolderJson")]
 pub struct HolderSegment {
     /// Axial length, mm.
     pub length: f64,
@@ -34,48 +36,205 @@ pub struct HolderSegment {
     pub top_diameter: f64,
 }
 
+/// A holder segment as JSON: `{"length_mm":40,"diameter_mm":32}` for a cylinder, or
+/// bottom and top diameters for a cone.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HolderJson {
+    #[serde(rename = "length_mm", alias = "length")]
+    length: f64,
+    #[serde(
+        rename = "diameter_mm",
+        alias = "diameter",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    diameter: Option<f64>,
+    #[serde(
+        rename = "bottom_diameter_mm",
+        alias = "bottom_diameter",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    bottom_diameter: Option<f64>,
+    #[serde(
+        rename = "top_diameter_mm",
+        alias = "top_diameter",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    top_diameter: Option<f64>,
+}
+
+impl TryFrom<HolderJson> for HolderSegment {
+    type Error = String;
+    fn try_from(h: HolderJson) -> Result<Self, String> {
+        let (bottom, top) = match (h.diameter, h.bottom_diameter, h.top_diameter) {
+            (Some(d), None, None) => (d, d),
+            (None, Some(b), Some(t)) => (b, t),
+            (None, Some(b), None) => (b, b),
+            _ => {
+                return Err("a holder segment takes `diameter_mm`, or `bottom_diameter_mm` and `top_diameter_mm`".into())
+            }
+        };
+        Ok(HolderSegment {
+            length: h.length,
+            bottom_diameter: bottom,
+            top_diameter: top,
+        })
+    }
+}
+
+impl From<HolderSegment> for HolderJson {
+    fn from(h: HolderSegment) -> Self {
+        HolderJson {
+            length: h.length,
+            diameter: None,
+            bottom_diameter: Some(h.bottom_diameter),
+            top_diameter: Some(h.top_diameter),
+        }
+    }
+}
+
 /// Radial runout of the tool: the tool's axis of rotation is offset from the spindle
 /// axis by `offset` mm in the direction `angle_deg`, measured in the tool's rotating
 /// frame from tooth 1, so that each tooth sweeps a slightly different radius.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Runout {
     pub offset: f64,
     pub angle_deg: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "ToolJson", into = "ToolJson")]
 pub struct Tool {
-    #[serde(default)]
     pub name: Option<String>,
     pub shape: ToolShape,
     /// Cutting diameter, mm.
     pub diameter: f64,
     /// Corner radius for bull-nose tools, mm (ignored for the others: flat 0, ball D/2).
-    #[serde(default)]
     pub corner_radius: f64,
     /// Chamfer tools: diameter at the tip, mm.
-    #[serde(default)]
     pub tip_diameter: f64,
     /// Chamfer tools: angle between the conical edge and the tool axis, degrees.
-    #[serde(default)]
     pub taper_half_angle_deg: f64,
     pub flutes: u32,
     /// Helix angle of the flutes, degrees.
-    #[serde(default)]
     pub helix_deg: f64,
     /// Length of the cutting part from the tip, mm.
     pub flute_length: f64,
     /// Shank diameter, mm (defaults to the cutting diameter).
-    #[serde(default)]
     pub shank_diameter: Option<f64>,
     /// Length from the tip to the holder's face, mm (defaults to flute length + 2·D).
-    #[serde(default)]
     pub stick_out: Option<f64>,
-    #[serde(default)]
     pub holder: Vec<HolderSegment>,
-    #[serde(default)]
     pub runout: Runout,
+}
+
+/// The tool's JSON document: `{"type":"flat|ball|bull|chamfer","diameter_mm":..,
+/// "corner_radius_mm":..,"flutes":..,"helix_deg":..,"flute_length_mm":..,
+/// "shank_diameter_mm":..,"stickout_mm":..,"holder":[..],"runout_um":..}`. The names
+/// without units (`shape`, `diameter`, `flute_length`, ...) are accepted too.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ToolJson {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    name: Option<String>,
+    #[serde(rename = "type", alias = "shape")]
+    shape: ToolShape,
+    #[serde(rename = "diameter_mm", alias = "diameter")]
+    diameter: f64,
+    #[serde(rename = "corner_radius_mm", alias = "corner_radius", default)]
+    corner_radius: f64,
+    #[serde(rename = "tip_diameter_mm", alias = "tip_diameter", default)]
+    tip_diameter: f64,
+    #[serde(default)]
+    taper_half_angle_deg: f64,
+    flutes: u32,
+    #[serde(default)]
+    helix_deg: f64,
+    #[serde(rename = "flute_length_mm", alias = "flute_length")]
+    flute_length: f64,
+    #[serde(
+        rename = "shank_diameter_mm",
+        alias = "shank_diameter",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    shank_diameter: Option<f64>,
+    #[serde(
+        rename = "stickout_mm",
+        alias = "stick_out",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    stick_out: Option<f64>,
+    #[serde(default)]
+    holder: Vec<HolderSegment>,
+    /// Radial runout, µm, and its direction from tooth 1, degrees.
+    #[serde(default)]
+    runout_um: f64,
+    #[serde(default)]
+    runout_angle_deg: f64,
+    /// The older form `{"offset": mm, "angle_deg": deg}`.
+    #[serde(default, skip_serializing)]
+    runout: Option<Runout>,
+}
+
+impl TryFrom<ToolJson> for Tool {
+    type Error = String;
+    fn try_from(t: ToolJson) -> Result<Self, String> {
+        let runout = match t.runout {
+            Some(_) if t.runout_um != 0.0 || t.runout_angle_deg != 0.0 => {
+                return Err(
+                    "give `runout_um` (and `runout_angle_deg`) or `runout`, not both".into(),
+                );
+            }
+            Some(r) => r,
+            None => Runout {
+                offset: t.runout_um / 1000.0,
+                angle_deg: t.runout_angle_deg,
+            },
+        };
+        Ok(Tool {
+            name: t.name,
+            shape: t.shape,
+            diameter: t.diameter,
+            corner_radius: t.corner_radius,
+            tip_diameter: t.tip_diameter,
+            taper_half_angle_deg: t.taper_half_angle_deg,
+            flutes: t.flutes,
+            helix_deg: t.helix_deg,
+            flute_length: t.flute_length,
+            shank_diameter: t.shank_diameter,
+            stick_out: t.stick_out,
+            holder: t.holder,
+            runout,
+        })
+    }
+}
+
+impl From<Tool> for ToolJson {
+    fn from(t: Tool) -> Self {
+        ToolJson {
+            name: t.name,
+            shape: t.shape,
+            diameter: t.diameter,
+            corner_radius: t.corner_radius,
+            tip_diameter: t.tip_diameter,
+            taper_half_angle_deg: t.taper_half_angle_deg,
+            flutes: t.flutes,
+            helix_deg: t.helix_deg,
+            flute_length: t.flute_length,
+            shank_diameter: t.shank_diameter,
+            stick_out: t.stick_out,
+            holder: t.holder,
+            runout_um: t.runout.offset * 1000.0,
+            runout_angle_deg: t.runout.angle_deg,
+            runout: None,
+        }
+    }
 }
 
 /// A point of the cutting edge at height z above the tip.
@@ -170,21 +329,21 @@ impl Tool {
                 Ok(())
             }
         };
-        finite_pos("diameter", self.diameter)?;
+        finite_pos("diameter_mm", self.diameter)?;
         // Below 0.01 mm or above 1 m the number is a unit mistake, not a milling tool.
         if !(0.01..=1000.0).contains(&self.diameter) {
             return Err(bad(
-                "diameter",
+                "diameter_mm",
                 format!(
                     "{} mm is not a milling tool diameter (0.01 to 1000 mm)",
                     self.diameter
                 ),
             ));
         }
-        finite_pos("flute_length", self.flute_length)?;
+        finite_pos("flute_length_mm", self.flute_length)?;
         if !(0.01..=2000.0).contains(&self.flute_length) {
             return Err(bad(
-                "flute_length",
+                "flute_length_mm",
                 format!(
                     "{} mm is not a flute length (0.01 to 2000 mm)",
                     self.flute_length
@@ -205,9 +364,9 @@ impl Tool {
         }
         match self.shape {
             ToolShape::BullNose => {
-                finite_pos("corner_radius", self.corner_radius)?;
+                finite_pos("corner_radius_mm", self.corner_radius)?;
                 if self.corner_radius > self.radius() {
-                    return Err(bad("corner_radius", "must not exceed half the diameter"));
+                    return Err(bad("corner_radius_mm", "must not exceed half the diameter"));
                 }
             }
             ToolShape::Chamfer => {
@@ -215,7 +374,7 @@ impl Tool {
                     || self.tip_diameter < 0.0
                     || self.tip_diameter >= self.diameter
                 {
-                    return Err(bad("tip_diameter", "must be in [0, diameter)"));
+                    return Err(bad("tip_diameter_mm", "must be in [0, diameter)"));
                 }
                 if !(self.taper_half_angle_deg > 0.0 && self.taper_half_angle_deg < 89.0) {
                     return Err(bad("taper_half_angle_deg", "must be in (0, 89) degrees"));
@@ -224,27 +383,27 @@ impl Tool {
             ToolShape::Flat | ToolShape::Ball => {}
         }
         if let Some(d) = self.shank_diameter {
-            finite_pos("shank_diameter", d)?;
+            finite_pos("shank_diameter_mm", d)?;
         }
         if let Some(s) = self.stick_out {
-            finite_pos("stick_out", s)?;
+            finite_pos("stickout_mm", s)?;
             if s < self.flute_length {
-                return Err(bad("stick_out", "must be at least the flute length"));
+                return Err(bad("stickout_mm", "must be at least the flute length"));
             }
         }
         for seg in &self.holder {
-            finite_pos("holder.length", seg.length)?;
-            finite_pos("holder.bottom_diameter", seg.bottom_diameter)?;
-            finite_pos("holder.top_diameter", seg.top_diameter)?;
+            finite_pos("holder.length_mm", seg.length)?;
+            finite_pos("holder.bottom_diameter_mm", seg.bottom_diameter)?;
+            finite_pos("holder.top_diameter_mm", seg.top_diameter)?;
         }
         if !self.runout.offset.is_finite()
             || self.runout.offset < 0.0
             || self.runout.offset > 0.1 * self.diameter
         {
-            return Err(bad("runout.offset", "must be in [0, D/10] mm"));
+            return Err(bad("runout_um", "must be in [0, D/10] (in µm: 0 to 100·D)"));
         }
         if !self.runout.angle_deg.is_finite() {
-            return Err(bad("runout.angle_deg", "must be a number"));
+            return Err(bad("runout_angle_deg", "must be a number"));
         }
         Ok(())
     }

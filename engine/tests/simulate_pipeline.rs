@@ -23,13 +23,14 @@ fn spec(program: &str) -> SimulateSpec {
             min: [0.0, -20.0, -10.0],
             max: [100.0, 20.0, 0.0],
         }),
-        tools: BTreeMap::from([(1, tool)]),
+        tools: BTreeMap::from([(0, tool)]),
         material: Material::builtin("Al7075-T6").unwrap(),
         machine: Machine::generic(),
         cell: Some(0.25),
         memory_limit: 1 << 30,
         force_positions: 360,
         optimize: None,
+        axes: Default::default(),
     }
 }
 
@@ -110,6 +111,8 @@ fn a_second_layer_in_the_wrong_order_cuts_air_and_a_rapid_through_stock_is_flagg
 #[test]
 fn errors_name_the_line() {
     let mut s = spec("G0 X0\nT7 M6\nG1 X10 F100\n");
+    let t = s.tools.remove(&0).unwrap();
+    s.tools.insert(1, t);
     s.tools.insert(2, Tool::flat(6.0, 3));
     let err = simulate(&s, &CancelFlag::new(), &NoProgress)
         .err()
@@ -233,4 +236,41 @@ fn optimize_holds_the_force_limit_speeds_up_air_and_changes_only_f_words() {
         opt.cycle_time_after_s <= opt.cycle_time_constant_feed_s + 1e-9,
         "{opt:?}"
     );
+}
+
+#[test]
+fn each_tool_number_cuts_with_its_own_tool() {
+    // T1 (D10) slots 40 mm at 5 mm deep, then T2 (D6) slots 40 mm at 3 mm deep elsewhere:
+    // each slot's volume is its own tool's L·D·a + half-disc ends.
+    let program = "G21 G90 G17\nT1 M6\nS10000 M3\nG0 Z5\nG0 X10 Y-10\nG0 Z-5\nG1 X50 F2000\nG0 Z5\nT2 M6\nS12000 M3\nG0 X10 Y10\nG0 Z-3\nG1 X50 F1500\nG0 Z5\nM30\n";
+    let mut s = spec(program);
+    let t1 = s.tools.remove(&0).unwrap();
+    let mut t2 = Tool::flat(6.0, 3);
+    t2.flute_length = 15.0;
+    s.tools.insert(1, t1);
+    s.tools.insert(2, t2);
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let slot = |line: u32| out.rows.iter().find(|r| r.line == line).unwrap();
+    let (a, b) = (slot(7), slot(13));
+    assert_eq!((a.tool, b.tool), (1, 2));
+    // Each slot also cuts the half disc at its plunge: L·D·a + π·R²·a (both ends).
+    let v1 = 5.0 * (40.0 * 10.0 + PI * 25.0);
+    let v2 = 3.0 * (40.0 * 6.0 + PI * 9.0);
+    let plunge1: f64 = out
+        .rows
+        .iter()
+        .filter(|r| r.line == 6)
+        .map(|r| r.removed_volume)
+        .sum();
+    let plunge2: f64 = out
+        .rows
+        .iter()
+        .filter(|r| r.line == 12)
+        .map(|r| r.removed_volume)
+        .sum();
+    let got1 = a.removed_volume + plunge1;
+    let got2 = b.removed_volume + plunge2;
+    assert!((got1 - v1).abs() / v1 < 0.01, "T1 slot {got1} vs {v1}");
+    assert!((got2 - v2).abs() / v2 < 0.01, "T2 slot {got2} vs {v2}");
+    assert!((a.max_radial_width - 10.0).abs() <= 0.25 && (b.max_radial_width - 6.0).abs() <= 0.25);
 }

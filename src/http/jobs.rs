@@ -142,18 +142,29 @@ pub async fn create(
     let mut inline = Vec::new();
     let specs = runner::inputs_of(&request.kind);
     for name in request.inputs.keys() {
-        if !specs.iter().any(|s| s.name == name) {
+        if !specs.iter().any(|s| s.name == name)
+            && runner::tool_number_input(&request.kind, name).is_none()
+        {
             return Err(ApiError::invalid_field(
                 format!("inputs.{name}"),
                 format!("a `{}` job takes no input `{name}`", request.kind),
             ));
         }
     }
-    for spec in specs {
-        let (name, kind) = (spec.name, spec.kind);
+    // The kind's fixed inputs, then any per-number tools (`T1`, `T2`, ...).
+    let mut wanted: Vec<(&str, ResourceKind, bool)> =
+        specs.iter().map(|s| (s.name, s.kind, s.required)).collect();
+    wanted.extend(
+        request
+            .inputs
+            .keys()
+            .filter(|n| runner::tool_number_input(&request.kind, n).is_some())
+            .map(|n| (n.as_str(), ResourceKind::Tool, true)),
+    );
+    for (name, kind, required) in wanted {
         let field = format!("inputs.{name}");
         match request.inputs.get(name) {
-            None if spec.required => {
+            None if required => {
                 return Err(ApiError::invalid_field(
                     field,
                     format!("a `{}` job needs input `{name}`", request.kind),
@@ -203,6 +214,8 @@ pub async fn create(
             }
         }
     }
+    runner::check_tool_inputs(&request.kind, request.inputs.keys())
+        .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
     check_options(
         &request.kind,
         &options,

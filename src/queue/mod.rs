@@ -15,7 +15,7 @@ use crate::config::QueueConfig;
 use crate::metrics::Metrics;
 use crate::runner::{self, JobFailure, LoadedInputs};
 use crate::store::jobs::{Artifact, ClaimedJob, Finish, LeaseState};
-use crate::store::Db;
+use crate::store::{Db, ResourceKind};
 
 #[derive(Default)]
 struct SharedProgress {
@@ -103,13 +103,25 @@ impl Worker {
 
     async fn load_inputs(&self, job: &ClaimedJob) -> Result<LoadedInputs, serde_json::Value> {
         let mut loaded = LoadedInputs::new();
-        for spec in runner::inputs_of(&job.kind) {
-            let Some(id) = job.spec["inputs"][spec.name].as_str() else {
+        let mut wanted: Vec<(String, ResourceKind)> = runner::inputs_of(&job.kind)
+            .iter()
+            .map(|s| (s.name.to_string(), s.kind))
+            .collect();
+        if let Some(given) = job.spec["inputs"].as_object() {
+            wanted.extend(
+                given
+                    .keys()
+                    .filter(|n| runner::tool_number_input(&job.kind, n).is_some())
+                    .map(|n| (n.clone(), ResourceKind::Tool)),
+            );
+        }
+        for (name, kind) in wanted {
+            let Some(id) = job.spec["inputs"][&name].as_str() else {
                 continue;
             };
             let found = self
                 .db
-                .resource_content(&job.owner, spec.kind, id)
+                .resource_content(&job.owner, kind, id)
                 .await
                 .map_err(
                     |e| json!({"title": "storage error", "detail": e.to_string(), "status": 503}),
@@ -118,11 +130,11 @@ impl Worker {
                 return Err(json!({
                     "type": "https://millsim.dev/problems/input-gone",
                     "title": "Input deleted", "status": 422,
-                    "detail": format!("input `{}` ({} {id}) was deleted before the job ran", spec.name, spec.kind.as_str()),
+                    "detail": format!("input `{name}` ({} {id}) was deleted before the job ran", kind.as_str()),
                 }));
             };
             loaded.insert(
-                spec.name.to_string(),
+                name,
                 runner::LoadedInput {
                     file_name,
                     media_type,

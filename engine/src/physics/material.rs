@@ -42,15 +42,89 @@ impl CuttingCoefficients {
 
 /// A work material as the force model and the life model need it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "MaterialJson")]
 pub struct Material {
     pub name: String,
     pub coefficients: CuttingCoefficients,
     /// Extended Taylor constants, when a source for them exists.
-    #[serde(default)]
     pub taylor: Option<TaylorLife>,
     /// Where the numbers come from (publication, measurement campaign, identification job).
     pub source: String,
+}
+
+/// A material document: `{"name":..,"coefficients":{"ktc":..,..},"source":..,"taylor":..}`,
+/// or just the six coefficients `{"ktc":..,"krc":..,"kac":..,"kte":..,"kre":..,"kae":..}`
+/// (N/mm² and N/mm), for which name and source are optional.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialJson {
+    #[serde(default)]
+    name: Option<String>,
+    #[serde(default)]
+    coefficients: Option<CuttingCoefficients>,
+    #[serde(default)]
+    taylor: Option<TaylorLife>,
+    #[serde(default)]
+    source: Option<String>,
+    ktc: Option<f64>,
+    krc: Option<f64>,
+    kac: Option<f64>,
+    kte: Option<f64>,
+    kre: Option<f64>,
+    kae: Option<f64>,
+}
+
+impl TryFrom<MaterialJson> for Material {
+    type Error = String;
+    fn try_from(m: MaterialJson) -> Result<Self, String> {
+        let flat = [m.ktc, m.krc, m.kac, m.kte, m.kre, m.kae];
+        let coefficients = match (m.coefficients, flat) {
+            (Some(c), [None, None, None, None, None, None]) => {
+                return Ok(Material {
+                    name: m.name.ok_or("missing field `name`")?,
+                    coefficients: c,
+                    taylor: m.taylor,
+                    source: m.source.ok_or("missing field `source`")?,
+                })
+            }
+            (Some(_), _) => {
+                return Err(
+                    "give `coefficients` or the six coefficients at the top level, not both".into(),
+                )
+            }
+            (None, [Some(ktc), Some(krc), Some(kac), Some(kte), Some(kre), Some(kae)]) => {
+                CuttingCoefficients {
+                    ktc,
+                    krc,
+                    kac,
+                    kte,
+                    kre,
+                    kae,
+                }
+            }
+            (None, flat) => {
+                let names = ["ktc", "krc", "kac", "kte", "kre", "kae"];
+                let missing: Vec<&str> = names
+                    .iter()
+                    .zip(flat)
+                    .filter(|(_, v)| v.is_none())
+                    .map(|(n, _)| *n)
+                    .collect();
+                return Err(format!(
+                    "missing cutting coefficients: {} (give all six, or `coefficients`)",
+                    missing.join(", ")
+                ));
+            }
+        };
+        Ok(Material {
+            name: m.name.unwrap_or_else(|| "user material".into()),
+            coefficients,
+            taylor: m.taylor,
+            source: m
+                .source
+                .unwrap_or_else(|| "cutting coefficients given by the user".into()),
+        })
+    }
 }
 
 impl Material {

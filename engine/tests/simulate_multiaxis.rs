@@ -1,0 +1,175 @@
+//! Simulating 4/5-axis programs in the part frame: the stock sits on the rotary table, the
+//! machine's kinematics turn the program's axes into the tool tip and axis on the part.
+//! Volumes against closed forms; a C-table cut against the same cut written as a G2 circle.
+
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+
+use millsim_engine::geometry::StockShape;
+use millsim_engine::job::{CancelFlag, NoProgress};
+use millsim_engine::machine::{Kinematics, Machine};
+use millsim_engine::nc::InterpretOptions;
+use millsim_engine::physics::Material;
+use millsim_engine::simulate::{simulate, AxisReading, MoveRow, SimulateSpec, StockSource};
+use millsim_engine::tool::Tool;
+
+const R: f64 = 10.0;
+const HEIGHT: f64 = 40.0;
+
+/// A Ø20 × 40 cylinder on the C table's centre, its top face at z = −0.5 (clear of the
+/// tool at the program's start, the origin), cut with a flat end mill of the given diameter.
+fn spec(program: &str, kinematics: Kinematics, tool_diameter: f64) -> SimulateSpec {
+    let mut tool = Tool::flat(tool_diameter, 3);
+    tool.flute_length = 20.0;
+    SimulateSpec {
+        program: program.into(),
+        interpret: InterpretOptions::default(),
+        stock: StockSource::Shape(StockShape::Cylinder {
+            base_center: [0.0, 0.0, -HEIGHT - 0.5],
+            radius: R,
+            height: HEIGHT,
+        }),
+        tools: BTreeMap::from([(0, tool)]),
+        material: Material::builtin("Al7075-T6").unwrap(),
+        machine: Machine {
+            kinematics,
+            ..Machine::generic()
+        },
+        cell: Some(0.1),
+        memory_limit: 1 << 30,
+        force_positions: 180,
+        optimize: None,
+        axes: AxisReading::Machine,
+    }
+}
+
+fn row(rows: &[MoveRow], line: u32) -> &MoveRow {
+    rows.iter().find(|r| r.line == line).unwrap()
+}
+
+fn removed(rows: &[MoveRow]) -> f64 {
+    rows.iter().map(|r| r.removed_volume).sum()
+}
+
+#[test]
+fn c_table_turn_cuts_a_ring_and_matches_the_same_cut_as_a_g2_circle() {
+    // Tool (r = 5) beside the cylinder, its side 2 mm into it, 3 mm deep; one turn of C
+    // sweeps the ring R−2 ≤ ρ ≤ R: V = π·(R² − (R−2)²)·3 whatever the tool radius.
+    let program =
+        "G21 G90 S10000 M3\nG0 Z10 A0 C0\nG0 X13 Y0\nG1 Z-3.5 F300\nG1 C360 F3600\nG0 Z10\n";
+    let out = simulate(
+        &spec(program, Kinematics::XyzAc, 10.0),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    let ring = PI * (R * R - (R - 2.0).powi(2)) * 3.0;
+    let got = removed(&out.rows);
+    assert!((got - ring).abs() / ring < 0.005, "removed {got} vs {ring}");
+    // The tip circles the table axis at 13 mm: 2π·13 per turn, at F3600 °/min → 0.1 min.
+    let turn = row(&out.rows, 5);
+    let tip = 2.0 * PI * 13.0;
+    assert!((turn.tip_length_mm - tip).abs() / tip < 1e-3, "{turn:?}");
+    assert!(
+        (turn.tip_speed_mm_min - tip / 0.1).abs() / (tip / 0.1) < 1e-3,
+        "{turn:?}"
+    );
+    assert_eq!(
+        turn.length, 360.0,
+        "machine path of a rotary-only move, degrees"
+    );
+
+    // The same cut on a 3-axis machine: the table turning +C moves the tool clockwise
+    // around the part, so G2 at the tip speed. Same chip, same force.
+    let circle = format!(
+        "G21 G90 S10000 M3\nG0 Z10\nG0 X13 Y0\nG1 Z-3.5 F300\nG2 X13 Y0 I-13 J0 F{:.4}\nG0 Z10\n",
+        tip / 0.1
+    );
+    let flat = simulate(
+        &spec(&circle, Kinematics::Xyz, 10.0),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    let arc = row(&flat.rows, 5);
+    let rel = |a: f64, b: f64| (a - b).abs() / b;
+    assert!(
+        rel(turn.removed_volume, arc.removed_volume) < 0.005,
+        "{} vs {}",
+        turn.removed_volume,
+        arc.removed_volume
+    );
+    assert!(
+        rel(turn.mean_force, arc.mean_force) < 0.03,
+        "mean |F| {} vs {}",
+        turn.mean_force,
+        arc.mean_force
+    );
+    assert!(rel(turn.peak_force, arc.peak_force) < 0.05);
+    assert!(turn.peak_force > 50.0, "{turn:?}");
+}
+
+#[test]
+fn tilted_tool_in_tool_tip_and_machine_readings_cuts_the_same_segment() {
+    // A = 90° lays the tool axis along +Y in the part frame. A Ø16 flat end mill with its
+    // tip at y = 8 travelling the cylinder's full height removes the circular segment
+    // y ≥ 8 (half-width 6 < 8): V = (R²·acos(8/R) − 8·√(R²−64))·HEIGHT.
+    let segment = (R * R * (8.0 / R).acos() - 8.0 * (R * R - 64.0).sqrt()) * HEIGHT;
+
+    // Tool-centre-point reading: X Y Z are the tip on the part.
+    let tcp = "G21 G90 S8000 M3\nG0 Z30\nG0 A90 C0\nG0 X0 Y30 Z15\nG0 Y8\nG1 Z-55 F600\nG0 Y30\n";
+    let mut s = spec(tcp, Kinematics::XyzAc, 16.0);
+    s.axes = AxisReading::ToolTip;
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let got = removed(&out.rows);
+    assert!(
+        (got - segment).abs() / segment < 0.005,
+        "tool tip reading: {got} vs {segment}"
+    );
+    assert!(out.rows.iter().all(|r| !r.rapid_in_material));
+    let cut = row(&out.rows, 6);
+    assert!((cut.tip_speed_mm_min - 600.0).abs() < 1e-9, "{cut:?}");
+
+    // Machine reading: the table turned A90 carries part point (x, y, z) to machine
+    // (x, −z, y), so the same cut is X0 Y−15 → Y55 at Z8.
+    let machine =
+        "G21 G90 S8000 M3\nG0 Z30\nG0 A90 C0\nG0 X0 Y-15 Z30\nG0 Z8\nG1 Y55 F600\nG0 Z30\n";
+    let out = simulate(
+        &spec(machine, Kinematics::XyzAc, 16.0),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    let got_machine = removed(&out.rows);
+    assert!(
+        (got_machine - segment).abs() / segment < 0.005,
+        "machine reading: {got_machine} vs {segment}"
+    );
+}
+
+#[test]
+fn rotary_moves_need_kinematics_and_are_not_feed_optimized() {
+    let program = "G0 Z10\nG0 X13 Y0\nG1 C90 F3600\n";
+    let err = simulate(
+        &spec(program, Kinematics::Xyz, 10.0),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(
+        err.contains("line 3") && err.contains("kinematics"),
+        "{err}"
+    );
+    let mut s = spec(program, Kinematics::XyzAc, 10.0);
+    s.optimize = Some(serde_json::from_str(r#"{"max_force": 300}"#).unwrap());
+    let err = simulate(&s, &CancelFlag::new(), &NoProgress)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("line 3") && err.contains("not supported"),
+        "{err}"
+    );
+}
