@@ -271,6 +271,33 @@ fn stability_constrained_face_milling_search_beats_the_fine_grid() {
         without.stability_note,
         "no modes given: no stability constraint"
     );
+    assert!(without.stability_check.is_none());
+    // The check at exactly the chosen speed is the zero-order lobe there.
+    let c = with.stability_check.as_ref().unwrap();
+    let imm = with.best.radial_immersion.min(1.0);
+    let sys = StabilitySystem::new(
+        3,
+        k.ktc,
+        k.krc,
+        imm,
+        Milling::Down,
+        o.modes_x.clone(),
+        o.modes_y.clone(),
+    )
+    .unwrap();
+    assert_eq!(
+        c.direct_critical_depth_mm,
+        sys.zoa_lobes(&[with.best.spindle_rpm], 16.0)[0]
+    );
+    assert_eq!(
+        c.table_critical_depth_mm,
+        with.best.critical_depth_mm.unwrap()
+    );
+    assert_eq!(
+        c.within_limit,
+        c.axial_depth_mm <= 0.9 * c.direct_critical_depth_mm
+    );
+    eprintln!("stability check: {c:?}");
     assert!(
         without.best.time_s < with.best.time_s,
         "{} {}",

@@ -570,12 +570,31 @@ pub struct EnergySearchResult {
     pub stability_constrained: bool,
     /// How stability was handled, in words.
     pub stability_note: String,
+    /// The best point's stability against the lobe method at exactly its speed (the search
+    /// interpolates a table); absent without modes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stability_check: Option<StabilityCheck>,
     pub space: SearchSpace,
     /// Time against energy, non-dominated, by increasing time (when asked).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pareto: Option<Vec<EnergyPoint>>,
     /// Points evaluated by the search (and the front).
     pub evaluations: usize,
+}
+
+/// The chosen point's stability at exactly its speed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StabilityCheck {
+    pub spindle_rpm: f64,
+    pub axial_depth_mm: f64,
+    /// a_lim interpolated on the lobe table (what the search constrained), mm.
+    pub table_critical_depth_mm: f64,
+    /// a_lim computed at exactly this speed, mm.
+    pub direct_critical_depth_mm: f64,
+    /// ap / direct a_lim: at most λ when the interpolation did not hide a lobe dip.
+    pub margin: f64,
+    /// ap ≤ λ·direct a_lim.
+    pub within_limit: bool,
 }
 
 /// Forces of one (axial passes, radial passes, fz): what the constraints need.
@@ -768,26 +787,8 @@ impl EnergyProblem {
         };
         let steps = o.steps_per_period.unwrap_or(DEFAULT_SEARCH_STEPS) as usize;
         let lambda = o.stability_factor;
-        let ap_max = o.depth_mm / self.pz_range.0 as f64;
-        let mut search = o.depth_search.options(None);
-        search.max_depth_mm = search.max_depth_mm.max(1.01 * ap_max / lambda);
-        search.tolerance_mm = DEPTH_TOLERANCE_MM;
         for pw in self.pw_range.0..=self.pw_range.1 {
-            let imm = (o.width_mm / pw as f64 / self.diameter).min(1.0);
-            let sys = StabilitySystem::new(
-                self.tool.flutes,
-                self.k.ktc,
-                self.k.krc,
-                imm,
-                o.milling,
-                o.modes_x.clone(),
-                o.modes_y.clone(),
-            )?;
-            let depths = match o.stability_method {
-                Method::Zoa => sys.zoa_lobes(&rpms, search.max_depth_mm),
-                Method::Sdm => sys.sd_lobes(&rpms, steps, &search)?,
-                Method::Fdm => sys.fd_lobes(&rpms, steps, &search)?,
-            };
+            let depths = self.lobe_depths(pw, &rpms)?;
             self.lobes.insert(
                 pw,
                 rpms.iter()
@@ -796,6 +797,7 @@ impl EnergyProblem {
                     .collect(),
             );
         }
+        let o = &self.opts;
         self.stability_note = format!(
             "ap ≤ {lambda}·a_lim with a_lim from {:?} lobes{} at {} speeds per radial width ({:.0}–{:.0} rpm), interpolated linearly between them",
             o.stability_method,
@@ -809,6 +811,46 @@ impl EnergyProblem {
             hi
         );
         Ok(())
+    }
+
+    /// Critical depths (mm) of the lobe method for `radial_passes` at `rpms`: the table's
+    /// computation (depth search to [`DEPTH_TOLERANCE_MM`], capped at max(16 mm, 1.01·largest
+    /// ap/λ)).
+    fn lobe_depths(&self, radial_passes: u32, rpms: &[f64]) -> Result<Vec<f64>, PhysicsError> {
+        let o = &self.opts;
+        let steps = o.steps_per_period.unwrap_or(DEFAULT_SEARCH_STEPS) as usize;
+        let ap_max = o.depth_mm / self.pz_range.0 as f64;
+        let mut search = o.depth_search.options(None);
+        search.max_depth_mm = search.max_depth_mm.max(1.01 * ap_max / o.stability_factor);
+        search.tolerance_mm = DEPTH_TOLERANCE_MM;
+        let imm = (o.width_mm / radial_passes as f64 / self.diameter).min(1.0);
+        let sys = StabilitySystem::new(
+            self.tool.flutes,
+            self.k.ktc,
+            self.k.krc,
+            imm,
+            o.milling,
+            o.modes_x.clone(),
+            o.modes_y.clone(),
+        )?;
+        Ok(match o.stability_method {
+            Method::Zoa => sys.zoa_lobes(rpms, search.max_depth_mm),
+            Method::Sdm => sys.sd_lobes(rpms, steps, &search)?,
+            Method::Fdm => sys.fd_lobes(rpms, steps, &search)?,
+        })
+    }
+
+    /// The lobe method's critical depth at exactly this speed (not interpolated), mm; None
+    /// without modes. The search uses the interpolated table; this checks a result.
+    pub fn direct_critical_depth_mm(
+        &self,
+        radial_passes: u32,
+        rpm: f64,
+    ) -> Result<Option<f64>, PhysicsError> {
+        if !self.stability_constrained() {
+            return Ok(None);
+        }
+        Ok(Some(self.lobe_depths(radial_passes, &[rpm])?[0]))
     }
 
     /// Whether ap ≤ λ·a_lim is imposed.
@@ -1431,6 +1473,17 @@ pub fn run_energy_job(
 ) -> Result<EnergySearchResult, PhysicsError> {
     let mut p = EnergyProblem::new(options, tool, coefficients, machine)?;
     let best = p.search(options.objective)?;
+    let stability_check = match p.direct_critical_depth_mm(best.radial_passes, best.spindle_rpm)? {
+        Some(direct) => Some(StabilityCheck {
+            spindle_rpm: best.spindle_rpm,
+            axial_depth_mm: best.axial_depth_mm,
+            table_critical_depth_mm: best.critical_depth_mm.unwrap_or(f64::NAN),
+            direct_critical_depth_mm: direct,
+            margin: best.axial_depth_mm / direct,
+            within_limit: best.axial_depth_mm <= options.stability_factor * direct,
+        }),
+        None => None,
+    };
     let pareto = if options.pareto {
         Some(p.pareto_front()?)
     } else {
@@ -1441,6 +1494,7 @@ pub fn run_energy_job(
         best,
         stability_constrained: p.stability_constrained(),
         stability_note: p.stability_note().to_string(),
+        stability_check,
         space: p.space(),
         pareto,
         evaluations: p.evaluations(),
