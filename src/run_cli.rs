@@ -13,7 +13,7 @@ use crate::runner::{self, JobFailure, LoadedInput, LoadedInputs};
 
 #[derive(clap::Args)]
 pub struct RunArgs {
-    /// Stock as an STL file.
+    /// Stock as an STL file, or a JSON parametric stock (`{"kind":"cylinder",...}`).
     #[arg(long, conflicts_with = "block", required_unless_present = "block")]
     stock: Option<PathBuf>,
     /// Stock as a block: X,Y,Z of the lowest corner and DX,DY,DZ sizes, mm.
@@ -84,7 +84,16 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     let mut inputs = LoadedInputs::new();
     inputs.insert("program".into(), file_input(&args.program, "text/plain")?);
     let stock = match (&args.stock, &args.block) {
-        (Some(path), _) => file_input(path, "model/stl")?,
+        (Some(path), _) => {
+            // A JSON file is a parametric stock ({"kind":"block"|"cylinder",...}).
+            let mut stock = file_input(path, "model/stl")?;
+            if stock.content.trim_ascii_start().starts_with(b"{") {
+                crate::validate::stock_json(&stock.content)
+                    .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
+                stock.media_type = "application/json".into();
+            }
+            stock
+        }
         (None, Some(spec)) => {
             let v: Vec<f64> = spec
                 .split(',')

@@ -173,3 +173,58 @@ fn rotary_moves_need_kinematics_and_are_not_feed_optimized() {
         "{err}"
     );
 }
+
+#[test]
+fn corpus_impeller_simulates_on_an_xyzac_machine_with_tip_speeds_per_block() {
+    // LinuxCNC's 5-axis impeller sample (G93, M428 = its tool-centre-point kinematics):
+    // X Y Z are the tip on the part, A C the tool axis. Blank: a Ø90 × 30 cylinder (the
+    // program's own blank is a turned cone it does not describe), Ø6 ball end mill.
+    let src = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/corpus/gcode/linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"
+    ))
+    .unwrap();
+    let mut s = spec(&src, Kinematics::XyzAc, 6.0);
+    s.tools.insert(0, {
+        let mut t = Tool::ball(6.0, 2);
+        t.flute_length = 20.0;
+        t
+    });
+    s.interpret.passthrough_m_codes = vec![428, 429];
+    s.axes = AxisReading::ToolTip;
+    s.stock = StockSource::Shape(StockShape::Cylinder {
+        base_center: [0.0, 0.0, 0.0],
+        radius: 45.0,
+        height: 30.0,
+    });
+    s.cell = Some(0.5);
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let feed_moves: Vec<&MoveRow> = out
+        .rows
+        .iter()
+        .filter(|r| r.kind == "linear" && r.tip_length_mm > 0.0)
+        .collect();
+    assert_eq!(feed_moves.len(), 4306);
+    // G93: each move takes 1/F minutes, so the tip speed is the tip path × F.
+    for r in &feed_moves {
+        assert_eq!(r.feed_mode, "inverse_time");
+        let expected = r.tip_length_mm * r.feed;
+        assert!(
+            (r.tip_speed_mm_min - expected).abs() <= 1e-9 * expected,
+            "line {}: {} vs {expected}",
+            r.line,
+            r.tip_speed_mm_min
+        );
+    }
+    let mut speeds: Vec<f64> = feed_moves.iter().map(|r| r.tip_speed_mm_min).collect();
+    speeds.sort_by(f64::total_cmp);
+    println!(
+        "impeller tip speed mm/min: min {:.1}, median {:.1}, max {:.1}; removed {:.0} mm³",
+        speeds[0],
+        speeds[speeds.len() / 2],
+        speeds[speeds.len() - 1],
+        out.summary.removed_volume
+    );
+    assert!(out.summary.removed_volume > 10_000.0);
+    assert!(out.summary.force_evaluations > 1000);
+}
