@@ -799,12 +799,20 @@ impl EnergyProblem {
         }
         let o = &self.opts;
         self.stability_note = format!(
-            "ap ≤ {lambda}·a_lim with a_lim from {:?} lobes{} at {} speeds per radial width ({:.0}–{:.0} rpm), interpolated linearly between them",
-            o.stability_method,
+            "ap ≤ {lambda}·a_lim with a_lim from {} lobes{} at {} speeds per radial width ({:.0}–{:.0} rpm), interpolated linearly between them",
+            match o.stability_method {
+                Method::Zoa => "zoa",
+                Method::Sdm => "sdm",
+                Method::Fdm => "fdm",
+            },
             if o.stability_method == Method::Zoa {
                 String::new()
             } else {
-                format!(" (k = {steps}, {:?} depth search)", o.depth_search)
+                let search = match o.depth_search {
+                    DepthSearch::Bisection => "bisection",
+                    DepthSearch::FirstLoss => "first_loss",
+                };
+                format!(" (k = {steps}, {search} depth search)")
             },
             rpms.len(),
             lo,
