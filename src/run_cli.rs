@@ -260,7 +260,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             if f.name == "program" {
                 &f.file_name
             } else {
-                f.name
+                &f.name
             },
             &f.content,
         )?;

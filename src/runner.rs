@@ -176,7 +176,9 @@ pub type LoadedInputs = BTreeMap<String, LoadedInput>;
 
 /// A result file.
 pub struct OutputFile {
-    pub name: &'static str,
+    /// Result name: `program` (operation 1 of a posted CLS too), `program.op2`, ...,
+    /// `stock.stl`.
+    pub name: String,
     pub media_type: &'static str,
     pub file_name: String,
     pub content: Vec<u8>,
@@ -558,14 +560,14 @@ fn simulate_job(
         .map(|(s, e)| (s, format!(".{e}")))
         .unwrap_or((&file, String::new()));
     let mut files = vec![OutputFile {
-        name: "stock.stl",
+        name: "stock.stl".into(),
         media_type: "model/stl",
         file_name: format!("{stem}.stock.stl"),
         content: stl,
     }];
     if let Some(text) = out.optimized_program {
         files.push(OutputFile {
-            name: "program",
+            name: "program".into(),
             media_type: "text/plain; charset=utf-8",
             file_name: format!("{stem}.opt{ext}"),
             content: text.into_bytes(),
@@ -636,6 +638,89 @@ pub struct RotaryFeedJobOptions {
     /// M codes that do not move the machine (e.g. LinuxCNC's M428/M429).
     #[serde(default)]
     pub passthrough_m_codes: Vec<u32>,
+    /// CLS input: decimals of the posted coordinates (1 to 9, default 4).
+    #[serde(default = "default_post_decimals")]
+    pub decimals: usize,
+    /// CLS input: number the posted blocks N10, N20, ...
+    #[serde(default)]
+    pub n_numbers: bool,
+}
+
+fn default_post_decimals() -> usize {
+    4
+}
+
+/// An APT/CLS file posted to G-code for the machine with corrected feeds: one program per
+/// operation (`program` is the first, `program.op2`, ... the others); rows are every posted
+/// feed move with its tool-tip distance and corrected F.
+fn post_cls_job(
+    file: &str,
+    text: &str,
+    machine: &Machine,
+    opts: &RotaryFeedJobOptions,
+) -> Result<JobOutput, JobFailure> {
+    use millsim_engine::machine::post::{post_cls, PostOptions};
+    if !(1..=9).contains(&opts.decimals) {
+        return Err(invalid(
+            "Invalid options",
+            format!("decimals: must be 1 to 9, got {}", opts.decimals),
+        ));
+    }
+    let options = PostOptions {
+        n_numbers: opts.n_numbers.then_some((10, 10)),
+        linear_decimals: opts.decimals,
+        angle_decimals: opts.decimals,
+        feed: RotaryFeedOptions {
+            output: opts.output,
+            ..RotaryFeedOptions::default()
+        },
+        ..PostOptions::default()
+    };
+    let posted = post_cls(text, machine, &options)
+        .map_err(|e| invalid("Posting refused", format!("{file}: {e}")))?;
+    let stem = file.rsplit_once('.').map(|(s, _)| s).unwrap_or(file);
+    let mut rows = Vec::new();
+    let mut files = Vec::new();
+    let mut operations = Vec::new();
+    for p in &posted {
+        for b in &p.feeds.blocks {
+            let mut row = serde_json::to_value(b).expect("rows serialize");
+            row["operation"] = json!(p.operation);
+            rows.push(row.to_string());
+        }
+        let name = if p.operation == 1 {
+            "program".to_string()
+        } else {
+            format!("program.op{}", p.operation)
+        };
+        let file_name = format!("{stem}.op{}.nc", p.operation);
+        operations.push(json!({
+            "operation": p.operation,
+            "tool": p.tool,
+            "moves": p.axes.len(),
+            "file_name": file_name,
+            "limited_blocks": p.feeds.blocks.iter().filter(|b| b.limited).count(),
+            "issues": p.issues,
+        }));
+        files.push(OutputFile {
+            name,
+            media_type: "text/plain; charset=utf-8",
+            file_name,
+            content: p.text.clone().into_bytes(),
+        });
+    }
+    Ok(JobOutput {
+        summary: json!({
+            "file": file,
+            "format": "cls",
+            "operations": operations,
+            "blocks": rows.len(),
+            "row_columns": ["operation", "block", "line", "feed", "output", "limited"],
+        }),
+        rows,
+        samples: Vec::new(),
+        files,
+    })
 }
 
 /// Rotary-axis feed correction of a G-code program: F words rewritten so the tool tip moves
@@ -644,18 +729,15 @@ fn rotary_feed_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutpu
     let opts: RotaryFeedJobOptions = serde_json::from_value(options.clone())
         .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let (file, text) = program_text(&mut inputs)?;
-    if crate::validate::looks_like_cls(&text) {
-        return Err(invalid(
-            "Not supported yet",
-            format!("{file} is an APT/CLS file: post it with `millsim post {file} --machine M.json`; the rotary-feed job takes G-code"),
-        ));
-    }
     let machine: Machine = inputs
         .remove("machine")
         .map(|m| serde_json::from_slice(&m.content))
         .transpose()
         .map_err(|e| invalid("Invalid machine", e.to_string()))?
         .ok_or_else(|| invalid("Missing input", "the job has no `machine` input"))?;
+    if crate::validate::looks_like_cls(&text) {
+        return post_cls_job(&file, &text, &machine, &opts);
+    }
     let interpret = nc::InterpretOptions {
         dialect: opts.dialect,
         passthrough_m_codes: opts.passthrough_m_codes.clone(),
@@ -690,7 +772,7 @@ fn rotary_feed_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutpu
         rows,
         samples: Vec::new(),
         files: vec![OutputFile {
-            name: "program",
+            name: "program".into(),
             media_type: "text/plain; charset=utf-8",
             file_name: format!("{stem}.rotary{ext}"),
             content: corrected.into_bytes(),

@@ -571,3 +571,78 @@ async fn rotary_feed_job_corrects_f_so_the_tool_tip_moves_at_the_programmed_feed
         "other lines unchanged"
     );
 }
+
+#[tokio::test]
+async fn rotary_feed_job_posts_a_cls_file_to_one_program_per_operation() {
+    use millsim_engine::machine::{Machine, MachineKinematics};
+    use millsim_engine::nc::{interpret, InterpretOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let machine = json!({"name": "B table", "kinematics": "xyz_b", "rapid_rate": 20000.0, "max_feed": 10000.0,
+        "acceleration": [1000.0, 1000.0, 1000.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0,
+        "max_rotary_speed_deg_min": 20000.0});
+    let (st, m) = json(
+        c.post(s.url("/v1/machines"))
+            .json(&machine)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 201, "{m}");
+    // Two operations, the tool axis leaning ±30° in XZ (B = ∓30° on this table).
+    let cls = "TOOL PATH/OP1,TOOL,EM10\nLOADTL/1\nSPINDL/RPM,8000,CLW\nRAPID\nGOTO/50,0,10,0,0,1\nFEDRAT/MMPM,500\nGOTO/50,0,0,0,0,1\nGOTO/40,0,0,0.5,0,0.8660254038\n\
+TOOL PATH/OP2,TOOL,BALL6\nLOADTL/2\nSPINDL/RPM,12000,CLW\nRAPID\nGOTO/10,0,5,0,0,1\nFEDRAT/MMPM,400\nGOTO/10,5,0,0,0,1\nGOTO/0,10,0,-0.5,0,0.8660254038\nRAPID\nGOTO/0,10,50,0,0,1\n";
+    let body = json!({"kind": "rotary-feed", "inputs": {"program": {"name": "part.cls", "content": cls}, "machine": m["id"]},
+                      "options": {"decimals": 7}});
+    let (st, job) = json(c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap()).await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(done["summary"]["operations"].as_array().unwrap().len(), 2);
+    let kin = MachineKinematics::of(&serde_json::from_value::<Machine>(machine).unwrap());
+    // Each operation's program re-interprets, through the forward kinematics, to its last
+    // CLS point.
+    for (op, file, last) in [
+        (1, "part.op1.nc", [40.0, 0.0, 0.0]),
+        (2, "part.op2.nc", [0.0, 10.0, 50.0]),
+    ] {
+        let res = c
+            .get(s.url(&format!("/v1/jobs/{id}/program?operation={op}")))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(res.status(), 200);
+        assert!(res.headers()["content-disposition"]
+            .to_str()
+            .unwrap()
+            .contains(file));
+        let text = res.text().await.unwrap();
+        let moves = interpret(&text, &InterpretOptions::default())
+            .unwrap()
+            .moves;
+        let tip = kin.forward(&moves.last().unwrap().end).tip;
+        let d = (0..3)
+            .map(|i| (tip[i] - last[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            d < 1e-6,
+            "operation {op}: ends at {tip:?}, CLS {last:?}\n{text}"
+        );
+    }
+    let res = c
+        .get(s.url(&format!("/v1/jobs/{id}/program?operation=3")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 404);
+    let res = c
+        .get(s.url(&format!("/v1/jobs/{id}/program?operation=0")))
+        .send()
+        .await
+        .unwrap();
+    assert!(res.status().is_client_error());
+}

@@ -74,7 +74,13 @@ fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Resul
             })?;
         }
         "rotary-feed" => {
-            let _: runner::RotaryFeedJobOptions = parse(options)?;
+            let o: runner::RotaryFeedJobOptions = parse(options)?;
+            if !(1..=9).contains(&o.decimals) {
+                return Err(ApiError::invalid_field(
+                    "options.decimals",
+                    format!("must be 1 to 9, got {}", o.decimals),
+                ));
+            }
         }
         "stability" => {
             runner::stability_options(options)
@@ -581,12 +587,31 @@ async fn artifact(
         .into_response())
 }
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProgramQuery {
+    /// A posted CLS file's operation (1-based); the first by default.
+    operation: Option<u32>,
+}
+
 pub async fn program(
     State(state): State<AppState>,
     Owner(owner): Owner,
     Path(id): Path<String>,
+    req: Request,
 ) -> Result<Response, ApiError> {
-    artifact(&state, &owner, &id, "program", "optimized program").await
+    let q: ProgramQuery = parse_query(req.uri().query())?;
+    match q.operation {
+        None | Some(1) => artifact(&state, &owner, &id, "program", "program").await,
+        Some(0) => Err(ApiError::invalid_field(
+            "operation",
+            "operations count from 1",
+        )),
+        Some(n) => {
+            let name = format!("program.op{n}");
+            artifact(&state, &owner, &id, &name, &format!("operation {n}")).await
+        }
+    }
 }
 
 pub async fn stock_stl(
