@@ -377,22 +377,21 @@ pub fn subtract(r: &mut Intervals, a: f64, b: f64) -> f64 {
             return removed;
         }
     }
-    let mut removed = 0.0;
-    let mut out = Intervals::new();
-    for &iv in r.iter() {
-        if iv[1] <= a || iv[0] >= b {
-            out.push(iv);
-            continue;
-        }
-        removed += iv[1].min(b) - iv[0].max(a);
-        if iv[0] < a {
-            out.push([iv[0], a]);
-        }
-        if iv[1] > b {
-            out.push([b, iv[1]]);
-        }
+    // Several intervals overlap: k..m. What remains of them is at most a head before a
+    // and a tail after b, written in place (no new allocation, no free).
+    let m = k + r[k..].iter().take_while(|iv| iv[0] < b).count();
+    let removed: f64 = r[k..m].iter().map(|iv| iv[1].min(b) - iv[0].max(a)).sum();
+    let (head, tail) = (r[k][0], r[m - 1][1]);
+    let mut w = k;
+    if head < a {
+        r[w] = [head, a];
+        w += 1;
     }
-    *r = out;
+    if tail > b {
+        r[w] = [b, tail];
+        w += 1;
+    }
+    r.drain(w..m);
     removed
 }
 
@@ -438,6 +437,49 @@ mod tests {
         assert_eq!(subtract(&mut r, 1.0, 4.0), 2.0);
         assert_eq!(r.as_slice(), &[[0.5, 1.0], [4.0, 10.0]]);
         assert_eq!(subtract(&mut r, 20.0, 30.0), 0.0);
+    }
+
+    #[test]
+    fn subtract_matches_a_reference_on_random_intervals() {
+        // Reference: keep the parts of each interval outside [a, b].
+        fn reference(r: &Intervals, a: f64, b: f64) -> (Intervals, f64) {
+            let (mut out, mut removed) = (Intervals::new(), 0.0);
+            for &iv in r {
+                if iv[1] <= a || iv[0] >= b {
+                    out.push(iv);
+                    continue;
+                }
+                removed += iv[1].min(b) - iv[0].max(a);
+                if iv[0] < a {
+                    out.push([iv[0], a]);
+                }
+                if iv[1] > b {
+                    out.push([b, iv[1]]);
+                }
+            }
+            (out, removed)
+        }
+        let mut seed = 99u64;
+        let mut rnd = |n: u64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) % n
+        };
+        for _ in 0..20000 {
+            // Up to 6 disjoint intervals on a grid of 40 points.
+            let mut cuts: Vec<f64> = (0..2 * (1 + rnd(6))).map(|_| rnd(40) as f64).collect();
+            cuts.sort_by(f64::total_cmp);
+            cuts.dedup();
+            let mut r: Intervals = cuts.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+            let (a, b) = (rnd(42) as f64 - 1.0, rnd(42) as f64 - 1.0);
+            let (want, want_removed) = reference(&r, a, b);
+            let removed = subtract(&mut r, a, b);
+            if b > a {
+                assert_eq!(r, want, "{cuts:?} minus [{a}, {b}]");
+                assert_eq!(removed, want_removed);
+            }
+        }
     }
 
     #[test]
