@@ -1036,12 +1036,16 @@ pub fn remove_sweeps(grid: &mut DexelGrid, body: &ToolBody, moves: &[SubMove]) -
 /// date (nothing else may change the grid meanwhile).
 pub(crate) struct RemovalPass {
     summaries: [RaySummaries; 3],
+    /// Per family: per-row, per-group results, kept between calls (a fresh buffer of
+    /// this size each time came from and went back to the OS, page faults and all).
+    per_row: [Vec<(f64, u64, u64)>; 3],
 }
 
 impl RemovalPass {
     pub(crate) fn new(grid: &DexelGrid) -> RemovalPass {
         RemovalPass {
             summaries: [0, 1, 2].map(|a| RaySummaries::new(grid, a)),
+            per_row: Default::default(),
         }
     }
 
@@ -1104,18 +1108,24 @@ impl RemovalPass {
         // large sweeps); their statistics are added in family order.
         let [f0, f1, f2] = &mut grid.families;
         let [m0, m1, m2] = &mut self.summaries;
-        let run = |on: bool, f: &mut Family, m: &mut RaySummaries| {
-            on.then(|| remove_family(frame, f, m, sweeps, n_groups))
+        let [r0, r1, r2] = &mut self.per_row;
+        let run = |on: bool, f: &mut Family, m: &mut RaySummaries, r: &mut Vec<_>| {
+            on.then(|| remove_family(frame, f, m, r, sweeps, n_groups))
         };
         let (s0, (s1, s2)) = if parallel {
             rayon::join(
-                || run(families[0], f0, m0),
-                || rayon::join(|| run(families[1], f1, m1), || run(families[2], f2, m2)),
+                || run(families[0], f0, m0, r0),
+                || {
+                    rayon::join(
+                        || run(families[1], f1, m1, r1),
+                        || run(families[2], f2, m2, r2),
+                    )
+                },
             )
         } else {
             (
-                run(families[0], f0, m0),
-                (run(families[1], f1, m1), run(families[2], f2, m2)),
+                run(families[0], f0, m0, r0),
+                (run(families[1], f1, m1, r1), run(families[2], f2, m2, r2)),
             )
         };
         for per_group in [s0, s1, s2].into_iter().flatten() {
@@ -1160,6 +1170,7 @@ fn remove_family(
     g: &Frame,
     f: &mut Family,
     summaries: &mut RaySummaries,
+    per_row: &mut Vec<(f64, u64, u64)>,
     sweeps: &[PlacedSweep],
     n_groups: usize,
 ) -> Vec<RemovalStats> {
@@ -1216,7 +1227,8 @@ fn remove_family(
     let summary_rows = &mut summaries.rays[v0 * nu..v1 * nu];
     let boxes = &boxes;
     // Per row and group: removed length, exact intersections, rays changed.
-    let mut per_row = vec![(0.0, 0u64, 0u64); (v1 - v0) * n_groups];
+    per_row.clear();
+    per_row.resize((v1 - v0) * n_groups, (0.0, 0, 0));
     type Row<'r> = (
         &'r mut [Intervals],
         &'r mut [RaySummary],
