@@ -6,6 +6,7 @@
 use super::arc::ArcGeometry;
 use super::expr::{self, Env, Params};
 use super::program::*;
+use super::view::ProgramView;
 use super::{
     Diagnostic, Diagnostics, Dialect, FeedMode, InterpretOptions, Interpretation, Move, MoveKind,
     SpindleDir,
@@ -254,7 +255,7 @@ struct ControlMap {
     subs: HashMap<OName, usize>,
 }
 
-fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
+fn prescan(prog: &ProgramView) -> Result<ControlMap, Diagnostics> {
     #[derive(Clone)]
     struct Open {
         name: OName,
@@ -267,7 +268,7 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
     let mut subs = HashMap::new();
     let mut errors = Vec::new();
     for &idx in &prog.summary().o_word_blocks {
-        let Some(o) = &prog.blocks()[idx].o_word else {
+        let Some(o) = prog.block(idx).o_word else {
             continue;
         };
         let at = |m: String| prog.diag(o.span.start, m);
@@ -366,9 +367,7 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
                 if top_is(&stack, OKeyword::If) {
                     let t = stack.last_mut().expect("checked");
                     let last = *t.branches.last().expect("if has a branch");
-                    if prog.blocks()[last].o_word.as_ref().map(|o| o.keyword)
-                        == Some(OKeyword::Else)
-                    {
+                    if prog.block(last).o_word.as_ref().map(|o| o.keyword) == Some(OKeyword::Else) {
                         errors.push(at(format!("{} {} after else", o.name, kw_name(o.keyword))));
                     }
                     t.branches.push(idx);
@@ -442,7 +441,7 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
     }
     for s in stack {
         errors.push(prog.diag(
-            prog.blocks()[s.idx].span.start,
+            prog.block(s.idx).span.start,
             format!("{} {} is never closed", s.name, kw_name(s.kw)),
         ));
     }
@@ -512,7 +511,7 @@ struct PendingCorner {
 }
 
 struct Interp<'p> {
-    prog: &'p Program,
+    prog: &'p ProgramView<'p>,
     opts: &'p InterpretOptions,
     fanuc: bool,
     corners_without_comma: bool,
@@ -579,6 +578,13 @@ pub fn interpret_program(
     prog: &Program,
     options: &InterpretOptions,
 ) -> Result<Interpretation, Diagnostics> {
+    interpret_view(&ProgramView::of(prog), options)
+}
+
+pub(crate) fn interpret_view(
+    prog: &ProgramView,
+    options: &InterpretOptions,
+) -> Result<Interpretation, Diagnostics> {
     let control = prescan(prog)?;
     let fanuc = match options.dialect {
         Dialect::Fanuc => true,
@@ -625,7 +631,7 @@ pub fn interpret_program(
         frames: Vec::new(),
         repeat_counts: HashMap::new(),
         // Most programs make about one move per block.
-        moves: Vec::with_capacity(prog.blocks().len().min(options.max_moves)),
+        moves: Vec::with_capacity(prog.len().min(options.max_moves)),
         warnings: Vec::new(),
         pending_corner: None,
         saved_modal: None,
@@ -640,14 +646,14 @@ pub fn interpret_program(
         Ok(()) => Ok(Interpretation {
             moves: it.moves,
             warnings: it.warnings,
-            block_count: prog.blocks().len(),
+            block_count: prog.len(),
         }),
         Err(d) => Err(Diagnostics(vec![d])),
     }
 }
 
 /// Fanuc-only syntax, and no LinuxCNC-only syntax.
-fn detect_fanuc(prog: &Program) -> bool {
+fn detect_fanuc(prog: &ProgramView) -> bool {
     let summary = prog.summary();
     summary.fanuc_syntax && !summary.linuxcnc_syntax
 }
@@ -690,12 +696,12 @@ impl<'p> Interp<'p> {
 
     /// Error at the start of the current block.
     fn err_block(&self, msg: impl Into<String>) -> Diagnostic {
-        let b = &self.prog.blocks()[self.cur_block];
+        let b = self.prog.block(self.cur_block);
         self.prog.diag(b.span.start, msg)
     }
 
     fn word_pos(&self, idx: usize) -> usize {
-        self.prog.blocks()[self.cur_block].words[idx].span.start
+        self.prog.block(self.cur_block).words[idx].span.start
     }
 
     fn err_word(&self, w: &Words, letter: char, msg: impl Into<String>) -> Diagnostic {
@@ -966,12 +972,12 @@ impl<'p> Interp<'p> {
     // ----- main loop -----
 
     fn run(&mut self, control: &ControlMap) -> R<()> {
-        let blocks = self.prog.blocks();
+        let prog = self.prog;
         let mut pc = 0usize;
         let mut steps = 0usize;
-        while pc < blocks.len() && !self.ended {
+        while pc < prog.len() && !self.ended {
             steps += 1;
-            let b = &blocks[pc];
+            let b = prog.block(pc);
             self.cur_block = pc;
             self.cur_line = b.line;
             if steps > self.opts.max_blocks {
@@ -1132,7 +1138,7 @@ impl<'p> Interp<'p> {
                 let mut at = pc;
                 let mut nxt = next;
                 loop {
-                    let ow = self.prog.blocks()[at].o_word.as_ref().expect("branch line");
+                    let ow = self.prog.block(at).o_word.expect("branch line");
                     let taken = match ow.keyword {
                         OKeyword::Else => true,
                         _ => self.cond(ow)? != 0.0,
@@ -1195,7 +1201,7 @@ impl<'p> Interp<'p> {
 
     /// Evaluate the block's words into `w` (filled in place: it is large to move around).
     fn read_words(&mut self, idx: usize, w: &mut Words) -> R<Vec<f64>> {
-        let b = &self.prog.blocks()[idx];
+        let b = self.prog.block(idx);
         let implied = self.opts.fanuc_implied_decimal;
         for (i, word) in b.words.iter().enumerate() {
             let mut v = match word.value {
@@ -1338,7 +1344,7 @@ impl<'p> Interp<'p> {
         // Parameter assignments are evaluated with the values from before the block and take
         // effect after all of the block's words are read (LinuxCNC rule).
         let mut vals = Vec::with_capacity(b.assignments.len());
-        for a in &b.assignments {
+        for a in b.assignments {
             vals.push(self.eval(&a.value, a.span.start)?);
         }
         Ok(vals)
@@ -1365,7 +1371,7 @@ impl<'p> Interp<'p> {
     fn exec_words(&mut self, idx: usize, w: &mut Words) -> R<()> {
         self.motion_prev = self.motion;
         let avals = self.read_words(idx, w)?;
-        let b = &self.prog.blocks()[idx];
+        let b = self.prog.block(idx);
         for (a, v) in b.assignments.iter().zip(avals) {
             self.assign(a, v)?;
         }
@@ -2497,7 +2503,7 @@ impl<'p> Interp<'p> {
         self.moves[p.move_index].end = t1m;
         let (blk, line) = (self.cur_block, self.cur_line);
         self.cur_block = p.block;
-        self.cur_line = self.prog.blocks()[p.block].line;
+        self.cur_line = self.prog.block(p.block).line;
         let mut m = self.base_move(
             if p.chamfer {
                 MoveKind::Linear

@@ -53,6 +53,7 @@ impl<'a> Lexer<'a> {
         }
     }
 
+    #[inline]
     pub fn byte(&self, i: usize) -> Option<u8> {
         if i < self.end {
             Some(self.src.as_bytes()[i])
@@ -62,6 +63,7 @@ impl<'a> Lexer<'a> {
     }
 
     /// First position at or after `i` that is not a blank.
+    #[inline]
     pub fn after_blanks(&self, mut i: usize) -> usize {
         while matches!(self.byte(i), Some(b' ' | b'\t' | b'\r')) {
             i += 1;
@@ -104,6 +106,7 @@ impl<'a> Lexer<'a> {
 
     /// The number literal at `start` (digits with at most one '.'), without consuming it:
     /// its value, whether it has a point, and where it ends.
+    #[inline]
     pub fn number_at(&self, start: usize) -> Result<(f64, bool, usize), LexError> {
         let scan = scan_decimal(&self.src.as_bytes()[..self.end], start);
         if scan.digits == 0 {
@@ -267,6 +270,7 @@ struct DecimalScan {
     value: Option<f64>,
 }
 
+#[inline]
 fn scan_decimal(bytes: &[u8], start: usize) -> DecimalScan {
     const POW10: [f64; 23] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,

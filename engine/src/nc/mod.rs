@@ -32,6 +32,7 @@ mod lexer;
 mod parser;
 mod program;
 mod tooltable;
+mod view;
 
 pub use arc::{sample_arc, ArcGeometry};
 pub use interp::interpret_program;
@@ -223,8 +224,9 @@ pub struct Interpretation {
     pub block_count: usize,
 }
 
-/// Parse and interpret a program.
+/// Parse and interpret a program. Same result as [`Program::parse`] then
+/// [`interpret_program`], without building the lossless tree the interpreter does not need.
 pub fn interpret(source: &str, options: &InterpretOptions) -> Result<Interpretation, Diagnostics> {
-    let program = Program::parse(source)?;
-    interpret_program(&program, options)
+    let program = view::CompactProgram::parse(source)?;
+    interp::interpret_view(&program.view(source), options)
 }

@@ -76,6 +76,7 @@ impl<'a> LineParser<'a> {
     /// The common word shape `X-1.5`: a letter, an optional sign, then a number literal
     /// (blanks allowed after the letter only). Returns None, consuming nothing, for anything
     /// else, including errors; the general path then gives the same result or error.
+    #[inline]
     fn plain_word(&mut self) -> Option<Word> {
         let start = self.lx.after_blanks(self.lx.pos);
         let letter = self.lx.byte(start)?.to_ascii_uppercase();
@@ -332,18 +333,57 @@ impl<'a> LineParser<'a> {
     }
 }
 
-/// Split the source into lines and parse each one.
-pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Summary, Vec<Diagnostic>) {
-    // One block per line: reserve once instead of growing a large Vec many times.
-    let mut blocks = Vec::with_capacity(count_newlines(source.as_bytes()) + 1);
-    // Words of the current line, moved into an exactly sized Vec per block: blocks have few
-    // words, and growing each block's Vec would reserve room for four.
-    let mut words = Vec::new();
+/// Where parsed lines go: [`BlockList`] keeps every block whole (for [`Program`]);
+/// `view::CompactProgram` keeps only what the interpreter runs.
+pub(crate) trait BlockSink {
+    /// The vector the parser appends the next line's words to.
+    fn words(&mut self) -> &mut Vec<Word>;
+    /// Takes the parsed line (whatever it needs of it); its words are those appended to
+    /// `words()` since the previous call.
+    fn push(&mut self, block: &mut Block);
+}
+
+/// Every block, whole.
+pub(crate) struct BlockList {
+    pub blocks: Vec<Block>,
+    /// Words of the current line, moved into an exactly sized Vec per block: blocks have few
+    /// words, and growing each block's Vec would reserve room for four.
+    words: Vec<Word>,
+}
+
+impl BlockList {
+    pub fn with_capacity(lines: usize) -> Self {
+        BlockList {
+            blocks: Vec::with_capacity(lines),
+            words: Vec::new(),
+        }
+    }
+}
+
+impl BlockSink for BlockList {
+    fn words(&mut self) -> &mut Vec<Word> {
+        &mut self.words
+    }
+    fn push(&mut self, block: &mut Block) {
+        let mut block = std::mem::take(block);
+        block.words = self.words.drain(..).collect();
+        self.blocks.push(block);
+    }
+}
+
+/// Number of lines (blocks) in a source.
+pub(crate) fn line_count(source: &str) -> usize {
+    count_newlines(source.as_bytes()) + 1
+}
+
+/// Split the source into lines, parse each one and hand it to `sink`. Returns the summary and
+/// the syntax errors of all lines.
+pub(crate) fn parse_blocks(source: &str, sink: &mut impl BlockSink) -> (Summary, Vec<Diagnostic>) {
     let mut errors = Vec::new();
     let mut summary = Summary::default();
     let bytes = source.as_bytes();
     let mut start = 0;
-    let mut line = 1u32;
+    let mut index = 0;
     let mut percents = 0;
     while start < source.len() {
         // str::find on one ASCII byte uses a vectorised memchr.
@@ -360,22 +400,18 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Summary, Vec<Diagnostic
             }
             None => (source.len(), source.len()),
         };
-        let index = blocks.len();
-        // Built in place at the end of the vector: a Block is large to move.
-        blocks.push(Block {
+        let line = index as u32 + 1;
+        let mut block = Block {
             line,
             span: Span::new(start, content_end),
             end,
             ..Block::default()
-        });
-        let block = blocks.last_mut().expect("just pushed");
+        };
+        let words = sink.words();
+        let first_word = words.len();
         if percents >= 2 {
             block.after_end = true;
-        } else if let Err(e) = {
-            let parsed = parse_line(source, block, &mut words);
-            block.words = words.drain(..).collect();
-            parsed
-        } {
+        } else if let Err(e) = parse_line(source, &mut block, words) {
             let col = source[start..e.pos.min(content_end).max(start)]
                 .chars()
                 .count() as u32
@@ -385,11 +421,12 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Summary, Vec<Diagnostic
         if block.percent {
             percents += 1;
         }
-        summary.add(index, block);
+        summary.add(index, &block, &sink.words()[first_word..]);
+        sink.push(&mut block);
         start = end;
-        line += 1;
+        index += 1;
     }
-    (blocks, summary, errors)
+    (summary, errors)
 }
 
 /// Number of `\n` bytes; counts in byte-wide lanes so that it vectorises.

@@ -240,30 +240,28 @@ impl Block {
     }
 }
 
-impl Block {
-    /// Dialect evidence in this block: (Fanuc-only syntax, LinuxCNC-only syntax). Fanuc-only:
-    /// an `O1234` program number, `,R`/`,C` corners, M98/M99. LinuxCNC-only: O-word control
-    /// lines, parameter assignments, word values that are not plain numbers.
-    pub(crate) fn dialect_syntax(&self) -> (bool, bool) {
-        let mut fanuc = false;
-        let mut linuxcnc = !self.assignments.is_empty();
-        if let Some(o) = &self.o_word {
-            if o.keyword == OKeyword::ProgramNumber {
-                fanuc = true;
-            } else {
-                linuxcnc = true;
-            }
+/// Dialect evidence in one block: (Fanuc-only syntax, LinuxCNC-only syntax). Fanuc-only: an
+/// `O1234` program number, `,R`/`,C` corners, M98/M99. LinuxCNC-only: O-word control lines,
+/// parameter assignments, word values that are not plain numbers.
+fn dialect_syntax(block: &Block, words: &[Word]) -> (bool, bool) {
+    let mut fanuc = false;
+    let mut linuxcnc = !block.assignments.is_empty();
+    if let Some(o) = &block.o_word {
+        if o.keyword == OKeyword::ProgramNumber {
+            fanuc = true;
+        } else {
+            linuxcnc = true;
         }
-        for w in &self.words {
-            fanuc |= w.comma;
-            if let Expr::Number { value, .. } = w.value {
-                fanuc |= w.letter == 'M' && (value == 98.0 || value == 99.0);
-            } else if !matches!(w.value, Expr::Neg(_)) {
-                linuxcnc = true;
-            }
-        }
-        (fanuc, linuxcnc)
     }
+    for w in words {
+        fanuc |= w.comma;
+        if let Expr::Number { value, .. } = w.value {
+            fanuc |= w.letter == 'M' && (value == 98.0 || value == 99.0);
+        } else if !matches!(w.value, Expr::Neg(_)) {
+            linuxcnc = true;
+        }
+    }
+    (fanuc, linuxcnc)
 }
 
 /// Facts about the whole program gathered while parsing, so the interpreter need not walk
@@ -272,18 +270,19 @@ impl Block {
 pub(crate) struct Summary {
     /// Indices of the blocks with an O word, in order.
     pub o_word_blocks: Vec<usize>,
-    /// Some block has Fanuc-only syntax (see [`Block::dialect_syntax`]).
+    /// Some block has Fanuc-only syntax (see [`dialect_syntax`]).
     pub fanuc_syntax: bool,
     /// Some block has LinuxCNC-only syntax.
     pub linuxcnc_syntax: bool,
 }
 
 impl Summary {
-    pub fn add(&mut self, index: usize, block: &Block) {
+    /// Adds block `index`, whose words are `words` (they may not be in `block.words` yet).
+    pub fn add(&mut self, index: usize, block: &Block, words: &[Word]) {
         if block.o_word.is_some() {
             self.o_word_blocks.push(index);
         }
-        let (fanuc, linuxcnc) = block.dialect_syntax();
+        let (fanuc, linuxcnc) = dialect_syntax(block, words);
         self.fanuc_syntax |= fanuc;
         self.linuxcnc_syntax |= linuxcnc;
     }
@@ -300,11 +299,12 @@ pub struct Program {
 impl Program {
     /// Parse a program. All syntax errors are reported at once.
     pub fn parse(source: &str) -> Result<Program, Diagnostics> {
-        let (blocks, summary, errors) = super::parser::parse_blocks(source);
+        let mut list = super::parser::BlockList::with_capacity(super::parser::line_count(source));
+        let (summary, errors) = super::parser::parse_blocks(source, &mut list);
         if errors.is_empty() {
             Ok(Program {
                 source: source.to_string(),
-                blocks,
+                blocks: list.blocks,
                 summary,
             })
         } else {
