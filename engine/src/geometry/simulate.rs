@@ -236,30 +236,39 @@ fn simulate_inner(
     let mut blocks: Vec<BlockGeometry> = Vec::with_capacity(segments.len());
     let mut sub_moves = Vec::new();
     for (index, seg) in segments.iter().enumerate() {
-        if cancel.is_cancelled() {
-            return Err(GeometryError::Cancelled {
-                done: index,
-                total: segments.len(),
-            });
-        }
-        let prep = seg
-            .prepare()
-            .map_err(|message| GeometryError::InvalidSegment {
-                index,
-                block: seg.block,
-                message,
-            })?;
-        if !(seg.feed.is_finite()
+        let invalid = |message: String| GeometryError::InvalidSegment {
+            index,
+            block: seg.block,
+            message,
+        };
+        let feed_ok = seg.feed.is_finite()
             && seg.feed >= 0.0
             && seg.spindle.is_finite()
-            && seg.spindle >= 0.0)
-        {
-            return Err(GeometryError::InvalidSegment {
-                index,
-                block: seg.block,
-                message: "feed and spindle speed must be non-negative numbers".into(),
-            });
-        }
+            && seg.spindle >= 0.0;
+        let checked = if cancel.is_cancelled() {
+            Err(GeometryError::Cancelled {
+                done: index,
+                total: segments.len(),
+            })
+        } else {
+            seg.prepare().map_err(invalid).and_then(|prep| {
+                if feed_ok {
+                    Ok(prep)
+                } else {
+                    Err(invalid(
+                        "feed and spindle speed must be non-negative numbers".into(),
+                    ))
+                }
+            })
+        };
+        let prep = match checked {
+            Ok(prep) => prep,
+            Err(e) => {
+                // Leave the stock as the blocks before this one cut it, in all families.
+                deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
+                return Err(e);
+            }
+        };
         let len = prep.length;
         let fz = if seg.feed > 0.0 && seg.spindle > 0.0 {
             seg.feed / (seg.spindle * tool.flutes as f64)
