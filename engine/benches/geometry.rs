@@ -9,11 +9,13 @@
 //! ones whose material actually changed.
 //!
 //! Run: `CARGO_TARGET_DIR=/work/target-geom cargo bench -p millsim-engine --bench geometry`
+//! (with `GEOMETRY_BENCH_QUICK=1`: only the single-thread pass, for profiling; add
+//! `GEOMETRY_BENCH_EXPORT=1` to time the STL export after it).
 
 use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use millsim_engine::geometry::{simulate_removal, Segment, SimOptions, Stock};
+use millsim_engine::geometry::{export_stl, simulate_removal, Mesh, Segment, SimOptions, Stock};
 use millsim_engine::job::CancelFlag;
 use millsim_engine::nc::{interpret, InterpretOptions, MoveKind};
 use millsim_engine::tool::Tool;
@@ -73,7 +75,7 @@ fn stock() -> Stock {
     Stock::block([-3.0, -4.0, -13.0], [37.0, 53.0, 0.0], CELL).unwrap()
 }
 
-fn timed(segs: &[Segment], base: &Stock, opts: &SimOptions, label: &str) {
+fn timed(segs: &[Segment], base: &Stock, opts: &SimOptions, label: &str) -> Stock {
     let mut s = base.clone();
     let t0 = Instant::now();
     let rep = simulate_removal(&mut s, &tool(), segs, opts, &CancelFlag::new()).unwrap();
@@ -97,6 +99,25 @@ fn timed(segs: &[Segment], base: &Stock, opts: &SimOptions, label: &str) {
         rep.rays_changed as f64 / dt / 1e6,
         base.volume() - rep.stock_volume,
     );
+    s
+}
+
+/// Export of the machined stock as STL (the service's final-stock download).
+fn timed_export(stock: &Stock) {
+    let t0 = Instant::now();
+    let mut out = Vec::new();
+    let stats = export_stl(stock, &mut out).unwrap();
+    println!(
+        "export STL: {} triangles ({:.1} MB), volume {:.1} mm³ (stock {:.1}) in {:.3} s",
+        stats.triangles,
+        out.len() as f64 / 1e6,
+        stats.volume,
+        stock.volume(),
+        t0.elapsed().as_secs_f64()
+    );
+    // Not timed: read it back (the reader refuses meshes that are not closed).
+    let mesh = Mesh::from_stl_bytes(&out).expect("exported stock is a closed mesh");
+    println!("  read back: closed, volume {:.1} mm³", mesh.volume());
 }
 
 fn bench(c: &mut Criterion) {
@@ -117,12 +138,21 @@ fn bench(c: &mut Criterion) {
         compute_engagement: false,
         ..Default::default()
     };
-    timed(&segs, &base, &with_eng, "removal+engagement, all threads");
-    timed(&segs, &base, &removal_only, "removal only, all threads");
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .unwrap();
+    if std::env::var_os("GEOMETRY_BENCH_QUICK").is_some() {
+        // For profiling: the single-thread pass only.
+        let s = one.install(|| timed(&segs, &base, &with_eng, "removal+engagement, 1 thread"));
+        if std::env::var_os("GEOMETRY_BENCH_EXPORT").is_some() {
+            timed_export(&s);
+        }
+        return;
+    }
+    let machined = timed(&segs, &base, &with_eng, "removal+engagement, all threads");
+    timed_export(&machined);
+    timed(&segs, &base, &removal_only, "removal only, all threads");
     one.install(|| timed(&segs, &base, &with_eng, "removal+engagement, 1 thread"));
 
     let mut g = c.benchmark_group("geometry_fusion360_adaptive_0.05mm");

@@ -237,6 +237,93 @@ impl DexelGrid {
     }
 }
 
+/// A summary of where one ray has material, read before its intervals: the ray's
+/// material lies within `[lo, hi]`, and bit k of `bins` is set when it may lie in the
+/// k-th of 64 equal bins along the ray. Most rays in a sweep's bounds have no material
+/// near it; the summaries sit in one dense array per family, while the intervals of rays
+/// with several of them live on the heap, and reading those was most of the cost. A
+/// summary only ever covers at least the real material (removal shrinks the material),
+/// so skipping by it changes no result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RaySummary {
+    pub bins: u64,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl RaySummary {
+    pub const EMPTY: RaySummary = RaySummary {
+        bins: 0,
+        lo: f64::INFINITY,
+        hi: f64::NEG_INFINITY,
+    };
+
+    /// Whether material may overlap the open range (a, b), given its bins `range_bins`.
+    #[inline]
+    pub fn may_overlap(&self, range_bins: u64, a: f64, b: f64) -> bool {
+        self.bins & range_bins != 0 && self.lo < b && a < self.hi
+    }
+
+    /// `may_overlap` computed without branches, for testing many rays in a row.
+    #[inline]
+    pub fn may_overlap_branchless(&self, range_bins: u64, a: f64, b: f64) -> bool {
+        (self.bins & range_bins != 0) & (self.lo < b) & (a < self.hi)
+    }
+}
+
+/// The ray summaries of one family.
+#[derive(Clone, Debug)]
+pub struct RaySummaries {
+    pub bins: MaskBins,
+    pub rays: Vec<RaySummary>,
+}
+
+/// The 64 bins along one family's axis.
+#[derive(Clone, Copy, Debug)]
+pub struct MaskBins {
+    origin: f64,
+    inv_bin: f64,
+}
+
+impl RaySummaries {
+    pub fn new(grid: &DexelGrid, fam: usize) -> RaySummaries {
+        let bins = MaskBins {
+            origin: grid.origin[fam],
+            inv_bin: 64.0 / (grid.n[fam] as f64 * grid.cell),
+        };
+        let f = &grid.families[fam];
+        let rays = f.rays.iter().map(|r| bins.summary(r)).collect();
+        RaySummaries { bins, rays }
+    }
+}
+
+impl MaskBins {
+    #[inline]
+    fn bin(&self, x: f64) -> u32 {
+        // Monotone in x (clamped), so overlapping ranges always share a bin.
+        ((x - self.origin) * self.inv_bin).clamp(0.0, 63.0) as u32
+    }
+
+    /// Bits of the bins that `[a, b]` touches.
+    #[inline]
+    pub fn of_range(&self, a: f64, b: f64) -> u64 {
+        let (b0, b1) = (self.bin(a), self.bin(b.max(a)));
+        (u64::MAX >> (63 - b1)) & (u64::MAX << b0)
+    }
+
+    #[inline]
+    pub fn summary(&self, r: &Intervals) -> RaySummary {
+        let (Some(first), Some(last)) = (r.first(), r.last()) else {
+            return RaySummary::EMPTY;
+        };
+        RaySummary {
+            bins: r.iter().fold(0, |m, iv| m | self.of_range(iv[0], iv[1])),
+            lo: first[0],
+            hi: last[1],
+        }
+    }
+}
+
 /// Index range of cell centres `origin + (i + ½)·cell`, i < n, within `[lo, hi]`.
 #[inline]
 pub fn index_range(origin: f64, cell: f64, n: usize, lo: f64, hi: f64) -> (usize, usize) {

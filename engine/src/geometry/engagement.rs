@@ -59,6 +59,8 @@ pub struct StepMetrics {
 #[derive(Default)]
 pub(crate) struct Scratch {
     bits: Vec<bool>,
+    /// Per slice: whether any of its bits is set (most slices of a step have none).
+    slice_hit: Vec<bool>,
     /// sin and cos of the bin centres, kept while the bin count stays the same.
     trig: Vec<(f64, f64)>,
 }
@@ -134,9 +136,17 @@ pub(crate) fn compute(
         return (eng, StepMetrics::default());
     }
     let nz = j_end - j0;
-    scratch.bits.clear();
-    scratch.bits.resize(nz * nb, false);
+    // Both buffers are all false between calls (set bits are cleared below), so only
+    // growth needs filling: clearing all bins of all slices each step cost more than the
+    // few slices in contact.
+    if scratch.bits.len() < nz * nb {
+        scratch.bits.resize(nz * nb, false);
+    }
+    if scratch.slice_hit.len() < nz {
+        scratch.slice_hit.resize(nz, false);
+    }
     let bits = &mut scratch.bits;
+    let slice_hit = &mut scratch.slice_hit;
     if scratch.trig.len() != nb {
         scratch.trig = (0..nb)
             .map(|m| ((m as f64 + 0.5) * dphi).sin_cos())
@@ -147,14 +157,14 @@ pub(crate) fn compute(
     let out = 0.5 * grid.cell;
     for j in j0..j_end {
         let z = (j as f64 + 0.5) * dz;
-        let Some(ep) = tool.edge_point(z) else {
-            continue;
-        };
-        let (sk, ck) = ep.kappa.sin_cos();
         // The flank of a vertical tool: one Z ray per bin serves all flank slices.
         if vertical && z >= ptop {
             continue;
         }
+        let Some(ep) = tool.edge_point(z) else {
+            continue;
+        };
+        let (sk, ck) = ep.kappa.sin_cos();
         for m in 0..nb {
             let radial = [
                 trig[m].0 * xf[0] + trig[m].1 * yf[0],
@@ -177,6 +187,7 @@ pub(crate) fn compute(
             ];
             if grid.material_at(p) {
                 bits[(j - j0) * nb + m] = true;
+                slice_hit[j - j0] = true;
             }
         }
     }
@@ -210,6 +221,7 @@ pub(crate) fn compute(
                     }
                     for j in lo as usize..=hi as usize {
                         bits[(j - j0) * nb + m] = true;
+                        slice_hit[j - j0] = true;
                     }
                 }
             }
@@ -221,10 +233,10 @@ pub(crate) fn compute(
         ..Default::default()
     };
     for j in j0..j_end {
-        let row = &bits[(j - j0) * nb..(j - j0 + 1) * nb];
-        if !row.iter().any(|&b| b) {
+        if !slice_hit[j - j0] {
             continue;
         }
+        let row = &bits[(j - j0) * nb..(j - j0 + 1) * nb];
         let z = (j as f64 + 0.5) * dz;
         let Some(ep) = tool.edge_point(z) else {
             continue;
@@ -262,6 +274,11 @@ pub(crate) fn compute(
         met.radial_width = met.radial_width.max(ep.radius * (cmax - cmin));
         met.engaged_edge_length += body.profile_length(z - 0.5 * dz, z + 0.5 * dz);
         eng.slices.push(EngagedSlice { z, dz, arcs });
+    }
+    for (k, hit) in slice_hit[..nz].iter_mut().enumerate() {
+        if std::mem::take(hit) {
+            bits[k * nb..(k + 1) * nb].fill(false);
+        }
     }
     if eng.slices.is_empty() {
         return (eng, StepMetrics::default());

@@ -1,13 +1,30 @@
 //! Export of the stock as a closed triangle mesh (binary STL).
 //!
 //! Method: the Z dexels are sampled at the cell centres into voxels (a cell is material
-//! when its centre lies in a material interval of its Z ray), and the boundary faces
-//! between material and empty cells become two triangles each. Every vertex is a grid
-//! corner computed the same way on both sides of a face, so the mesh is closed
-//! (watertight); its volume is the voxel volume, within a cell layer of the dexel volume.
+//! when its centre lies in a material interval of its Z ray), kept as bit columns along
+//! z. The boundary between material and empty cells is the surface; its square faces
+//! are merged into strips so that flat floors and straight walls take a few triangles
+//! instead of two per cell:
+//! - faces normal to x and to y are merged along z, faces normal to z along x, each
+//!   strip a maximal run of faces with the same orientation;
+//! - a strip's two long sides lie on grid lines; on each such line, vertices sit exactly
+//!   at the points where the 2×2 cells around the line change along it (where another
+//!   face can start or end), plus, on lines along x, both ends of every cell edge where
+//!   a strip normal to y begins or ends (those edges are not merged along x). Both
+//!   strips sharing a side therefore place the same vertices on it, and each strip is a
+//!   ladder between its two sides, cut into triangles zig-zag.
+//!
+//! So every edge of the mesh is matched by the opposite edge of a neighbouring triangle
+//! (closed, no T-junctions), every vertex is a grid corner computed the same way on all
+//! sides, and the enclosed volume is the voxel volume, within a cell layer of the dexel
+//! volume. The work runs in parallel over rows of cells, with the rows' triangles
+//! written in row order (the same file whatever the thread count).
 
 use std::io::Write;
 
+use rayon::prelude::*;
+
+use super::dexel::DexelGrid;
 use super::stock::Stock;
 use super::GeometryError;
 
@@ -20,124 +37,411 @@ pub struct ExportStats {
 
 /// Writes the stock as a binary STL.
 pub fn export_stl<W: Write>(stock: &Stock, out: &mut W) -> Result<ExportStats, GeometryError> {
-    let g = &stock.grid;
-    let [nx, ny, nz] = g.n;
-    let words = nz.div_ceil(64);
-    // Voxel columns as bit sets.
-    let mut cols = vec![0u64; nx * ny * words];
-    let fam = &g.families[2];
-    for j in 0..ny {
-        for i in 0..nx {
-            let col = &mut cols[(i + nx * j) * words..(i + nx * j + 1) * words];
-            for iv in fam.rays[i + fam.nu * j].iter() {
-                let k0 = ((iv[0] - g.origin[2]) / g.cell - 0.5).ceil().max(0.0) as usize;
-                let k1 = ((iv[1] - g.origin[2]) / g.cell - 0.5).floor();
-                if k1 < 0.0 {
-                    continue;
+    let vox = Voxels::new(&stock.grid);
+    let [nx, ny, _] = vox.n;
+    // Row task j: faces normal to x and to z in row j, and faces normal to y on the
+    // plane y = y_j (j = ny: the far plane only).
+    let rows: Vec<(Vec<u8>, u64)> = (0..=ny)
+        .into_par_iter()
+        .map(|j| {
+            let mut w = TriangleWriter::default();
+            let lines_j = vox.z_line_changes(j);
+            if j < ny {
+                let lines_j1 = vox.z_line_changes(j + 1);
+                for i in 0..=nx {
+                    vox.x_faces(i, j, &lines_j, &lines_j1, &mut w);
                 }
-                let k1 = (k1 as usize).min(nz - 1);
-                for k in k0..=k1 {
-                    col[k / 64] |= 1 << (k % 64);
-                }
+                vox.z_faces(j, &mut w);
             }
-        }
-    }
-    let bit = |i: isize, j: isize, k: isize| -> bool {
-        if i < 0 || j < 0 || k < 0 || i >= nx as isize || j >= ny as isize || k >= nz as isize {
-            return false;
-        }
-        let (i, j, k) = (i as usize, j as usize, k as usize);
-        cols[(i + nx * j) * words + k / 64] >> (k % 64) & 1 == 1
-    };
-    let corner = |i: isize, j: isize, k: isize| -> [f32; 3] {
-        [
-            (g.origin[0] + i as f64 * g.cell) as f32,
-            (g.origin[1] + j as f64 * g.cell) as f32,
-            (g.origin[2] + k as f64 * g.cell) as f32,
-        ]
-    };
-    let mut body: Vec<u8> = Vec::new();
-    let mut count: u64 = 0;
-    let mut emit = |n: [f32; 3], q: [[f32; 3]; 4], body: &mut Vec<u8>| {
-        for tri in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
-            for c in n {
-                body.extend_from_slice(&c.to_le_bytes());
+            for i in 0..nx {
+                vox.y_faces(i, j, &lines_j, &mut w);
             }
-            for v in tri {
-                for c in v {
-                    body.extend_from_slice(&c.to_le_bytes());
-                }
-            }
-            body.extend_from_slice(&[0, 0]);
-            count += 1;
-        }
-    };
-    let cell_vol = g.cell * g.cell * g.cell;
-    let mut voxels: u64 = 0;
-    for k in 0..nz as isize {
-        for j in 0..ny as isize {
-            for i in 0..nx as isize {
-                if !bit(i, j, k) {
-                    continue;
-                }
-                voxels += 1;
-                let c = |di: isize, dj: isize, dk: isize| corner(i + di, j + dj, k + dk);
-                // Quads wound counter-clockwise seen from outside.
-                if !bit(i - 1, j, k) {
-                    emit(
-                        [-1.0, 0.0, 0.0],
-                        [c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)],
-                        &mut body,
-                    );
-                }
-                if !bit(i + 1, j, k) {
-                    emit(
-                        [1.0, 0.0, 0.0],
-                        [c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)],
-                        &mut body,
-                    );
-                }
-                if !bit(i, j - 1, k) {
-                    emit(
-                        [0.0, -1.0, 0.0],
-                        [c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)],
-                        &mut body,
-                    );
-                }
-                if !bit(i, j + 1, k) {
-                    emit(
-                        [0.0, 1.0, 0.0],
-                        [c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)],
-                        &mut body,
-                    );
-                }
-                if !bit(i, j, k - 1) {
-                    emit(
-                        [0.0, 0.0, -1.0],
-                        [c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)],
-                        &mut body,
-                    );
-                }
-                if !bit(i, j, k + 1) {
-                    emit(
-                        [0.0, 0.0, 1.0],
-                        [c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)],
-                        &mut body,
-                    );
-                }
-            }
-        }
-    }
+            (w.bytes, w.count)
+        })
+        .collect();
+    let count: u64 = rows.iter().map(|r| r.1).sum();
+    let n = u32::try_from(count)
+        .map_err(|_| GeometryError::InvalidGrid("too many triangles for STL".into()))?;
     let mut header = [0u8; 80];
     let title = b"millsim stock (voxel boundary of the tri-dexel grid)";
     header[..title.len()].copy_from_slice(title);
     out.write_all(&header)?;
-    let n = u32::try_from(count)
-        .map_err(|_| GeometryError::InvalidGrid("too many triangles for STL".into()))?;
     out.write_all(&n.to_le_bytes())?;
-    out.write_all(&body)?;
+    for (bytes, _) in &rows {
+        out.write_all(bytes)?;
+    }
+    let g = &stock.grid;
+    let voxels: u64 = vox.bits.iter().map(|w| w.count_ones() as u64).sum();
     Ok(ExportStats {
         triangles: count,
-        volume: voxels as f64 * cell_vol,
+        volume: voxels as f64 * g.cell * g.cell * g.cell,
     })
+}
+
+/// The voxels as bit columns along z: column (i, j) at words `(i + nx·j)·words..`, bit
+/// k for layer k. Columns outside the grid are empty.
+struct Voxels {
+    n: [usize; 3],
+    /// Words per column, for layers 0..=nz (one more than the grid has, always empty,
+    /// so that the change at the top layer has a bit).
+    words: usize,
+    bits: Vec<u64>,
+    origin: [f64; 3],
+    cell: f64,
+}
+
+impl Voxels {
+    fn new(g: &DexelGrid) -> Voxels {
+        let [nx, ny, nz] = g.n;
+        let words = (nz + 1).div_ceil(64);
+        let mut bits = vec![0u64; nx * ny * words];
+        let fam = &g.families[2];
+        bits.par_chunks_mut(nx * words)
+            .enumerate()
+            .for_each(|(j, row)| {
+                for (i, col) in row.chunks_mut(words).enumerate() {
+                    for iv in fam.rays[i + fam.nu * j].iter() {
+                        let k0 = ((iv[0] - g.origin[2]) / g.cell - 0.5).ceil().max(0.0) as usize;
+                        let k1 = ((iv[1] - g.origin[2]) / g.cell - 0.5).floor();
+                        if k1 < 0.0 {
+                            continue;
+                        }
+                        let k1 = (k1 as usize).min(nz - 1);
+                        for k in k0..=k1 {
+                            col[k / 64] |= 1 << (k % 64);
+                        }
+                    }
+                }
+            });
+        Voxels {
+            n: g.n,
+            words,
+            bits,
+            origin: g.origin,
+            cell: g.cell,
+        }
+    }
+
+    /// Word `w` of column (i, j), 0 outside the grid.
+    #[inline]
+    fn word(&self, i: isize, j: isize, w: usize) -> u64 {
+        let (nx, ny) = (self.n[0] as isize, self.n[1] as isize);
+        if i < 0 || j < 0 || i >= nx || j >= ny {
+            return 0;
+        }
+        self.bits[(i + nx * j) as usize * self.words + w]
+    }
+
+    /// Voxel (i, j, k), false outside the grid.
+    #[inline]
+    fn at(&self, i: isize, j: isize, k: isize) -> bool {
+        k >= 0 && (k as usize) < self.n[2] && self.word(i, j, k as usize / 64) >> (k % 64) & 1 == 1
+    }
+
+    /// Word `w` of the layers where column (i, j) changes: bit k set when voxel k differs
+    /// from voxel k − 1 (k = 0 against the empty space below).
+    #[inline]
+    fn change_word(&self, i: isize, j: isize, w: usize) -> u64 {
+        let c = self.word(i, j, w);
+        let below = if w == 0 {
+            0
+        } else {
+            self.word(i, j, w - 1) >> 63
+        };
+        c ^ (c << 1 | below)
+    }
+
+    /// For each vertical grid line (x_i, y_j), i in 0..=nx: the levels where the four
+    /// columns around it change (a face can start or end there), `words` per line.
+    fn z_line_changes(&self, j: usize) -> Vec<u64> {
+        let (nx, words) = (self.n[0], self.words);
+        let mut out = vec![0u64; (nx + 1) * words];
+        let j = j as isize;
+        for i in 0..=nx {
+            let ii = i as isize;
+            for w in 0..words {
+                out[i * words + w] = self.change_word(ii - 1, j - 1, w)
+                    | self.change_word(ii, j - 1, w)
+                    | self.change_word(ii - 1, j, w)
+                    | self.change_word(ii, j, w);
+            }
+        }
+        out
+    }
+
+    /// Grid corner (i, j, k).
+    #[inline]
+    fn corner(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
+        [
+            self.origin[0] + i as f64 * self.cell,
+            self.origin[1] + j as f64 * self.cell,
+            self.origin[2] + k as f64 * self.cell,
+        ]
+    }
+
+    /// Faces on the plane x = x_i in row j, merged along z.
+    fn x_faces(
+        &self,
+        i: usize,
+        j: usize,
+        lines_j: &[u64],
+        lines_j1: &[u64],
+        w: &mut TriangleWriter,
+    ) {
+        let (ii, jj) = (i as isize, j as isize);
+        let words = self.words;
+        let side_a = &lines_j[i * words..(i + 1) * words];
+        let side_b = &lines_j1[i * words..(i + 1) * words];
+        let mut minus: Words = smallvec::smallvec![0; words];
+        let mut plus: Words = smallvec::smallvec![0; words];
+        for k in 0..words {
+            let (lo, hi) = (self.word(ii - 1, jj, k), self.word(ii, jj, k));
+            minus[k] = hi & !lo;
+            plus[k] = lo & !hi;
+        }
+        let at = |side: usize, k: usize| self.corner(i, j + side, k);
+        for_runs(&minus, |k0, k1| {
+            w.ladder([-1.0, 0.0, 0.0], &at, side_a, side_b, k0, k1);
+        });
+        for_runs(&plus, |k0, k1| {
+            w.ladder([1.0, 0.0, 0.0], &at, side_a, side_b, k0, k1);
+        });
+    }
+
+    /// Faces on the plane y = y_j in slab i, merged along z.
+    fn y_faces(&self, i: usize, j: usize, lines_j: &[u64], w: &mut TriangleWriter) {
+        let (ii, jj) = (i as isize, j as isize);
+        let words = self.words;
+        let side_a = &lines_j[i * words..(i + 1) * words];
+        let side_b = &lines_j[(i + 1) * words..(i + 2) * words];
+        let mut minus: Words = smallvec::smallvec![0; words];
+        let mut plus: Words = smallvec::smallvec![0; words];
+        let mut any = 0;
+        for k in 0..words {
+            let (lo, hi) = (self.word(ii, jj - 1, k), self.word(ii, jj, k));
+            minus[k] = hi & !lo;
+            plus[k] = lo & !hi;
+            any |= minus[k] | plus[k];
+        }
+        if any == 0 {
+            return;
+        }
+        let at = |side: usize, k: usize| self.corner(i + side, j, k);
+        for_runs(&minus, |k0, k1| {
+            w.ladder([0.0, -1.0, 0.0], &at, side_a, side_b, k0, k1);
+        });
+        for_runs(&plus, |k0, k1| {
+            w.ladder([0.0, 1.0, 0.0], &at, side_a, side_b, k0, k1);
+        });
+    }
+
+    /// Faces normal to z in row j, merged along x, at every level where some column of
+    /// the row changes.
+    fn z_faces(&self, j: usize, w: &mut TriangleWriter) {
+        let [nx, _, nz] = self.n;
+        let jj = j as isize;
+        let words = self.words;
+        let x_words = (nx + 1).div_ceil(64);
+        // Levels where any column of the row changes.
+        let mut levels = vec![0u64; words];
+        for i in 0..nx as isize {
+            for (k, l) in levels.iter_mut().enumerate() {
+                *l |= self.change_word(i, jj, k);
+            }
+        }
+        let mut bottom = vec![0u64; x_words];
+        let mut top = vec![0u64; x_words];
+        let mut side_a = vec![0u64; x_words];
+        let mut side_b = vec![0u64; x_words];
+        for_bits(&levels, |k| {
+            if k > nz {
+                return;
+            }
+            let kk = k as isize;
+            bottom.fill(0);
+            top.fill(0);
+            for i in 0..nx {
+                let (below, above) = (self.at(i as isize, jj, kk - 1), self.at(i as isize, jj, kk));
+                if above && !below {
+                    bottom[i / 64] |= 1 << (i % 64);
+                } else if below && !above {
+                    top[i / 64] |= 1 << (i % 64);
+                }
+            }
+            self.x_line_vertices(j, k, &mut side_a);
+            self.x_line_vertices(j + 1, k, &mut side_b);
+            let at = |side: usize, i: usize| self.corner(i, j + side, k);
+            for_runs(&bottom, |i0, i1| {
+                w.ladder([0.0, 0.0, -1.0], &at, &side_a, &side_b, i0, i1);
+            });
+            for_runs(&top, |i0, i1| {
+                w.ladder([0.0, 0.0, 1.0], &at, &side_a, &side_b, i0, i1);
+            });
+        });
+    }
+
+    /// Vertex positions i in 0..=nx on the grid line along x at (y_j, z_k): where the
+    /// 2×2 cells around the line change, and both ends of every cell edge where a face
+    /// normal to y begins or ends (those faces are merged along z, not along x).
+    fn x_line_vertices(&self, j: usize, k: usize, out: &mut [u64]) {
+        out.fill(0);
+        let (jj, kk) = (j as isize, k as isize);
+        // Cells (j−1, k−1), (j, k−1), (j−1, k), (j, k) of slab i as four bits.
+        let pattern = |i: isize| {
+            self.at(i, jj - 1, kk - 1) as u8
+                | (self.at(i, jj, kk - 1) as u8) << 1
+                | (self.at(i, jj - 1, kk) as u8) << 2
+                | (self.at(i, jj, kk) as u8) << 3
+        };
+        // A y-face edge on the line: the face status across y differs between the
+        // layers below and above.
+        let y_edge = |p: u8| {
+            let below = (p & 1) as i8 - ((p >> 1) & 1) as i8;
+            let above = ((p >> 2) & 1) as i8 - ((p >> 3) & 1) as i8;
+            below != above
+        };
+        let mut set = |i: usize| out[i / 64] |= 1 << (i % 64);
+        let nx = self.n[0];
+        let mut prev = pattern(-1);
+        for i in 0..=nx {
+            let cur = pattern(i as isize);
+            if cur != prev || y_edge(prev) || y_edge(cur) {
+                set(i);
+            }
+            prev = cur;
+        }
+    }
+}
+
+/// A column's bits (a few words for any sensible height).
+type Words = smallvec::SmallVec<[u64; 8]>;
+
+/// Calls `f(start, end)` for each run of consecutive set bits (end exclusive).
+fn for_runs(bits: &[u64], mut f: impl FnMut(usize, usize)) {
+    let n = bits.len() * 64;
+    let mut k = 0;
+    while k < n {
+        let w = k / 64;
+        let word = bits[w] >> (k % 64);
+        if word == 0 {
+            k = (w + 1) * 64;
+            continue;
+        }
+        let start = k + word.trailing_zeros() as usize;
+        let mut end = start;
+        while end < n && has(bits, end) {
+            // The set bits from `end` to the end of its word, at least one.
+            let ones = (!(bits[end / 64] >> (end % 64))).trailing_zeros() as usize;
+            end += ones.min(64 - end % 64);
+        }
+        f(start, end);
+        k = end;
+    }
+}
+
+/// Calls `f(k)` for each set bit.
+fn for_bits(bits: &[u64], mut f: impl FnMut(usize)) {
+    for (w, &word) in bits.iter().enumerate() {
+        let mut m = word;
+        while m != 0 {
+            f(w * 64 + m.trailing_zeros() as usize);
+            m &= m - 1;
+        }
+    }
+}
+
+#[inline]
+fn has(bits: &[u64], k: usize) -> bool {
+    bits[k / 64] >> (k % 64) & 1 == 1
+}
+
+/// Binary STL triangles of one row task.
+#[derive(Default)]
+struct TriangleWriter {
+    bytes: Vec<u8>,
+    count: u64,
+    side_a: Vec<usize>,
+    side_b: Vec<usize>,
+}
+
+impl TriangleWriter {
+    /// A strip from `t0` to `t1` along its run axis between two grid lines: vertices at
+    /// its ends and where `verts_a` / `verts_b` mark them on each line; `at(side, t)` is
+    /// the point at t on line a (side 0) or b (side 1). Triangles zig-zag between the
+    /// two sides, wound counter-clockwise seen along `normal` (from outside).
+    fn ladder(
+        &mut self,
+        normal: [f32; 3],
+        at: &impl Fn(usize, usize) -> [f64; 3],
+        verts_a: &[u64],
+        verts_b: &[u64],
+        t0: usize,
+        t1: usize,
+    ) {
+        let mut a = std::mem::take(&mut self.side_a);
+        let mut b = std::mem::take(&mut self.side_b);
+        for (side, verts) in [(&mut a, verts_a), (&mut b, verts_b)] {
+            side.clear();
+            side.push(t0);
+            side.extend((t0 + 1..t1).filter(|&t| has(verts, t)));
+            side.push(t1);
+        }
+        let (mut p, mut q) = (0, 0);
+        while p + 1 < a.len() || q + 1 < b.len() {
+            let advance_a = q + 1 == b.len() || (p + 1 < a.len() && a[p + 1] <= b[q + 1]);
+            let tri = if advance_a {
+                p += 1;
+                [at(0, a[p - 1]), at(0, a[p]), at(1, b[q])]
+            } else {
+                q += 1;
+                [at(0, a[p]), at(1, b[q]), at(1, b[q - 1])]
+            };
+            self.triangle(normal, tri);
+        }
+        self.side_a = a;
+        self.side_b = b;
+    }
+
+    fn triangle(&mut self, normal: [f32; 3], mut t: [[f64; 3]; 3]) {
+        let (u, v) = (sub(t[1], t[0]), sub(t[2], t[0]));
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let facing = n[0] * normal[0] as f64 + n[1] * normal[1] as f64 + n[2] * normal[2] as f64;
+        if facing < 0.0 {
+            t.swap(1, 2);
+        }
+        for c in normal {
+            self.bytes.extend_from_slice(&c.to_le_bytes());
+        }
+        for p in t {
+            for c in p {
+                self.bytes.extend_from_slice(&(c as f32).to_le_bytes());
+            }
+        }
+        self.bytes.extend_from_slice(&[0, 0]);
+        self.count += 1;
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_across_words() {
+        let mut bits = vec![0u64; 3];
+        for k in (3..7).chain(60..130).chain(191..192) {
+            bits[k / 64] |= 1 << (k % 64);
+        }
+        let mut runs = Vec::new();
+        for_runs(&bits, |a, b| runs.push((a, b)));
+        assert_eq!(runs, vec![(3, 7), (60, 130), (191, 192)]);
+    }
 }

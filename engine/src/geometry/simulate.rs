@@ -7,10 +7,11 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use super::checks::{check_position, CheckFlags, ToolChecks};
+use super::dexel::DexelGrid;
 use super::engagement::{compute, EngagementOptions, Scratch, StepInput, StepMetrics};
 use super::path::Segment;
 use super::stock::Stock;
-use super::sweep::{remove_sweeps, RemovalStats, ToolBody};
+use super::sweep::{RemovalPass, RemovalStats, SubMove, ToolBody};
 use super::GeometryError;
 use crate::engagement::Engagement;
 use crate::job::CancelFlag;
@@ -115,6 +116,85 @@ pub struct SimulationReport {
 /// Removal volume below which a rapid is not reported (float noise), mm³.
 const RAPID_VOLUME_EPS: f64 = 1e-6;
 
+/// Steps whose X and Y removal may wait for one batch.
+const MAX_DEFERRED_STEPS: usize = 32;
+
+/// Removal from the X and Y families deferred over several steps. Checks and engagement
+/// read only the Z family, so the X and Y rays can take a batch of steps in one visit
+/// each (one read of each ray from memory instead of one per step), meeting the steps'
+/// sweeps in order: the same result and the same per-step statistics as step by step.
+#[derive(Default)]
+struct DeferredXY {
+    moves: Vec<SubMove>,
+    /// Index into `steps` of each sub-move.
+    groups: Vec<usize>,
+    /// (block, step) of each deferred step.
+    steps: Vec<(usize, usize)>,
+}
+
+impl DeferredXY {
+    fn push(&mut self, block: usize, step: usize, moves: &[SubMove]) {
+        self.moves.extend_from_slice(moves);
+        self.groups
+            .extend(std::iter::repeat_n(self.steps.len(), moves.len()));
+        self.steps.push((block, step));
+    }
+
+    /// Removes the deferred steps from X and Y and adds their statistics to the steps'.
+    fn flush(
+        &mut self,
+        pass: &mut RemovalPass,
+        grid: &mut DexelGrid,
+        body: &ToolBody,
+        step_stats: &mut [Vec<RemovalStats>],
+    ) {
+        if self.steps.is_empty() {
+            return;
+        }
+        let per_step = pass.remove(
+            grid,
+            body,
+            &self.moves,
+            &self.groups,
+            self.steps.len(),
+            [true, true, false],
+        );
+        for (&(b, k), s) in self.steps.iter().zip(&per_step) {
+            step_stats[b][k].add(s);
+        }
+        self.moves.clear();
+        self.groups.clear();
+        self.steps.clear();
+    }
+}
+
+/// Fills in a block's removal figures once all its steps are removed from all families.
+fn finish_block(block: &mut BlockGeometry, seg: &Segment, step_stats: &[RemovalStats], h: f64) {
+    let mut stats = RemovalStats::default();
+    for (step, st) in block.steps.iter_mut().zip(step_stats) {
+        stats.add(st);
+        step.removed_volume = st.volume(h);
+        step.mrr = if step.length > 0.0 && seg.feed > 0.0 {
+            step.removed_volume * seg.feed / step.length
+        } else {
+            0.0
+        };
+        block.max_mrr = block.max_mrr.max(step.mrr);
+    }
+    block.removed_volume = stats.volume(h);
+    block.rays_tested = stats.rays_tested;
+    block.rays_intersected = stats.rays_intersected;
+    block.rays_changed = stats.rays_changed;
+    block.mean_mrr = if block.length > 0.0 && seg.feed > 0.0 {
+        block.removed_volume * seg.feed / block.length
+    } else {
+        0.0
+    };
+    if seg.rapid && block.removed_volume > RAPID_VOLUME_EPS {
+        block.checks.rapid_in_material = true;
+    }
+}
+
 /// Simulates the segments on `stock` with `tool`: removes material, and reports per segment
 /// the removed volume, the engagement per step, and the collision checks.
 pub fn simulate_removal(
@@ -147,10 +227,14 @@ fn simulate_inner(
     // Material never rises, so the initial top bounds it for the whole program and lets
     // checks and engagement skip what is above the stock.
     let top_z = stock.grid.max_z();
+    let mut pass = RemovalPass::new(&stock.grid);
+    let mut deferred = DeferredXY::default();
+    // Removal statistics per block and step, until the block is finished.
+    let mut step_stats: Vec<Vec<RemovalStats>> = Vec::with_capacity(segments.len());
+    let mut finished = 0;
     let mut scratch = Scratch::default();
-    let mut blocks = Vec::with_capacity(segments.len());
+    let mut blocks: Vec<BlockGeometry> = Vec::with_capacity(segments.len());
     let mut sub_moves = Vec::new();
-    let (mut total_tested, mut total_intersected, mut total_changed) = (0u64, 0u64, 0u64);
     for (index, seg) in segments.iter().enumerate() {
         if cancel.is_cancelled() {
             return Err(GeometryError::Cancelled {
@@ -222,7 +306,8 @@ fn simulate_inner(
         };
         let mut prev_metrics: Option<(bool, StepMetrics)> = None;
         let mut air_len = 0.0;
-        let mut stats = RemovalStats::default();
+        step_stats.push(Vec::new());
+        let bi = blocks.len();
         loop {
             let u = if len > 0.0 {
                 (u_prev + step / len).min(1.0)
@@ -274,24 +359,30 @@ fn simulate_inner(
             };
             sub_moves.clear();
             prep.sub_moves(u_prev, u, arc_tol, max_axis_step, &mut sub_moves);
-            let step_stats = remove_sweeps(&mut stock.grid, &body, &sub_moves);
-            stats.add(&step_stats);
-            let removed = step_stats.volume(h);
+            // With engagement, X and Y wait (see `DeferredXY`); without, a step is air
+            // when it removed nothing, which needs all three families now (and the steps
+            // before it removed first, for the same per-step figures).
+            let now = if engage {
+                [false, false, true]
+            } else {
+                deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
+                [true; 3]
+            };
+            let groups = vec![0; sub_moves.len()];
+            let step_now = pass.remove(&mut stock.grid, &body, &sub_moves, &groups, 1, now)[0];
+            step_stats[bi].push(step_now);
+            if engage {
+                deferred.push(bi, block.steps.len(), &sub_moves);
+            }
             let this_len = (u - u_prev) * len;
-            // Without engagement, a step is air when it removed nothing.
             let air = if engage {
                 engagement.is_air()
             } else {
-                removed <= 0.0
+                step_now.volume(h) <= 0.0
             };
             if air {
                 air_len += this_len;
             }
-            let mrr = if this_len > 0.0 && seg.feed > 0.0 {
-                removed * seg.feed / this_len
-            } else {
-                0.0
-            };
             if !air {
                 block.entry_angle = Some(
                     block
@@ -309,7 +400,6 @@ fn simulate_inner(
             block.max_engaged_edge_length = block
                 .max_engaged_edge_length
                 .max(metrics.engaged_edge_length);
-            block.max_mrr = block.max_mrr.max(mrr);
             block.steps.push(StepGeometry {
                 position: pos,
                 axis,
@@ -318,8 +408,9 @@ fn simulate_inner(
                 engagement,
                 metrics,
                 air,
-                removed_volume: removed,
-                mrr,
+                // Filled in by `finish_block`.
+                removed_volume: 0.0,
+                mrr: 0.0,
             });
             if adaptive {
                 // Steady engagement lets the step grow; any change brings it back.
@@ -345,10 +436,6 @@ fn simulate_inner(
                 break;
             }
         }
-        block.removed_volume = stats.volume(h);
-        block.rays_tested = stats.rays_tested;
-        block.rays_intersected = stats.rays_intersected;
-        block.rays_changed = stats.rays_changed;
         // Exact 0 and 1 when no step or every step is air (no rounding of the lengths).
         block.air_fraction = if block.steps.iter().all(|s| s.air) {
             1.0
@@ -357,24 +444,34 @@ fn simulate_inner(
         } else {
             (air_len / len).clamp(0.0, 1.0)
         };
-        block.mean_mrr = if len > 0.0 && seg.feed > 0.0 {
-            block.removed_volume * seg.feed / len
-        } else {
-            0.0
-        };
-        if seg.rapid && block.removed_volume > RAPID_VOLUME_EPS {
-            block.checks.rapid_in_material = true;
-        }
-        total_tested += stats.rays_tested;
-        total_intersected += stats.rays_intersected;
-        total_changed += stats.rays_changed;
         blocks.push(block);
+        if deferred.steps.len() >= MAX_DEFERRED_STEPS {
+            deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
+        }
+        if deferred.steps.is_empty() {
+            for b in finished..blocks.len() {
+                let seg = &segments[blocks[b].segment];
+                finish_block(&mut blocks[b], seg, &std::mem::take(&mut step_stats[b]), h);
+            }
+            finished = blocks.len();
+        }
     }
+    deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
+    for b in finished..blocks.len() {
+        let seg = &segments[blocks[b].segment];
+        finish_block(&mut blocks[b], seg, &std::mem::take(&mut step_stats[b]), h);
+    }
+    let total = |f: fn(&BlockGeometry) -> u64| blocks.iter().map(f).sum::<u64>();
+    let (rays_tested, rays_intersected, rays_changed) = (
+        total(|b| b.rays_tested),
+        total(|b| b.rays_intersected),
+        total(|b| b.rays_changed),
+    );
     Ok(SimulationReport {
         blocks,
         stock_volume: stock.volume(),
-        rays_tested: total_tested,
-        rays_intersected: total_intersected,
-        rays_changed: total_changed,
+        rays_tested,
+        rays_intersected,
+        rays_changed,
     })
 }

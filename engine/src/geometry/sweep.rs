@@ -30,7 +30,9 @@ use parry3d_f64::query::Ray;
 use parry3d_f64::shape::SupportMap;
 use rayon::prelude::*;
 
-use super::dexel::{index_range, other_axes, subtract, DexelGrid, Family, Intervals};
+use super::dexel::{
+    index_range, other_axes, subtract, DexelGrid, Family, Intervals, RaySummaries, RaySummary,
+};
 use crate::tool::{Tool, ToolShape};
 use crate::vec3::{cross, dot, norm, sub};
 
@@ -550,6 +552,25 @@ impl<'a> Sweep<'a> {
         }
     }
 
+    /// Whether an X or Y ray at height `z0` crosses the tool where its radius is constant
+    /// during a horizontal move of a vertical tool: there the ray's interval depends on
+    /// its cross coordinate only (`section`), the same for every such height.
+    #[inline]
+    fn in_constant_section(&self, z0: f64) -> bool {
+        let h0 = z0 - self.mv.p0[2];
+        self.vertical
+            && self.delta[2] == 0.0
+            && h0 >= self.body.profile_top()
+            && h0 >= 0.0
+            && h0 <= self.body.length
+    }
+
+    /// `h_ray(al, ·, c0, z0)` for any `z0` with `in_constant_section(z0)`.
+    #[inline]
+    fn section(&self, al: usize, c0: f64) -> Option<(f64, f64)> {
+        self.stadium[al].line(self.body.radius, c0)
+    }
+
     fn z_ray(&self, x: f64, y: f64) -> Option<(f64, f64)> {
         let p0 = self.mv.p0;
         let (wx, wy) = (x - p0[0], y - p0[1]);
@@ -1003,66 +1024,115 @@ pub fn remove_sweep(grid: &mut DexelGrid, body: &ToolBody, mv: &SubMove) -> Remo
 
 /// Subtracts the swept volumes of consecutive sub-moves (one step of a path). Each ray is
 /// visited once and meets the sub-moves in order, so the result does not depend on how
-/// the rays are shared among threads.
+/// the rays are shared among threads. Builds the ray summaries for this one call; a pass
+/// over many steps keeps them (`RemovalPass`).
 pub fn remove_sweeps(grid: &mut DexelGrid, body: &ToolBody, moves: &[SubMove]) -> RemovalStats {
-    let mut stats = RemovalStats::default();
-    if moves.is_empty() {
-        return stats;
-    }
-    let sweeps: Vec<(Sweep, [f64; 3], [f64; 3])> = moves
-        .iter()
-        .map(|mv| {
-            let sw = Sweep::new(body, *mv);
-            let (lo, hi) = sw.bounds();
-            (sw, lo, hi)
-        })
-        .collect();
-    let frame = Frame {
-        origin: grid.origin,
-        max: grid.max_corner(),
-        cell: grid.cell,
-        n: grid.n,
-    };
-    // The three families are independent: one task each (plus row parallelism inside
-    // large sweeps); their statistics are added in family order.
-    let [f0, f1, f2] = &mut grid.families;
-    let sweeps = &sweeps;
-    let frame = &frame;
-    // Rays the sweeps may touch, from their joint bounds: small steps stay on this thread
-    // (a fork costs more than it saves there, and more still when cores are shared).
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for (_, l, u) in sweeps.iter() {
-        for k in 0..3 {
-            lo[k] = lo[k].min(l[k]);
-            hi[k] = hi[k].max(u[k]);
+    let mut pass = RemovalPass::new(grid);
+    let groups = vec![0; moves.len()];
+    pass.remove(grid, body, moves, &groups, 1, [true; 3])[0]
+}
+
+/// Removal over many steps: keeps the ray summaries of the grid's three families up to
+/// date (nothing else may change the grid meanwhile).
+pub(crate) struct RemovalPass {
+    summaries: [RaySummaries; 3],
+}
+
+impl RemovalPass {
+    pub(crate) fn new(grid: &DexelGrid) -> RemovalPass {
+        RemovalPass {
+            summaries: [0, 1, 2].map(|a| RaySummaries::new(grid, a)),
         }
     }
-    let cells =
-        |k: usize| ((hi[k].min(frame.max[k]) - lo[k].max(frame.origin[k])) / frame.cell).max(0.0);
-    let estimate = cells(0) * cells(1) + cells(1) * cells(2) + cells(2) * cells(0);
-    let (s0, (s1, s2)) = if estimate >= PARALLEL_MIN_RAYS as f64 {
-        rayon::join(
-            || remove_family(frame, f0, sweeps),
-            || {
-                rayon::join(
-                    || remove_family(frame, f1, sweeps),
-                    || remove_family(frame, f2, sweeps),
-                )
-            },
-        )
-    } else {
-        (
-            remove_family(frame, f0, sweeps),
+
+    /// Subtracts the sub-moves' swept volumes from the selected families, each ray meeting
+    /// the sub-moves in order. Sub-move k belongs to group `groups[k]` (< `n_groups`, a
+    /// step of the path); the statistics come per group. Steps may be batched: the
+    /// families are independent, so a family that nothing reads between steps can take
+    /// several steps in one visit of each ray, with the same result as step by step.
+    pub(crate) fn remove(
+        &mut self,
+        grid: &mut DexelGrid,
+        body: &ToolBody,
+        moves: &[SubMove],
+        groups: &[usize],
+        n_groups: usize,
+        families: [bool; 3],
+    ) -> Vec<RemovalStats> {
+        let mut stats = vec![RemovalStats::default(); n_groups];
+        if moves.is_empty() {
+            return stats;
+        }
+        let sweeps: Vec<PlacedSweep> = moves
+            .iter()
+            .zip(groups)
+            .map(|(mv, &group)| {
+                let sweep = Sweep::new(body, *mv);
+                let (lo, hi) = sweep.bounds();
+                PlacedSweep {
+                    sweep,
+                    lo,
+                    hi,
+                    group,
+                }
+            })
+            .collect();
+        let frame = Frame {
+            origin: grid.origin,
+            max: grid.max_corner(),
+            cell: grid.cell,
+            n: grid.n,
+        };
+        let sweeps = &sweeps;
+        let frame = &frame;
+        // Rays the sweeps may touch, from their joint bounds: small jobs stay on this
+        // thread (a fork costs more than it saves there, and more still when cores are
+        // shared).
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for s in sweeps.iter() {
+            for k in 0..3 {
+                lo[k] = lo[k].min(s.lo[k]);
+                hi[k] = hi[k].max(s.hi[k]);
+            }
+        }
+        let cells = |k: usize| {
+            ((hi[k].min(frame.max[k]) - lo[k].max(frame.origin[k])) / frame.cell).max(0.0)
+        };
+        let estimate = cells(0) * cells(1) + cells(1) * cells(2) + cells(2) * cells(0);
+        let parallel = estimate >= PARALLEL_MIN_RAYS as f64;
+        // The three families are independent: one task each (plus row parallelism inside
+        // large sweeps); their statistics are added in family order.
+        let [f0, f1, f2] = &mut grid.families;
+        let [m0, m1, m2] = &mut self.summaries;
+        let run = |on: bool, f: &mut Family, m: &mut RaySummaries| {
+            on.then(|| remove_family(frame, f, m, sweeps, n_groups))
+        };
+        let (s0, (s1, s2)) = if parallel {
+            rayon::join(
+                || run(families[0], f0, m0),
+                || rayon::join(|| run(families[1], f1, m1), || run(families[2], f2, m2)),
+            )
+        } else {
             (
-                remove_family(frame, f1, sweeps),
-                remove_family(frame, f2, sweeps),
-            ),
-        )
-    };
-    for s in [s0, s1, s2] {
-        stats.add(&s);
+                run(families[0], f0, m0),
+                (run(families[1], f1, m1), run(families[2], f2, m2)),
+            )
+        };
+        for per_group in [s0, s1, s2].into_iter().flatten() {
+            for (total, s) in stats.iter_mut().zip(per_group) {
+                total.add(&s);
+            }
+        }
+        stats
     }
-    stats
+}
+
+/// A sub-move's sweep with its bounds and the group (step) it belongs to.
+struct PlacedSweep<'a> {
+    sweep: Sweep<'a>,
+    lo: [f64; 3],
+    hi: [f64; 3],
+    group: usize,
 }
 
 /// The grid's placement, shared read-only by the family tasks.
@@ -1073,26 +1143,68 @@ struct Frame {
     n: [usize; 3],
 }
 
+/// A sub-move's index box on one family: rows `v0..v1`, rays `u0..u1` in each row.
+struct RayBox {
+    sweep: usize,
+    u0: usize,
+    u1: usize,
+    v0: usize,
+    v1: usize,
+    /// Occupancy bits of the sweep's extent along the rays.
+    extent_mask: u64,
+    /// X rays of a horizontal move: the interval per column in the constant section
+    /// (`Sweep::section`), the same for every row there; empty otherwise.
+    column_sections: Vec<Option<(f64, f64)>>,
+}
+
+/// Removal from one family; statistics per group.
 fn remove_family(
     g: &Frame,
     f: &mut Family,
-    sweeps: &[(Sweep, [f64; 3], [f64; 3])],
-) -> RemovalStats {
-    let mut stats = RemovalStats::default();
+    summaries: &mut RaySummaries,
+    sweeps: &[PlacedSweep],
+    n_groups: usize,
+) -> Vec<RemovalStats> {
+    let mut stats = vec![RemovalStats::default(); n_groups];
     let fam = f.axis;
     let (ua, va) = other_axes(fam);
     let (gmin, gmax) = (g.origin, g.max);
+    let (h, ou, ov) = (g.cell, g.origin[ua], g.origin[va]);
     // Index box of each sub-move on this family, and their union.
-    let mut boxes = Vec::with_capacity(sweeps.len());
+    let mut boxes: Vec<RayBox> = Vec::with_capacity(sweeps.len());
     let (mut u0, mut u1, mut v0, mut v1) = (usize::MAX, 0, usize::MAX, 0);
-    for (k, (_, lo, hi)) in sweeps.iter().enumerate() {
+    for (
+        k,
+        PlacedSweep {
+            sweep,
+            lo,
+            hi,
+            group,
+        },
+    ) in sweeps.iter().enumerate()
+    {
         let (iu0, iu1) = index_range(g.origin[ua], g.cell, g.n[ua], lo[ua], hi[ua]);
         let (iv0, iv1) = index_range(g.origin[va], g.cell, g.n[va], lo[va], hi[va]);
         if iu0 >= iu1 || iv0 >= iv1 || hi[fam] < gmin[fam] || lo[fam] > gmax[fam] {
             continue;
         }
-        stats.rays_tested += ((iu1 - iu0) * (iv1 - iv0)) as u64;
-        boxes.push((k, iu0, iu1, iv0, iv1));
+        stats[*group].rays_tested += ((iu1 - iu0) * (iv1 - iv0)) as u64;
+        let column_sections = if fam == 0 && sweep.vertical && sweep.delta[2] == 0.0 {
+            (iu0..iu1)
+                .map(|iu| sweep.section(0, ou + (iu as f64 + 0.5) * h))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        boxes.push(RayBox {
+            sweep: k,
+            u0: iu0,
+            u1: iu1,
+            v0: iv0,
+            v1: iv1,
+            extent_mask: summaries.bins.of_range(lo[fam], hi[fam]),
+            column_sections,
+        });
         u0 = u0.min(iu0);
         u1 = u1.max(iu1);
         v0 = v0.min(iv0);
@@ -1101,53 +1213,98 @@ fn remove_family(
     if boxes.is_empty() {
         return stats;
     }
-    let (h, ou, ov) = (g.cell, g.origin[ua], g.origin[va]);
     let (s_min, s_max) = (gmin[fam], gmax[fam]);
     let nu = f.nu;
     let rows = &mut f.rays[v0 * nu..v1 * nu];
+    let summary_rows = &mut summaries.rays[v0 * nu..v1 * nu];
+    let bins = summaries.bins;
     let boxes = &boxes;
-    let do_row = |(k, row): (usize, &mut [Intervals])| -> (f64, u64, u64) {
+    // Per row and group: removed length, exact intersections, rays changed.
+    let mut per_row = vec![(0.0, 0u64, 0u64); (v1 - v0) * n_groups];
+    type Row<'r> = (
+        &'r mut [Intervals],
+        &'r mut [RaySummary],
+        &'r mut [(f64, u64, u64)],
+    );
+    let do_row = |(k, (row, row_summaries, out)): (usize, Row)| {
         let iv = v0 + k;
         let v = ov + (iv as f64 + 0.5) * h;
-        let mut removed = 0.0;
-        let (mut exact, mut changed) = (0u64, 0u64);
-        for &(m, bu0, bu1, bv0, bv1) in boxes.iter() {
-            if iv < bv0 || iv >= bv1 {
+        for bx in boxes.iter() {
+            if iv < bx.v0 || iv >= bx.v1 {
                 continue;
             }
-            let (sweep, lo, hi) = &sweeps[m];
+            let PlacedSweep {
+                sweep,
+                lo,
+                hi,
+                group,
+            } = &sweeps[bx.sweep];
+            let (removed, exact, changed) = &mut out[*group];
             let (lo_f, hi_f) = (lo[fam], hi[fam]);
-            for (iu, ray) in row.iter_mut().enumerate().take(bu1).skip(bu0) {
-                // Nothing to do where the ray has no material within the sweep's extent
-                // along it.
-                if !ray.iter().any(|r| r[0] < hi_f && lo_f < r[1]) {
-                    continue;
+            let row_in_section = !bx.column_sections.is_empty() && sweep.in_constant_section(v);
+            // Y rays (fam 1) of one row share their interval in the constant section.
+            let mut row_section = None;
+            for c0 in (bx.u0..bx.u1).step_by(64) {
+                // Rays that may have material within the sweep's extent along them, by
+                // their summaries: one bit per ray, then the candidates in order. About
+                // half the rays pass, in no order a branch predictor could learn.
+                let chunk = &row_summaries[c0..bx.u1.min(c0 + 64)];
+                let mut candidates = 0u64;
+                for (i, s) in chunk.iter().enumerate() {
+                    candidates |=
+                        (s.may_overlap_branchless(bx.extent_mask, lo_f, hi_f) as u64) << i;
                 }
-                let u = ou + (iu as f64 + 0.5) * h;
-                exact += 1;
-                if let Some((a, b)) = sweep.ray_interval(fam, u, v, s_min, s_max, ray) {
-                    let r = subtract(ray, a, b);
-                    if r > 0.0 {
-                        removed += r;
-                        changed += 1;
+                while candidates != 0 {
+                    let iu = c0 + candidates.trailing_zeros() as usize;
+                    candidates &= candidates - 1;
+                    let ray = &mut row[iu];
+                    if !ray.iter().any(|r| r[0] < hi_f && lo_f < r[1]) {
+                        continue;
+                    }
+                    let u = ou + (iu as f64 + 0.5) * h;
+                    *exact += 1;
+                    let hit = if row_in_section {
+                        bx.column_sections[iu - bx.u0]
+                    } else if fam == 1 && sweep.in_constant_section(u) {
+                        *row_section.get_or_insert_with(|| sweep.section(1, v))
+                    } else {
+                        sweep.ray_interval(fam, u, v, s_min, s_max, ray)
+                    };
+                    if let Some((a, b)) = hit {
+                        let r = subtract(ray, a, b);
+                        if r > 0.0 {
+                            *removed += r;
+                            *changed += 1;
+                            row_summaries[iu] = bins.summary(ray);
+                        }
                     }
                 }
             }
         }
-        (removed, exact, changed)
     };
-    let n_rays = (u1 - u0) * (v1 - v0);
-    // Per-row results are summed in row order, so the total is the same bit for bit on
-    // one thread or many.
-    let per_row: Vec<(f64, u64, u64)> = if n_rays >= PARALLEL_MIN_RAYS {
-        rows.par_chunks_mut(nu).enumerate().map(do_row).collect()
+    // Per-row results are summed in row order, so the totals are the same bit for bit
+    // on one thread or many.
+    if (u1 - u0) * (v1 - v0) >= PARALLEL_MIN_RAYS {
+        rows.par_chunks_mut(nu)
+            .zip(summary_rows.par_chunks_mut(nu))
+            .zip(per_row.par_chunks_mut(n_groups))
+            .map(|((r, s), o)| (r, s, o))
+            .enumerate()
+            .for_each(do_row);
     } else {
-        rows.chunks_mut(nu).enumerate().map(do_row).collect()
-    };
-    for (r, e, c) in per_row {
-        stats.removed_length[fam] += r;
-        stats.rays_intersected += e;
-        stats.rays_changed += c;
+        rows.chunks_mut(nu)
+            .zip(summary_rows.chunks_mut(nu))
+            .zip(per_row.chunks_mut(n_groups))
+            .map(|((r, s), o)| (r, s, o))
+            .enumerate()
+            .for_each(do_row);
+    }
+    for row in per_row.chunks(n_groups) {
+        for (s, &(r, e, c)) in stats.iter_mut().zip(row) {
+            s.removed_length[fam] += r;
+            s.rays_intersected += e;
+            s.rays_changed += c;
+        }
     }
     stats
 }

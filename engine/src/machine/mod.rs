@@ -58,6 +58,10 @@ pub struct Machine {
     /// Fastest rotary axis rate, degrees/min (absent: no limit).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_rotary_speed_deg_min: Option<f64>,
+    /// Idle spindle power curve and auxiliary power for the energy model (absent: no energy
+    /// figures; [`crate::physics::energy::EnergyModel::reference_example`] is an example).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy: Option<crate::physics::energy::EnergyModel>,
 }
 
 fn default_kinematics() -> Kinematics {
@@ -95,6 +99,7 @@ impl Machine {
             travel: None,
             kinematic_chain: None,
             max_rotary_speed_deg_min: None,
+            energy: None,
         }
     }
 
@@ -177,6 +182,14 @@ impl Machine {
                 );
             }
         }
+        if let Some(e) = &self.energy {
+            if let Err(pe) = e
+                .validate()
+                .and_then(|_| e.validate_speed_range(self.spindle_min_rpm, self.spindle_max_rpm))
+            {
+                return err(&format!("energy.{}", pe.field()), pe.to_string());
+            }
+        }
         if let Some(c) = &self.kinematic_chain {
             let finite = c
                 .tilt_pivot
@@ -227,5 +240,15 @@ mod tests {
         let mut m = Machine::generic();
         m.efficiency = 1.5;
         assert_eq!(m.validate().unwrap_err().field, "efficiency");
+        let mut m = Machine::generic();
+        m.energy = Some(crate::physics::energy::EnergyModel::reference_example());
+        assert!(m.validate().is_ok());
+        m.energy.as_mut().unwrap().idle.below[0] = f64::NAN;
+        assert_eq!(m.validate().unwrap_err().field, "energy.idle.below[0]");
+        m.energy.as_mut().unwrap().idle.below[0] = -2000.0;
+        assert_eq!(m.validate().unwrap_err().field, "energy.idle");
+        m.energy = Some(crate::physics::energy::EnergyModel::reference_example());
+        m.energy.as_mut().unwrap().aux_power_w = -1.0;
+        assert_eq!(m.validate().unwrap_err().field, "energy.aux_power_w");
     }
 }

@@ -266,8 +266,10 @@ fn prescan(prog: &Program) -> Result<ControlMap, Diagnostics> {
     let mut links = HashMap::new();
     let mut subs = HashMap::new();
     let mut errors = Vec::new();
-    for (idx, b) in prog.blocks().iter().enumerate() {
-        let Some(o) = &b.o_word else { continue };
+    for &idx in &prog.summary().o_word_blocks {
+        let Some(o) = &prog.blocks()[idx].o_word else {
+            continue;
+        };
         let at = |m: String| prog.diag(o.span.start, m);
         let top_is = |stack: &Vec<Open>, kw: OKeyword| {
             stack
@@ -565,6 +567,9 @@ struct Interp<'p> {
     cur_block: usize,
     cur_line: u32,
     warned_tools: std::collections::HashSet<u32>,
+    /// Storage for the next block's G and M lists.
+    spare_gs: Vec<(u16, usize)>,
+    spare_ms: Vec<(u32, usize)>,
 }
 
 type R<T> = Result<T, Diagnostic>;
@@ -628,6 +633,8 @@ pub fn interpret_program(
         cur_block: 0,
         cur_line: 1,
         warned_tools: Default::default(),
+        spare_gs: Vec::new(),
+        spare_ms: Vec::new(),
     };
     match it.run(&control) {
         Ok(()) => Ok(Interpretation {
@@ -641,35 +648,8 @@ pub fn interpret_program(
 
 /// Fanuc-only syntax, and no LinuxCNC-only syntax.
 fn detect_fanuc(prog: &Program) -> bool {
-    let mut fanuc = false;
-    for b in prog.blocks() {
-        if let Some(o) = &b.o_word {
-            if o.keyword == OKeyword::ProgramNumber {
-                fanuc = true;
-            } else {
-                return false;
-            }
-        }
-        if b.words.iter().any(|w| w.comma) {
-            fanuc = true;
-        }
-        for w in &b.words {
-            if w.letter == 'M' {
-                if let Expr::Number { value, .. } = w.value {
-                    if value == 98.0 || value == 99.0 {
-                        fanuc = true;
-                    }
-                }
-            }
-            if !matches!(w.value, Expr::Number { .. } | Expr::Neg(_)) {
-                return false;
-            }
-        }
-        if !b.assignments.is_empty() {
-            return false;
-        }
-    }
-    fanuc
+    let summary = prog.summary();
+    summary.fanuc_syntax && !summary.linuxcnc_syntax
 }
 
 /// Read-only view used while evaluating expressions.
@@ -1218,7 +1198,11 @@ impl<'p> Interp<'p> {
         let b = &self.prog.blocks()[idx];
         let implied = self.opts.fanuc_implied_decimal;
         for (i, word) in b.words.iter().enumerate() {
-            let mut v = self.eval(&word.value, word.value_span.start)?;
+            let mut v = match word.value {
+                // Most words are plain numbers: skip the expression evaluator.
+                Expr::Number { value, .. } if value.is_finite() => value,
+                ref e => self.eval(e, word.value_span.start)?,
+            };
             let c = word.letter;
             if implied
                 && matches!(
@@ -1361,16 +1345,26 @@ impl<'p> Interp<'p> {
     }
 
     fn exec_block(&mut self, idx: usize) -> R<()> {
-        self.motion_prev = self.motion;
+        // The G and M lists keep their allocations from block to block.
         let mut w = Words {
             vals: [None; 26],
             used: [false; 26],
-            gs: Vec::new(),
-            ms: Vec::new(),
+            gs: std::mem::take(&mut self.spare_gs),
+            ms: std::mem::take(&mut self.spare_ms),
             corner_r: None,
             corner_c: None,
         };
-        let avals = self.read_words(idx, &mut w)?;
+        w.gs.clear();
+        w.ms.clear();
+        let result = self.exec_words(idx, &mut w);
+        self.spare_gs = w.gs;
+        self.spare_ms = w.ms;
+        result
+    }
+
+    fn exec_words(&mut self, idx: usize, w: &mut Words) -> R<()> {
+        self.motion_prev = self.motion;
+        let avals = self.read_words(idx, w)?;
         let b = &self.prog.blocks()[idx];
         for (a, v) in b.assignments.iter().zip(avals) {
             self.assign(a, v)?;
@@ -1400,7 +1394,7 @@ impl<'p> Interp<'p> {
                 }
             }
             if w.has('C') {
-                return Err(self.err_word(&w, 'C', "C word: with comma-less corners (CCR) C is a chamfer, only on G1 blocks; the C axis is not available"));
+                return Err(self.err_word(w, 'C', "C word: with comma-less corners (CCR) C is a chamfer, only on G1 blocks; the C axis is not available"));
             }
         }
         if w.corner_r.is_some() && w.corner_c.is_some() {
@@ -1431,7 +1425,7 @@ impl<'p> Interp<'p> {
         // 4. F
         if let Some(f) = w.take('F') {
             if f < 0.0 {
-                return Err(self.err_word(&w, 'F', "negative F word"));
+                return Err(self.err_word(w, 'F', "negative F word"));
             }
             self.feed_word = f;
             self.feed_factor = self.unit();
@@ -1442,14 +1436,14 @@ impl<'p> Interp<'p> {
         // 5. S
         if let Some(s) = w.take('S') {
             if s < 0.0 {
-                return Err(self.err_word(&w, 'S', "negative S word"));
+                return Err(self.err_word(w, 'S', "negative S word"));
             }
             self.speed = s;
         }
         // 6. T
         if let Some(t) = w.take('T') {
             if t < 0.0 || t.fract() != 0.0 || t > u32::MAX as f64 {
-                return Err(self.err_word(&w, 'T', format!("T{t} is not a tool number")));
+                return Err(self.err_word(w, 'T', format!("T{t} is not a tool number")));
             }
             self.selected_tool = Some(t as u32);
         }
@@ -1466,7 +1460,7 @@ impl<'p> Interp<'p> {
                 return Err(self.err_at(self.word_pos(i), "M61 needs a Q word (tool number)"));
             };
             if q < 0.0 || q.fract() != 0.0 || q > u32::MAX as f64 {
-                return Err(self.err_word(&w, 'Q', format!("Q{q} is not a tool number")));
+                return Err(self.err_word(w, 'Q', format!("Q{q} is not a tool number")));
             }
             self.tool = q as u32;
         }
@@ -1561,7 +1555,7 @@ impl<'p> Interp<'p> {
             let h = match w.take('H') {
                 Some(h) => {
                     if h < 0.0 || h.fract() != 0.0 || h > u32::MAX as f64 {
-                        return Err(self.err_word(&w, 'H', format!("H{h} is not a tool number")));
+                        return Err(self.err_word(w, 'H', format!("H{h} is not a tool number")));
                     }
                     h as u32
                 }
@@ -1653,7 +1647,7 @@ impl<'p> Interp<'p> {
             }
         }
         if let Some((g0, i0)) = group0 {
-            self.exec_group0(&mut w, g0, i0)?;
+            self.exec_group0(w, g0, i0)?;
         }
         if let Some((gm, _)) = block_motion {
             self.motion = match gm {
@@ -1688,7 +1682,7 @@ impl<'p> Interp<'p> {
                     return Err(self.err_at(self.word_pos(i), "G53 needs G0 or G1"));
                 }
             }
-            self.exec_motion(&mut w, motion, g53.is_some(), corner)?;
+            self.exec_motion(w, motion, g53.is_some(), corner)?;
         } else if matches!(block_motion, Some((0 | 10 | 20 | 30, _)))
             && !axis_users
             && corner.is_none()
@@ -1696,7 +1690,7 @@ impl<'p> Interp<'p> {
             // LinuxCNC: an explicit G0/G1 without axis words still makes a (zero-length) move,
             // and G2/G3 with only a centre makes a full circle.
             let motion = self.motion.expect("set above");
-            self.exec_motion(&mut w, motion, g53.is_some(), None)?;
+            self.exec_motion(w, motion, g53.is_some(), None)?;
         } else if let Some(i) = g53 {
             if !axis_users {
                 return Err(self.err_at(self.word_pos(i), "G53 without axis words"));

@@ -53,7 +53,7 @@ impl<'a> Lexer<'a> {
         }
     }
 
-    fn byte(&self, i: usize) -> Option<u8> {
+    pub fn byte(&self, i: usize) -> Option<u8> {
         if i < self.end {
             Some(self.src.as_bytes()[i])
         } else {
@@ -61,14 +61,16 @@ impl<'a> Lexer<'a> {
         }
     }
 
-    pub fn skip_ws(&mut self) {
-        while let Some(b) = self.byte(self.pos) {
-            if b == b' ' || b == b'\t' || b == b'\r' {
-                self.pos += 1;
-            } else {
-                break;
-            }
+    /// First position at or after `i` that is not a blank.
+    pub fn after_blanks(&self, mut i: usize) -> usize {
+        while matches!(self.byte(i), Some(b' ' | b'\t' | b'\r')) {
+            i += 1;
         }
+        i
+    }
+
+    pub fn skip_ws(&mut self) {
+        self.pos = self.after_blanks(self.pos);
     }
 
     /// Next non-blank byte without consuming it.
@@ -98,6 +100,26 @@ impl<'a> Lexer<'a> {
             pos,
             message: message.into(),
         })
+    }
+
+    /// The number literal at `start` (digits with at most one '.'), without consuming it:
+    /// its value, whether it has a point, and where it ends.
+    pub fn number_at(&self, start: usize) -> Result<(f64, bool, usize), LexError> {
+        let scan = scan_decimal(&self.src.as_bytes()[..self.end], start);
+        if scan.digits == 0 {
+            return self.err(start, "'.' is not a number");
+        }
+        let value = match scan.value {
+            Some(v) => v,
+            None => {
+                let text = &self.src[start..scan.end];
+                match text.parse() {
+                    Ok(v) => v,
+                    Err(_) => return self.err(start, format!("bad number '{text}'")),
+                }
+            }
+        };
+        Ok((value, scan.has_point, scan.end))
     }
 
     /// Next token; `names` selects expression mode (alphabetic runs are one token).
@@ -139,32 +161,8 @@ impl<'a> Lexer<'a> {
                 Tok::Comment(self.src[start + 1..self.end].to_string())
             }
             b'0'..=b'9' | b'.' => {
-                let mut i = start;
-                let mut has_point = false;
-                let mut digits = 0;
-                while let Some(c) = self.byte(i) {
-                    if c.is_ascii_digit() {
-                        digits += 1;
-                        i += 1;
-                    } else if c == b'.' && !has_point {
-                        has_point = true;
-                        i += 1;
-                    } else {
-                        break;
-                    }
-                }
-                if digits == 0 {
-                    return self.err(start, "'.' is not a number");
-                }
-                let text = &self.src[start..i];
-                let value: f64 = match fast_decimal(text.as_bytes()) {
-                    Some(v) => v,
-                    None => match text.parse() {
-                        Ok(v) => v,
-                        Err(_) => return self.err(start, format!("bad number '{text}'")),
-                    },
-                };
-                self.pos = i;
+                let (value, has_point, end) = self.number_at(start)?;
+                self.pos = end;
                 Tok::Number { value, has_point }
             }
             b'+' => {
@@ -258,45 +256,67 @@ impl<'a> Lexer<'a> {
     }
 }
 
-/// Clinger's fast path: with at most 15 significant digits and 22 decimals the value is one
-/// correctly rounded division of two exact doubles, so it equals `str::parse` bit for bit.
-/// Longer numbers return None and go through the general parser.
-fn fast_decimal(s: &[u8]) -> Option<f64> {
+/// Digits with at most one '.' from `start`, read in one pass.
+struct DecimalScan {
+    end: usize,
+    digits: usize,
+    has_point: bool,
+    /// The value when Clinger's fast path applies: at most 15 significant digits and 22
+    /// decimals make it one correctly rounded division of two exact doubles, so it equals
+    /// `str::parse` bit for bit. None: use the general parser.
+    value: Option<f64>,
+}
+
+fn scan_decimal(bytes: &[u8], start: usize) -> DecimalScan {
     const POW10: [f64; 23] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
         1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
     ];
-    let mut m: u64 = 0;
+    let mut mantissa: u64 = 0;
+    // Leading zeros do not count towards the 15 digits.
+    let mut significant = 0;
     let mut digits = 0;
-    let mut frac: Option<usize> = None;
-    for &b in s {
-        match b {
-            b'0'..=b'9' => {
-                // Leading zeros do not count towards the 15 digits.
-                if m != 0 || b != b'0' {
-                    digits += 1;
-                }
-                m = m * 10 + u64::from(b - b'0');
-                if let Some(f) = frac.as_mut() {
-                    *f += 1;
-                }
-                if digits > 15 {
-                    return None;
-                }
+    let mut decimals = 0;
+    let mut has_point = false;
+    let mut i = start;
+    while let Some(&b) = bytes.get(i) {
+        if b.is_ascii_digit() {
+            if mantissa != 0 || b != b'0' {
+                significant += 1;
             }
-            b'.' => frac = Some(0),
-            _ => return None,
+            // Wraps only past 19 digits, when the value is not used.
+            mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(b - b'0'));
+            digits += 1;
+            decimals += usize::from(has_point);
+        } else if b == b'.' && !has_point {
+            has_point = true;
+        } else {
+            break;
         }
+        i += 1;
     }
-    let k = frac.unwrap_or(0);
-    if k >= POW10.len() {
-        return None;
+    let value =
+        (significant <= 15 && decimals < POW10.len()).then(|| mantissa as f64 / POW10[decimals]);
+    DecimalScan {
+        end: i,
+        digits,
+        has_point,
+        value,
     }
-    Some(m as f64 / POW10[k])
 }
 
 #[cfg(test)]
 mod tests {
+    /// The fast-path value of a whole literal.
+    fn fast_decimal(s: &[u8]) -> Option<f64> {
+        let scan = super::scan_decimal(s, 0);
+        if scan.end == s.len() && scan.digits > 0 {
+            scan.value
+        } else {
+            None
+        }
+    }
+
     #[test]
     fn fast_decimal_matches_std_parse() {
         let mut x: u64 = 0x2545_F491_4F6C_DD1D;
@@ -309,7 +329,7 @@ mod tests {
             let w = ((x >> 50) % 8) as usize;
             let s = format!("{int}.{frac:0w$}", w = w.max(1));
             let s = &s[..s.len().min(18)];
-            let fast = super::fast_decimal(s.as_bytes());
+            let fast = fast_decimal(s.as_bytes());
             let std: f64 = s.parse().unwrap();
             if let Some(f) = fast {
                 assert_eq!(f.to_bits(), std.to_bits(), "{s}");
@@ -325,7 +345,7 @@ mod tests {
             "123456789012345",
             "1234567890123456",
         ] {
-            if let (Some(f), Ok(p)) = (super::fast_decimal(s.as_bytes()), s.parse::<f64>()) {
+            if let (Some(f), Ok(p)) = (fast_decimal(s.as_bytes()), s.parse::<f64>()) {
                 assert_eq!(f.to_bits(), p.to_bits(), "{s}");
             }
         }

@@ -50,6 +50,61 @@ fn tok_name(t: &Tok) -> String {
 }
 
 impl<'a> LineParser<'a> {
+    /// The word whose letter `c` (at `start`) was just read.
+    fn letter_word(&mut self, c: char, start: usize) -> PResult<Word> {
+        if c == 'N' {
+            return err(
+                start,
+                "N word (line number) must be at the start of the block",
+            );
+        }
+        if c == 'O' {
+            return err(start, "O word must be at the start of the block");
+        }
+        self.lx.skip_ws();
+        let vstart = self.lx.pos;
+        let value = self.value()?;
+        Ok(Word {
+            letter: c,
+            comma: false,
+            value,
+            span: Span::new(start, self.lx.pos),
+            value_span: Span::new(vstart, self.lx.pos),
+        })
+    }
+
+    /// The common word shape `X-1.5`: a letter, an optional sign, then a number literal
+    /// (blanks allowed after the letter only). Returns None, consuming nothing, for anything
+    /// else, including errors; the general path then gives the same result or error.
+    fn plain_word(&mut self) -> Option<Word> {
+        let start = self.lx.after_blanks(self.lx.pos);
+        let letter = self.lx.byte(start)?.to_ascii_uppercase();
+        if !letter.is_ascii_uppercase() || letter == b'N' || letter == b'O' {
+            return None;
+        }
+        let value_start = self.lx.after_blanks(start + 1);
+        let (negative, digits_start) = match self.lx.byte(value_start) {
+            Some(b'-') => (true, value_start + 1),
+            Some(b'+') => (false, value_start + 1),
+            _ => (false, value_start),
+        };
+        if !matches!(self.lx.byte(digits_start), Some(b'0'..=b'9' | b'.')) {
+            return None;
+        }
+        let (value, has_point, end) = self.lx.number_at(digits_start).ok()?;
+        self.lx.pos = end;
+        Some(Word {
+            letter: char::from(letter),
+            comma: false,
+            value: Expr::Number {
+                value: if negative { -value } else { value },
+                has_point,
+            },
+            span: Span::new(start, end),
+            value_span: Span::new(value_start, end),
+        })
+    }
+
     /// A real value after a word letter or as an operand: number, `#param`, `[expr]`,
     /// `FUNC[expr]` or a signed one of these.
     fn value(&mut self) -> PResult<Expr> {
@@ -278,10 +333,14 @@ impl<'a> LineParser<'a> {
 }
 
 /// Split the source into lines and parse each one.
-pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
+pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Summary, Vec<Diagnostic>) {
     // One block per line: reserve once instead of growing a large Vec many times.
-    let mut blocks = Vec::with_capacity(source.bytes().filter(|&b| b == b'\n').count() + 1);
+    let mut blocks = Vec::with_capacity(count_newlines(source.as_bytes()) + 1);
+    // Words of the current line, moved into an exactly sized Vec per block: blocks have few
+    // words, and growing each block's Vec would reserve room for four.
+    let mut words = Vec::new();
     let mut errors = Vec::new();
+    let mut summary = Summary::default();
     let bytes = source.as_bytes();
     let mut start = 0;
     let mut line = 1u32;
@@ -301,6 +360,7 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
             }
             None => (source.len(), source.len()),
         };
+        let index = blocks.len();
         // Built in place at the end of the vector: a Block is large to move.
         blocks.push(Block {
             line,
@@ -311,7 +371,11 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
         let block = blocks.last_mut().expect("just pushed");
         if percents >= 2 {
             block.after_end = true;
-        } else if let Err(e) = parse_line(source, block) {
+        } else if let Err(e) = {
+            let parsed = parse_line(source, block, &mut words);
+            block.words = words.drain(..).collect();
+            parsed
+        } {
             let col = source[start..e.pos.min(content_end).max(start)]
                 .chars()
                 .count() as u32
@@ -321,13 +385,22 @@ pub(crate) fn parse_blocks(source: &str) -> (Vec<Block>, Vec<Diagnostic>) {
         if block.percent {
             percents += 1;
         }
+        summary.add(index, block);
         start = end;
         line += 1;
     }
-    (blocks, errors)
+    (blocks, summary, errors)
 }
 
-fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
+/// Number of `\n` bytes; counts in byte-wide lanes so that it vectorises.
+fn count_newlines(bytes: &[u8]) -> usize {
+    bytes
+        .chunks(255)
+        .map(|chunk| usize::from(chunk.iter().fold(0u8, |n, &b| n + u8::from(b == b'\n'))))
+        .sum::<usize>()
+}
+
+fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult<()> {
     let mut p = LineParser {
         lx: Lexer::new(source, block.span.start, block.span.end),
         depth: 0,
@@ -344,51 +417,41 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
     }
     // N word: only first in the block.
     if matches!(p.lx.peek_byte(), Some(b'n' | b'N')) {
-        let (_, ls) = p.lx.next(false)?;
-        let vstart = {
-            p.lx.skip_ws();
-            p.lx.pos
-        };
-        let (t, s) = p.lx.next(false)?;
-        let Tok::Number { value, has_point } = t else {
+        let letter_start = p.lx.pos;
+        let vstart = p.lx.after_blanks(letter_start + 1);
+        p.lx.pos = vstart;
+        if !matches!(p.lx.byte(vstart), Some(b'0'..=b'9' | b'.')) {
+            let (_, s) = p.lx.next(false)?;
             return err(s.start, "N must be followed by a line number");
-        };
+        }
+        let (value, has_point, end) = p.lx.number_at(vstart)?;
+        p.lx.pos = end;
         block.line_number = Some(Word {
             letter: 'N',
             comma: false,
             value: Expr::Number { value, has_point },
-            span: Span::new(ls.start, s.end),
-            value_span: Span::new(vstart, s.end),
+            span: Span::new(letter_start, end),
+            value_span: Span::new(vstart, end),
         });
     }
     if matches!(p.lx.peek_byte(), Some(b'o' | b'O')) {
         return o_line(&mut p, block);
     }
     loop {
+        if let Some(word) = p.plain_word() {
+            words.push(word);
+            continue;
+        }
+        if p.lx.peek_byte().is_none() {
+            break;
+        }
         let (tok, span) = p.lx.next(false)?;
         match tok {
             Tok::End => break,
             Tok::Comment(text) => block.comments.push(Comment { text, span }),
             Tok::Letter(c) => {
-                if c == 'N' {
-                    return err(
-                        span.start,
-                        "N word (line number) must be at the start of the block",
-                    );
-                }
-                if c == 'O' {
-                    return err(span.start, "O word must be at the start of the block");
-                }
-                p.lx.skip_ws();
-                let vstart = p.lx.pos;
-                let value = p.value()?;
-                block.words.push(Word {
-                    letter: c,
-                    comma: false,
-                    value,
-                    span: Span::new(span.start, p.lx.pos),
-                    value_span: Span::new(vstart, p.lx.pos),
-                });
+                let word = p.letter_word(c, span.start)?;
+                words.push(word);
             }
             Tok::Comma => {
                 let (t, s) = p.lx.next(false)?;
@@ -404,7 +467,7 @@ fn parse_line(source: &str, block: &mut Block) -> PResult<()> {
                 p.lx.skip_ws();
                 let vstart = p.lx.pos;
                 let value = p.value()?;
-                block.words.push(Word {
+                words.push(Word {
                     letter: c,
                     comma: true,
                     value,
@@ -517,4 +580,54 @@ fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
         span: Span::new(os.start, p.lx.pos),
     });
     rest_comments(p, block)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Wherever the fast path takes a word, the general path reads the same word and ends at
+    /// the same place.
+    fn line_parser(line: &str) -> LineParser<'_> {
+        LineParser {
+            lx: Lexer::new(line, 0, line.len()),
+            depth: 0,
+            ops: 0,
+        }
+    }
+
+    #[test]
+    fn plain_word_agrees_with_general_path() {
+        const CHARS: &[u8] = b"XxYGgNOSF0123456789..--+  \t[]#<>*()eE";
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut taken = 0;
+        for _ in 0..300_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let len = 1 + (x % 12) as usize;
+            let line: String = (0..len)
+                .map(|k| CHARS[((x >> (5 * k)) % CHARS.len() as u64) as usize] as char)
+                .collect();
+            let mut fast = line_parser(&line);
+            let Some(word) = fast.plain_word() else {
+                assert_eq!(fast.lx.pos, 0, "{line:?}: consumed input without a word");
+                continue;
+            };
+            taken += 1;
+            let mut general = line_parser(&line);
+            let Ok((Tok::Letter(c), span)) = general.lx.next(false) else {
+                panic!("{line:?}: no letter");
+            };
+            let expected = general.letter_word(c, span.start).ok();
+            assert_eq!(Some(&word), expected.as_ref(), "{line:?}");
+            if let (Expr::Number { value: a, .. }, Some(Expr::Number { value: b, .. })) =
+                (&word.value, expected.as_ref().map(|w| &w.value))
+            {
+                assert_eq!(a.to_bits(), b.to_bits(), "{line:?}");
+            }
+            assert_eq!(fast.lx.pos, general.lx.pos, "{line:?}");
+        }
+        assert!(taken > 10_000, "only {taken} lines took the fast path");
+    }
 }

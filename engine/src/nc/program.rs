@@ -240,21 +240,72 @@ impl Block {
     }
 }
 
+impl Block {
+    /// Dialect evidence in this block: (Fanuc-only syntax, LinuxCNC-only syntax). Fanuc-only:
+    /// an `O1234` program number, `,R`/`,C` corners, M98/M99. LinuxCNC-only: O-word control
+    /// lines, parameter assignments, word values that are not plain numbers.
+    pub(crate) fn dialect_syntax(&self) -> (bool, bool) {
+        let mut fanuc = false;
+        let mut linuxcnc = !self.assignments.is_empty();
+        if let Some(o) = &self.o_word {
+            if o.keyword == OKeyword::ProgramNumber {
+                fanuc = true;
+            } else {
+                linuxcnc = true;
+            }
+        }
+        for w in &self.words {
+            fanuc |= w.comma;
+            if let Expr::Number { value, .. } = w.value {
+                fanuc |= w.letter == 'M' && (value == 98.0 || value == 99.0);
+            } else if !matches!(w.value, Expr::Neg(_)) {
+                linuxcnc = true;
+            }
+        }
+        (fanuc, linuxcnc)
+    }
+}
+
+/// Facts about the whole program gathered while parsing, so the interpreter need not walk
+/// every block again before it starts.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub(crate) struct Summary {
+    /// Indices of the blocks with an O word, in order.
+    pub o_word_blocks: Vec<usize>,
+    /// Some block has Fanuc-only syntax (see [`Block::dialect_syntax`]).
+    pub fanuc_syntax: bool,
+    /// Some block has LinuxCNC-only syntax.
+    pub linuxcnc_syntax: bool,
+}
+
+impl Summary {
+    pub fn add(&mut self, index: usize, block: &Block) {
+        if block.o_word.is_some() {
+            self.o_word_blocks.push(index);
+        }
+        let (fanuc, linuxcnc) = block.dialect_syntax();
+        self.fanuc_syntax |= fanuc;
+        self.linuxcnc_syntax |= linuxcnc;
+    }
+}
+
 /// A parsed program: the original text and its blocks.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Program {
     source: String,
     blocks: Vec<Block>,
+    summary: Summary,
 }
 
 impl Program {
     /// Parse a program. All syntax errors are reported at once.
     pub fn parse(source: &str) -> Result<Program, Diagnostics> {
-        let (blocks, errors) = super::parser::parse_blocks(source);
+        let (blocks, summary, errors) = super::parser::parse_blocks(source);
         if errors.is_empty() {
             Ok(Program {
                 source: source.to_string(),
                 blocks,
+                summary,
             })
         } else {
             Err(Diagnostics(errors))
@@ -267,6 +318,10 @@ impl Program {
 
     pub fn blocks(&self) -> &[Block] {
         &self.blocks
+    }
+
+    pub(crate) fn summary(&self) -> &Summary {
+        &self.summary
     }
 
     /// Text of a span.

@@ -13,6 +13,12 @@
 //!   [`closed_form_mean_force`].
 //! - [`life`]: [`TaylorLife`], [`tool_life`] (life consumed per block, remaining life).
 //! - [`roughness`]: [`scallop_height`], [`feed_marks`], [`surface_roughness`].
+//! - [`stability`]: chatter stability lobes (zero-order, semi- and full discretization) and
+//!   3-D lobes over the remaining allowance; [`chatter`]: the memoized per-block chatter
+//!   margin ([`ChatterModel`]).
+//! - [`energy`]: [`EnergyModel`] (idle and auxiliary power), [`program_energy`] (per block
+//!   and per program, utilization U), the `energy` job's parameter search and Pareto front
+//!   ([`EnergyProblem`], [`run_energy_job`]).
 //!
 //! Typical use at every engagement step of a program:
 //!
@@ -39,6 +45,8 @@
 //! assert!(out.force.peak > 0.0 && out.power.mean > 0.0);
 //! ```
 
+pub mod chatter;
+pub mod energy;
 pub mod force;
 pub mod identify;
 pub mod life;
@@ -46,6 +54,12 @@ pub mod material;
 pub mod roughness;
 pub mod stability;
 
+pub use chatter::{arc_immersion, ChatterMargin, ChatterModel};
+pub use energy::{
+    program_energy, run_energy_job, BlockEnergy, EnergyBlock, EnergyModel, EnergyPoint,
+    EnergyProblem, EnergySearchOptions, EnergySearchResult, IdlePowerCurve, Objective,
+    ProgramEnergy,
+};
 pub use force::{
     cutting_forces, AxisStats, BlockForces, CuttingConditions, EdgeSlice, ForceModel, ForceResult,
     ForceSample, MagnitudeStats, ToolEdgeTable, ToolFrame, ToothStats, TracePoint,
