@@ -237,90 +237,87 @@ impl DexelGrid {
     }
 }
 
-/// A summary of where one ray has material, read before its intervals: the ray's
-/// material lies within `[lo, hi]`, and bit k of `bins` is set when it may lie in the
-/// k-th of 64 equal bins along the ray. Most rays in a sweep's bounds have no material
-/// near it; the summaries sit in one dense array per family, while the intervals of rays
-/// with several of them live on the heap, and reading those was most of the cost. A
-/// summary only ever covers at least the real material (removal shrinks the material),
-/// so skipping by it changes no result.
+/// A summary of where one ray has material, read before its intervals: the material
+/// lies within `[lo, hi]` and none of it inside the gap `(gap_lo, gap_hi)`. Most rays in
+/// a sweep's bounds have no material near it; the summaries sit in one dense array per
+/// family, while the intervals of rays with several of them live on the heap, and
+/// reading those was most of the cost. The gap is the one the last removal from the ray
+/// opened or widened, where the tool is working (initially the widest), so the test is
+/// exact for rays with up to two intervals and for the pocket the tool is in. Removal
+/// only shrinks the material, so a summary stays valid (it may only become loose), and
+/// skipping by it changes no result.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RaySummary {
-    pub bins: u64,
     pub lo: f64,
     pub hi: f64,
+    pub gap_lo: f64,
+    pub gap_hi: f64,
 }
 
 impl RaySummary {
     pub const EMPTY: RaySummary = RaySummary {
-        bins: 0,
         lo: f64::INFINITY,
         hi: f64::NEG_INFINITY,
+        gap_lo: f64::INFINITY,
+        gap_hi: f64::NEG_INFINITY,
     };
 
-    /// Whether material may overlap the open range (a, b), given its bins `range_bins`.
-    #[inline]
-    pub fn may_overlap(&self, range_bins: u64, a: f64, b: f64) -> bool {
-        self.bins & range_bins != 0 && self.lo < b && a < self.hi
+    /// Of the intervals `r`, with the widest gap.
+    pub fn of(r: &Intervals) -> RaySummary {
+        let (Some(first), Some(last)) = (r.first(), r.last()) else {
+            return RaySummary::EMPTY;
+        };
+        let (gap_lo, gap_hi) = r
+            .windows(2)
+            .map(|w| (w[0][1], w[1][0]))
+            .max_by(|x, y| (x.1 - x.0).total_cmp(&(y.1 - y.0)))
+            .unwrap_or((f64::INFINITY, f64::NEG_INFINITY));
+        RaySummary {
+            lo: first[0],
+            hi: last[1],
+            gap_lo,
+            gap_hi,
+        }
     }
 
-    /// `may_overlap` computed without branches, for testing many rays in a row.
+    /// Of the intervals `r` from which some `[a, b]` has just been removed, with the gap
+    /// around it.
     #[inline]
-    pub fn may_overlap_branchless(&self, range_bins: u64, a: f64, b: f64) -> bool {
-        (self.bins & range_bins != 0) & (self.lo < b) & (a < self.hi)
+    pub fn after_removal(r: &Intervals, b: f64) -> RaySummary {
+        let (Some(first), Some(last)) = (r.first(), r.last()) else {
+            return RaySummary::EMPTY;
+        };
+        // Every interval now ends at or before a, or starts at or after b.
+        let k = r.iter().position(|iv| iv[0] >= b).unwrap_or(r.len());
+        RaySummary {
+            lo: first[0],
+            hi: last[1],
+            gap_lo: if k > 0 {
+                r[k - 1][1]
+            } else {
+                f64::NEG_INFINITY
+            },
+            gap_hi: r.get(k).map_or(f64::INFINITY, |iv| iv[0]),
+        }
+    }
+
+    /// Whether material may overlap the open range (a, b).
+    #[inline]
+    pub fn may_overlap(&self, a: f64, b: f64) -> bool {
+        (self.lo < b) & (a < self.hi) & !((self.gap_lo <= a) & (b <= self.gap_hi))
     }
 }
 
 /// The ray summaries of one family.
 #[derive(Clone, Debug)]
 pub struct RaySummaries {
-    pub bins: MaskBins,
     pub rays: Vec<RaySummary>,
-}
-
-/// The 64 bins along one family's axis.
-#[derive(Clone, Copy, Debug)]
-pub struct MaskBins {
-    origin: f64,
-    inv_bin: f64,
 }
 
 impl RaySummaries {
     pub fn new(grid: &DexelGrid, fam: usize) -> RaySummaries {
-        let bins = MaskBins {
-            origin: grid.origin[fam],
-            inv_bin: 64.0 / (grid.n[fam] as f64 * grid.cell),
-        };
-        let f = &grid.families[fam];
-        let rays = f.rays.iter().map(|r| bins.summary(r)).collect();
-        RaySummaries { bins, rays }
-    }
-}
-
-impl MaskBins {
-    #[inline]
-    fn bin(&self, x: f64) -> u32 {
-        // Monotone in x (clamped), so overlapping ranges always share a bin.
-        ((x - self.origin) * self.inv_bin).clamp(0.0, 63.0) as u32
-    }
-
-    /// Bits of the bins that `[a, b]` touches.
-    #[inline]
-    pub fn of_range(&self, a: f64, b: f64) -> u64 {
-        let (b0, b1) = (self.bin(a), self.bin(b.max(a)));
-        (u64::MAX >> (63 - b1)) & (u64::MAX << b0)
-    }
-
-    #[inline]
-    pub fn summary(&self, r: &Intervals) -> RaySummary {
-        let (Some(first), Some(last)) = (r.first(), r.last()) else {
-            return RaySummary::EMPTY;
-        };
-        RaySummary {
-            bins: r.iter().fold(0, |m, iv| m | self.of_range(iv[0], iv[1])),
-            lo: first[0],
-            hi: last[1],
-        }
+        let rays = grid.families[fam].rays.iter().map(RaySummary::of).collect();
+        RaySummaries { rays }
     }
 }
 

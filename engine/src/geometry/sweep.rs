@@ -1150,8 +1150,6 @@ struct RayBox {
     u1: usize,
     v0: usize,
     v1: usize,
-    /// Occupancy bits of the sweep's extent along the rays.
-    extent_mask: u64,
     /// X rays of a horizontal move: the interval per column in the constant section
     /// (`Sweep::section`), the same for every row there; empty otherwise.
     column_sections: Vec<Option<(f64, f64)>>,
@@ -1202,7 +1200,6 @@ fn remove_family(
             u1: iu1,
             v0: iv0,
             v1: iv1,
-            extent_mask: summaries.bins.of_range(lo[fam], hi[fam]),
             column_sections,
         });
         u0 = u0.min(iu0);
@@ -1217,7 +1214,6 @@ fn remove_family(
     let nu = f.nu;
     let rows = &mut f.rays[v0 * nu..v1 * nu];
     let summary_rows = &mut summaries.rays[v0 * nu..v1 * nu];
-    let bins = summaries.bins;
     let boxes = &boxes;
     // Per row and group: removed length, exact intersections, rays changed.
     let mut per_row = vec![(0.0, 0u64, 0u64); (v1 - v0) * n_groups];
@@ -1251,8 +1247,7 @@ fn remove_family(
                 let chunk = &row_summaries[c0..bx.u1.min(c0 + 64)];
                 let mut candidates = 0u64;
                 for (i, s) in chunk.iter().enumerate() {
-                    candidates |=
-                        (s.may_overlap_branchless(bx.extent_mask, lo_f, hi_f) as u64) << i;
+                    candidates |= (s.may_overlap(lo_f, hi_f) as u64) << i;
                 }
                 while candidates != 0 {
                     let iu = c0 + candidates.trailing_zeros() as usize;
@@ -1275,7 +1270,7 @@ fn remove_family(
                         if r > 0.0 {
                             *removed += r;
                             *changed += 1;
-                            row_summaries[iu] = bins.summary(ray);
+                            row_summaries[iu] = RaySummary::after_removal(ray, b);
                         }
                     }
                 }

@@ -119,7 +119,7 @@ impl EnergyModel {
         }
         for n in speeds {
             let p = self.idle.power_w(n);
-            if !(p >= 0.0) {
+            if p.is_nan() || p < 0.0 {
                 return Err(PhysicsError::invalid(
                     "idle",
                     format!("gives a negative idle power {p:.1} W at {n:.0} rpm"),
