@@ -12,6 +12,7 @@ use millsim_engine::machine::rotary_feed::{
 };
 use millsim_engine::machine::Machine;
 use millsim_engine::optimize::FeedLimits;
+use millsim_engine::physics::energy::{run_energy_job, EnergySearchOptions};
 use millsim_engine::physics::stability::{compute_lobes, StabilityInput};
 use millsim_engine::physics::Material;
 use millsim_engine::simulate::{self, SimulateError, SimulateSpec, StockSource};
@@ -35,7 +36,7 @@ pub const KNOWN_KINDS: [&str; 7] = [
 pub fn is_supported(kind: &str) -> bool {
     matches!(
         kind,
-        "interpret" | "simulate" | "optimize" | "stability" | "rotary-feed"
+        "interpret" | "simulate" | "optimize" | "stability" | "rotary-feed" | "energy"
     )
 }
 
@@ -73,7 +74,15 @@ pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
         input("program", ResourceKind::Program, true),
         input("machine", ResourceKind::Machine, true),
     ];
+    const ENERGY: [InputSpec; 3] = [
+        input("tool", ResourceKind::Tool, true),
+        // Else `options.material` names a built-in material.
+        input("material", ResourceKind::Material, false),
+        // Its `energy` field (idle spindle power, auxiliary power) is required.
+        input("machine", ResourceKind::Machine, true),
+    ];
     match kind {
+        "energy" => &ENERGY,
         "interpret" => &INTERPRET,
         "rotary-feed" => &ROTARY_FEED,
         "simulate" | "optimize" => &SIMULATE,
@@ -225,6 +234,7 @@ pub fn run(
         }
         "stability" => stability_job(options, progress),
         "rotary-feed" => rotary_feed_job(options, inputs),
+        "energy" => energy_job(options, inputs),
         other => Err(JobFailure::Invalid(json!({
             "type": "https://millsim.dev/problems/not-supported",
             "title": "Not supported yet",
@@ -340,6 +350,10 @@ pub struct SimulateOptions {
     /// `tool_tip` (tool-centre-point control: X Y Z are the tip in the part frame).
     #[serde(default)]
     pub axes: simulate::AxisReading,
+    /// The tool's modes for a chatter margin per block: {"modes_x":[..],"modes_y":[..],
+    /// "method":"sdm","steps_per_period":40}.
+    #[serde(default)]
+    pub chatter: Option<simulate::ChatterSpec>,
 }
 
 fn default_positions() -> usize {
@@ -419,6 +433,19 @@ impl SimulateOptions {
                 "options.force_positions".into(),
                 format!("must be in [8, 3600], got {}", self.force_positions),
             ));
+        }
+        if let Some(c) = &self.chatter {
+            // The modes and method as the per-block chatter model will check them.
+            millsim_engine::physics::chatter::ChatterModel::new(
+                c.modes_x.clone(),
+                c.modes_y.clone(),
+                2,
+                600.0,
+                200.0,
+                c.method,
+                c.steps_per_period,
+            )
+            .map_err(|e| (format!("options.chatter.{}", e.field()), e.to_string()))?;
         }
         if !(1..=16384).contains(&self.max_grid_mib) {
             return Err((
@@ -528,6 +555,7 @@ fn simulate_job(
         force_positions: opts.force_positions,
         optimize: opts.limits.clone(),
         axes: opts.axes,
+        chatter: opts.chatter.clone(),
     };
     let out = simulate::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,
@@ -620,6 +648,112 @@ fn stability_job(options: &Value, progress: &dyn Progress) -> Result<JobOutput, 
             "minimum": curve.minimum(),
             "row_columns": ["rpm", "depth_mm"],
         }),
+        rows,
+        samples: Vec::new(),
+        files: Vec::new(),
+    })
+}
+
+/// Options of an `energy` job: the search options (`EnergySearchOptions`) plus `material`,
+/// a built-in material name when no `material` input is given. Names the field on error.
+pub fn energy_options(
+    options: &Value,
+    has_material_input: bool,
+) -> Result<(EnergySearchOptions, Option<String>), (String, String)> {
+    let mut rest = options.as_object().cloned().unwrap_or_default();
+    let material = match rest.remove("material") {
+        None => None,
+        Some(Value::String(name)) => Some(name),
+        Some(_) => {
+            return Err((
+                "options.material".into(),
+                "must be a built-in material name".into(),
+            ))
+        }
+    };
+    match (&material, has_material_input) {
+        (Some(_), true) => {
+            return Err((
+                "options.material".into(),
+                "give a `material` input or `options.material`, not both".into(),
+            ))
+        }
+        (None, false) => {
+            return Err((
+                "options.material".into(),
+                "name a built-in material (TC6, Al7075-T6, Al6082-T6) or give a `material` input"
+                    .into(),
+            ))
+        }
+        (Some(name), false) if Material::builtin(name).is_none() => {
+            return Err((
+                "options.material".into(),
+                format!("no built-in material `{name}`"),
+            ))
+        }
+        _ => {}
+    }
+    let search: EnergySearchOptions = serde_path_to_error::deserialize(Value::Object(rest))
+        .map_err(|e| (format!("options.{}", e.path()), e.inner().to_string()))?;
+    search
+        .validate()
+        .map_err(|e| (format!("options.{}", e.field()), e.to_string()))?;
+    Ok((search, material))
+}
+
+/// Spindle speed, depths and feed of a face or side milling task that maximize the energy
+/// utilization or minimize energy or time under the machine's and the stability limits;
+/// the Pareto front of time against energy when asked. Rows: the front (or the best point).
+fn energy_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
+    let (search, material_name) = energy_options(options, inputs.contains_key("material"))
+        .map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
+    let tool: Tool = inputs
+        .remove("tool")
+        .map(|t| serde_json::from_slice(&t.content))
+        .transpose()
+        .map_err(|e| invalid("Invalid tool", e.to_string()))?
+        .ok_or_else(|| invalid("Missing input", "the job has no `tool` input"))?;
+    let machine: Machine = inputs
+        .remove("machine")
+        .map(|m| serde_json::from_slice(&m.content))
+        .transpose()
+        .map_err(|e| invalid("Invalid machine", e.to_string()))?
+        .ok_or_else(|| invalid("Missing input", "the job has no `machine` input"))?;
+    let material = match material_name {
+        Some(name) => Material::builtin(&name).ok_or_else(|| invalid("Unknown material", name))?,
+        None => inputs
+            .remove("material")
+            .map(|m| serde_json::from_slice::<Material>(&m.content))
+            .transpose()
+            .map_err(|e| invalid("Invalid material", e.to_string()))?
+            .ok_or_else(|| invalid("Missing input", "the job has no `material` input"))?,
+    };
+    let result = run_energy_job(&search, &tool, &material.coefficients, &machine).map_err(|e| {
+        JobFailure::Invalid(json!({
+            "type": "https://millsim.dev/problems/energy-search",
+            "title": "Energy search refused",
+            "status": 422,
+            "detail": e.to_string(),
+            "field": e.field(),
+        }))
+    })?;
+    let points = result
+        .pareto
+        .clone()
+        .unwrap_or_else(|| vec![result.best.clone()]);
+    let rows: Vec<String> = points
+        .iter()
+        .map(|p| serde_json::to_string(p).expect("rows serialize"))
+        .collect();
+    let row_columns = match serde_json::to_value(&result.best) {
+        Ok(Value::Object(o)) => o.keys().cloned().collect::<Vec<_>>(),
+        _ => Vec::new(),
+    };
+    let mut summary = serde_json::to_value(&result).expect("summary serializes");
+    summary["material"] = json!(material.name);
+    summary["row_columns"] = json!(row_columns);
+    Ok(JobOutput {
+        summary,
         rows,
         samples: Vec::new(),
         files: Vec::new(),

@@ -204,7 +204,7 @@ async fn jobs_are_validated_at_submission() {
             "inputs.stock",
         ),
         (json!({"kind": "teleport"}), 422, "kind"),
-        (json!({"kind": "energy"}), 422, "kind"),
+        (json!({"kind": "energy"}), 422, "inputs.tool"),
         (
             json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}}}),
             422,
@@ -227,7 +227,7 @@ async fn jobs_are_validated_at_submission() {
     }
     let (st, p) = json(
         c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "energy"}))
+            .json(&json!({"kind": "identify"}))
             .send()
             .await
             .unwrap(),
@@ -645,4 +645,87 @@ TOOL PATH/OP2,TOOL,BALL6\nLOADTL/2\nSPINDL/RPM,12000,CLW\nRAPID\nGOTO/10,0,5,0,0
         .await
         .unwrap();
     assert!(res.status().is_client_error());
+}
+
+#[tokio::test]
+async fn energy_job_finds_a_feasible_point_and_a_pareto_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let mut ids = Vec::new();
+    // A 5.5 kW machine (η = 0.8) with the REFERENCE.md idle-power fit and a 3 kN thrust limit.
+    for (path, body) in [
+        (
+            "/v1/tools",
+            json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 30.0, "flute_length_mm": 25.0}),
+        ),
+        (
+            "/v1/machines",
+            json!({"name": "VMC", "rapid_rate": 24000.0, "max_feed": 8000.0, "acceleration": [2000.0, 2000.0, 1500.0],
+            "spindle_min_rpm": 500.0, "spindle_max_rpm": 12000.0, "rated_power": 5500.0, "efficiency": 0.8,
+            "torque_limit": 30.0, "axis_thrust_limit": 3000.0,
+            "energy": {"idle": {"base_rpm": 3000, "below": [823.3, 0.0149, 2e-6], "above": [881.5, -0.0034, 3e-6]}, "aux_power_w": 804}}),
+        ),
+    ] {
+        let (st, v) = json(c.post(s.url(path)).json(&body).send().await.unwrap()).await;
+        assert_eq!(st, 201, "{path}: {v}");
+        ids.push(v["id"].as_str().unwrap().to_string());
+    }
+    let options = json!({"material": "Al7075-T6", "length_mm": 200, "width_mm": 8, "depth_mm": 12,
+        "cutting_speed_m_min": {"min": 100, "max": 300}, "feed_per_tooth_mm": {"min": 0.02, "max": 0.2},
+        "objective": "min_energy", "pareto": true});
+    let inputs = json!({"tool": ids[0], "machine": ids[1]});
+    // Bad options name the field at submission.
+    let mut bad = options.clone();
+    bad["length_mm"] = json!(-1);
+    let (st, p) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(&json!({"kind": "energy", "inputs": inputs, "options": bad}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(
+        (st, p["field"].as_str()),
+        (422, Some("options.length_mm")),
+        "{p}"
+    );
+    let (st, job) = json(
+        c.post(s.url("/v1/jobs"))
+            .json(&json!({"kind": "energy", "inputs": inputs, "options": options}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let done = wait_job(&c, &s, id, Duration::from_secs(120)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let best = &done["summary"]["best"];
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    // Every constraint at the returned point.
+    assert!(f(best, "cutting_power_w") <= 0.8 * 5500.0 + 1e-6, "{best}");
+    assert!(f(best, "peak_force_n") <= 3000.0 + 1e-6, "{best}");
+    assert!(f(best, "peak_torque_nm") <= 30.0 + 1e-6, "{best}");
+    let vc = f(best, "cutting_speed_m_min");
+    assert!((100.0 - 1e-6..=300.0 + 1e-6).contains(&vc), "{best}");
+    assert!(f(best, "feed_mm_min") <= 8000.0 + 1e-6);
+    // ap is an even split of the depth.
+    let passes = best["axial_passes"].as_u64().unwrap() as f64;
+    assert!((f(best, "axial_depth_mm") * passes - 12.0).abs() < 1e-9);
+    // The rows are the front: by increasing time, energy never increasing.
+    let page = get_json(&c, &s, &format!("/v1/jobs/{id}/blocks?limit=1000")).await;
+    let front = page["items"].as_array().unwrap();
+    assert!(!front.is_empty());
+    for w in front.windows(2) {
+        assert!(f(&w[0], "time_s") <= f(&w[1], "time_s"));
+        assert!(f(&w[0], "energy_j") >= f(&w[1], "energy_j") - 1e-9);
+    }
+    let min_energy = front
+        .iter()
+        .map(|p| f(p, "energy_j"))
+        .fold(f64::INFINITY, f64::min);
+    assert!(f(best, "energy_j") <= min_energy * (1.0 + 1e-9), "{best}");
 }

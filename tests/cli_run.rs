@@ -148,3 +148,45 @@ fn run_writes_summary_rows_and_final_stock() {
     .contains("rapid_rate"));
     assert!(refuse(&["--block=0,0,0,1,1,1", "--cell", "50"]).contains("cell_mm"));
 }
+
+#[test]
+fn the_readme_example_runs_as_documented() {
+    // The example's files as the README runs them, at a coarse grid to keep the test short.
+    let root = env!("CARGO_MANIFEST_DIR");
+    let ex = |f: &str| format!("{root}/examples/adaptive/{f}");
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--stock",
+            &ex("stock.json"),
+            "--program",
+            &ex("1055_utab_265bit.nc"),
+            "--tool",
+            &format!("T1={}", ex("tool.json")),
+            "--material",
+            "Al7075-T6",
+            "--machine",
+            &ex("machine.json"),
+            "--optimize",
+            "max_force=400,air_feed=5000,max_feed=5000",
+            "--resolution",
+            "0.2",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("summary.json")).unwrap()).unwrap();
+    let before = summary["cycle_time_s"].as_f64().unwrap();
+    let after = summary["cycle_time_opt_s"].as_f64().unwrap();
+    assert!(after < before, "{summary}");
+    assert!(summary["force_peak_opt_n"].as_f64().unwrap() <= 400.0 * 1.02);
+    assert!(dir.path().join("1055_utab_265bit.opt.nc").is_file());
+}

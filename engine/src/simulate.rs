@@ -38,7 +38,7 @@ fn evaluate_forces(
             |models, (mi, t, s)| {
                 let m = &moves[*mi];
                 let flutes = models[t].table().flutes() as f64;
-                if s.air || s.removed_volume <= 0.0 || m.spindle <= 0.0 || feeds[*mi] <= 0.0 {
+                if s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feeds[*mi] <= 0.0 {
                     return Ok(None);
                 }
                 let conditions = CuttingConditions {
@@ -53,6 +53,15 @@ fn evaluate_forces(
             },
         )
         .collect()
+}
+
+/// The spindle speed while the spindle turns (M3/M4), 0 when it is stopped.
+fn turning_rpm(m: &Move) -> f64 {
+    if m.spindle_dir == nc::SpindleDir::Off {
+        0.0
+    } else {
+        m.spindle
+    }
 }
 
 /// Moves swept between two progress reports (and cancellation checks).
@@ -97,6 +106,34 @@ pub struct SimulateSpec {
     pub optimize: Option<FeedLimits>,
     /// On a machine with rotary axes: how the program's axis words are read.
     pub axes: AxisReading,
+    /// The tool's frequency response, for the chatter margin of every block.
+    pub chatter: Option<ChatterSpec>,
+}
+
+/// Modal parameters of the tool (as a stability job takes them) for the per-block chatter
+/// margin: axial depth / critical depth at the block's speed, radial immersion and milling
+/// direction. The same modes serve every tool of the program.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChatterSpec {
+    #[serde(default)]
+    pub modes_x: Vec<crate::physics::stability::Mode>,
+    #[serde(default)]
+    pub modes_y: Vec<crate::physics::stability::Mode>,
+    /// `zoa`, `sdm` (default) or `fdm`.
+    #[serde(default = "default_chatter_method")]
+    pub method: crate::physics::stability::Method,
+    /// Discretization steps per tooth period (sdm/fdm).
+    #[serde(default = "default_chatter_steps")]
+    pub steps_per_period: u32,
+}
+
+fn default_chatter_method() -> crate::physics::stability::Method {
+    crate::physics::stability::Method::Sdm
+}
+
+fn default_chatter_steps() -> u32 {
+    40
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -192,9 +229,16 @@ pub struct MoveRow {
     /// Cutting energy of the move: mean power × time, J.
     #[serde(rename = "energy_j")]
     pub cutting_energy_j: f64,
+    /// With the machine's energy model: energy drawn from the grid during the move
+    /// (cutting + idle spindle + auxiliary), J.
+    pub energy_in_j: Option<f64>,
     pub air_fraction: f64,
+    /// With the tool's modes: axial depth / critical depth at the move's speed, immersion
+    /// and direction (> 1 chatters), and that critical depth, mm.
+    pub chatter_margin: Option<f64>,
+    pub critical_depth_mm: Option<f64>,
     /// What to look at, `|`-separated: air, rapid_in_material, flute_length_exceeded,
-    /// shank_contact, holder_contact, spindle_stopped_in_material.
+    /// shank_contact, holder_contact, spindle_stopped_in_material, chatter.
     pub flags: String,
     pub steps: usize,
     #[serde(skip)]
@@ -237,6 +281,7 @@ impl MoveRow {
                 self.spindle_stopped_in_material,
                 "spindle_stopped_in_material",
             ),
+            (self.chatter_margin.is_some_and(|m| m > 1.0), "chatter"),
         ];
         let on: Vec<&str> = flags.iter().filter(|(f, _)| *f).map(|(_, n)| *n).collect();
         self.flags = on.join("|");
@@ -285,6 +330,25 @@ pub struct SimulationSummary {
     /// Σ length / programmed feed: what the naive estimate would say, s.
     pub nominal_time_s: f64,
     pub cutting_energy_j: f64,
+    /// With the machine's energy model: the program's energy (idle, auxiliary, cutting,
+    /// input, J) and its utilization U = E_cut / E_in.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub energy: Option<EnergyTotals>,
+    /// With the tool's modes: moves whose chatter margin exceeds 1, and the largest margin.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chatter_moves: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chatter_margin_max: Option<f64>,
+}
+
+/// A program's energy, J, and U = E_cut / E_in.
+#[derive(Clone, Debug, Serialize)]
+pub struct EnergyTotals {
+    pub idle_j: f64,
+    pub aux_j: f64,
+    pub cut_j: f64,
+    pub input_j: f64,
+    pub utilization: f64,
 }
 
 /// Wall time of each stage, seconds. Kept apart from the summary, which is deterministic.
@@ -752,7 +816,7 @@ pub fn simulate(
         let (cut, all) = step_lengths[i];
         row.air_fraction = if all > 0.0 { 1.0 - cut / all } else { 1.0 };
         row.spindle_stopped_in_material = row.removed_volume > 1e-6
-            && moves[i].spindle <= 0.0
+            && turning_rpm(&moves[i]) <= 0.0
             && moves[i].kind != MoveKind::Rapid;
     }
     timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
@@ -815,6 +879,16 @@ pub fn simulate(
         if row.time_s > 0.0 {
             row.mrr_mm3_s = row.removed_volume / row.time_s;
         }
+    }
+    let energy = match &spec.machine.energy {
+        Some(model) => Some(block_energy(model, moves, &mut rows)?),
+        None => None,
+    };
+    let chatter = match &spec.chatter {
+        Some(c) => Some(chatter_margins(c, spec, moves, &mut rows)?),
+        None => None,
+    };
+    for row in rows.iter_mut() {
         row.set_flags();
     }
     progress.report(total, total);
@@ -869,6 +943,9 @@ pub fn simulate(
         rapid_time_s: times.rapid_s,
         nominal_time_s: times.nominal_s,
         cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
+        energy,
+        chatter_moves: chatter.map(|(n, _)| n),
+        chatter_margin_max: chatter.map(|(_, m)| m),
     };
     Ok(SimulationOutput {
         rows,
@@ -880,6 +957,103 @@ pub fn simulate(
         timings,
         rays_tested,
     })
+}
+
+/// Energy drawn per move (cutting from the force model, idle spindle at the move's speed
+/// while it turns, auxiliary always) and the program's totals.
+fn block_energy(
+    model: &crate::physics::energy::EnergyModel,
+    moves: &[Move],
+    rows: &mut [MoveRow],
+) -> Result<EnergyTotals, SimulateError> {
+    use crate::physics::energy::{program_energy, EnergyBlock};
+    let blocks: Vec<EnergyBlock> = moves
+        .iter()
+        .zip(rows.iter())
+        .map(|(m, r)| EnergyBlock {
+            time_s: r.time_s,
+            spindle_rpm: turning_rpm(m),
+            cutting_energy_j: r.cutting_energy_j,
+        })
+        .collect();
+    let e = program_energy(model, &blocks)?;
+    for (row, b) in rows.iter_mut().zip(&e.blocks) {
+        row.energy_in_j = Some(b.input_j);
+    }
+    Ok(EnergyTotals {
+        idle_j: e.idle_j,
+        aux_j: e.aux_j,
+        cut_j: e.cut_j,
+        input_j: e.input_j,
+        utilization: e.utilization,
+    })
+}
+
+/// Chatter margin of every move that cuts, at its spindle speed and the immersion and
+/// direction of its engagement; returns the number of moves over 1 and the largest margin.
+fn chatter_margins(
+    c: &ChatterSpec,
+    spec: &SimulateSpec,
+    moves: &[Move],
+    rows: &mut [MoveRow],
+) -> Result<(usize, f64), SimulateError> {
+    use crate::physics::chatter::{arc_immersion, ChatterModel};
+    let k = spec.material.coefficients;
+    // One model per tooth count (the tools of the program may differ).
+    let mut models: BTreeMap<u32, ChatterModel> = BTreeMap::new();
+    let mut conditions: BTreeMap<u32, Vec<(f64, f64, crate::physics::stability::Milling)>> =
+        BTreeMap::new();
+    let mut cutting: Vec<(usize, u32, f64, f64, crate::physics::stability::Milling)> = Vec::new();
+    for (i, (m, row)) in moves.iter().zip(rows.iter()).enumerate() {
+        let (Some(entry), Some(exit)) = (row.entry_angle_deg, row.exit_angle_deg) else {
+            continue;
+        };
+        let rpm = turning_rpm(m);
+        if row.removed_volume <= 0.0 || rpm < 1.0 {
+            continue;
+        }
+        let tool = spec
+            .tools
+            .get(&m.tool)
+            .or_else(|| spec.tools.get(&0))
+            .expect("a swept move has a tool");
+        let (immersion, milling) = arc_immersion(entry.to_radians(), exit.to_radians());
+        if !models.contains_key(&tool.flutes) {
+            let model = ChatterModel::new(
+                c.modes_x.clone(),
+                c.modes_y.clone(),
+                tool.flutes,
+                k.ktc,
+                k.krc,
+                c.method,
+                c.steps_per_period,
+            )?;
+            models.insert(tool.flutes, model);
+        }
+        conditions
+            .entry(tool.flutes)
+            .or_default()
+            .push((rpm, immersion, milling));
+        cutting.push((i, tool.flutes, rpm, immersion, milling));
+    }
+    for (teeth, list) in &conditions {
+        models[teeth].prefetch(list)?;
+    }
+    let (mut over, mut max) = (0, 0.0f64);
+    for (i, teeth, rpm, immersion, milling) in cutting {
+        let row = &mut rows[i];
+        let m = models[&teeth].margin(row.max_axial_depth, rpm, immersion, milling)?;
+        row.chatter_margin = Some(m.margin);
+        row.critical_depth_mm = m
+            .critical_depth_mm
+            .is_finite()
+            .then_some(m.critical_depth_mm);
+        if m.chatter {
+            over += 1;
+        }
+        max = max.max(m.margin);
+    }
+    Ok((over, max))
 }
 
 fn collisions(rows: &[MoveRow]) -> Vec<Collision> {

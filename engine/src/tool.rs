@@ -518,9 +518,9 @@ mod tests {
         t.flutes = 0;
         assert_eq!(t.validate().unwrap_err().field, "flutes");
         let mut t = Tool::bull_nose(8.0, 5.0, 4);
-        assert_eq!(t.validate().unwrap_err().field, "corner_radius");
+        assert_eq!(t.validate().unwrap_err().field, "corner_radius_mm");
         t.corner_radius = f64::NAN;
-        assert_eq!(t.validate().unwrap_err().field, "corner_radius");
+        assert_eq!(t.validate().unwrap_err().field, "corner_radius_mm");
         assert!(Tool::ball(6.0, 2).validate().is_ok());
     }
 }

@@ -31,6 +31,7 @@ fn spec(program: &str) -> SimulateSpec {
         force_positions: 360,
         optimize: None,
         axes: Default::default(),
+        chatter: None,
     }
 }
 
@@ -273,4 +274,75 @@ fn each_tool_number_cuts_with_its_own_tool() {
     assert!((got1 - v1).abs() / v1 < 0.01, "T1 slot {got1} vs {v1}");
     assert!((got2 - v2).abs() / v2 < 0.01, "T2 slot {got2} vs {v2}");
     assert!((a.max_radial_width - 10.0).abs() <= 0.25 && (b.max_radial_width - 6.0).abs() <= 0.25);
+}
+
+#[test]
+fn energy_and_chatter_margin_per_move() {
+    use millsim_engine::physics::energy::EnergyModel;
+    use millsim_engine::physics::stability::{compute_lobes, StabilityInput};
+    use millsim_engine::simulate::ChatterSpec;
+    let program = "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X20 F4000\nG1 X60\nG0 Z5\nM5\nG4 P2\nM30\n";
+    let mut s = spec(program);
+    s.machine.energy = Some(EnergyModel::reference_example());
+    let modes = r#"[{"freq_hz":922,"damping":0.011,"stiffness_n_m":1.34005e6}]"#;
+    s.chatter = Some(ChatterSpec {
+        modes_x: serde_json::from_str(modes).unwrap(),
+        modes_y: serde_json::from_str(modes).unwrap(),
+        method: millsim_engine::physics::stability::Method::Sdm,
+        steps_per_period: 20,
+    });
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+
+    // REFERENCE.md fit above 3000 rpm: P_idle(10000) = 3e-6·1e8 − 0.0034·1e4 + 881.5 =
+    // 1147.5 W while the spindle turns; 804 W auxiliary always; plus the cutting energy.
+    let (mut cut, mut input) = (0.0, 0.0);
+    for r in &out.rows {
+        let spindle_on = r.line >= 2 && r.line < 9;
+        let idle = if spindle_on { 1147.5 } else { 0.0 };
+        let expected = r.time_s * (idle + 804.0) + r.cutting_energy_j;
+        let got = r.energy_in_j.unwrap();
+        assert!(
+            (got - expected).abs() <= 1e-9 * expected.max(1.0),
+            "line {}: {got} vs {expected}",
+            r.line
+        );
+        cut += r.cutting_energy_j;
+        input += got;
+    }
+    let dwell = out.rows.iter().find(|r| r.line == 10).unwrap();
+    assert!(
+        (dwell.energy_in_j.unwrap() - 2.0 * 804.0).abs() < 1e-9,
+        "{dwell:?}"
+    );
+    let e = out.summary.energy.as_ref().unwrap();
+    assert!((e.utilization - cut / input).abs() < 1e-12 && e.utilization > 0.0);
+
+    // Full-slot steady cut (line 7): margin = 5 mm / the slot's critical depth at 10,000
+    // rpm for these modes, teeth and the material's Ktc, Krc, as the stability job gives it.
+    let k = s.material.coefficients;
+    let input: StabilityInput = serde_json::from_str(&format!(
+        r#"{{"method":"sdm","teeth":4,"ktc_n_mm2":{},"krc_n_mm2":{},"radial_immersion":1.0,"milling":"down",
+            "modes_x":{modes},"modes_y":{modes},"rpm":{{"from":10000,"to":10000,"step":100}},"steps_per_period":20}}"#,
+        k.ktc, k.krc
+    ))
+    .unwrap();
+    let critical = compute_lobes(&input).unwrap().points[0].depth_mm;
+    let steady = out.rows.iter().find(|r| r.line == 7).unwrap();
+    assert!(
+        (steady.critical_depth_mm.unwrap() - critical).abs() <= 1e-9 * critical,
+        "{steady:?} vs {critical}"
+    );
+    let margin = steady.max_axial_depth / critical;
+    assert!((steady.chatter_margin.unwrap() - margin).abs() <= 1e-9 * margin);
+    assert!(
+        margin > 1.0 && steady.flags.contains("chatter"),
+        "{steady:?}"
+    );
+    assert!(out.summary.chatter_moves.unwrap() >= 1);
+    // Rapids and air carry no margin.
+    assert!(out
+        .rows
+        .iter()
+        .filter(|r| r.kind == "rapid")
+        .all(|r| r.chatter_margin.is_none()));
 }

@@ -82,6 +82,10 @@ fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Resul
                 ));
             }
         }
+        "energy" => {
+            runner::energy_options(options, has_material_input)
+                .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
+        }
         "stability" => {
             runner::stability_options(options)
                 .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
