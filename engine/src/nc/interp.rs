@@ -6,7 +6,7 @@
 use super::arc::ArcGeometry;
 use super::expr::{self, Env, Params};
 use super::program::*;
-use super::view::ProgramView;
+use super::view::{BlockView, ProgramView};
 use super::{
     Diagnostic, Diagnostics, Dialect, FeedMode, InterpretOptions, Interpretation, Move, MoveKind,
     SpindleDir,
@@ -998,7 +998,7 @@ impl<'p> Interp<'p> {
                 continue;
             }
             if !b.is_empty() {
-                self.exec_block(pc)?;
+                self.exec_block(pc, &b)?;
             }
             pc += 1;
         }
@@ -1200,8 +1200,7 @@ impl<'p> Interp<'p> {
     // ----- one block -----
 
     /// Evaluate the block's words into `w` (filled in place: it is large to move around).
-    fn read_words(&mut self, idx: usize, w: &mut Words) -> R<Vec<f64>> {
-        let b = self.prog.block(idx);
+    fn read_words(&mut self, b: &BlockView<'p>, w: &mut Words) -> R<Vec<f64>> {
         let implied = self.opts.fanuc_implied_decimal;
         for (i, word) in b.words.iter().enumerate() {
             let mut v = match word.value {
@@ -1350,7 +1349,7 @@ impl<'p> Interp<'p> {
         Ok(vals)
     }
 
-    fn exec_block(&mut self, idx: usize) -> R<()> {
+    fn exec_block(&mut self, idx: usize, b: &BlockView<'p>) -> R<()> {
         // The G and M lists keep their allocations from block to block.
         let mut w = Words {
             vals: [None; 26],
@@ -1362,16 +1361,15 @@ impl<'p> Interp<'p> {
         };
         w.gs.clear();
         w.ms.clear();
-        let result = self.exec_words(idx, &mut w);
+        let result = self.exec_words(idx, b, &mut w);
         self.spare_gs = w.gs;
         self.spare_ms = w.ms;
         result
     }
 
-    fn exec_words(&mut self, idx: usize, w: &mut Words) -> R<()> {
+    fn exec_words(&mut self, idx: usize, b: &BlockView<'p>, w: &mut Words) -> R<()> {
         self.motion_prev = self.motion;
-        let avals = self.read_words(idx, w)?;
-        let b = self.prog.block(idx);
+        let avals = self.read_words(b, w)?;
         for (a, v) in b.assignments.iter().zip(avals) {
             self.assign(a, v)?;
         }

@@ -52,6 +52,7 @@ impl<'a> ProgramView<'a> {
     }
 
     /// Number of blocks (source lines).
+    #[inline]
     pub fn len(&self) -> usize {
         match self.blocks {
             Blocks::Tree(blocks) => blocks.len(),
@@ -59,6 +60,7 @@ impl<'a> ProgramView<'a> {
         }
     }
 
+    #[inline]
     pub fn block(&self, index: usize) -> BlockView<'a> {
         match self.blocks {
             Blocks::Tree(blocks) => {
@@ -89,6 +91,7 @@ impl<'a> ProgramView<'a> {
         }
     }
 
+    #[inline]
     fn span(&self, index: usize) -> Span {
         match self.blocks {
             Blocks::Tree(blocks) => blocks[index].span,
