@@ -729,3 +729,94 @@ async fn energy_job_finds_a_feasible_point_and_a_pareto_front() {
         .fold(f64::INFINITY, f64::min);
     assert!(f(best, "energy_j") <= min_energy * (1.0 + 1e-9), "{best}");
 }
+
+#[tokio::test]
+async fn stability_job_recommends_a_speed_and_computes_3d_lobes() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let run = |options: serde_json::Value| {
+        let c = c.clone();
+        let url = s.url("/v1/jobs");
+        async move {
+            let (st, job) = json(
+                c.post(url)
+                    .json(&json!({"kind": "stability", "options": options}))
+                    .send()
+                    .await
+                    .unwrap(),
+            )
+            .await;
+            assert_eq!(st, 202, "{job}");
+            job["id"].as_str().unwrap().to_string()
+        }
+    };
+    let mut options = json!({"method": "zoa", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200, "radial_immersion": 1.0, "milling": "down",
+        "modes_x": [{"freq_hz": 922, "damping": 0.011, "stiffness_n_m": 1.34005e6}], "modes_y": [],
+        "rpm": {"from": 5000, "to": 25000, "step": 50}});
+    options["recommend"] = json!({"near_rpm": 15000, "depth_mm": 0.5, "window_rpm": 5000});
+    let id = run(options.clone()).await;
+    let done = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let r = &done["summary"]["recommendation"];
+    let rpm = r["rpm"].as_f64().unwrap();
+    let (from, to) = (
+        r["pocket_from_rpm"].as_f64().unwrap(),
+        r["pocket_to_rpm"].as_f64().unwrap(),
+    );
+    assert!(
+        from <= rpm && rpm <= to && (rpm - 15000.0).abs() <= 5000.0,
+        "{r}"
+    );
+    assert!(r["stable_depth_mm"].as_f64().unwrap() > 0.5, "{r}");
+    // Every speed of the pocket is stable at 0.5 mm on the job's own lobes.
+    let page = get_json(&c, &s, &format!("/v1/jobs/{id}/blocks?limit=1000")).await;
+    for p in page["items"].as_array().unwrap() {
+        let (n, d) = (p["rpm"].as_f64().unwrap(), p["depth_mm"].as_f64().unwrap());
+        if (from..=to).contains(&n) {
+            assert!(d > 0.5, "{n} rpm: {d} mm in the pocket {from}..{to}");
+        }
+    }
+
+    // 3-D lobes: a rigid tool on a workpiece whose X mode stiffens with the allowance
+    // (2e6 N/m at 0.5 mm, 8e6 at 3 mm, 5e6 interpolated at 1.75 mm). For one mode the
+    // zero-order lobes scale with the stiffness, so the floors go 2 : 5 : 8.
+    let mut surface = options.clone();
+    surface.as_object_mut().unwrap().remove("recommend");
+    surface["modes_x"] = json!([]);
+    surface["allowance"] = json!([
+        {"allowance_mm": 0.5, "modes_x": [{"freq_hz": 600, "damping": 0.02, "stiffness_n_m": 2.0e6}]},
+        {"allowance_mm": 3.0, "modes_x": [{"freq_hz": 600, "damping": 0.02, "stiffness_n_m": 8.0e6}]}
+    ]);
+    surface["allowances_mm"] = json!([0.5, 1.75, 3.0]);
+    let id = run(surface).await;
+    let done = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    assert_eq!(done["summary"]["points"], 3 * 401);
+    let csv = c
+        .get(s.url(&format!("/v1/jobs/{id}/blocks?format=csv")))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert_eq!(csv.lines().next(), Some("allowance_mm,rpm,depth_mm"));
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 3 * 401);
+    let floor = |a: f64| {
+        rows.iter()
+            .filter(|r| r[0] == a)
+            .map(|r| r[2])
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (f0, f1, f2) = (floor(0.5), floor(1.75), floor(3.0));
+    assert!(
+        (f1 / f0 - 2.5).abs() < 1e-6 && (f2 / f0 - 4.0).abs() < 1e-6,
+        "{f0} {f1} {f2}"
+    );
+}
