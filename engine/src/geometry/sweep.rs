@@ -22,6 +22,14 @@
 //! the tool axis skips rays whose material the sweep cannot reach.
 //!
 //! Arcs and 5-axis moves are cut into such straight sub-moves by `path.rs`.
+//!
+//! Removal (`RemovalPass`) visits the rays within each sub-move's bounds, row by row. A
+//! dense summary per ray (`dexel::RaySummary`: extent and the gap the tool is in) tells
+//! most rays without material near the sweep from the rest without reading their
+//! intervals; X and Y rays of a horizontal move share one interval per column or row
+//! where the tool's radius is constant. The simulation hands the X and Y families
+//! several steps at once (nothing reads them between steps), so each of their rays is
+//! read once per batch and meets the steps' sweeps in order.
 
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::details::local_ray_intersection_with_support_map_with_params;
