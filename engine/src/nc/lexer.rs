@@ -299,8 +299,14 @@ fn scan_decimal(bytes: &[u8], start: usize) -> DecimalScan {
         }
         i += 1;
     }
-    let value =
-        (significant <= 15 && decimals < POW10.len()).then(|| mantissa as f64 / POW10[decimals]);
+    let value = (significant <= 15 && decimals < POW10.len()).then(|| {
+        // Whole numbers (N, G, M words) are exact as they are; skip the slow division.
+        if decimals == 0 {
+            mantissa as f64
+        } else {
+            mantissa as f64 / POW10[decimals]
+        }
+    });
     DecimalScan {
         end: i,
         digits,
