@@ -1451,181 +1451,193 @@ impl<'p> Interp<'p> {
             }
             self.selected_tool = Some(t as u32);
         }
-        // 8. M6 / M61
-        if w.m(6).is_some() {
-            let t = self.selected_tool.unwrap_or(self.tool);
-            self.tool = t;
-            let p = self.to_machine(self.cur);
-            let m = self.base_move(MoveKind::ToolChange, p, p);
-            self.push(m)?;
-        }
-        if let Some(i) = w.m(61) {
-            let Some(q) = w.take('Q') else {
-                return Err(self.err_at(self.word_pos(i), "M61 needs a Q word (tool number)"));
-            };
-            if q < 0.0 || q.fract() != 0.0 || q > u32::MAX as f64 {
-                return Err(self.err_word(w, 'Q', format!("Q{q} is not a tool number")));
+        // 8-10 act on M codes only; most CAM blocks have none.
+        if !w.ms.is_empty() {
+            // 8. M6 / M61
+            if w.m(6).is_some() {
+                let t = self.selected_tool.unwrap_or(self.tool);
+                self.tool = t;
+                let p = self.to_machine(self.cur);
+                let m = self.base_move(MoveKind::ToolChange, p, p);
+                self.push(m)?;
             }
-            self.tool = q as u32;
-        }
-        // 9. spindle
-        if w.m(3).is_some() {
-            self.spindle = SpindleDir::Cw;
-        }
-        if w.m(4).is_some() {
-            self.spindle = SpindleDir::Ccw;
-        }
-        if w.m(5).is_some() {
-            self.spindle = SpindleDir::Off;
-        }
-        // 10. save / restore modal state
-        if w.m(70).is_some() {
-            self.saved_modal = Some(self.modal());
-        }
-        if w.m(71).is_some() {
-            self.saved_modal = None;
-        }
-        if let Some(i) = w.m(72) {
-            let Some(m) = self.saved_modal.clone() else {
-                return Err(self.err_at(self.word_pos(i), "M72 without state saved by M70"));
-            };
-            self.restore_modal(&m);
-        }
-        if let Some(i) = w.m(73) {
-            let m = self.modal();
-            let Some(f) = self.frames.last_mut() else {
-                return Err(self.err_at(self.word_pos(i), "M73 outside a subroutine"));
-            };
-            f.auto_restore = Some(m);
+            if let Some(i) = w.m(61) {
+                let Some(q) = w.take('Q') else {
+                    return Err(self.err_at(self.word_pos(i), "M61 needs a Q word (tool number)"));
+                };
+                if q < 0.0 || q.fract() != 0.0 || q > u32::MAX as f64 {
+                    return Err(self.err_word(w, 'Q', format!("Q{q} is not a tool number")));
+                }
+                self.tool = q as u32;
+            }
+            // 9. spindle
+            if w.m(3).is_some() {
+                self.spindle = SpindleDir::Cw;
+            }
+            if w.m(4).is_some() {
+                self.spindle = SpindleDir::Ccw;
+            }
+            if w.m(5).is_some() {
+                self.spindle = SpindleDir::Off;
+            }
+            // 10. save / restore modal state
+            if w.m(70).is_some() {
+                self.saved_modal = Some(self.modal());
+            }
+            if w.m(71).is_some() {
+                self.saved_modal = None;
+            }
+            if let Some(i) = w.m(72) {
+                let Some(m) = self.saved_modal.clone() else {
+                    return Err(self.err_at(self.word_pos(i), "M72 without state saved by M70"));
+                };
+                self.restore_modal(&m);
+            }
+            if let Some(i) = w.m(73) {
+                let m = self.modal();
+                let Some(f) = self.frames.last_mut() else {
+                    return Err(self.err_at(self.word_pos(i), "M73 outside a subroutine"));
+                };
+                f.auto_restore = Some(m);
+            }
         }
         // 11-13. coolant, overrides, passthrough M codes: no effect on motion.
-        // 14. dwell
-        if let Some(i) = w.g(40) {
-            let secs = if self.fanuc {
-                match (w.take('P'), w.take('X')) {
-                    (Some(_), Some(_)) => {
-                        return Err(self.err_at(self.word_pos(i), "G4 with both P and X"))
+        // 14-22 act on G codes only; most CAM blocks have none.
+        if !w.gs.is_empty() {
+            // 14. dwell
+            if let Some(i) = w.g(40) {
+                let secs = if self.fanuc {
+                    match (w.take('P'), w.take('X')) {
+                        (Some(_), Some(_)) => {
+                            return Err(self.err_at(self.word_pos(i), "G4 with both P and X"))
+                        }
+                        (Some(p), None) => p / 1000.0,
+                        (None, Some(x)) => x,
+                        (None, None) => {
+                            return Err(self.err_at(self.word_pos(i), "G4 needs P (ms) or X (s)"))
+                        }
                     }
-                    (Some(p), None) => p / 1000.0,
-                    (None, Some(x)) => x,
-                    (None, None) => {
-                        return Err(self.err_at(self.word_pos(i), "G4 needs P (ms) or X (s)"))
-                    }
-                }
-            } else {
-                match w.take('P') {
-                    Some(p) => p,
-                    None => {
-                        return Err(self.err_at(self.word_pos(i), "G4 needs a P word (seconds)"))
-                    }
-                }
-            };
-            if secs < 0.0 {
-                return Err(self.err_at(self.word_pos(i), "negative dwell time"));
-            }
-            self.dwell(secs)?;
-        }
-        // 15. plane
-        for (code, plane) in [(170, Plane::XY), (180, Plane::XZ), (190, Plane::YZ)] {
-            if w.g(code).is_some() {
-                self.plane = plane;
-            }
-        }
-        // 16. units
-        for (code, metric) in [(200, false), (210, true)] {
-            if w.g(code).is_some() && self.metric != metric {
-                let f = if metric {
-                    MM_PER_INCH
                 } else {
-                    1.0 / MM_PER_INCH
+                    match w.take('P') {
+                        Some(p) => p,
+                        None => {
+                            return Err(self.err_at(self.word_pos(i), "G4 needs a P word (seconds)"))
+                        }
+                    }
                 };
-                for i in 0..3 {
-                    self.cur[i] *= f;
+                if secs < 0.0 {
+                    return Err(self.err_at(self.word_pos(i), "negative dwell time"));
                 }
-                self.metric = metric;
+                self.dwell(secs)?;
             }
-        }
-        // 17. cutter radius compensation: refused.
-        for code in [410u16, 420, 411, 421] {
-            if let Some(i) = w.g(code) {
-                return Err(self.err_at(
-                    self.word_pos(i),
-                    format!("{}: cutter radius compensation is not supported; program the tool centre path (CAM 'computer' compensation) or remove {}", g_name(code), g_name(code)),
-                ));
+            // 15. plane
+            for (code, plane) in [(170, Plane::XY), (180, Plane::XZ), (190, Plane::YZ)] {
+                if w.g(code).is_some() {
+                    self.plane = plane;
+                }
             }
-        }
-        // 18. tool length offset
-        if let Some(i) = w.g(430) {
-            let h = match w.take('H') {
-                Some(h) => {
-                    if h < 0.0 || h.fract() != 0.0 || h > u32::MAX as f64 {
-                        return Err(self.err_word(w, 'H', format!("H{h} is not a tool number")));
+            // 16. units
+            for (code, metric) in [(200, false), (210, true)] {
+                if w.g(code).is_some() && self.metric != metric {
+                    let f = if metric {
+                        MM_PER_INCH
+                    } else {
+                        1.0 / MM_PER_INCH
+                    };
+                    for i in 0..3 {
+                        self.cur[i] *= f;
                     }
-                    h as u32
+                    self.metric = metric;
                 }
-                None => self.tool,
-            };
-            let off = match self.opts.tool_table.get(h) {
-                Some(t) => t.z_offset,
-                None => {
-                    if self.warned_tools.insert(h) {
-                        self.warnings.push(self.err_at(
-                            self.word_pos(i),
-                            format!("G43: tool {h} is not in the tool table; tool length 0 used"),
-                        ));
+            }
+            // 17. cutter radius compensation: refused.
+            for code in [410u16, 420, 411, 421] {
+                if let Some(i) = w.g(code) {
+                    return Err(self.err_at(
+                        self.word_pos(i),
+                        format!("{}: cutter radius compensation is not supported; program the tool centre path (CAM 'computer' compensation) or remove {}", g_name(code), g_name(code)),
+                    ));
+                }
+            }
+            // 18. tool length offset
+            if let Some(i) = w.g(430) {
+                let h = match w.take('H') {
+                    Some(h) => {
+                        if h < 0.0 || h.fract() != 0.0 || h > u32::MAX as f64 {
+                            return Err(self.err_word(
+                                w,
+                                'H',
+                                format!("H{h} is not a tool number"),
+                            ));
+                        }
+                        h as u32
                     }
-                    0.0
+                    None => self.tool,
+                };
+                let off = match self.opts.tool_table.get(h) {
+                    Some(t) => t.z_offset,
+                    None => {
+                        if self.warned_tools.insert(h) {
+                            self.warnings.push(self.err_at(
+                                self.word_pos(i),
+                                format!(
+                                    "G43: tool {h} is not in the tool table; tool length 0 used"
+                                ),
+                            ));
+                        }
+                        0.0
+                    }
+                };
+                self.set_tlo(Some(off));
+            }
+            if w.g(431).is_some() {
+                // G43.1: the offset comes from the Z word (program units).
+                let Some(z) = w.take('Z') else {
+                    return Err(self.err_block("G43.1 needs a Z word (tool length)"));
+                };
+                if AXES.iter().any(|&c| c != 'Z' && w.has(c)) {
+                    return Err(self.err_block("G43.1 takes only a Z offset here"));
                 }
-            };
-            self.set_tlo(Some(off));
-        }
-        if w.g(431).is_some() {
-            // G43.1: the offset comes from the Z word (program units).
-            let Some(z) = w.take('Z') else {
-                return Err(self.err_block("G43.1 needs a Z word (tool length)"));
-            };
-            if AXES.iter().any(|&c| c != 'Z' && w.has(c)) {
-                return Err(self.err_block("G43.1 takes only a Z offset here"));
+                let z = z * self.unit();
+                self.set_tlo(Some(z));
             }
-            let z = z * self.unit();
-            self.set_tlo(Some(z));
-        }
-        if w.g(490).is_some() {
-            self.set_tlo(None);
-        }
-        // 19. coordinate system
-        for (k, code) in [540u16, 550, 560, 570, 580, 590, 591, 592, 593]
-            .iter()
-            .enumerate()
-        {
-            if w.g(*code).is_some() {
-                self.change_offsets(|s| s.cs = k);
+            if w.g(490).is_some() {
+                self.set_tlo(None);
             }
-        }
-        // 20. path control: blending changes no end point.
-        if w.g(640).is_some() {
-            w.take('P');
-            w.take('Q');
-        }
-        // 21. distance modes
-        if w.g(900).is_some() {
-            self.absolute = true;
-        }
-        if w.g(910).is_some() {
-            self.absolute = false;
-        }
-        if w.g(901).is_some() {
-            self.arc_absolute = true;
-        }
-        if w.g(911).is_some() {
-            self.arc_absolute = false;
-        }
-        // 22. retract mode
-        if w.g(980).is_some() {
-            self.retract_r_plane = false;
-        }
-        if w.g(990).is_some() {
-            self.retract_r_plane = true;
+            // 19. coordinate system
+            for (k, code) in [540u16, 550, 560, 570, 580, 590, 591, 592, 593]
+                .iter()
+                .enumerate()
+            {
+                if w.g(*code).is_some() {
+                    self.change_offsets(|s| s.cs = k);
+                }
+            }
+            // 20. path control: blending changes no end point.
+            if w.g(640).is_some() {
+                w.take('P');
+                w.take('Q');
+            }
+            // 21. distance modes
+            if w.g(900).is_some() {
+                self.absolute = true;
+            }
+            if w.g(910).is_some() {
+                self.absolute = false;
+            }
+            if w.g(901).is_some() {
+                self.arc_absolute = true;
+            }
+            if w.g(911).is_some() {
+                self.arc_absolute = false;
+            }
+            // 22. retract mode
+            if w.g(980).is_some() {
+                self.retract_r_plane = false;
+            }
+            if w.g(990).is_some() {
+                self.retract_r_plane = true;
+            }
         }
         // 23. group 0 codes that use axis words, and 24. motion.
         let group0 =
