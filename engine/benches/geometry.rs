@@ -9,7 +9,8 @@
 //! ones whose material actually changed.
 //!
 //! Run: `CARGO_TARGET_DIR=/work/target-geom cargo bench -p millsim-engine --bench geometry`
-//! (with `GEOMETRY_BENCH_QUICK=1`: only the single-thread pass, for profiling; add
+//! (with `GEOMETRY_BENCH_QUICK=1`: only the single-thread pass, for profiling, or with
+//! `GEOMETRY_BENCH_QUICK=all` only the all-threads one; add
 //! `GEOMETRY_BENCH_EXPORT=1` to time the STL export after it).
 
 use std::time::Instant;
@@ -142,9 +143,13 @@ fn bench(c: &mut Criterion) {
         .num_threads(1)
         .build()
         .unwrap();
-    if std::env::var_os("GEOMETRY_BENCH_QUICK").is_some() {
-        // For profiling: the single-thread pass only.
-        let s = one.install(|| timed(&segs, &base, &with_eng, "removal+engagement, 1 thread"));
+    if let Some(quick) = std::env::var_os("GEOMETRY_BENCH_QUICK") {
+        // For profiling: the single-thread pass only (or, with "all", the all-threads one).
+        let s = if quick == "all" {
+            timed(&segs, &base, &with_eng, "removal+engagement, all threads")
+        } else {
+            one.install(|| timed(&segs, &base, &with_eng, "removal+engagement, 1 thread"))
+        };
         if std::env::var_os("GEOMETRY_BENCH_EXPORT").is_some() {
             timed_export(&s);
         }
