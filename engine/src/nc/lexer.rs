@@ -62,6 +62,17 @@ impl<'a> Lexer<'a> {
         }
     }
 
+    /// The number literal at `start` when it takes the fast path of [`scan_decimal`]: value,
+    /// whether it has a point, end. None for anything else, including errors.
+    #[inline]
+    pub fn simple_number_at(&self, start: usize) -> Option<(f64, bool, usize)> {
+        let scan = scan_decimal(&self.src.as_bytes()[..self.end], start);
+        match scan.value {
+            Some(value) if scan.digits > 0 => Some((value, scan.has_point, scan.end)),
+            _ => None,
+        }
+    }
+
     /// First position at or after `i` that is not a blank.
     #[inline]
     pub fn after_blanks(&self, mut i: usize) -> usize {
@@ -260,18 +271,18 @@ impl<'a> Lexer<'a> {
 }
 
 /// Digits with at most one '.' from `start`, read in one pass.
-struct DecimalScan {
-    end: usize,
-    digits: usize,
-    has_point: bool,
+pub(crate) struct DecimalScan {
+    pub end: usize,
+    pub digits: usize,
+    pub has_point: bool,
     /// The value when Clinger's fast path applies: at most 15 significant digits and 22
     /// decimals make it one correctly rounded division of two exact doubles, so it equals
     /// `str::parse` bit for bit. None: use the general parser.
-    value: Option<f64>,
+    pub value: Option<f64>,
 }
 
 #[inline]
-fn scan_decimal(bytes: &[u8], start: usize) -> DecimalScan {
+pub(crate) fn scan_decimal(bytes: &[u8], start: usize) -> DecimalScan {
     const POW10: [f64; 23] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
         1e17, 1e18, 1e19, 1e20, 1e21, 1e22,

@@ -92,7 +92,7 @@ impl<'a> LineParser<'a> {
         if !matches!(self.lx.byte(digits_start), Some(b'0'..=b'9' | b'.')) {
             return None;
         }
-        let (value, has_point, end) = self.lx.number_at(digits_start).ok()?;
+        let (value, has_point, end) = self.lx.simple_number_at(digits_start)?;
         self.lx.pos = end;
         Some(Word {
             letter: char::from(letter),
