@@ -38,7 +38,9 @@ pub struct RunArgs {
     #[arg(long)]
     machine: Option<PathBuf>,
     /// Optimize the feeds: comma-separated limits, e.g. max_force=800,air_feed=5000,feed_step=10
-    /// (any field of the job's options.limits). Writes the rewritten program too.
+    /// (any field of the job's options.limits; split_max_parts=4, split_min_length=2 and
+    /// split_min_saving=0.05 split long moves whose engagement varies). Writes the rewritten
+    /// program too.
     #[arg(long)]
     optimize: Option<String>,
     /// On a machine with rotary axes: `machine` (X..C are machine axes) or `tool_tip`
@@ -194,7 +196,16 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             } else {
                 json!(v)
             };
-            limits.insert(k.trim().to_string(), value);
+            // split_max_parts=4, split_min_length=2, split_min_saving=0.05: limits.split.
+            match k.trim().strip_prefix("split_") {
+                Some(field) => {
+                    let split = limits.entry("split").or_insert_with(|| json!({}));
+                    split[field] = value;
+                }
+                None => {
+                    limits.insert(k.trim().to_string(), value);
+                }
+            }
         }
         options.insert("limits".into(), Value::Object(limits));
     }

@@ -21,29 +21,30 @@ use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
 use crate::physics::{CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, Material};
 use crate::tool::Tool;
 
-/// Forces at every step that removes material, at each move's feed (mm/min), in parallel:
-/// each step is independent and results come back in step order, so the outcome does not
-/// depend on the thread count.
+/// Forces at every step that removes material, each at its own feed (mm/min, one per step),
+/// in parallel: each step is independent and results come back in step order, so the
+/// outcome does not depend on the thread count.
 fn evaluate_forces(
     steps: &[(usize, u32, geometry::StepGeometry)],
     moves: &[Move],
-    feeds: &[f64],
+    step_feeds: &[f64],
     models: &BTreeMap<u32, ForceModel>,
     k: &CuttingCoefficients,
 ) -> Result<Vec<Option<ForceResult>>, crate::physics::PhysicsError> {
     steps
         .par_iter()
+        .zip(step_feeds)
         .map_init(
             || models.clone(),
-            |models, (mi, t, s)| {
+            |models, ((mi, t, s), &feed)| {
                 let m = &moves[*mi];
                 let flutes = models[t].table().flutes() as f64;
-                if s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feeds[*mi] <= 0.0 {
+                if s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0 {
                     return Ok(None);
                 }
                 let conditions = CuttingConditions {
                     spindle_rpm: m.spindle,
-                    feed_per_tooth: feeds[*mi] / (m.spindle * flutes),
+                    feed_per_tooth: feed / (m.spindle * flutes),
                 };
                 models
                     .get_mut(t)
@@ -262,6 +263,9 @@ pub struct MoveRow {
     pub peak_force_after: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub governing: Option<String>,
+    /// The move was written as this many blocks, each at its own feed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub split_parts: Option<usize>,
 }
 
 impl MoveRow {
@@ -397,6 +401,10 @@ pub struct OptimizationSummary {
     /// Blocks written with the smallest of several different feeds (loops, subroutines).
     pub ambiguous_blocks: Vec<usize>,
     pub evaluations: usize,
+    /// With `limits.split`: moves written as several blocks, and planned splits that were not
+    /// written, with the reason (the first 100).
+    pub split_blocks: usize,
+    pub split_skipped: Vec<optimize::SkippedSplit>,
 }
 
 pub struct SimulationOutput {
@@ -823,7 +831,8 @@ pub fn simulate(
     let clock = std::time::Instant::now();
     let k = spec.material.coefficients;
     let feeds: Vec<f64> = rows.iter().map(|r| r.tip_speed_mm_min).collect();
-    let forces = evaluate_forces(&steps, moves, &feeds, &models, &k)?;
+    let step_feeds: Vec<f64> = steps.iter().map(|(mi, _, _)| feeds[*mi]).collect();
+    let forces = evaluate_forces(&steps, moves, &step_feeds, &models, &k)?;
     if cancel.is_cancelled() {
         return Err(SimulateError::Cancelled);
     }
@@ -1089,7 +1098,9 @@ fn optimize_stage(
     models: &BTreeMap<u32, ForceModel>,
     before: &crate::machine::cycle_time::CycleTime,
 ) -> Result<(String, OptimizationSummary), SimulateError> {
-    let limits = limits.clone().with_machine(&spec.machine);
+    let mut limits = limits.clone().with_machine(&spec.machine);
+    // Split plans need every step's own limit, not a lower bound.
+    limits.exact_step_limits |= limits.split.is_some();
     let k = spec.material.coefficients;
     let cutter_index: BTreeMap<u32, usize> =
         models.keys().enumerate().map(|(i, t)| (*t, i)).collect();
@@ -1138,6 +1149,60 @@ fn optimize_stage(
         .moves;
     optimize::verify_rewrite(moves, &after, &rewrite).map_err(SimulateError::Rewrite)?;
 
+    // Long moves whose engagement varies, written as several blocks when asked; a split
+    // program that does not re-interpret to the same path at the planned feeds is dropped
+    // (the reason is reported) and the F-only rewrite stands.
+    let mut text = rewrite.text.clone();
+    let mut final_moves = after.clone();
+    let mut owner: Vec<usize> = (0..after.len()).collect();
+    let mut written: Vec<optimize::WrittenSplit> = Vec::new();
+    let mut skipped: Vec<optimize::SkippedSplit> = Vec::new();
+    if let Some(sp) = &limits.split {
+        let by_move: BTreeMap<usize, &optimize::Segment> =
+            segments.iter().map(|g| (g.move_index, g)).collect();
+        let plans: Vec<optimize::SplitPlan> = schedule
+            .segments
+            .iter()
+            .filter_map(|solved| {
+                let seg = by_move.get(&solved.move_index)?;
+                let m = &moves[solved.move_index];
+                optimize::split_plan(
+                    seg,
+                    solved,
+                    move_length(m),
+                    sp.max_parts,
+                    sp.min_length,
+                    sp.min_saving,
+                )
+            })
+            .collect();
+        let (split_text, w, s) =
+            optimize::write_splits(&rewrite.text, moves, &after, &plans, limits.feed_step)
+                .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
+        skipped = s;
+        if !w.is_empty() {
+            let checked = nc::interpret(&split_text, &spec.interpret)
+                .map_err(|d| d.to_string())
+                .and_then(|split| {
+                    optimize::verify_splits(&after, &split.moves, &w).map(|o| (split.moves, o))
+                });
+            match checked {
+                Ok((split_moves, o)) => {
+                    text = split_text;
+                    final_moves = split_moves;
+                    owner = o;
+                    written = w;
+                }
+                Err(reason) => skipped.extend(w.iter().map(|x| optimize::SkippedSplit {
+                    line: x.line,
+                    reason: format!("the split program did not verify: {reason}"),
+                })),
+            }
+        }
+    }
+    let split_of: BTreeMap<usize, &optimize::WrittenSplit> =
+        written.iter().map(|w| (w.move_index, w)).collect();
+
     let feeds_after: Vec<f64> = after
         .iter()
         .map(|m| {
@@ -1148,8 +1213,24 @@ fn optimize_stage(
             }
         })
         .collect();
-    let forces_after = evaluate_forces(steps, moves, &feeds_after, models, &k)?;
-    let times_after = cycle_time(&after, &spec.machine, None)?;
+    // A step of a split move runs at the feed of the part it lies in.
+    let step_feeds: Vec<f64> = steps
+        .iter()
+        .map(|(mi, _, s)| match split_of.get(mi) {
+            Some(w) => {
+                let part = w.points.iter().filter(|&&p| p <= s.distance).count();
+                w.feeds[part.min(w.feeds.len() - 1)]
+            }
+            None => feeds_after[*mi],
+        })
+        .collect();
+    let forces_after = evaluate_forces(steps, moves, &step_feeds, models, &k)?;
+    let final_times = cycle_time(&final_moves, &spec.machine, None)?;
+    // Time per original move: the sum over its parts.
+    let mut time_after = vec![0.0; moves.len()];
+    for (t, &i) in final_times.per_move_s.iter().zip(&owner) {
+        time_after[i] += t;
+    }
     let constant = cycle_time(
         moves,
         &spec.machine,
@@ -1174,8 +1255,28 @@ fn optimize_stage(
         })
         .collect();
     for (i, row) in rows.iter_mut().enumerate() {
-        row.feed_after_mm_min = Some(feeds_after[i]);
-        row.time_after_s = Some(times_after.per_move_s[i]);
+        row.feed_after_mm_min = Some(match split_of.get(&i) {
+            // The split move's effective feed: its length over the time of its parts at
+            // their feeds.
+            Some(w) => {
+                let mut from = 0.0;
+                let minutes: f64 = w
+                    .points
+                    .iter()
+                    .chain(std::iter::once(&row.length))
+                    .zip(&w.feeds)
+                    .map(|(&to, f)| {
+                        let t = (to - from) / f;
+                        from = to;
+                        t
+                    })
+                    .sum();
+                row.length / minutes
+            }
+            None => feeds_after[i],
+        });
+        row.split_parts = split_of.get(&i).map(|w| w.feeds.len());
+        row.time_after_s = Some(time_after[i]);
         row.peak_force_after = Some(0.0);
         row.governing = governing.get(&i).cloned();
     }
@@ -1199,7 +1300,7 @@ fn optimize_stage(
     let summary = OptimizationSummary {
         cycle_time_before_s: before.total_s,
         cycle_time_constant_feed_s: constant.total_s,
-        cycle_time_after_s: times_after.total_s,
+        cycle_time_after_s: final_times.total_s,
         cycle_time_ideal_s: ideal.total_s,
         best_constant_feed_mm_min: schedule.best_constant_feed,
         peak_force_before: peak(&mut rows.iter().map(|r| r.peak_force)),
@@ -1210,7 +1311,9 @@ fn optimize_stage(
         force_limit_unreachable_lines: over.into_iter().take(100).collect(),
         ambiguous_blocks: rewrite.ambiguous.clone(),
         evaluations: schedule.evaluations,
+        split_blocks: written.len(),
+        split_skipped: skipped.into_iter().take(100).collect(),
         limits,
     };
-    Ok((rewrite.text, summary))
+    Ok((text, summary))
 }

@@ -346,3 +346,103 @@ fn energy_and_chatter_margin_per_move() {
         .filter(|r| r.kind == "rapid")
         .all(|r| r.chatter_margin.is_none()));
 }
+
+#[test]
+fn a_move_half_in_material_is_split_into_blocks_at_their_own_feeds() {
+    use millsim_engine::nc::{interpret, MoveKind};
+    use millsim_engine::optimize::{FeedLimits, SplitOptions};
+    // One G1 (line 6) slots x = 0..100 through the block and then runs 55 mm in air: one
+    // feed for the whole block is the slot's; split, the air part runs at max_feed.
+    let program = "G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X160 F1000\nG0 Z5\nG0 X-10 Y12\nG1 X60\nG0 Z5\nM30\n";
+    let limits = FeedLimits {
+        max_force: Some(500.0),
+        air_feed: Some(6000.0),
+        max_feed: 6000.0,
+        ..FeedLimits::default()
+    };
+    let mut plain = spec(program);
+    plain.optimize = Some(limits.clone());
+    let unsplit = simulate(&plain, &CancelFlag::new(), &NoProgress).unwrap();
+    let mut s = spec(program);
+    s.optimize = Some(FeedLimits {
+        split: Some(SplitOptions::default()),
+        ..limits
+    });
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let opt = out.optimization.as_ref().unwrap();
+    assert_eq!(opt.split_blocks, 1, "{:?}", opt.split_skipped);
+    let text = out.optimized_program.as_ref().unwrap();
+    let row = out.rows.iter().find(|r| r.line == 6).unwrap();
+    let parts = row.split_parts.unwrap();
+    assert!(parts >= 2, "{row:?}");
+
+    // Only F words changed and new G1 blocks added: the original lines, F words removed,
+    // appear in order; every added line is a G1 with an F.
+    let strip = |l: &str| {
+        l.split_whitespace()
+            .filter(|w| !w.starts_with('F'))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let mut original = program.lines().map(strip).peekable();
+    let mut added = 0;
+    for l in text.lines() {
+        if original.peek() == Some(&strip(l)) {
+            original.next();
+        } else {
+            assert!(
+                l.starts_with("G1 ") && l.contains(" F"),
+                "unexpected line {l:?}"
+            );
+            added += 1;
+        }
+    }
+    assert!(
+        original.peek().is_none(),
+        "an original line is missing:\n{text}"
+    );
+    assert_eq!(added, parts - 1);
+
+    // The same path: the rewritten program's moves, parts merged, end where the original's do.
+    let before = interpret(program, &InterpretOptions::default())
+        .unwrap()
+        .moves;
+    let after = interpret(text, &InterpretOptions::default()).unwrap().moves;
+    assert_eq!(after.len(), before.len() + parts - 1);
+    let ends: Vec<[f64; 6]> = after.iter().map(|m| m.end).collect();
+    for m in &before {
+        assert!(
+            ends.contains(&m.end),
+            "end {:?} of line {} lost",
+            m.end,
+            m.line
+        );
+    }
+    // The air part is faster than the slot part.
+    let split_moves: Vec<_> = after
+        .iter()
+        .filter(|m| m.kind == MoveKind::Linear && m.end[1] == 0.0 && m.end[2] == -5.0)
+        .collect();
+    assert_eq!(split_moves.len(), parts);
+    assert!(
+        split_moves.last().unwrap().feed > split_moves[0].feed,
+        "{split_moves:?}"
+    );
+
+    // Faster than the one-feed rewrite, and re-simulated the force limit holds everywhere.
+    let t_split = opt.cycle_time_after_s;
+    let t_plain = unsplit.optimization.as_ref().unwrap().cycle_time_after_s;
+    assert!(t_split < t_plain * 0.9, "{t_split} vs {t_plain}");
+    let mut again = spec(text);
+    again.optimize = None;
+    let re = simulate(&again, &CancelFlag::new(), &NoProgress).unwrap();
+    for r in &re.rows {
+        assert!(
+            r.peak_force <= 500.0 * 1.02,
+            "line {}: {}",
+            r.line,
+            r.peak_force
+        );
+    }
+    assert!((re.summary.removed_volume - out.summary.removed_volume).abs() < 1e-6);
+}

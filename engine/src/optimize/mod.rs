@@ -15,12 +15,15 @@
 //! executions. [`rewrite`] turns the block feeds into the output program.
 //!
 //! Block splitting: [`split_plan`] says where a long move whose engagement varies would be split
-//! and at which feeds; writing split blocks into the program is not done (the rewrite changes
-//! and inserts F words only).
+//! and at which feeds; [`rewrite::write_splits`] writes those parts as new blocks before the
+//! move's own block (which keeps every character but its F).
 
 pub mod rewrite;
 
-pub use rewrite::{rewrite_program, verify_rewrite, BlockChange, Rewrite, RewriteOptions};
+pub use rewrite::{
+    rewrite_program, verify_rewrite, verify_splits, write_splits, BlockChange, Rewrite,
+    RewriteOptions, SkippedSplit, WrittenSplit,
+};
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -107,6 +110,28 @@ pub struct FeedLimits {
     /// Solve every step's own limit (for [`split_plan`]); otherwise steps that do not bind get
     /// a lower bound of theirs (one evaluation), which is all the block feed needs.
     pub exact_step_limits: bool,
+    /// Write long moves whose engagement varies as several blocks, each at its own feed.
+    pub split: Option<SplitOptions>,
+}
+
+/// When a move is worth splitting: into at most `max_parts` parts of at least `min_length`
+/// mm, only when that saves at least `min_saving` of the move's time.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SplitOptions {
+    pub max_parts: usize,
+    pub min_length: f64,
+    pub min_saving: f64,
+}
+
+impl Default for SplitOptions {
+    fn default() -> Self {
+        SplitOptions {
+            max_parts: 4,
+            min_length: 2.0,
+            min_saving: 0.05,
+        }
+    }
 }
 
 impl Default for FeedLimits {
@@ -126,6 +151,7 @@ impl Default for FeedLimits {
             tolerance: 0.005,
             max_iterations: 12,
             exact_step_limits: false,
+            split: None,
         }
     }
 }
@@ -208,6 +234,26 @@ impl FeedLimits {
                 "max_iterations",
                 format!("must be in 2..=100, got {}", self.max_iterations),
             );
+        }
+        if let Some(sp) = &self.split {
+            if !(2..=20).contains(&sp.max_parts) {
+                return bad(
+                    "split.max_parts",
+                    format!("must be in 2..=20, got {}", sp.max_parts),
+                );
+            }
+            if !(sp.min_length.is_finite() && sp.min_length > 0.0) {
+                return bad(
+                    "split.min_length",
+                    format!("must be a positive length in mm, got {}", sp.min_length),
+                );
+            }
+            if !(sp.min_saving.is_finite() && (0.0..1.0).contains(&sp.min_saving)) {
+                return bad(
+                    "split.min_saving",
+                    format!("must be in [0, 1), got {}", sp.min_saving),
+                );
+            }
         }
         Ok(())
     }
@@ -889,7 +935,7 @@ pub struct SplitPlan {
 }
 
 /// Split decision for one solved segment: parts of at least `min_length` mm, at most
-/// `max_parts`, each at the smallest step limit inside it; proposed only when it saves at least
+/// `max_parts`, each at the smallest step limit inside it and at its end; proposed only when it saves at least
 /// `min_saving` (fraction) of the move's time. Steps are taken to cover the move from their
 /// `at` to the next step's `at` (the last to the move's end). Solve with `exact_step_limits`:
 /// with lower bounds the plan is safe but finds less.
@@ -923,7 +969,10 @@ pub fn split_plan(
         if len < min_length {
             return None;
         }
-        let f = solved.step_limits[i..j]
+        // The engagement of a step is measured at its start; where it grows (entering
+        // material) the part's end sees the next step's engagement, so that step's limit
+        // bounds this part too.
+        let f = solved.step_limits[i..(j + 1).min(n)]
             .iter()
             .cloned()
             .fold(f64::INFINITY, f64::min);

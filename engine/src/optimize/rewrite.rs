@@ -314,3 +314,327 @@ pub fn verify_rewrite(
     }
     Ok(())
 }
+
+/// A move written as several blocks.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct WrittenSplit {
+    /// The move (index in the original move list) and its block and line.
+    pub move_index: usize,
+    pub block: usize,
+    pub line: u32,
+    /// Where the parts meet, mm from the move's start.
+    pub points: Vec<f64>,
+    /// End of each part in the machine frame (the last is the move's end), mm.
+    pub ends: Vec<[f64; 3]>,
+    /// Feed of each part as written, mm/min.
+    pub feeds: Vec<f64>,
+}
+
+/// Why a planned split was not written.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SkippedSplit {
+    pub line: u32,
+    pub reason: String,
+}
+
+/// Writes the split plans into `rewritten` (the output of [`rewrite_program`], whose moves are
+/// `after`, one for one with the original `moves`): a planned move's block gets new `G1` lines
+/// before it that end at the split points, each with its own F, and the block itself keeps
+/// all its characters but its F, which becomes the last part's feed. The next feed block
+/// gets its modal F written out if it had none, so nothing after the split changes speed.
+///
+/// Only plain blocks are split: one execution, a G1 move at a per-minute feed in G90 with
+/// the moving axes written as numbers, and no other words but N, G1, X, Y, Z and F. Others
+/// are reported in the second list with the reason. Coordinates are written with the block's
+/// own decimals (at least 3, at most 6).
+pub fn write_splits(
+    rewritten: &str,
+    moves: &[Move],
+    after: &[Move],
+    plans: &[super::SplitPlan],
+    feed_step: Option<f64>,
+) -> Result<(String, Vec<WrittenSplit>, Vec<SkippedSplit>), Diagnostics> {
+    let program = Program::parse(rewritten)?;
+    let blocks = program.blocks();
+    // Units and distance mode by source position, as the rewrite follows them.
+    let nb = blocks.len();
+    let mut factor = vec![1.0; nb];
+    let mut absolute = vec![true; nb];
+    let (mut f, mut abs) = (1.0, true);
+    for (i, b) in blocks.iter().enumerate() {
+        for w in &b.words {
+            match (w.letter, number(&w.value)) {
+                ('G', Some(20.0)) => f = 25.4,
+                ('G', Some(21.0)) => f = 1.0,
+                ('G', Some(90.0)) => abs = true,
+                ('G', Some(91.0)) => abs = false,
+                _ => {}
+            }
+        }
+        factor[i] = f;
+        absolute[i] = abs;
+    }
+    let mut executions = vec![0usize; nb];
+    for m in moves {
+        if m.block < nb {
+            executions[m.block] += 1;
+        }
+    }
+    let mut feeds: Vec<(usize, f64)> = Vec::new();
+    let mut inserts: BTreeMap<usize, Vec<String>> = BTreeMap::new();
+    let mut written = Vec::new();
+    let mut skipped = Vec::new();
+    let mut fixed_next: BTreeSet<usize> = BTreeSet::new();
+    for plan in plans {
+        let i = plan.move_index;
+        let (Some(m), Some(a)) = (moves.get(i), after.get(i)) else {
+            continue;
+        };
+        let mut skip = |reason: &str| {
+            skipped.push(SkippedSplit {
+                line: m.line,
+                reason: reason.to_string(),
+            })
+        };
+        let b = m.block;
+        if m.kind != MoveKind::Linear || m.feed_mode != FeedMode::PerMin {
+            skip("only G1 moves at a per-minute feed are split");
+            continue;
+        }
+        if (3..6).any(|k| (m.end[k] - m.start[k]).abs() > 1e-9) {
+            skip("rotary axes move");
+            continue;
+        }
+        if executions.get(b) != Some(&1) {
+            skip("the block runs more than once");
+            continue;
+        }
+        if !absolute[b] {
+            skip("incremental distance mode (G91)");
+            continue;
+        }
+        let block = &blocks[b];
+        let plain = block.o_word.is_none()
+            && block.assignments.is_empty()
+            && block.words.iter().all(|w| {
+                !w.comma
+                    && match (w.letter, number(&w.value)) {
+                        ('G', Some(g)) => g == 1.0,
+                        ('X' | 'Y' | 'Z' | 'F', Some(_)) => true,
+                        _ => false,
+                    }
+            });
+        if !plain {
+            skip("the block has words other than N, G1, X, Y, Z and F");
+            continue;
+        }
+        // Program-frame end from the block's own words; the start is the end minus the
+        // machine-frame travel (work offsets are translations).
+        let unit = factor[b];
+        let mut end = [0.0; 3];
+        let mut moving = [false; 3];
+        let mut decimals = 3usize;
+        let mut ok = true;
+        for (k, letter) in ['X', 'Y', 'Z'].into_iter().enumerate() {
+            moving[k] = (m.end[k] - m.start[k]).abs() > 1e-9;
+            match block.words.iter().find(|w| w.letter == letter) {
+                Some(w) => {
+                    end[k] = number(&w.value).unwrap_or(0.0);
+                    let text = program.text(w.value_span);
+                    if let Some((_, frac)) = text.split_once('.') {
+                        decimals = decimals.max(frac.len().min(6));
+                    }
+                }
+                None if moving[k] => ok = false,
+                None => {}
+            }
+        }
+        if !ok {
+            skip("a moving axis is not written in the block");
+            continue;
+        }
+        let length = (0..3)
+            .map(|k| (m.end[k] - m.start[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if plan.feeds.len() != plan.points.len() + 1 || length <= 0.0 {
+            skip("empty plan");
+            continue;
+        }
+        // Neighbouring parts at the same written feed are one part.
+        let written_feed = |f: f64| round_down(f / unit, feed_step, true);
+        let mut points = Vec::new();
+        let mut part_feeds_mm = vec![plan.feeds[0]];
+        for (&p, &f) in plan.points.iter().zip(&plan.feeds[1..]) {
+            let prev = *part_feeds_mm.last().expect("starts with one");
+            if same(written_feed(f), written_feed(prev)) {
+                continue;
+            }
+            points.push(p);
+            part_feeds_mm.push(f);
+        }
+        if points.is_empty() {
+            skip("every part gets the same feed");
+            continue;
+        }
+        let nl = line_ending(&program, b);
+        let mut lines = Vec::new();
+        let mut ends = Vec::new();
+        let mut part_feeds = Vec::new();
+        for (&d, &feed) in points.iter().zip(&part_feeds_mm) {
+            let u = (d / length).clamp(0.0, 1.0);
+            let mut line = String::from("G1");
+            let mut machine_end = [0.0; 3];
+            for k in 0..3 {
+                let travel = m.end[k] - m.start[k];
+                machine_end[k] = m.start[k] + u * travel;
+                if moving[k] {
+                    let at = end[k] - (1.0 - u) * travel / unit;
+                    line.push_str(&format!(" {}{:.*}", ['X', 'Y', 'Z'][k], decimals, at));
+                }
+            }
+            let f_written = written_feed(feed);
+            line.push_str(&format!(" F{}", trim_number(f_written)));
+            line.push_str(nl);
+            lines.push(line);
+            ends.push(machine_end);
+            part_feeds.push(f_written * unit);
+        }
+        let last = written_feed(part_feeds_mm.last().copied().unwrap_or(a.feed));
+        ends.push([m.end[0], m.end[1], m.end[2]]);
+        part_feeds.push(last * unit);
+        feeds.push((b, last));
+        // The next feed move must not inherit the last part's feed.
+        if let Some(j) = (i + 1..moves.len())
+            .find(|&j| matches!(moves[j].kind, MoveKind::Linear | MoveKind::Arc))
+        {
+            let nb_ = moves[j].block;
+            let has_f = blocks[nb_]
+                .words
+                .iter()
+                .any(|w| w.letter == 'F' && !w.comma);
+            if !has_f && nb_ != b && fixed_next.insert(nb_) {
+                let native = after[j].feed;
+                let value = match after[j].feed_mode {
+                    FeedMode::InverseTime => native,
+                    _ => native / factor[nb_],
+                };
+                feeds.push((nb_, value));
+            }
+        }
+        inserts.insert(b, lines);
+        written.push(WrittenSplit {
+            move_index: i,
+            block: b,
+            line: m.line,
+            points,
+            ends,
+            feeds: part_feeds,
+        });
+    }
+    // A block listed both as split and as the next block of another split keeps the split's F.
+    let mut seen = BTreeSet::new();
+    feeds.retain(|(b, _)| seen.insert(*b));
+    let text = if feeds.is_empty() {
+        rewritten.to_string()
+    } else {
+        program.with_feeds(&feeds)?
+    };
+    // Insert the new lines before their blocks (lines are blocks, one for one).
+    let mut out = String::with_capacity(text.len() + inserts.len() * 40);
+    for (index, line) in text.split_inclusive('\n').enumerate() {
+        if let Some(new) = inserts.get(&index) {
+            for l in new {
+                out.push_str(l);
+            }
+        }
+        out.push_str(line);
+    }
+    Ok((out, written, skipped))
+}
+
+fn line_ending(program: &Program, block: usize) -> &'static str {
+    let b = &program.blocks()[block];
+    if program.text(crate::nc::Span {
+        start: b.span.end,
+        end: b.end,
+    }) == "\r\n"
+    {
+        "\r\n"
+    } else {
+        "\n"
+    }
+}
+
+/// A feed as the rewrite writes it: up to 4 decimals, no trailing zeros.
+fn trim_number(v: f64) -> String {
+    let s = format!("{v:.4}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    s.to_string()
+}
+
+/// Checks the split program's moves against the un-split rewrite's: every move the same (kind,
+/// end point, feed of feed moves), except each split move, which must come as its parts (G1,
+/// ending at the split points within 1e-3 mm and at the move's own end exactly, at the part
+/// feeds). Returns, for each move of the split program, the index of the move it belongs to.
+pub fn verify_splits(
+    after: &[Move],
+    split: &[Move],
+    written: &[WrittenSplit],
+) -> Result<Vec<usize>, String> {
+    let by_move: BTreeMap<usize, &WrittenSplit> =
+        written.iter().map(|w| (w.move_index, w)).collect();
+    let mut owner = Vec::with_capacity(split.len());
+    let mut j = 0;
+    let next = |j: usize| {
+        split
+            .get(j)
+            .ok_or_else(|| format!("the split program ends early (move {j})"))
+    };
+    for (i, a) in after.iter().enumerate() {
+        match by_move.get(&i) {
+            Some(w) => {
+                for (k, (end, feed)) in w.ends.iter().zip(&w.feeds).enumerate() {
+                    let b = next(j)?;
+                    let last = k + 1 == w.ends.len();
+                    let d = (0..3)
+                        .map(|c| (b.end[c] - end[c]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    let end_ok = if last { b.end == a.end } else { d <= 1e-3 };
+                    if b.kind != MoveKind::Linear || !end_ok || !same(b.feed, *feed) {
+                        return Err(format!(
+                            "line {}: part {} of the split differs (end off by {d:.2e} mm, feed {} for {})",
+                            a.line,
+                            k + 1,
+                            b.feed,
+                            feed
+                        ));
+                    }
+                    owner.push(i);
+                    j += 1;
+                }
+            }
+            None => {
+                let b = next(j)?;
+                let feed_move = matches!(a.kind, MoveKind::Linear | MoveKind::Arc);
+                if b.kind != a.kind || b.end != a.end || (feed_move && !same(b.feed, a.feed)) {
+                    return Err(format!(
+                        "line {}: the move after splitting differs from the rewrite's",
+                        a.line
+                    ));
+                }
+                owner.push(i);
+                j += 1;
+            }
+        }
+    }
+    if j != split.len() {
+        return Err(format!(
+            "{} moves after splitting, {} expected",
+            split.len(),
+            j
+        ));
+    }
+    Ok(owner)
+}
