@@ -362,8 +362,13 @@ pub struct StageTimings {
     pub stock_s: f64,
     pub removal_and_engagement_s: f64,
     pub forces_s: f64,
-    /// Feed scheduling, rewrite, re-interpretation and forces at the new feeds.
+    /// Feed scheduling, rewrite, re-interpretation and forces at the new feeds; and of it:
+    /// the schedule (secant iterations on the force model), the rewrite with its checks
+    /// (re-interpretation, splits), and the forces at the new feeds.
     pub optimize_s: f64,
+    pub optimize_schedule_s: f64,
+    pub optimize_rewrite_s: f64,
+    pub optimize_forces_after_s: f64,
 }
 
 /// The force at one engaged step, for plotting along a move.
@@ -906,8 +911,16 @@ pub fn simulate(
     let clock = std::time::Instant::now();
     let (optimized_program, optimization) = match &spec.optimize {
         Some(limits) => {
-            let (text, summary) =
-                optimize_stage(spec, limits, moves, &mut rows, &steps, &models, &times)?;
+            let (text, summary) = optimize_stage(
+                spec,
+                limits,
+                moves,
+                &mut rows,
+                &steps,
+                &models,
+                &times,
+                &mut timings,
+            )?;
             (Some(text), Some(summary))
         }
         None => (None, None),
@@ -1097,6 +1110,7 @@ fn optimize_stage(
     steps: &[(usize, u32, geometry::StepGeometry)],
     models: &BTreeMap<u32, ForceModel>,
     before: &crate::machine::cycle_time::CycleTime,
+    timings: &mut StageTimings,
 ) -> Result<(String, OptimizationSummary), SimulateError> {
     let mut limits = limits.clone().with_machine(&spec.machine);
     // Split plans need every step's own limit, not a lower bound.
@@ -1133,7 +1147,10 @@ fn optimize_stage(
             });
         }
     }
+    let clock = std::time::Instant::now();
     let schedule = optimize::optimize_feeds(moves, &segments, &cutters, &limits)?;
+    timings.optimize_schedule_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
     let program = nc::Program::parse(&spec.program).map_err(SimulateError::Program)?;
     let rewrite = optimize::rewrite_program(
         &program,
@@ -1202,6 +1219,8 @@ fn optimize_stage(
     }
     let split_of: BTreeMap<usize, &optimize::WrittenSplit> =
         written.iter().map(|w| (w.move_index, w)).collect();
+    timings.optimize_rewrite_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
 
     let feeds_after: Vec<f64> = after
         .iter()
@@ -1225,6 +1244,7 @@ fn optimize_stage(
         })
         .collect();
     let forces_after = evaluate_forces(steps, moves, &step_feeds, models, &k)?;
+    timings.optimize_forces_after_s = clock.elapsed().as_secs_f64();
     let final_times = cycle_time(&final_moves, &spec.machine, None)?;
     // Time per original move: the sum over its parts.
     let mut time_after = vec![0.0; moves.len()];
