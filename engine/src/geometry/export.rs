@@ -107,9 +107,7 @@ impl Voxels {
                             continue;
                         }
                         let k1 = (k1 as usize).min(nz - 1);
-                        for k in k0..=k1 {
-                            col[k / 64] |= 1 << (k % 64);
-                        }
+                        set_bits(col, k0, k1 + 1);
                     }
                 }
             });
@@ -339,6 +337,17 @@ fn for_runs(bits: &[u64], mut f: impl FnMut(usize, usize)) {
     }
 }
 
+/// Sets bits `start..end`, a word at a time.
+fn set_bits(bits: &mut [u64], start: usize, end: usize) {
+    let mut k = start;
+    while k < end {
+        let (w, s) = (k / 64, k % 64);
+        let n = (end - k).min(64 - s);
+        bits[w] |= (u64::MAX >> (64 - n)) << s;
+        k += n;
+    }
+}
+
 /// Calls `f(k)` for each set bit.
 fn for_bits(bits: &[u64], mut f: impl FnMut(usize)) {
     for (w, &word) in bits.iter().enumerate() {
@@ -433,6 +442,18 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bit_ranges_across_words() {
+        let mut bits = vec![0u64; 3];
+        set_bits(&mut bits, 3, 7);
+        set_bits(&mut bits, 60, 130);
+        set_bits(&mut bits, 191, 192);
+        set_bits(&mut bits, 10, 10);
+        let mut runs = Vec::new();
+        for_runs(&bits, |a, b| runs.push((a, b)));
+        assert_eq!(runs, vec![(3, 7), (60, 130), (191, 192)]);
+    }
 
     #[test]
     fn runs_across_words() {

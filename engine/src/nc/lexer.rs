@@ -271,18 +271,18 @@ impl<'a> Lexer<'a> {
 }
 
 /// Digits with at most one '.' from `start`, read in one pass.
-pub(crate) struct DecimalScan {
-    pub end: usize,
-    pub digits: usize,
-    pub has_point: bool,
+struct DecimalScan {
+    end: usize,
+    digits: usize,
+    has_point: bool,
     /// The value when Clinger's fast path applies: at most 15 significant digits and 22
     /// decimals make it one correctly rounded division of two exact doubles, so it equals
     /// `str::parse` bit for bit. None: use the general parser.
-    pub value: Option<f64>,
+    value: Option<f64>,
 }
 
 #[inline]
-pub(crate) fn scan_decimal(bytes: &[u8], start: usize) -> DecimalScan {
+fn scan_decimal(bytes: &[u8], start: usize) -> DecimalScan {
     const POW10: [f64; 23] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
         1e17, 1e18, 1e19, 1e20, 1e21, 1e22,

@@ -461,7 +461,10 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
             let (_, s) = p.lx.next(false)?;
             return err(s.start, "N must be followed by a line number");
         }
-        let (value, has_point, end) = p.lx.number_at(vstart)?;
+        let (value, has_point, end) = match p.lx.simple_number_at(vstart) {
+            Some(number) => number,
+            None => p.lx.number_at(vstart)?,
+        };
         p.lx.pos = end;
         block.line_number = Some(Word {
             letter: 'N',
