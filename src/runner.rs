@@ -867,7 +867,8 @@ fn energy_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, Jo
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RotaryFeedJobOptions {
-    /// `per_min` (G94, F = I/t) or `inverse_time` (G93, F = 1/t; the program must be in G93).
+    /// `per_min` (G94, F = I/t) or `inverse_time` (G93, F = 1/t; a G94 program is converted:
+    /// G93 before its first feed block, G94 after its last).
     #[serde(default)]
     pub output: FeedOutput,
     #[serde(default = "default_dialect")]

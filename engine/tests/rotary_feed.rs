@@ -165,8 +165,10 @@ fn b_table_g93_corrected_tip_speed_equals_programmed_feed() {
 }
 
 #[test]
-fn mode_switch_needs_more_than_f_words_and_is_refused() {
-    let e = correct_program(
+fn b_table_g94_program_converted_to_g93_moves_the_tip_at_the_programmed_feed() {
+    // check_case recomputes every tool-tip speed from the re-interpreted output.
+    check_case(&g94_program(), FeedOutput::InverseTime);
+    let (text, _) = correct_program(
         &g94_program(),
         &InterpretOptions::default(),
         &b_table(),
@@ -175,8 +177,37 @@ fn mode_switch_needs_more_than_f_words_and_is_refused() {
             ..Default::default()
         },
     )
+    .unwrap();
+    // G93 before the first feed block, G94 back after the last; every feed move in G93 with
+    // its own F.
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[2], "G93", "{text}");
+    assert_eq!(lines[lines.len() - 2], "G94", "{text}");
+    let moves = nc::interpret(&text, &InterpretOptions::default())
+        .unwrap()
+        .moves;
+    for m in moves.iter().filter(|m| m.kind == MoveKind::Linear) {
+        assert_eq!(m.feed_mode, nc::FeedMode::InverseTime, "line {}", m.line);
+    }
+    for l in &lines[3..lines.len() - 2] {
+        assert!(l.contains('F'), "G93 block without F: {l}");
+    }
+}
+
+#[test]
+fn a_program_that_switches_feed_mode_itself_is_refused() {
+    let src = g94_program().replace("X50 B40\n", "G94 X50 B40\n");
+    let e = correct_program(
+        &src,
+        &InterpretOptions::default(),
+        &b_table(),
+        &RotaryFeedOptions {
+            output: FeedOutput::InverseTime,
+            ..Default::default()
+        },
+    )
     .unwrap_err();
-    assert!(e.to_string().contains("G93/G94"), "{e}");
+    assert!(e.to_string().contains("feed mode"), "{e}");
 }
 
 #[test]

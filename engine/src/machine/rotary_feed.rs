@@ -352,10 +352,10 @@ fn written(feed: f64) -> f64 {
 }
 
 /// Correct a G-code program in place: only F words change (or are added where the modal feed
-/// would otherwise carry a corrected value into a block that needs another). The output mode must
-/// be the program's: a G94 program gets mm/min, a G93 program inverse times; switching modes
-/// needs new G93/G94 words, which F-only rewriting cannot do (an `Unsupported` error; post the
-/// CLS instead). Inch programs are refused (the rewrite would need inch feeds).
+/// would otherwise carry a corrected value into a block that needs another). A G94 program gets
+/// mm/min, a G93 program inverse times; a G94 program asked for inverse time is converted (see
+/// [`to_inverse_time`]); other mode changes are refused. Inch programs are refused (the rewrite
+/// would need inch feeds).
 pub fn correct_program(
     source: &str,
     interpret: &InterpretOptions,
@@ -375,6 +375,18 @@ pub fn correct_program(
         }
     }
     let interp = nc::interpret_program(&program, interpret)?;
+    let per_min = |m: &&Move| m.feed_mode == FeedMode::PerMin;
+    let feed_moves: Vec<&Move> = interp
+        .moves
+        .iter()
+        .filter(|m| matches!(m.kind, MoveKind::Linear | MoveKind::Arc))
+        .collect();
+    if opts.output == FeedOutput::InverseTime
+        && !feed_moves.is_empty()
+        && feed_moves.iter().all(per_min)
+    {
+        return to_inverse_time(&program, &interp.moves, machine, opts);
+    }
     for m in &interp.moves {
         if !matches!(m.kind, MoveKind::Linear | MoveKind::Arc) {
             continue;
@@ -433,4 +445,79 @@ pub fn correct_program(
     let changes: Vec<(usize, f64)> = listed.into_iter().collect();
     let text = program.with_feeds(&changes)?;
     Ok((text, report))
+}
+
+/// A G94 program written in inverse time: a `G93` line before the first feed block and a `G94`
+/// line after the last one, and every feed block an F = 1/t with t the move's intended time
+/// (tool-tip distance / programmed feed, or what a machine limit imposes). Refused when the
+/// program changes the feed mode itself between its first and last feed moves, or when a
+/// block runs several times with different times.
+fn to_inverse_time(
+    program: &Program,
+    moves: &[Move],
+    machine: &Machine,
+    opts: &RotaryFeedOptions,
+) -> Result<(String, RotaryFeedReport), RotaryFeedError> {
+    let report = correct_moves(moves, machine, opts);
+    let feed_blocks: Vec<usize> = moves
+        .iter()
+        .filter(|m| matches!(m.kind, MoveKind::Linear | MoveKind::Arc))
+        .map(|m| m.block)
+        .collect();
+    let (first, last) = match (feed_blocks.iter().min(), feed_blocks.iter().max()) {
+        (Some(&a), Some(&b)) => (a, b),
+        _ => return Ok((program.source().to_string(), report)),
+    };
+    for b in &program.blocks()[first..=last] {
+        for w in &b.words {
+            if w.letter == 'G'
+                && matches!(w.value, nc::Expr::Number { value, .. } if value == 93.0 || value == 94.0 || value == 95.0)
+            {
+                return Err(RotaryFeedError::Unsupported {
+                    line: b.line,
+                    message: "the program sets its own feed mode between its feed moves; convert it to inverse time by hand or post the CLS".into(),
+                });
+            }
+        }
+    }
+    if let Some((_, line, why)) = report.skipped.first() {
+        return Err(RotaryFeedError::Unsupported {
+            line: *line,
+            message: format!("no inverse time for this move: {why}"),
+        });
+    }
+    // G93 needs an F on every feed block; one value per block.
+    let mut per_block: std::collections::BTreeMap<usize, f64> = Default::default();
+    for b in &report.blocks {
+        match per_block.get(&b.block) {
+            Some(&v) if written(v) != written(b.feed) => {
+                return Err(RotaryFeedError::Unsupported {
+                    line: b.line,
+                    message: "the block runs several times with different times (G93 needs one F per block)".into(),
+                })
+            }
+            _ => {
+                per_block.insert(b.block, b.feed);
+            }
+        }
+    }
+    let changes: Vec<(usize, f64)> = per_block.into_iter().collect();
+    let text = program.with_feeds(&changes)?;
+    let nl = if text.contains("\r\n") { "\r\n" } else { "\n" };
+    let mut out = String::with_capacity(text.len() + 16);
+    for (index, line) in text.split_inclusive('\n').enumerate() {
+        if index == first {
+            out.push_str("G93");
+            out.push_str(nl);
+        }
+        out.push_str(line);
+        if index == last {
+            if !line.ends_with('\n') {
+                out.push_str(nl);
+            }
+            out.push_str("G94");
+            out.push_str(nl);
+        }
+    }
+    Ok((out, report))
 }
