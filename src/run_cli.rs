@@ -22,6 +22,10 @@ pub struct RunArgs {
     /// The NC program.
     #[arg(long)]
     program: PathBuf,
+    /// The design part (STL, in the stock's frame): the summary reports gouges and the
+    /// allowance left.
+    #[arg(long)]
+    part: Option<PathBuf>,
     /// A tool, as `T1=tool.json` (the tool of T1) or `tool.json`; repeat for each tool
     /// number the program uses (JSON as POST /v1/tools takes it).
     #[arg(long)]
@@ -158,6 +162,12 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         }
     }
     runner::check_tool_inputs("simulate", inputs.keys()).map_err(|(_, m)| m)?;
+    if let Some(path) = &args.part {
+        let part = file_input(path, "model/stl")?;
+        crate::validate::stl(&part.content, &path.display().to_string())
+            .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
+        inputs.insert("part".into(), part);
+    }
     if let Some(path) = &args.machine {
         let m = file_input(path, "application/json")?;
         crate::validate::machine(&m.content)

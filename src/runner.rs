@@ -61,7 +61,7 @@ const fn input(name: &'static str, kind: ResourceKind, required: bool) -> InputS
 /// The inputs each kind takes.
 pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
     const INTERPRET: [InputSpec; 1] = [input("program", ResourceKind::Program, true)];
-    const SIMULATE: [InputSpec; 5] = [
+    const SIMULATE: [InputSpec; 6] = [
         input("program", ResourceKind::Program, true),
         input("stock", ResourceKind::Stock, true),
         // The tool for every T number; or one input per number, `T1`, `T2`, ...
@@ -71,6 +71,8 @@ pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
         input("material", ResourceKind::Material, false),
         // Else a generic 3-axis machine.
         input("machine", ResourceKind::Machine, false),
+        // The design part (an STL stock resource in the stock's frame): gouge and allowance.
+        input("part", ResourceKind::Stock, false),
     ];
     const ROTARY_FEED: [InputSpec; 2] = [
         input("program", ResourceKind::Program, true),
@@ -558,6 +560,16 @@ fn simulate_job(
         optimize: opts.limits.clone(),
         axes: opts.axes,
         chatter: opts.chatter.clone(),
+        part: match inputs.remove("part") {
+            Some(p) if p.media_type == "application/json" => {
+                return Err(invalid(
+                    "Invalid part",
+                    "the design part must be an STL mesh, not a parametric stock",
+                ))
+            }
+            Some(p) => Some(p.content),
+            None => None,
+        },
     };
     let out = simulate::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,

@@ -50,7 +50,23 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     )
     .await;
     assert_eq!(st, 201);
-    let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": stock, "tool": tool},
+    // A design part up to z = −3 (STL, as a stock resource): the 5 mm slot gouges it 2 mm.
+    let part =
+        millsim_engine::geometry::Stock::block([0.0, -20.0, -10.0], [100.0, 20.0, -3.0], 0.25)
+            .unwrap();
+    let mut stl = Vec::new();
+    millsim_engine::geometry::export_stl(&part, &mut stl).unwrap();
+    let (st, part) = json(
+        c.post(s.url("/v1/stocks"))
+            .header("content-type", "model/stl")
+            .body(stl)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 201, "{part}");
+    let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": stock, "tool": tool, "part": id(part)},
                       "options": {"material": "Al7075-T6", "cell_mm": 0.25}});
     let (st, job) = json(post_json("/v1/jobs", body).await.unwrap()).await;
     assert_eq!(st, 202, "{job}");
@@ -60,6 +76,9 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let summary = &done["summary"];
     let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
     let removed = summary["removed_volume_mm3"].as_f64().unwrap();
+    let gouge = 2.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
+    let got = summary["part"]["gouge_volume"].as_f64().unwrap();
+    assert!((got - gouge).abs() / gouge < 0.01, "{got} vs {gouge}");
     assert!((removed - analytic).abs() / analytic < 0.005, "{summary}");
     assert_eq!(summary["force_peak_line"], 6);
     assert_eq!(summary["rapid_in_material_moves"], 0);

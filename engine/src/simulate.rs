@@ -109,6 +109,8 @@ pub struct SimulateSpec {
     pub axes: AxisReading,
     /// The tool's frequency response, for the chatter margin of every block.
     pub chatter: Option<ChatterSpec>,
+    /// The design part (STL, in the stock's frame): gouges and the allowance left.
+    pub part: Option<Vec<u8>>,
 }
 
 /// Modal parameters of the tool (as a stability job takes them) for the per-block chatter
@@ -170,6 +172,8 @@ pub enum SimulateError {
 pub struct MoveRow {
     pub block: usize,
     pub line: u32,
+    /// The block's N number, if it has one.
+    pub n: Option<u64>,
     pub tool: u32,
     pub kind: &'static str,
     /// Path length of the machine axes (XYZ, or the rotary angle of a rotary-only move), mm.
@@ -330,6 +334,8 @@ pub struct SimulationSummary {
     /// Cycle time with the machine's accelerations and junction speeds, and its parts, s.
     pub cycle_time_s: f64,
     pub cutting_time_s: f64,
+    /// Time of the feed moves that cut nothing (part of `cutting_time_s`), s.
+    pub air_time_s: f64,
     pub rapid_time_s: f64,
     /// Σ length / programmed feed: what the naive estimate would say, s.
     pub nominal_time_s: f64,
@@ -343,6 +349,10 @@ pub struct SimulationSummary {
     pub chatter_moves: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub chatter_margin_max: Option<f64>,
+    /// With a design part: stock cut below its surface (gouge volume and depth) and the
+    /// allowance left on it (min/mean/max), mm³ and mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub part: Option<geometry::PartComparison>,
 }
 
 /// A program's energy, J, and U = E_cut / E_in.
@@ -696,6 +706,19 @@ pub fn simulate(
 
     // Rows for every move; geometry for the ones that sweep, in runs of one tool.
     let lengths: Vec<f64> = moves.iter().map(move_length).collect();
+    let n_numbers: Vec<Option<u64>> = nc::Program::parse(&spec.program)
+        .map(|p| {
+            p.blocks()
+                .iter()
+                .map(|b| {
+                    b.line_number.as_ref().and_then(|w| match w.value {
+                        nc::Expr::Number { value, .. } if value >= 0.0 => Some(value as u64),
+                        _ => None,
+                    })
+                })
+                .collect()
+        })
+        .unwrap_or_default();
     let times = cycle_time(moves, &spec.machine, None)?;
     let mut rows: Vec<MoveRow> = moves
         .iter()
@@ -704,6 +727,7 @@ pub fn simulate(
         .map(|(i, (m, &length))| MoveRow {
             block: m.block,
             line: m.line,
+            n: n_numbers.get(m.block).copied().flatten(),
             tool: m.tool,
             kind: kind_name(m.kind),
             length,
@@ -928,6 +952,14 @@ pub fn simulate(
     timings.optimize_s = clock.elapsed().as_secs_f64();
 
     let volume_after = stock.volume();
+    let part = match &spec.part {
+        Some(bytes) => {
+            let mesh =
+                geometry::Mesh::from_stl_bytes(bytes).map_err(geometry::GeometryError::from)?;
+            Some(geometry::compare_with_part(&stock, &mesh)?)
+        }
+        None => None,
+    };
     let peak = rows
         .iter()
         .max_by(|a, b| a.peak_force.total_cmp(&b.peak_force))
@@ -962,12 +994,18 @@ pub fn simulate(
         force_evaluations: evaluations,
         cycle_time_s: times.total_s,
         cutting_time_s: times.cutting_s,
+        air_time_s: rows
+            .iter()
+            .filter(|r| r.is_air_cut())
+            .map(|r| r.time_s)
+            .sum(),
         rapid_time_s: times.rapid_s,
         nominal_time_s: times.nominal_s,
         cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
         energy,
         chatter_moves: chatter.map(|(n, _)| n),
         chatter_margin_max: chatter.map(|(_, m)| m),
+        part,
     };
     Ok(SimulationOutput {
         rows,

@@ -41,6 +41,7 @@ fn spec(program: &str, kinematics: Kinematics, tool_diameter: f64) -> SimulateSp
         optimize: None,
         axes: AxisReading::Machine,
         chatter: None,
+        part: None,
     }
 }
 

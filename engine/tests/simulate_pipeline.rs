@@ -32,6 +32,7 @@ fn spec(program: &str) -> SimulateSpec {
         optimize: None,
         axes: Default::default(),
         chatter: None,
+        part: None,
     }
 }
 
@@ -445,4 +446,43 @@ fn a_move_half_in_material_is_split_into_blocks_at_their_own_feeds() {
         );
     }
     assert!((re.summary.removed_volume - out.summary.removed_volume).abs() < 1e-6);
+}
+
+#[test]
+fn a_design_part_reports_the_gouge_and_the_allowance_left() {
+    use millsim_engine::geometry::{export_stl, Stock};
+    // The part: the stock's footprint up to z = −3. The slot goes to z = −5: it gouges the
+    // part 2 mm deep over the slot's footprint, 2·(60·10 + π·5²/2) mm³, and leaves 3 mm
+    // (the stock's top at 0) where it does not cut.
+    let part = Stock::block([0.0, -20.0, -10.0], [100.0, 20.0, -3.0], 0.25).unwrap();
+    let mut stl = Vec::new();
+    export_stl(&part, &mut stl).unwrap();
+    let program =
+        "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X20 F4000\nG1 X60\nG0 Z5\nM30\n";
+    let mut s = spec(program);
+    s.part = Some(stl);
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let p = out.summary.part.as_ref().unwrap();
+    let gouge = 2.0 * (60.0 * 10.0 + PI * 25.0 / 2.0);
+    assert!(
+        (p.gouge_volume - gouge).abs() / gouge < 0.01,
+        "{p:?} vs {gouge}"
+    );
+    assert!((p.max_gouge_depth - 2.0).abs() <= 0.25, "{p:?}");
+    assert!(
+        (p.allowance_max - 3.0).abs() <= 0.25 && p.allowance_min < 0.0,
+        "{p:?}"
+    );
+    // N numbers: none in this program.
+    assert!(out.rows.iter().all(|r| r.n.is_none()));
+    let numbered = simulate(
+        &spec("N10 G0 X0 Y0 Z5\nN20 G1 X10 F100\n"),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    assert_eq!(
+        numbered.rows.iter().map(|r| r.n).collect::<Vec<_>>(),
+        [Some(10), Some(20)]
+    );
 }
