@@ -218,21 +218,14 @@ async fn jobs_are_validated_at_submission() {
         (json!({"kind": "interpret", "extra": 1}), 422, "extra"),
     ];
     for (body, status, field) in cases {
-        let (st, p) = json(c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap()).await;
+        let (st, p) = post_json(&c, &s, "/v1/jobs", &body).await;
         assert_eq!(st, status, "{body} -> {p}");
         assert!(
             p["field"].as_str().unwrap_or("").starts_with(field),
             "{body} -> {p}"
         );
     }
-    let (st, p) = json(
-        c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "identify"}))
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, p) = post_json(&c, &s, "/v1/jobs", &json!({"kind": "identify"})).await;
     assert_eq!(
         (st, p["type"].as_str()),
         (422, Some("https://millsim.dev/problems/not-supported"))
@@ -449,12 +442,11 @@ async fn stability_job_serves_lobes_as_rows_and_csv() {
     let options = json!({"method": "zoa", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200, "radial_immersion": 1.0, "milling": "down",
         "modes_x": [{"freq_hz": 922, "damping": 0.011, "stiffness_n_m": 1.34005e6}], "modes_y": [],
         "rpm": {"from": 5000, "to": 25000, "step": 50}, "steps_per_period": 40});
-    let (st, job) = json(
-        c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "stability", "options": options}))
-            .send()
-            .await
-            .unwrap(),
+    let (st, job) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "stability", "options": options}),
     )
     .await;
     assert_eq!(st, 202, "{job}");
@@ -464,37 +456,28 @@ async fn stability_job_serves_lobes_as_rows_and_csv() {
     assert_eq!(done["summary"]["speeds"], 401);
     let min = done["summary"]["minimum"]["depth_mm"].as_f64().unwrap();
     assert!((min - 0.298).abs() / 0.298 < 0.02, "{done}");
-    let csv = c
-        .get(s.url(&format!("/v1/jobs/{id}/blocks?format=csv")))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let csv = get_text(&c, &s, &format!("/v1/jobs/{id}/blocks?format=csv")).await;
     assert_eq!(csv.lines().next(), Some("rpm,depth_mm"));
     assert_eq!(csv.lines().count(), 402);
     // Bad options are refused at submission, naming the field.
     let mut bad = options.clone();
     bad["teeth"] = json!(0);
-    let (st, p) = json(
-        c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "stability", "options": bad}))
-            .send()
-            .await
-            .unwrap(),
+    let (st, p) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "stability", "options": bad}),
     )
     .await;
     assert_eq!(st, 422, "{p}");
     assert!(p["field"].as_str().unwrap().contains("teeth"), "{p}");
     let mut bad = options.clone();
     bad["method"] = json!("guess");
-    let (st, p) = json(
-        c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "stability", "options": bad}))
-            .send()
-            .await
-            .unwrap(),
+    let (st, p) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "stability", "options": bad}),
     )
     .await;
     assert_eq!(
@@ -511,20 +494,13 @@ async fn rotary_feed_job_corrects_f_so_the_tool_tip_moves_at_the_programmed_feed
     let c = client();
     let machine = json!({"name": "B table", "kinematics": "xyz_b", "rapid_rate": 20000.0, "max_feed": 10000.0,
         "acceleration": [1000.0, 1000.0, 1000.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0});
-    let (st, m) = json(
-        c.post(s.url("/v1/machines"))
-            .json(&machine)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, m) = post_json(&c, &s, "/v1/machines", &machine).await;
     assert_eq!(st, 201, "{m}");
     // The tip sits 50 mm from the B axis and turns 90° at F500: it travels π/2·50 mm, so the
     // move must take (π/2·50)/500 min and F (deg/min) = 90 / that.
     let program = "G21 G90 G94\nG0 X50 Y0 Z0 B0\nG1 B90 F500\nM30\n";
     let body = json!({"kind": "rotary-feed", "inputs": {"program": {"name": "b.nc", "content": program}, "machine": m["id"]}});
-    let (st, job) = json(c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap()).await;
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");
     let id = job["id"].as_str().unwrap();
     let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
@@ -582,21 +558,14 @@ async fn rotary_feed_job_posts_a_cls_file_to_one_program_per_operation() {
     let machine = json!({"name": "B table", "kinematics": "xyz_b", "rapid_rate": 20000.0, "max_feed": 10000.0,
         "acceleration": [1000.0, 1000.0, 1000.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0,
         "max_rotary_speed_deg_min": 20000.0});
-    let (st, m) = json(
-        c.post(s.url("/v1/machines"))
-            .json(&machine)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, m) = post_json(&c, &s, "/v1/machines", &machine).await;
     assert_eq!(st, 201, "{m}");
     // Two operations, the tool axis leaning ±30° in XZ (B = ∓30° on this table).
     let cls = "TOOL PATH/OP1,TOOL,EM10\nLOADTL/1\nSPINDL/RPM,8000,CLW\nRAPID\nGOTO/50,0,10,0,0,1\nFEDRAT/MMPM,500\nGOTO/50,0,0,0,0,1\nGOTO/40,0,0,0.5,0,0.8660254038\n\
 TOOL PATH/OP2,TOOL,BALL6\nLOADTL/2\nSPINDL/RPM,12000,CLW\nRAPID\nGOTO/10,0,5,0,0,1\nFEDRAT/MMPM,400\nGOTO/10,5,0,0,0,1\nGOTO/0,10,0,-0.5,0,0.8660254038\nRAPID\nGOTO/0,10,50,0,0,1\n";
     let body = json!({"kind": "rotary-feed", "inputs": {"program": {"name": "part.cls", "content": cls}, "machine": m["id"]},
                       "options": {"decimals": 7}});
-    let (st, job) = json(c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap()).await;
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");
     let id = job["id"].as_str().unwrap();
     let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
@@ -667,7 +636,7 @@ async fn energy_job_finds_a_feasible_point_and_a_pareto_front() {
             "energy": {"idle": {"base_rpm": 3000, "below": [823.3, 0.0149, 2e-6], "above": [881.5, -0.0034, 3e-6]}, "aux_power_w": 804}}),
         ),
     ] {
-        let (st, v) = json(c.post(s.url(path)).json(&body).send().await.unwrap()).await;
+        let (st, v) = post_json(&c, &s, path, &body).await;
         assert_eq!(st, 201, "{path}: {v}");
         ids.push(v["id"].as_str().unwrap().to_string());
     }
@@ -678,12 +647,11 @@ async fn energy_job_finds_a_feasible_point_and_a_pareto_front() {
     // Bad options name the field at submission.
     let mut bad = options.clone();
     bad["length_mm"] = json!(-1);
-    let (st, p) = json(
-        c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "energy", "inputs": inputs, "options": bad}))
-            .send()
-            .await
-            .unwrap(),
+    let (st, p) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "energy", "inputs": inputs, "options": bad}),
     )
     .await;
     assert_eq!(
@@ -691,12 +659,11 @@ async fn energy_job_finds_a_feasible_point_and_a_pareto_front() {
         (422, Some("options.length_mm")),
         "{p}"
     );
-    let (st, job) = json(
-        c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "energy", "inputs": inputs, "options": options}))
-            .send()
-            .await
-            .unwrap(),
+    let (st, job) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "energy", "inputs": inputs, "options": options}),
     )
     .await;
     assert_eq!(st, 202, "{job}");
@@ -793,14 +760,7 @@ async fn stability_job_recommends_a_speed_and_computes_3d_lobes() {
     let done = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
     assert_eq!(done["status"], "succeeded", "{done}");
     assert_eq!(done["summary"]["points"], 3 * 401);
-    let csv = c
-        .get(s.url(&format!("/v1/jobs/{id}/blocks?format=csv")))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let csv = get_text(&c, &s, &format!("/v1/jobs/{id}/blocks?format=csv")).await;
     assert_eq!(csv.lines().next(), Some("allowance_mm,rpm,depth_mm"));
     let rows: Vec<Vec<f64>> = csv
         .lines()

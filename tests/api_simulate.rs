@@ -25,7 +25,7 @@ async fn slot_stock_and_tool(c: &reqwest::Client, s: &Server) -> (String, String
             json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length_mm": 20.0}),
         ),
     ] {
-        let (st, v) = json(c.post(s.url(path)).json(&body).send().await.unwrap()).await;
+        let (st, v) = post_json(&c, &s, path, &body).await;
         assert_eq!(st, 201, "{path}: {v}");
         ids.push(v["id"].as_str().unwrap().to_string());
     }
@@ -89,14 +89,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
         "{summary}"
     );
 
-    let csv = c
-        .get(s.url(&format!("/v1/jobs/{job_id}/blocks?format=csv")))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let csv = get_text(&c, &s, &format!("/v1/jobs/{job_id}/blocks?format=csv")).await;
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
     // The interface outside checks read (issue 6), in this order of importance.
     for col in INTERFACE_COLUMNS.split(',') {
@@ -203,12 +196,11 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
             json!({"material": "Al7075-T6", "limits": {"max_force": 500}}),
         ),
     ] {
-        let (st, p) = json(
-            c.post(s.url("/v1/jobs"))
-                .json(&json!({"kind": kind, "inputs": inputs, "options": opts}))
-                .send()
-                .await
-                .unwrap(),
+        let (st, p) = post_json(
+            &c,
+            &s,
+            "/v1/jobs",
+            &json!({"kind": kind, "inputs": inputs, "options": opts}),
         )
         .await;
         assert_eq!(
@@ -219,7 +211,7 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
     }
     let body = json!({"kind": "optimize", "inputs": inputs,
                       "options": {"material": "Al7075-T6", "cell_mm": 0.25, "limits": {"max_force": 500, "air_feed": 6000}}});
-    let (st, job) = json(c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap()).await;
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");
     let job_id = id(job);
     let done = wait_job(&c, &s, &job_id, Duration::from_secs(120)).await;
@@ -273,14 +265,7 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
         "{summary}"
     );
     assert_eq!(summary["force_peak_opt_n"], opt["peak_force_after"]);
-    let csv = c
-        .get(s.url(&format!("/v1/jobs/{job_id}/blocks?format=csv")))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let csv = get_text(&c, &s, &format!("/v1/jobs/{job_id}/blocks?format=csv")).await;
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
     for col in INTERFACE_COLUMNS.split(',').chain(OPT_COLUMNS.split(',')) {
         assert!(header.contains(&col), "{col} not in {header:?}");
@@ -299,14 +284,7 @@ async fn optimize_job_serves_the_rewritten_program_and_before_after_rows() {
     assert_eq!(st, 201);
     let mut again = inputs.clone();
     again["program"] = opt_prog["id"].clone();
-    let (_, job) = json(
-        c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "simulate", "inputs": again, "options": {"material": "Al7075-T6", "cell_mm": 0.25}}))
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (_, job) = post_json(&c, &s, "/v1/jobs", &json!({"kind": "simulate", "inputs": again, "options": {"material": "Al7075-T6", "cell_mm": 0.25}})).await;
     let resim = wait_job(
         &c,
         &s,
@@ -333,14 +311,7 @@ async fn each_tool_number_gets_its_own_tool_input() {
     let c = client();
     let (stock, t1) = slot_stock_and_tool(&c, &s).await;
     // T2: a Ø6 bull-nose in the older field names, which stay accepted.
-    let (st, t2) = json(
-        c.post(s.url("/v1/tools"))
-            .json(&json!({"shape": "bull_nose", "diameter": 6.0, "corner_radius": 0.5, "flutes": 3, "flute_length": 15.0}))
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, t2) = post_json(&c, &s, "/v1/tools", &json!({"shape": "bull_nose", "diameter": 6.0, "corner_radius": 0.5, "flutes": 3, "flute_length": 15.0})).await;
     assert_eq!(st, 201, "{t2}");
     let program = "G21 G90\nT1 M6\nS10000 M3\nG0 Z5\nG0 X10 Y-10\nG0 Z-5\nG1 X50 F2000\nG0 Z5\nT2 M6\nS12000 M3\nG0 X10 Y10\nG0 Z-3\nG1 X50 F1500\nG0 Z5\nM30\n";
     let inline = json!({"name": "two.nc", "content": program});
@@ -357,14 +328,7 @@ async fn each_tool_number_gets_its_own_tool_input() {
     .await;
     assert_eq!((st, p["field"].as_str()), (422, Some("inputs.tool")), "{p}");
     let inputs = json!({"program": inline, "stock": stock, "T1": t1, "T2": t2["id"]});
-    let (st, job) = json(
-        c.post(s.url("/v1/jobs"))
-            .json(&json!({"kind": "simulate", "inputs": inputs, "options": {"material": "Al7075-T6", "cell_mm": 0.25}}))
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &json!({"kind": "simulate", "inputs": inputs, "options": {"material": "Al7075-T6", "cell_mm": 0.25}})).await;
     assert_eq!(st, 202, "{job}");
     let done = wait_job(
         &c,

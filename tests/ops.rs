@@ -21,14 +21,7 @@ async fn health_readiness_and_metrics() {
         &upload_program(&c, &s, &corpus("gcode/fanuc_R_arcs_G3R_G1R_G1C.nc")).await,
     )
     .await;
-    let text = c
-        .get(s.url("/metrics"))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let text = get_text(&c, &s, "/metrics").await;
     assert!(text.contains("millsim_jobs{status=\"queued\"} 1"), "{text}");
     assert!(text.contains("millsim_queue_depth 1"), "{text}");
     assert!(

@@ -184,3 +184,19 @@ pub fn interpret_moves(file: &Path, args: &[&str]) -> Vec<Value> {
 pub async fn get_json(c: &reqwest::Client, s: &Server, path: &str) -> Value {
     json(c.get(s.url(path)).send().await.unwrap()).await.1
 }
+
+/// POST a JSON body; the status and the response's JSON.
+pub async fn post_json(c: &reqwest::Client, s: &Server, path: &str, body: &Value) -> (u16, Value) {
+    json(c.post(s.url(path)).json(body).send().await.unwrap()).await
+}
+
+/// GET a path's body as text (CSV results, programs).
+pub async fn get_text(c: &reqwest::Client, s: &Server, path: &str) -> String {
+    c.get(s.url(path))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap()
+}
