@@ -254,6 +254,33 @@ fn invalid(title: &str, detail: impl Into<String>) -> JobFailure {
     }))
 }
 
+/// Input `name` parsed from JSON as a `what` (tool, machine, material), if the job has it.
+fn json_input<T: serde::de::DeserializeOwned>(
+    inputs: &mut LoadedInputs,
+    name: &str,
+    what: &str,
+) -> Result<Option<T>, JobFailure> {
+    inputs
+        .remove(name)
+        .map(|i| {
+            serde_json::from_slice(&i.content)
+                .map_err(|e| invalid(&format!("Invalid {what}"), format!("input `{name}`: {e}")))
+        })
+        .transpose()
+}
+
+fn required<T>(input: Option<T>, name: &str) -> Result<T, JobFailure> {
+    input.ok_or_else(|| invalid("Missing input", format!("the job has no `{name}` input")))
+}
+
+/// The job's material: the built-in one `options.material` names, else the `material` input.
+fn job_material(name: Option<&str>, inputs: &mut LoadedInputs) -> Result<Material, JobFailure> {
+    match name {
+        Some(name) => Material::builtin(name).ok_or_else(|| invalid("Unknown material", name)),
+        None => required(json_input(inputs, "material", "material")?, "material"),
+    }
+}
+
 /// The program input as (file name, text).
 fn program_text(inputs: &mut LoadedInputs) -> Result<(String, String), JobFailure> {
     let p = inputs
@@ -397,33 +424,7 @@ impl SimulateOptions {
             }
             (None, false) => {}
         }
-        match (&self.material, has_material_input) {
-            (Some(_), true) => {
-                return Err((
-                    "options.material".into(),
-                    "give a `material` input or `options.material`, not both".into(),
-                ))
-            }
-            (None, false) => return Err((
-                "options.material".into(),
-                "name a built-in material (TC6, Al7075-T6, Al6082-T6) or give a `material` input"
-                    .into(),
-            )),
-            (Some(name), false) if Material::builtin(name).is_none() => {
-                let names: Vec<String> = millsim_engine::physics::builtin_materials()
-                    .into_iter()
-                    .map(|m| m.name)
-                    .collect();
-                return Err((
-                    "options.material".into(),
-                    format!(
-                        "no built-in material `{name}`; one of: {}",
-                        names.join(", ")
-                    ),
-                ));
-            }
-            _ => {}
-        }
+        check_material(self.material.as_deref(), has_material_input)?;
         if let Some(c) = self.cell_mm {
             if !(0.005..=5.0).contains(&c) {
                 return Err((
@@ -493,12 +494,6 @@ fn simulate_job(
     opts.check(optimize, inputs.contains_key("material"))
         .map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
     let (file, text) = program_text(&mut inputs)?;
-    let json_input = |inputs: &mut LoadedInputs, name: &str| -> Result<Vec<u8>, JobFailure> {
-        inputs
-            .remove(name)
-            .map(|i| i.content)
-            .ok_or_else(|| invalid("Missing input", format!("the job has no `{name}` input")))
-    };
     // Key 0: one tool serves every tool number; else the tool of each number.
     let mut tools = BTreeMap::new();
     let names: Vec<String> = inputs.keys().cloned().collect();
@@ -512,25 +507,14 @@ fn simulate_job(
         } else {
             continue;
         };
-        let tool: Tool = serde_json::from_slice(&json_input(&mut inputs, &name)?)
-            .map_err(|e| invalid("Invalid tool", format!("input `{name}`: {e}")))?;
+        let tool: Tool = required(json_input(&mut inputs, &name, "tool")?, &name)?;
         tools.insert(number, tool);
     }
     if tools.is_empty() {
         return Err(invalid("Missing input", "the job has no `tool` input"));
     }
-    let material = match &opts.material {
-        Some(name) => {
-            Material::builtin(name).ok_or_else(|| invalid("Unknown material", name.clone()))?
-        }
-        None => serde_json::from_slice(&json_input(&mut inputs, "material")?)
-            .map_err(|e| invalid("Invalid material", e.to_string()))?,
-    };
-    let machine = match inputs.remove("machine") {
-        Some(m) => serde_json::from_slice(&m.content)
-            .map_err(|e| invalid("Invalid machine", e.to_string()))?,
-        None => Machine::generic(),
-    };
+    let material = job_material(opts.material.as_deref(), &mut inputs)?;
+    let machine = json_input(&mut inputs, "machine", "machine")?.unwrap_or_else(Machine::generic);
     let stock = inputs
         .remove("stock")
         .ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
@@ -769,6 +753,36 @@ fn stability_job(options: &Value, progress: &dyn Progress) -> Result<JobOutput, 
     })
 }
 
+/// A job's material: a `material` input or a built-in name in `options.material`, one of them.
+fn check_material(name: Option<&str>, has_material_input: bool) -> Result<(), (String, String)> {
+    let field = || "options.material".to_string();
+    match (name, has_material_input) {
+        (Some(_), true) => Err((
+            field(),
+            "give a `material` input or `options.material`, not both".into(),
+        )),
+        (None, false) => Err((
+            field(),
+            "name a built-in material (TC6, Al7075-T6, Al6082-T6) or give a `material` input"
+                .into(),
+        )),
+        (Some(name), false) if Material::builtin(name).is_none() => {
+            let names: Vec<String> = millsim_engine::physics::builtin_materials()
+                .into_iter()
+                .map(|m| m.name)
+                .collect();
+            Err((
+                field(),
+                format!(
+                    "no built-in material `{name}`; one of: {}",
+                    names.join(", ")
+                ),
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Options of an `energy` job: the search options (`EnergySearchOptions`) plus `material`,
 /// a built-in material name when no `material` input is given. Names the field on error.
 pub fn energy_options(
@@ -786,28 +800,7 @@ pub fn energy_options(
             ))
         }
     };
-    match (&material, has_material_input) {
-        (Some(_), true) => {
-            return Err((
-                "options.material".into(),
-                "give a `material` input or `options.material`, not both".into(),
-            ))
-        }
-        (None, false) => {
-            return Err((
-                "options.material".into(),
-                "name a built-in material (TC6, Al7075-T6, Al6082-T6) or give a `material` input"
-                    .into(),
-            ))
-        }
-        (Some(name), false) if Material::builtin(name).is_none() => {
-            return Err((
-                "options.material".into(),
-                format!("no built-in material `{name}`"),
-            ))
-        }
-        _ => {}
-    }
+    check_material(material.as_deref(), has_material_input)?;
     let search: EnergySearchOptions = serde_path_to_error::deserialize(Value::Object(rest))
         .map_err(|e| (format!("options.{}", e.path()), e.inner().to_string()))?;
     search
@@ -822,27 +815,9 @@ pub fn energy_options(
 fn energy_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
     let (search, material_name) = energy_options(options, inputs.contains_key("material"))
         .map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
-    let tool: Tool = inputs
-        .remove("tool")
-        .map(|t| serde_json::from_slice(&t.content))
-        .transpose()
-        .map_err(|e| invalid("Invalid tool", e.to_string()))?
-        .ok_or_else(|| invalid("Missing input", "the job has no `tool` input"))?;
-    let machine: Machine = inputs
-        .remove("machine")
-        .map(|m| serde_json::from_slice(&m.content))
-        .transpose()
-        .map_err(|e| invalid("Invalid machine", e.to_string()))?
-        .ok_or_else(|| invalid("Missing input", "the job has no `machine` input"))?;
-    let material = match material_name {
-        Some(name) => Material::builtin(&name).ok_or_else(|| invalid("Unknown material", name))?,
-        None => inputs
-            .remove("material")
-            .map(|m| serde_json::from_slice::<Material>(&m.content))
-            .transpose()
-            .map_err(|e| invalid("Invalid material", e.to_string()))?
-            .ok_or_else(|| invalid("Missing input", "the job has no `material` input"))?,
-    };
+    let tool: Tool = required(json_input(&mut inputs, "tool", "tool")?, "tool")?;
+    let machine: Machine = required(json_input(&mut inputs, "machine", "machine")?, "machine")?;
+    let material = job_material(material_name.as_deref(), &mut inputs)?;
     let result = run_energy_job(&search, &tool, &material.coefficients, &machine).map_err(|e| {
         JobFailure::Invalid(json!({
             "type": "https://millsim.dev/problems/energy-search",
@@ -979,12 +954,7 @@ fn rotary_feed_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutpu
     let opts: RotaryFeedJobOptions = serde_json::from_value(options.clone())
         .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let (file, text) = program_text(&mut inputs)?;
-    let machine: Machine = inputs
-        .remove("machine")
-        .map(|m| serde_json::from_slice(&m.content))
-        .transpose()
-        .map_err(|e| invalid("Invalid machine", e.to_string()))?
-        .ok_or_else(|| invalid("Missing input", "the job has no `machine` input"))?;
+    let machine: Machine = required(json_input(&mut inputs, "machine", "machine")?, "machine")?;
     if crate::validate::looks_like_cls(&text) {
         return post_cls_job(&file, &text, &machine, &opts);
     }
