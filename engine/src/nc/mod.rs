@@ -36,6 +36,7 @@ mod view;
 
 pub use arc::{sample_arc, ArcGeometry};
 pub use interp::interpret_program;
+pub(crate) use program::format_feed;
 pub use program::{
     Assignment, Block, Comment, Expr, OKeyword, OName, OWord, ParamRef, Program, Span, Word,
 };

@@ -443,7 +443,9 @@ impl Program {
 }
 
 /// Feed with at most 4 decimals, trailing zeros dropped.
-fn format_feed(feed: f64, with_point: bool) -> String {
+/// A feed as `with_feeds` writes it: up to 4 decimals, no trailing zeros, and a trailing
+/// point for a whole number only `with_point`.
+pub(crate) fn format_feed(feed: f64, with_point: bool) -> String {
     let mut s = format!("{feed:.4}");
     while s.ends_with('0') {
         s.pop();

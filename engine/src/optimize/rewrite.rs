@@ -74,6 +74,27 @@ fn round_down(x: f64, step: Option<f64>, per_min: bool) -> f64 {
     }
 }
 
+/// Per block, in source order: mm per program unit (G20/G21) and absolute distance mode
+/// (G90/G91), as they stand after the block.
+fn units_and_distance_mode(blocks: &[crate::nc::Block]) -> (Vec<f64>, Vec<bool>) {
+    let (mut unit, mut absolute) = (1.0, true);
+    blocks
+        .iter()
+        .map(|b| {
+            for w in &b.words {
+                match (w.letter, number(&w.value)) {
+                    ('G', Some(20.0)) => unit = 25.4,
+                    ('G', Some(21.0)) => unit = 1.0,
+                    ('G', Some(90.0)) => absolute = true,
+                    ('G', Some(91.0)) => absolute = false,
+                    _ => {}
+                }
+            }
+            (unit, absolute)
+        })
+        .unzip()
+}
+
 fn same(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12)
 }
@@ -87,17 +108,13 @@ pub fn rewrite_program(
 ) -> Result<Rewrite, Diagnostics> {
     let blocks = program.blocks();
     let nb = blocks.len();
-    // Unit factor (mm per program unit) per block, in source order.
-    let mut factor = vec![1.0; nb];
-    let mut f = 1.0;
+    let (factor, _) = units_and_distance_mode(blocks);
     let mut has_f = vec![false; nb];
     let mut f_literal = vec![None; nb];
     let mut jump = vec![false; nb];
     for (i, b) in blocks.iter().enumerate() {
         for w in &b.words {
             match (w.letter, number(&w.value)) {
-                ('G', Some(20.0)) => f = 25.4,
-                ('G', Some(21.0)) => f = 1.0,
                 ('M', Some(v)) if v == 98.0 || v == 99.0 => jump[i] = true,
                 ('F', v) if !w.comma => {
                     has_f[i] = true;
@@ -109,7 +126,6 @@ pub fn rewrite_program(
         if b.o_word.is_some() {
             jump[i] = true;
         }
-        factor[i] = f;
     }
     let in_units = |m: &Move, native: f64| match m.feed_mode {
         FeedMode::InverseTime => native,
@@ -356,24 +372,8 @@ pub fn write_splits(
 ) -> Result<(String, Vec<WrittenSplit>, Vec<SkippedSplit>), Diagnostics> {
     let program = Program::parse(rewritten)?;
     let blocks = program.blocks();
-    // Units and distance mode by source position, as the rewrite follows them.
     let nb = blocks.len();
-    let mut factor = vec![1.0; nb];
-    let mut absolute = vec![true; nb];
-    let (mut f, mut abs) = (1.0, true);
-    for (i, b) in blocks.iter().enumerate() {
-        for w in &b.words {
-            match (w.letter, number(&w.value)) {
-                ('G', Some(20.0)) => f = 25.4,
-                ('G', Some(21.0)) => f = 1.0,
-                ('G', Some(90.0)) => abs = true,
-                ('G', Some(91.0)) => abs = false,
-                _ => {}
-            }
-        }
-        factor[i] = f;
-        absolute[i] = abs;
-    }
+    let (factor, absolute) = units_and_distance_mode(blocks);
     let mut executions = vec![0usize; nb];
     for m in moves {
         if m.block < nb {
@@ -494,7 +494,7 @@ pub fn write_splits(
                 }
             }
             let f_written = written_feed(feed);
-            line.push_str(&format!(" F{}", trim_number(f_written)));
+            line.push_str(&format!(" F{}", crate::nc::format_feed(f_written, false)));
             line.push_str(nl);
             lines.push(line);
             ends.push(machine_end);
@@ -564,13 +564,6 @@ fn line_ending(program: &Program, block: usize) -> &'static str {
     } else {
         "\n"
     }
-}
-
-/// A feed as the rewrite writes it: up to 4 decimals, no trailing zeros.
-fn trim_number(v: f64) -> String {
-    let s = format!("{v:.4}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    s.to_string()
 }
 
 /// Checks the split program's moves against the un-split rewrite's: every move the same (kind,
