@@ -362,6 +362,18 @@ impl Tool {
                 format!("must be in [0, 80) degrees, got {}", self.helix_deg),
             ));
         }
+        // Numbers a shape ignores must still be numbers a tool could have.
+        for (field, v) in [
+            ("corner_radius_mm", self.corner_radius),
+            ("tip_diameter_mm", self.tip_diameter),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(field, format!("must be 0 or more, got {v}")));
+            }
+        }
+        if !self.taper_half_angle_deg.is_finite() {
+            return Err(bad("taper_half_angle_deg", "must be a number"));
+        }
         match self.shape {
             ToolShape::BullNose => {
                 finite_pos("corner_radius_mm", self.corner_radius)?;
@@ -522,5 +534,12 @@ mod tests {
         t.corner_radius = f64::NAN;
         assert_eq!(t.validate().unwrap_err().field, "corner_radius_mm");
         assert!(Tool::ball(6.0, 2).validate().is_ok());
+        // Numbers the shape ignores are still checked.
+        let mut t = Tool::flat(6.0, 2);
+        t.corner_radius = -1.0;
+        assert_eq!(t.validate().unwrap_err().field, "corner_radius_mm");
+        t.corner_radius = 0.0;
+        t.tip_diameter = f64::NAN;
+        assert_eq!(t.validate().unwrap_err().field, "tip_diameter_mm");
     }
 }
