@@ -71,17 +71,55 @@ fn file_input(path: &Path, media_type: &str) -> Result<LoadedInput, String> {
     })
 }
 
-/// Prints progress to stderr every 10%.
-struct StderrProgress(AtomicU64);
+/// Progress on stderr: a bar redrawn in place on a terminal (each whole percent), a line
+/// every 10% otherwise (logs, CI).
+struct StderrProgress {
+    /// Last step shown, plus one (0: nothing shown yet).
+    shown: AtomicU64,
+    terminal: bool,
+}
+
+impl StderrProgress {
+    fn new() -> Self {
+        use std::io::IsTerminal;
+        StderrProgress {
+            shown: AtomicU64::new(0),
+            terminal: std::io::stderr().is_terminal(),
+        }
+    }
+
+    /// Ends the bar's line.
+    fn finish(&self) {
+        if self.terminal && self.shown.load(Ordering::Relaxed) > 0 {
+            eprintln!();
+        }
+    }
+}
 
 impl Progress for StderrProgress {
     fn report(&self, done: u64, total: u64) {
         if total == 0 {
             return;
         }
-        let decile = done * 10 / total;
-        if self.0.fetch_max(decile + 1, Ordering::Relaxed) < decile + 1 {
-            eprintln!("millsim run: {}% ({done}/{total} moves)", decile * 10);
+        let done = done.min(total);
+        let (step, steps) = if self.terminal {
+            (done * 100 / total, 100)
+        } else {
+            (done * 10 / total, 10)
+        };
+        if self.shown.fetch_max(step + 1, Ordering::Relaxed) >= step + 1 {
+            return;
+        }
+        let percent = step * 100 / steps;
+        if self.terminal {
+            let filled = (percent / 4) as usize;
+            eprint!(
+                "\rmillsim run: [{}{}] {percent:3}% ({done}/{total} moves)",
+                "#".repeat(filled),
+                " ".repeat(25 - filled)
+            );
+        } else {
+            eprintln!("millsim run: {percent}% ({done}/{total} moves)");
         }
     }
 }
@@ -232,14 +270,10 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         .map_err(|(f, m)| format!("{f}: {m}"))?;
 
     let started = std::time::Instant::now();
-    let out = runner::run(
-        kind,
-        &options,
-        inputs,
-        &CancelFlag::new(),
-        &StderrProgress(AtomicU64::new(0)),
-    )
-    .map_err(|f| match f {
+    let progress = StderrProgress::new();
+    let result = runner::run(kind, &options, inputs, &CancelFlag::new(), &progress);
+    progress.finish();
+    let out = result.map_err(|f| match f {
         JobFailure::Invalid(problem) => problem["detail"]
             .as_str()
             .map(str::to_string)
