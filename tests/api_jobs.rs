@@ -487,13 +487,18 @@ async fn stability_job_serves_lobes_as_rows_and_csv() {
     );
 }
 
+/// A 4-axis machine with a B table, pivot at the origin.
+fn b_table_machine() -> serde_json::Value {
+    json!({"name": "B table", "kinematics": "xyz_b", "rapid_rate": 20000.0, "max_feed": 10000.0,
+        "acceleration": [1000.0, 1000.0, 1000.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0})
+}
+
 #[tokio::test]
 async fn rotary_feed_job_corrects_f_so_the_tool_tip_moves_at_the_programmed_feed() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let machine = json!({"name": "B table", "kinematics": "xyz_b", "rapid_rate": 20000.0, "max_feed": 10000.0,
-        "acceleration": [1000.0, 1000.0, 1000.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0});
+    let machine = b_table_machine();
     let (st, m) = post_json(&c, &s, "/v1/machines", &machine).await;
     assert_eq!(st, 201, "{m}");
     // The tip sits 50 mm from the B axis and turns 90° at F500: it travels π/2·50 mm, so the
@@ -555,9 +560,8 @@ async fn rotary_feed_job_posts_a_cls_file_to_one_program_per_operation() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let machine = json!({"name": "B table", "kinematics": "xyz_b", "rapid_rate": 20000.0, "max_feed": 10000.0,
-        "acceleration": [1000.0, 1000.0, 1000.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0,
-        "max_rotary_speed_deg_min": 20000.0});
+    let mut machine = b_table_machine();
+    machine["max_rotary_speed_deg_min"] = json!(20000.0);
     let (st, m) = post_json(&c, &s, "/v1/machines", &machine).await;
     assert_eq!(st, 201, "{m}");
     // Two operations, the tool axis leaning ±30° in XZ (B = ∓30° on this table).

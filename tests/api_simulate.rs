@@ -38,7 +38,6 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
     let id = |v: serde_json::Value| v["id"].as_str().unwrap().to_string();
-    let post_json = |path: &str, body: serde_json::Value| c.post(s.url(path)).json(&body).send();
     let (stock, tool) = slot_stock_and_tool(&c, &s).await;
     let program = "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n";
     let (st, prog) = json(
@@ -68,7 +67,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     assert_eq!(st, 201, "{part}");
     let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": stock, "tool": tool, "part": id(part)},
                       "options": {"material": "Al7075-T6", "cell_mm": 0.25}});
-    let (st, job) = json(post_json("/v1/jobs", body).await.unwrap()).await;
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");
     let job_id = id(job);
     let done = wait_job(&c, &s, &job_id, Duration::from_secs(120)).await;
@@ -163,7 +162,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
 
     // Options are checked at submission, naming the option.
     let bad = json!({"kind": "simulate", "inputs": {"program": {"content": "G0 X1\n"}, "stock": "x", "tool": "y"}, "options": {"material": "Unobtainium"}});
-    let (st, p) = json(post_json("/v1/jobs", bad).await.unwrap()).await;
+    let (st, p) = post_json(&c, &s, "/v1/jobs", &bad).await;
     assert_eq!(
         (st, p["field"].as_str()),
         (422, Some("inputs.stock")),
