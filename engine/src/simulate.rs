@@ -18,7 +18,9 @@ use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length, CycleTi
 use crate::machine::{Kinematics, Machine, MachineKinematics, Pose};
 use crate::nc::{self, FeedMode, Move, MoveKind};
 use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
-use crate::physics::{CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, Material};
+use crate::physics::{
+    CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, Material, ToolEdgeTable,
+};
 use crate::tool::Tool;
 
 /// Forces at every step that removes material, each at its own feed (mm/min, one per step),
@@ -789,23 +791,35 @@ pub fn simulate(
     let mut steps: Vec<(usize, u32, geometry::StepGeometry)> = Vec::new();
     let mut done = 0u64;
     let mut models: BTreeMap<u32, ForceModel> = BTreeMap::new();
+    // The volume is measured once before and once after, not after every chunk.
+    let sim_options = SimOptions {
+        measure_stock_volume: false,
+        ..SimOptions::default()
+    };
     for (tool_number, segs) in &runs {
         let tool = tool_for(&moves[segs[0].0])?;
         if !models.contains_key(tool_number) {
             models.insert(
                 *tool_number,
-                ForceModel::new(tool, 50, spec.force_positions)?.keep_samples(false),
+                // Table slices on the grid the engagement slices come on (one cell high),
+                // so each lookup is free instead of computing the slice's integrals.
+                ForceModel::from_table(
+                    ToolEdgeTable::with_slice_height(tool, cell)?,
+                    spec.force_positions,
+                )?
+                .keep_samples(false),
             );
         }
         // In chunks, so that progress and cancellation come every few hundred moves
         // (the removal keeps no state from one segment to the next).
         for chunk in segs.chunks(PROGRESS_CHUNK) {
             let only: Vec<Segment> = chunk.iter().map(|(_, s, _)| s.clone()).collect();
-            let report = simulate_removal(&mut stock, tool, &only, &SimOptions::default(), cancel)
-                .map_err(|e| match e {
+            let report = simulate_removal(&mut stock, tool, &only, &sim_options, cancel).map_err(
+                |e| match e {
                     geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
                     other => SimulateError::Geometry(other),
-                })?;
+                },
+            )?;
             rays_tested += report.rays_tested;
             for ((move_index, _, along), b) in chunk.iter().zip(report.blocks) {
                 let row = &mut rows[*move_index];

@@ -246,6 +246,12 @@ impl Segment {
 }
 
 impl Prepared {
+    /// A straight line with a fixed axis: the sweeps of consecutive pieces of it make the
+    /// sweep of their union.
+    pub fn is_straight(&self) -> bool {
+        self.arc.is_none() && self.axis_angle < 1e-12
+    }
+
     pub fn point(&self, u: f64) -> [f64; 3] {
         match &self.arc {
             None => add(self.from, scale(sub(self.to, self.from), u)),

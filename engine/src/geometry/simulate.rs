@@ -36,6 +36,9 @@ pub struct SimOptions {
     pub max_step_factor: f64,
     /// Optional fixture, placed in the part frame, checked against the whole tool.
     pub fixture: Option<Arc<Stock>>,
+    /// Measure the stock volume after the pass (a read of the whole grid); off, the
+    /// report's `stock_volume` is NaN (for callers that run a program in many pieces).
+    pub measure_stock_volume: bool,
 }
 
 impl Default for SimOptions {
@@ -48,6 +51,7 @@ impl Default for SimOptions {
             max_uniform_steps: 64,
             max_step_factor: 16.0,
             fixture: None,
+            measure_stock_volume: true,
         }
     }
 }
@@ -106,7 +110,7 @@ pub struct BlockGeometry {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SimulationReport {
     pub blocks: Vec<BlockGeometry>,
-    /// Stock volume after the program, mm³.
+    /// Stock volume after the program, mm³ (NaN unless `SimOptions::measure_stock_volume`).
     pub stock_volume: f64,
     pub rays_tested: u64,
     pub rays_intersected: u64,
@@ -116,31 +120,65 @@ pub struct SimulationReport {
 /// Removal volume below which a rapid is not reported (float noise), mm³.
 const RAPID_VOLUME_EPS: f64 = 1e-6;
 
-/// Steps whose X and Y removal may wait for one batch.
-const MAX_DEFERRED_STEPS: usize = 32;
+/// Sweeps whose X and Y removal may wait for one batch.
+const MAX_DEFERRED_MOVES: usize = 32;
 
 /// Removal from the X and Y families deferred over several steps. Checks and engagement
-/// read only the Z family, so the X and Y rays can take a batch of steps in one visit
-/// each (one read of each ray from memory instead of one per step), meeting the steps'
-/// sweeps in order: the same result and the same per-step statistics as step by step.
+/// read only the Z family, so the X and Y rays can take a batch of sweeps in one visit
+/// each (one read of each ray from memory instead of one per step), meeting the sweeps in
+/// order. The steps of a straight move are one sweep there: the union of the sweeps of
+/// consecutive pieces of a line is the sweep of the whole line, so each X and Y ray meets
+/// the move once instead of once per step, with the same material left.
 #[derive(Default)]
 struct DeferredXY {
     moves: Vec<SubMove>,
-    /// Index into `steps` of each sub-move.
-    groups: Vec<usize>,
-    /// (block, step) of each deferred step.
-    steps: Vec<(usize, usize)>,
+    /// (block, first step, end step, may grow, first index in `weights`) of each sub-move.
+    spans: Vec<(usize, usize, usize, bool, usize)>,
+    /// Per step of each span: its share weight (length of a step that meets material).
+    weights: Vec<f64>,
 }
 
 impl DeferredXY {
-    fn push(&mut self, block: usize, step: usize, moves: &[SubMove]) {
-        self.moves.extend_from_slice(moves);
-        self.groups
-            .extend(std::iter::repeat_n(self.steps.len(), moves.len()));
-        self.steps.push((block, step));
+    /// Defers step `step` of block `block`, of `length` mm, in air or not; `straight`: its
+    /// sweep continues the block's line.
+    fn push(
+        &mut self,
+        (block, step): (usize, usize),
+        moves: &[SubMove],
+        straight: bool,
+        length: f64,
+        air: bool,
+    ) {
+        let weight = if air { 0.0 } else { length };
+        if let ([mv], Some(last), Some(span)) =
+            (moves, self.moves.last_mut(), self.spans.last_mut())
+        {
+            if straight && span.3 && span.0 == block && span.2 == step && last.p1 == mv.p0 {
+                last.p1 = mv.p1;
+                span.2 = step + 1;
+                self.weights.push(weight);
+                return;
+            }
+        }
+        for mv in moves {
+            self.moves.push(*mv);
+            self.spans.push((
+                block,
+                step,
+                step + 1,
+                straight && moves.len() == 1,
+                self.weights.len(),
+            ));
+            self.weights.push(weight);
+        }
     }
 
-    /// Removes the deferred steps from X and Y and adds their statistics to the steps'.
+    /// Removes the deferred sweeps from X and Y and adds their statistics to the steps'.
+    /// A sweep spanning several steps shares its removed lengths among them: 99% by
+    /// what each step removed from Z, 1% by length among the steps that meet material, so
+    /// that no engaged step whose sliver the Z rays missed is left at zero (evenly when no
+    /// step met material). The block's totals are exact, the split between its steps an
+    /// estimate.
     fn flush(
         &mut self,
         pass: &mut RemovalPass,
@@ -148,23 +186,44 @@ impl DeferredXY {
         body: &ToolBody,
         step_stats: &mut [Vec<RemovalStats>],
     ) {
-        if self.steps.is_empty() {
+        if self.moves.is_empty() {
             return;
         }
-        let per_step = pass.remove(
+        let groups: Vec<usize> = (0..self.moves.len()).collect();
+        let per_move = pass.remove(
             grid,
             body,
             &self.moves,
-            &self.groups,
-            self.steps.len(),
+            &groups,
+            self.moves.len(),
             [true, true, false],
         );
-        for (&(b, k), s) in self.steps.iter().zip(&per_step) {
-            step_stats[b][k].add(s);
+        for (&(b, k0, k1, _, w0), s) in self.spans.iter().zip(&per_move) {
+            let steps = &mut step_stats[b][k0..k1];
+            let lengths = &self.weights[w0..w0 + steps.len()];
+            let engaged: f64 = lengths.iter().sum();
+            let z_total: f64 = steps.iter().map(|st| st.removed_length[2]).sum();
+            let n = steps.len() as f64;
+            for (i, (st, len)) in steps.iter_mut().zip(lengths).enumerate() {
+                let share = match (z_total > 0.0, engaged > 0.0) {
+                    (true, true) => 0.99 * st.removed_length[2] / z_total + 0.01 * len / engaged,
+                    (true, false) => st.removed_length[2] / z_total,
+                    (false, true) => len / engaged,
+                    (false, false) => 1.0 / n,
+                };
+                st.removed_length[0] += s.removed_length[0] * share;
+                st.removed_length[1] += s.removed_length[1] * share;
+                // Ray counts only add up per block: the first step takes them.
+                if i == 0 {
+                    st.rays_tested += s.rays_tested;
+                    st.rays_intersected += s.rays_intersected;
+                    st.rays_changed += s.rays_changed;
+                }
+            }
         }
         self.moves.clear();
-        self.groups.clear();
-        self.steps.clear();
+        self.spans.clear();
+        self.weights.clear();
     }
 }
 
@@ -380,15 +439,21 @@ fn simulate_inner(
             let groups = vec![0; sub_moves.len()];
             let step_now = pass.remove(&mut stock.grid, &body, &sub_moves, &groups, 1, now)[0];
             step_stats[bi].push(step_now);
-            if engage {
-                deferred.push(bi, block.steps.len(), &sub_moves);
-            }
             let this_len = (u - u_prev) * len;
             let air = if engage {
                 engagement.is_air()
             } else {
                 step_now.volume(h) <= 0.0
             };
+            if engage {
+                deferred.push(
+                    (bi, block.steps.len()),
+                    &sub_moves,
+                    prep.is_straight(),
+                    this_len,
+                    air,
+                );
+            }
             if air {
                 air_len += this_len;
             }
@@ -454,10 +519,10 @@ fn simulate_inner(
             (air_len / len).clamp(0.0, 1.0)
         };
         blocks.push(block);
-        if deferred.steps.len() >= MAX_DEFERRED_STEPS {
+        if deferred.moves.len() >= MAX_DEFERRED_MOVES {
             deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
         }
-        if deferred.steps.is_empty() {
+        if deferred.moves.is_empty() {
             for b in finished..blocks.len() {
                 let seg = &segments[blocks[b].segment];
                 finish_block(&mut blocks[b], seg, &std::mem::take(&mut step_stats[b]), h);
@@ -478,7 +543,11 @@ fn simulate_inner(
     );
     Ok(SimulationReport {
         blocks,
-        stock_volume: stock.volume(),
+        stock_volume: if opts.measure_stock_volume {
+            stock.volume()
+        } else {
+            f64::NAN
+        },
         rays_tested,
         rays_intersected,
         rays_changed,

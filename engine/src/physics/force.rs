@@ -591,6 +591,12 @@ impl Pass {
     /// Force at immersion φ (rad), zero where the tooth does not cut.
     fn force_at(&self, steps: &[f64], phi: f64) -> [f64; 4] {
         let (s, c) = phi.sin_cos();
+        self.force_at_sin_cos(steps, s, c)
+    }
+
+    /// As `force_at`, given sin φ and cos φ.
+    #[inline]
+    fn force_at_sin_cos(&self, steps: &[f64], s: f64, c: f64) -> [f64; 4] {
         let (h, x, v) = self.chip(steps, s);
         if h >= -CHIP_EPS {
             self.force(x, v, s, c)
@@ -681,19 +687,32 @@ fn run_segment(
     }
 }
 
-/// Largest sin φ over the samples φ = φ0 + i·Δ, i < count: at the sample nearest a crest
-/// φ ≡ π/2 inside the run, else at an end (sin is unimodal between troughs). The chip grows
-/// with sin φ (with runout too), so this gives the largest chip without a reduction in the
-/// inner loop.
-fn max_sin(phi0: f64, delta: f64, count: usize) -> f64 {
-    let phi1 = phi0 + (count - 1) as f64 * delta;
-    let mut best = phi0.sin().max(phi1.sin());
+/// (sin φ, cos φ) at sample position `k` for a tooth at α (φ = k·Δ − α), from the tables
+/// of the positions' sin and cos and (sin α, cos α): the rotation `run_segment` uses,
+/// without a call to sin or cos.
+#[inline]
+fn sample_sin_cos(st: &[f64], ct: &[f64], k: i64, sa: f64, ca: f64) -> (f64, f64) {
+    let i = k.rem_euclid(st.len() as i64) as usize;
+    (st[i] * ca - ct[i] * sa, ct[i] * ca + st[i] * sa)
+}
+
+/// Largest sin φ over the samples k = k0..k0+count (φ = k·Δ − α): at the sample nearest a
+/// crest φ ≡ π/2 inside the run, else at an end (sin is unimodal between troughs). The chip
+/// grows with sin φ (with runout too), so this gives the largest chip without a reduction in
+/// the inner loop.
+fn max_sin(st: &[f64], ct: &[f64], k0: i64, count: usize, sa: f64, ca: f64, alpha: f64) -> f64 {
+    let delta = TAU / st.len() as f64;
+    let sin_at = |j: i64| sample_sin_cos(st, ct, k0 + j, sa, ca).0;
+    let last = count as i64 - 1;
+    let mut best = sin_at(0).max(sin_at(last));
+    let phi0 = k0 as f64 * delta - alpha;
+    let phi1 = phi0 + last as f64 * delta;
     let crest = FRAC_PI_2 + TAU * ((phi0 - FRAC_PI_2) / TAU).ceil();
     if crest <= phi1 {
-        let i = ((crest - phi0) / delta).floor();
-        for j in [i, i + 1.0] {
-            if j >= 0.0 && j <= (count - 1) as f64 {
-                best = best.max((phi0 + j * delta).sin());
+        let i = ((crest - phi0) / delta).floor() as i64;
+        for j in [i, i + 1] {
+            if (0..=last).contains(&j) {
+                best = best.max(sin_at(j));
             }
         }
     }
@@ -877,7 +896,16 @@ impl ForceModel {
                                 &mut self.scratch,
                             );
                         }
-                        let (h, _, _) = p.chip(steps, max_sin(k_lo * delta - alpha, delta, count));
+                        let top = max_sin(
+                            &self.sin_t,
+                            &self.cos_t,
+                            k_lo as i64,
+                            count,
+                            p.sa,
+                            p.ca,
+                            alpha,
+                        );
+                        let (h, _, _) = p.chip(steps, top);
                         self.tooth_hmax[j] = self.tooth_hmax[j].max(h);
                     }
                     // Bins k cover [k − ½, k + ½]; the two the arc's ends fall in are partly covered.
@@ -894,7 +922,9 @@ impl ForceModel {
                             continue;
                         }
                         if kb >= k_lo && kb <= k_hi {
-                            let f = p.force_at(steps, kb * delta - alpha);
+                            let (sk, ck) =
+                                sample_sin_cos(&self.sin_t, &self.cos_t, kb as i64, p.sa, p.ca);
+                            let f = p.force_at_sin_cos(steps, sk, ck);
                             for c in 0..4 {
                                 corr[c] -= f[c];
                             }
