@@ -10,9 +10,7 @@ use std::collections::BTreeMap;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::{
-    self, simulate_removal, GridOptions, Segment, SimOptions, Stock, StockShape,
-};
+use crate::geometry::{self, GridOptions, Segment, SimOptions, Stock, StockShape};
 use crate::job::{CancelFlag, Progress};
 use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length, CycleTimeError};
 use crate::machine::{Kinematics, Machine, MachineKinematics, Pose};
@@ -810,54 +808,62 @@ pub fn simulate(
                 .keep_samples(false),
             );
         }
-        // In chunks, so that progress and cancellation come every few hundred moves
-        // (the removal keeps no state from one segment to the next).
-        for chunk in segs.chunks(PROGRESS_CHUNK) {
-            let only: Vec<Segment> = chunk.iter().map(|(_, s, _)| s.clone()).collect();
-            let report = simulate_removal(&mut stock, tool, &only, &sim_options, cancel).map_err(
-                |e| match e {
-                    geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
-                    other => SimulateError::Geometry(other),
-                },
-            )?;
-            rays_tested += report.rays_tested;
-            for ((move_index, _, along), b) in chunk.iter().zip(report.blocks) {
-                let row = &mut rows[*move_index];
-                swept[*move_index] = true;
-                row.removed_volume += b.removed_volume;
-                row.max_axial_depth = row.max_axial_depth.max(b.max_axial_depth);
-                row.max_radial_width = row.max_radial_width.max(b.max_radial_width);
-                // The first piece of the move that engages gives the angles.
-                if row.entry_angle_deg.is_none() && row.exit_angle_deg.is_none() {
-                    row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
-                    row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
-                }
-                // A step that removes nothing is air, even where the edge grazes a wall that
-                // an earlier move cut to exactly the tool's radius.
-                let lengths = &mut step_lengths[*move_index];
-                for s in &b.steps {
-                    if !s.air && s.removed_volume > 0.0 {
-                        lengths.0 += s.length;
-                    }
-                    lengths.1 += s.length;
-                }
-                row.rapid_in_material |= b.checks.rapid_in_material;
-                row.flute_length_exceeded |= b.checks.flute_length_exceeded;
-                row.shank_contact |= b.checks.shank_contact;
-                row.holder_contact |= b.checks.holder_contact;
-                row.steps += b.steps.len();
-                row.max_mrr = row.max_mrr.max(b.max_mrr / 60.0);
-                steps.extend(b.steps.into_iter().map(|mut s| {
-                    s.distance += along;
-                    (*move_index, *tool_number, s)
-                }));
+        // One pass per tool run (the X/Y removal thread and the ray summaries are set up
+        // once); progress every few hundred segments, the last tenth being the forces.
+        let only: Vec<Segment> = segs.iter().map(|(_, s, _)| s.clone()).collect();
+        let base = done;
+        let mut on_segment = |k: usize| {
+            if k % PROGRESS_CHUNK == 0 || k == only.len() {
+                progress.report(
+                    (base + k as u64) * 9 * total / (10 * segments_total as u64).max(1),
+                    total,
+                );
             }
-            // The last tenth of the progress is the force evaluation.
-            done += chunk.len() as u64;
-            progress.report(
-                done * 9 * total / (10 * segments_total as u64).max(1),
-                total,
-            );
+        };
+        let report = geometry::simulate_removal_with_progress(
+            &mut stock,
+            tool,
+            &only,
+            &sim_options,
+            cancel,
+            &mut on_segment,
+        )
+        .map_err(|e| match e {
+            geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
+            other => SimulateError::Geometry(other),
+        })?;
+        done += only.len() as u64;
+        rays_tested += report.rays_tested;
+        for ((move_index, _, along), b) in segs.iter().zip(report.blocks) {
+            let row = &mut rows[*move_index];
+            swept[*move_index] = true;
+            row.removed_volume += b.removed_volume;
+            row.max_axial_depth = row.max_axial_depth.max(b.max_axial_depth);
+            row.max_radial_width = row.max_radial_width.max(b.max_radial_width);
+            // The first piece of the move that engages gives the angles.
+            if row.entry_angle_deg.is_none() && row.exit_angle_deg.is_none() {
+                row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
+                row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
+            }
+            // A step that removes nothing is air, even where the edge grazes a wall that
+            // an earlier move cut to exactly the tool's radius.
+            let lengths = &mut step_lengths[*move_index];
+            for s in &b.steps {
+                if !s.air && s.removed_volume > 0.0 {
+                    lengths.0 += s.length;
+                }
+                lengths.1 += s.length;
+            }
+            row.rapid_in_material |= b.checks.rapid_in_material;
+            row.flute_length_exceeded |= b.checks.flute_length_exceeded;
+            row.shank_contact |= b.checks.shank_contact;
+            row.holder_contact |= b.checks.holder_contact;
+            row.steps += b.steps.len();
+            row.max_mrr = row.max_mrr.max(b.max_mrr / 60.0);
+            steps.extend(b.steps.into_iter().map(|mut s| {
+                s.distance += along;
+                (*move_index, *tool_number, s)
+            }));
         }
     }
     for (i, row) in rows.iter_mut().enumerate() {

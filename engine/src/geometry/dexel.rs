@@ -231,6 +231,33 @@ impl DexelGrid {
             .fold(f64::NEG_INFINITY, f64::max)
     }
 
+    /// Moves the X and Y families out into a grid of their own (same placement, empty Z),
+    /// leaving this one with empty X and Y families until [`restore_xy`](Self::restore_xy).
+    pub fn split_off_xy(&mut self) -> DexelGrid {
+        let empty = |f: &Family| Family {
+            axis: f.axis,
+            nu: f.nu,
+            nv: f.nv,
+            rays: Vec::new(),
+        };
+        let [ex, ey, ez] = [0, 1, 2].map(|a| empty(&self.families[a]));
+        let x = std::mem::replace(&mut self.families[0], ex);
+        let y = std::mem::replace(&mut self.families[1], ey);
+        DexelGrid {
+            origin: self.origin,
+            cell: self.cell,
+            n: self.n,
+            families: [x, y, ez],
+        }
+    }
+
+    /// Puts back the X and Y families of a grid from [`split_off_xy`](Self::split_off_xy).
+    pub fn restore_xy(&mut self, xy: DexelGrid) {
+        let [x, y, _] = xy.families;
+        self.families[0] = x;
+        self.families[1] = y;
+    }
+
     /// Total number of rays.
     pub fn ray_count(&self) -> u64 {
         self.families.iter().map(|f| f.rays.len() as u64).sum()

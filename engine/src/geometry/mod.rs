@@ -50,7 +50,10 @@ pub use dexel::{default_cell, DexelGrid, GridEstimate, GridOptions, DEFAULT_MEMO
 pub use engagement::{EngagementOptions, StepMetrics};
 pub use export::{export_stl, ExportStats};
 pub use path::{PathShape, Segment};
-pub use simulate::{simulate_removal, BlockGeometry, SimOptions, SimulationReport, StepGeometry};
+pub use simulate::{
+    simulate_removal, simulate_removal_with_progress, BlockGeometry, SimOptions, SimulationReport,
+    StepGeometry,
+};
 pub use stl::{Mesh, StlError};
 pub use stock::{Stock, StockShape};
 pub use sweep::{remove_sweep, RemovalStats, SubMove, ToolBody};

@@ -189,16 +189,25 @@ impl DeferredXY {
         if self.moves.is_empty() {
             return;
         }
-        let groups: Vec<usize> = (0..self.moves.len()).collect();
-        let per_move = pass.remove(
-            grid,
-            body,
-            &self.moves,
-            &groups,
-            self.moves.len(),
-            [true, true, false],
-        );
-        for (&(b, k0, k1, _, w0), s) in self.spans.iter().zip(&per_move) {
+        let per_move = remove_xy(pass, grid, body, &self.moves);
+        self.apply(&per_move, step_stats);
+        self.clear();
+    }
+
+    /// Hands the deferred sweeps over as a batch (to the X/Y thread).
+    fn take(&mut self) -> DeferredXY {
+        std::mem::take(self)
+    }
+
+    fn clear(&mut self) {
+        self.moves.clear();
+        self.spans.clear();
+        self.weights.clear();
+    }
+
+    /// Adds the X and Y statistics of the sweeps (`per_move`, in order) to their steps'.
+    fn apply(&self, per_move: &[RemovalStats], step_stats: &mut [Vec<RemovalStats>]) {
+        for (&(b, k0, k1, _, w0), s) in self.spans.iter().zip(per_move) {
             let steps = &mut step_stats[b][k0..k1];
             let lengths = &self.weights[w0..w0 + steps.len()];
             let engaged: f64 = lengths.iter().sum();
@@ -221,78 +230,81 @@ impl DeferredXY {
                 }
             }
         }
-        self.moves.clear();
-        self.spans.clear();
-        self.weights.clear();
     }
 }
 
-/// Fills in a block's removal figures once all its steps are removed from all families.
-fn finish_block(block: &mut BlockGeometry, seg: &Segment, step_stats: &[RemovalStats], h: f64) {
-    let mut stats = RemovalStats::default();
-    for (step, st) in block.steps.iter_mut().zip(step_stats) {
-        stats.add(st);
-        step.removed_volume = st.volume(h);
-        step.mrr = if step.length > 0.0 && seg.feed > 0.0 {
-            step.removed_volume * seg.feed / step.length
-        } else {
-            0.0
-        };
-        block.max_mrr = block.max_mrr.max(step.mrr);
-    }
-    block.removed_volume = stats.volume(h);
-    block.rays_tested = stats.rays_tested;
-    block.rays_intersected = stats.rays_intersected;
-    block.rays_changed = stats.rays_changed;
-    block.mean_mrr = if block.length > 0.0 && seg.feed > 0.0 {
-        block.removed_volume * seg.feed / block.length
-    } else {
-        0.0
-    };
-    if seg.rapid && block.removed_volume > RAPID_VOLUME_EPS {
-        block.checks.rapid_in_material = true;
+/// Removes `moves` from the X and Y families, statistics per sub-move.
+fn remove_xy(
+    pass: &mut RemovalPass,
+    grid: &mut DexelGrid,
+    body: &ToolBody,
+    moves: &[SubMove],
+) -> Vec<RemovalStats> {
+    let groups: Vec<usize> = (0..moves.len()).collect();
+    pass.remove(grid, body, moves, &groups, moves.len(), [true, true, false])
+}
+
+/// Where the X and Y removal runs: inline on this thread, or on the X/Y thread, which
+/// owns those two families meanwhile and takes batches in order.
+enum XyRemoval {
+    Inline,
+    Thread(std::sync::mpsc::SyncSender<DeferredXY>),
+}
+
+impl XyRemoval {
+    fn flush(
+        &self,
+        deferred: &mut DeferredXY,
+        pass: &mut RemovalPass,
+        grid: &mut DexelGrid,
+        body: &ToolBody,
+        step_stats: &mut [Vec<RemovalStats>],
+    ) {
+        match self {
+            XyRemoval::Inline => deferred.flush(pass, grid, body, step_stats),
+            XyRemoval::Thread(tx) => {
+                if !deferred.moves.is_empty() {
+                    // The X/Y thread only stops after this thread drops the sender.
+                    tx.send(deferred.take())
+                        .expect("the X/Y thread outlives the pass");
+                }
+            }
+        }
     }
 }
 
-/// Simulates the segments on `stock` with `tool`: removes material, and reports per segment
-/// the removed volume, the engagement per step, and the collision checks.
-pub fn simulate_removal(
-    stock: &mut Stock,
+/// Blocks walked so far and their steps' removal statistics.
+struct Pass {
+    blocks: Vec<BlockGeometry>,
+    step_stats: Vec<Vec<RemovalStats>>,
+}
+
+/// Walks the segments: checks, engagement and Z removal per step; X and Y removal through
+/// `xy` (all of it done when this returns, error or not).
+#[allow(clippy::too_many_arguments)]
+fn run_segments(
+    grid: &mut DexelGrid,
     tool: &Tool,
+    body: &ToolBody,
     segments: &[Segment],
     opts: &SimOptions,
     cancel: &CancelFlag,
-) -> Result<SimulationReport, GeometryError> {
-    // Run the whole pass on a worker of the current rayon pool: parallel sections started
-    // from a worker are cheap forks, while from an outside thread each one is a hand-off
-    // to the pool and back (futex wake-ups, thousands of them per program).
-    rayon::scope(|_| simulate_inner(stock, tool, segments, opts, cancel))
-}
-
-fn simulate_inner(
-    stock: &mut Stock,
-    tool: &Tool,
-    segments: &[Segment],
-    opts: &SimOptions,
-    cancel: &CancelFlag,
-) -> Result<SimulationReport, GeometryError> {
-    tool.validate()?;
-    let body = ToolBody::cutting_part(tool);
+    on_segment: &mut (dyn FnMut(usize) + Send),
+    (pass, xy): (&mut RemovalPass, &XyRemoval),
+    out: &mut Pass,
+) -> Result<(), GeometryError> {
     let checks = ToolChecks::new(tool);
-    let h = stock.grid.cell;
+    let h = grid.cell;
     let arc_tol = opts.arc_tolerance.unwrap_or(h / 20.0).max(1e-6);
     let axis_tol = opts.axis_tolerance.unwrap_or(h / 2.0).max(1e-6);
     let max_axis_step = 2.0 * axis_tol / body.length;
     // Material never rises, so the initial top bounds it for the whole program and lets
     // checks and engagement skip what is above the stock.
-    let top_z = stock.grid.max_z();
-    let mut pass = RemovalPass::new(&stock.grid);
+    let top_z = grid.max_z();
+    let threaded = matches!(xy, XyRemoval::Thread(_));
     let mut deferred = DeferredXY::default();
-    // Removal statistics per block and step, until the block is finished.
-    let mut step_stats: Vec<Vec<RemovalStats>> = Vec::with_capacity(segments.len());
-    let mut finished = 0;
     let mut scratch = Scratch::default();
-    let mut blocks: Vec<BlockGeometry> = Vec::with_capacity(segments.len());
+    let Pass { blocks, step_stats } = out;
     let mut sub_moves = Vec::new();
     for (index, seg) in segments.iter().enumerate() {
         let invalid = |message: String| GeometryError::InvalidSegment {
@@ -324,7 +336,7 @@ fn simulate_inner(
             Ok(prep) => prep,
             Err(e) => {
                 // Leave the stock as the blocks before this one cut it, in all families.
-                deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
+                xy.flush(&mut deferred, pass, grid, body, step_stats);
                 return Err(e);
             }
         };
@@ -392,7 +404,7 @@ fn simulate_inner(
             let axis = prep.axis(u);
             let motion = sub(pos, p_prev);
             check_position(
-                &stock.grid,
+                &*grid,
                 &checks,
                 pos,
                 axis,
@@ -407,14 +419,7 @@ fn simulate_inner(
                     motion,
                     top_z,
                 };
-                compute(
-                    &stock.grid,
-                    tool,
-                    &body,
-                    &input,
-                    &opts.engagement,
-                    &mut scratch,
-                )
+                compute(&*grid, tool, &body, &input, &opts.engagement, &mut scratch)
             } else {
                 (
                     Engagement {
@@ -429,15 +434,17 @@ fn simulate_inner(
             prep.sub_moves(u_prev, u, arc_tol, max_axis_step, &mut sub_moves);
             // With engagement, X and Y wait (see `DeferredXY`); without, a step is air
             // when it removed nothing, which needs all three families now (and the steps
-            // before it removed first, for the same per-step figures).
-            let now = if engage {
+            // before it removed first, for the same per-step figures), unless X and Y are
+            // on their own thread: then Z alone says it.
+            let defer = engage || threaded;
+            let now = if defer {
                 [false, false, true]
             } else {
-                deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
+                xy.flush(&mut deferred, pass, grid, body, step_stats);
                 [true; 3]
             };
             let groups = vec![0; sub_moves.len()];
-            let step_now = pass.remove(&mut stock.grid, &body, &sub_moves, &groups, 1, now)[0];
+            let step_now = pass.remove(grid, body, &sub_moves, &groups, 1, now)[0];
             step_stats[bi].push(step_now);
             let this_len = (u - u_prev) * len;
             let air = if engage {
@@ -445,7 +452,7 @@ fn simulate_inner(
             } else {
                 step_now.volume(h) <= 0.0
             };
-            if engage {
+            if defer {
                 deferred.push(
                     (bi, block.steps.len()),
                     &sub_moves,
@@ -520,20 +527,147 @@ fn simulate_inner(
         };
         blocks.push(block);
         if deferred.moves.len() >= MAX_DEFERRED_MOVES {
-            deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
+            xy.flush(&mut deferred, pass, grid, body, step_stats);
         }
-        if deferred.moves.is_empty() {
-            for b in finished..blocks.len() {
-                let seg = &segments[blocks[b].segment];
-                finish_block(&mut blocks[b], seg, &std::mem::take(&mut step_stats[b]), h);
-            }
-            finished = blocks.len();
-        }
+        on_segment(index + 1);
     }
-    deferred.flush(&mut pass, &mut stock.grid, &body, &mut step_stats);
-    for b in finished..blocks.len() {
-        let seg = &segments[blocks[b].segment];
-        finish_block(&mut blocks[b], seg, &std::mem::take(&mut step_stats[b]), h);
+    xy.flush(&mut deferred, pass, grid, body, step_stats);
+    Ok(())
+}
+
+/// Fills in a block's removal figures once all its steps are removed from all families.
+fn finish_block(block: &mut BlockGeometry, seg: &Segment, step_stats: &[RemovalStats], h: f64) {
+    let mut stats = RemovalStats::default();
+    for (step, st) in block.steps.iter_mut().zip(step_stats) {
+        stats.add(st);
+        step.removed_volume = st.volume(h);
+        step.mrr = if step.length > 0.0 && seg.feed > 0.0 {
+            step.removed_volume * seg.feed / step.length
+        } else {
+            0.0
+        };
+        block.max_mrr = block.max_mrr.max(step.mrr);
+    }
+    block.removed_volume = stats.volume(h);
+    block.rays_tested = stats.rays_tested;
+    block.rays_intersected = stats.rays_intersected;
+    block.rays_changed = stats.rays_changed;
+    block.mean_mrr = if block.length > 0.0 && seg.feed > 0.0 {
+        block.removed_volume * seg.feed / block.length
+    } else {
+        0.0
+    };
+    if seg.rapid && block.removed_volume > RAPID_VOLUME_EPS {
+        block.checks.rapid_in_material = true;
+    }
+}
+
+/// Simulates the segments on `stock` with `tool`: removes material, and reports per segment
+/// the removed volume, the engagement per step, and the collision checks.
+pub fn simulate_removal(
+    stock: &mut Stock,
+    tool: &Tool,
+    segments: &[Segment],
+    opts: &SimOptions,
+    cancel: &CancelFlag,
+) -> Result<SimulationReport, GeometryError> {
+    simulate_removal_with_progress(stock, tool, segments, opts, cancel, &mut |_| {})
+}
+
+/// As [`simulate_removal`], calling `on_segment(done)` after each segment.
+pub fn simulate_removal_with_progress(
+    stock: &mut Stock,
+    tool: &Tool,
+    segments: &[Segment],
+    opts: &SimOptions,
+    cancel: &CancelFlag,
+    on_segment: &mut (dyn FnMut(usize) + Send),
+) -> Result<SimulationReport, GeometryError> {
+    // Run the whole pass on a worker of the current rayon pool: parallel sections started
+    // from a worker are cheap forks, while from an outside thread each one is a hand-off
+    // to the pool and back (futex wake-ups, thousands of them per program).
+    rayon::scope(|_| simulate_inner(stock, tool, segments, opts, cancel, on_segment))
+}
+
+/// Batches of X/Y sweeps that may wait for the X/Y thread.
+const XY_QUEUE: usize = 256;
+
+fn simulate_inner(
+    stock: &mut Stock,
+    tool: &Tool,
+    segments: &[Segment],
+    opts: &SimOptions,
+    cancel: &CancelFlag,
+    on_segment: &mut (dyn FnMut(usize) + Send),
+) -> Result<SimulationReport, GeometryError> {
+    tool.validate()?;
+    let body = ToolBody::cutting_part(tool);
+    let h = stock.grid.cell;
+    let mut pass = RemovalPass::new(&stock.grid);
+    let mut out = Pass {
+        blocks: Vec::with_capacity(segments.len()),
+        step_stats: Vec::with_capacity(segments.len()),
+    };
+    let run = if opts.compute_engagement {
+        // The X and Y families go to a thread of their own meanwhile: checks and engagement
+        // read only Z, so this thread walks the path on Z while that one removes the X/Y
+        // sweeps behind it, in order (the same material either way).
+        let mut xy_pass = pass.split_off_xy();
+        let mut xy_grid = stock.grid.split_off_xy();
+        let body = &body;
+        let (run, (xy_grid, done)) = std::thread::scope(|scope| {
+            let (tx, rx) = std::sync::mpsc::sync_channel::<DeferredXY>(XY_QUEUE);
+            let worker = scope.spawn(move || {
+                let mut done = Vec::new();
+                for batch in rx {
+                    let per_move = remove_xy(&mut xy_pass, &mut xy_grid, body, &batch.moves);
+                    done.push((batch, per_move));
+                }
+                (xy_grid, done)
+            });
+            let xy = XyRemoval::Thread(tx);
+            let run = run_segments(
+                &mut stock.grid,
+                tool,
+                body,
+                segments,
+                opts,
+                cancel,
+                on_segment,
+                (&mut pass, &xy),
+                &mut out,
+            );
+            drop(xy);
+            match worker.join() {
+                Ok(v) => (run, v),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        });
+        stock.grid.restore_xy(xy_grid);
+        for (batch, per_move) in &done {
+            batch.apply(per_move, &mut out.step_stats);
+        }
+        run
+    } else {
+        run_segments(
+            &mut stock.grid,
+            tool,
+            &body,
+            segments,
+            opts,
+            cancel,
+            on_segment,
+            (&mut pass, &XyRemoval::Inline),
+            &mut out,
+        )
+    };
+    run?;
+    let Pass {
+        mut blocks,
+        step_stats,
+    } = out;
+    for (block, stats) in blocks.iter_mut().zip(&step_stats) {
+        finish_block(block, &segments[block.segment], stats, h);
     }
     let total = |f: fn(&BlockGeometry) -> u64| blocks.iter().map(f).sum::<u64>();
     let (rays_tested, rays_intersected, rays_changed) = (

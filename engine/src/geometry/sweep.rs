@@ -1047,6 +1047,8 @@ pub(crate) struct RemovalPass {
     /// Per family: per-row, per-group results, kept between calls (a fresh buffer of
     /// this size each time came from and went back to the OS, page faults and all).
     per_row: [Vec<(f64, u64, u64)>; 3],
+    /// Large sweeps fork onto the rayon pool (off on a thread outside the pool).
+    parallel: bool,
 }
 
 impl RemovalPass {
@@ -1054,6 +1056,21 @@ impl RemovalPass {
         RemovalPass {
             summaries: [0, 1, 2].map(|a| RaySummaries::new(grid, a)),
             per_row: Default::default(),
+            parallel: true,
+        }
+    }
+
+    /// Moves the X and Y summaries out into a pass of their own, which removes on its
+    /// own thread (no forks), for the grid from `DexelGrid::split_off_xy`.
+    pub(crate) fn split_off_xy(&mut self) -> RemovalPass {
+        let take = |s: &mut RaySummaries| RaySummaries {
+            rays: std::mem::take(&mut s.rays),
+        };
+        let [x, y, _] = &mut self.summaries;
+        RemovalPass {
+            summaries: [take(x), take(y), RaySummaries { rays: Vec::new() }],
+            per_row: Default::default(),
+            parallel: false,
         }
     }
 
@@ -1111,14 +1128,14 @@ impl RemovalPass {
             ((hi[k].min(frame.max[k]) - lo[k].max(frame.origin[k])) / frame.cell).max(0.0)
         };
         let estimate = cells(0) * cells(1) + cells(1) * cells(2) + cells(2) * cells(0);
-        let parallel = estimate >= PARALLEL_MIN_RAYS as f64;
+        let parallel = self.parallel && estimate >= PARALLEL_MIN_RAYS as f64;
         // The three families are independent: one task each (plus row parallelism inside
         // large sweeps); their statistics are added in family order.
         let [f0, f1, f2] = &mut grid.families;
         let [m0, m1, m2] = &mut self.summaries;
         let [r0, r1, r2] = &mut self.per_row;
         let run = |on: bool, f: &mut Family, m: &mut RaySummaries, r: &mut Vec<_>| {
-            on.then(|| remove_family(frame, f, m, r, sweeps, n_groups))
+            on.then(|| remove_family(frame, f, m, r, sweeps, n_groups, parallel))
         };
         let (s0, (s1, s2)) = if parallel {
             rayon::join(
@@ -1181,6 +1198,7 @@ fn remove_family(
     per_row: &mut Vec<(f64, u64, u64)>,
     sweeps: &[PlacedSweep],
     n_groups: usize,
+    parallel: bool,
 ) -> Vec<RemovalStats> {
     let mut stats = vec![RemovalStats::default(); n_groups];
     let fam = f.axis;
@@ -1299,7 +1317,7 @@ fn remove_family(
     };
     // Per-row results are summed in row order, so the totals are the same bit for bit
     // on one thread or many.
-    if (u1 - u0) * (v1 - v0) >= PARALLEL_MIN_RAYS {
+    if parallel && (u1 - u0) * (v1 - v0) >= PARALLEL_MIN_RAYS {
         rows.par_chunks_mut(nu)
             .zip(summary_rows.par_chunks_mut(nu))
             .zip(per_row.par_chunks_mut(n_groups))
