@@ -2,6 +2,7 @@
 //! immersion and air) with a 2.65 mm flat end mill in Al7075-T6, plus the rewrite of the
 //! program and the acceleration-aware cycle time of the result.
 
+use std::borrow::Cow;
 use std::f64::consts::PI;
 use std::hint::black_box;
 use std::time::Instant;
@@ -82,9 +83,10 @@ fn setup() -> (String, Vec<Move>, Vec<Segment>) {
                     (base + 0.1 * (rng.next() - 0.5)).clamp(0.02, 1.0)
                 };
                 EngagementStep {
-                    engagement: engagement(2.0, ae),
+                    engagement: Cow::Owned(engagement(2.0, ae)),
                     spindle_rpm: RPM,
                     at: k as f64 * 0.6,
+                    response: None,
                 }
             })
             .collect();

@@ -6,6 +6,7 @@
 //! move end points; with no work offset active the two are the program's own frame.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -17,20 +18,24 @@ use crate::machine::{Kinematics, Machine, MachineKinematics, Pose};
 use crate::nc::{self, FeedMode, Move, MoveKind};
 use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
 use crate::physics::{
-    CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, Material, ToolEdgeTable,
+    CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, Material, PeakResponse,
+    ToolEdgeTable,
 };
 use crate::tool::Tool;
 
 /// Forces at every step that removes material, each at its own feed (mm/min, one per step),
 /// in parallel: each step is independent and results come back in step order, so the
-/// outcome does not depend on the thread count.
+/// outcome does not depend on the thread count. With `feed_range` (mm/min), each step also
+/// gets its peak response over that range of feeds when the tool has no runout (what the
+/// optimizer and the forces at the new feeds then read instead of summing the slices again).
 fn evaluate_forces(
     steps: &[(usize, u32, geometry::StepGeometry)],
     moves: &[Move],
     step_feeds: &[f64],
     models: &BTreeMap<u32, ForceModel>,
     k: &CuttingCoefficients,
-) -> Result<Vec<Option<ForceResult>>, crate::physics::PhysicsError> {
+    feed_range: Option<(f64, f64)>,
+) -> Result<Vec<StepForces>, crate::physics::PhysicsError> {
     steps
         .par_iter()
         .zip(step_feeds)
@@ -40,17 +45,75 @@ fn evaluate_forces(
                 let m = &moves[*mi];
                 let flutes = models[t].table().flutes() as f64;
                 if s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0 {
-                    return Ok(None);
+                    return Ok((None, None));
                 }
                 let conditions = CuttingConditions {
                     spindle_rpm: m.spindle,
                     feed_per_tooth: feed / (m.spindle * flutes),
                 };
-                models
-                    .get_mut(t)
-                    .expect("model per tool")
-                    .evaluate(&s.engagement, k, &conditions)
-                    .map(Some)
+                let model = models.get_mut(t).expect("model per tool");
+                let mut out = ForceResult::default();
+                let response = match feed_range {
+                    Some((lo, hi)) => {
+                        let per_tooth = |v: f64| v / (m.spindle * flutes);
+                        model
+                            .evaluate_with_response(
+                                &s.engagement,
+                                k,
+                                &conditions,
+                                (per_tooth(lo), per_tooth(hi)),
+                                &mut out,
+                            )?
+                            .map(Arc::new)
+                    }
+                    None => {
+                        model.evaluate_into(&s.engagement, k, &conditions, &mut out)?;
+                        None
+                    }
+                };
+                Ok((Some(out), response))
+            },
+        )
+        .collect()
+}
+
+/// A step's forces at its feed (None: no cut), and its peak response when asked for.
+type StepForces = (Option<ForceResult>, Option<Arc<PeakResponse>>);
+
+/// Peak |F| at every step that removes material, each at its own feed (mm/min): from the
+/// step's peak response when the feed lies in its range, else by evaluating the model.
+fn peak_forces(
+    steps: &[(usize, u32, geometry::StepGeometry)],
+    responses: &[Option<Arc<PeakResponse>>],
+    moves: &[Move],
+    step_feeds: &[f64],
+    models: &BTreeMap<u32, ForceModel>,
+    k: &CuttingCoefficients,
+) -> Result<Vec<Option<f64>>, crate::physics::PhysicsError> {
+    steps
+        .par_iter()
+        .zip(responses)
+        .zip(step_feeds)
+        .map_init(
+            || models.clone(),
+            |models, (((mi, t, s), response), &feed)| {
+                let m = &moves[*mi];
+                let flutes = models[t].table().flutes() as f64;
+                if s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0 {
+                    return Ok(None);
+                }
+                let fz = feed / (m.spindle * flutes);
+                if let Some(p) = response.as_ref().and_then(|r| r.at(fz)) {
+                    return Ok(Some(p.force));
+                }
+                let conditions = CuttingConditions {
+                    spindle_rpm: m.spindle,
+                    feed_per_tooth: fz,
+                };
+                let model = models.get_mut(t).expect("model per tool");
+                Ok(Some(
+                    model.evaluate(&s.engagement, k, &conditions)?.force.peak,
+                ))
             },
         )
         .collect()
@@ -881,7 +944,15 @@ pub fn simulate(
     let k = spec.material.coefficients;
     let feeds: Vec<f64> = rows.iter().map(|r| r.tip_speed_mm_min).collect();
     let step_feeds: Vec<f64> = steps.iter().map(|(mi, _, _)| feeds[*mi]).collect();
-    let forces = evaluate_forces(&steps, moves, &step_feeds, &models, &k)?;
+    // The optimizer's feed range, for the steps' peak responses.
+    let feed_range = spec.optimize.as_ref().map(|l| {
+        let l = l.clone().with_machine(&spec.machine);
+        (l.min_feed, l.max_feed)
+    });
+    let (forces, responses): (Vec<Option<ForceResult>>, Vec<Option<Arc<PeakResponse>>>) =
+        evaluate_forces(&steps, moves, &step_feeds, &models, &k, feed_range)?
+            .into_iter()
+            .unzip();
     if cancel.is_cancelled() {
         return Err(SimulateError::Cancelled);
     }
@@ -960,7 +1031,7 @@ pub fn simulate(
                 limits,
                 moves,
                 &mut rows,
-                &steps,
+                (&steps, &responses),
                 &models,
                 &times,
                 &mut timings,
@@ -1165,7 +1236,10 @@ fn optimize_stage(
     limits: &FeedLimits,
     moves: &[Move],
     rows: &mut [MoveRow],
-    steps: &[(usize, u32, geometry::StepGeometry)],
+    (steps, responses): (
+        &[(usize, u32, geometry::StepGeometry)],
+        &[Option<Arc<PeakResponse>>],
+    ),
     models: &BTreeMap<u32, ForceModel>,
     before: &crate::machine::cycle_time::CycleTime,
     timings: &mut StageTimings,
@@ -1185,7 +1259,7 @@ fn optimize_stage(
         .collect();
     // One segment per swept feed move (possibly without engaged steps: air), in move order.
     let mut segments: Vec<optimize::Segment> = Vec::new();
-    for (mi, t, s) in steps {
+    for ((mi, t, s), response) in steps.iter().zip(responses) {
         if !matches!(moves[*mi].kind, MoveKind::Linear | MoveKind::Arc) {
             continue;
         }
@@ -1199,9 +1273,10 @@ fn optimize_stage(
         if !s.air && s.removed_volume > 0.0 {
             let seg = segments.last_mut().expect("pushed above");
             seg.steps.push(EngagementStep {
-                engagement: s.engagement.clone(),
+                engagement: std::borrow::Cow::Borrowed(&s.engagement),
                 spindle_rpm: moves[*mi].spindle,
                 at: s.distance,
+                response: response.clone(),
             });
         }
     }
@@ -1301,7 +1376,7 @@ fn optimize_stage(
             None => feeds_after[*mi],
         })
         .collect();
-    let forces_after = evaluate_forces(steps, moves, &step_feeds, models, &k)?;
+    let forces_after = peak_forces(steps, responses, moves, &step_feeds, models, &k)?;
     timings.optimize_forces_after_s = clock.elapsed().as_secs_f64();
     let final_times = cycle_time(&final_moves, &spec.machine, None)?;
     // Time per original move: the sum over its parts.
@@ -1361,7 +1436,7 @@ fn optimize_stage(
     for ((mi, _, _), f) in steps.iter().zip(&forces_after) {
         if let Some(f) = f {
             let p = rows[*mi].peak_force_after.get_or_insert(0.0);
-            *p = p.max(f.force.peak);
+            *p = p.max(*f);
         }
     }
     let peak = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);

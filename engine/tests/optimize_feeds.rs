@@ -1,6 +1,7 @@
 //! Feed scheduling on hand-built engagements, checked on the real force model, and the program
 //! rewrite checked token by token and by re-interpretation.
 
+use std::borrow::Cow;
 use std::f64::consts::PI;
 
 use millsim_engine::engagement::{EngagedSlice, Engagement};
@@ -52,15 +53,16 @@ fn tenth() -> Engagement {
     engagement(5.0, PI - (1.0f64 - 0.2).acos(), PI)
 }
 
-fn step(e: Engagement) -> EngagementStep {
+fn step(e: Engagement) -> EngagementStep<'static> {
     EngagementStep {
-        engagement: e,
+        engagement: Cow::Owned(e),
         spindle_rpm: RPM,
         at: 0.0,
+        response: None,
     }
 }
 
-fn seg(move_index: usize, es: Vec<Engagement>) -> Segment {
+fn seg(move_index: usize, es: Vec<Engagement>) -> Segment<'static> {
     Segment {
         move_index,
         cutter: 0,

@@ -2,6 +2,7 @@
 //! radial runout (the chip is the thinnest of several surfaces, piecewise affine), and per-rev
 //! (G95) blocks.
 
+use std::borrow::Cow;
 use std::f64::consts::PI;
 
 use millsim_engine::engagement::{EngagedSlice, Engagement};
@@ -56,7 +57,11 @@ fn result_at(e: &Engagement, v: f64) -> millsim_engine::physics::ForceResult {
 fn setup(
     src: &str,
     es: &[Engagement],
-) -> (Vec<millsim_engine::nc::Move>, Vec<Segment>, Vec<Cutter>) {
+) -> (
+    Vec<millsim_engine::nc::Move>,
+    Vec<Segment<'static>>,
+    Vec<Cutter>,
+) {
     let mv = interpret(src, &InterpretOptions::default()).unwrap().moves;
     let k = Material::builtin("TC6").unwrap().coefficients;
     let cutters = vec![Cutter::new(&tool(), k, 150, 360).unwrap()];
@@ -70,9 +75,10 @@ fn setup(
             move_index: i,
             cutter: 0,
             steps: vec![EngagementStep {
-                engagement: e.clone(),
+                engagement: Cow::Owned(e.clone()),
                 spindle_rpm: RPM,
                 at: 0.0,
+                response: None,
             }],
         })
         .collect();

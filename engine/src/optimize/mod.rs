@@ -25,6 +25,9 @@ pub use rewrite::{
     RewriteOptions, SkippedSplit, WrittenSplit,
 };
 
+use std::borrow::Cow;
+use std::sync::Arc;
+
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -33,28 +36,34 @@ use crate::machine::cycle_time::{feed_velocity, move_length};
 use crate::machine::Machine;
 use crate::nc::{FeedMode, Move, MoveKind};
 use crate::physics::{
-    CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, PhysicsError,
+    CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, PeakResponse, Peaks,
+    PhysicsError,
 };
 use crate::tool::Tool;
 
 /// The engagement at one step of a move, with the spindle speed there.
 #[derive(Clone, Debug, PartialEq)]
-pub struct EngagementStep {
-    pub engagement: Engagement,
+pub struct EngagementStep<'a> {
+    /// Borrowed from the removal's steps when the caller keeps them (no copy per step).
+    pub engagement: Cow<'a, Engagement>,
     pub spindle_rpm: f64,
     /// Distance from the start of the move, mm (used only to place split points).
     pub at: f64,
+    /// The model's peaks at this step as exact functions of the feed (a tool without
+    /// runout), when the caller has them: evaluations in their range read them instead of
+    /// summing the slices again.
+    pub response: Option<Arc<PeakResponse>>,
 }
 
 /// What the optimizer knows about one move (or one sub-segment of a move): the engagement
 /// steps along it. No steps, or only air steps, means the move cuts air.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Segment {
+pub struct Segment<'a> {
     /// Index into the move list.
     pub move_index: usize,
     /// Index into the cutters slice.
     pub cutter: usize,
-    pub steps: Vec<EngagementStep>,
+    pub steps: Vec<EngagementStep<'a>>,
 }
 
 /// A tool's force model and the work material's coefficients.
@@ -286,16 +295,22 @@ impl FeedLimits {
 
     /// Largest quantity/target ratio of a force result, and which quantity it is.
     pub fn ratio(&self, r: &ForceResult) -> (f64, Governing) {
+        self.ratio_of(
+            r.force.peak,
+            r.power.peak,
+            r.torque.peak,
+            r.max_chip_thickness,
+        )
+    }
+
+    /// As [`ratio`](Self::ratio), from the peak |F| (N), power (W), torque (N·m) and chip (mm).
+    pub fn ratio_of(&self, force: f64, power: f64, torque: f64, chip: f64) -> (f64, Governing) {
         let mut best = (0.0, Governing::MaxFeed);
         for (lim, q, g) in [
-            (self.max_force, r.force.peak, Governing::Force),
-            (self.max_power, r.power.peak, Governing::Power),
-            (self.max_torque, r.torque.peak, Governing::Torque),
-            (
-                self.max_chip_thickness,
-                r.max_chip_thickness,
-                Governing::ChipThickness,
-            ),
+            (self.max_force, force, Governing::Force),
+            (self.max_power, power, Governing::Power),
+            (self.max_torque, torque, Governing::Torque),
+            (self.max_chip_thickness, chip, Governing::ChipThickness),
         ] {
             if let Some(l) = lim {
                 let x = q / l;
@@ -433,6 +448,15 @@ fn evaluate(
         spindle_rpm: step.spindle_rpm,
         feed_per_tooth: v / (teeth * step.spindle_rpm),
     };
+    if let Some(p) = step.response.as_ref().and_then(|r| r.at(c.feed_per_tooth)) {
+        let Peaks {
+            force,
+            torque,
+            chip,
+        } = p;
+        let (g, which) = limits.ratio_of(force, torque * c.omega(), torque, chip);
+        return Ok((g, which, chip));
+    }
     cutter
         .model
         .evaluate_into(&step.engagement, &cutter.coefficients, &c, out)?;

@@ -68,8 +68,13 @@ pub const DEFAULT_POSITIONS: usize = 360;
 const BOUNDARY_EPS: f64 = 1e-9;
 
 /// A tooth on the φ = 0 or π boundary has h = ±1e-17 from rounding; count it as cutting
-/// (edge forces on) consistently wherever it is evaluated.
+/// (edge forces on) consistently wherever it is evaluated. With runout the chip carries
+/// the teeth's radius steps, so the margin is in mm; without, every chip is the feed per
+/// tooth times a shape factor, and the margin scales with the feed so that which samples
+/// cut does not depend on the feed (the forces are then exactly affine in it).
 const CHIP_EPS: f64 = 1e-12;
+/// The margin per mm of feed per tooth without runout.
+const CHIP_EPS_PER_FEED: f64 = 1e-10;
 
 /// Spindle speed and feed of one step.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -516,6 +521,8 @@ impl ForceResult {
 /// its part along it (c_v); components: Ft, in-plane radial (outward), Fz, torque (N·mm).
 #[derive(Clone, Copy)]
 struct Pass {
+    /// A chip thinner than −eps is no cut.
+    eps: f64,
     sa: f64,
     ca: f64,
     ch: f64,
@@ -528,9 +535,17 @@ struct Pass {
 }
 
 impl Pass {
-    fn new(g: &EdgeSlice, k: &CuttingCoefficients, alpha: f64, ch: f64, cv: f64) -> Pass {
-        let (sa, ca) = alpha.sin_cos();
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        g: &EdgeSlice,
+        k: &CuttingCoefficients,
+        (sa, ca): (f64, f64),
+        ch: f64,
+        cv: f64,
+        eps: f64,
+    ) -> Pass {
         Pass {
+            eps,
             sa,
             ca,
             ch,
@@ -588,17 +603,12 @@ impl Pass {
         [fp * sphi - ft * cphi, ft * sphi + fp * cphi, fz, tq]
     }
 
-    /// Force at immersion φ (rad), zero where the tooth does not cut.
-    fn force_at(&self, steps: &[f64], phi: f64) -> [f64; 4] {
-        let (s, c) = phi.sin_cos();
-        self.force_at_sin_cos(steps, s, c)
-    }
-
-    /// As `force_at`, given sin φ and cos φ.
+    /// Force at the immersion φ with sin φ = `s`, cos φ = `c`, zero where the tooth does not
+    /// cut.
     #[inline]
     fn force_at_sin_cos(&self, steps: &[f64], s: f64, c: f64) -> [f64; 4] {
         let (h, x, v) = self.chip(steps, s);
-        if h >= -CHIP_EPS {
+        if h >= -self.eps {
             self.force(x, v, s, c)
         } else {
             [0.0; 4]
@@ -638,7 +648,7 @@ fn run_segment(
         for i in 0..n {
             let s = st[i] * ca - ct[i] * sa;
             let c = ct[i] * ca + st[i] * sa;
-            let on = if hs * s - hv >= -CHIP_EPS { 1.0 } else { 0.0 };
+            let on = if hs * s - hv >= -p.eps { 1.0 } else { 0.0 };
             let ft = (a[0] * s + b[0]) * on;
             let fp = (a[1] * s + b[1]) * on;
             fx[i] += fp * s - ft * c;
@@ -675,7 +685,7 @@ fn run_segment(
         }
         for i in 0..n {
             let (s, c) = (sb[i], cb[i]);
-            let on = if bh[i] >= -CHIP_EPS { 1.0 } else { 0.0 };
+            let on = if bh[i] >= -p.eps { 1.0 } else { 0.0 };
             let x = bm[i] * p.ch * s + bd[i];
             let v = bm[i] * p.cv;
             let f = p.force(x, v, s, c);
@@ -719,6 +729,200 @@ fn max_sin(st: &[f64], ct: &[f64], k0: i64, count: usize, sa: f64, ca: f64, alph
     best
 }
 
+/// The four component blocks (fx, fy, fz, torque) of `len` each of a sample buffer (empty
+/// slices for an unused buffer).
+fn four_blocks(buf: &mut [f64], len: usize) -> [&mut [f64]; 4] {
+    if buf.is_empty() {
+        return [&mut [], &mut [], &mut [], &mut []];
+    }
+    let (x, rest) = buf.split_at_mut(len);
+    let (y, rest) = rest.split_at_mut(len);
+    let (z, t) = rest.split_at_mut(len);
+    [x, y, z, t]
+}
+
+/// What one accumulation over the engagement's slices gives besides the per-tooth samples.
+#[derive(Clone, Copy)]
+struct Accumulated {
+    /// Boundary-bin corrections that turn the sample sum into the time integral.
+    corr: [f64; 4],
+    engaged: usize,
+    skipped: usize,
+    /// Only tooth 1 was computed; tooth j is it shifted by j pitches.
+    symmetric: bool,
+}
+
+/// Sums the teeth's samples (`acc`: four blocks of N·K) into `tot` (four blocks of K); with
+/// the symmetry shortcut tooth j is row 1 shifted by j pitches.
+fn tooth_totals(acc: &[f64], n: usize, kpos: usize, symmetric: bool, tot: &mut [f64]) {
+    let nk = n * kpos;
+    let shift = if symmetric { kpos / n } else { 0 };
+    tot.fill(0.0);
+    for c in 0..4 {
+        let tot = &mut tot[c * kpos..(c + 1) * kpos];
+        for j in 0..n {
+            let (row, s) = if symmetric {
+                (&acc[c * nk..c * nk + kpos], (j * shift) % kpos)
+            } else {
+                (&acc[c * nk + j * kpos..c * nk + (j + 1) * kpos], 0)
+            };
+            for (t, r) in tot[s..].iter_mut().zip(&row[..kpos - s]) {
+                *t += r;
+            }
+            for (t, r) in tot[..s].iter_mut().zip(&row[kpos - s..]) {
+                *t += r;
+            }
+        }
+    }
+}
+
+/// Peak |F|, peak torque and the thickest chip of one engagement as functions of the feed
+/// per tooth fz over a range, for a tool without runout: each sample's force is fz·A + E,
+/// so |F|² = a·fz² + 2b·fz + c and the torque a·fz + b. Only the samples that can hold
+/// the peak somewhere in the range are kept: a sample is dropped when one of the samples
+/// that peak at a few feeds across the range is at least as large over the whole range,
+/// so the maximum over the kept samples is the maximum over all of them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeakResponse {
+    range: (f64, f64),
+    force: Vec<[f64; 3]>,
+    /// Torque, N·mm.
+    torque: Vec<[f64; 2]>,
+    /// Thickest chip per unit feed per tooth.
+    chip: f64,
+}
+
+/// What [`PeakResponse::at`] gives: peak |F| (N), peak torque (N·m), thickest chip (mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Peaks {
+    pub force: f64,
+    pub torque: f64,
+    pub chip: f64,
+}
+
+impl PeakResponse {
+    fn new(
+        tot_a: &[f64],
+        tot_e: &[f64],
+        kpos: usize,
+        tooth_hmax: &[f64],
+        range: (f64, f64),
+    ) -> PeakResponse {
+        let comp = |t: &[f64], c: usize, i: usize| t[c * kpos + i];
+        let mut quads = Vec::with_capacity(kpos);
+        let mut lines = Vec::with_capacity(kpos);
+        for i in 0..kpos {
+            let a = [0, 1, 2].map(|c| comp(tot_a, c, i));
+            let e = [0, 1, 2].map(|c| comp(tot_e, c, i));
+            quads.push([dot(a, a), dot(a, e), dot(e, e)]);
+            lines.push([comp(tot_a, 3, i), comp(tot_e, 3, i)]);
+        }
+        let (lo, hi) = range;
+        let quad = |q: &[f64; 3], t: f64| (q[0] * t + 2.0 * q[1]) * t + q[2];
+        let line = |l: &[f64; 2], t: f64| l[0] * t + l[1];
+        // Leaders: the largest sample at a few feeds across the range.
+        const PROBES: usize = 5;
+        let probes: [f64; PROBES] = [0.0, 1.0, 0.5, 0.25, 0.75].map(|w| lo + w * (hi - lo));
+        let (mut fl, mut fv) = ([0usize; PROBES], [f64::NEG_INFINITY; PROBES]);
+        let (mut tl, mut tv) = ([0usize; PROBES], [f64::NEG_INFINITY; PROBES]);
+        for i in 0..kpos {
+            for p in 0..PROBES {
+                let (q, l) = (quad(&quads[i], probes[p]), line(&lines[i], probes[p]));
+                if q > fv[p] {
+                    (fv[p], fl[p]) = (q, i);
+                }
+                if l > tv[p] {
+                    (tv[p], tl[p]) = (l, i);
+                }
+            }
+        }
+        // A lower bound of the envelope over the range: the largest leader minimum. |F|² is
+        // convex in the feed and the torque affine, so a sample's maximum over the range is
+        // at an end; a sample whose ends stay under that bound cannot hold the peak.
+        let quad_min = |q: &[f64; 3]| {
+            let mut m = quad(q, lo).min(quad(q, hi));
+            if q[0] > 0.0 {
+                let v = -q[1] / q[0];
+                if v > lo && v < hi {
+                    m = m.min(quad(q, v));
+                }
+            }
+            m
+        };
+        let force_floor = fl
+            .iter()
+            .map(|&j| quad_min(&quads[j]))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let torque_floor = tl
+            .iter()
+            .map(|&j| line(&lines[j], lo).min(line(&lines[j], hi)))
+            .fold(f64::NEG_INFINITY, f64::max);
+        // q_j ≥ q_i over [lo, hi]: the difference, a parabola, is ≥ 0 at the ends and, when it
+        // opens upwards with its vertex inside, at the vertex.
+        let covers = |j: usize, i: usize| {
+            let (qj, qi) = (&quads[j], &quads[i]);
+            quad_min(&[qj[0] - qi[0], qj[1] - qi[1], qj[2] - qi[2]]) >= 0.0
+        };
+        let force = (0..kpos)
+            .filter(|&i| {
+                if fl.contains(&i) {
+                    return true;
+                }
+                let top = quad(&quads[i], lo).max(quad(&quads[i], hi));
+                top > force_floor && !fl.iter().any(|&j| covers(j, i))
+            })
+            .map(|i| quads[i])
+            .collect();
+        let torque = (0..kpos)
+            .filter(|&i| {
+                if tl.contains(&i) {
+                    return true;
+                }
+                let (a, b) = (line(&lines[i], lo), line(&lines[i], hi));
+                a.max(b) > torque_floor
+                    && !tl
+                        .iter()
+                        .any(|&j| line(&lines[j], lo) >= a && line(&lines[j], hi) >= b)
+            })
+            .map(|i| lines[i])
+            .collect();
+        PeakResponse {
+            range,
+            force,
+            torque,
+            chip: tooth_hmax.iter().copied().fold(0.0, f64::max),
+        }
+    }
+
+    /// The feed-per-tooth range the response holds for, mm.
+    pub fn range(&self) -> (f64, f64) {
+        self.range
+    }
+
+    /// Peaks at feed per tooth `fz` (mm), None outside the range.
+    pub fn at(&self, fz: f64) -> Option<Peaks> {
+        let (lo, hi) = self.range;
+        if !(fz >= lo * (1.0 - 1e-12) && fz <= hi * (1.0 + 1e-12)) {
+            return None;
+        }
+        let f2 = self
+            .force
+            .iter()
+            .map(|q| (q[0] * fz + 2.0 * q[1]) * fz + q[2])
+            .fold(0.0, f64::max);
+        let t = self
+            .torque
+            .iter()
+            .map(|l| l[0] * fz + l[1])
+            .fold(f64::NEG_INFINITY, f64::max);
+        Some(Peaks {
+            force: f2.sqrt(),
+            torque: t * 1e-3,
+            chip: (self.chip * fz).max(0.0),
+        })
+    }
+}
+
 /// The force model for one tool: edge table, angular grid and reusable buffers. Build
 /// once per tool, then call [`ForceModel::evaluate`] (or `evaluate_into`, which reuses the
 /// result's buffers) at every engagement step. Single-threaded and deterministic; run
@@ -733,6 +937,9 @@ pub struct ForceModel {
     acc: Vec<f64>,
     /// Totals over teeth per position, four blocks of K.
     tot: Vec<f64>,
+    /// The edge part's samples and totals for `evaluate_with_response`.
+    acc_edge: Vec<f64>,
+    tot_edge: Vec<f64>,
     /// Five buffers of K for the runout kernel.
     scratch: Vec<f64>,
     tooth_hmax: Vec<f64>,
@@ -766,6 +973,8 @@ impl ForceModel {
             cos_t,
             acc: vec![0.0; 4 * n * positions],
             tot: vec![0.0; 4 * positions],
+            acc_edge: Vec::new(),
+            tot_edge: Vec::new(),
             scratch: vec![0.0; 5 * positions],
             tooth_hmax: vec![0.0; n],
             table,
@@ -810,24 +1019,130 @@ impl ForceModel {
         k.validate()?;
         conditions.validate()?;
         validate_slices(engagement)?;
-        let frame = if engagement.is_air() {
-            ToolFrame::IDENTITY
-        } else {
-            ToolFrame::from_engagement(engagement)?
+        let frame = Self::frame_of(engagement)?;
+        let fz = conditions.feed_per_tooth;
+        let (acc, _) = self.accumulate(engagement, k, None, &frame, fz);
+        self.summarize(frame, conditions, acc, out);
+        Ok(())
+    }
+
+    /// The forces of `engagement` at `conditions` into `out`, as `evaluate_into` gives them,
+    /// and, for a tool without runout, the peak |F|, torque and chip as exact functions of
+    /// the feed per tooth for feeds in `fz_range` (mm): every chip is then the feed per tooth
+    /// times a shape factor, so each sample's force is fz·A + E (cutting and edge parts).
+    /// With runout the response is None (the chip is not proportional to the feed).
+    pub fn evaluate_with_response(
+        &mut self,
+        engagement: &Engagement,
+        k: &CuttingCoefficients,
+        conditions: &CuttingConditions,
+        fz_range: (f64, f64),
+        out: &mut ForceResult,
+    ) -> Result<Option<PeakResponse>, PhysicsError> {
+        if !self.table.runout_steps.is_empty() {
+            self.evaluate_into(engagement, k, conditions, out)?;
+            return Ok(None);
+        }
+        k.validate()?;
+        conditions.validate()?;
+        validate_slices(engagement)?;
+        let (lo, hi) = fz_range;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi >= lo) {
+            return Err(PhysicsError::invalid(
+                "fz_range",
+                format!("must be 0 < low <= high, got {lo}..{hi}"),
+            ));
+        }
+        let frame = Self::frame_of(engagement)?;
+        // Cutting part at unit feed per tooth, then the edge part: same samples cut in both.
+        let cutting = CuttingCoefficients {
+            kte: 0.0,
+            kre: 0.0,
+            kae: 0.0,
+            ..*k
         };
+        let edge = CuttingCoefficients {
+            ktc: 0.0,
+            krc: 0.0,
+            kac: 0.0,
+            ..*k
+        };
+        let (a, corr_e) = self.accumulate(engagement, &cutting, Some(&edge), &frame, 1.0);
+        let fz = conditions.feed_per_tooth;
+        // The totals per sample of each part, for the response.
+        let (kpos, n) = (self.positions, self.table.flutes);
+        let mut tot_a = std::mem::take(&mut self.tot);
+        let mut tot_e = std::mem::take(&mut self.tot_edge);
+        tot_a.resize(4 * kpos, 0.0);
+        tot_e.resize(4 * kpos, 0.0);
+        tooth_totals(&self.acc, n, kpos, a.symmetric, &mut tot_a);
+        tooth_totals(&self.acc_edge, n, kpos, a.symmetric, &mut tot_e);
+        let response = PeakResponse::new(&tot_a, &tot_e, kpos, &self.tooth_hmax, (lo, hi));
+        self.tot = tot_a;
+        self.tot_edge = tot_e;
+        // The result at this feed: fz·A + E sample by sample.
+        for (x, y) in self.acc.iter_mut().zip(&self.acc_edge) {
+            *x = fz * *x + y;
+        }
+        for h in self.tooth_hmax.iter_mut() {
+            *h *= fz;
+        }
+        let acc = Accumulated {
+            corr: [0, 1, 2, 3].map(|c| fz * a.corr[c] + corr_e[c]),
+            ..a
+        };
+        self.summarize(frame, conditions, acc, out);
+        Ok(Some(response))
+    }
+
+    fn frame_of(engagement: &Engagement) -> Result<ToolFrame, PhysicsError> {
+        if engagement.is_air() {
+            Ok(ToolFrame::IDENTITY)
+        } else {
+            ToolFrame::from_engagement(engagement)
+        }
+    }
+
+    /// Per tooth and sample, the forces of the engaged slices into `acc`, the thickest chip
+    /// per tooth into `tooth_hmax`, with the boundary-bin corrections of the mean. With
+    /// `edge` coefficients too, those go into `acc_edge` in the same pass (their corrections
+    /// in the second entry): the slices' geometry is looked up once for both.
+    fn accumulate(
+        &mut self,
+        engagement: &Engagement,
+        k: &CuttingCoefficients,
+        edge: Option<&CuttingCoefficients>,
+        frame: &ToolFrame,
+        fz: f64,
+    ) -> (Accumulated, [f64; 4]) {
         let kpos = self.positions;
         let n = self.table.flutes;
         let delta = TAU / kpos as f64;
-        let c_h = conditions.feed_per_tooth * frame.feed_across;
-        let c_v = conditions.feed_per_tooth * frame.feed_along;
-
-        self.acc.fill(0.0);
+        let c_h = fz * frame.feed_across;
+        let c_v = fz * frame.feed_along;
+        let eps = if self.table.runout_steps.is_empty() {
+            CHIP_EPS_PER_FEED * fz
+        } else {
+            CHIP_EPS
+        };
+        let channels = if edge.is_some() { 2 } else { 1 };
+        for buf in [&mut self.acc, &mut self.acc_edge]
+            .into_iter()
+            .take(channels)
+        {
+            if buf.len() != 4 * n * kpos {
+                *buf = vec![0.0; 4 * n * kpos];
+            }
+            buf.fill(0.0);
+        }
         self.tooth_hmax.fill(f64::NEG_INFINITY);
-        let (afx, rest) = self.acc.split_at_mut(n * kpos);
-        let (afy, rest) = rest.split_at_mut(n * kpos);
-        let (afz, atq) = rest.split_at_mut(n * kpos);
+        let mut bufs = [
+            four_blocks(&mut self.acc, n * kpos),
+            four_blocks(&mut self.acc_edge, n * kpos),
+        ];
+        let coefficients = [Some(k), edge];
         // Boundary-bin corrections that turn the sample sum into the time integral.
-        let mut corr = [0.0f64; 4];
+        let mut corr = [[0.0f64; 4]; 2];
         let mut engaged = 0usize;
         let mut skipped = 0usize;
         let no_steps: [f64; 0] = [];
@@ -847,19 +1162,14 @@ impl ForceModel {
             engaged += 1;
             for j in 0..computed_teeth {
                 let alpha = j as f64 * self.table.pitch + g.lag;
-                let p = Pass::new(&g, k, alpha, c_h, c_v);
+                let sc = alpha.sin_cos();
+                let passes = coefficients.map(|k| k.map(|k| Pass::new(&g, k, sc, c_h, c_v, eps)));
                 let steps: &[f64] = if self.table.runout_steps.is_empty() {
                     &no_steps
                 } else {
                     &self.table.runout_steps[j * n..(j + 1) * n]
                 };
                 let row = j * kpos..(j + 1) * kpos;
-                let (fx, fy, fz, tq) = (
-                    &mut afx[row.clone()],
-                    &mut afy[row.clone()],
-                    &mut afz[row.clone()],
-                    &mut atq[row],
-                );
                 for &(a, b) in &s.arcs {
                     // Sample k sees this tooth at φ = k·Δ − α: the arc covers index range [u, v].
                     let u = (a + alpha) / delta;
@@ -870,32 +1180,27 @@ impl ForceModel {
                         let count = (k_hi - k_lo) as usize + 1;
                         let start = (k_lo as i64).rem_euclid(kpos as i64) as usize;
                         let first = count.min(kpos - start);
-                        let seg = start..start + first;
-                        run_segment(
-                            &p,
-                            steps,
-                            &self.sin_t[seg.clone()],
-                            &self.cos_t[seg.clone()],
-                            &mut fx[seg.clone()],
-                            &mut fy[seg.clone()],
-                            &mut fz[seg.clone()],
-                            &mut tq[seg],
-                            &mut self.scratch,
-                        );
-                        if count > first {
-                            let seg = 0..count - first;
-                            run_segment(
-                                &p,
-                                steps,
-                                &self.sin_t[seg.clone()],
-                                &self.cos_t[seg.clone()],
-                                &mut fx[seg.clone()],
-                                &mut fy[seg.clone()],
-                                &mut fz[seg.clone()],
-                                &mut tq[seg],
-                                &mut self.scratch,
-                            );
+                        let pieces = [start..start + first, 0..count - first];
+                        for (p, [fx, fy, fz, tq]) in passes.iter().zip(bufs.iter_mut()) {
+                            let Some(p) = p else { continue };
+                            for seg in pieces.iter().filter(|r| !r.is_empty()) {
+                                let at = |r: &std::ops::Range<usize>| {
+                                    row.start + r.start..row.start + r.end
+                                };
+                                run_segment(
+                                    p,
+                                    steps,
+                                    &self.sin_t[seg.clone()],
+                                    &self.cos_t[seg.clone()],
+                                    &mut fx[at(seg)],
+                                    &mut fy[at(seg)],
+                                    &mut fz[at(seg)],
+                                    &mut tq[at(seg)],
+                                    &mut self.scratch,
+                                );
+                            }
                         }
+                        let p = passes[0].as_ref().expect("the first channel is always on");
                         let top = max_sin(
                             &self.sin_t,
                             &self.cos_t,
@@ -921,18 +1226,23 @@ impl ForceModel {
                         if w >= 1.0 - 1e-12 {
                             continue;
                         }
-                        if kb >= k_lo && kb <= k_hi {
-                            let (sk, ck) =
-                                sample_sin_cos(&self.sin_t, &self.cos_t, kb as i64, p.sa, p.ca);
-                            let f = p.force_at_sin_cos(steps, sk, ck);
-                            for c in 0..4 {
-                                corr[c] -= f[c];
+                        let sample = (kb >= k_lo && kb <= k_hi).then(|| {
+                            sample_sin_cos(&self.sin_t, &self.cos_t, kb as i64, sc.0, sc.1)
+                        });
+                        let mid = (w > 0.0).then(|| (0.5 * (lo + hi) * delta - alpha).sin_cos());
+                        for (p, corr) in passes.iter().zip(corr.iter_mut()) {
+                            let Some(p) = p else { continue };
+                            if let Some((sk, ck)) = sample {
+                                let f = p.force_at_sin_cos(steps, sk, ck);
+                                for c in 0..4 {
+                                    corr[c] -= f[c];
+                                }
                             }
-                        }
-                        if w > 0.0 {
-                            let f = p.force_at(steps, 0.5 * (lo + hi) * delta - alpha);
-                            for c in 0..4 {
-                                corr[c] += w * f[c];
+                            if let Some((sm, cm)) = mid {
+                                let f = p.force_at_sin_cos(steps, sm, cm);
+                                for c in 0..4 {
+                                    corr[c] += w * f[c];
+                                }
                             }
                         }
                     }
@@ -942,49 +1252,41 @@ impl ForceModel {
         if symmetric && n > 1 {
             let h0 = self.tooth_hmax[0];
             self.tooth_hmax.fill(h0);
-            for c in &mut corr {
+            for c in corr.iter_mut().flatten() {
                 *c *= n as f64;
             }
         }
-        self.summarize(frame, conditions, corr, engaged, skipped, symmetric, out);
-        Ok(())
+        let [corr, corr_edge] = corr;
+        (
+            Accumulated {
+                corr,
+                engaged,
+                skipped,
+                symmetric,
+            },
+            corr_edge,
+        )
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn summarize(
         &mut self,
         frame: ToolFrame,
         conditions: &CuttingConditions,
-        corr: [f64; 4],
-        engaged: usize,
-        skipped: usize,
-        symmetric: bool,
+        acc: Accumulated,
         out: &mut ForceResult,
     ) {
+        let Accumulated {
+            corr,
+            engaged,
+            skipped,
+            symmetric,
+        } = acc;
         let kpos = self.positions;
         let n = self.table.flutes;
         let delta = TAU / kpos as f64;
         let omega = conditions.omega();
         let nk = n * kpos;
-        let shift = if symmetric { kpos / n } else { 0 };
-        // Totals per position; with the symmetry shortcut tooth j is row 1 shifted by j pitches.
-        self.tot.fill(0.0);
-        for c in 0..4 {
-            let tot = &mut self.tot[c * kpos..(c + 1) * kpos];
-            for j in 0..n {
-                let (row, s) = if symmetric {
-                    (&self.acc[c * nk..c * nk + kpos], (j * shift) % kpos)
-                } else {
-                    (&self.acc[c * nk + j * kpos..c * nk + (j + 1) * kpos], 0)
-                };
-                for (t, r) in tot[s..].iter_mut().zip(&row[..kpos - s]) {
-                    *t += r;
-                }
-                for (t, r) in tot[..s].iter_mut().zip(&row[kpos - s..]) {
-                    *t += r;
-                }
-            }
-        }
+        tooth_totals(&self.acc, n, kpos, symmetric, &mut self.tot);
         let rows = if symmetric { 1 } else { n };
         let mut tooth_peak = [0.0f64; 64];
         for (j, peak) in tooth_peak.iter_mut().enumerate().take(rows) {

@@ -62,8 +62,8 @@ pub use energy::{
 };
 pub use force::{
     cutting_forces, AxisStats, BlockForces, CuttingConditions, EdgeSlice, ForceModel, ForceResult,
-    ForceSample, MagnitudeStats, ToolEdgeTable, ToolFrame, ToothStats, TracePoint,
-    DEFAULT_POSITIONS,
+    ForceSample, MagnitudeStats, PeakResponse, Peaks, ToolEdgeTable, ToolFrame, ToothStats,
+    TracePoint, DEFAULT_POSITIONS,
 };
 pub use identify::{
     closed_form_mean_force, identify_coefficients, AxisFit, ForceMeasurement, Identification,
