@@ -768,3 +768,96 @@ fn block_aggregate_keeps_extremes_and_bounds_the_trace() {
         peak
     );
 }
+
+#[test]
+fn peak_response_is_the_model_at_every_feed_in_its_range() {
+    // Without runout each sample's force is fz·A + E: the response kept from one pass must
+    // give the model's own peak |F|, torque and chip at any feed of the range, and the
+    // result at the step's feed must be the plain evaluation's.
+    let k = al7075();
+    let feed_range = (0.004, 0.3);
+    let tools = [
+        (flat(10.0, 4, 30.0), 360),
+        // 100 positions do not split into 3 pitches: every tooth computed.
+        (flat(6.0, 3, 40.0), 100),
+        (
+            Tool {
+                helix_deg: 30.0,
+                ..Tool::ball(8.0, 2)
+            },
+            180,
+        ),
+        (
+            Tool {
+                helix_deg: 35.0,
+                flute_length: 20.0,
+                ..Tool::bull_nose(8.0, 1.0, 3)
+            },
+            360,
+        ),
+    ];
+    let engagements = [
+        engagement(3.0, 40, &[(0.0, PI)]),
+        engagement(2.0, 25, &[(2.4, PI)]),
+        engagement(1.2, 30, &[(0.2, 1.1), (1.9, 2.8)]),
+        // Climb side with the feed partly along the axis (a ramp): V ≠ 0.
+        Engagement {
+            feed_dir: [0.8, 0.0, -0.6],
+            ..engagement(0.9, 18, &[(1.0, PI)])
+        },
+    ];
+    for (tool, positions) in &tools {
+        let mut model = ForceModel::new(tool, 80, *positions).unwrap();
+        for e in &engagements {
+            let mut with = Default::default();
+            let response = model
+                .evaluate_with_response(e, &k, &cond(0.05), feed_range, &mut with)
+                .unwrap()
+                .expect("no runout: a response");
+            let plain = model.evaluate(e, &k, &cond(0.05)).unwrap();
+            for (x, y) in [
+                (with.force.peak, plain.force.peak),
+                (with.force.mean, plain.force.mean),
+                (with.fx.mean, plain.fx.mean),
+                (with.fy.min, plain.fy.min),
+                (with.fz.max, plain.fz.max),
+                (with.torque.mean, plain.torque.mean),
+                (with.power.peak, plain.power.peak),
+                (with.max_chip_thickness, plain.max_chip_thickness),
+                (with.part[0].mean, plain.part[0].mean),
+            ] {
+                assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{x} vs {y}");
+            }
+            for fz in [0.004, 0.009, 0.05, 0.13, 0.2999, 0.3] {
+                let p = response.at(fz).expect("inside the range");
+                let r = model.evaluate(e, &k, &cond(fz)).unwrap();
+                assert!(
+                    rel(p.force, r.force.peak) < 1e-9,
+                    "{} fz {fz}: peak {} vs {}",
+                    tool.diameter,
+                    p.force,
+                    r.force.peak
+                );
+                assert!(rel(p.torque, r.torque.peak) < 1e-9);
+                assert!(rel(p.chip, r.max_chip_thickness) < 1e-9);
+            }
+            assert!(response.at(0.0039).is_none() && response.at(0.31).is_none());
+        }
+    }
+    // With runout the chip is not proportional to the feed: no response, same forces.
+    let wobbly = Tool {
+        runout: Runout {
+            offset: 0.01,
+            angle_deg: 20.0,
+        },
+        ..flat(10.0, 4, 30.0)
+    };
+    let mut model = ForceModel::new(&wobbly, 80, 360).unwrap();
+    let e = engagement(3.0, 40, &[(0.0, PI)]);
+    let mut out = Default::default();
+    let none = model
+        .evaluate_with_response(&e, &k, &cond(0.05), feed_range, &mut out)
+        .unwrap();
+    assert!(none.is_none());
+    assert_eq!(out, model.evaluate(&e, &k, &cond(0.05)).unwrap());
+}
