@@ -560,27 +560,37 @@ fn simulate_job(
         SimulateError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
         other => invalid("Simulation refused", format!("{file}: {other}")),
     })?;
-    let rows: Vec<String> = out
-        .rows
-        .iter()
-        .map(|r| serde_json::to_string(r).expect("rows serialize"))
-        .collect();
-    let samples: Vec<(usize, String)> = out
-        .samples
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| !s.is_empty())
-        .map(|(i, s)| (i, serde_json::to_string(s).expect("samples serialize")))
-        .collect();
+    // The stock mesh and the rows' JSON are independent: both at once.
+    let ((rows, samples), (stl, export_s)) = std::thread::scope(|scope| {
+        let serialized = scope.spawn(|| {
+            let rows: Vec<String> = out
+                .rows
+                .iter()
+                .map(|r| serde_json::to_string(r).expect("rows serialize"))
+                .collect();
+            let samples: Vec<(usize, String)> = out
+                .samples
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| !s.is_empty())
+                .map(|(i, s)| (i, serde_json::to_string(s).expect("samples serialize")))
+                .collect();
+            (rows, samples)
+        });
+        let clock = std::time::Instant::now();
+        let mut stl = Vec::new();
+        let written = geometry::export_stl(&out.stock, &mut stl);
+        let exported = (written.map(|_| stl), clock.elapsed().as_secs_f64());
+        match serialized.join() {
+            Ok(v) => (v, exported),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    });
+    let stl = stl.map_err(|e| invalid("Stock export failed", e.to_string()))?;
     let row_columns = match serde_json::to_value(out.rows.first().cloned().unwrap_or_default()) {
         Ok(Value::Object(o)) => o.keys().cloned().collect(),
         _ => Vec::new(),
     };
-    let clock = std::time::Instant::now();
-    let mut stl = Vec::new();
-    geometry::export_stl(&out.stock, &mut stl)
-        .map_err(|e| invalid("Stock export failed", e.to_string()))?;
-    let export_s = clock.elapsed().as_secs_f64();
     let (stem, ext) = file
         .rsplit_once('.')
         .map(|(s, e)| (s, format!(".{e}")))

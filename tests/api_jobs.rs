@@ -330,11 +330,47 @@ async fn cancel_a_running_job_stops_it() {
         &["--workers", "1", "--lease-secs", "0.6"],
     );
     let c = client();
-    let program =
-        upload_program(&c, &s, &corpus("gcode/camotics_cameo_fanuc_Nnumbers_3d.nc")).await;
+    // A simulation that takes seconds on any build (a 10 mm tool zigzagging over a block on
+    // a 0.05 mm grid, hundreds of passes): it is still running when the cancel comes, and
+    // the removal checks for it after every move.
+    let mut ids = Vec::new();
+    for (path, body) in [
+        (
+            "/v1/stocks",
+            json!({"kind": "block", "min": [0, 0, -10], "max": [60, 60, 0]}),
+        ),
+        (
+            "/v1/tools",
+            json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "flute_length_mm": 20.0}),
+        ),
+    ] {
+        let (st, v) = post_json(&c, &s, path, &body).await;
+        assert_eq!(st, 201, "{path}: {v}");
+        ids.push(v["id"].as_str().unwrap().to_string());
+    }
+    let mut program = String::from("G21 G90 S8000 M3\nG0 X-6 Y0 Z5\nG1 Z-2 F1000\n");
+    for pass in 0..400 {
+        let y = (pass % 60) as f64;
+        let x = if pass % 2 == 0 { 66.0 } else { -6.0 };
+        program += &format!("G1 X{x} Y{y} F3000\n");
+    }
+    program += "G0 Z5\nM30\n";
+    let (st, prog) = json(
+        c.post(s.url("/v1/programs?name=zigzag.nc"))
+            .body(program)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 201, "{prog}");
+    let body = json!({"kind": "simulate",
+        "inputs": {"program": prog["id"], "stock": ids[0], "tool": ids[1]},
+        "options": {"material": "Al7075-T6", "cell_mm": 0.05}});
     let mut cancelled_running = false;
     for _ in 0..5 {
-        let job = submit_interpret(&c, &s, &program).await;
+        let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+        assert_eq!(st, 202, "{job}");
         let id = job["id"].as_str().unwrap().to_string();
         // Wait until it runs, then cancel.
         let deadline = std::time::Instant::now() + Duration::from_secs(30);

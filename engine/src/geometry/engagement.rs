@@ -232,6 +232,9 @@ pub(crate) fn compute(
         exit_angle: f64::NEG_INFINITY,
         ..Default::default()
     };
+    // The last slice's bins, arcs and cosine bounds: slices of a flank in the same material
+    // (most of them) repeat them, and then reuse them.
+    let mut last: Option<(usize, f64, f64)> = None;
     for j in j0..j_end {
         if !slice_hit[j - j0] {
             continue;
@@ -241,36 +244,44 @@ pub(crate) fn compute(
         let Some(ep) = tool.edge_point(z) else {
             continue;
         };
-        let mut arcs = Vec::new();
-        let mut m = 0;
-        while m < nb {
-            if row[m] {
-                let start = m;
-                while m < nb && row[m] {
-                    m += 1;
+        let same = last.is_some_and(|(k, _, _)| bits[(k - j0) * nb..(k - j0 + 1) * nb] == *row);
+        let (arcs, cmax, cmin) = match (last, eng.slices.last()) {
+            (Some((_, cmax, cmin)), Some(prev)) if same => (prev.arcs.clone(), cmax, cmin),
+            _ => {
+                let mut arcs = Vec::new();
+                let mut m = 0;
+                while m < nb {
+                    if row[m] {
+                        let start = m;
+                        while m < nb && row[m] {
+                            m += 1;
+                        }
+                        arcs.push((start as f64 * dphi, m as f64 * dphi));
+                    } else {
+                        m += 1;
+                    }
                 }
-                arcs.push((start as f64 * dphi, m as f64 * dphi));
-            } else {
-                m += 1;
+                let (mut cmax, mut cmin) = (f64::NEG_INFINITY, f64::INFINITY);
+                for &(s, e) in &arcs {
+                    met.entry_angle = met.entry_angle.min(s);
+                    met.exit_angle = met.exit_angle.max(e);
+                    let c_hi = if s <= 0.0 || e >= 2.0 * PI - 1e-12 {
+                        1.0
+                    } else {
+                        s.cos().max(e.cos())
+                    };
+                    let c_lo = if s <= PI && PI <= e {
+                        -1.0
+                    } else {
+                        s.cos().min(e.cos())
+                    };
+                    cmax = cmax.max(c_hi);
+                    cmin = cmin.min(c_lo);
+                }
+                (arcs, cmax, cmin)
             }
-        }
-        let (mut cmax, mut cmin) = (f64::NEG_INFINITY, f64::INFINITY);
-        for &(s, e) in &arcs {
-            met.entry_angle = met.entry_angle.min(s);
-            met.exit_angle = met.exit_angle.max(e);
-            let c_hi = if s <= 0.0 || e >= 2.0 * PI - 1e-12 {
-                1.0
-            } else {
-                s.cos().max(e.cos())
-            };
-            let c_lo = if s <= PI && PI <= e {
-                -1.0
-            } else {
-                s.cos().min(e.cos())
-            };
-            cmax = cmax.max(c_hi);
-            cmin = cmin.min(c_lo);
-        }
+        };
+        last = Some((j, cmax, cmin));
         met.radial_width = met.radial_width.max(ep.radius * (cmax - cmin));
         met.engaged_edge_length += body.profile_length(z - 0.5 * dz, z + 0.5 * dz);
         eng.slices.push(EngagedSlice { z, dz, arcs });

@@ -617,14 +617,17 @@ fn simulate_inner(
         let body = &body;
         let (run, (xy_grid, done)) = std::thread::scope(|scope| {
             let (tx, rx) = std::sync::mpsc::sync_channel::<DeferredXY>(XY_QUEUE);
-            let worker = scope.spawn(move || {
-                let mut done = Vec::new();
-                for batch in rx {
-                    let per_move = remove_xy(&mut xy_pass, &mut xy_grid, body, &batch.moves);
-                    done.push((batch, per_move));
-                }
-                (xy_grid, done)
-            });
+            let worker = std::thread::Builder::new()
+                .name("removal-xy".into())
+                .spawn_scoped(scope, move || {
+                    let mut done = Vec::new();
+                    for batch in rx {
+                        let per_move = remove_xy(&mut xy_pass, &mut xy_grid, body, &batch.moves);
+                        done.push((batch, per_move));
+                    }
+                    (xy_grid, done)
+                })
+                .expect("a thread for the X/Y removal");
             let xy = XyRemoval::Thread(tx);
             let run = run_segments(
                 &mut stock.grid,

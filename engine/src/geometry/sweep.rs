@@ -1127,7 +1127,11 @@ impl RemovalPass {
         let cells = |k: usize| {
             ((hi[k].min(frame.max[k]) - lo[k].max(frame.origin[k])) / frame.cell).max(0.0)
         };
-        let estimate = cells(0) * cells(1) + cells(1) * cells(2) + cells(2) * cells(0);
+        // Rays of the selected families only (a family's rays cross the other two axes).
+        let estimate: f64 = (0..3)
+            .filter(|&a| families[a])
+            .map(|a| cells((a + 1) % 3) * cells((a + 2) % 3))
+            .sum();
         let parallel = self.parallel && estimate >= PARALLEL_MIN_RAYS as f64;
         // The three families are independent: one task each (plus row parallelism inside
         // large sweeps); their statistics are added in family order.
@@ -1278,11 +1282,24 @@ fn remove_family(
             let row_in_section = !bx.column_sections.is_empty() && sweep.in_constant_section(v);
             // Y rays (fam 1) of one row share their interval in the constant section.
             let mut row_section = None;
-            for c0 in (bx.u0..bx.u1).step_by(64) {
+            // Z rays of a vertical sweep: only the row's chord of the path's stadium (the
+            // tool's footprint swept along the path) can meet it, not the box's corners.
+            let (bu0, bu1) = if fam == 2 && sweep.vertical {
+                match sweep.stadium[0].line(sweep.body.radius + 1e-9, v) {
+                    Some((x0, x1)) => {
+                        let (a, b) = index_range(g.origin[ua], h, g.n[ua], x0, x1);
+                        (a.max(bx.u0), b.min(bx.u1))
+                    }
+                    None => continue,
+                }
+            } else {
+                (bx.u0, bx.u1)
+            };
+            for c0 in (bu0..bu1).step_by(64) {
                 // Rays that may have material within the sweep's extent along them, by
                 // their summaries: one bit per ray, then the candidates in order. About
                 // half the rays pass, in no order a branch predictor could learn.
-                let chunk = &row_summaries[c0..bx.u1.min(c0 + 64)];
+                let chunk = &row_summaries[c0..bu1.min(c0 + 64)];
                 let mut candidates = 0u64;
                 for (i, s) in chunk.iter().enumerate() {
                     candidates |= (s.may_overlap(lo_f, hi_f) as u64) << i;
