@@ -233,31 +233,28 @@ impl DexelGrid {
             .fold(f64::NEG_INFINITY, f64::max)
     }
 
-    /// Moves the X and Y families out into a grid of their own (same placement, empty Z),
-    /// leaving this one with empty X and Y families until [`restore_xy`](Self::restore_xy).
-    pub fn split_off_xy(&mut self) -> DexelGrid {
+    /// Moves family `a` out into a grid of its own (same placement, the other families
+    /// empty), leaving this one with it empty until [`restore_family`](Self::restore_family).
+    pub fn split_off_family(&mut self, a: usize) -> DexelGrid {
         let empty = |f: &Family| Family {
             axis: f.axis,
             nu: f.nu,
             nv: f.nv,
             rays: Vec::new(),
         };
-        let [ex, ey, ez] = [0, 1, 2].map(|a| empty(&self.families[a]));
-        let x = std::mem::replace(&mut self.families[0], ex);
-        let y = std::mem::replace(&mut self.families[1], ey);
+        let mut families = [0, 1, 2].map(|b| empty(&self.families[b]));
+        std::mem::swap(&mut families[a], &mut self.families[a]);
         DexelGrid {
             origin: self.origin,
             cell: self.cell,
             n: self.n,
-            families: [x, y, ez],
+            families,
         }
     }
 
-    /// Puts back the X and Y families of a grid from [`split_off_xy`](Self::split_off_xy).
-    pub fn restore_xy(&mut self, xy: DexelGrid) {
-        let [x, y, _] = xy.families;
-        self.families[0] = x;
-        self.families[1] = y;
+    /// Puts back family `a` of a grid from [`split_off_family`](Self::split_off_family).
+    pub fn restore_family(&mut self, a: usize, mut from: DexelGrid) {
+        std::mem::swap(&mut self.families[a], &mut from.families[a]);
     }
 
     /// Total number of rays.
@@ -338,7 +335,7 @@ impl RaySummary {
 }
 
 /// The ray summaries of one family.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct RaySummaries {
     pub rays: Vec<RaySummary>,
 }

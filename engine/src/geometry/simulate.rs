@@ -189,14 +189,14 @@ impl DeferredXY {
         if self.moves.is_empty() {
             return;
         }
-        let per_move = remove_xy(pass, grid, body, &self.moves);
+        let per_move = remove_moves(pass, grid, body, &self.moves, [true, true, false]);
         self.apply(&per_move, step_stats);
         self.clear();
     }
 
-    /// Hands the deferred sweeps over as a batch (to the X/Y thread).
-    fn take(&mut self) -> DeferredXY {
-        std::mem::take(self)
+    /// Hands the deferred sweeps over as a batch (to the X and Y threads).
+    fn take(&mut self) -> Arc<DeferredXY> {
+        Arc::new(std::mem::take(self))
     }
 
     fn clear(&mut self) {
@@ -233,22 +233,23 @@ impl DeferredXY {
     }
 }
 
-/// Removes `moves` from the X and Y families, statistics per sub-move.
-fn remove_xy(
+/// Removes `moves` from the selected families, statistics per sub-move.
+fn remove_moves(
     pass: &mut RemovalPass,
     grid: &mut DexelGrid,
     body: &ToolBody,
     moves: &[SubMove],
+    families: [bool; 3],
 ) -> Vec<RemovalStats> {
     let groups: Vec<usize> = (0..moves.len()).collect();
-    pass.remove(grid, body, moves, &groups, moves.len(), [true, true, false])
+    pass.remove(grid, body, moves, &groups, moves.len(), families)
 }
 
-/// Where the X and Y removal runs: inline on this thread, or on the X/Y thread, which
-/// owns those two families meanwhile and takes batches in order.
+/// Where the X and Y removal runs: inline on this thread, or on a thread per family,
+/// which owns its family meanwhile and takes the batches in order.
 enum XyRemoval {
     Inline,
-    Thread(std::sync::mpsc::SyncSender<DeferredXY>),
+    Threads(Vec<std::sync::mpsc::SyncSender<Arc<DeferredXY>>>),
 }
 
 impl XyRemoval {
@@ -262,11 +263,14 @@ impl XyRemoval {
     ) {
         match self {
             XyRemoval::Inline => deferred.flush(pass, grid, body, step_stats),
-            XyRemoval::Thread(tx) => {
+            XyRemoval::Threads(senders) => {
                 if !deferred.moves.is_empty() {
-                    // The X/Y thread only stops after this thread drops the sender.
-                    tx.send(deferred.take())
-                        .expect("the X/Y thread outlives the pass");
+                    let batch = deferred.take();
+                    for tx in senders {
+                        // A family's thread only stops after this thread drops the senders.
+                        tx.send(batch.clone())
+                            .expect("the family's thread outlives the pass");
+                    }
                 }
             }
         }
@@ -301,7 +305,7 @@ fn run_segments(
     // Material never rises, so the initial top bounds it for the whole program and lets
     // checks and engagement skip what is above the stock.
     let top_z = grid.max_z();
-    let threaded = matches!(xy, XyRemoval::Thread(_));
+    let threaded = matches!(xy, XyRemoval::Threads(_));
     let mut deferred = DeferredXY::default();
     let mut scratch = Scratch::default();
     let Pass { blocks, step_stats } = out;
@@ -609,26 +613,38 @@ fn simulate_inner(
         step_stats: Vec::with_capacity(segments.len()),
     };
     let run = if opts.compute_engagement {
-        // The X and Y families go to a thread of their own meanwhile: checks and engagement
-        // read only Z, so this thread walks the path on Z while that one removes the X/Y
-        // sweeps behind it, in order (the same material either way).
-        let mut xy_pass = pass.split_off_xy();
-        let mut xy_grid = stock.grid.split_off_xy();
+        // The X and Y families go to a thread each meanwhile: checks and engagement read
+        // only Z, so this thread walks the path on Z while those remove the sweeps behind
+        // it, in order (the same material either way).
+        let owned = [0, 1].map(|a| (pass.split_off_family(a), stock.grid.split_off_family(a)));
         let body = &body;
-        let (run, (xy_grid, done)) = std::thread::scope(|scope| {
-            let (tx, rx) = std::sync::mpsc::sync_channel::<DeferredXY>(XY_QUEUE);
-            let worker = std::thread::Builder::new()
-                .name("removal-xy".into())
-                .spawn_scoped(scope, move || {
-                    let mut done = Vec::new();
-                    for batch in rx {
-                        let per_move = remove_xy(&mut xy_pass, &mut xy_grid, body, &batch.moves);
-                        done.push((batch, per_move));
-                    }
-                    (xy_grid, done)
-                })
-                .expect("a thread for the X/Y removal");
-            let xy = XyRemoval::Thread(tx);
+        let (run, results) = std::thread::scope(|scope| {
+            let mut senders = Vec::new();
+            let mut workers = Vec::new();
+            for (a, (mut fam_pass, mut fam_grid)) in owned.into_iter().enumerate() {
+                let (tx, rx) = std::sync::mpsc::sync_channel::<Arc<DeferredXY>>(XY_QUEUE);
+                senders.push(tx);
+                let families = [a == 0, a == 1, false];
+                let worker = std::thread::Builder::new()
+                    .name(["removal-x", "removal-y"][a].into())
+                    .spawn_scoped(scope, move || {
+                        let mut done = Vec::new();
+                        for batch in rx {
+                            let per_move = remove_moves(
+                                &mut fam_pass,
+                                &mut fam_grid,
+                                body,
+                                &batch.moves,
+                                families,
+                            );
+                            done.push((batch, per_move));
+                        }
+                        (fam_grid, done)
+                    })
+                    .expect("a thread for a family's removal");
+                workers.push(worker);
+            }
+            let xy = XyRemoval::Threads(senders);
             let run = run_segments(
                 &mut stock.grid,
                 tool,
@@ -641,14 +657,31 @@ fn simulate_inner(
                 &mut out,
             );
             drop(xy);
-            match worker.join() {
-                Ok(v) => (run, v),
-                Err(panic) => std::panic::resume_unwind(panic),
-            }
+            let results: Vec<_> = workers
+                .into_iter()
+                .map(|w| match w.join() {
+                    Ok(v) => v,
+                    Err(panic) => std::panic::resume_unwind(panic),
+                })
+                .collect();
+            (run, results)
         });
-        stock.grid.restore_xy(xy_grid);
-        for (batch, per_move) in &done {
-            batch.apply(per_move, &mut out.step_stats);
+        let mut per_family = Vec::new();
+        for (a, (grid, done)) in results.into_iter().enumerate() {
+            stock.grid.restore_family(a, grid);
+            per_family.push(done);
+        }
+        for ((batch, x), (_, y)) in per_family[0].iter().zip(&per_family[1]) {
+            let per_move: Vec<RemovalStats> = x
+                .iter()
+                .zip(y)
+                .map(|(a, b)| {
+                    let mut s = *a;
+                    s.add(b);
+                    s
+                })
+                .collect();
+            batch.apply(&per_move, &mut out.step_stats);
         }
         run
     } else {

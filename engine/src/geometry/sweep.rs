@@ -1060,15 +1060,13 @@ impl RemovalPass {
         }
     }
 
-    /// Moves the X and Y summaries out into a pass of their own, which removes on its
-    /// own thread (no forks), for the grid from `DexelGrid::split_off_xy`.
-    pub(crate) fn split_off_xy(&mut self) -> RemovalPass {
-        let take = |s: &mut RaySummaries| RaySummaries {
-            rays: std::mem::take(&mut s.rays),
-        };
-        let [x, y, _] = &mut self.summaries;
+    /// Moves family `a`'s summaries out into a pass of their own, which removes on its own
+    /// thread (no forks), for the grid from `DexelGrid::split_off_family`.
+    pub(crate) fn split_off_family(&mut self, a: usize) -> RemovalPass {
+        let mut summaries: [RaySummaries; 3] = Default::default();
+        std::mem::swap(&mut summaries[a], &mut self.summaries[a]);
         RemovalPass {
-            summaries: [take(x), take(y), RaySummaries { rays: Vec::new() }],
+            summaries,
             per_row: Default::default(),
             parallel: false,
         }
