@@ -387,7 +387,7 @@ fn differs_only_in_f_words(a: &str, b: &str) -> Result<usize, String> {
 
 const PROGRAM: &str = "%\n(roughing test)\nN10 G21 G90 G94 G17\nN20 T1 M6\nN30 S8000 M3\nN40 G0 X-10 Y0 Z5\nN50 G1 Z-5 F300 (plunge)\nN60 X20 F1000\nN70 X40\nN80  X60   ; comment\nN90 G2 X80 Y0 I10 J0\nN100 G1 X100\nN110 Y10\nN120 G0 Z5\nN130 M30\n%\n";
 
-fn program_segments(mv: &[Move]) -> Vec<Segment> {
+fn program_segments(mv: &[Move]) -> Vec<Segment<'static>> {
     // Line → engagement: plunge in air, then slot, half, tenth, slot (arc), air, (Y10: no data).
     let mut segs = Vec::new();
     for (i, m) in mv.iter().enumerate() {

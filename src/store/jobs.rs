@@ -235,10 +235,16 @@ impl Db {
         .await;
         match inserted {
             Ok(_) => {
+                // Read back inside the transaction: after the commit a worker may already
+                // have claimed it, and the answer to the submission is the job as created.
+                let row = sqlx::query("SELECT * FROM jobs WHERE owner = ? AND id = ?")
+                    .bind(owner)
+                    .bind(&id)
+                    .fetch_one(&mut *tx)
+                    .await?;
+                let job = job_record(&row)?;
                 tx.commit().await?;
-                Ok(CreateOutcome::Created(
-                    self.get_job(owner, &id).await?.expect("job just inserted"),
-                ))
+                Ok(CreateOutcome::Created(job))
             }
             // Two requests with one key raced; the other one won.
             Err(e) if is_unique_violation(&e) && new.idempotency_key.is_some() => {
