@@ -38,7 +38,7 @@ fn engagement(depth: f64, ae_d: f64) -> Engagement {
             .map(|i| EngagedSlice {
                 z: 0.05 + 0.1 * i as f64,
                 dz: 0.1,
-                arcs: vec![(st, PI)],
+                arcs: vec![(st, PI)].into(),
             })
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
@@ -57,7 +57,7 @@ impl Rng {
     }
 }
 
-fn setup() -> (String, Vec<Move>, Vec<Segment>) {
+fn setup() -> (String, Vec<Move>, Vec<Segment<'static>>) {
     let mut src = String::from("G21 G90 G94\nS18000 M3\nG0 X0 Y0 Z1\nG1 Z-2 F1000\n");
     for i in 0..BLOCKS {
         // 2 mm blocks along a gently curving path (an adaptive-like pass, no sharp corners).

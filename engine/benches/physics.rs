@@ -16,7 +16,7 @@ fn engagement(depth: f64, arc: (f64, f64)) -> Engagement {
             .map(|i| EngagedSlice {
                 z: (i as f64 + 0.5) * dz,
                 dz,
-                arcs: vec![arc],
+                arcs: vec![arc].into(),
             })
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],

@@ -11,6 +11,9 @@
 
 use serde::{Deserialize, Serialize};
 
+/// A slice's engaged arcs: one or two inline (the common cases, no allocation per slice).
+pub type Arcs = smallvec::SmallVec<[(f64, f64); 2]>;
+
 /// One axial slice of the cutting edge and the immersion intervals where it meets
 /// material that is still there before this step removes it.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -21,7 +24,7 @@ pub struct EngagedSlice {
     pub dz: f64,
     /// Engaged immersion intervals (φ_entry, φ_exit), radians, each within [0, 2π),
     /// φ_entry < φ_exit, sorted, not overlapping.
-    pub arcs: Vec<(f64, f64)>,
+    pub arcs: Arcs,
 }
 
 /// The engagement of one step.

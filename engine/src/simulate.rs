@@ -36,15 +36,32 @@ fn evaluate_forces(
     k: &CuttingCoefficients,
     feed_range: Option<(f64, f64)>,
 ) -> Result<Vec<StepForces>, crate::physics::PhysicsError> {
-    steps
+    // A step with the same move, feed and engagement as the step before it (steady cutting
+    // on the grid) has the same forces: only the first of such a run is evaluated.
+    let same_as_previous: Vec<bool> = (0..steps.len())
+        .map(|i| {
+            i > 0 && {
+                let ((ma, ta, a), (mb, tb, b)) = (&steps[i - 1], &steps[i]);
+                ma == mb
+                    && ta == tb
+                    && step_feeds[i - 1] == step_feeds[i]
+                    && a.air == b.air
+                    && (a.removed_volume > 0.0) == (b.removed_volume > 0.0)
+                    && a.engagement == b.engagement
+            }
+        })
+        .collect();
+    let evaluated: Vec<StepForces> = steps
         .par_iter()
         .zip(step_feeds)
+        .zip(&same_as_previous)
         .map_init(
             || models.clone(),
-            |models, ((mi, t, s), &feed)| {
+            |models, (((mi, t, s), &feed), &same)| {
                 let m = &moves[*mi];
                 let flutes = models[t].table().flutes() as f64;
-                if s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0 {
+                if same || s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0
+                {
                     return Ok((None, None));
                 }
                 let conditions = CuttingConditions {
@@ -74,7 +91,17 @@ fn evaluate_forces(
                 Ok((Some(out), response))
             },
         )
-        .collect()
+        .collect::<Result<_, crate::physics::PhysicsError>>()?;
+    // The repeats take their run's first result.
+    let mut results: Vec<StepForces> = Vec::with_capacity(evaluated.len());
+    for (r, same) in evaluated.into_iter().zip(same_as_previous) {
+        let r = match (same, results.last()) {
+            (true, Some(prev)) => prev.clone(),
+            _ => r,
+        };
+        results.push(r);
+    }
+    Ok(results)
 }
 
 /// A step's forces at its feed (None: no cut), and its peak response when asked for.
@@ -854,6 +881,9 @@ pub fn simulate(
     let mut models: BTreeMap<u32, ForceModel> = BTreeMap::new();
     // The volume is measured once before and once after, not after every chunk.
     let sim_options = SimOptions {
+        // Steps are one cell long at any feed: a move over 8 cells lets its step grow
+        // while the engagement stays the same (and come back where it changes).
+        max_uniform_steps: 8,
         measure_stock_volume: false,
         ..SimOptions::default()
     };

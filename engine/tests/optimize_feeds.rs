@@ -34,7 +34,7 @@ fn engagement(depth: f64, phi_st: f64, phi_ex: f64) -> Engagement {
             .map(|i| EngagedSlice {
                 z: 0.1 + 0.2 * i as f64,
                 dz: 0.2,
-                arcs: vec![(phi_st, phi_ex)],
+                arcs: vec![(phi_st, phi_ex)].into(),
             })
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],

@@ -31,7 +31,7 @@ fn engagement(depth: f64, st: f64, ex: f64) -> Engagement {
             .map(|i| EngagedSlice {
                 z: 0.1 + 0.2 * i as f64,
                 dz: 0.2,
-                arcs: vec![(st, ex)],
+                arcs: vec![(st, ex)].into(),
             })
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],

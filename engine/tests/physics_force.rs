@@ -31,7 +31,7 @@ fn engagement(a: f64, n: usize, arcs: &[(f64, f64)]) -> Engagement {
             .map(|i| EngagedSlice {
                 z: (i as f64 + 0.5) * dz,
                 dz,
-                arcs: arcs.to_vec(),
+                arcs: arcs.into(),
             })
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],

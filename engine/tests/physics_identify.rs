@@ -17,7 +17,7 @@ fn slot(a: f64, n: usize) -> Engagement {
             .map(|i| EngagedSlice {
                 z: (i as f64 + 0.5) * dz,
                 dz,
-                arcs: vec![(0.0, PI)],
+                arcs: vec![(0.0, PI)].into(),
             })
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],

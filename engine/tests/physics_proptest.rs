@@ -116,7 +116,7 @@ proptest! {
         let f = [feed.0, feed.1, feed.2];
         prop_assume!(f.iter().map(|x| x * x).sum::<f64>() > 1e-6);
         let e = Engagement {
-            slices: (0..slices).map(|i| EngagedSlice { z: (i as f64 + 0.5) * dz, dz, arcs: arcs.clone() }).collect(),
+            slices: (0..slices).map(|i| EngagedSlice { z: (i as f64 + 0.5) * dz, dz, arcs: arcs.clone().into() }).collect(),
             feed_dir: unit(f),
             tool_axis: unit([axis.0, axis.1, 1.0]),
         };

@@ -486,3 +486,65 @@ fn a_design_part_reports_the_gouge_and_the_allowance_left() {
         [Some(10), Some(20)]
     );
 }
+
+#[test]
+fn the_optimized_program_simulated_again_holds_the_limit_with_feeds_per_tooth_over_the_cell() {
+    use millsim_engine::optimize::FeedLimits;
+    // A 0.1 mm grid, feeds per tooth of 0.1 to 0.4 mm: short moves that step sideways into
+    // the wall, then arcs and a slot, where the engagement changes along each move. The
+    // engagement must not depend on the feed (a step as long as the feed per tooth would
+    // widen the arcs at the new feed): simulating the optimized program again gives, move
+    // by move, the peak the optimizer computed, within the limit.
+    let mut program = String::from("G21 G90\nS10000 M3\nG0 Z5\nG0 X-8 Y-4\nG1 Z-2 F2000\n");
+    for k in 0..12 {
+        let x = 6.0 * k as f64;
+        program += &format!(
+            "G1 X{} Y{} F{}\n",
+            x + 3.0,
+            -3.0 + 0.5 * (k % 3) as f64,
+            2000 + 500 * (k % 4)
+        );
+        program += &format!("G1 X{} Y-4\n", x + 6.0);
+    }
+    program += "G3 X77 Y1 I0 J5 F3000\nG1 Y6\nG1 X20 F4000\nG2 X20 Y-4 I0 J-5\nG0 Z5\nM30\n";
+    let limit = 600.0;
+    let mut s = spec(&program);
+    s.cell = Some(0.1);
+    s.optimize = Some(FeedLimits {
+        max_force: Some(limit),
+        max_feed: 16_000.0,
+        ..FeedLimits::default()
+    });
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let opt = out.optimization.as_ref().unwrap();
+    assert!(opt.changed_blocks > 20, "{opt:?}");
+    let mut again = spec(out.optimized_program.as_ref().unwrap());
+    again.cell = Some(0.1);
+    let resim = simulate(&again, &CancelFlag::new(), &NoProgress).unwrap();
+    let mut fast = 0;
+    for (a, b) in out.rows.iter().zip(&resim.rows) {
+        assert_eq!(a.line, b.line);
+        let predicted = a.peak_force_after.unwrap_or(0.0);
+        assert!(
+            (b.peak_force - predicted).abs() <= 1e-6 * limit,
+            "line {}: simulated again {} N, predicted {predicted} N",
+            b.line,
+            b.peak_force
+        );
+        assert!(
+            b.peak_force <= limit * 1.005,
+            "line {}: {} N",
+            b.line,
+            b.peak_force
+        );
+        if b.feed_mm_min / (10_000.0 * 4.0) > 0.1 + 1e-9 && b.removed_volume > 0.0 {
+            fast += 1;
+        }
+    }
+    assert!(
+        fast > 5,
+        "feeds per tooth over the cell: {fast} {:?}",
+        resim.rows.iter().map(|r| r.feed_mm_min).collect::<Vec<_>>()
+    );
+    assert!((resim.summary.removed_volume - out.summary.removed_volume).abs() < 1e-6);
+}

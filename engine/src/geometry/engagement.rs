@@ -18,7 +18,7 @@ use std::f64::consts::PI;
 use super::dexel::DexelGrid;
 use super::path::unit;
 use super::sweep::{frame_around, ToolBody};
-use crate::engagement::{EngagedSlice, Engagement};
+use crate::engagement::{Arcs, EngagedSlice, Engagement};
 use crate::tool::Tool;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -59,6 +59,10 @@ pub struct StepMetrics {
 #[derive(Default)]
 pub(crate) struct Scratch {
     bits: Vec<bool>,
+    /// Flank: per bin, the slice index ranges [lo, hi) in material; their ends; one row.
+    ranges: Vec<(usize, usize, usize)>,
+    cuts: Vec<usize>,
+    row: Vec<bool>,
     /// Per slice: whether any of its bits is set (most slices of a step have none).
     slice_hit: Vec<bool>,
     /// sin and cos of the bin centres, kept while the bin count stays the same.
@@ -191,38 +195,42 @@ pub(crate) fn compute(
             }
         }
     }
-    if vertical {
-        // Flank slices (κ = 90°, radius R): the normal is horizontal.
-        let jf0 = j0.max(((ptop / dz) - 0.5).ceil().max(0.0) as usize);
-        if jf0 < j_end {
-            let r = body.radius;
-            for m in 0..nb {
-                let radial = [
-                    trig[m].0 * xf[0] + trig[m].1 * yf[0],
-                    trig[m].0 * xf[1] + trig[m].1 * yf[1],
-                ];
-                let nv = radial[0] * v[0] + radial[1] * v[1];
-                if nv <= 0.0 {
-                    continue;
-                }
-                let Some(ray) = grid.z_ray(
-                    input.pos[0] + radial[0] * (r + out),
-                    input.pos[1] + radial[1] * (r + out),
-                ) else {
-                    continue;
-                };
-                for iv in ray.iter() {
-                    // Slices whose centre height lies in the material interval.
-                    let base = input.pos[2];
-                    let lo = ((iv[0] - base) / dz - 0.5).ceil().max(jf0 as f64);
-                    let hi = ((iv[1] - base) / dz - 0.5).floor().min(j_end as f64 - 1.0);
-                    if lo > hi {
-                        continue;
-                    }
-                    for j in lo as usize..=hi as usize {
-                        bits[(j - j0) * nb + m] = true;
-                        slice_hit[j - j0] = true;
-                    }
+    // Flank slices of a vertical tool (κ = 90°, radius R, horizontal normal): one Z ray per
+    // bin gives the slices in material there as a range of slice indices, so the slices'
+    // bins only change where some bin's range starts or ends. Runs of slices between those
+    // breaks share their arcs, found once per run.
+    let jf0 = if vertical {
+        j0.max(((ptop / dz) - 0.5).ceil().max(0.0) as usize)
+            .min(j_end)
+    } else {
+        j_end
+    };
+    let ranges = &mut scratch.ranges;
+    ranges.clear();
+    if jf0 < j_end {
+        let r = body.radius;
+        for m in 0..nb {
+            let radial = [
+                trig[m].0 * xf[0] + trig[m].1 * yf[0],
+                trig[m].0 * xf[1] + trig[m].1 * yf[1],
+            ];
+            let nv = radial[0] * v[0] + radial[1] * v[1];
+            if nv <= 0.0 {
+                continue;
+            }
+            let Some(ray) = grid.z_ray(
+                input.pos[0] + radial[0] * (r + out),
+                input.pos[1] + radial[1] * (r + out),
+            ) else {
+                continue;
+            };
+            for iv in ray.iter() {
+                // Slices whose centre height lies in the material interval.
+                let base = input.pos[2];
+                let lo = ((iv[0] - base) / dz - 0.5).ceil().max(jf0 as f64);
+                let hi = ((iv[1] - base) / dz - 0.5).floor().min(j_end as f64 - 1.0);
+                if lo <= hi {
+                    ranges.push((m, lo as usize, hi as usize + 1));
                 }
             }
         }
@@ -232,59 +240,89 @@ pub(crate) fn compute(
         exit_angle: f64::NEG_INFINITY,
         ..Default::default()
     };
-    // The last slice's bins, arcs and cosine bounds: slices of a flank in the same material
-    // (most of them) repeat them, and then reuse them.
-    let mut last: Option<(usize, f64, f64)> = None;
-    for j in j0..j_end {
+    // The arcs of a row of bins and the bounds of cos φ over them (for the radial width).
+    let arcs_of = |row: &[bool], met: &mut StepMetrics| {
+        let mut arcs = Arcs::new();
+        let mut m = 0;
+        while m < nb {
+            if row[m] {
+                let start = m;
+                while m < nb && row[m] {
+                    m += 1;
+                }
+                arcs.push((start as f64 * dphi, m as f64 * dphi));
+            } else {
+                m += 1;
+            }
+        }
+        let (mut cmax, mut cmin) = (f64::NEG_INFINITY, f64::INFINITY);
+        for &(s, e) in &arcs {
+            met.entry_angle = met.entry_angle.min(s);
+            met.exit_angle = met.exit_angle.max(e);
+            let c_hi = if s <= 0.0 || e >= 2.0 * PI - 1e-12 {
+                1.0
+            } else {
+                s.cos().max(e.cos())
+            };
+            let c_lo = if s <= PI && PI <= e {
+                -1.0
+            } else {
+                s.cos().min(e.cos())
+            };
+            cmax = cmax.max(c_hi);
+            cmin = cmin.min(c_lo);
+        }
+        (arcs, cmax, cmin)
+    };
+    let mut push = |j: usize, arcs: &Arcs, (cmax, cmin): (f64, f64), met: &mut StepMetrics| {
+        let z = (j as f64 + 0.5) * dz;
+        let Some(ep) = tool.edge_point(z) else {
+            return;
+        };
+        met.radial_width = met.radial_width.max(ep.radius * (cmax - cmin));
+        met.engaged_edge_length += body.profile_length(z - 0.5 * dz, z + 0.5 * dz);
+        eng.slices.push(EngagedSlice {
+            z,
+            dz,
+            arcs: arcs.clone(),
+        });
+    };
+    // Slices below the flank, from their sampled bins.
+    for j in j0..jf0 {
         if !slice_hit[j - j0] {
             continue;
         }
-        let row = &bits[(j - j0) * nb..(j - j0 + 1) * nb];
-        let z = (j as f64 + 0.5) * dz;
-        let Some(ep) = tool.edge_point(z) else {
-            continue;
-        };
-        let same = last.is_some_and(|(k, _, _)| bits[(k - j0) * nb..(k - j0 + 1) * nb] == *row);
-        let (arcs, cmax, cmin) = match (last, eng.slices.last()) {
-            (Some((_, cmax, cmin)), Some(prev)) if same => (prev.arcs.clone(), cmax, cmin),
-            _ => {
-                let mut arcs = Vec::new();
-                let mut m = 0;
-                while m < nb {
-                    if row[m] {
-                        let start = m;
-                        while m < nb && row[m] {
-                            m += 1;
-                        }
-                        arcs.push((start as f64 * dphi, m as f64 * dphi));
-                    } else {
-                        m += 1;
-                    }
+        let (arcs, cmax, cmin) = arcs_of(&bits[(j - j0) * nb..(j - j0 + 1) * nb], &mut met);
+        push(j, &arcs, (cmax, cmin), &mut met);
+    }
+    // Flank runs.
+    if !ranges.is_empty() {
+        let cuts = &mut scratch.cuts;
+        cuts.clear();
+        cuts.extend(ranges.iter().flat_map(|&(_, lo, hi)| [lo, hi]));
+        cuts.sort_unstable();
+        cuts.dedup();
+        let row = &mut scratch.row;
+        row.clear();
+        row.resize(nb, false);
+        for w in cuts.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            row.fill(false);
+            let mut any = false;
+            for &(m, lo, hi) in ranges.iter() {
+                if lo <= a && a < hi {
+                    row[m] = true;
+                    any = true;
                 }
-                let (mut cmax, mut cmin) = (f64::NEG_INFINITY, f64::INFINITY);
-                for &(s, e) in &arcs {
-                    met.entry_angle = met.entry_angle.min(s);
-                    met.exit_angle = met.exit_angle.max(e);
-                    let c_hi = if s <= 0.0 || e >= 2.0 * PI - 1e-12 {
-                        1.0
-                    } else {
-                        s.cos().max(e.cos())
-                    };
-                    let c_lo = if s <= PI && PI <= e {
-                        -1.0
-                    } else {
-                        s.cos().min(e.cos())
-                    };
-                    cmax = cmax.max(c_hi);
-                    cmin = cmin.min(c_lo);
-                }
-                (arcs, cmax, cmin)
             }
-        };
-        last = Some((j, cmax, cmin));
-        met.radial_width = met.radial_width.max(ep.radius * (cmax - cmin));
-        met.engaged_edge_length += body.profile_length(z - 0.5 * dz, z + 0.5 * dz);
-        eng.slices.push(EngagedSlice { z, dz, arcs });
+            if !any {
+                continue;
+            }
+            let (arcs, cmax, cmin) = arcs_of(row, &mut met);
+            for j in a..b {
+                push(j, &arcs, (cmax, cmin), &mut met);
+            }
+        }
     }
     for (k, hit) in slice_hit[..nz].iter_mut().enumerate() {
         if std::mem::take(hit) {

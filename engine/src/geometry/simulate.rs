@@ -345,16 +345,17 @@ fn run_segments(
             }
         };
         let len = prep.length;
-        let fz = if seg.feed > 0.0 && seg.spindle > 0.0 {
-            seg.feed / (seg.spindle * tool.flutes as f64)
-        } else {
-            0.0
-        };
-        // At most one step per feed per tooth or per grid cell, whichever is coarser.
+        // One step per grid cell, whatever the feed: the engagement at a step sees the
+        // material as the tool left it one step back, so a step as long as the feed per
+        // tooth would widen the arcs by a crescent the chip thickness (fz·sin φ) already
+        // counts, and make the engagement depend on the feed. With cell steps the
+        // engagement is sampled at the same places with the same look-back at any feed:
+        // the forces the optimizer computes at a new feed are what a simulation of the
+        // optimized program finds.
         let base = if seg.rapid {
             (0.5 * body.radius).max(h)
         } else {
-            fz.max(h)
+            h
         };
         let n_uniform = (len / base).ceil().max(1.0) as usize;
         let adaptive = !seg.rapid && n_uniform > opts.max_uniform_steps;

@@ -1,6 +1,7 @@
 //! The workpiece: a tri-dexel grid filled from a parametric block or cylinder, or from an
 //! STL mesh (see `stl.rs`).
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::dexel::{other_axes, DexelGrid, GridEstimate, GridOptions, Intervals};
@@ -149,11 +150,15 @@ impl Stock {
             let centers_v: Vec<f64> = (0..grid.families[a].nv)
                 .map(|i| grid.center(va, i))
                 .collect();
-            for (k, ray) in grid.families[a].rays.iter_mut().enumerate() {
-                if let Some(iv) = shape.ray_interval(a, centers_u[k % nu], centers_v[k / nu]) {
-                    *ray = Intervals::from_slice(&[iv]);
-                }
-            }
+            grid.families[a]
+                .rays
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(k, ray)| {
+                    if let Some(iv) = shape.ray_interval(a, centers_u[k % nu], centers_v[k / nu]) {
+                        *ray = Intervals::from_slice(&[iv]);
+                    }
+                });
         }
         Ok(Stock { grid })
     }

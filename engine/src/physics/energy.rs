@@ -922,7 +922,7 @@ impl EnergyProblem {
                 Some(EngagedSlice {
                     z,
                     dz,
-                    arcs: vec![arc],
+                    arcs: vec![arc].into(),
                 })
             })
             .collect();

@@ -33,7 +33,7 @@
 //! let mut model = ForceModel::new(&tool, 150, 360).unwrap();
 //! let step = Engagement {
 //!     slices: (0..25)
-//!         .map(|i| EngagedSlice { z: 0.1 + 0.2 * i as f64, dz: 0.2, arcs: vec![(0.0, std::f64::consts::PI)] })
+//!         .map(|i| EngagedSlice { z: 0.1 + 0.2 * i as f64, dz: 0.2, arcs: vec![(0.0, std::f64::consts::PI)].into() })
 //!         .collect(),
 //!     feed_dir: [0.0, 1.0, 0.0],
 //!     tool_axis: [0.0, 0.0, 1.0],
