@@ -424,7 +424,7 @@ fn run_segments(
                     motion,
                     top_z,
                 };
-                compute(&*grid, tool, &body, &input, &opts.engagement, &mut scratch)
+                compute(&*grid, tool, body, &input, &opts.engagement, &mut scratch)
             } else {
                 (
                     Engagement {
@@ -594,7 +594,7 @@ pub fn simulate_removal_with_progress(
     rayon::scope(|_| simulate_inner(stock, tool, segments, opts, cancel, on_segment))
 }
 
-/// Batches of X/Y sweeps that may wait for the X/Y thread.
+/// Batches of sweeps that may wait for the X and Y threads.
 const XY_QUEUE: usize = 256;
 
 fn simulate_inner(
