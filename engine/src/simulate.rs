@@ -29,7 +29,7 @@ use crate::tool::Tool;
 /// gets its peak response over that range of feeds when the tool has no runout (what the
 /// optimizer and the forces at the new feeds then read instead of summing the slices again).
 fn evaluate_forces(
-    steps: &[(usize, u32, geometry::StepGeometry)],
+    steps: &[MoveStep],
     moves: &[Move],
     step_feeds: &[f64],
     models: &BTreeMap<u32, ForceModel>,
@@ -104,13 +104,16 @@ fn evaluate_forces(
     Ok(results)
 }
 
+/// A removal step with the index of the move it belongs to and the tool number cutting.
+type MoveStep = (usize, u32, geometry::StepGeometry);
+
 /// A step's forces at its feed (None: no cut), and its peak response when asked for.
 type StepForces = (Option<ForceResult>, Option<Arc<PeakResponse>>);
 
 /// Peak |F| at every step that removes material, each at its own feed (mm/min): from the
 /// step's peak response when the feed lies in its range, else by evaluating the model.
 fn peak_forces(
-    steps: &[(usize, u32, geometry::StepGeometry)],
+    steps: &[MoveStep],
     responses: &[Option<Arc<PeakResponse>>],
     moves: &[Move],
     step_feeds: &[f64],
@@ -876,7 +879,7 @@ pub fn simulate(
     let total = moves.len() as u64;
     let clock = std::time::Instant::now();
     let mut rays_tested = 0u64;
-    let mut steps: Vec<(usize, u32, geometry::StepGeometry)> = Vec::new();
+    let mut steps: Vec<MoveStep> = Vec::new();
     let mut done = 0u64;
     let mut models: BTreeMap<u32, ForceModel> = BTreeMap::new();
     // The volume is measured once before and once after, not after every chunk.
@@ -1266,10 +1269,7 @@ fn optimize_stage(
     limits: &FeedLimits,
     moves: &[Move],
     rows: &mut [MoveRow],
-    (steps, responses): (
-        &[(usize, u32, geometry::StepGeometry)],
-        &[Option<Arc<PeakResponse>>],
-    ),
+    (steps, responses): (&[MoveStep], &[Option<Arc<PeakResponse>>]),
     models: &BTreeMap<u32, ForceModel>,
     before: &crate::machine::cycle_time::CycleTime,
     timings: &mut StageTimings,
