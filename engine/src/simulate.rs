@@ -60,13 +60,9 @@ fn evaluate_forces(
             |models, (((mi, t, s), &feed), &same)| {
                 let m = &moves[*mi];
                 let flutes = models[t].table().flutes() as f64;
-                if same || s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0
-                {
+                let Some(conditions) = cutting_conditions(m, s, feed, flutes).filter(|_| !same)
+                else {
                     return Ok((None, None));
-                }
-                let conditions = CuttingConditions {
-                    spindle_rpm: m.spindle,
-                    feed_per_tooth: feed / (m.spindle * flutes),
                 };
                 let model = models.get_mut(t).expect("model per tool");
                 let mut out = ForceResult::default();
@@ -129,17 +125,13 @@ fn peak_forces(
             |models, (((mi, t, s), response), &feed)| {
                 let m = &moves[*mi];
                 let flutes = models[t].table().flutes() as f64;
-                if s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0 {
+                let Some(conditions) = cutting_conditions(m, s, feed, flutes) else {
                     return Ok(None);
-                }
-                let fz = feed / (m.spindle * flutes);
+                };
+                let fz = conditions.feed_per_tooth;
                 if let Some(p) = response.as_ref().and_then(|r| r.at(fz)) {
                     return Ok(Some(p.force));
                 }
-                let conditions = CuttingConditions {
-                    spindle_rpm: m.spindle,
-                    feed_per_tooth: fz,
-                };
                 let model = models.get_mut(t).expect("model per tool");
                 Ok(Some(
                     model.evaluate(&s.engagement, k, &conditions)?.force.peak,
@@ -147,6 +139,21 @@ fn peak_forces(
             },
         )
         .collect()
+}
+
+/// Spindle speed and feed per tooth of a step on move `m` at `feed` (mm/min), when the step
+/// cuts: it meets and removes material, the spindle turns and the tool moves.
+fn cutting_conditions(
+    m: &Move,
+    s: &geometry::StepGeometry,
+    feed: f64,
+    flutes: f64,
+) -> Option<CuttingConditions> {
+    let idle = s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0;
+    (!idle).then(|| CuttingConditions {
+        spindle_rpm: m.spindle,
+        feed_per_tooth: feed / (m.spindle * flutes),
+    })
 }
 
 /// The spindle speed while the spindle turns (M3/M4), 0 when it is stopped.
