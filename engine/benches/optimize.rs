@@ -12,7 +12,8 @@ use millsim_engine::engagement::{EngagedSlice, Engagement};
 use millsim_engine::machine::{cycle_time, Machine};
 use millsim_engine::nc::{interpret, InterpretOptions, Move, Program};
 use millsim_engine::optimize::{
-    optimize_feeds, rewrite_program, Cutter, EngagementStep, FeedLimits, RewriteOptions, Segment,
+    optimize_feeds, rewrite_program, Cutter, EngagementStep, FeedLimits, FeedScale, RewriteOptions,
+    Segment,
 };
 use millsim_engine::physics::Material;
 use millsim_engine::tool::Tool;
@@ -85,6 +86,7 @@ fn setup() -> (String, Vec<Move>, Vec<Segment<'static>>) {
                 EngagementStep {
                     engagement: Cow::Owned(engagement(2.0, ae)),
                     spindle_rpm: RPM,
+                    tip_ratio: 1.0,
                     at: k as f64 * 0.6,
                     response: None,
                 }
@@ -93,6 +95,7 @@ fn setup() -> (String, Vec<Move>, Vec<Segment<'static>>) {
         segments.push(Segment {
             move_index: i,
             cutter: 0,
+            scale: FeedScale::UNIT,
             steps,
         });
     }

@@ -23,27 +23,29 @@ use crate::physics::{
 };
 use crate::tool::Tool;
 
-/// Forces at every step that removes material, each at its own feed (mm/min, one per step),
-/// in parallel: each step is independent and results come back in step order, so the
-/// outcome does not depend on the thread count. With `feed_range` (mm/min), each step also
-/// gets its peak response over that range of feeds when the tool has no runout (what the
-/// optimizer and the forces at the new feeds then read instead of summing the slices again).
+/// Forces at every step that removes material, each at its own tip feed (mm/min, one per
+/// step), in parallel: each step is independent and results come back in step order, so the
+/// outcome does not depend on the thread count. With `feed_ranges` (per move, the range of
+/// machine-axis feeds the optimizer may choose, mm/min), each step also gets its peak
+/// response over that range when the tool has no runout (what the optimizer and the forces
+/// at the new feeds then read instead of summing the slices again).
 fn evaluate_forces(
     steps: &[MoveStep],
     moves: &[Move],
     step_feeds: &[f64],
     models: &BTreeMap<u32, ForceModel>,
     k: &CuttingCoefficients,
-    feed_range: Option<(f64, f64)>,
+    feed_ranges: Option<&[(f64, f64)]>,
 ) -> Result<Vec<StepForces>, crate::physics::PhysicsError> {
     // A step with the same move, feed and engagement as the step before it (steady cutting
     // on the grid) has the same forces: only the first of such a run is evaluated.
     let same_as_previous: Vec<bool> = (0..steps.len())
         .map(|i| {
             i > 0 && {
-                let ((ma, ta, a), (mb, tb, b)) = (&steps[i - 1], &steps[i]);
-                ma == mb
-                    && ta == tb
+                let (p, q) = (&steps[i - 1], &steps[i]);
+                let (a, b) = (&p.geometry, &q.geometry);
+                p.move_index == q.move_index
+                    && p.tool == q.tool
                     && step_feeds[i - 1] == step_feeds[i]
                     && a.air == b.air
                     && (a.removed_volume > 0.0) == (b.removed_volume > 0.0)
@@ -57,8 +59,8 @@ fn evaluate_forces(
         .zip(&same_as_previous)
         .map_init(
             || models.clone(),
-            |models, (((mi, t, s), &feed), &same)| {
-                let m = &moves[*mi];
+            |models, ((step, &feed), &same)| {
+                let (m, t, s) = (&moves[step.move_index], &step.tool, &step.geometry);
                 let flutes = models[t].table().flutes() as f64;
                 let Some(conditions) = cutting_conditions(m, s, feed, flutes).filter(|_| !same)
                 else {
@@ -66,9 +68,10 @@ fn evaluate_forces(
                 };
                 let model = models.get_mut(t).expect("model per tool");
                 let mut out = ForceResult::default();
-                let response = match feed_range {
+                let response = match feed_ranges.map(|r| r[step.move_index]) {
                     Some((lo, hi)) => {
-                        let per_tooth = |v: f64| v / (m.spindle * flutes);
+                        // The range is of machine-axis feeds: the tip's at this step.
+                        let per_tooth = |v: f64| step.tip_ratio * v / (m.spindle * flutes);
                         model
                             .evaluate_with_response(
                                 &s.engagement,
@@ -100,8 +103,19 @@ fn evaluate_forces(
     Ok(results)
 }
 
-/// A removal step with the index of the move it belongs to and the tool number cutting.
-type MoveStep = (usize, u32, geometry::StepGeometry);
+/// A removal step of one move: the move's index, the tool number cutting, and how the tool
+/// tip moves there relative to the machine axes.
+struct MoveStep {
+    move_index: usize,
+    tool: u32,
+    /// Tip speed over the machine-axis feed at this step (1 unless rotary axes turn: the
+    /// control runs the axes at a constant rate, so the tip speeds up and slows down).
+    tip_ratio: f64,
+    /// Where the step ends along the move in machine-axis length (the unit of the move's
+    /// F: mm, or degrees on a rotary-only move); the geometry's `distance` is the tip's.
+    machine_at: f64,
+    geometry: geometry::StepGeometry,
+}
 
 /// A step's forces at its feed (None: no cut), and its peak response when asked for.
 type StepForces = (Option<ForceResult>, Option<Arc<PeakResponse>>);
@@ -122,8 +136,8 @@ fn peak_forces(
         .zip(step_feeds)
         .map_init(
             || models.clone(),
-            |models, (((mi, t, s), response), &feed)| {
-                let m = &moves[*mi];
+            |models, ((step, response), &feed)| {
+                let (m, t, s) = (&moves[step.move_index], &step.tool, &step.geometry);
                 let flutes = models[t].table().flutes() as f64;
                 let Some(conditions) = cutting_conditions(m, s, feed, flutes) else {
                     return Ok(None);
@@ -251,8 +265,6 @@ pub enum SimulateError {
     ToolZeroWithOthers,
     #[error("line {line}: rotary axes (A/B/C) move, but the machine has none (kinematics xyz); give a machine with kinematics xyz_a, xyz_b, xyz_ac, xyz_bc or head_table")]
     RotaryAxes { line: u32 },
-    #[error("line {line}: feed optimization of moves where rotary axes turn is not supported yet; simulate the program, or correct its feeds with a rotary-feed job")]
-    OptimizeRotary { line: u32 },
     #[error("stock: {0}")]
     Geometry(#[from] geometry::GeometryError),
     #[error("force model: {0}")]
@@ -361,6 +373,12 @@ pub struct MoveRow {
     /// what set its feed (force, power, torque, chip, air, entry, max_feed, ...).
     #[serde(rename = "feed_opt_mm_min", skip_serializing_if = "Option::is_none")]
     pub feed_after_mm_min: Option<f64>,
+    /// The tip speed at that feed (mean over the move), mm/min.
+    #[serde(
+        rename = "tip_speed_opt_mm_min",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub tip_speed_after_mm_min: Option<f64>,
     #[serde(rename = "time_opt_s", skip_serializing_if = "Option::is_none")]
     pub time_after_s: Option<f64>,
     #[serde(rename = "force_peak_opt_n", skip_serializing_if = "Option::is_none")]
@@ -570,6 +588,18 @@ struct PartFrame {
 /// A move cut into at most 2^MAX_DEPTH pieces.
 const MAX_DEPTH: u32 = 12;
 
+/// One straight piece of a move in the part frame.
+struct FramePiece {
+    segment: Segment,
+    /// Where the piece starts along the move: the tip's path, mm, and the machine axes'
+    /// length (the unit of the move's F: mm, or degrees on a rotary-only move).
+    tip_at: f64,
+    machine_at: f64,
+    /// Tip path over machine-axis length on this piece: the tip speed per unit of the
+    /// machine-axis feed (exactly 1 when no rotary axis turns).
+    tip_ratio: f64,
+}
+
 impl PartFrame {
     fn new(machine: &Machine, reading: AxisReading, cell: f64, reach: f64) -> PartFrame {
         PartFrame {
@@ -598,13 +628,19 @@ impl PartFrame {
         }
     }
 
-    /// The move's geometry in the part frame: segments with the distance of each one's
-    /// start along the move, and the tip path length. None for dwells and tool changes.
-    fn segments(&self, m: &Move) -> Option<(Vec<(Segment, f64)>, f64)> {
+    /// The move's geometry in the part frame: its pieces, and the tip path length. None for
+    /// dwells and tool changes.
+    fn segments(&self, m: &Move) -> Option<(Vec<FramePiece>, f64)> {
         let machine_segment = segment(m)?;
+        let whole = |segment: Segment| FramePiece {
+            segment,
+            tip_at: 0.0,
+            machine_at: 0.0,
+            tip_ratio: 1.0,
+        };
         let Some(_) = &self.kinematics else {
             let length = move_length(m);
-            return Some((vec![(machine_segment, 0.0)], length));
+            return Some((vec![whole(machine_segment)], length));
         };
         let rotary_turns = (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9);
         if !rotary_turns {
@@ -624,7 +660,7 @@ impl PartFrame {
                 *normal = crate::vec3::sub(self.pose(&at).tip, c);
                 *center = c;
             }
-            return Some((vec![(seg, 0.0)], move_length(m)));
+            return Some((vec![whole(seg)], move_length(m)));
         }
         // Rotary axes turn: the control interpolates every axis together, so the tip
         // follows a curve in the part frame. Sample it adaptively.
@@ -645,18 +681,28 @@ impl PartFrame {
             &mut knots,
         );
         let (feed, rapid) = (machine_segment.feed, machine_segment.rapid);
+        let machine_length = move_length(m);
         let mut pieces = Vec::with_capacity(knots.len() - 1);
         let mut along = 0.0;
         for w in knots.windows(2) {
-            let (a, b) = (&w[0].1, &w[1].1);
-            let mut seg = if rapid {
+            let ((u0, a), (u1, b)) = (&w[0], &w[1]);
+            let tip = crate::vec3::norm(crate::vec3::sub(b.tip, a.tip));
+            // The control moves every axis at a constant rate over the machine length, so
+            // the tip's speed on this piece is the feed times this ratio (the chip, the MRR).
+            let span = (u1 - u0) * machine_length;
+            let tip_ratio = if span > 0.0 { tip / span } else { 0.0 };
+            let seg = if rapid {
                 Segment::rapid(m.block, a.tip, b.tip)
             } else {
-                Segment::linear(m.block, a.tip, b.tip, feed, m.spindle)
+                Segment::linear(m.block, a.tip, b.tip, feed * tip_ratio, m.spindle)
             };
-            seg = seg.with_axes(a.axis, b.axis);
-            pieces.push((seg, along));
-            along += crate::vec3::norm(crate::vec3::sub(b.tip, a.tip));
+            pieces.push(FramePiece {
+                segment: seg.with_axes(a.axis, b.axis),
+                tip_at: along,
+                machine_at: u0 * machine_length,
+                tip_ratio,
+            });
+            along += tip;
         }
         Some((pieces, along))
     }
@@ -694,6 +740,36 @@ impl PartFrame {
         }
         self.refine(at, u0, p0, um, pm, depth + 1, out);
         self.refine(at, um, pm, u1, p1, depth + 1, out);
+    }
+}
+
+/// How the optimizer's machine-axis feed of move `m` drives the tool tip, and the fastest
+/// feed the machine's axes allow on it (the rotary speed limit; the linear axes' max feed
+/// where F is their rate).
+fn feed_scale(
+    m: &Move,
+    row: &MoveRow,
+    machine: &Machine,
+    axes: AxisReading,
+) -> optimize::FeedScale {
+    let rotary = (3..6)
+        .map(|i| (m.end[i] - m.start[i]).abs())
+        .fold(0.0, f64::max);
+    if !matches!(m.kind, MoveKind::Linear | MoveKind::Arc) || rotary <= 1e-9 || row.length <= 0.0 {
+        return optimize::FeedScale::UNIT;
+    }
+    let mut max_axis_feed = f64::INFINITY;
+    if let Some(w) = machine.max_rotary_speed_deg_min {
+        // The move lasts length / F: the fastest rotary axis turns `rotary` degrees in it.
+        max_axis_feed = max_axis_feed.min(row.length * w / rotary);
+    }
+    let linear = (0..3).any(|i| (m.end[i] - m.start[i]).abs() > 1e-12);
+    if axes == AxisReading::Machine && linear {
+        max_axis_feed = max_axis_feed.min(machine.max_feed);
+    }
+    optimize::FeedScale {
+        tip_ratio: row.tip_length_mm / row.length,
+        max_axis_feed,
     }
 }
 
@@ -781,9 +857,6 @@ pub fn simulate(
         if spec.machine.kinematics == Kinematics::Xyz {
             return Err(SimulateError::RotaryAxes { line: m.line });
         }
-        if spec.optimize.is_some() {
-            return Err(SimulateError::OptimizeRotary { line: m.line });
-        }
     }
     for t in spec.tools.values() {
         t.validate().map_err(crate::physics::PhysicsError::from)?;
@@ -852,7 +925,7 @@ pub fn simulate(
         .map(|t| t.flute_length)
         .fold(0.0, f64::max);
     let frame = PartFrame::new(&spec.machine, spec.axes, cell, reach);
-    let mut runs: Vec<(u32, Vec<(usize, Segment, f64)>)> = Vec::new();
+    let mut runs: Vec<(u32, Vec<(usize, FramePiece)>)> = Vec::new();
     for (i, m) in moves.iter().enumerate() {
         let Some((pieces, tip_length)) = frame.segments(m) else {
             continue;
@@ -877,7 +950,7 @@ pub fn simulate(
             runs.push((m.tool, Vec::new()));
         }
         let run = &mut runs.last_mut().expect("pushed above").1;
-        run.extend(pieces.into_iter().map(|(seg, at)| (i, seg, at)));
+        run.extend(pieces.into_iter().map(|p| (i, p)));
     }
     let segments_total: usize = runs.iter().map(|(_, r)| r.len()).sum();
     // Per move: (length of steps that cut, length of all steps).
@@ -913,7 +986,7 @@ pub fn simulate(
         }
         // One pass per tool run (the X/Y removal thread and the ray summaries are set up
         // once); progress every few hundred segments, the last tenth being the forces.
-        let only: Vec<Segment> = segs.iter().map(|(_, s, _)| s.clone()).collect();
+        let only: Vec<Segment> = segs.iter().map(|(_, p)| p.segment.clone()).collect();
         let base = done;
         let mut on_segment = |k: usize| {
             if k % PROGRESS_CHUNK == 0 || k == only.len() {
@@ -937,7 +1010,7 @@ pub fn simulate(
         })?;
         done += only.len() as u64;
         rays_tested += report.rays_tested;
-        for ((move_index, _, along), b) in segs.iter().zip(report.blocks) {
+        for ((move_index, piece), b) in segs.iter().zip(report.blocks) {
             let row = &mut rows[*move_index];
             swept[*move_index] = true;
             row.removed_volume += b.removed_volume;
@@ -964,8 +1037,19 @@ pub fn simulate(
             row.steps += b.steps.len();
             row.max_mrr = row.max_mrr.max(b.max_mrr / 60.0);
             steps.extend(b.steps.into_iter().map(|mut s| {
-                s.distance += along;
-                (*move_index, *tool_number, s)
+                let machine_at = if piece.tip_ratio > 0.0 {
+                    piece.machine_at + s.distance / piece.tip_ratio
+                } else {
+                    piece.machine_at
+                };
+                s.distance += piece.tip_at;
+                MoveStep {
+                    move_index: *move_index,
+                    tool: *tool_number,
+                    tip_ratio: piece.tip_ratio,
+                    machine_at,
+                    geometry: s,
+                }
             }));
         }
     }
@@ -982,21 +1066,38 @@ pub fn simulate(
     timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let k = spec.material.coefficients;
-    let feeds: Vec<f64> = rows.iter().map(|r| r.tip_speed_mm_min).collect();
-    let step_feeds: Vec<f64> = steps.iter().map(|(mi, _, _)| feeds[*mi]).collect();
-    // The optimizer's feed range, for the steps' peak responses.
-    let feed_range = spec.optimize.as_ref().map(|l| {
+    // Each step at the tip speed the programmed feed gives there.
+    let step_feeds: Vec<f64> = steps
+        .iter()
+        .map(|s| s.tip_ratio * rows[s.move_index].feed_mm_min)
+        .collect();
+    // Per move, the machine-axis feeds the optimizer may choose, for the steps' peak
+    // responses.
+    let scales: Vec<optimize::FeedScale> = moves
+        .iter()
+        .zip(&rows)
+        .map(|(m, r)| feed_scale(m, r, &spec.machine, spec.axes))
+        .collect();
+    let feed_ranges: Option<Vec<(f64, f64)>> = spec.optimize.as_ref().map(|l| {
         let l = l.clone().with_machine(&spec.machine);
-        (l.min_feed, l.max_feed)
+        scales.iter().map(|s| s.feed_range(&l)).collect()
     });
     let (forces, responses): (Vec<Option<ForceResult>>, Vec<Option<Arc<PeakResponse>>>) =
-        evaluate_forces(&steps, moves, &step_feeds, &models, &k, feed_range)?
-            .into_iter()
-            .unzip();
+        evaluate_forces(
+            &steps,
+            moves,
+            &step_feeds,
+            &models,
+            &k,
+            feed_ranges.as_deref(),
+        )?
+        .into_iter()
+        .unzip();
     if cancel.is_cancelled() {
         return Err(SimulateError::Cancelled);
     }
-    // Length-weighted sums per move (a move runs at one feed, so length stands for time).
+    // Time-weighted sums per move: the axes run at one rate over the move, so a step's
+    // machine-axis length (its tip path over its tip ratio) stands for its time.
     #[derive(Clone, Copy, Default)]
     struct Weighted {
         force: f64,
@@ -1007,8 +1108,9 @@ pub fn simulate(
     let mut weighted = vec![Weighted::default(); rows.len()];
     let mut evaluations = 0;
     let mut samples: Vec<Vec<StepSample>> = vec![Vec::new(); rows.len()];
-    for ((mi, _, s), f) in steps.iter().zip(&forces) {
+    for (step, f) in steps.iter().zip(&forces) {
         let Some(f) = f else { continue };
+        let (mi, s) = (&step.move_index, &step.geometry);
         evaluations += 1;
         samples[*mi].push(StepSample {
             at: s.distance,
@@ -1027,12 +1129,17 @@ pub fn simulate(
         row.peak_power = row.peak_power.max(f.power.peak);
         row.max_chip_thickness = row.max_chip_thickness.max(f.max_chip_thickness);
         let w = &mut weighted[*mi];
-        w.force += f.force.mean * s.length;
+        let length = if step.tip_ratio > 0.0 {
+            s.length / step.tip_ratio
+        } else {
+            0.0
+        };
+        w.force += f.force.mean * length;
         for (c, part) in w.components.iter_mut().zip(&f.part) {
-            *c += part.mean * s.length;
+            *c += part.mean * length;
         }
-        w.engaged_length += s.length;
-        w.power += f.power.mean * s.length;
+        w.engaged_length += length;
+        w.power += f.power.mean * length;
     }
     for (row, w) in rows.iter_mut().zip(weighted) {
         if w.engaged_length > 0.0 {
@@ -1071,7 +1178,7 @@ pub fn simulate(
                 limits,
                 moves,
                 &mut rows,
-                (&steps, &responses),
+                (&steps, &responses, &scales),
                 &models,
                 &times,
                 &mut timings,
@@ -1276,7 +1383,11 @@ fn optimize_stage(
     limits: &FeedLimits,
     moves: &[Move],
     rows: &mut [MoveRow],
-    (steps, responses): (&[MoveStep], &[Option<Arc<PeakResponse>>]),
+    (steps, responses, scales): (
+        &[MoveStep],
+        &[Option<Arc<PeakResponse>>],
+        &[optimize::FeedScale],
+    ),
     models: &BTreeMap<u32, ForceModel>,
     before: &crate::machine::cycle_time::CycleTime,
     timings: &mut StageTimings,
@@ -1295,15 +1406,20 @@ fn optimize_stage(
         })
         .collect();
     // One segment per swept feed move (possibly without engaged steps: air), in move order.
+    // A move whose tip stands still (a rotary-only move read at the tool tip) has no tip
+    // speed to schedule: it keeps its F.
     let mut segments: Vec<optimize::Segment> = Vec::new();
-    for ((mi, t, s), response) in steps.iter().zip(responses) {
-        if !matches!(moves[*mi].kind, MoveKind::Linear | MoveKind::Arc) {
+    for (step, response) in steps.iter().zip(responses) {
+        let (mi, s) = (step.move_index, &step.geometry);
+        if !matches!(moves[mi].kind, MoveKind::Linear | MoveKind::Arc) || !scales[mi].schedulable()
+        {
             continue;
         }
-        if segments.last().map(|g| g.move_index) != Some(*mi) {
+        if segments.last().map(|g| g.move_index) != Some(mi) {
             segments.push(optimize::Segment {
-                move_index: *mi,
-                cutter: cutter_index[t],
+                move_index: mi,
+                cutter: cutter_index[&step.tool],
+                scale: scales[mi],
                 steps: Vec::new(),
             });
         }
@@ -1311,8 +1427,9 @@ fn optimize_stage(
             let seg = segments.last_mut().expect("pushed above");
             seg.steps.push(EngagementStep {
                 engagement: std::borrow::Cow::Borrowed(&s.engagement),
-                spindle_rpm: moves[*mi].spindle,
-                at: s.distance,
+                spindle_rpm: moves[mi].spindle,
+                tip_ratio: step.tip_ratio,
+                at: step.machine_at,
                 response: response.clone(),
             });
         }
@@ -1402,15 +1519,18 @@ fn optimize_stage(
             }
         })
         .collect();
-    // A step of a split move runs at the feed of the part it lies in.
+    // A step of a split move runs at the feed of the part it lies in; the tip at its share.
     let step_feeds: Vec<f64> = steps
         .iter()
-        .map(|(mi, _, s)| match split_of.get(mi) {
-            Some(w) => {
-                let part = w.points.iter().filter(|&&p| p <= s.distance).count();
-                w.feeds[part.min(w.feeds.len() - 1)]
-            }
-            None => feeds_after[*mi],
+        .map(|s| {
+            let feed = match split_of.get(&s.move_index) {
+                Some(w) => {
+                    let part = w.points.iter().filter(|&&p| p <= s.machine_at).count();
+                    w.feeds[part.min(w.feeds.len() - 1)]
+                }
+                None => feeds_after[s.move_index],
+            };
+            s.tip_ratio * feed
         })
         .collect();
     let forces_after = peak_forces(steps, responses, moves, &step_feeds, models, &k)?;
@@ -1465,14 +1585,18 @@ fn optimize_stage(
             }
             None => feeds_after[i],
         });
+        row.tip_speed_after_mm_min = row
+            .feed_after_mm_min
+            .filter(|_| row.length > 0.0)
+            .map(|f| f * row.tip_length_mm / row.length);
         row.split_parts = split_of.get(&i).map(|w| w.feeds.len());
         row.time_after_s = Some(time_after[i]);
         row.peak_force_after = Some(0.0);
         row.governing = governing.get(&i).cloned();
     }
-    for ((mi, _, _), f) in steps.iter().zip(&forces_after) {
+    for (step, f) in steps.iter().zip(&forces_after) {
         if let Some(f) = f {
-            let p = rows[*mi].peak_force_after.get_or_insert(0.0);
+            let p = rows[step.move_index].peak_force_after.get_or_insert(0.0);
             *p = p.max(*f);
         }
     }

@@ -264,3 +264,29 @@ fn jerk_limited_ramps_match_s_curve_closed_forms() {
         );
     }
 }
+
+#[test]
+fn rotary_speed_and_acceleration_bound_moves_where_rotary_axes_turn() {
+    // 3600 °/min = 60 °/s and 120 °/s²: 90° takes 0.5 s up, 60° at speed (1 s), 0.5 s down.
+    let m = Machine {
+        kinematics: millsim_engine::machine::Kinematics::XyzA,
+        max_rotary_speed_deg_min: Some(3600.0),
+        max_rotary_acceleration_deg_s2: Some(120.0),
+        ..machine(2000.0)
+    };
+    let rotary_only = moves("G21 G90 G94\nG1 A90 F9000\n");
+    close(cycle_time(&rotary_only, &m, None).unwrap().total_s, 2.0, 1e-12);
+    // X10 with A90: the path (10 mm) is bound in proportion, 6.67 mm/s and 13.3 mm/s².
+    let mixed = moves("G21 G90 G94\nG1 X10 A90 F9000\n");
+    close(cycle_time(&mixed, &m, None).unwrap().total_s, 2.0, 1e-12);
+    // Without the limits, the linear axes alone: 10 mm at 2000 mm/s² never reach 150 mm/s.
+    let free = cycle_time(&mixed, &machine(2000.0), None).unwrap().total_s;
+    close(free, 2.0 * (10.0f64 / 2000.0).sqrt(), 1e-12);
+    // A move where no rotary axis turns is not touched by them.
+    let linear = moves("G21 G90 G94\nG1 X10 F9000\n");
+    close(
+        cycle_time(&linear, &m, None).unwrap().total_s,
+        cycle_time(&linear, &machine(2000.0), None).unwrap().total_s,
+        0.0,
+    );
+}

@@ -9,7 +9,7 @@ use millsim_engine::machine::{cycle_time, Machine};
 use millsim_engine::nc::{interpret, InterpretOptions, Move, MoveKind, Program};
 use millsim_engine::optimize::{
     optimize_feeds, rewrite_program, split_plan, verify_rewrite, Cutter, EngagementStep,
-    FeedLimits, Governing, RewriteOptions, Segment,
+    FeedLimits, FeedScale, Governing, RewriteOptions, Segment,
 };
 use millsim_engine::physics::{CuttingConditions, ForceModel, Material};
 use millsim_engine::tool::Tool;
@@ -57,6 +57,7 @@ fn step(e: Engagement) -> EngagementStep<'static> {
     EngagementStep {
         engagement: Cow::Owned(e),
         spindle_rpm: RPM,
+        tip_ratio: 1.0,
         at: 0.0,
         response: None,
     }
@@ -66,6 +67,7 @@ fn seg(move_index: usize, es: Vec<Engagement>) -> Segment<'static> {
     Segment {
         move_index,
         cutter: 0,
+        scale: FeedScale::UNIT,
         steps: es.into_iter().map(step).collect(),
     }
 }

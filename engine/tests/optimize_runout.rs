@@ -8,8 +8,8 @@ use std::f64::consts::PI;
 use millsim_engine::engagement::{EngagedSlice, Engagement};
 use millsim_engine::nc::{interpret, InterpretOptions, Program};
 use millsim_engine::optimize::{
-    optimize_feeds, rewrite_program, verify_rewrite, Cutter, EngagementStep, FeedLimits, Governing,
-    RewriteOptions, Segment,
+    optimize_feeds, rewrite_program, verify_rewrite, Cutter, EngagementStep, FeedLimits, FeedScale,
+    Governing, RewriteOptions, Segment,
 };
 use millsim_engine::physics::{CuttingConditions, ForceModel, Material};
 use millsim_engine::tool::{Runout, Tool};
@@ -74,9 +74,11 @@ fn setup(
         .map(|(&i, e)| Segment {
             move_index: i,
             cutter: 0,
+            scale: FeedScale::UNIT,
             steps: vec![EngagementStep {
                 engagement: Cow::Owned(e.clone()),
                 spindle_rpm: RPM,
+                tip_ratio: 1.0,
                 at: 0.0,
                 response: None,
             }],

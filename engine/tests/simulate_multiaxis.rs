@@ -150,7 +150,7 @@ fn tilted_tool_in_tool_tip_and_machine_readings_cuts_the_same_segment() {
 }
 
 #[test]
-fn rotary_moves_need_kinematics_and_are_not_feed_optimized() {
+fn rotary_moves_need_kinematics() {
     let program = "G0 Z10\nG0 X13 Y0\nG1 C90 F3600\n";
     let err = simulate(
         &spec(program, Kinematics::Xyz, 10.0),
@@ -162,16 +162,6 @@ fn rotary_moves_need_kinematics_and_are_not_feed_optimized() {
     .to_string();
     assert!(
         err.contains("line 3") && err.contains("kinematics"),
-        "{err}"
-    );
-    let mut s = spec(program, Kinematics::XyzAc, 10.0);
-    s.optimize = Some(serde_json::from_str(r#"{"max_force": 300}"#).unwrap());
-    let err = simulate(&s, &CancelFlag::new(), &NoProgress)
-        .err()
-        .unwrap()
-        .to_string();
-    assert!(
-        err.contains("line 3") && err.contains("not supported"),
         "{err}"
     );
 }

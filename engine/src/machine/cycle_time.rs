@@ -25,8 +25,12 @@
 //!   and the profiles use these ramps (peak speeds found by bisection). Without jerk the ramps
 //!   are the constant-acceleration closed forms.
 //!
-//! Not modelled: finite look-ahead buffers, rotary-axis acceleration (pure rotary moves use the
-//! smallest linear acceleration in deg/s²), exact-stop modes (G61).
+//! * Where rotary axes turn, the machine's rotary speed and acceleration (deg/min, deg/s²)
+//!   bound the path's speed and acceleration in proportion to the fastest rotary axis's share
+//!   of the move (a pure rotary move without a rotary acceleration uses the smallest linear
+//!   one, in deg/s²).
+//!
+//! Not modelled: finite look-ahead buffers, exact-stop modes (G61).
 
 use super::Machine;
 use crate::nc::{FeedMode, Move, MoveKind};
@@ -189,7 +193,7 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
     let min_acc = acc.iter().cloned().fold(f64::INFINITY, f64::min);
     let jerk = machine.jerk.unwrap_or([f64::INFINITY; 3]);
     let min_jerk = jerk.iter().cloned().fold(f64::INFINITY, f64::min);
-    let (a, j, u_in, u_out) = if let (Some(g), Some(ti), Some(to)) =
+    let (mut a, j, u_in, u_out) = if let (Some(g), Some(ti), Some(to)) =
         (m.arc.as_ref(), arc_tangent(m, 0.0), arc_tangent(m, 1.0))
     {
         let [pa, pb, pn] = g.axes;
@@ -218,10 +222,28 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
         ];
         match unit(d) {
             Some(u) => (axis_limited(acc, u), axis_limited(jerk, u), u, u),
-            // Pure rotary move: no rotary accelerations in the machine model.
+            // Pure rotary move without a rotary acceleration: the slowest linear axis's.
             None => (min_acc, min_jerk, [0.0; 3], [0.0; 3]),
         }
     };
+    // The path runs over `len` (mm, or degrees on a rotary-only move) while the fastest
+    // rotary axis turns `rotary` degrees: its speed and acceleration bound the path's.
+    let rotary = (3..6)
+        .map(|i| (m.end[i] - m.start[i]).abs())
+        .fold(0.0, f64::max);
+    if rotary > 1e-9 {
+        if let Some(w) = machine.max_rotary_speed_deg_min {
+            v = v.min(len * w / rotary / 60.0);
+        }
+        if let Some(alpha) = machine.max_rotary_acceleration_deg_s2 {
+            let a_rot = len * alpha / rotary;
+            a = if u_in == [0.0; 3] {
+                a_rot
+            } else {
+                a.min(a_rot)
+            };
+        }
+    }
     Seg {
         motion: true,
         len,

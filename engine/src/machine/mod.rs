@@ -58,6 +58,9 @@ pub struct Machine {
     /// Fastest rotary axis rate, degrees/min (absent: no limit).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_rotary_speed_deg_min: Option<f64>,
+    /// Rotary axis acceleration, degrees/s² (absent: the linear axes bound the moves).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_rotary_acceleration_deg_s2: Option<f64>,
     /// Idle spindle power curve and auxiliary power for the energy model (absent: no energy
     /// figures; [`crate::physics::energy::EnergyModel::reference_example`] is an example).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -99,6 +102,7 @@ impl Machine {
             travel: None,
             kinematic_chain: None,
             max_rotary_speed_deg_min: None,
+            max_rotary_acceleration_deg_s2: None,
             energy: None,
         }
     }
@@ -174,12 +178,15 @@ impl Machine {
                 }
             }
         }
-        if let Some(v) = self.max_rotary_speed_deg_min {
-            if !v.is_finite() || v <= 0.0 {
-                return err(
-                    "max_rotary_speed_deg_min",
-                    format!("must be a positive number, got {v}"),
-                );
+        for (field, v) in [
+            ("max_rotary_speed_deg_min", self.max_rotary_speed_deg_min),
+            (
+                "max_rotary_acceleration_deg_s2",
+                self.max_rotary_acceleration_deg_s2,
+            ),
+        ] {
+            if let Some(v) = v.filter(|v| !v.is_finite() || *v <= 0.0) {
+                return err(field, format!("must be a positive number, got {v}"));
             }
         }
         if let Some(e) = &self.energy {

@@ -47,7 +47,11 @@ pub struct EngagementStep<'a> {
     /// Borrowed from the removal's steps when the caller keeps them (no copy per step).
     pub engagement: Cow<'a, Engagement>,
     pub spindle_rpm: f64,
-    /// Distance from the start of the move, mm (used only to place split points).
+    /// Tool-tip speed in the part frame per unit of the move's machine-axis feed at this
+    /// step: 1 on a 3-axis move; where rotary axes turn, the tip's path over the axes'.
+    pub tip_ratio: f64,
+    /// Distance from the start of the move in machine-axis length (mm; degrees on a
+    /// rotary-only move), used only to place split points.
     pub at: f64,
     /// The model's peaks at this step as exact functions of the feed (a tool without
     /// runout), when the caller has them: evaluations in their range read them instead of
@@ -63,7 +67,58 @@ pub struct Segment<'a> {
     pub move_index: usize,
     /// Index into the cutters slice.
     pub cutter: usize,
+    /// How the move's machine-axis feed drives the tool tip, and the axes' own bound.
+    pub scale: FeedScale,
     pub steps: Vec<EngagementStep<'a>>,
+}
+
+/// How a move's machine-axis feed relates to the tool tip in the part frame. Every feed the
+/// optimizer solves for is a machine-axis feed (the rate the control applies to the axes of
+/// the move's F: XYZ mm/min, or degrees/min on a rotary-only move), so that block feeds and
+/// cycle times stay in the control's terms; the limits' feed range (min, max, air) is of
+/// the tip, and the force model sees the tip's feed at every step.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct FeedScale {
+    /// Mean tip speed per unit of machine-axis feed: tip path / machine-axis length.
+    pub tip_ratio: f64,
+    /// Fastest machine-axis feed the machine's axes allow on the move (rotary speed,
+    /// linear max feed), mm/min.
+    pub max_axis_feed: f64,
+}
+
+impl FeedScale {
+    /// A move whose tip moves with the axes (3-axis, or fixed rotary angles).
+    pub const UNIT: FeedScale = FeedScale {
+        tip_ratio: 1.0,
+        max_axis_feed: f64::INFINITY,
+    };
+
+    /// Whether a tip speed maps to a machine-axis feed (false when the tip stands still).
+    pub fn schedulable(&self) -> bool {
+        self.tip_ratio.is_finite() && self.tip_ratio > 0.0
+    }
+
+    /// The limits with their feed range in this move's machine-axis feeds: the tip range
+    /// over the tip ratio, and no faster than the axes allow. The unit scale leaves them as
+    /// they are.
+    pub fn limits(&self, limits: &FeedLimits) -> FeedLimits {
+        if !self.schedulable() {
+            return limits.clone();
+        }
+        let mut l = limits.clone();
+        l.max_feed = (limits.max_feed / self.tip_ratio).min(self.max_axis_feed);
+        l.min_feed = (limits.min_feed / self.tip_ratio).min(l.max_feed);
+        l.air_feed = limits
+            .air_feed
+            .map(|f| (f / self.tip_ratio).min(l.max_feed));
+        l
+    }
+
+    /// The range of machine-axis feeds the optimizer may choose on this move.
+    pub fn feed_range(&self, limits: &FeedLimits) -> (f64, f64) {
+        let l = self.limits(limits);
+        (l.min_feed, l.max_feed)
+    }
 }
 
 /// A tool's force model and the work material's coefficients.
@@ -351,6 +406,8 @@ pub struct SegmentFeed {
     pub move_index: usize,
     pub block: usize,
     pub engaged: bool,
+    /// The segment's scale: its feeds are machine-axis feeds.
+    pub scale: FeedScale,
     /// Largest feed in [min_feed, max_feed] keeping every limit at every step (air: the air
     /// feed or the programmed feed).
     pub limit_feed: f64,
@@ -396,7 +453,7 @@ pub struct FeedSchedule {
     pub segments: Vec<SegmentFeed>,
     /// Blocks with feed moves, by block index.
     pub blocks: Vec<BlockFeed>,
-    /// Largest single feed keeping every cutting segment under the limits, mm/min.
+    /// Largest single tool-tip feed keeping every cutting segment under the limits, mm/min.
     pub best_constant_feed: f64,
     pub evaluations: usize,
 }
@@ -446,7 +503,7 @@ fn evaluate(
     let teeth = cutter.model.table().flutes() as f64;
     let c = CuttingConditions {
         spindle_rpm: step.spindle_rpm,
-        feed_per_tooth: v / (teeth * step.spindle_rpm),
+        feed_per_tooth: step.tip_ratio * v / (teeth * step.spindle_rpm),
     };
     if let Some(p) = step.response.as_ref().and_then(|r| r.at(c.feed_per_tooth)) {
         let Peaks {
@@ -644,6 +701,7 @@ fn solve_segment(
     limits: &FeedLimits,
     out: &mut ForceResult,
 ) -> Result<SegmentFeed, PhysicsError> {
+    let limits = &seg.scale.limits(limits);
     let mut evals = 0;
     let engaged = seg.steps.iter().any(|s| !s.engagement.is_air());
     let programmed = feed_velocity(m);
@@ -651,6 +709,7 @@ fn solve_segment(
         move_index: seg.move_index,
         block: m.block,
         engaged,
+        scale: seg.scale,
         limit_feed: limits.max_feed,
         limit_governing: Governing::MaxFeed,
         ratio: 0.0,
@@ -806,8 +865,9 @@ pub fn optimize_feeds(
                 f *= limits.entry_feed_factor;
                 s.governing = Governing::Entry;
             }
-            if f < limits.min_feed {
-                f = limits.min_feed.min(s.limit_feed);
+            let min_feed = s.scale.limits(limits).min_feed;
+            if f < min_feed {
+                f = min_feed.min(s.limit_feed);
             }
             if s.floor_feed > f {
                 // Never above the limit: safety wins over rubbing.
@@ -824,10 +884,11 @@ pub fn optimize_feeds(
         }
     }
 
+    // A constant feed at the tool tip (the same on every move whatever its axes do).
     let best_constant_feed = solved
         .iter()
         .filter(|s| s.engaged)
-        .map(|s| s.limit_feed)
+        .map(|s| s.limit_feed * s.scale.tip_ratio)
         .fold(limits.max_feed, f64::min);
 
     // Blocks: the smallest feed over executions, in the block's own feed mode.
@@ -930,15 +991,23 @@ impl FeedSchedule {
         v
     }
 
-    /// Every feed move at the best constant feed.
+    /// Every feed move with its tip at the best constant feed (as machine-axis feeds, within
+    /// what the axes allow).
     pub fn constant_velocities(&self, moves: &[Move]) -> Vec<f64> {
+        let mut scale = vec![FeedScale::UNIT; moves.len()];
+        for s in &self.segments {
+            scale[s.move_index] = s.scale;
+        }
         moves
             .iter()
-            .map(|m| {
-                if is_feed_move(m) {
-                    self.best_constant_feed
-                } else {
+            .zip(&scale)
+            .map(|(m, s)| {
+                if !is_feed_move(m) {
                     feed_velocity(m)
+                } else if s.schedulable() {
+                    (self.best_constant_feed / s.tip_ratio).min(s.max_axis_feed)
+                } else {
+                    self.best_constant_feed
                 }
             })
             .collect()
