@@ -1423,16 +1423,21 @@ fn optimize_stage(
                 steps: Vec::new(),
             });
         }
-        if !s.air && s.removed_volume > 0.0 {
-            let seg = segments.last_mut().expect("pushed above");
-            seg.steps.push(EngagementStep {
-                engagement: std::borrow::Cow::Borrowed(&s.engagement),
-                spindle_rpm: moves[mi].spindle,
-                tip_ratio: step.tip_ratio,
-                at: step.machine_at,
-                response: response.clone(),
-            });
-        }
+        // A step that removes nothing is air (an empty engagement): a split plan then sees
+        // where the cut begins and ends along the move.
+        let cuts = !s.air && s.removed_volume > 0.0;
+        let seg = segments.last_mut().expect("pushed above");
+        seg.steps.push(EngagementStep {
+            engagement: if cuts {
+                std::borrow::Cow::Borrowed(&s.engagement)
+            } else {
+                std::borrow::Cow::Owned(crate::engagement::Engagement::default())
+            },
+            spindle_rpm: moves[mi].spindle,
+            tip_ratio: step.tip_ratio,
+            at: step.machine_at,
+            response: response.clone().filter(|_| cuts),
+        });
     }
     let clock = std::time::Instant::now();
     let schedule = optimize::optimize_feeds(moves, &segments, &cutters, &limits)?;

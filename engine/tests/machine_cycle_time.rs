@@ -275,7 +275,11 @@ fn rotary_speed_and_acceleration_bound_moves_where_rotary_axes_turn() {
         ..machine(2000.0)
     };
     let rotary_only = moves("G21 G90 G94\nG1 A90 F9000\n");
-    close(cycle_time(&rotary_only, &m, None).unwrap().total_s, 2.0, 1e-12);
+    close(
+        cycle_time(&rotary_only, &m, None).unwrap().total_s,
+        2.0,
+        1e-12,
+    );
     // X10 with A90: the path (10 mm) is bound in proportion, 6.67 mm/s and 13.3 mm/s².
     let mixed = moves("G21 G90 G94\nG1 X10 A90 F9000\n");
     close(cycle_time(&mixed, &m, None).unwrap().total_s, 2.0, 1e-12);

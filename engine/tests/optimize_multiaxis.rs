@@ -311,3 +311,80 @@ fn rotary_speed_limit_bounds_the_feed() {
     let row = helix_row(&out.rows);
     assert!(row.time_after_s.unwrap() >= 0.9 * 60.0 - 1e-9, "{row:?}");
 }
+
+#[test]
+fn a_rotary_move_from_air_into_the_cut_is_split_with_every_axis_interpolated() {
+    // The helix starts 7 mm off the cylinder's end (air) and cuts from X−3 on: written as
+    // parts, the air part fast, each part's end on the line through every axis, each F in
+    // the block's mode (G93: the inverse of the part's own time).
+    let spec = |p: &str| spec_at(p, 0.08);
+    let tip_len = (20.0f64.powi(2) + (2.0 * PI * (R - DEPTH)).powi(2)).sqrt();
+    for inverse_time in [true, false] {
+        let minutes = tip_len / 600.0;
+        let (mode, f) = if inverse_time {
+            ("G93", 1.0 / minutes)
+        } else {
+            ("G94", 20.0 / minutes)
+        };
+        let program = format!(
+            "G21 G90 G94 G17 S{RPM} M3\nG0 X-10 Y0 Z25 A0\nG0 Z{:.1}\n{mode}\nG1 X10 A360 F{f:.6}\nG94\nG0 Z25\nM30\n",
+            R - DEPTH
+        );
+        let plain = simulate(&spec(&program), &CancelFlag::new(), &NoProgress).unwrap();
+        let limit = 0.8 * plain.rows.iter().find(|r| r.line == 5).unwrap().peak_force;
+        let mut s = spec(&program);
+        s.optimize = Some(
+            serde_json::from_str(&format!(
+                r#"{{"max_force": {limit}, "max_feed": 3000, "split": {{"max_parts": 4, "min_length": 2, "min_saving": 0.05}}}}"#
+            ))
+            .unwrap(),
+        );
+        let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+        let opt = out.optimization.as_ref().unwrap();
+        assert_eq!(opt.split_blocks, 1, "{:?}", opt.split_skipped);
+        let text = out.optimized_program.as_ref().unwrap();
+        let after = interpret(text, &InterpretOptions::default()).unwrap().moves;
+        let parts: Vec<&Move> = after
+            .iter()
+            .filter(|m| m.kind == MoveKind::Linear && m.start[3] != m.end[3])
+            .collect();
+        assert!(parts.len() >= 2, "{text}");
+        let mut first_speed = None;
+        for m in &parts {
+            // On the programmed line: A/360 = (X + 10)/20 at both ends.
+            for p in [m.start, m.end] {
+                assert!((p[3] / 360.0 - (p[0] + 10.0) / 20.0).abs() < 1e-4, "{text}");
+            }
+            assert_eq!(
+                m.feed_mode == millsim_engine::nc::FeedMode::InverseTime,
+                inverse_time
+            );
+            let speed = tip_speed_through_kinematics(m);
+            first_speed.get_or_insert(speed);
+        }
+        // The air part runs at the top of the range, the cutting part slower.
+        let last = tip_speed_through_kinematics(parts.last().unwrap());
+        assert!(first_speed.unwrap() > 1.5 * last, "{text}");
+        assert!(
+            (first_speed.unwrap() - 3000.0).abs() < 3.0,
+            "air part at {first_speed:?} mm/min\n{text}"
+        );
+        // Simulated again: at most the limit.
+        let re = simulate(&spec(text), &CancelFlag::new(), &NoProgress).unwrap();
+        for r in &re.rows {
+            assert!(
+                r.peak_force <= limit * 1.005,
+                "line {}: {}",
+                r.line,
+                r.peak_force
+            );
+        }
+        // Faster than the whole move at the cutting part's speed.
+        let row = out.rows.iter().find(|r| r.line == 5).unwrap();
+        assert_eq!(row.split_parts, Some(parts.len()));
+        assert!(
+            row.time_after_s.unwrap() < 0.95 * 60.0 * tip_len / last,
+            "{row:?}"
+        );
+    }
+}

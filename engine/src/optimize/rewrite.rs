@@ -17,7 +17,11 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use super::FeedSchedule;
+use crate::machine::cycle_time::move_length;
 use crate::nc::{Diagnostics, Expr, FeedMode, Move, MoveKind, Program};
+
+/// Axis letters in the order of a move's positions.
+const AXES: [char; 6] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RewriteOptions {
@@ -338,12 +342,15 @@ pub struct WrittenSplit {
     pub move_index: usize,
     pub block: usize,
     pub line: u32,
-    /// Where the parts meet, mm from the move's start.
+    /// Where the parts meet, from the move's start in machine-axis length (mm, or degrees
+    /// on a rotary-only move).
     pub points: Vec<f64>,
-    /// End of each part in the machine frame (the last is the move's end), mm.
-    pub ends: Vec<[f64; 3]>,
-    /// Feed of each part as written, mm/min.
+    /// End of each part, every axis (the last is the move's end): mm and degrees.
+    pub ends: Vec<[f64; 6]>,
+    /// Machine-axis feed of each part as written, mm/min.
     pub feeds: Vec<f64>,
+    /// The F of each part as the interpreter reads it (the block's mode: mm/min or 1/min).
+    pub words: Vec<f64>,
 }
 
 /// Why a planned split was not written.
@@ -359,10 +366,12 @@ pub struct SkippedSplit {
 /// all its characters but its F, which becomes the last part's feed. The next feed block
 /// gets its modal F written out if it had none, so nothing after the split changes speed.
 ///
-/// Only plain blocks are split: one execution, a G1 move at a per-minute feed in G90 with
-/// the moving axes written as numbers, and no other words but N, G1, X, Y, Z and F. Others
-/// are reported in the second list with the reason. Coordinates are written with the block's
-/// own decimals (at least 3, at most 6).
+/// Only plain blocks are split: one execution, a G1 move at a per-minute (G94) or
+/// inverse-time (G93) feed in G90 with the moving axes written as numbers, and no other
+/// words but N, G1, X, Y, Z, A, B, C and F. Every axis is interpolated linearly to the split
+/// point, as the control does (rotary axes too); in G93 each part gets the inverse of its
+/// own time. Others are reported in the second list with the reason. Coordinates are written
+/// with the block's own decimals (at least 3, at most 6).
 pub fn write_splits(
     rewritten: &str,
     moves: &[Move],
@@ -397,12 +406,14 @@ pub fn write_splits(
             })
         };
         let b = m.block;
-        if m.kind != MoveKind::Linear || m.feed_mode != FeedMode::PerMin {
-            skip("only G1 moves at a per-minute feed are split");
+        let inverse_time = m.feed_mode == FeedMode::InverseTime;
+        if m.kind != MoveKind::Linear || m.feed_mode == FeedMode::PerRev {
+            skip("only G1 moves at a per-minute or inverse-time feed are split");
             continue;
         }
-        if (3..6).any(|k| (m.end[k] - m.start[k]).abs() > 1e-9) {
-            skip("rotary axes move");
+        let rotary = (3..6).any(|k| (m.end[k] - m.start[k]).abs() > 1e-9);
+        if rotary && factor[b] != 1.0 {
+            skip("rotary axes move in an inch program");
             continue;
         }
         if executions.get(b) != Some(&1) {
@@ -419,23 +430,24 @@ pub fn write_splits(
             && block.words.iter().all(|w| {
                 !w.comma
                     && match (w.letter, number(&w.value)) {
+                        // Not G93 here: the parts come before the block that sets it.
                         ('G', Some(g)) => g == 1.0,
-                        ('X' | 'Y' | 'Z' | 'F', Some(_)) => true,
+                        ('X' | 'Y' | 'Z' | 'A' | 'B' | 'C' | 'F', Some(_)) => true,
                         _ => false,
                     }
             });
         if !plain {
-            skip("the block has words other than N, G1, X, Y, Z and F");
+            skip("the block has words other than N, G1, X, Y, Z, A, B, C and F");
             continue;
         }
         // Program-frame end from the block's own words; the start is the end minus the
         // machine-frame travel (work offsets are translations).
         let unit = factor[b];
-        let mut end = [0.0; 3];
-        let mut moving = [false; 3];
+        let mut end = [0.0; 6];
+        let mut moving = [false; 6];
         let mut decimals = 3usize;
         let mut ok = true;
-        for (k, letter) in ['X', 'Y', 'Z'].into_iter().enumerate() {
+        for (k, letter) in AXES.into_iter().enumerate() {
             moving[k] = (m.end[k] - m.start[k]).abs() > 1e-9;
             match block.words.iter().find(|w| w.letter == letter) {
                 Some(w) => {
@@ -453,16 +465,20 @@ pub fn write_splits(
             skip("a moving axis is not written in the block");
             continue;
         }
-        let length = (0..3)
-            .map(|k| (m.end[k] - m.start[k]).powi(2))
-            .sum::<f64>()
-            .sqrt();
+        let length = move_length(m);
         if plan.feeds.len() != plan.points.len() + 1 || length <= 0.0 {
             skip("empty plan");
             continue;
         }
-        // Neighbouring parts at the same written feed are one part.
-        let written_feed = |f: f64| round_down(f / unit, feed_step, true);
+        // Neighbouring parts at the same written feed are one part (in G93 the written
+        // value depends on the part's length too: compare the feeds themselves).
+        let written_feed = |f: f64| {
+            if inverse_time {
+                f
+            } else {
+                round_down(f / unit, feed_step, true)
+            }
+        };
         let mut points = Vec::new();
         let mut part_feeds_mm = vec![plan.feeds[0]];
         for (&p, &f) in plan.points.iter().zip(&plan.feeds[1..]) {
@@ -481,28 +497,46 @@ pub fn write_splits(
         let mut lines = Vec::new();
         let mut ends = Vec::new();
         let mut part_feeds = Vec::new();
+        let mut words = Vec::new();
+        // The F of the part from `from` to `to` (fractions of the move) at `feed` mm/min, as
+        // written and as read (G93: the inverse of the part's time, rounded down).
+        let part_word = |from: f64, to: f64, feed: f64| -> (f64, f64) {
+            if inverse_time {
+                let w = round_down(feed / ((to - from) * length), None, false);
+                (w, w * (to - from) * length)
+            } else {
+                let w = written_feed(feed);
+                (w, w * unit)
+            }
+        };
+        let mut from = 0.0;
         for (&d, &feed) in points.iter().zip(&part_feeds_mm) {
             let u = (d / length).clamp(0.0, 1.0);
             let mut line = String::from("G1");
-            let mut machine_end = [0.0; 3];
-            for k in 0..3 {
+            let mut machine_end = [0.0; 6];
+            for k in 0..6 {
                 let travel = m.end[k] - m.start[k];
                 machine_end[k] = m.start[k] + u * travel;
                 if moving[k] {
-                    let at = end[k] - (1.0 - u) * travel / unit;
-                    line.push_str(&format!(" {}{:.*}", ['X', 'Y', 'Z'][k], decimals, at));
+                    let scale = if k < 3 { unit } else { 1.0 };
+                    let at = end[k] - (1.0 - u) * travel / scale;
+                    line.push_str(&format!(" {}{:.*}", AXES[k], decimals, at));
                 }
             }
-            let f_written = written_feed(feed);
-            line.push_str(&format!(" F{}", crate::nc::format_feed(f_written, false)));
+            let (w, velocity) = part_word(from, u, feed);
+            line.push_str(&format!(" F{}", crate::nc::format_feed(w, false)));
             line.push_str(nl);
             lines.push(line);
             ends.push(machine_end);
-            part_feeds.push(f_written * unit);
+            part_feeds.push(velocity);
+            words.push(if inverse_time { w } else { w * unit });
+            from = u;
         }
-        let last = written_feed(part_feeds_mm.last().copied().unwrap_or(a.feed));
-        ends.push([m.end[0], m.end[1], m.end[2]]);
-        part_feeds.push(last * unit);
+        let last_feed = part_feeds_mm.last().copied().unwrap_or(a.feed);
+        let (last, velocity) = part_word(from, 1.0, last_feed);
+        ends.push(m.end);
+        part_feeds.push(velocity);
+        words.push(if inverse_time { last } else { last * unit });
         feeds.push((b, last));
         // The next feed move must not inherit the last part's feed.
         if let Some(j) = (i + 1..moves.len())
@@ -530,6 +564,7 @@ pub fn write_splits(
             points,
             ends,
             feeds: part_feeds,
+            words,
         });
     }
     // A block listed both as split and as the next block of another split keeps the split's F.
@@ -587,10 +622,11 @@ pub fn verify_splits(
     for (i, a) in after.iter().enumerate() {
         match by_move.get(&i) {
             Some(w) => {
-                for (k, (end, feed)) in w.ends.iter().zip(&w.feeds).enumerate() {
+                for (k, (end, feed)) in w.ends.iter().zip(&w.words).enumerate() {
                     let b = next(j)?;
                     let last = k + 1 == w.ends.len();
-                    let d = (0..3)
+                    // mm and degrees alike: both are written with the same decimals.
+                    let d = (0..6)
                         .map(|c| (b.end[c] - end[c]).powi(2))
                         .sum::<f64>()
                         .sqrt();
