@@ -17,7 +17,7 @@ use millsim_engine::physics::stability::{
     compute_lobes, compute_lobes_3d, recommend_spindle_speed, Stability3dInput, StabilityInput,
 };
 use millsim_engine::physics::Material;
-use millsim_engine::simulate::{self, SimulateError, SimulateSpec, StockSource};
+use millsim_engine::pipeline::{self, SimulateError, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
 use millsim_engine::{geometry, nc};
 
@@ -380,11 +380,11 @@ pub struct SimulateOptions {
     /// On a machine with rotary axes: `machine` (X..C are machine axes, the default) or
     /// `tool_tip` (tool-centre-point control: X Y Z are the tip in the part frame).
     #[serde(default)]
-    pub axes: simulate::AxisReading,
+    pub axes: pipeline::AxisReading,
     /// The tool's modes for a chatter margin per block: {"modes_x":[..],"modes_y":[..],
     /// "method":"sdm","steps_per_period":40}.
     #[serde(default)]
-    pub chatter: Option<simulate::ChatterSpec>,
+    pub chatter: Option<pipeline::ChatterSpec>,
 }
 
 fn default_positions() -> usize {
@@ -466,9 +466,9 @@ impl SimulateOptions {
 struct SimulateSummary<'a> {
     file: &'a str,
     #[serde(flatten)]
-    simulation: &'a simulate::SimulationSummary,
+    simulation: &'a pipeline::SimulationSummary,
     /// Wall time per stage on the worker, seconds.
-    timings: &'a simulate::StageTimings,
+    timings: &'a pipeline::StageTimings,
     stock_export_s: f64,
     dexel_updates: u64,
     /// The optimized program's cycle time and peak |F| (optimize jobs), also inside
@@ -478,7 +478,7 @@ struct SimulateSummary<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     force_peak_opt_n: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    optimization: Option<&'a simulate::OptimizationSummary>,
+    optimization: Option<&'a pipeline::OptimizationSummary>,
     row_columns: Vec<String>,
 }
 
@@ -555,7 +555,7 @@ fn simulate_job(
             None => None,
         },
     };
-    let out = simulate::simulate(&spec, cancel, progress).map_err(|e| match e {
+    let out = pipeline::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,
         SimulateError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
         other => invalid("Simulation refused", format!("{file}: {other}")),

@@ -12,6 +12,6 @@ pub mod machine;
 pub mod nc;
 pub mod optimize;
 pub mod physics;
-pub mod simulate;
+pub mod pipeline;
 pub mod tool;
 mod vec3;

@@ -10,7 +10,7 @@ use millsim_engine::machine::rotary_feed::tip_length;
 use millsim_engine::machine::{Kinematics, Machine, MachineKinematics};
 use millsim_engine::nc::{interpret, InterpretOptions, Move, MoveKind};
 use millsim_engine::physics::Material;
-use millsim_engine::simulate::{simulate, AxisReading, MoveRow, SimulateSpec, StockSource};
+use millsim_engine::pipeline::{simulate, AxisReading, MoveRow, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
 
 /// Cylinder radius, the slot's depth and the tool's radius, mm.

@@ -10,7 +10,7 @@ use millsim_engine::job::{CancelFlag, NoProgress};
 use millsim_engine::machine::{Kinematics, Machine};
 use millsim_engine::nc::InterpretOptions;
 use millsim_engine::physics::Material;
-use millsim_engine::simulate::{simulate, AxisReading, MoveRow, SimulateSpec, StockSource};
+use millsim_engine::pipeline::{simulate, AxisReading, MoveRow, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
 
 const R: f64 = 10.0;

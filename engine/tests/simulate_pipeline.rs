@@ -9,7 +9,7 @@ use millsim_engine::job::{CancelFlag, NoProgress};
 use millsim_engine::machine::Machine;
 use millsim_engine::nc::InterpretOptions;
 use millsim_engine::physics::Material;
-use millsim_engine::simulate::{simulate, SimulateSpec, StockSource};
+use millsim_engine::pipeline::{simulate, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
 
 fn spec(program: &str) -> SimulateSpec {
@@ -281,7 +281,7 @@ fn each_tool_number_cuts_with_its_own_tool() {
 fn energy_and_chatter_margin_per_move() {
     use millsim_engine::physics::energy::EnergyModel;
     use millsim_engine::physics::stability::{compute_lobes, StabilityInput};
-    use millsim_engine::simulate::ChatterSpec;
+    use millsim_engine::pipeline::ChatterSpec;
     let program = "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X20 F4000\nG1 X60\nG0 Z5\nM5\nG4 P2\nM30\n";
     let mut s = spec(program);
     s.machine.energy = Some(EnergyModel::reference_example());

@@ -1,0 +1,211 @@
+//! Forces at the removal's steps: each at its own tip feed, in parallel, with the peak
+//! response over the optimizer's feed range where asked.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use super::frame::feed_scale;
+use super::removal::{MoveStep, Removal};
+use super::rows::MoveRow;
+use super::spec::{SimulateError, SimulateSpec};
+use crate::geometry;
+use crate::nc::{self, Move};
+use crate::optimize;
+use crate::physics::{
+    CuttingCoefficients, CuttingConditions, ForceModel, ForceResult, PeakResponse,
+};
+
+/// Forces at every step that removes material, each at its own tip feed (mm/min, one per
+/// step), in parallel: each step is independent and results come back in step order, so the
+/// outcome does not depend on the thread count. With `feed_ranges` (per move, the range of
+/// machine-axis feeds the optimizer may choose, mm/min), each step also gets its peak
+/// response over that range when the tool has no runout (what the optimizer and the forces
+/// at the new feeds then read instead of summing the slices again).
+pub(super) fn evaluate_forces(
+    steps: &[MoveStep],
+    moves: &[Move],
+    step_feeds: &[f64],
+    models: &BTreeMap<u32, ForceModel>,
+    k: &CuttingCoefficients,
+    feed_ranges: Option<&[(f64, f64)]>,
+) -> Result<Vec<StepForces>, crate::physics::PhysicsError> {
+    // A step with the same move, feed and engagement as the step before it (steady cutting
+    // on the grid) has the same forces: only the first of such a run is evaluated.
+    let same_as_previous: Vec<bool> = (0..steps.len())
+        .map(|i| {
+            i > 0 && {
+                let (p, q) = (&steps[i - 1], &steps[i]);
+                let (a, b) = (&p.geometry, &q.geometry);
+                p.move_index == q.move_index
+                    && p.tool == q.tool
+                    && step_feeds[i - 1] == step_feeds[i]
+                    && a.air == b.air
+                    && (a.removed_volume > 0.0) == (b.removed_volume > 0.0)
+                    && a.engagement == b.engagement
+            }
+        })
+        .collect();
+    let evaluated: Vec<StepForces> = steps
+        .par_iter()
+        .zip(step_feeds)
+        .zip(&same_as_previous)
+        .map_init(
+            || models.clone(),
+            |models, ((step, &feed), &same)| {
+                let (m, t, s) = (&moves[step.move_index], &step.tool, &step.geometry);
+                let flutes = models[t].table().flutes() as f64;
+                let Some(conditions) = cutting_conditions(m, s, feed, flutes).filter(|_| !same)
+                else {
+                    return Ok((None, None));
+                };
+                let model = models.get_mut(t).expect("model per tool");
+                let mut out = ForceResult::default();
+                let response = match feed_ranges.map(|r| r[step.move_index]) {
+                    Some((lo, hi)) => {
+                        // The range is of machine-axis feeds: the tip's at this step.
+                        let per_tooth = |v: f64| step.tip_ratio * v / (m.spindle * flutes);
+                        model
+                            .evaluate_with_response(
+                                &s.engagement,
+                                k,
+                                &conditions,
+                                (per_tooth(lo), per_tooth(hi)),
+                                &mut out,
+                            )?
+                            .map(Arc::new)
+                    }
+                    None => {
+                        model.evaluate_into(&s.engagement, k, &conditions, &mut out)?;
+                        None
+                    }
+                };
+                Ok((Some(out), response))
+            },
+        )
+        .collect::<Result<_, crate::physics::PhysicsError>>()?;
+    // The repeats take their run's first result.
+    let mut results: Vec<StepForces> = Vec::with_capacity(evaluated.len());
+    for (r, same) in evaluated.into_iter().zip(same_as_previous) {
+        let r = match (same, results.last()) {
+            (true, Some(prev)) => prev.clone(),
+            _ => r,
+        };
+        results.push(r);
+    }
+    Ok(results)
+}
+
+/// A step's forces at its feed (None: no cut), and its peak response when asked for.
+pub(super) type StepForces = (Option<ForceResult>, Option<Arc<PeakResponse>>);
+
+/// Peak |F| at every step that removes material, each at its own feed (mm/min): from the
+/// step's peak response when the feed lies in its range, else by evaluating the model.
+pub(super) fn peak_forces(
+    steps: &[MoveStep],
+    responses: &[Option<Arc<PeakResponse>>],
+    moves: &[Move],
+    step_feeds: &[f64],
+    models: &BTreeMap<u32, ForceModel>,
+    k: &CuttingCoefficients,
+) -> Result<Vec<Option<f64>>, crate::physics::PhysicsError> {
+    steps
+        .par_iter()
+        .zip(responses)
+        .zip(step_feeds)
+        .map_init(
+            || models.clone(),
+            |models, ((step, response), &feed)| {
+                let (m, t, s) = (&moves[step.move_index], &step.tool, &step.geometry);
+                let flutes = models[t].table().flutes() as f64;
+                let Some(conditions) = cutting_conditions(m, s, feed, flutes) else {
+                    return Ok(None);
+                };
+                let fz = conditions.feed_per_tooth;
+                if let Some(p) = response.as_ref().and_then(|r| r.at(fz)) {
+                    return Ok(Some(p.force));
+                }
+                let model = models.get_mut(t).expect("model per tool");
+                Ok(Some(
+                    model.evaluate(&s.engagement, k, &conditions)?.force.peak,
+                ))
+            },
+        )
+        .collect()
+}
+
+/// Spindle speed and feed per tooth of a step on move `m` at `feed` (mm/min), when the step
+/// cuts: it meets and removes material, the spindle turns and the tool moves.
+pub(super) fn cutting_conditions(
+    m: &Move,
+    s: &geometry::StepGeometry,
+    feed: f64,
+    flutes: f64,
+) -> Option<CuttingConditions> {
+    let idle = s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0;
+    (!idle).then(|| CuttingConditions {
+        spindle_rpm: m.spindle,
+        feed_per_tooth: feed / (m.spindle * flutes),
+    })
+}
+
+/// The spindle speed while the spindle turns (M3/M4), 0 when it is stopped.
+pub(super) fn turning_rpm(m: &Move) -> f64 {
+    if m.spindle_dir == nc::SpindleDir::Off {
+        0.0
+    } else {
+        m.spindle
+    }
+}
+
+/// The step forces at the programmed feeds, and what the optimizer reads: per step the peak
+/// response over its feed range, per move the feed scale.
+pub(super) struct ProgrammedForces {
+    pub(super) forces: Vec<Option<ForceResult>>,
+    pub(super) responses: Vec<Option<Arc<PeakResponse>>>,
+    pub(super) scales: Vec<optimize::FeedScale>,
+}
+
+/// Forces at every step of the removal at the programmed feeds.
+pub(super) fn forces_at_programmed_feeds(
+    spec: &SimulateSpec,
+    moves: &[Move],
+    rows: &[MoveRow],
+    removal: &Removal,
+) -> Result<ProgrammedForces, SimulateError> {
+    let k = spec.material.coefficients;
+    // Each step at the tip speed the programmed feed gives there.
+    let step_feeds: Vec<f64> = removal
+        .steps
+        .iter()
+        .map(|s| s.tip_ratio * rows[s.move_index].feed_mm_min)
+        .collect();
+    // Per move, the machine-axis feeds the optimizer may choose, for the steps' peak
+    // responses.
+    let scales: Vec<optimize::FeedScale> = moves
+        .iter()
+        .zip(rows)
+        .map(|(m, r)| feed_scale(m, r, &spec.machine, spec.axes))
+        .collect();
+    let feed_ranges: Option<Vec<(f64, f64)>> = spec.optimize.as_ref().map(|l| {
+        let l = l.clone().with_machine(&spec.machine);
+        scales.iter().map(|s| s.feed_range(&l)).collect()
+    });
+    let (forces, responses): (Vec<Option<ForceResult>>, Vec<Option<Arc<PeakResponse>>>) =
+        evaluate_forces(
+            &removal.steps,
+            moves,
+            &step_feeds,
+            &removal.models,
+            &k,
+            feed_ranges.as_deref(),
+        )?
+        .into_iter()
+        .unzip();
+    Ok(ProgrammedForces {
+        forces,
+        responses,
+        scales,
+    })
+}

@@ -1,0 +1,168 @@
+//! The simulate pipeline: interpret the program, sweep each move through the tri-dexel
+//! stock while recording the engagement before removal, evaluate the cutting forces at
+//! every engaged step, and aggregate per move into the rows users read; then the energy,
+//! chatter and optimize stages where asked.
+//!
+//! Frames: the stock is given in the machine (G53) frame, the frame of the interpreter's
+//! move end points; with no work offset active the two are the program's own frame.
+//!
+//! Words: a *block* is a line of the program; a *move* is one motion the interpreter makes of
+//! it (a block can make several, or run several times); a *piece* is a straight part of a
+//! move in the part frame (several where rotary axes turn); a *step* is where the removal
+//! takes the engagement along a piece.
+
+mod forces;
+mod frame;
+mod optimize_stage;
+mod removal;
+mod rows;
+mod spec;
+mod stages;
+mod tools;
+
+pub use rows::{
+    Collision, EnergyTotals, MoveRow, OptimizationSummary, SimulationOutput, SimulationSummary,
+    StageTimings, StepSample,
+};
+pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StockSource};
+
+use std::time::Instant;
+
+use crate::geometry::{self, GridOptions, Stock};
+use crate::job::{CancelFlag, Progress};
+use crate::machine::cycle_time::cycle_time;
+use crate::machine::Kinematics;
+use crate::nc::{self, Move};
+use crate::tool::Tool;
+
+pub fn simulate(
+    spec: &SimulateSpec,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<SimulationOutput, SimulateError> {
+    let mut timings = StageTimings::default();
+    let clock = Instant::now();
+    let interpretation =
+        nc::interpret(&spec.program, &spec.interpret).map_err(SimulateError::Program)?;
+    timings.interpret_s = clock.elapsed().as_secs_f64();
+    let moves = &interpretation.moves;
+    let tools = tools::ToolLookup::new(spec, moves)?;
+    check_inputs(spec, moves)?;
+
+    let radii: Vec<f64> = spec.tools.values().map(Tool::radius).collect();
+    let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
+    let clock = Instant::now();
+    let mut stock = stock(spec, cell)?;
+    let volume_before = stock.volume();
+    timings.stock_s = clock.elapsed().as_secs_f64();
+
+    let times = cycle_time(moves, &spec.machine, None)?;
+    let mut rows = rows::initial_rows(&spec.program, moves, &times);
+    let clock = Instant::now();
+    let removal = removal::remove_material(
+        spec, moves, &tools, cell, &mut stock, &mut rows, cancel, progress,
+    )?;
+    timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let programmed = forces::forces_at_programmed_feeds(spec, moves, &rows, &removal)?;
+    if cancel.is_cancelled() {
+        return Err(SimulateError::Cancelled);
+    }
+    let (samples, evaluations) =
+        rows::add_step_forces(&mut rows, &removal.steps, &programmed.forces);
+    let energy = match &spec.machine.energy {
+        Some(model) => Some(stages::block_energy(model, moves, &mut rows)?),
+        None => None,
+    };
+    let chatter = match &spec.chatter {
+        Some(c) => Some(stages::chatter_margins(c, spec, moves, &mut rows)?),
+        None => None,
+    };
+    for row in rows.iter_mut() {
+        row.set_flags();
+    }
+    let total = moves.len() as u64;
+    progress.report(total, total);
+    timings.forces_s = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let (optimized_program, optimization) = match &spec.optimize {
+        Some(limits) => {
+            let (text, summary) = optimize_stage::optimize_stage(
+                spec,
+                limits,
+                moves,
+                &mut rows,
+                (&removal.steps, &programmed.responses, &programmed.scales),
+                &removal.models,
+                &times,
+                &mut timings,
+            )?;
+            (Some(text), Some(summary))
+        }
+        None => (None, None),
+    };
+    timings.optimize_s = clock.elapsed().as_secs_f64();
+
+    let volume_after = stock.volume();
+    let part = match &spec.part {
+        Some(bytes) => {
+            let mesh =
+                geometry::Mesh::from_stl_bytes(bytes).map_err(geometry::GeometryError::from)?;
+            Some(geometry::compare_with_part(&stock, &mesh)?)
+        }
+        None => None,
+    };
+    let summary = rows::summarize(
+        &rows,
+        (moves.len(), interpretation.block_count),
+        cell,
+        (volume_before, volume_after),
+        evaluations,
+        &times,
+        rows::SummaryExtras {
+            energy,
+            chatter,
+            part,
+        },
+    );
+    Ok(SimulationOutput {
+        rows,
+        optimized_program,
+        optimization,
+        samples,
+        summary,
+        stock,
+        timings,
+        rays_tested: removal.rays_tested,
+    })
+}
+
+/// What can be refused before any work: rotary axes on a 3-axis machine, tools and
+/// material that cannot exist.
+fn check_inputs(spec: &SimulateSpec, moves: &[Move]) -> Result<(), SimulateError> {
+    let turns_rotary = |m: &Move| (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9);
+    if let Some(m) = moves.iter().find(|m| turns_rotary(m)) {
+        if spec.machine.kinematics == Kinematics::Xyz {
+            return Err(SimulateError::RotaryAxes { line: m.line });
+        }
+    }
+    for t in spec.tools.values() {
+        t.validate().map_err(crate::physics::PhysicsError::from)?;
+    }
+    spec.material.validate()?;
+    Ok(())
+}
+
+/// The stock's grid at dexel spacing `cell`.
+fn stock(spec: &SimulateSpec, cell: f64) -> Result<Stock, SimulateError> {
+    let grid = GridOptions {
+        cell: Some(cell),
+        memory_limit: spec.memory_limit,
+    };
+    Ok(match &spec.stock {
+        StockSource::Shape(shape) => Stock::from_shape(shape, &grid)?,
+        StockSource::Stl(bytes) => Stock::from_stl_bytes(bytes, &grid)?,
+    })
+}

@@ -1,0 +1,275 @@
+//! The optimize stage: feed scheduling on the engagement the removal recorded, the rewrite,
+//! and the rewritten program checked and evaluated at its new feeds.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use super::forces::peak_forces;
+use super::removal::MoveStep;
+use super::rows::{MoveRow, OptimizationSummary, StageTimings};
+use super::spec::{SimulateError, SimulateSpec};
+use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length};
+use crate::nc::{self, Move, MoveKind};
+use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
+use crate::physics::{ForceModel, PeakResponse};
+
+/// Feed scheduling on the engagement the removal pass recorded, the rewrite, and the
+/// rewritten program re-interpreted, checked and re-evaluated at its new feeds.
+pub(super) fn optimize_stage(
+    spec: &SimulateSpec,
+    limits: &FeedLimits,
+    moves: &[Move],
+    rows: &mut [MoveRow],
+    (steps, responses, scales): (
+        &[MoveStep],
+        &[Option<Arc<PeakResponse>>],
+        &[optimize::FeedScale],
+    ),
+    models: &BTreeMap<u32, ForceModel>,
+    before: &crate::machine::cycle_time::CycleTime,
+    timings: &mut StageTimings,
+) -> Result<(String, OptimizationSummary), SimulateError> {
+    let mut limits = limits.clone().with_machine(&spec.machine);
+    // Split plans need every step's own limit, not a lower bound.
+    limits.exact_step_limits |= limits.split.is_some();
+    let k = spec.material.coefficients;
+    let cutter_index: BTreeMap<u32, usize> =
+        models.keys().enumerate().map(|(i, t)| (*t, i)).collect();
+    let cutters: Vec<Cutter> = models
+        .values()
+        .map(|m| Cutter {
+            model: m.clone(),
+            coefficients: k,
+        })
+        .collect();
+    // One segment per swept feed move (possibly without engaged steps: air), in move order.
+    // A move whose tip stands still (a rotary-only move read at the tool tip) has no tip
+    // speed to schedule: it keeps its F.
+    let mut segments: Vec<optimize::Segment> = Vec::new();
+    for (step, response) in steps.iter().zip(responses) {
+        let (mi, s) = (step.move_index, &step.geometry);
+        if !matches!(moves[mi].kind, MoveKind::Linear | MoveKind::Arc) || !scales[mi].schedulable()
+        {
+            continue;
+        }
+        if segments.last().map(|g| g.move_index) != Some(mi) {
+            segments.push(optimize::Segment {
+                move_index: mi,
+                cutter: cutter_index[&step.tool],
+                scale: scales[mi],
+                steps: Vec::new(),
+            });
+        }
+        // A step that removes nothing is air (an empty engagement): a split plan then sees
+        // where the cut begins and ends along the move.
+        let cuts = !s.air && s.removed_volume > 0.0;
+        let seg = segments.last_mut().expect("pushed above");
+        seg.steps.push(EngagementStep {
+            engagement: if cuts {
+                std::borrow::Cow::Borrowed(&s.engagement)
+            } else {
+                std::borrow::Cow::Owned(crate::engagement::Engagement::default())
+            },
+            spindle_rpm: moves[mi].spindle,
+            tip_ratio: step.tip_ratio,
+            at: step.machine_at,
+            response: response.clone().filter(|_| cuts),
+        });
+    }
+    let clock = std::time::Instant::now();
+    let schedule = optimize::optimize_feeds(moves, &segments, &cutters, &limits)?;
+    timings.optimize_schedule_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
+    let program = nc::Program::parse(&spec.program).map_err(SimulateError::Program)?;
+    let rewrite = optimize::rewrite_program(
+        &program,
+        moves,
+        &schedule,
+        &RewriteOptions {
+            feed_step: limits.feed_step,
+        },
+    )
+    .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
+    let after = nc::interpret(&rewrite.text, &spec.interpret)
+        .map_err(|d| SimulateError::Rewrite(d.to_string()))?
+        .moves;
+    optimize::verify_rewrite(moves, &after, &rewrite).map_err(SimulateError::Rewrite)?;
+
+    // Long moves whose engagement varies, written as several blocks when asked; a split
+    // program that does not re-interpret to the same path at the planned feeds is dropped
+    // (the reason is reported) and the F-only rewrite stands.
+    let mut text = rewrite.text.clone();
+    let mut final_moves = after.clone();
+    let mut owner: Vec<usize> = (0..after.len()).collect();
+    let mut written: Vec<optimize::WrittenSplit> = Vec::new();
+    let mut skipped: Vec<optimize::SkippedSplit> = Vec::new();
+    if let Some(sp) = &limits.split {
+        let by_move: BTreeMap<usize, &optimize::Segment> =
+            segments.iter().map(|g| (g.move_index, g)).collect();
+        let plans: Vec<optimize::SplitPlan> = schedule
+            .segments
+            .iter()
+            .filter_map(|solved| {
+                let seg = by_move.get(&solved.move_index)?;
+                let m = &moves[solved.move_index];
+                optimize::split_plan(
+                    seg,
+                    solved,
+                    move_length(m),
+                    sp.max_parts,
+                    sp.min_length,
+                    sp.min_saving,
+                )
+            })
+            .collect();
+        let (split_text, w, s) =
+            optimize::write_splits(&rewrite.text, moves, &after, &plans, limits.feed_step)
+                .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
+        skipped = s;
+        if !w.is_empty() {
+            let checked = nc::interpret(&split_text, &spec.interpret)
+                .map_err(|d| d.to_string())
+                .and_then(|split| {
+                    optimize::verify_splits(&after, &split.moves, &w).map(|o| (split.moves, o))
+                });
+            match checked {
+                Ok((split_moves, o)) => {
+                    text = split_text;
+                    final_moves = split_moves;
+                    owner = o;
+                    written = w;
+                }
+                Err(reason) => skipped.extend(w.iter().map(|x| optimize::SkippedSplit {
+                    line: x.line,
+                    reason: format!("the split program did not verify: {reason}"),
+                })),
+            }
+        }
+    }
+    let split_of: BTreeMap<usize, &optimize::WrittenSplit> =
+        written.iter().map(|w| (w.move_index, w)).collect();
+    timings.optimize_rewrite_s = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
+
+    let feeds_after: Vec<f64> = after
+        .iter()
+        .map(|m| {
+            if m.kind == MoveKind::Rapid {
+                0.0
+            } else {
+                feed_velocity(m)
+            }
+        })
+        .collect();
+    // A step of a split move runs at the feed of the part it lies in; the tip at its share.
+    let step_feeds: Vec<f64> = steps
+        .iter()
+        .map(|s| {
+            let feed = match split_of.get(&s.move_index) {
+                Some(w) => {
+                    let part = w.points.iter().filter(|&&p| p <= s.machine_at).count();
+                    w.feeds[part.min(w.feeds.len() - 1)]
+                }
+                None => feeds_after[s.move_index],
+            };
+            s.tip_ratio * feed
+        })
+        .collect();
+    let forces_after = peak_forces(steps, responses, moves, &step_feeds, models, &k)?;
+    timings.optimize_forces_after_s = clock.elapsed().as_secs_f64();
+    let final_times = cycle_time(&final_moves, &spec.machine, None)?;
+    // Time per original move: the sum over its parts.
+    let mut time_after = vec![0.0; moves.len()];
+    for (t, &i) in final_times.per_move_s.iter().zip(&owner) {
+        time_after[i] += t;
+    }
+    let constant = cycle_time(
+        moves,
+        &spec.machine,
+        Some(&schedule.constant_velocities(moves)),
+    )?;
+    let ideal = cycle_time(
+        moves,
+        &spec.machine,
+        Some(&schedule.ideal_velocities(moves)),
+    )?;
+    let governing: BTreeMap<usize, String> = schedule
+        .segments
+        .iter()
+        .map(|g| {
+            (
+                g.move_index,
+                serde_json::to_value(g.governing)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string))
+                    .unwrap_or_default(),
+            )
+        })
+        .collect();
+    for (i, row) in rows.iter_mut().enumerate() {
+        row.feed_after_mm_min = Some(match split_of.get(&i) {
+            // The split move's effective feed: its length over the time of its parts at
+            // their feeds.
+            Some(w) => {
+                let mut from = 0.0;
+                let minutes: f64 = w
+                    .points
+                    .iter()
+                    .chain(std::iter::once(&row.length))
+                    .zip(&w.feeds)
+                    .map(|(&to, f)| {
+                        let t = (to - from) / f;
+                        from = to;
+                        t
+                    })
+                    .sum();
+                row.length / minutes
+            }
+            None => feeds_after[i],
+        });
+        row.tip_speed_after_mm_min = row
+            .feed_after_mm_min
+            .filter(|_| row.length > 0.0)
+            .map(|f| f * row.tip_length_mm / row.length);
+        row.split_parts = split_of.get(&i).map(|w| w.feeds.len());
+        row.time_after_s = Some(time_after[i]);
+        row.peak_force_after = Some(0.0);
+        row.governing = governing.get(&i).cloned();
+    }
+    for (step, f) in steps.iter().zip(&forces_after) {
+        if let Some(f) = f {
+            let p = rows[step.move_index].peak_force_after.get_or_insert(0.0);
+            *p = p.max(*f);
+        }
+    }
+    let peak = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
+    // The optimizer accepts feeds within its tolerance below the limit; above that, the
+    // limit was out of reach for the move.
+    let over: Vec<u32> = match limits.max_force {
+        Some(f) => rows
+            .iter()
+            .filter(|r| r.peak_force_after.unwrap_or(0.0) > f * (1.0 + limits.tolerance))
+            .map(|r| r.line)
+            .collect(),
+        None => Vec::new(),
+    };
+    let summary = OptimizationSummary {
+        cycle_time_before_s: before.total_s,
+        cycle_time_constant_feed_s: constant.total_s,
+        cycle_time_after_s: final_times.total_s,
+        cycle_time_ideal_s: ideal.total_s,
+        best_constant_feed_mm_min: schedule.best_constant_feed,
+        peak_force_before: peak(&mut rows.iter().map(|r| r.peak_force)),
+        peak_force_after: peak(&mut rows.iter().filter_map(|r| r.peak_force_after)),
+        changed_blocks: rewrite.changes.iter().filter(|c| !c.restore).count(),
+        restored_f_words: rewrite.changes.iter().filter(|c| c.restore).count(),
+        force_limit_unreachable_moves: over.len(),
+        force_limit_unreachable_lines: over.into_iter().take(100).collect(),
+        ambiguous_blocks: rewrite.ambiguous.clone(),
+        evaluations: schedule.evaluations,
+        split_blocks: written.len(),
+        split_skipped: skipped.into_iter().take(100).collect(),
+        limits,
+    };
+    Ok((text, summary))
+}

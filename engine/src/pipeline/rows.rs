@@ -1,0 +1,507 @@
+//! The rows, samples and summaries users read, and how the steps' forces add up per move.
+
+use serde::Serialize;
+
+use crate::geometry::{self, Stock};
+use crate::machine::cycle_time::{feed_velocity, move_length};
+use crate::machine::CycleTime;
+use crate::nc::{self, FeedMode, Move, MoveKind};
+use crate::optimize::{self, FeedLimits};
+use crate::physics::ForceResult;
+
+use super::removal::MoveStep;
+
+/// One row per move. The serialized names are the columns of `blocks.csv`, with units.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct MoveRow {
+    pub block: usize,
+    pub line: u32,
+    /// The block's N number, if it has one.
+    pub n: Option<u64>,
+    pub tool: u32,
+    pub kind: &'static str,
+    /// Path length of the machine axes (XYZ, or the rotary angle of a rotary-only move), mm.
+    #[serde(rename = "length_mm")]
+    pub length: f64,
+    /// The F word in force (in the block's feed mode) and the feed it means, mm/min.
+    pub feed: f64,
+    pub feed_mode: &'static str,
+    pub feed_mm_min: f64,
+    /// Tool-tip path in the part frame and the tip speed at the programmed feed (they equal
+    /// length and feed on a 3-axis machine; they differ when rotary axes turn).
+    pub tip_length_mm: f64,
+    pub tip_speed_mm_min: f64,
+    #[serde(rename = "spindle_rpm")]
+    pub spindle: f64,
+    /// Time of the move with the machine's accelerations and junction speeds, s.
+    pub time_s: f64,
+    #[serde(rename = "removed_mm3")]
+    pub removed_volume: f64,
+    /// Material removal rate averaged over the move's time, and its peak over the steps, mm³/s.
+    pub mrr_mm3_s: f64,
+    #[serde(rename = "mrr_peak_mm3_s")]
+    pub max_mrr: f64,
+    #[serde(rename = "axial_depth_mm")]
+    pub max_axial_depth: f64,
+    #[serde(rename = "radial_width_mm")]
+    pub max_radial_width: f64,
+    /// Degrees, over the move's engaged steps (null in air).
+    #[serde(rename = "entry_deg")]
+    pub entry_angle_deg: Option<f64>,
+    #[serde(rename = "exit_deg")]
+    pub exit_angle_deg: Option<f64>,
+    #[serde(rename = "chip_max_mm")]
+    pub max_chip_thickness: f64,
+    /// |F| over a revolution: peak over the move's steps, and the mean over the move's
+    /// cutting time (steps weighted by length, at the move's constant feed). N.
+    #[serde(rename = "force_peak_n")]
+    pub peak_force: f64,
+    #[serde(rename = "force_mean_n")]
+    pub mean_force: f64,
+    /// Machine-frame X, Y, Z force components: means over the cutting time and peaks, N.
+    pub fx_mean_n: f64,
+    pub fy_mean_n: f64,
+    pub fz_mean_n: f64,
+    #[serde(rename = "fx_peak_n")]
+    pub peak_fx: f64,
+    #[serde(rename = "fy_peak_n")]
+    pub peak_fy: f64,
+    #[serde(rename = "fz_peak_n")]
+    pub peak_fz: f64,
+    #[serde(rename = "torque_peak_nm")]
+    pub peak_torque: f64,
+    #[serde(rename = "power_peak_w")]
+    pub peak_power: f64,
+    /// Mean cutting power over the whole move (air included), W.
+    #[serde(rename = "power_mean_w")]
+    pub mean_power: f64,
+    /// Cutting energy of the move: mean power × time, J.
+    #[serde(rename = "energy_j")]
+    pub cutting_energy_j: f64,
+    /// With the machine's energy model: energy drawn from the grid during the move
+    /// (cutting + idle spindle + auxiliary), J.
+    pub energy_in_j: Option<f64>,
+    pub air_fraction: f64,
+    /// With the tool's modes: axial depth / critical depth at the move's speed, immersion
+    /// and direction (> 1 chatters), and that critical depth, mm.
+    pub chatter_margin: Option<f64>,
+    pub critical_depth_mm: Option<f64>,
+    /// What to look at, `|`-separated: air, rapid_in_material, flute_length_exceeded,
+    /// shank_contact, holder_contact, spindle_stopped_in_material, chatter.
+    pub flags: String,
+    pub steps: usize,
+    #[serde(skip)]
+    pub rapid_in_material: bool,
+    #[serde(skip)]
+    pub flute_length_exceeded: bool,
+    #[serde(skip)]
+    pub shank_contact: bool,
+    #[serde(skip)]
+    pub holder_contact: bool,
+    /// Material removed while the spindle is stopped.
+    #[serde(skip)]
+    pub spindle_stopped_in_material: bool,
+    /// With optimization: the move's feed, time and peak |F| in the rewritten program, and
+    /// what set its feed (force, power, torque, chip, air, entry, max_feed, ...).
+    #[serde(rename = "feed_opt_mm_min", skip_serializing_if = "Option::is_none")]
+    pub feed_after_mm_min: Option<f64>,
+    /// The tip speed at that feed (mean over the move), mm/min.
+    #[serde(
+        rename = "tip_speed_opt_mm_min",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub tip_speed_after_mm_min: Option<f64>,
+    #[serde(rename = "time_opt_s", skip_serializing_if = "Option::is_none")]
+    pub time_after_s: Option<f64>,
+    #[serde(rename = "force_peak_opt_n", skip_serializing_if = "Option::is_none")]
+    pub peak_force_after: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub governing: Option<String>,
+    /// The move was written as this many blocks, each at its own feed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub split_parts: Option<usize>,
+}
+
+impl MoveRow {
+    /// True for a feed move that removed nothing.
+    pub fn is_air_cut(&self) -> bool {
+        matches!(self.kind, "linear" | "arc") && self.removed_volume <= 0.0
+    }
+
+    pub(super) fn set_flags(&mut self) {
+        let flags = [
+            (self.is_air_cut(), "air"),
+            (self.rapid_in_material, "rapid_in_material"),
+            (self.flute_length_exceeded, "flute_length_exceeded"),
+            (self.shank_contact, "shank_contact"),
+            (self.holder_contact, "holder_contact"),
+            (
+                self.spindle_stopped_in_material,
+                "spindle_stopped_in_material",
+            ),
+            (self.chatter_margin.is_some_and(|m| m > 1.0), "chatter"),
+        ];
+        let on: Vec<&str> = flags.iter().filter(|(f, _)| *f).map(|(_, n)| *n).collect();
+        self.flags = on.join("|");
+    }
+}
+
+/// A move where the tool, shank or holder met material it must not meet.
+#[derive(Clone, Debug, Serialize)]
+pub struct Collision {
+    pub block: usize,
+    pub line: u32,
+    /// rapid_in_material, shank_contact, holder_contact, flute_length_exceeded or
+    /// spindle_stopped_in_material.
+    pub kind: &'static str,
+}
+
+/// At most this many collisions are listed in the summary (the counts cover all).
+pub(super) const MAX_LISTED_COLLISIONS: usize = 1000;
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SimulationSummary {
+    pub moves: usize,
+    pub blocks: usize,
+    pub cell_mm: f64,
+    pub stock_volume_before: f64,
+    pub stock_volume_after: f64,
+    #[serde(rename = "removed_volume_mm3")]
+    pub removed_volume: f64,
+    #[serde(rename = "force_peak_n")]
+    pub peak_force: f64,
+    #[serde(rename = "force_peak_line")]
+    pub peak_force_line: Option<u32>,
+    pub cutting_moves: usize,
+    pub air_moves: usize,
+    pub rapid_in_material_moves: usize,
+    pub holder_or_shank_contact_moves: usize,
+    pub flute_length_exceeded_moves: usize,
+    /// Every move where the tool, shank or holder met material it must not meet (the first
+    /// 1000; the counts above cover all).
+    pub collisions: Vec<Collision>,
+    pub force_evaluations: usize,
+    /// Cycle time with the machine's accelerations and junction speeds, and its parts, s.
+    pub cycle_time_s: f64,
+    pub cutting_time_s: f64,
+    /// Time of the feed moves that cut nothing (part of `cutting_time_s`), s.
+    pub air_time_s: f64,
+    pub rapid_time_s: f64,
+    /// Σ length / programmed feed: what the naive estimate would say, s.
+    pub nominal_time_s: f64,
+    pub cutting_energy_j: f64,
+    /// With the machine's energy model: the program's energy (idle, auxiliary, cutting,
+    /// input, J) and its utilization U = E_cut / E_in.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub energy: Option<EnergyTotals>,
+    /// With the tool's modes: moves whose chatter margin exceeds 1, and the largest margin.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chatter_moves: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chatter_margin_max: Option<f64>,
+    /// With a design part: stock cut below its surface (gouge volume and depth) and the
+    /// allowance left on it (min/mean/max), mm³ and mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub part: Option<geometry::PartComparison>,
+}
+
+/// A program's energy, J, and U = E_cut / E_in.
+#[derive(Clone, Debug, Serialize)]
+pub struct EnergyTotals {
+    pub idle_j: f64,
+    pub aux_j: f64,
+    pub cut_j: f64,
+    pub input_j: f64,
+    pub utilization: f64,
+}
+
+/// Wall time of each stage, seconds. Kept apart from the summary, which is deterministic.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct StageTimings {
+    pub interpret_s: f64,
+    pub stock_s: f64,
+    pub removal_and_engagement_s: f64,
+    pub forces_s: f64,
+    /// Feed scheduling, rewrite, re-interpretation and forces at the new feeds; and of it:
+    /// the schedule (secant iterations on the force model), the rewrite with its checks
+    /// (re-interpretation, splits), and the forces at the new feeds.
+    pub optimize_s: f64,
+    pub optimize_schedule_s: f64,
+    pub optimize_rewrite_s: f64,
+    pub optimize_forces_after_s: f64,
+}
+
+/// The force at one engaged step, for plotting along a move.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct StepSample {
+    /// Distance of the step from the start of the move, mm.
+    pub at: f64,
+    pub peak_force: f64,
+    pub mean_force: f64,
+    pub peak_torque: f64,
+    pub mean_power: f64,
+    pub max_chip_thickness: f64,
+}
+
+/// What the feed optimization did, with the benchmarks it is judged against.
+#[derive(Clone, Debug, Serialize)]
+pub struct OptimizationSummary {
+    pub limits: FeedLimits,
+    /// Cycle times with the same machine model, s: the program as written, every feed move
+    /// at the best constant feed that keeps every limit, the rewritten program, and every
+    /// move at its own limiting feed (the ideal bound).
+    pub cycle_time_before_s: f64,
+    pub cycle_time_constant_feed_s: f64,
+    pub cycle_time_after_s: f64,
+    pub cycle_time_ideal_s: f64,
+    pub best_constant_feed_mm_min: f64,
+    pub peak_force_before: f64,
+    pub peak_force_after: f64,
+    pub changed_blocks: usize,
+    pub restored_f_words: usize,
+    /// Moves whose peak |F| stays above max_force even at the new feed (the edge forces
+    /// alone exceed it, or min_feed binds): the limit cannot be met there. Lines listed.
+    pub force_limit_unreachable_moves: usize,
+    pub force_limit_unreachable_lines: Vec<u32>,
+    /// Blocks written with the smallest of several different feeds (loops, subroutines).
+    pub ambiguous_blocks: Vec<usize>,
+    pub evaluations: usize,
+    /// With `limits.split`: moves written as several blocks, and planned splits that were not
+    /// written, with the reason (the first 100).
+    pub split_blocks: usize,
+    pub split_skipped: Vec<optimize::SkippedSplit>,
+}
+
+pub struct SimulationOutput {
+    pub rows: Vec<MoveRow>,
+    /// With optimization: the rewritten program and what it changed.
+    pub optimized_program: Option<String>,
+    pub optimization: Option<OptimizationSummary>,
+    /// Per move (same order as `rows`), the force at each engaged step.
+    pub samples: Vec<Vec<StepSample>>,
+    pub summary: SimulationSummary,
+    pub stock: Stock,
+    pub timings: StageTimings,
+    /// Dexel updates counted by the geometry engine (rays tested against the sweeps).
+    pub rays_tested: u64,
+}
+
+pub(super) fn kind_name(k: MoveKind) -> &'static str {
+    match k {
+        MoveKind::Rapid => "rapid",
+        MoveKind::Linear => "linear",
+        MoveKind::Arc => "arc",
+        MoveKind::Dwell => "dwell",
+        MoveKind::ToolChange => "tool_change",
+    }
+}
+
+pub(super) fn feed_mode_name(m: FeedMode) -> &'static str {
+    match m {
+        FeedMode::PerMin => "per_min",
+        FeedMode::InverseTime => "inverse_time",
+        FeedMode::PerRev => "per_rev",
+    }
+}
+
+pub(super) fn collisions(rows: &[MoveRow]) -> Vec<Collision> {
+    rows.iter()
+        .flat_map(|r| {
+            [
+                (r.rapid_in_material, "rapid_in_material"),
+                (r.shank_contact, "shank_contact"),
+                (r.holder_contact, "holder_contact"),
+                (r.flute_length_exceeded, "flute_length_exceeded"),
+                (r.spindle_stopped_in_material, "spindle_stopped_in_material"),
+            ]
+            .into_iter()
+            .filter(|(on, _)| *on)
+            .map(|(_, kind)| Collision {
+                block: r.block,
+                line: r.line,
+                kind,
+            })
+        })
+        .take(MAX_LISTED_COLLISIONS)
+        .collect()
+}
+
+/// Adds the steps' forces up per move: peaks over the steps, means over the cutting time
+/// (each step weighted by its time), mean power over the whole move, energy and MRR.
+/// Returns the force samples per move and the number of steps evaluated.
+pub(super) fn add_step_forces(
+    rows: &mut [MoveRow],
+    steps: &[MoveStep],
+    forces: &[Option<ForceResult>],
+) -> (Vec<Vec<StepSample>>, usize) {
+    // Time-weighted sums per move: the axes run at one rate over the move, so a step's
+    // machine-axis length (its tip path over its tip ratio) stands for its time.
+    #[derive(Clone, Copy, Default)]
+    struct Weighted {
+        force: f64,
+        components: [f64; 3],
+        engaged_length: f64,
+        power: f64,
+    }
+    let mut weighted = vec![Weighted::default(); rows.len()];
+    let mut evaluations = 0;
+    let mut samples: Vec<Vec<StepSample>> = vec![Vec::new(); rows.len()];
+    for (step, f) in steps.iter().zip(forces) {
+        let Some(f) = f else { continue };
+        let (mi, s) = (&step.move_index, &step.geometry);
+        evaluations += 1;
+        samples[*mi].push(StepSample {
+            at: s.distance,
+            peak_force: f.force.peak,
+            mean_force: f.force.mean,
+            peak_torque: f.torque.peak,
+            mean_power: f.power.mean,
+            max_chip_thickness: f.max_chip_thickness,
+        });
+        let row = &mut rows[*mi];
+        row.peak_force = row.peak_force.max(f.force.peak);
+        row.peak_fx = row.peak_fx.max(f.part[0].peak());
+        row.peak_fy = row.peak_fy.max(f.part[1].peak());
+        row.peak_fz = row.peak_fz.max(f.part[2].peak());
+        row.peak_torque = row.peak_torque.max(f.torque.peak);
+        row.peak_power = row.peak_power.max(f.power.peak);
+        row.max_chip_thickness = row.max_chip_thickness.max(f.max_chip_thickness);
+        let w = &mut weighted[*mi];
+        let length = if step.tip_ratio > 0.0 {
+            s.length / step.tip_ratio
+        } else {
+            0.0
+        };
+        w.force += f.force.mean * length;
+        for (c, part) in w.components.iter_mut().zip(&f.part) {
+            *c += part.mean * length;
+        }
+        w.engaged_length += length;
+        w.power += f.power.mean * length;
+    }
+    for (row, w) in rows.iter_mut().zip(weighted) {
+        if w.engaged_length > 0.0 {
+            row.mean_force = w.force / w.engaged_length;
+            row.fx_mean_n = w.components[0] / w.engaged_length;
+            row.fy_mean_n = w.components[1] / w.engaged_length;
+            row.fz_mean_n = w.components[2] / w.engaged_length;
+        }
+        if row.length > 0.0 {
+            row.mean_power = w.power / row.length;
+        }
+        row.cutting_energy_j = row.mean_power * row.time_s;
+        if row.time_s > 0.0 {
+            row.mrr_mm3_s = row.removed_volume / row.time_s;
+        }
+    }
+    (samples, evaluations)
+}
+
+/// What the stages after the forces add to the summary.
+pub(super) struct SummaryExtras {
+    pub(super) energy: Option<EnergyTotals>,
+    pub(super) chatter: Option<(usize, f64)>,
+    pub(super) part: Option<geometry::PartComparison>,
+}
+
+/// The program's summary from its rows: (moves, blocks) counted, the stock volume before
+/// and after, the force evaluations and the cycle time.
+pub(super) fn summarize(
+    rows: &[MoveRow],
+    counts: (usize, usize),
+    cell: f64,
+    volumes: (f64, f64),
+    evaluations: usize,
+    times: &CycleTime,
+    extras: SummaryExtras,
+) -> SimulationSummary {
+    let peak = rows
+        .iter()
+        .max_by(|a, b| a.peak_force.total_cmp(&b.peak_force))
+        .filter(|r| r.peak_force > 0.0);
+    let cutting = |r: &&MoveRow| r.kind == "linear" || r.kind == "arc";
+    SimulationSummary {
+        moves: counts.0,
+        blocks: counts.1,
+        cell_mm: cell,
+        stock_volume_before: volumes.0,
+        stock_volume_after: volumes.1,
+        removed_volume: volumes.0 - volumes.1,
+        peak_force: peak.map(|r| r.peak_force).unwrap_or(0.0),
+        peak_force_line: peak.map(|r| r.line),
+        cutting_moves: rows
+            .iter()
+            .filter(cutting)
+            .filter(|r| r.removed_volume > 0.0)
+            .count(),
+        air_moves: rows
+            .iter()
+            .filter(cutting)
+            .filter(|r| r.removed_volume <= 0.0)
+            .count(),
+        rapid_in_material_moves: rows.iter().filter(|r| r.rapid_in_material).count(),
+        holder_or_shank_contact_moves: rows
+            .iter()
+            .filter(|r| r.holder_contact || r.shank_contact)
+            .count(),
+        flute_length_exceeded_moves: rows.iter().filter(|r| r.flute_length_exceeded).count(),
+        collisions: collisions(&rows),
+        force_evaluations: evaluations,
+        cycle_time_s: times.total_s,
+        cutting_time_s: times.cutting_s,
+        air_time_s: rows
+            .iter()
+            .filter(|r| r.is_air_cut())
+            .map(|r| r.time_s)
+            .sum(),
+        rapid_time_s: times.rapid_s,
+        nominal_time_s: times.nominal_s,
+        cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
+        energy: extras.energy,
+        chatter_moves: extras.chatter.map(|(n, _)| n),
+        chatter_margin_max: extras.chatter.map(|(_, m)| m),
+        part: extras.part,
+    }
+}
+
+/// A row for every move with what the program says (its N number, feed, length) and its
+/// time in the cycle; the stages fill in the rest.
+pub(super) fn initial_rows(program: &str, moves: &[Move], times: &CycleTime) -> Vec<MoveRow> {
+    let lengths: Vec<f64> = moves.iter().map(move_length).collect();
+    let n_numbers: Vec<Option<u64>> = nc::Program::parse(program)
+        .map(|p| {
+            p.blocks()
+                .iter()
+                .map(|b| {
+                    b.line_number.as_ref().and_then(|w| match w.value {
+                        nc::Expr::Number { value, .. } if value >= 0.0 => Some(value as u64),
+                        _ => None,
+                    })
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    moves
+        .iter()
+        .zip(&lengths)
+        .enumerate()
+        .map(|(i, (m, &length))| MoveRow {
+            block: m.block,
+            line: m.line,
+            n: n_numbers.get(m.block).copied().flatten(),
+            tool: m.tool,
+            kind: kind_name(m.kind),
+            length,
+            feed: m.feed,
+            feed_mode: feed_mode_name(m.feed_mode),
+            feed_mm_min: if m.kind == MoveKind::Rapid {
+                0.0
+            } else {
+                feed_velocity(m)
+            },
+            spindle: m.spindle,
+            time_s: times.per_move_s[i],
+            ..MoveRow::default()
+        })
+        .collect()
+}

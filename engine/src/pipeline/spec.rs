@@ -1,0 +1,110 @@
+//! What a simulation is asked to do, and what can go wrong.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::{self, StockShape};
+use crate::machine::cycle_time::CycleTimeError;
+use crate::machine::Machine;
+use crate::nc;
+use crate::optimize::{self, FeedLimits};
+use crate::physics::Material;
+use crate::tool::Tool;
+
+/// Where the stock comes from.
+pub enum StockSource {
+    Shape(StockShape),
+    Stl(Vec<u8>),
+}
+
+/// How a program's X Y Z A B C words relate to the part on a multi-axis machine.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisReading {
+    /// Machine axes: the machine's kinematics give the tool tip and axis in the part frame
+    /// (a plain 4/5-axis program without tool-centre-point control).
+    #[default]
+    Machine,
+    /// X Y Z are the tool tip in the part frame and A B C set the tool axis: a control
+    /// running tool-centre-point control (Fanuc G43.4, Heidenhain M128, LinuxCNC TCP
+    /// kinematics such as the impeller sample's M428), which moves the tip on a straight line.
+    ToolTip,
+}
+
+pub struct SimulateSpec {
+    pub program: String,
+    pub interpret: nc::InterpretOptions,
+    pub stock: StockSource,
+    /// Tools by T number; the tool under key 0 (given alone) serves every tool number of
+    /// a program that uses one.
+    pub tools: BTreeMap<u32, Tool>,
+    pub material: Material,
+    /// For the cycle time (accelerations, junctions, rapid rate, tool change time).
+    pub machine: Machine,
+    /// Dexel spacing, mm; default from the smallest tool (radius / 20, within [0.02, 0.5]).
+    pub cell: Option<f64>,
+    pub memory_limit: u64,
+    /// Angular positions per spindle revolution in the force model.
+    pub force_positions: usize,
+    /// Optimize the feeds to these limits and rewrite the program.
+    pub optimize: Option<FeedLimits>,
+    /// On a machine with rotary axes: how the program's axis words are read.
+    pub axes: AxisReading,
+    /// The tool's frequency response, for the chatter margin of every block.
+    pub chatter: Option<ChatterSpec>,
+    /// The design part (STL, in the stock's frame): gouges and the allowance left.
+    pub part: Option<Vec<u8>>,
+}
+
+/// Modal parameters of the tool (as a stability job takes them) for the per-block chatter
+/// margin: axial depth / critical depth at the block's speed, radial immersion and milling
+/// direction. The same modes serve every tool of the program.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChatterSpec {
+    #[serde(default)]
+    pub modes_x: Vec<crate::physics::stability::Mode>,
+    #[serde(default)]
+    pub modes_y: Vec<crate::physics::stability::Mode>,
+    /// `zoa`, `sdm` (default) or `fdm`.
+    #[serde(default = "default_chatter_method")]
+    pub method: crate::physics::stability::Method,
+    /// Discretization steps per tooth period (sdm/fdm).
+    #[serde(default = "default_chatter_steps")]
+    pub steps_per_period: u32,
+}
+
+fn default_chatter_method() -> crate::physics::stability::Method {
+    crate::physics::stability::Method::Sdm
+}
+
+fn default_chatter_steps() -> u32 {
+    40
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SimulateError {
+    #[error("{0}")]
+    Program(nc::Diagnostics),
+    #[error("line {line}: tool T{tool} is used but not defined; define it under `tools`")]
+    UnknownTool { tool: u32, line: u32 },
+    #[error("line {line}: the program changes to T{tool} but one tool was given; give a tool for each T number used ({used})")]
+    OneToolForSeveral { tool: u32, line: u32, used: String },
+    #[error("a tool for every number (key 0) cannot be combined with tools for given numbers")]
+    ToolZeroWithOthers,
+    #[error("line {line}: rotary axes (A/B/C) move, but the machine has none (kinematics xyz); give a machine with kinematics xyz_a, xyz_b, xyz_ac, xyz_bc or head_table")]
+    RotaryAxes { line: u32 },
+    #[error("stock: {0}")]
+    Geometry(#[from] geometry::GeometryError),
+    #[error("force model: {0}")]
+    Physics(#[from] crate::physics::PhysicsError),
+    #[error("cycle time: {0}")]
+    CycleTime(#[from] CycleTimeError),
+    #[error("feed optimization: {0}")]
+    Optimize(#[from] optimize::OptimizeError),
+    #[error("rewriting the program: {0}")]
+    Rewrite(String),
+    #[error("cancelled")]
+    Cancelled,
+}
