@@ -11,8 +11,8 @@ use millsim_engine::machine::rotary_feed::{
     correct_program, FeedOutput, RotaryFeedError, RotaryFeedOptions,
 };
 use millsim_engine::machine::Machine;
+use millsim_engine::optimize::energy_search::{run_energy_job, EnergySearchOptions};
 use millsim_engine::optimize::FeedLimits;
-use millsim_engine::physics::energy::{run_energy_job, EnergySearchOptions};
 use millsim_engine::physics::stability::{
     compute_lobes, compute_lobes_3d, recommend_spindle_speed, Stability3dInput, StabilityInput,
 };

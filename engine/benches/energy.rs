@@ -7,7 +7,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use millsim_engine::machine::Machine;
-use millsim_engine::physics::energy::{EnergyModel, EnergyProblem, EnergySearchOptions, Objective};
+use millsim_engine::optimize::energy_search::{EnergyProblem, EnergySearchOptions, Objective};
+use millsim_engine::physics::energy::EnergyModel;
 use millsim_engine::physics::Material;
 use millsim_engine::tool::Tool;
 

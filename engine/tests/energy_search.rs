@@ -6,9 +6,10 @@
 use std::time::Instant;
 
 use millsim_engine::machine::Machine;
-use millsim_engine::physics::energy::{
-    run_energy_job, EnergyModel, EnergyPoint, EnergyProblem, EnergySearchOptions, Objective,
+use millsim_engine::optimize::energy_search::{
+    run_energy_job, EnergyPoint, EnergyProblem, EnergySearchOptions, Objective,
 };
+use millsim_engine::physics::energy::EnergyModel;
 use millsim_engine::physics::stability::{Milling, StabilitySystem};
 use millsim_engine::physics::{cutting_forces, CuttingCoefficients, CuttingConditions, Material};
 use millsim_engine::tool::Tool;

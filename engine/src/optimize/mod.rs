@@ -18,6 +18,7 @@
 //! and at which feeds; [`rewrite::write_splits`] writes those parts as new blocks before the
 //! move's own block (which keeps every character but its F).
 
+pub mod energy_search;
 pub mod rewrite;
 
 pub use rewrite::{

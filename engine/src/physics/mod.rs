@@ -56,9 +56,7 @@ pub mod stability;
 
 pub use chatter::{arc_immersion, ChatterMargin, ChatterModel};
 pub use energy::{
-    program_energy, run_energy_job, BlockEnergy, EnergyBlock, EnergyModel, EnergyPoint,
-    EnergyProblem, EnergySearchOptions, EnergySearchResult, IdlePowerCurve, Objective,
-    ProgramEnergy,
+    program_energy, BlockEnergy, EnergyBlock, EnergyModel, IdlePowerCurve, ProgramEnergy,
 };
 pub use force::{
     cutting_forces, AxisStats, BlockForces, CuttingConditions, EdgeSlice, ForceModel, ForceResult,
