@@ -388,3 +388,57 @@ fn a_rotary_move_from_air_into_the_cut_is_split_with_every_axis_interpolated() {
         );
     }
 }
+
+#[test]
+fn tool_tip_reading_writes_the_tip_feed_in_g94() {
+    // Tool-centre-point control: X Y Z are the tip on the part, so a G94 F is the tip's
+    // feed even while A tilts the tool (here from 90° to 80° along a plunge into a Ø20
+    // cylinder standing on the C table).
+    let program = "G21 G90 G94 S8000 M3\nG0 Z30\nG0 A90 C0\nG0 X0 Y30 Z15\nG0 Y8\nG1 Z-20 A80 F600\nG0 Y30\nM30\n";
+    let make = |program: &str| {
+        let mut s = spec_at(program, 0.1);
+        s.machine.kinematics = Kinematics::XyzAc;
+        s.axes = AxisReading::ToolTip;
+        s.stock = StockSource::Shape(millsim_engine::geometry::StockShape::Cylinder {
+            base_center: [0.0, 0.0, -40.5],
+            radius: 10.0,
+            height: 40.0,
+        });
+        s
+    };
+    let mut s = make(program);
+    let plain = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let row = plain.rows.iter().find(|r| r.line == 6).unwrap();
+    assert!((row.tip_speed_mm_min - 600.0).abs() < 1e-6, "{row:?}");
+    let limit = 0.8 * row.peak_force;
+    s.optimize = Some(
+        serde_json::from_str(&format!(r#"{{"max_force": {limit}, "max_feed": 3000}}"#)).unwrap(),
+    );
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let row = out.rows.iter().find(|r| r.line == 6).unwrap();
+    let after = interpret(
+        out.optimized_program.as_ref().unwrap(),
+        &InterpretOptions::default(),
+    )
+    .unwrap()
+    .moves;
+    let m = after.iter().find(|m| m.line == 6).unwrap();
+    let tip = row.tip_speed_after_mm_min.unwrap();
+    assert!(tip < 600.0);
+    assert!(
+        (m.feed - tip).abs() <= 1e-9 * tip,
+        "F{} vs tip {tip}",
+        m.feed
+    );
+    let re = simulate(
+        &make(out.optimized_program.as_ref().unwrap()),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    let peak = re.rows.iter().find(|r| r.line == 6).unwrap().peak_force;
+    assert!(
+        peak <= limit * 1.005 && peak >= limit * 0.99,
+        "{peak} vs {limit}"
+    );
+}
