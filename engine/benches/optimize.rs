@@ -12,8 +12,8 @@ use millsim_engine::engagement::{EngagedSlice, Engagement};
 use millsim_engine::machine::{cycle_time, Machine};
 use millsim_engine::nc::{interpret, InterpretOptions, Move, Program};
 use millsim_engine::optimize::{
-    optimize_feeds, rewrite_program, Cutter, EngagementStep, FeedLimits, FeedScale, RewriteOptions,
-    Segment,
+    optimize_feeds, rewrite_program, Cutter, EngagementStep, FeedLimits, FeedScale, MoveEngagement,
+    RewriteOptions,
 };
 use millsim_engine::physics::Material;
 use millsim_engine::tool::Tool;
@@ -58,7 +58,7 @@ impl Rng {
     }
 }
 
-fn setup() -> (String, Vec<Move>, Vec<Segment<'static>>) {
+fn setup() -> (String, Vec<Move>, Vec<MoveEngagement<'static>>) {
     let mut src = String::from("G21 G90 G94\nS18000 M3\nG0 X0 Y0 Z1\nG1 Z-2 F1000\n");
     for i in 0..BLOCKS {
         // 2 mm blocks along a gently curving path (an adaptive-like pass, no sharp corners).
@@ -92,7 +92,7 @@ fn setup() -> (String, Vec<Move>, Vec<Segment<'static>>) {
                 }
             })
             .collect();
-        segments.push(Segment {
+        segments.push(MoveEngagement {
             move_index: i,
             cutter: 0,
             scale: FeedScale::UNIT,

@@ -9,7 +9,7 @@ use millsim_engine::machine::{cycle_time, Machine};
 use millsim_engine::nc::{interpret, InterpretOptions, Move, MoveKind, Program};
 use millsim_engine::optimize::{
     optimize_feeds, rewrite_program, split_plan, verify_rewrite, Cutter, EngagementStep,
-    FeedLimits, FeedScale, Governing, RewriteOptions, Segment,
+    FeedLimits, FeedScale, Governing, MoveEngagement, RewriteOptions,
 };
 use millsim_engine::physics::{CuttingConditions, ForceModel, Material};
 use millsim_engine::tool::Tool;
@@ -63,8 +63,8 @@ fn step(e: Engagement) -> EngagementStep<'static> {
     }
 }
 
-fn seg(move_index: usize, es: Vec<Engagement>) -> Segment<'static> {
-    Segment {
+fn seg(move_index: usize, es: Vec<Engagement>) -> MoveEngagement<'static> {
+    MoveEngagement {
         move_index,
         cutter: 0,
         scale: FeedScale::UNIT,
@@ -102,7 +102,7 @@ fn force_target_is_met_within_one_percent_below_for_slot_half_and_tenth() {
     for (name, e) in [("slot", slot()), ("half", half()), ("tenth", tenth())] {
         let mv = moves("G21 G90 G94\nG1 X100 F1000\n");
         let sched = optimize_feeds(&mv, &[seg(0, vec![e.clone()])], &[cutter()], &limits).unwrap();
-        let s = &sched.segments[0];
+        let s = &sched.moves[0];
         let f = force_at(&e, s.feed).force.peak;
         assert!(
             f <= target && f >= 0.99 * target,
@@ -136,7 +136,7 @@ fn lighter_engagement_gets_a_higher_feed() {
         seg(2, vec![tenth()]),
     ];
     let s = optimize_feeds(&mv, &segs, &[cutter()], &limits).unwrap();
-    let f: Vec<f64> = s.segments.iter().map(|x| x.feed).collect();
+    let f: Vec<f64> = s.moves.iter().map(|x| x.feed).collect();
     assert!(f[0] < f[1] && f[1] < f[2], "{f:?}");
     // Best constant feed: the slot's.
     assert_eq!(s.best_constant_feed, f[0]);
@@ -176,7 +176,7 @@ fn power_torque_and_chip_limits_bind_when_lowest() {
         ),
     ] {
         let s = optimize_feeds(&mv, &[seg(0, vec![e.clone()])], &[cutter()], &limits).unwrap();
-        let sf = &s.segments[0];
+        let sf = &s.moves[0];
         assert_eq!(sf.governing, g);
         let r = force_at(&e, sf.feed);
         let (q, t) = match g {
@@ -199,8 +199,8 @@ fn feed_range_caps_and_min_feed_flags() {
         ..Default::default()
     };
     let s = optimize_feeds(&mv, &[seg(0, vec![tenth()])], &[cutter()], &limits).unwrap();
-    assert_eq!(s.segments[0].feed, 3000.0);
-    assert_eq!(s.segments[0].governing, Governing::MaxFeed);
+    assert_eq!(s.moves[0].feed, 3000.0);
+    assert_eq!(s.moves[0].governing, Governing::MaxFeed);
     // A limit below the edge forces alone: min_feed, flagged.
     let limits = FeedLimits {
         max_force: Some(5.0),
@@ -208,8 +208,8 @@ fn feed_range_caps_and_min_feed_flags() {
         ..Default::default()
     };
     let s = optimize_feeds(&mv, &[seg(0, vec![slot()])], &[cutter()], &limits).unwrap();
-    assert_eq!(s.segments[0].feed, 50.0);
-    assert_eq!(s.segments[0].governing, Governing::MinFeed);
+    assert_eq!(s.moves[0].feed, 50.0);
+    assert_eq!(s.moves[0].governing, Governing::MinFeed);
 }
 
 #[test]
@@ -234,7 +234,7 @@ fn air_moves_get_the_air_feed_and_entry_is_reduced() {
         ..Default::default()
     };
     let s = optimize_feeds(&mv, &segs, &[cutter()], &limits).unwrap();
-    let by_move = |i: usize| s.segments.iter().find(|x| x.move_index == i).unwrap();
+    let by_move = |i: usize| s.moves.iter().find(|x| x.move_index == i).unwrap();
     assert_eq!(by_move(1).feed, 6000.0);
     assert_eq!(by_move(1).governing, Governing::Air);
     assert_eq!(by_move(4).feed, 6000.0);
@@ -257,7 +257,7 @@ fn rubbing_floor_lifts_reduced_feeds_but_never_above_the_limit() {
     };
     let e = tenth();
     let s = optimize_feeds(&mv, &[seg(1, vec![e.clone()])], &[cutter()], &limits).unwrap();
-    let sf = &s.segments[0];
+    let sf = &s.moves[0];
     assert!(sf.entry);
     assert_eq!(sf.governing, Governing::RubbingFloor);
     let r = force_at(&e, sf.feed);
@@ -274,7 +274,7 @@ fn rubbing_floor_lifts_reduced_feeds_but_never_above_the_limit() {
         ..limits
     };
     let s = optimize_feeds(&mv, &[seg(1, vec![e.clone()])], &[cutter()], &limits).unwrap();
-    let sf = &s.segments[0];
+    let sf = &s.moves[0];
     assert_eq!(sf.feed, sf.limit_feed);
     assert_eq!(sf.governing, Governing::Force);
     assert!(force_at(&e, sf.feed).force.peak <= 600.0);
@@ -294,7 +294,7 @@ fn several_steps_take_the_worst_and_split_plan_finds_the_change() {
         ..Default::default()
     };
     let s = optimize_feeds(&mv, std::slice::from_ref(&sg), &[cutter()], &limits).unwrap();
-    let sf = &s.segments[0];
+    let sf = &s.moves[0];
     let slot_limit = sf.step_limits[3].min(sf.step_limits[4]);
     let tenth_limit = sf.step_limits[..3]
         .iter()
@@ -389,7 +389,7 @@ fn differs_only_in_f_words(a: &str, b: &str) -> Result<usize, String> {
 
 const PROGRAM: &str = "%\n(roughing test)\nN10 G21 G90 G94 G17\nN20 T1 M6\nN30 S8000 M3\nN40 G0 X-10 Y0 Z5\nN50 G1 Z-5 F300 (plunge)\nN60 X20 F1000\nN70 X40\nN80  X60   ; comment\nN90 G2 X80 Y0 I10 J0\nN100 G1 X100\nN110 Y10\nN120 G0 Z5\nN130 M30\n%\n";
 
-fn program_segments(mv: &[Move]) -> Vec<Segment<'static>> {
+fn program_segments(mv: &[Move]) -> Vec<MoveEngagement<'static>> {
     // Line → engagement: plunge in air, then slot, half, tenth, slot (arc), air, (Y10: no data).
     let mut segs = Vec::new();
     for (i, m) in mv.iter().enumerate() {
@@ -496,7 +496,7 @@ fn a_block_in_a_loop_gets_one_feed_safe_for_every_execution() {
     let loop_moves: Vec<usize> = (0..mv.len()).filter(|&i| mv[i].line == 7).collect();
     assert_eq!(loop_moves.len(), 3);
     let es = [tenth(), slot(), half()];
-    let mut segs: Vec<Segment> = vec![seg(1, vec![tenth()])];
+    let mut segs: Vec<MoveEngagement> = vec![seg(1, vec![tenth()])];
     for (k, &i) in loop_moves.iter().enumerate() {
         segs.push(seg(i, vec![es[k].clone()]));
     }
@@ -511,7 +511,7 @@ fn a_block_in_a_loop_gets_one_feed_safe_for_every_execution() {
     let b = sched.block(6).unwrap();
     assert_eq!(b.executions, 3);
     let slot_feed = sched
-        .segments
+        .moves
         .iter()
         .find(|s| s.move_index == loop_moves[1])
         .unwrap()
@@ -535,7 +535,7 @@ fn subroutine_blocks_and_hidden_f_words_keep_modal_feeds_right() {
     // the modal feed set by F-only lines before each call (400, then 900).
     let src = "G21 G90 G94\no200 sub\nG1 Y[#1]\nG1 X[#1]\no200 endsub\nG0 X0 Y0 Z0\nF400\no200 call [10]\nF900\no200 call [20]\nM2\n";
     let mv = moves(src);
-    let segs: Vec<Segment> = (0..mv.len())
+    let segs: Vec<MoveEngagement> = (0..mv.len())
         .filter(|&i| mv[i].line == 3)
         .map(|i| seg(i, vec![tenth()]))
         .collect();
@@ -561,7 +561,7 @@ fn subroutine_blocks_and_hidden_f_words_keep_modal_feeds_right() {
 
     // Without the restore problem: line 4 optimized, line 3 untouched keeps 400 then 900,
     // because the F-only lines run again before each call.
-    let segs: Vec<Segment> = (0..mv.len())
+    let segs: Vec<MoveEngagement> = (0..mv.len())
         .filter(|&i| mv[i].line == 4)
         .map(|i| seg(i, vec![tenth()]))
         .collect();
@@ -589,7 +589,7 @@ fn inverse_time_and_inch_blocks_are_written_in_their_own_units() {
         ..Default::default()
     };
     let sched = optimize_feeds(&mv, &segs, &[cutter()], &limits).unwrap();
-    let v = |k: usize| sched.segments[k].feed;
+    let v = |k: usize| sched.moves[k].feed;
     let program = Program::parse(src).unwrap();
     let rw = rewrite_program(&program, &mv, &sched, &RewriteOptions::default()).unwrap();
     differs_only_in_f_words(src, &rw.text).unwrap();
@@ -621,7 +621,7 @@ fn small_changes_are_not_written_unless_the_programmed_feed_is_unsafe() {
         &limits,
     )
     .unwrap();
-    let v = probe.segments[0].feed;
+    let v = probe.moves[0].feed;
     // Programmed 2% below the optimum: kept.
     let mv = moves(&format!("G21 G90 G94\nG1 X100 F{:.0}\n", v * 0.98));
     let s = optimize_feeds(&mv, &[seg(0, vec![half()])], &[cutter()], &limits).unwrap();
@@ -661,7 +661,7 @@ fn schedule_is_the_same_whatever_the_thread_count() {
     }
     let mv = moves(&src);
     let es = [slot(), half(), tenth(), Engagement::default()];
-    let segs: Vec<Segment> = (1..mv.len())
+    let segs: Vec<MoveEngagement> = (1..mv.len())
         .map(|i| seg(i, vec![es[i % 4].clone(), es[(i / 3) % 4].clone()]))
         .collect();
     let limits = FeedLimits {
@@ -682,7 +682,7 @@ fn schedule_is_the_same_whatever_the_thread_count() {
     assert_eq!(one, run(2));
     assert_eq!(one, run(3));
     // Every engaged step is at or under the limit at its segment's feed.
-    for s in one.segments.iter().filter(|s| s.engaged) {
+    for s in one.moves.iter().filter(|s| s.engaged) {
         for st in &segs[s.move_index - 1].steps {
             if !st.engagement.is_air() {
                 assert!(force_at(&st.engagement, s.feed).force.peak <= 450.0);
@@ -701,7 +701,7 @@ fn repeated_identical_steps_cost_no_extra_evaluations() {
     };
     let one = optimize_feeds(&mv, &[seg(0, vec![slot()])], &[cutter()], &limits).unwrap();
     let ten = optimize_feeds(&mv, &[seg(0, vec![slot(); 10])], &[cutter()], &limits).unwrap();
-    assert_eq!(one.segments[0].feed, ten.segments[0].feed);
+    assert_eq!(one.moves[0].feed, ten.moves[0].feed);
     assert_eq!(one.evaluations, ten.evaluations);
-    assert_eq!(ten.segments[0].step_limits, vec![one.segments[0].feed; 10]);
+    assert_eq!(ten.moves[0].step_limits, vec![one.moves[0].feed; 10]);
 }

@@ -9,7 +9,7 @@ use millsim_engine::engagement::{EngagedSlice, Engagement};
 use millsim_engine::nc::{interpret, InterpretOptions, Program};
 use millsim_engine::optimize::{
     optimize_feeds, rewrite_program, verify_rewrite, Cutter, EngagementStep, FeedLimits, FeedScale,
-    Governing, RewriteOptions, Segment,
+    Governing, MoveEngagement, RewriteOptions,
 };
 use millsim_engine::physics::{CuttingConditions, ForceModel, Material};
 use millsim_engine::tool::{Runout, Tool};
@@ -59,7 +59,7 @@ fn setup(
     es: &[Engagement],
 ) -> (
     Vec<millsim_engine::nc::Move>,
-    Vec<Segment<'static>>,
+    Vec<MoveEngagement<'static>>,
     Vec<Cutter>,
 ) {
     let mv = interpret(src, &InterpretOptions::default()).unwrap().moves;
@@ -71,7 +71,7 @@ fn setup(
     let segs = feed_moves
         .iter()
         .zip(es)
-        .map(|(&i, e)| Segment {
+        .map(|(&i, e)| MoveEngagement {
             move_index: i,
             cutter: 0,
             scale: FeedScale::UNIT,
@@ -102,7 +102,7 @@ fn ball_with_runout_meets_force_target_and_rubbing_floor() {
         ..Default::default()
     };
     let s = optimize_feeds(&mv, &segs, &cutters, &limits).unwrap();
-    for (sf, e) in s.segments.iter().zip(&es) {
+    for (sf, e) in s.moves.iter().zip(&es) {
         let f = result_at(e, sf.feed).force.peak;
         assert!(
             (0.99 * target..=target).contains(&f),
@@ -123,7 +123,7 @@ fn ball_with_runout_meets_force_target_and_rubbing_floor() {
         ..limits
     };
     let s = optimize_feeds(&mv, &segs, &cutters, &limits).unwrap();
-    let first = &s.segments[0];
+    let first = &s.moves[0];
     assert!(first.entry);
     assert_eq!(first.governing, Governing::RubbingFloor);
     let h = result_at(&es[0], first.feed).max_chip_thickness;
@@ -153,7 +153,7 @@ fn per_rev_blocks_are_written_in_mm_per_rev() {
     // Block 2 has F: changed in place; block 3 inherits it, same engagement, so it either
     // gets its own F or (when equal after rounding) none.
     let c = rw.changes.iter().find(|c| c.block == 2).unwrap();
-    let want = s.segments[0].feed / RPM;
+    let want = s.moves[0].feed / RPM;
     assert!(
         c.written <= want && c.written > want - 1e-4,
         "{} vs {want}",
@@ -163,7 +163,7 @@ fn per_rev_blocks_are_written_in_mm_per_rev() {
         .unwrap()
         .moves;
     verify_rewrite(&mv, &mv2, &rw).unwrap();
-    for (m, sf) in mv2.iter().filter(|m| m.line >= 3).zip(&s.segments) {
+    for (m, sf) in mv2.iter().filter(|m| m.line >= 3).zip(&s.moves) {
         let f = result_at(&es[0], m.feed * RPM).force.peak;
         assert!(f <= 600.0 && m.feed * RPM <= sf.feed);
     }

@@ -1,6 +1,6 @@
 //! Feed scheduling (DESIGN.md, engine pipeline step 6) and program rewriting (step 7).
 //!
-//! The geometry engine gives, for each move (or sub-segment of a move), the engagement at a
+//! The removal gives, for each move (or part of a move: a [`MoveEngagement`]), the engagement at a
 //! series of steps. For every engaged step the optimizer finds the largest feed that keeps every
 //! limit (peak |F|, peak power, peak torque, max chip thickness) at or below its target, by a
 //! secant iteration on the real [`ForceModel`]: the forces are affine in the feed per tooth for a
@@ -60,10 +60,10 @@ pub struct EngagementStep<'a> {
     pub response: Option<Arc<PeakResponse>>,
 }
 
-/// What the optimizer knows about one move (or one sub-segment of a move): the engagement
+/// What the optimizer knows about one move (or one part of a move): the engagement
 /// steps along it. No steps, or only air steps, means the move cuts air.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Segment<'a> {
+pub struct MoveEngagement<'a> {
     /// Index into the move list.
     pub move_index: usize,
     /// Index into the cutters slice.
@@ -228,17 +228,17 @@ pub enum OptimizeError {
         field: &'static str,
         message: String,
     },
-    #[error("segment {segment}: move {move_index} does not exist ({moves} moves)")]
+    #[error("engagement {index}: move {move_index} does not exist ({moves} moves)")]
     NoSuchMove {
-        segment: usize,
+        index: usize,
         move_index: usize,
         moves: usize,
     },
-    #[error("segment {segment}: cutter {cutter} does not exist")]
-    NoSuchCutter { segment: usize, cutter: usize },
-    #[error("segment {segment} (move {move_index}, line {line}): {source}")]
+    #[error("engagement {index}: cutter {cutter} does not exist")]
+    NoSuchCutter { index: usize, cutter: usize },
+    #[error("engagement {index} (move {move_index}, line {line}): {source}")]
     Physics {
-        segment: usize,
+        index: usize,
         move_index: usize,
         line: u32,
         source: PhysicsError,
@@ -401,13 +401,13 @@ pub enum Governing {
     Unknown,
 }
 
-/// Result for one segment. Feeds in mm/min.
+/// Result for one move engagement. Feeds in machine-axis mm/min.
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct SegmentFeed {
+pub struct MoveFeed {
     pub move_index: usize,
     pub block: usize,
     pub engaged: bool,
-    /// The segment's scale: its feeds are machine-axis feeds.
+    /// The move's scale: its feeds are machine-axis feeds.
     pub scale: FeedScale,
     /// Largest feed in [min_feed, max_feed] keeping every limit at every step (air: the air
     /// feed or the programmed feed).
@@ -420,7 +420,7 @@ pub struct SegmentFeed {
     pub floor_feed: f64,
     /// Enters material after air or a rapid.
     pub entry: bool,
-    /// The feed this segment should run at after entry reduction and floor.
+    /// The feed this move should run at after entry reduction and floor.
     pub feed: f64,
     pub governing: Governing,
     /// Limiting feed of each step (same order as the steps; air steps: `max_feed`); a lower
@@ -444,17 +444,17 @@ pub struct BlockFeed {
     /// Whether F should be rewritten (false: below `min_change`, or no engagement data).
     pub changed: bool,
     pub governing: Governing,
-    /// Feed moves of this block (executions, sub-segments counted once per move).
+    /// Feed moves of this block (executions, parts counted once per move).
     pub executions: usize,
 }
 
 /// The optimizer's answer.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FeedSchedule {
-    pub segments: Vec<SegmentFeed>,
+    pub moves: Vec<MoveFeed>,
     /// Blocks with feed moves, by block index.
     pub blocks: Vec<BlockFeed>,
-    /// Largest single tool-tip feed keeping every cutting segment under the limits, mm/min.
+    /// Largest single tool-tip feed keeping every cutting move under the limits, mm/min.
     pub best_constant_feed: f64,
     pub evaluations: usize,
 }
@@ -694,19 +694,19 @@ fn solve_floor(
     Ok(ok.unwrap_or(v))
 }
 
-/// Per-segment solve without the sequence-dependent policies (entry, floor application).
-fn solve_segment(
-    seg: &Segment,
+/// Per-move solve without the sequence-dependent policies (entry, floor application).
+fn solve_move(
+    seg: &MoveEngagement,
     m: &Move,
     cutter: &mut Cutter,
     limits: &FeedLimits,
     out: &mut ForceResult,
-) -> Result<SegmentFeed, PhysicsError> {
+) -> Result<MoveFeed, PhysicsError> {
     let limits = &seg.scale.limits(limits);
     let mut evals = 0;
     let engaged = seg.steps.iter().any(|s| !s.engagement.is_air());
     let programmed = feed_velocity(m);
-    let mut res = SegmentFeed {
+    let mut res = MoveFeed {
         move_index: seg.move_index,
         block: m.block,
         engaged,
@@ -792,33 +792,33 @@ fn solve_segment(
     Ok(res)
 }
 
-/// Optimize the feeds of `moves` given the engagement `segments` (any order of segments within
-/// a move is kept; segments of different moves must be in move order for the entry rule).
+/// Optimize the feeds of `moves` given their `engagements` (any order of the parts of a move
+/// is kept; the engagements of different moves must be in move order for the entry rule).
 pub fn optimize_feeds(
     moves: &[Move],
-    segments: &[Segment],
+    engagements: &[MoveEngagement],
     cutters: &[Cutter],
     limits: &FeedLimits,
 ) -> Result<FeedSchedule, OptimizeError> {
     limits.validate()?;
-    for (i, s) in segments.iter().enumerate() {
+    for (i, s) in engagements.iter().enumerate() {
         if s.move_index >= moves.len() {
             return Err(OptimizeError::NoSuchMove {
-                segment: i,
+                index: i,
                 move_index: s.move_index,
                 moves: moves.len(),
             });
         }
         if s.cutter >= cutters.len() {
             return Err(OptimizeError::NoSuchCutter {
-                segment: i,
+                index: i,
                 cutter: s.cutter,
             });
         }
     }
-    // Independent per segment: parallel, each worker with its own models; results do not
+    // Independent per move: parallel, each worker with its own models; results do not
     // depend on the split (deterministic).
-    let mut solved: Vec<SegmentFeed> = segments
+    let mut solved: Vec<MoveFeed> = engagements
         .par_iter()
         .enumerate()
         .with_min_len(16)
@@ -826,9 +826,9 @@ pub fn optimize_feeds(
             || (cutters.to_vec(), ForceResult::default()),
             |(cs, out), (i, seg)| {
                 let m = &moves[seg.move_index];
-                solve_segment(seg, m, &mut cs[seg.cutter], limits, out).map_err(|source| {
+                solve_move(seg, m, &mut cs[seg.cutter], limits, out).map_err(|source| {
                     OptimizeError::Physics {
-                        segment: i,
+                        index: i,
                         move_index: seg.move_index,
                         line: m.line,
                         source,
@@ -953,7 +953,7 @@ pub fn optimize_feeds(
         .collect();
     let evaluations = solved.iter().map(|s| s.evaluations).sum();
     Ok(FeedSchedule {
-        segments: solved,
+        moves: solved,
         blocks,
         best_constant_feed,
         evaluations,
@@ -980,11 +980,11 @@ impl FeedSchedule {
             .collect()
     }
 
-    /// The ideal bound: every move at its own segment feed (no block sharing, no rounding).
+    /// The ideal bound: every move at its own feed (no block sharing, no rounding).
     pub fn ideal_velocities(&self, moves: &[Move]) -> Vec<f64> {
         let mut v: Vec<f64> = moves.iter().map(feed_velocity).collect();
         let mut seen = vec![false; moves.len()];
-        for s in &self.segments {
+        for s in &self.moves {
             let i = s.move_index;
             v[i] = if seen[i] { v[i].min(s.feed) } else { s.feed };
             seen[i] = true;
@@ -996,7 +996,7 @@ impl FeedSchedule {
     /// what the axes allow).
     pub fn constant_velocities(&self, moves: &[Move]) -> Vec<f64> {
         let mut scale = vec![FeedScale::UNIT; moves.len()];
-        for s in &self.segments {
+        for s in &self.moves {
             scale[s.move_index] = s.scale;
         }
         moves
@@ -1028,14 +1028,14 @@ pub struct SplitPlan {
     pub time_split_s: f64,
 }
 
-/// Split decision for one solved segment: parts of at least `min_length` mm, at most
+/// Split decision for one solved move: parts of at least `min_length` mm, at most
 /// `max_parts`, each at the smallest step limit inside it and at its end; proposed only when it saves at least
 /// `min_saving` (fraction) of the move's time. Steps are taken to cover the move from their
 /// `at` to the next step's `at` (the last to the move's end). Solve with `exact_step_limits`:
 /// with lower bounds the plan is safe but finds less.
 pub fn split_plan(
-    seg: &Segment,
-    solved: &SegmentFeed,
+    seg: &MoveEngagement,
+    solved: &MoveFeed,
     move_len: f64,
     max_parts: usize,
     min_length: f64,

@@ -42,18 +42,18 @@ pub(super) fn optimize_stage(
             coefficients: k,
         })
         .collect();
-    // One segment per swept feed move (possibly without engaged steps: air), in move order.
+    // One engagement per swept feed move (possibly without engaged steps: air), in move order.
     // A move whose tip stands still (a rotary-only move read at the tool tip) has no tip
     // speed to schedule: it keeps its F.
-    let mut segments: Vec<optimize::Segment> = Vec::new();
+    let mut engagements: Vec<optimize::MoveEngagement> = Vec::new();
     for (step, response) in steps.iter().zip(responses) {
         let (mi, s) = (step.move_index, &step.geometry);
         if !matches!(moves[mi].kind, MoveKind::Linear | MoveKind::Arc) || !scales[mi].schedulable()
         {
             continue;
         }
-        if segments.last().map(|g| g.move_index) != Some(mi) {
-            segments.push(optimize::Segment {
+        if engagements.last().map(|g| g.move_index) != Some(mi) {
+            engagements.push(optimize::MoveEngagement {
                 move_index: mi,
                 cutter: cutter_index[&step.tool],
                 scale: scales[mi],
@@ -63,7 +63,7 @@ pub(super) fn optimize_stage(
         // A step that removes nothing is air (an empty engagement): a split plan then sees
         // where the cut begins and ends along the move.
         let cuts = !s.air && s.removed_volume > 0.0;
-        let seg = segments.last_mut().expect("pushed above");
+        let seg = engagements.last_mut().expect("pushed above");
         seg.steps.push(EngagementStep {
             engagement: if cuts {
                 std::borrow::Cow::Borrowed(&s.engagement)
@@ -77,7 +77,7 @@ pub(super) fn optimize_stage(
         });
     }
     let clock = std::time::Instant::now();
-    let schedule = optimize::optimize_feeds(moves, &segments, &cutters, &limits)?;
+    let schedule = optimize::optimize_feeds(moves, &engagements, &cutters, &limits)?;
     timings.optimize_schedule_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let program = nc::Program::parse(&spec.program).map_err(SimulateError::Program)?;
@@ -104,10 +104,10 @@ pub(super) fn optimize_stage(
     let mut written: Vec<optimize::WrittenSplit> = Vec::new();
     let mut skipped: Vec<optimize::SkippedSplit> = Vec::new();
     if let Some(sp) = &limits.split {
-        let by_move: BTreeMap<usize, &optimize::Segment> =
-            segments.iter().map(|g| (g.move_index, g)).collect();
+        let by_move: BTreeMap<usize, &optimize::MoveEngagement> =
+            engagements.iter().map(|g| (g.move_index, g)).collect();
         let plans: Vec<optimize::SplitPlan> = schedule
-            .segments
+            .moves
             .iter()
             .filter_map(|solved| {
                 let seg = by_move.get(&solved.move_index)?;
@@ -194,7 +194,7 @@ pub(super) fn optimize_stage(
         Some(&schedule.ideal_velocities(moves)),
     )?;
     let governing: BTreeMap<usize, String> = schedule
-        .segments
+        .moves
         .iter()
         .map(|g| {
             (
