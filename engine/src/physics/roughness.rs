@@ -30,12 +30,7 @@ pub fn scallop_height(tool: &Tool, step_over: f64) -> Result<f64, PhysicsError> 
         ToolShape::Ball | ToolShape::BullNose => {
             // Corner arcs of the two passes meet half-way; the flat bottom (D − 2rc) covers the rest.
             let rc = tool.effective_corner_radius();
-            let w = 0.5 * (step_over - (tool.diameter - 2.0 * rc));
-            if w <= 0.0 {
-                0.0
-            } else {
-                rc - (rc * rc - w * w).max(0.0).sqrt()
-            }
+            cusp_height(rc, 0.5 * (step_over - (tool.diameter - 2.0 * rc)))
         }
         ToolShape::Chamfer => {
             let w = 0.5 * (step_over - tool.tip_diameter);
@@ -46,6 +41,31 @@ pub fn scallop_height(tool: &Tool, step_over: f64) -> Result<f64, PhysicsError> 
             }
         }
     })
+}
+
+/// Height of the cusp between two arcs of radius `r` whose centres are `2·half_spacing`
+/// apart: r − sqrt(r² − half_spacing²), 0 when they do not meet above the centres' line.
+pub fn cusp_height(r: f64, half_spacing: f64) -> f64 {
+    if half_spacing <= 0.0 || r <= 0.0 {
+        0.0
+    } else {
+        r - (r * r - half_spacing * half_spacing).max(0.0).sqrt()
+    }
+}
+
+/// Peak-to-valley feed marks of `tool` at `feed_per_tooth`, mm: the larger of the floor's
+/// (corner radius) and the wall's (periphery). Without runout each tooth cuts `fz` past the
+/// one before, so the marks are the cusps of equal arcs; with it, [`feed_marks`]' envelope.
+pub fn feed_mark_height(tool: &Tool, feed_per_tooth: f64) -> Result<f64, PhysicsError> {
+    if tool.runout.offset == 0.0 {
+        let half = 0.5 * non_negative("feed_per_tooth", feed_per_tooth)?;
+        return Ok(
+            cusp_height(tool.effective_corner_radius(), half).max(cusp_height(tool.radius(), half))
+        );
+    }
+    let floor = feed_marks(tool, feed_per_tooth, SurfaceKind::Floor)?;
+    let wall = feed_marks(tool, feed_per_tooth, SurfaceKind::Wall)?;
+    Ok(floor.peak_to_valley.max(wall.peak_to_valley))
 }
 
 /// Which surface the feed marks are on.

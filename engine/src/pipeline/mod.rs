@@ -21,8 +21,8 @@ mod stages;
 mod tools;
 
 pub use rows::{
-    Collision, EnergyTotals, MoveRow, OptimizationSummary, SimulationOutput, SimulationSummary,
-    StageTimings, StepSample,
+    Collision, EnergyTotals, MoveRow, OptimizationSummary, RoughnessSummary, SimulationOutput,
+    SimulationSummary, StageTimings, StepSample, ToolLife,
 };
 pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StockSource};
 
@@ -79,6 +79,7 @@ pub fn simulate(
         Some(c) => Some(stages::chatter_margins(c, spec, moves, &mut rows)?),
         None => None,
     };
+    let tool_life = stages::wear_and_roughness(spec, moves, &mut rows, &removal.steps, &tools)?;
     for row in rows.iter_mut() {
         row.set_flags();
     }
@@ -123,6 +124,7 @@ pub fn simulate(
         &times,
         rows::SummaryExtras {
             energy,
+            tool_life,
             chatter,
             part,
         },

@@ -82,6 +82,16 @@ pub struct MoveRow {
     /// (cutting + idle spindle + auxiliary), J.
     pub energy_in_j: Option<f64>,
     pub air_fraction: f64,
+    /// With the material's Taylor constants: the fraction of a new tool's life this move
+    /// uses (extended Taylor at the widest engaged diameter's speed and the thickest chip,
+    /// over the time in the cut).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tool_life_used: Option<f64>,
+    /// Kinematic roughness the move leaves, µm: the scallop between it and the pass beside it
+    /// (its radial width as the step-over, when narrower than the tool), and the feed marks
+    /// (floor or wall, the larger) at its feed per tooth.
+    pub scallop_um: f64,
+    pub feed_mark_um: f64,
     /// With the tool's modes: axial depth / critical depth at the move's speed, immersion
     /// and direction (> 1 chatters), and that critical depth, mm.
     pub chatter_margin: Option<f64>,
@@ -199,10 +209,40 @@ pub struct SimulationSummary {
     pub chatter_moves: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub chatter_margin_max: Option<f64>,
+    /// Per tool number: the life used and left after the program (with the material's
+    /// Taylor constants); otherwise why there is none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tool_life: Option<Vec<ToolLife>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tool_life_unavailable: Option<String>,
+    /// The worst scallop and feed marks of the program and where.
+    pub roughness: RoughnessSummary,
     /// With a design part: stock cut below its surface (gouge volume and depth) and the
     /// allowance left on it (min/mean/max), mm³ and mm.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub part: Option<geometry::PartComparison>,
+}
+
+/// The life one tool uses over the program.
+#[derive(Clone, Debug, Serialize)]
+pub struct ToolLife {
+    pub tool: u32,
+    /// Fractions of a new tool's life: used by the program, and left (negative: worn out).
+    pub life_used: f64,
+    pub life_left: f64,
+    /// The line of the move that wears the tool most, and of the move during which it is
+    /// worn out, if it is.
+    pub most_wearing_line: Option<u32>,
+    pub worn_out_line: Option<u32>,
+}
+
+/// The roughest a program leaves, µm, and the line of the move that leaves it.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RoughnessSummary {
+    pub scallop_max_um: f64,
+    pub scallop_line: Option<u32>,
+    pub feed_mark_max_um: f64,
+    pub feed_mark_line: Option<u32>,
 }
 
 /// A program's energy, J, and U = E_cut / E_in.
@@ -400,6 +440,7 @@ pub(super) fn add_step_forces(
 /// What the stages after the forces add to the summary.
 pub(super) struct SummaryExtras {
     pub(super) energy: Option<EnergyTotals>,
+    pub(super) tool_life: Result<Vec<ToolLife>, String>,
     pub(super) chatter: Option<(usize, f64)>,
     pub(super) part: Option<geometry::PartComparison>,
 }
@@ -458,6 +499,9 @@ pub(super) fn summarize(
         nominal_time_s: times.nominal_s,
         cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
         energy: extras.energy,
+        roughness: roughest(rows),
+        tool_life_unavailable: extras.tool_life.as_ref().err().cloned(),
+        tool_life: extras.tool_life.ok(),
         chatter_moves: extras.chatter.map(|(n, _)| n),
         chatter_margin_max: extras.chatter.map(|(_, m)| m),
         part: extras.part,
@@ -504,4 +548,22 @@ pub(super) fn initial_rows(program: &str, moves: &[Move], times: &CycleTime) -> 
             ..MoveRow::default()
         })
         .collect()
+}
+
+/// The worst scallop and feed marks over the rows.
+fn roughest(rows: &[MoveRow]) -> RoughnessSummary {
+    let worst = |f: fn(&MoveRow) -> f64| {
+        rows.iter()
+            .filter(|r| f(r) > 0.0)
+            .max_by(|a, b| f(a).total_cmp(&f(b)))
+            .map(|r| (f(r), r.line))
+    };
+    let scallop = worst(|r| r.scallop_um);
+    let marks = worst(|r| r.feed_mark_um);
+    RoughnessSummary {
+        scallop_max_um: scallop.map_or(0.0, |w| w.0),
+        scallop_line: scallop.map(|w| w.1),
+        feed_mark_max_um: marks.map_or(0.0, |w| w.0),
+        feed_mark_line: marks.map(|w| w.1),
+    }
 }

@@ -1,10 +1,13 @@
-//! The stages after the forces: energy drawn per move, and the chatter margin.
+//! The stages after the forces: energy drawn per move, the chatter margin, the tool life
+//! used and the roughness left.
 
 use std::collections::BTreeMap;
 
 use super::forces::turning_rpm;
-use super::rows::{EnergyTotals, MoveRow};
+use super::removal::MoveStep;
+use super::rows::{EnergyTotals, MoveRow, ToolLife};
 use super::spec::{ChatterSpec, SimulateError, SimulateSpec};
+use super::tools::ToolLookup;
 use crate::nc::Move;
 
 /// Energy drawn per move (cutting from the force model, idle spindle at the move's speed
@@ -102,4 +105,100 @@ pub(super) fn chatter_margins(
         max = max.max(m.margin);
     }
     Ok((over, max))
+}
+
+/// Tool life used per move with the material's extended Taylor constants (each tool starts
+/// new), and the scallop and feed marks every cutting move leaves. Returns the life per tool
+/// number, or why there is none.
+pub(super) fn wear_and_roughness(
+    spec: &SimulateSpec,
+    moves: &[Move],
+    rows: &mut [MoveRow],
+    steps: &[MoveStep],
+    tools: &ToolLookup,
+) -> Result<Result<Vec<ToolLife>, String>, SimulateError> {
+    use crate::physics::life::{cutting_speed_m_per_min, effective_diameter, tool_life, BlockWear};
+    use crate::physics::roughness::feed_mark_height;
+    // Per move: the widest engaged diameter (where the edge runs fastest), and the scallop
+    // its cutting steps leave, the median of them (a pass's ends meet material its
+    // neighbour did not reach: they are not its step-over).
+    let mut diameter = vec![0.0f64; moves.len()];
+    let mut scallops: Vec<Vec<f64>> = vec![Vec::new(); moves.len()];
+    for s in steps {
+        let g = &s.geometry;
+        if !g.air && g.removed_volume > 0.0 {
+            let tool = tools.tool_for(&moves[s.move_index])?;
+            let d = effective_diameter(tool, &g.engagement);
+            diameter[s.move_index] = diameter[s.move_index].max(d);
+            scallops[s.move_index].push(scallop_of(tool, &g.metrics)?);
+        }
+    }
+    let mut wear: BTreeMap<u32, Vec<BlockWear>> = BTreeMap::new();
+    for (i, m) in moves.iter().enumerate() {
+        let r = &rows[i];
+        let cutting =
+            r.removed_volume > 0.0 && turning_rpm(m) > 0.0 && matches!(r.kind, "linear" | "arc");
+        if !cutting {
+            continue;
+        }
+        let tool = tools.tool_for(m)?;
+        let row = &rows[i];
+        let fz = row.tip_speed_mm_min / (m.spindle * tool.flutes as f64);
+        let scallop = {
+            let v = &mut scallops[i];
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied().unwrap_or(0.0)
+        };
+        let marks = feed_mark_height(tool, fz)?;
+        let row = &mut rows[i];
+        row.scallop_um = scallop * 1000.0;
+        row.feed_mark_um = marks * 1000.0;
+        wear.entry(m.tool).or_default().push(BlockWear {
+            block: i,
+            cutting_speed: cutting_speed_m_per_min(diameter[i], m.spindle),
+            chip_thickness: row.max_chip_thickness,
+            engaged_time: row.time_s * (1.0 - row.air_fraction),
+        });
+    }
+    let Some(taylor) = &spec.material.taylor else {
+        return Ok(Err(format!(
+            "the material {} has no Taylor constants (`taylor`: c, n, a and their source)",
+            spec.material.name
+        )));
+    };
+    for row in rows.iter_mut() {
+        row.tool_life_used = Some(0.0);
+    }
+    let mut out = Vec::new();
+    for (tool, blocks) in wear {
+        let report = tool_life(taylor, &blocks, 0.0)?;
+        for b in &report.blocks {
+            rows[b.block].tool_life_used = Some(b.consumed);
+        }
+        out.push(ToolLife {
+            tool,
+            life_used: report.consumed,
+            life_left: report.remaining,
+            most_wearing_line: report.most_wearing_block.map(|i| moves[i].line),
+            worn_out_line: report.worn_out_at_block.map(|i| moves[i].line),
+        });
+    }
+    Ok(Ok(out))
+}
+
+/// The scallop a step leaves beside the pass before it, mm: beside an earlier pass the
+/// engaged width is the step-over; a lone groove engages its whole footprint at its depth
+/// (within the grid: 90 % of it is taken as alone) and leaves none.
+fn scallop_of(
+    tool: &crate::tool::Tool,
+    m: &crate::geometry::engagement::StepMetrics,
+) -> Result<f64, crate::physics::PhysicsError> {
+    let footprint = tool
+        .edge_point(m.axial_depth.min(tool.flute_length))
+        .map_or(tool.diameter, |p| 2.0 * p.radius);
+    if m.radial_width > 0.0 && m.radial_width < 0.9 * footprint {
+        crate::physics::roughness::scallop_height(tool, m.radial_width)
+    } else {
+        Ok(0.0)
+    }
 }
