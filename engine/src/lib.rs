@@ -14,4 +14,5 @@ pub mod optimize;
 pub mod physics;
 pub mod pipeline;
 pub mod tool;
+pub mod tool_library;
 mod vec3;

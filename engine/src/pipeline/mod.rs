@@ -47,9 +47,9 @@ pub fn simulate(
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
     let tools = tools::ToolLookup::new(spec, moves)?;
-    check_inputs(spec, moves)?;
+    check_inputs(spec, moves, &tools)?;
 
-    let radii: Vec<f64> = spec.tools.values().map(Tool::radius).collect();
+    let radii: Vec<f64> = tools.all().map(Tool::radius).collect();
     let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
     let clock = Instant::now();
     let mut stock = stock(spec, cell)?;
@@ -76,7 +76,7 @@ pub fn simulate(
         None => None,
     };
     let chatter = match &spec.chatter {
-        Some(c) => Some(stages::chatter_margins(c, spec, moves, &mut rows)?),
+        Some(c) => Some(stages::chatter_margins(c, spec, moves, &mut rows, &tools)?),
         None => None,
     };
     let tool_life = stages::wear_and_roughness(spec, moves, &mut rows, &removal.steps, &tools)?;
@@ -125,6 +125,7 @@ pub fn simulate(
         rows::SummaryExtras {
             energy,
             tool_life,
+            tool_warnings: tools.warnings,
             chatter,
             part,
         },
@@ -143,14 +144,18 @@ pub fn simulate(
 
 /// What can be refused before any work: rotary axes on a 3-axis machine, tools and
 /// material that cannot exist.
-fn check_inputs(spec: &SimulateSpec, moves: &[Move]) -> Result<(), SimulateError> {
+fn check_inputs(
+    spec: &SimulateSpec,
+    moves: &[Move],
+    tools: &tools::ToolLookup,
+) -> Result<(), SimulateError> {
     let turns_rotary = |m: &Move| (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9);
     if let Some(m) = moves.iter().find(|m| turns_rotary(m)) {
         if spec.machine.kinematics == Kinematics::Xyz {
             return Err(SimulateError::RotaryAxes { line: m.line });
         }
     }
-    for t in spec.tools.values() {
+    for t in tools.all() {
         t.validate().map_err(crate::physics::PhysicsError::from)?;
     }
     spec.material.validate()?;

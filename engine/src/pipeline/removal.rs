@@ -53,11 +53,7 @@ pub(super) fn remove_material(
 ) -> Result<Removal, SimulateError> {
     // (move index, segment, distance of its start along the move) in program order,
     // grouped into same-tool runs; a move whose rotary axes turn gives several segments.
-    let reach = spec
-        .tools
-        .values()
-        .map(|t| t.flute_length)
-        .fold(0.0, f64::max);
+    let reach = tools.all().map(|t| t.flute_length).fold(0.0, f64::max);
     let frame = PartFrame::new(&spec.machine, spec.axes, cell, reach);
     let mut runs: Vec<(u32, Vec<(usize, FramePiece)>)> = Vec::new();
     for (i, m) in moves.iter().enumerate() {

@@ -215,6 +215,10 @@ pub struct SimulationSummary {
     pub tool_life: Option<Vec<ToolLife>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tool_life_unavailable: Option<String>,
+    /// Tools derived from the program's comments (no tool given for their T number): the
+    /// line, the comment and every assumed value.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub tool_warnings: Vec<String>,
     /// The worst scallop and feed marks of the program and where.
     pub roughness: RoughnessSummary,
     /// With a design part: stock cut below its surface (gouge volume and depth) and the
@@ -441,6 +445,7 @@ pub(super) fn add_step_forces(
 pub(super) struct SummaryExtras {
     pub(super) energy: Option<EnergyTotals>,
     pub(super) tool_life: Result<Vec<ToolLife>, String>,
+    pub(super) tool_warnings: Vec<String>,
     pub(super) chatter: Option<(usize, f64)>,
     pub(super) part: Option<geometry::PartComparison>,
 }
@@ -502,6 +507,7 @@ pub(super) fn summarize(
         roughness: roughest(rows),
         tool_life_unavailable: extras.tool_life.as_ref().err().cloned(),
         tool_life: extras.tool_life.ok(),
+        tool_warnings: extras.tool_warnings,
         chatter_moves: extras.chatter.map(|(n, _)| n),
         chatter_margin_max: extras.chatter.map(|(_, m)| m),
         part: extras.part,

@@ -87,7 +87,7 @@ fn default_chatter_steps() -> u32 {
 pub enum SimulateError {
     #[error("{0}")]
     Program(nc::Diagnostics),
-    #[error("line {line}: tool T{tool} is used but not defined; define it under `tools`")]
+    #[error("line {line}: tool T{tool} is used but not defined; define it under `tools`, give a tool library, or describe it in a comment such as (T{tool} D=6 CR=0 - flat end mill)")]
     UnknownTool { tool: u32, line: u32 },
     #[error("line {line}: the program changes to T{tool} but one tool was given; give a tool for each T number used ({used})")]
     OneToolForSeveral { tool: u32, line: u32, used: String },

@@ -47,6 +47,7 @@ pub(super) fn chatter_margins(
     spec: &SimulateSpec,
     moves: &[Move],
     rows: &mut [MoveRow],
+    tools: &ToolLookup,
 ) -> Result<(usize, f64), SimulateError> {
     use crate::physics::chatter::{arc_immersion, ChatterModel};
     let k = spec.material.coefficients;
@@ -63,11 +64,7 @@ pub(super) fn chatter_margins(
         if row.removed_volume <= 0.0 || rpm < 1.0 {
             continue;
         }
-        let tool = spec
-            .tools
-            .get(&m.tool)
-            .or_else(|| spec.tools.get(&0))
-            .expect("a swept move has a tool");
+        let tool = tools.tool_for(m)?;
         let (immersion, milling) = arc_immersion(entry.to_radians(), exit.to_radians());
         if !models.contains_key(&tool.flutes) {
             let model = ChatterModel::new(

@@ -1,36 +1,43 @@
 //! Which tool cuts each move: one tool for a program that uses one tool number, or a tool
-//! per T number.
+//! per T number; a T number with no tool given is derived from the program's own header
+//! comments (with a warning naming every assumed value), or refused.
+
+use std::collections::BTreeMap;
 
 use super::spec::{SimulateError, SimulateSpec};
 use crate::nc::{Move, MoveKind};
 use crate::tool::Tool;
+use crate::tool_library::tools_from_header;
 
-pub(super) struct ToolLookup<'a> {
-    spec: &'a SimulateSpec,
+pub(super) struct ToolLookup {
+    /// The tools given and the ones derived from the header, by T number.
+    tools: BTreeMap<u32, Tool>,
     /// The tool given under key 0, alone: it serves every move.
-    single: Option<&'a Tool>,
+    single: bool,
+    /// What was assumed for the derived tools, one line each.
+    pub(super) warnings: Vec<String>,
 }
 
-impl<'a> ToolLookup<'a> {
+impl ToolLookup {
     /// Checks that the tools given fit the program's tool numbers.
-    pub(super) fn new(spec: &'a SimulateSpec, moves: &[Move]) -> Result<Self, SimulateError> {
+    pub(super) fn new(spec: &SimulateSpec, moves: &[Move]) -> Result<Self, SimulateError> {
         let single = match (spec.tools.len(), spec.tools.get(&0)) {
-            (1, Some(t)) => Some(t),
-            (_, None) => None,
+            (1, Some(_)) => true,
+            (_, None) => false,
             _ => return Err(SimulateError::ToolZeroWithOthers),
         };
+        let mut used: Vec<(u32, u32)> = Vec::new();
+        for m in moves
+            .iter()
+            .filter(|m| m.tool != 0 && m.kind != MoveKind::Dwell)
+        {
+            if !used.iter().any(|(t, _)| *t == m.tool) {
+                used.push((m.tool, m.line));
+            }
+        }
         // One tool serves a program that uses one tool number; a second number would be cut
         // with the wrong tool, so it is an error, never a guess.
-        if single.is_some() {
-            let mut used: Vec<(u32, u32)> = Vec::new();
-            for m in moves
-                .iter()
-                .filter(|m| m.tool != 0 && m.kind != MoveKind::Dwell)
-            {
-                if !used.iter().any(|(t, _)| *t == m.tool) {
-                    used.push((m.tool, m.line));
-                }
-            }
+        if single {
             if let Some(&(tool, line)) = used.get(1) {
                 let list: Vec<String> = used.iter().map(|(t, _)| format!("T{t}")).collect();
                 return Err(SimulateError::OneToolForSeveral {
@@ -40,22 +47,75 @@ impl<'a> ToolLookup<'a> {
                 });
             }
         }
-        Ok(ToolLookup { spec, single })
+        let mut tools = spec.tools.clone();
+        let mut single = single;
+        let mut warnings = Vec::new();
+        let mut missing: Vec<u32> = used
+            .iter()
+            .map(|(t, _)| *t)
+            .filter(|t| !single && !tools.contains_key(t))
+            .collect();
+        let header =
+            (!missing.is_empty() || tools.is_empty()).then(|| tools_from_header(&spec.program));
+        if let Some(header) = header {
+            // A program that never changes tools (a T word without M6) and whose header
+            // describes one tool is cut with that tool.
+            let only = (header.tools.len() == 1 && used.is_empty() && tools.is_empty())
+                .then(|| *header.tools.keys().next().expect("one tool"));
+            if let Some(t) = only {
+                missing = vec![t];
+                single = true;
+            }
+            for t in missing {
+                let Some(tool) = header.tools.get(&t) else {
+                    continue; // refused where it is first used, naming the line
+                };
+                tools.insert(if single { 0 } else { t }, tool.clone());
+                let prefix = format!("T{t} ");
+                let notes: Vec<String> = header
+                    .report
+                    .assumed
+                    .iter()
+                    .filter(|n| n.tool.starts_with(&prefix))
+                    .map(|n| format!("{}: {}", n.field, n.note))
+                    .collect();
+                let origin = header
+                    .report
+                    .assumed
+                    .iter()
+                    .find(|n| n.tool.starts_with(&prefix))
+                    .map_or(format!("T{t}"), |n| n.tool.clone());
+                warnings.push(format!(
+                    "{origin}: no tool given, derived from the program's comment `{}`; {}",
+                    tool.name.as_deref().unwrap_or(""),
+                    notes.join("; ")
+                ));
+            }
+        }
+        Ok(ToolLookup {
+            tools,
+            single,
+            warnings,
+        })
     }
 
     /// The tool cutting move `m`.
-    pub(super) fn tool_for(&self, m: &Move) -> Result<&'a Tool, SimulateError> {
-        self.single
-            .or_else(|| self.spec.tools.get(&m.tool))
-            .ok_or(SimulateError::UnknownTool {
-                tool: m.tool,
-                line: m.line,
-            })
+    pub(super) fn tool_for(&self, m: &Move) -> Result<&Tool, SimulateError> {
+        let key = if self.single { 0 } else { m.tool };
+        self.tools.get(&key).ok_or(SimulateError::UnknownTool {
+            tool: m.tool,
+            line: m.line,
+        })
+    }
+
+    /// Every tool that may cut.
+    pub(super) fn all(&self) -> impl Iterator<Item = &Tool> {
+        self.tools.values()
     }
 
     /// Before the first tool change no cutter is in the spindle: positioning moves then
     /// sweep nothing; a feed move then is an error (it would cut with nothing).
     pub(super) fn sweeps(&self, m: &Move) -> bool {
-        self.single.is_some() || m.tool != 0
+        self.single || m.tool != 0
     }
 }

@@ -1,0 +1,187 @@
+//! Fusion 360 tool libraries: `{"data":[tool, ...]}`, each tool with `type`, `unit`,
+//! `geometry` (DC, NOF, LCF, LB, OAL, RE, SFDM, TA, SIG, HAND, ...), `holder.segments`
+//! (height, lower-diameter, upper-diameter) and `post-process.number` (the T number).
+
+use serde_json::Value;
+
+use super::{ToolLibrary, ToolLibraryError};
+use crate::tool::{HolderSegment, ToolShape};
+
+/// Geometry fields that become part of the tool; the others are reported.
+const MODELLED: &[&str] = &[
+    "DC",
+    "NOF",
+    "LCF",
+    "LB",
+    "RE",
+    "SFDM",
+    "TA",
+    "SIG",
+    "tip-diameter",
+];
+
+pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
+    let root: Value = serde_json::from_str(text)
+        .map_err(|e| ToolLibraryError::new("-", "json", format!("not JSON: {e}")))?;
+    let data = root.get("data").and_then(Value::as_array).ok_or_else(|| {
+        ToolLibraryError::new(
+            "-",
+            "data",
+            "a Fusion 360 library has a `data` array of tools",
+        )
+    })?;
+    let mut lib = ToolLibrary {
+        format: "fusion360",
+        ..ToolLibrary::default()
+    };
+    for (i, t) in data.iter().enumerate() {
+        let place = format!("data[{i}]");
+        let number = t
+            .pointer("/post-process/number")
+            .and_then(Value::as_u64)
+            .and_then(|n| u32::try_from(n).ok())
+            .ok_or_else(|| {
+                ToolLibraryError::new(&place, "post-process.number", "the tool has no T number")
+            })?;
+        let name = format!("T{number} ({place})");
+        let kind = t
+            .get("type")
+            .and_then(Value::as_str)
+            .ok_or_else(|| ToolLibraryError::new(&name, "type", "missing"))?;
+        let unit = match t
+            .get("unit")
+            .and_then(Value::as_str)
+            .unwrap_or("millimeters")
+        {
+            "millimeters" => 1.0,
+            "inches" => 25.4,
+            other => {
+                return Err(ToolLibraryError::new(
+                    &name,
+                    "unit",
+                    format!("`{other}` is neither millimeters nor inches"),
+                ))
+            }
+        };
+        let g = t
+            .get("geometry")
+            .ok_or_else(|| ToolLibraryError::new(&name, "geometry", "missing"))?;
+        let num = |field: &str| g.get(field).and_then(Value::as_f64);
+        let length = |field: &str| num(field).map(|v| v * unit);
+        let dc = length("DC").ok_or_else(|| {
+            ToolLibraryError::new(&name, "geometry.DC", "the cutting diameter is missing")
+        })?;
+        let shape = match kind {
+            "flat end mill" | "face mill" => ToolShape::Flat,
+            "ball end mill" => ToolShape::Ball,
+            "bull nose end mill" => ToolShape::BullNose,
+            "chamfer mill" | "drill" | "spot drill" => ToolShape::Chamfer,
+            other => {
+                return Err(ToolLibraryError::new(
+                    &name,
+                    "type",
+                    format!("`{other}` is not a tool millsim models (flat, ball, bull nose, face or chamfer mill, drill)"),
+                ))
+            }
+        };
+        let mut tool = super::default_tool(shape, dc);
+        let mut given = Vec::new();
+        if let Some(n) = num("NOF") {
+            if !(n >= 1.0 && n.fract() == 0.0 && n <= 64.0) {
+                return Err(ToolLibraryError::new(
+                    &name,
+                    "geometry.NOF",
+                    format!("{n} is not a flute count"),
+                ));
+            }
+            tool.flutes = n as u32;
+            given.push("flutes");
+        }
+        if let Some(l) = length("LCF") {
+            tool.flute_length = l;
+            given.push("flute_length_mm");
+        }
+        tool.stick_out = length("LB");
+        tool.shank_diameter = length("SFDM");
+        tool.name = t
+            .get("description")
+            .and_then(Value::as_str)
+            .map(str::to_string);
+        match shape {
+            ToolShape::BullNose => {
+                tool.corner_radius = length("RE").ok_or_else(|| {
+                    ToolLibraryError::new(
+                        &name,
+                        "geometry.RE",
+                        "a bull nose end mill needs its corner radius",
+                    )
+                })?
+            }
+            ToolShape::Chamfer => {
+                // A drill's point is a cone of the point angle SIG (its half from the axis);
+                // a chamfer mill's taper angle TA is already measured from the axis.
+                let half = if kind.ends_with("drill") {
+                    num("SIG").map(|s| s / 2.0)
+                } else {
+                    num("TA")
+                }
+                .ok_or_else(|| {
+                    ToolLibraryError::new(
+                        &name,
+                        "geometry.TA",
+                        "the cone's angle is missing (TA, or SIG for a drill)",
+                    )
+                })?;
+                tool.taper_half_angle_deg = half;
+                tool.tip_diameter = length("tip-diameter").unwrap_or(0.0);
+            }
+            _ => {}
+        }
+        if let Some(helix) = g.get("helix-angle").and_then(Value::as_f64) {
+            tool.helix_deg = helix;
+            given.push("helix_deg");
+        }
+        if let Some(segments) = t.pointer("/holder/segments").and_then(Value::as_array) {
+            for (k, s) in segments.iter().enumerate() {
+                let f = |field: &str| {
+                    s.get(field)
+                        .and_then(Value::as_f64)
+                        .map(|v| v * unit)
+                        .ok_or_else(|| {
+                            ToolLibraryError::new(
+                                &name,
+                                &format!("holder.segments[{k}].{field}"),
+                                "missing",
+                            )
+                        })
+                };
+                tool.holder.push(HolderSegment {
+                    length: f("height")?,
+                    bottom_diameter: f("lower-diameter")?,
+                    top_diameter: f("upper-diameter")?,
+                });
+            }
+        }
+        if let Some(obj) = g.as_object() {
+            for (field, v) in obj {
+                if !MODELLED.contains(&field.as_str()) && field != "helix-angle" {
+                    lib.unmodelled(
+                        &name,
+                        &format!("geometry.{field}"),
+                        format!("{v} (not modelled)"),
+                    );
+                }
+            }
+        }
+        if kind.ends_with("drill") {
+            lib.unmodelled(
+                &name,
+                "type",
+                "a drill is cut as a cone of its point angle; its chisel edge is not modelled",
+            );
+        }
+        super::note_defaults(&mut lib, &name, &tool, &given);
+        lib.insert(number, tool, &name)?;
+    }
+    Ok(lib)
+}

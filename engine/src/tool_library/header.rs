@@ -1,0 +1,146 @@
+//! Tools from the comments a CAM post writes at the top of a program, for T numbers no
+//! library names: Fusion 360 / HSM `(T1 D=2.65 CR=0 - ZMIN=-12.55 - flat end mill)` (with
+//! `TAPER=45deg` on chamfer tools) and Mastercam `( TOOL - 1 DIA. OFF. - 1 LEN. - 1 DIA. - 6. )`.
+//! Whatever the comment does not say (flutes, lengths, helix) is assumed and reported with
+//! the line it came from.
+
+use super::{default_tool, note_defaults, ToolLibrary};
+use crate::tool::ToolShape;
+
+/// Tools described by the program's comments, by T number (the first comment for a number
+/// wins), with a note for every assumed value naming the comment's line. Sizes are in the
+/// program's units (G20 converted).
+pub fn tools_from_header(program: &str) -> ToolLibrary {
+    let mut lib = ToolLibrary {
+        format: "program header",
+        ..ToolLibrary::default()
+    };
+    let unit = if program_is_inch(program) { 25.4 } else { 1.0 };
+    for (i, line) in program.lines().enumerate() {
+        let Some(comment) = line
+            .split_once('(')
+            .and_then(|(_, rest)| rest.split_once(')'))
+            .map(|(c, _)| c.trim())
+        else {
+            continue;
+        };
+        let Some((number, diameter, text)) = fusion(comment).or_else(|| mastercam(comment)) else {
+            continue;
+        };
+        if lib.tools.contains_key(&number) || !(diameter > 0.0) {
+            continue;
+        }
+        let name = format!("T{number} (line {})", i + 1);
+        let lower = text.to_ascii_lowercase();
+        let shape = if lower.contains("ball") {
+            ToolShape::Ball
+        } else if lower.contains("bull") {
+            ToolShape::BullNose
+        } else if lower.contains("chamfer") || lower.contains("drill") || lower.contains("spot") {
+            ToolShape::Chamfer
+        } else {
+            if !(lower.contains("flat")
+                || lower.contains("end mill")
+                || lower.contains("endmill")
+                || lower.contains("face"))
+            {
+                lib.assumed(
+                    &name,
+                    "type",
+                    format!("`{comment}` does not name the shape: flat end mill assumed"),
+                );
+            }
+            ToolShape::Flat
+        };
+        let mut tool = default_tool(shape, diameter * unit);
+        tool.name = Some(comment.to_string());
+        let value = |key: &str| {
+            comment
+                .split_whitespace()
+                .find_map(|w| w.strip_prefix(key))
+                .and_then(|v| v.trim_end_matches("deg").parse::<f64>().ok())
+        };
+        match shape {
+            ToolShape::BullNose => match value("CR=") {
+                Some(r) if r > 0.0 => tool.corner_radius = r * unit,
+                _ => {
+                    tool.corner_radius = tool.diameter / 10.0;
+                    lib.assumed(
+                        &name,
+                        "corner_radius_mm",
+                        format!("no CR=: {} (D/10) assumed", tool.corner_radius),
+                    );
+                }
+            },
+            ToolShape::Chamfer => match value("TAPER=") {
+                Some(a) if a > 0.0 && a < 90.0 => tool.taper_half_angle_deg = a,
+                _ => {
+                    tool.taper_half_angle_deg = if lower.contains("drill") { 59.0 } else { 45.0 };
+                    lib.assumed(
+                        &name,
+                        "taper_half_angle_deg",
+                        format!("no TAPER=: {}° assumed", tool.taper_half_angle_deg),
+                    );
+                }
+            },
+            _ => {}
+        }
+        note_defaults(&mut lib, &name, &tool, &[]);
+        if tool.validate().is_ok() {
+            lib.tools.insert(number, tool);
+        }
+    }
+    lib
+}
+
+/// `T<n> D=<d> ... - <type>`: (number, diameter, the whole comment).
+fn fusion(c: &str) -> Option<(u32, f64, &str)> {
+    let mut words = c.split_whitespace();
+    let number: u32 = words.next()?.strip_prefix(['T', 't'])?.parse().ok()?;
+    let d: f64 = words.find_map(|w| w.strip_prefix("D="))?.parse().ok()?;
+    Some((number, d, c))
+}
+
+/// `TOOL - <n> ... DIA. - <d>`: (number, diameter, the whole comment).
+fn mastercam(c: &str) -> Option<(u32, f64, &str)> {
+    let upper = c.to_ascii_uppercase();
+    let after_tool = upper.split_once("TOOL -")?.1;
+    let number: u32 = after_tool.split_whitespace().next()?.parse().ok()?;
+    let after_dia = upper.rsplit_once("DIA. -")?.1;
+    let d: f64 = after_dia
+        .split_whitespace()
+        .next()?
+        .trim_end_matches('"')
+        .parse()
+        .ok()?;
+    Some((number, d, c))
+}
+
+/// Whether the program selects inches (G20) before it selects mm (G21), outside comments.
+fn program_is_inch(program: &str) -> bool {
+    for line in program.lines() {
+        let code: String = {
+            let mut depth = 0;
+            line.chars()
+                .take_while(|&c| c != ';')
+                .filter(|&c| {
+                    match c {
+                        '(' => depth += 1,
+                        ')' => depth -= 1,
+                        _ => {}
+                    }
+                    depth == 0 && c != ')'
+                })
+                .collect()
+        };
+        let upper = code.to_ascii_uppercase();
+        for w in upper.split(|c: char| !c.is_ascii_alphanumeric() && c != '.') {
+            match w {
+                "G20" => return true,
+                "G21" => return false,
+                _ => {}
+            }
+        }
+    }
+    false
+}

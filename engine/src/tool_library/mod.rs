@@ -1,0 +1,153 @@
+//! Tool libraries: the tools a shop already has, by T number, from a Fusion 360 tool
+//! library (JSON), a LinuxCNC tool table (`.tbl`), a plain CSV, or the tool comments a
+//! CAM post writes in the program's header. Every import says what it did not model and
+//! which values it assumed, so nothing is dropped or guessed silently.
+
+mod csv;
+mod fusion;
+mod header;
+mod linuxcnc;
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use crate::tool::Tool;
+
+pub use header::tools_from_header;
+
+/// Tools by T number, and what the import could not carry over.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ToolLibrary {
+    pub format: &'static str,
+    pub tools: BTreeMap<u32, Tool>,
+    pub report: ImportReport,
+}
+
+/// What an import left out or assumed, tool by tool.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ImportReport {
+    /// Fields of the source that millsim does not model (the tool is used without them).
+    pub unmodelled: Vec<Note>,
+    /// Values the source does not give, with the value taken.
+    pub assumed: Vec<Note>,
+}
+
+/// One remark on one tool: which tool (T number, or its place in the file), which field.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Note {
+    pub tool: String,
+    pub field: String,
+    pub note: String,
+}
+
+/// A tool the import cannot use, named by tool and field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("tool {tool}, field `{field}`: {message}")]
+pub struct ToolLibraryError {
+    pub tool: String,
+    pub field: String,
+    pub message: String,
+}
+
+impl ToolLibraryError {
+    fn new(tool: impl Into<String>, field: &str, message: impl Into<String>) -> Self {
+        ToolLibraryError {
+            tool: tool.into(),
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// At most this many tools in one library (a shop's is hundreds).
+pub const MAX_TOOLS: usize = 10_000;
+
+impl ToolLibrary {
+    /// Reads a library, its format from its content: a JSON object with `data` (Fusion
+    /// 360), a table whose lines start with `T<n>` (LinuxCNC), or CSV with a header line.
+    pub fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
+        let t = text.trim_start_matches('\u{feff}').trim_start();
+        if t.starts_with('{') {
+            fusion::read(t)
+        } else if t
+            .lines()
+            .map(str::trim)
+            .find(|l| !l.is_empty() && !l.starts_with(';'))
+            .is_some_and(|l| {
+                l.starts_with(['T', 't']) && l[1..].starts_with(|c: char| c.is_ascii_digit())
+            })
+        {
+            linuxcnc::read(t)
+        } else {
+            csv::read(t)
+        }
+    }
+
+    fn insert(&mut self, number: u32, tool: Tool, name: &str) -> Result<(), ToolLibraryError> {
+        tool.validate()
+            .map_err(|e| ToolLibraryError::new(name, "geometry", e.to_string()))?;
+        if self.tools.len() >= MAX_TOOLS {
+            return Err(ToolLibraryError::new(
+                name,
+                "number",
+                format!("more than {MAX_TOOLS} tools in one library"),
+            ));
+        }
+        if self.tools.insert(number, tool).is_some() {
+            return Err(ToolLibraryError::new(
+                name,
+                "number",
+                format!("T{number} is defined twice"),
+            ));
+        }
+        Ok(())
+    }
+
+    fn unmodelled(&mut self, tool: &str, field: &str, note: impl Into<String>) {
+        self.report.unmodelled.push(Note {
+            tool: tool.into(),
+            field: field.into(),
+            note: note.into(),
+        });
+    }
+
+    fn assumed(&mut self, tool: &str, field: &str, note: impl Into<String>) {
+        self.report.assumed.push(Note {
+            tool: tool.into(),
+            field: field.into(),
+            note: note.into(),
+        });
+    }
+}
+
+/// Flutes and lengths a source that gives only the shape and diameter leaves open: the
+/// usual end mill (2 flutes up to 6 mm, 3 up to 12, 4 above; flutes 3·D; helix 30°).
+fn default_tool(shape: crate::tool::ToolShape, diameter: f64) -> Tool {
+    let flutes = if diameter <= 6.0 {
+        2
+    } else if diameter <= 12.0 {
+        3
+    } else {
+        4
+    };
+    let mut t = Tool::flat(diameter, flutes);
+    t.shape = shape;
+    if shape == crate::tool::ToolShape::Ball {
+        t.corner_radius = diameter / 2.0;
+    }
+    t
+}
+
+/// The assumed values of [`default_tool`] as report notes.
+fn note_defaults(lib: &mut ToolLibrary, name: &str, t: &Tool, given: &[&str]) {
+    for (field, value) in [
+        ("flutes", t.flutes.to_string()),
+        ("flute_length_mm", format!("{}", t.flute_length)),
+        ("helix_deg", format!("{}", t.helix_deg)),
+    ] {
+        if !given.contains(&field) {
+            lib.assumed(name, field, format!("not given: {value} assumed"));
+        }
+    }
+}
