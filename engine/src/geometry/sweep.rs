@@ -560,6 +560,18 @@ impl<'a> Sweep<'a> {
         }
     }
 
+    /// The cross coordinates `u` of the rays of family `fam` in row `v` that meet the
+    /// sweep's capsule: the chord at `v` of its shadow along the rays (a stadium).
+    fn capsule_chord(&self, fam: usize, v: f64) -> Option<(f64, f64)> {
+        let (ua, va) = other_axes(fam);
+        line_stadium(
+            [self.cap_a[ua], self.cap_a[va]],
+            [self.cap_b[ua], self.cap_b[va]],
+            self.cap_r + 1e-9,
+            v,
+        )
+    }
+
     /// Whether an X or Y ray at height `z0` crosses the tool where its radius is constant
     /// during a horizontal move of a vertical tool: there the ray's interval depends on
     /// its cross coordinate only (`section`), the same for every such height.
@@ -852,22 +864,30 @@ fn swept_cylinder(
         return None;
     }
     const TOL: f64 = 1e-9;
-    // Half-planes a_s·s + a_b·β ≤ c.
-    let mut planes: Vec<[f64; 3]> = vec![
+    // Half-planes a_s·s + a_b·β ≤ c (four, and two more without an ellipse): on the
+    // stack, this runs once per ray and sub-move.
+    let mut all_planes = [
         [0.0, -1.0, 0.0],
         [0.0, 1.0, 1.0],
         [-e[2], d[2], o[2] - z0],
         [e[2], -d[2], z1 - o[2]],
+        [0.0; 3],
+        [0.0; 3],
     ];
+    let mut n_planes = 4;
     let c = [o[0], o[1]];
     // q = c + M·(s, β), M columns (e_xy, −d_xy).
     let m = [[e[0], -d[0]], [e[1], -d[1]]];
     let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
-    let scale = (e[0].hypot(e[1]) * d[0].hypot(d[1])).max(1e-300);
+    // Plain square roots: these lengths are far from overflow, and hypot is slow.
+    let (ex, dx) = (
+        (e[0] * e[0] + e[1] * e[1]).sqrt(),
+        (d[0] * d[0] + d[1] * d[1]).sqrt(),
+    );
+    let scale = (ex * dx).max(1e-300);
     let ellipse = det.abs() > 1e-9 * scale && det.abs() > 1e-15;
     if !ellipse {
         // |q| depends on one combination γ of s and β only (or on neither).
-        let (ex, dx) = (e[0].hypot(e[1]), d[0].hypot(d[1]));
         if ex <= 1e-12 && dx <= 1e-12 {
             if c[0] * c[0] + c[1] * c[1] > r * r {
                 return None;
@@ -888,10 +908,12 @@ fn swept_cylinder(
                 return None;
             }
             let sq = disc.sqrt();
-            planes.push([gs, gb, -cd + sq]);
-            planes.push([-gs, -gb, cd + sq]);
+            all_planes[4] = [gs, gb, -cd + sq];
+            all_planes[5] = [-gs, -gb, cd + sq];
+            n_planes = 6;
         }
     }
+    let planes = &all_planes[..n_planes];
     let inside_planes = |s: f64, b: f64| planes.iter().all(|p| p[0] * s + p[1] * b <= p[2] + TOL);
     let in_ellipse = |s: f64, b: f64| {
         !ellipse || {
@@ -925,7 +947,7 @@ fn swept_cylinder(
         // Extreme points of the ellipse in s.
         let m1 = [m[1][1] / det, -m[0][1] / det];
         let m2 = [-m[1][0] / det, m[0][0] / det];
-        let n1 = m1[0].hypot(m1[1]);
+        let n1 = (m1[0] * m1[0] + m1[1] * m1[1]).sqrt();
         for sign in [-1.0, 1.0] {
             let y = [sign * r * m1[0] / n1, sign * r * m1[1] / n1];
             let yc = [y[0] - c[0], y[1] - c[1]];
@@ -936,7 +958,7 @@ fn swept_cylinder(
             }
         }
         // Half-plane edges crossing the ellipse.
-        for p in &planes {
+        for p in planes {
             let nn = p[0] * p[0] + p[1] * p[1];
             if nn < 1e-30 {
                 continue;
@@ -1284,6 +1306,17 @@ fn remove_family(
             // tool's footprint swept along the path) can meet it, not the box's corners.
             let (bu0, bu1) = if fam == 2 && sweep.vertical {
                 match sweep.stadium[0].line(sweep.body.radius + 1e-9, v) {
+                    Some((x0, x1)) => {
+                        let (a, b) = index_range(g.origin[ua], h, g.n[ua], x0, x1);
+                        (a.max(bx.u0), b.min(bx.u1))
+                    }
+                    None => continue,
+                }
+            } else if !sweep.vertical {
+                // Any other sweep lies in its capsule: the rays that can meet it are the
+                // row's chord of the capsule's shadow along them (the others the capsule
+                // test would turn away one by one).
+                match sweep.capsule_chord(fam, v) {
                     Some((x0, x1)) => {
                         let (a, b) = index_range(g.origin[ua], h, g.n[ua], x0, x1);
                         (a.max(bx.u0), b.min(bx.u1))
