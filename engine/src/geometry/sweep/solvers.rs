@@ -1,0 +1,435 @@
+//! The 1-D and 2-D solvers of the sweeps: convex searches, chords of stadiums, and the
+//! closed-form intersections of a line with a capsule, a swept cylinder and a capsule
+//! seen along a grid axis.
+
+use crate::geometry::dexel::other_axes;
+use crate::vec3::{dot, sub};
+
+const GOLDEN_ITERS: usize = 56;
+
+pub(super) fn golden_min(lo: f64, hi: f64, f: impl Fn(f64) -> f64) -> (f64, f64) {
+    const G: f64 = 0.618_033_988_749_894_8;
+    let (mut a, mut b) = (lo, hi);
+    let mut x1 = b - G * (b - a);
+    let mut x2 = a + G * (b - a);
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..GOLDEN_ITERS {
+        if f1 <= f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - G * (b - a);
+            f1 = f(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + G * (b - a);
+            f2 = f(x2);
+        }
+    }
+    // The end points are candidates too: the minimum of a convex function on a closed
+    // interval may sit on its boundary.
+    let mut best = if f1 <= f2 { (x1, f1) } else { (x2, f2) };
+    for t in [lo, hi] {
+        let v = f(t);
+        if v < best.1 {
+            best = (t, v);
+        }
+    }
+    best
+}
+
+/// Root of a monotone predicate change between `inside` (g ≥ 0) and `outside` (g < 0).
+pub(super) fn bisect(mut inside: f64, mut outside: f64, g: impl Fn(f64) -> f64) -> f64 {
+    for _ in 0..60 {
+        let m = 0.5 * (inside + outside);
+        if g(m) >= 0.0 {
+            inside = m;
+        } else {
+            outside = m;
+        }
+    }
+    inside
+}
+
+/// Interval of x where the horizontal line (x, c0) meets the 2-D stadium of radius rho
+/// around segment a–b.
+#[inline]
+pub(super) fn line_stadium(a: [f64; 2], b: [f64; 2], rho: f64, c0: f64) -> Option<(f64, f64)> {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for p in [a, b] {
+        let dy = c0 - p[1];
+        if dy.abs() <= rho {
+            let w = (rho * rho - dy * dy).sqrt();
+            lo = lo.min(p[0] - w);
+            hi = hi.max(p[0] + w);
+        }
+    }
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let len = (d[0] * d[0] + d[1] * d[1]).sqrt();
+    if len > 1e-12 {
+        let u = [d[0] / len, d[1] / len];
+        let n = [-u[1], u[0]];
+        // s(x) = α x + β ∈ [0, len], w(x) = γ x + δ ∈ [−ρ, ρ]
+        let (mut xl, mut xh) = (f64::NEG_INFINITY, f64::INFINITY);
+        let mut ok = true;
+        for (alpha, beta, l0, l1) in [
+            (u[0], -a[0] * u[0] + (c0 - a[1]) * u[1], 0.0, len),
+            (n[0], -a[0] * n[0] + (c0 - a[1]) * n[1], -rho, rho),
+        ] {
+            if alpha.abs() < 1e-15 {
+                if beta < l0 || beta > l1 {
+                    ok = false;
+                }
+            } else {
+                let (x0, x1) = ((l0 - beta) / alpha, (l1 - beta) / alpha);
+                xl = xl.max(x0.min(x1));
+                xh = xh.min(x0.max(x1));
+            }
+        }
+        if ok && xl <= xh {
+            lo = lo.min(xl);
+            hi = hi.max(xh);
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// A 2-D stadium's segment prepared for many parallel lines (horizontal moves).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Stadium {
+    a: [f64; 2],
+    b: [f64; 2],
+    len: f64,
+    u: [f64; 2],
+    inv_u0: f64,
+    inv_n0: f64,
+}
+
+impl Stadium {
+    pub(super) fn new(a: [f64; 2], b: [f64; 2]) -> Stadium {
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let len = (d[0] * d[0] + d[1] * d[1]).sqrt();
+        let u = if len > 1e-12 {
+            [d[0] / len, d[1] / len]
+        } else {
+            [1.0, 0.0]
+        };
+        let inv = |x: f64| if x.abs() < 1e-15 { 0.0 } else { 1.0 / x };
+        Stadium {
+            a,
+            b,
+            len,
+            u,
+            inv_u0: inv(u[0]),
+            inv_n0: inv(-u[1]),
+        }
+    }
+
+    /// Same as `line_stadium(a, b, rho, c0)`.
+    #[inline]
+    pub(super) fn line(&self, rho: f64, c0: f64) -> Option<(f64, f64)> {
+        let (a, b) = (self.a, self.b);
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for p in [a, b] {
+            let dy = c0 - p[1];
+            if dy.abs() <= rho {
+                let w = (rho * rho - dy * dy).sqrt();
+                lo = lo.min(p[0] - w);
+                hi = hi.max(p[0] + w);
+            }
+        }
+        if self.len > 1e-12 {
+            let (u, len) = (self.u, self.len);
+            let dy = c0 - a[1];
+            // Along the segment: (x − a0)·u0 + dy·u1 ∈ [0, len].
+            let eu = dy * u[1];
+            let (mut xl, mut xh, mut ok) = (f64::NEG_INFINITY, f64::INFINITY, true);
+            if self.inv_u0 == 0.0 {
+                ok &= (0.0..=len).contains(&eu);
+            } else {
+                let (x0, x1) = (a[0] - eu * self.inv_u0, a[0] + (len - eu) * self.inv_u0);
+                xl = x0.min(x1);
+                xh = x0.max(x1);
+            }
+            // Across it: (x − a0)·n0 + dy·n1 ∈ [−ρ, ρ], n = (−u1, u0).
+            let en = dy * u[0];
+            if self.inv_n0 == 0.0 {
+                ok &= en.abs() <= rho;
+            } else {
+                let (x0, x1) = (
+                    a[0] + (-rho - en) * self.inv_n0,
+                    a[0] + (rho - en) * self.inv_n0,
+                );
+                xl = xl.max(x0.min(x1));
+                xh = xh.min(x0.max(x1));
+            }
+            if ok && xl <= xh {
+                lo = lo.min(xl);
+                hi = hi.max(xh);
+            }
+        }
+        (lo <= hi).then_some((lo, hi))
+    }
+}
+
+pub(super) fn hull(a: Option<(f64, f64)>, b: Option<(f64, f64)>) -> Option<(f64, f64)> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+        (a, None) => a,
+        (None, b) => b,
+    }
+}
+
+/// Line o + s·e (e unit) against the capsule of radius r around segment a–b.
+pub(super) fn line_capsule(
+    o: [f64; 3],
+    e: [f64; 3],
+    a: [f64; 3],
+    b: [f64; 3],
+    r: f64,
+) -> Option<(f64, f64)> {
+    let mut out = None;
+    for c in [a, b] {
+        let m = sub(o, c);
+        let me = dot(m, e);
+        let disc = me * me - dot(m, m) + r * r;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            out = hull(out, Some((-me - sq, -me + sq)));
+        }
+    }
+    let d = sub(b, a);
+    let dd = dot(d, d);
+    let m = sub(o, a);
+    let (nd, md, mn) = (dot(e, d), dot(m, d), dot(m, e));
+    let qa = dd - nd * nd;
+    if dd > 0.0 && qa > 1e-12 * dd {
+        let qb = dd * mn - nd * md;
+        let qc = dd * (dot(m, m) - r * r) - md * md;
+        let disc = qb * qb - qa * qc;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
+            // Axial parameter (md + s·nd)/dd within [0, 1].
+            if nd.abs() > 1e-15 {
+                let (t0, t1) = (-md / nd, (dd - md) / nd);
+                s0 = s0.max(t0.min(t1));
+                s1 = s1.min(t0.max(t1));
+            } else if md < 0.0 || md > dd {
+                s1 = s0 - 1.0;
+            }
+            if s0 <= s1 {
+                out = hull(out, Some((s0, s1)));
+            }
+        }
+    }
+    out
+}
+
+/// Line o + s·e (e unit, tool frame) against the volume swept by the cylinder of radius r
+/// between heights z0 and z1 on the z axis when it translates by d: the points
+/// o + s·e = (q, z) + β·d with |q| ≤ r, z0 ≤ z ≤ z1, 0 ≤ β ≤ 1. In the (s, β) plane that
+/// is an ellipse (or a strip) cut by four half-planes; the extreme s lies at an extreme
+/// point of the ellipse, where a half-plane's edge crosses the ellipse, or at a corner
+/// of the half-planes.
+pub(super) fn swept_cylinder(
+    o: [f64; 3],
+    e: [f64; 3],
+    d: [f64; 3],
+    r: f64,
+    z0: f64,
+    z1: f64,
+) -> Option<(f64, f64)> {
+    if z1 <= z0 {
+        return None;
+    }
+    const TOL: f64 = 1e-9;
+    // Half-planes a_s·s + a_b·β ≤ c (four, and two more without an ellipse): on the
+    // stack, this runs once per ray and sub-move.
+    let mut all_planes = [
+        [0.0, -1.0, 0.0],
+        [0.0, 1.0, 1.0],
+        [-e[2], d[2], o[2] - z0],
+        [e[2], -d[2], z1 - o[2]],
+        [0.0; 3],
+        [0.0; 3],
+    ];
+    let mut n_planes = 4;
+    let c = [o[0], o[1]];
+    // q = c + M·(s, β), M columns (e_xy, −d_xy).
+    let m = [[e[0], -d[0]], [e[1], -d[1]]];
+    let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+    // Plain square roots: these lengths are far from overflow, and hypot is slow.
+    let (ex, dx) = (
+        (e[0] * e[0] + e[1] * e[1]).sqrt(),
+        (d[0] * d[0] + d[1] * d[1]).sqrt(),
+    );
+    let scale = (ex * dx).max(1e-300);
+    let ellipse = det.abs() > 1e-9 * scale && det.abs() > 1e-15;
+    if !ellipse {
+        // |q| depends on one combination γ of s and β only (or on neither).
+        if ex <= 1e-12 && dx <= 1e-12 {
+            if c[0] * c[0] + c[1] * c[1] > r * r {
+                return None;
+            }
+        } else {
+            let dir = if ex > 1e-12 {
+                [e[0] / ex, e[1] / ex]
+            } else {
+                [d[0] / dx, d[1] / dx]
+            };
+            let (gs, gb) = (
+                e[0] * dir[0] + e[1] * dir[1],
+                -(d[0] * dir[0] + d[1] * dir[1]),
+            );
+            let cd = c[0] * dir[0] + c[1] * dir[1];
+            let disc = r * r - (c[0] * c[0] + c[1] * c[1]) + cd * cd;
+            if disc < 0.0 {
+                return None;
+            }
+            let sq = disc.sqrt();
+            all_planes[4] = [gs, gb, -cd + sq];
+            all_planes[5] = [-gs, -gb, cd + sq];
+            n_planes = 6;
+        }
+    }
+    let planes = &all_planes[..n_planes];
+    let inside_planes = |s: f64, b: f64| planes.iter().all(|p| p[0] * s + p[1] * b <= p[2] + TOL);
+    let in_ellipse = |s: f64, b: f64| {
+        !ellipse || {
+            let qx = c[0] + m[0][0] * s + m[0][1] * b;
+            let qy = c[1] + m[1][0] * s + m[1][1] * b;
+            qx * qx + qy * qy <= r * r * (1.0 + 1e-9) + TOL
+        }
+    };
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let mut take = |s: f64| {
+        lo = lo.min(s);
+        hi = hi.max(s);
+    };
+    // Corners of the half-planes.
+    for i in 0..planes.len() {
+        for j in i + 1..planes.len() {
+            let (p, q) = (planes[i], planes[j]);
+            let dt = p[0] * q[1] - p[1] * q[0];
+            if dt.abs() < 1e-15 {
+                continue;
+            }
+            let s = (p[2] * q[1] - p[1] * q[2]) / dt;
+            let b = (p[0] * q[2] - p[2] * q[0]) / dt;
+            if inside_planes(s, b) && in_ellipse(s, b) {
+                take(s);
+            }
+        }
+    }
+    if ellipse {
+        // Extreme points of the ellipse in s.
+        let m1 = [m[1][1] / det, -m[0][1] / det];
+        let m2 = [-m[1][0] / det, m[0][0] / det];
+        let n1 = (m1[0] * m1[0] + m1[1] * m1[1]).sqrt();
+        for sign in [-1.0, 1.0] {
+            let y = [sign * r * m1[0] / n1, sign * r * m1[1] / n1];
+            let yc = [y[0] - c[0], y[1] - c[1]];
+            let s = m1[0] * yc[0] + m1[1] * yc[1];
+            let b = m2[0] * yc[0] + m2[1] * yc[1];
+            if inside_planes(s, b) {
+                take(s);
+            }
+        }
+        // Half-plane edges crossing the ellipse.
+        for p in planes {
+            let nn = p[0] * p[0] + p[1] * p[1];
+            if nn < 1e-30 {
+                continue;
+            }
+            let x0 = [p[2] * p[0] / nn, p[2] * p[1] / nn];
+            let t = [-p[1], p[0]];
+            let pt = [
+                c[0] + m[0][0] * x0[0] + m[0][1] * x0[1],
+                c[1] + m[1][0] * x0[0] + m[1][1] * x0[1],
+            ];
+            let w = [
+                m[0][0] * t[0] + m[0][1] * t[1],
+                m[1][0] * t[0] + m[1][1] * t[1],
+            ];
+            let (qa, qb, qc) = (
+                w[0] * w[0] + w[1] * w[1],
+                pt[0] * w[0] + pt[1] * w[1],
+                pt[0] * pt[0] + pt[1] * pt[1] - r * r,
+            );
+            if qa < 1e-30 {
+                continue;
+            }
+            let disc = qb * qb - qa * qc;
+            if disc < 0.0 {
+                continue;
+            }
+            let sq = disc.sqrt();
+            for tau in [(-qb - sq) / qa, (-qb + sq) / qa] {
+                let (s, b) = (x0[0] + tau * t[0], x0[1] + tau * t[1]);
+                if inside_planes(s, b) {
+                    take(s);
+                }
+            }
+        }
+    }
+    (lo <= hi && lo.is_finite() && hi.is_finite()).then_some((lo, hi))
+}
+
+/// Intersection of the axis-parallel line through `o` along axis `fam` with the capsule
+/// of radius `r` around segment a–b, as an interval of the coordinate along the line.
+pub(super) fn ray_capsule(
+    o: [f64; 3],
+    fam: usize,
+    a: [f64; 3],
+    b: [f64; 3],
+    r: f64,
+) -> Option<(f64, f64)> {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let (ua, va) = other_axes(fam);
+    for c in [a, b] {
+        let d2 = (o[ua] - c[ua]).powi(2) + (o[va] - c[va]).powi(2);
+        if d2 <= r * r {
+            let w = (r * r - d2).sqrt();
+            lo = lo.min(c[fam] - w);
+            hi = hi.max(c[fam] + w);
+        }
+    }
+    // Finite cylinder: distance to the axis line ≤ r with the projection inside a–b.
+    let d = sub(b, a);
+    let dd = dot(d, d);
+    let mut m = sub(o, a);
+    m[fam] = 0.0; // measure along the line from the point level with a
+    let nd = d[fam];
+    let md = dot(m, d);
+    let qa = dd - nd * nd;
+    if qa > 1e-12 * dd {
+        let mn = 0.0; // m has no component along the line
+        let qb = dd * mn - nd * md;
+        let qc = dd * (dot(m, m) - r * r) - md * md;
+        let disc = qb * qb - qa * qc;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
+            // Axial parameter t(s) = (md + s·nd)/dd must lie in [0, 1].
+            if nd.abs() > 1e-15 {
+                let (t0, t1) = ((0.0 - md) / nd, (dd - md) / nd);
+                s0 = s0.max(t0.min(t1));
+                s1 = s1.min(t0.max(t1));
+            } else if md < 0.0 || md > dd {
+                s1 = s0 - 1.0;
+            }
+            if s0 <= s1 {
+                lo = lo.min(a[fam] + s0);
+                hi = hi.max(a[fam] + s1);
+            }
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}

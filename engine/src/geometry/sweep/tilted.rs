@@ -1,0 +1,139 @@
+//! Any other tool axis (5-axis sub-steps and 3+2 work): flat and ball tools in closed form,
+//! bull-nose and chamfer tools by a GJK ray cast against the swept body's support.
+
+use parry3d_f64::math::Vector;
+use parry3d_f64::query::details::local_ray_intersection_with_support_map_with_params;
+use parry3d_f64::query::gjk::VoronoiSimplex;
+use parry3d_f64::query::Ray;
+use parry3d_f64::shape::SupportMap;
+
+use super::profile::{Profile, ToolBody};
+use super::solvers::{hull, line_capsule, ray_capsule, swept_cylinder};
+use super::Sweep;
+use crate::geometry::dexel::{other_axes, Intervals};
+use crate::vec3::{cross, dot, norm, sub};
+
+struct SweptSupport<'a> {
+    body: &'a ToolBody,
+    delta: [f64; 3],
+}
+
+impl SupportMap for SweptSupport<'_> {
+    fn local_support_point(&self, dir: Vector) -> Vector {
+        let d = [dir.x, dir.y, dir.z];
+        let mut p = self.body.support(d);
+        if d[0] * self.delta[0] + d[1] * self.delta[1] + d[2] * self.delta[2] > 0.0 {
+            for k in 0..3 {
+                p[k] += self.delta[k];
+            }
+        }
+        Vector::new(p[0], p[1], p[2])
+    }
+}
+
+/// An orthonormal frame (e1, e2, axis) around a unit axis.
+pub(crate) fn frame_around(axis: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+    let helper = if axis[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let e1 = cross(helper, axis);
+    let n = norm(e1);
+    let e1 = [e1[0] / n, e1[1] / n, e1[2] / n];
+    let e2 = cross(axis, e1);
+    (e1, e2)
+}
+
+impl Sweep<'_> {
+    pub(super) fn general_ray(
+        &self,
+        fam: usize,
+        u: f64,
+        v: f64,
+        s_min: f64,
+        s_max: f64,
+        material: &Intervals,
+    ) -> Option<(f64, f64)> {
+        let (ua, va) = other_axes(fam);
+        let mut o = [0.0; 3];
+        o[ua] = u;
+        o[va] = v;
+        // Conservative bound first: the cutting part lies within R of its axis from the
+        // corner-arc centre height up (true for flat, ball, bull-nose and chamfer
+        // profiles), so the sub-move lies within R + |Δ|/2 of that segment at the
+        // sub-move's middle. Rays missing that capsule, or whose material lies outside
+        // it, need no GJK cast.
+        let (c_in, c_out) = ray_capsule(o, fam, self.cap_a, self.cap_b, self.cap_r)?;
+        if !material.iter().any(|iv| iv[0] < c_out && c_in < iv[1]) {
+            return None;
+        }
+        let a = self.mv.axis;
+        let mut e = [0.0; 3];
+        e[fam] = 1.0;
+        let start = c_in.max(s_min) - 1e-3;
+        let span = c_out.min(s_max) + 1e-3 - start;
+        if span <= 0.0 {
+            return None;
+        }
+        o[fam] = start;
+        let rel = sub(o, self.mv.p0);
+        let to_local = |w: [f64; 3]| [dot(w, self.e1), dot(w, self.e2), dot(w, a)];
+        let ol = to_local(rel);
+        let el = to_local(e);
+        // Flat and ball tools: exact closed forms (cylinder and sphere pieces).
+        let body = self.body;
+        let d = self.delta_local;
+        let analytic = match body.profile {
+            Profile::Flat => Some(swept_cylinder(ol, el, d, body.radius, 0.0, body.length)),
+            Profile::Corner { rc } if rc >= body.radius && body.length >= rc => {
+                let c = [0.0, 0.0, rc];
+                let c1 = [d[0], d[1], rc + d[2]];
+                Some(hull(
+                    line_capsule(ol, el, c, c1, rc),
+                    swept_cylinder(ol, el, d, body.radius, rc, body.length),
+                ))
+            }
+            _ => None,
+        };
+        if let Some(iv) = analytic {
+            return iv.map(|(a, b)| (start + a, start + b));
+        }
+        let shape = SweptSupport {
+            body: self.body,
+            delta: self.delta_local,
+        };
+        let mut simplex = VoronoiSimplex::new();
+        let ray = Ray::new(
+            Vector::new(ol[0], ol[1], ol[2]),
+            Vector::new(el[0], el[1], el[2]),
+        );
+        let hit_in = local_ray_intersection_with_support_map_with_params(
+            &shape,
+            &mut simplex,
+            &ray,
+            span,
+            true,
+        )?;
+        let far = [
+            ol[0] + el[0] * span,
+            ol[1] + el[1] * span,
+            ol[2] + el[2] * span,
+        ];
+        let back = Ray::new(
+            Vector::new(far[0], far[1], far[2]),
+            Vector::new(-el[0], -el[1], -el[2]),
+        );
+        let mut simplex = VoronoiSimplex::new();
+        let hit_out = local_ray_intersection_with_support_map_with_params(
+            &shape,
+            &mut simplex,
+            &back,
+            span,
+            true,
+        )?;
+        let s_in = start + hit_in.time_of_impact;
+        let s_out = start + span - hit_out.time_of_impact;
+        (s_out >= s_in).then_some((s_in, s_out))
+    }
+}
