@@ -39,7 +39,7 @@ pub mod dexel;
 pub mod engagement;
 pub mod export;
 pub mod path;
-pub mod simulate;
+pub mod removal;
 pub mod stl;
 pub mod stock;
 pub mod sweep;
@@ -50,7 +50,7 @@ pub use dexel::{default_cell, DexelGrid, GridEstimate, GridOptions, DEFAULT_MEMO
 pub use engagement::{EngagementOptions, StepMetrics};
 pub use export::{export_stl, ExportStats};
 pub use path::{PathShape, Segment};
-pub use simulate::{
+pub use removal::{
     simulate_removal, simulate_removal_with_progress, BlockGeometry, SimOptions, SimulationReport,
     StepGeometry,
 };
