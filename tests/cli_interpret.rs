@@ -9,6 +9,9 @@ use common::*;
 
 #[test]
 fn prints_one_json_object_per_move_in_the_documented_shape() {
+    if !corpus_present() {
+        return;
+    }
     let file = corpus("gcode/fusion360_2d_pocket_contour_bore_1099.nc");
     let moves = interpret_moves(&file, &[]);
     assert!(moves.len() > 1000);
@@ -93,6 +96,9 @@ fn reads_apt_cls_files_too() {
 
 #[test]
 fn interpreter_options_reach_the_cli() {
+    if !corpus_present() {
+        return;
+    }
     let impeller = corpus("gcode/linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc");
     let refused = Command::new(BIN)
         .arg("interpret")

@@ -9,6 +9,9 @@ use common::*;
 
 #[tokio::test]
 async fn health_readiness_and_metrics() {
+    if !corpus_present() {
+        return;
+    }
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
     let c = client();

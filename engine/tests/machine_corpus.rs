@@ -1,6 +1,8 @@
 //! Cycle time of the corpus programs: consistent totals, never below the length/feed estimate,
 //! and equal to it when the acceleration goes to infinity.
 
+mod common;
+
 use millsim_engine::machine::{cycle_time, Machine};
 use millsim_engine::nc::{interpret, InterpretOptions};
 
@@ -44,6 +46,9 @@ fn check(name: &str, options: &InterpretOptions) {
 
 #[test]
 fn corpus_programs_have_consistent_cycle_times() {
+    if common::corpus_dir().is_none() {
+        return;
+    }
     let o = InterpretOptions::default();
     check("fusion360_2d_adaptive_1055_utab_265bit.nc", &o);
     check("fusion360_2d_pocket_contour_bore_1099.nc", &o);

@@ -17,6 +17,26 @@ pub fn corpus(rel: &str) -> PathBuf {
         .join(rel)
 }
 
+/// Whether the shared corpus beside the project is there; a clone does not have it, and a
+/// test that reads it then skips, saying so.
+pub fn corpus_present() -> bool {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
+    let present = dir.is_dir();
+    if !present {
+        println!(
+            "skipped: {} is absent (the shared corpus is not part of a clone)",
+            dir.display()
+        );
+    }
+    present
+}
+
+/// The Fusion 360 adaptive program the project holds (examples/adaptive), for tests that
+/// need a real program whatever the checkout.
+pub fn adaptive_program() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/adaptive/1055_utab_265bit.nc")
+}
+
 pub struct Server {
     pub child: Child,
     pub base: String,
