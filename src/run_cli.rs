@@ -30,6 +30,11 @@ pub struct RunArgs {
     /// number the program uses (JSON as POST /v1/tools takes it).
     #[arg(long)]
     tool: Vec<String>,
+    /// A tool library (Fusion 360 JSON, LinuxCNC .tbl or CSV): the tool of each T number
+    /// no --tool gives. Without --tool or a library, the program's header comments
+    /// (`(T1 D=6 CR=0 - flat end mill)`) describe the tools, with a warning per assumption.
+    #[arg(long, value_name = "FILE")]
+    tool_library: Option<PathBuf>,
     /// A built-in material name (TC6, Al7075-T6, Al6082-T6) or a material JSON file.
     #[arg(long)]
     material: String,
@@ -166,9 +171,6 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
     };
     inputs.insert("stock".into(), stock);
-    if args.tool.is_empty() {
-        return Err("give the tool: --tool T1=tool.json (one --tool per tool number)".into());
-    }
     for spec in &args.tool {
         // `T3=file.json` is the tool of T3; a bare file serves every tool number.
         let (name, path) = match spec.split_once('=') {
@@ -197,6 +199,40 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         {
             let tool = inputs.remove(&k).expect("key found above");
             inputs.insert("tool".into(), tool);
+        }
+    }
+    if let Some(path) = &args.tool_library {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let library = millsim_engine::tool_library::ToolLibrary::read(&text)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        for n in &library.report.unmodelled {
+            eprintln!(
+                "{}: {} {}: not modelled: {}",
+                path.display(),
+                n.tool,
+                n.field,
+                n.note
+            );
+        }
+        for n in &library.report.assumed {
+            eprintln!("{}: {} {}: {}", path.display(), n.tool, n.field, n.note);
+        }
+        // Explicit tools win; a single --tool serves every number on its own.
+        if !inputs.contains_key("tool") {
+            for (number, tool) in &library.tools {
+                let name = format!("T{number}");
+                if !inputs.contains_key(&name) {
+                    let content = serde_json::to_vec(tool).map_err(|e| e.to_string())?;
+                    inputs.insert(
+                        name,
+                        LoadedInput {
+                            file_name: None,
+                            media_type: "application/json".into(),
+                            content,
+                        },
+                    );
+                }
+            }
         }
     }
     runner::check_tool_inputs("simulate", inputs.keys()).map_err(|(_, m)| m)?;

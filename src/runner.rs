@@ -120,11 +120,9 @@ pub fn check_tool_inputs<'a>(
         .filter(|n| tool_number_input(kind, n).is_some())
         .count();
     let single = names.clone().any(|n| n == "tool");
+    // No tool at all is allowed: the program's header comments may describe its tools (the
+    // job then fails naming the first T number nothing describes).
     match (single, numbered) {
-        (false, 0) => Err((
-            "inputs.tool".into(),
-            format!("a `{kind}` job needs input `tool` (or one input per tool number: `T1`, `T2`, ...)"),
-        )),
         (true, n) if n > 0 => Err((
             "inputs.tool".into(),
             "give `tool` (one tool for the whole program) or `T1`, `T2`, ... (one per tool number), not both".into(),
@@ -509,9 +507,6 @@ fn simulate_job(
         };
         let tool: Tool = required(json_input(&mut inputs, &name, "tool")?, &name)?;
         tools.insert(number, tool);
-    }
-    if tools.is_empty() {
-        return Err(invalid("Missing input", "the job has no `tool` input"));
     }
     let material = job_material(opts.material.as_deref(), &mut inputs)?;
     let machine = json_input(&mut inputs, "machine", "machine")?.unwrap_or_else(Machine::generic);

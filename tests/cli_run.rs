@@ -190,3 +190,78 @@ fn the_readme_example_runs_as_documented() {
     assert!(summary["force_peak_opt_n"].as_f64().unwrap() <= 400.0 * 1.02);
     assert!(dir.path().join("1055_utab_265bit.opt.nc").is_file());
 }
+
+/// The slot program of these tests with a tool change, so that T numbers matter.
+const TWO_TOOLS: &str = "(T1 D=10 CR=0 - flat end mill)\n(T2 D=6 CR=3 - ball end mill)\nG21 G90\nT1 M6\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nT2 M6\nG0 X-10 Y10\nG0 Z-2\nG1 X60 F2000\nG0 Z5\nM30\n";
+
+fn run_two_tools(extra: &[&str]) -> (std::process::Output, Option<serde_json::Value>) {
+    let dir = tempfile::tempdir().unwrap();
+    let program = dir.path().join("two.nc");
+    std::fs::write(&program, TWO_TOOLS).unwrap();
+    std::fs::write(
+        dir.path().join("lib.csv"),
+        "number,type,diameter,flutes,flute_length,helix\n1,flat,10,4,20,0\n2,ball,6,2,12,30\n9,flat,0.5,2,2,30\n",
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let mut cmd = Command::new(BIN);
+    cmd.current_dir(dir.path())
+        .args([
+            "run",
+            "--block=0,-20,-10,100,40,10",
+            "--material",
+            "Al7075-T6",
+        ])
+        .arg("--program")
+        .arg(&program)
+        .arg("--out")
+        .arg(&out_dir)
+        .args(extra);
+    let out = cmd.output().unwrap();
+    let summary = std::fs::read(out_dir.join("summary.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok());
+    (out, summary)
+}
+
+#[test]
+fn run_takes_tools_from_a_library_or_from_the_program_header() {
+    // A CSV library: T1 and T2 from it; its T9 (0.5 mm) is not used and does not set the
+    // grid (default cell: the smallest used tool's radius / 20 = 0.15 mm).
+    let (out, summary) = run_two_tools(&["--tool-library", "lib.csv"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lib = summary.unwrap();
+    assert_eq!(lib["cell_mm"], 0.15, "{lib}");
+    assert!(lib.get("tool_warnings").is_none(), "{lib}");
+    assert!(lib["removed_volume_mm3"].as_f64().unwrap() > 3000.0);
+
+    // No tool at all: both from the header comments, every assumption said.
+    let (out, summary) = run_two_tools(&[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let header = summary.unwrap();
+    let warnings = header["tool_warnings"].as_array().unwrap();
+    assert_eq!(warnings.len(), 2, "{header}");
+    assert!(
+        warnings[0].as_str().unwrap().starts_with("T1 (line 1)"),
+        "{header}"
+    );
+    // Same cutters (diameters, shapes) as the library's: the same material removed.
+    let (a, b) = (
+        lib["removed_volume_mm3"].as_f64().unwrap(),
+        header["removed_volume_mm3"].as_f64().unwrap(),
+    );
+    assert!((a - b).abs() < 1e-6 * a, "{a} vs {b}");
+
+    // A program whose T number nothing describes: refused naming the line and the number.
+    let (out, _) = run_two_tools(&["--tool-library", "missing.csv"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.csv"));
+}

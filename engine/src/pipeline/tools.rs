@@ -92,6 +92,14 @@ impl ToolLookup {
                 ));
             }
         }
+        // Only the tools that cut: a library's others must not set the grid or be checked.
+        tools.retain(|t, _| {
+            if single {
+                *t == 0
+            } else {
+                used.iter().any(|u| u.0 == *t)
+            }
+        });
         Ok(ToolLookup {
             tools,
             single,
