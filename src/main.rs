@@ -141,6 +141,12 @@ struct ServeArgs {
     /// Largest STL upload, bytes.
     #[arg(long, env = "MILLSIM_MAX_UPLOAD_BYTES", default_value_t = 256 << 20)]
     max_upload_bytes: u64,
+    /// Seconds a client has to send a request's headers before its connection is closed.
+    #[arg(long, env = "MILLSIM_HEADER_TIMEOUT_S", default_value_t = 10.0)]
+    header_timeout_s: f64,
+    /// Open connections at most; over it, new connections are closed at once.
+    #[arg(long, env = "MILLSIM_MAX_CONNECTIONS", default_value_t = 8192)]
+    max_connections: usize,
 }
 
 #[derive(clap::Args)]
@@ -318,6 +324,15 @@ fn cores() -> usize {
 
 async fn serve(args: ServeArgs) -> Result<(), String> {
     let queue = args.queue.config(cores())?;
+    if !(args.header_timeout_s.is_finite() && args.header_timeout_s > 0.0) {
+        return Err(format!(
+            "--header-timeout-s must be a positive number of seconds, got {}",
+            args.header_timeout_s
+        ));
+    }
+    if args.max_connections == 0 {
+        return Err("--max-connections must be at least 1".into());
+    }
     let auth = match &args.api_key_file {
         Some(path) => {
             let text =
@@ -366,13 +381,12 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     // Tests and scripts read the bound address (the port may have been 0) from stdout.
     println!("millsim listening on http://{addr}");
     let _ = std::io::stdout().flush();
-    let mut stop = shutdown.clone();
-    axum::serve(listener, http::router(state))
-        .with_graceful_shutdown(async move {
-            let _ = stop.wait_for(|v| *v).await;
-        })
-        .await
-        .map_err(|e| format!("server: {e}"))?;
+    let limits = http::server::ConnectionLimits {
+        header_timeout: std::time::Duration::from_secs_f64(args.header_timeout_s),
+        max_connections: args.max_connections,
+        grace: std::time::Duration::from_secs(30),
+    };
+    http::server::serve(listener, http::router(state), limits, shutdown.clone()).await;
     let _ = workers.await;
     Ok(())
 }

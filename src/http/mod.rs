@@ -6,6 +6,7 @@ pub mod jobs;
 pub mod ops;
 pub mod problem;
 pub mod resources;
+pub mod server;
 
 use std::sync::Arc;
 use std::time::Duration;
