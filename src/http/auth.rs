@@ -92,15 +92,37 @@ impl Auth {
     }
 }
 
+/// The owner of the key a request presents: `Authorization: Bearer KEY` (the scheme in any
+/// case, as RFC 9110 has it) and/or `X-API-Key: KEY`. Two different keys are refused, even
+/// when one is valid: a request speaks for one key.
+fn presented_owner(auth: &Auth, headers: &axum::http::HeaderMap) -> Option<String> {
+    let bearer = match headers.get("authorization") {
+        Some(v) => {
+            let v = v.to_str().ok()?;
+            let (scheme, key) = v.split_once(' ')?;
+            if !scheme.eq_ignore_ascii_case("bearer") {
+                return None;
+            }
+            Some(key.trim())
+        }
+        None => None,
+    };
+    let header = match headers.get("x-api-key") {
+        Some(v) => Some(v.to_str().ok()?.trim()),
+        None => None,
+    };
+    let key = match (bearer, header) {
+        (Some(a), Some(b)) if a != b => return None,
+        (Some(a), _) => a,
+        (None, Some(b)) => b,
+        (None, None) => return None,
+    };
+    auth.owner_of(key)
+}
+
 pub async fn require_key(State(state): State<AppState>, mut req: Request, next: Next) -> Response {
     let owner = if state.auth.enabled() {
-        let headers = req.headers();
-        let presented = headers
-            .get("authorization")
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "))
-            .or_else(|| headers.get("x-api-key").and_then(|v| v.to_str().ok()));
-        match presented.and_then(|k| state.auth.owner_of(k.trim())) {
+        match presented_owner(&state.auth, req.headers()) {
             Some(name) => name,
             None => {
                 return ApiError::unauthorized(
@@ -119,6 +141,47 @@ pub async fn require_key(State(state): State<AppState>, mut req: Request, next: 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_bearer_scheme_is_case_insensitive_and_conflicting_keys_are_refused() {
+        let key = "k-0123456789abcdef";
+        let auth = Auth::from_key_file("keys", &format!("mes {}\n", hex(&hash_key(key)))).unwrap();
+        let headers = |pairs: &[(&str, &str)]| {
+            let mut h = axum::http::HeaderMap::new();
+            for (n, v) in pairs {
+                h.insert(
+                    axum::http::HeaderName::from_bytes(n.as_bytes()).unwrap(),
+                    v.parse().unwrap(),
+                );
+            }
+            h
+        };
+        for scheme in ["Bearer", "bearer", "BEARER"] {
+            let h = headers(&[("authorization", &format!("{scheme} {key}"))]);
+            assert_eq!(
+                presented_owner(&auth, &h).as_deref(),
+                Some("mes"),
+                "{scheme}"
+            );
+        }
+        assert_eq!(
+            presented_owner(&auth, &headers(&[("x-api-key", key)])).as_deref(),
+            Some("mes")
+        );
+        let both = headers(&[
+            ("authorization", &format!("Bearer {key}")),
+            ("x-api-key", key),
+        ]);
+        assert_eq!(presented_owner(&auth, &both).as_deref(), Some("mes"));
+        // A valid bearer with another X-API-Key: refused (before, the bearer won).
+        let conflict = headers(&[
+            ("authorization", &format!("Bearer {key}")),
+            ("x-api-key", "wrong"),
+        ]);
+        assert_eq!(presented_owner(&auth, &conflict), None);
+        let basic = headers(&[("authorization", &format!("Basic {key}"))]);
+        assert_eq!(presented_owner(&auth, &basic), None);
+    }
 
     #[test]
     fn key_file_maps_keys_to_names() {

@@ -26,15 +26,31 @@ pub struct CuttingCoefficients {
 impl CuttingCoefficients {
     /// All six must be finite numbers; names the first one that is not.
     pub fn validate(&self) -> Result<(), PhysicsError> {
-        for (field, v) in [
-            ("ktc", self.ktc),
-            ("krc", self.krc),
-            ("kac", self.kac),
-            ("kte", self.kte),
-            ("kre", self.kre),
-            ("kae", self.kae),
+        // Bounds no metal comes near (the hardest superalloys cut at a few thousand N/mm²):
+        // past them a value is a typo or a unit mistake, and forces, power and energy would
+        // be nonsense (or overflow) rather than an error.
+        const CUTTING: f64 = 20_000.0; // N/mm²
+        const EDGE: f64 = 2_000.0; // N/mm
+        for (field, v, lo, hi) in [
+            ("ktc", self.ktc, f64::MIN_POSITIVE, CUTTING),
+            ("krc", self.krc, -CUTTING, CUTTING),
+            ("kac", self.kac, -CUTTING, CUTTING),
+            ("kte", self.kte, -EDGE, EDGE),
+            ("kre", self.kre, -EDGE, EDGE),
+            ("kae", self.kae, -EDGE, EDGE),
         ] {
             super::finite(field, v)?;
+            if !(lo..=hi).contains(&v) {
+                let range = if lo > 0.0 {
+                    format!("in (0, {hi}]")
+                } else {
+                    format!("in [{lo}, {hi}]")
+                };
+                return Err(PhysicsError::invalid(
+                    field,
+                    format!("{v} is not a cutting coefficient: must be {range}"),
+                ));
+            }
         }
         Ok(())
     }
