@@ -26,6 +26,22 @@ pub struct CuttingCoefficients {
 impl CuttingCoefficients {
     /// All six must be finite numbers; names the first one that is not.
     pub fn validate(&self) -> Result<(), PhysicsError> {
+        for (field, v) in [
+            ("ktc", self.ktc),
+            ("krc", self.krc),
+            ("kac", self.kac),
+            ("kte", self.kte),
+            ("kre", self.kre),
+            ("kae", self.kae),
+        ] {
+            super::finite(field, v)?;
+        }
+        Ok(())
+    }
+
+    /// As [`validate`](Self::validate), and within what a work material can have: the
+    /// check on a user's material (the force model itself takes any finite numbers).
+    pub fn validate_range(&self) -> Result<(), PhysicsError> {
         // Bounds no metal comes near (the hardest superalloys cut at a few thousand N/mm²):
         // past them a value is a typo or a unit mistake, and forces, power and energy would
         // be nonsense (or overflow) rather than an error.
@@ -155,7 +171,7 @@ impl Material {
                 "must say where the numbers come from",
             ));
         }
-        self.coefficients.validate()?;
+        self.coefficients.validate_range()?;
         if let Some(t) = &self.taylor {
             t.validate()?;
         }
