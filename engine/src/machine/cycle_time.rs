@@ -228,9 +228,7 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
     };
     // The path runs over `len` (mm, or degrees on a rotary-only move) while the fastest
     // rotary axis turns `rotary` degrees: its speed and acceleration bound the path's.
-    let rotary = (3..6)
-        .map(|i| (m.end[i] - m.start[i]).abs())
-        .fold(0.0, f64::max);
+    let rotary = m.rotary_travel();
     if rotary > 1e-9 {
         if let Some(w) = machine.max_rotary_speed_deg_min {
             v = v.min(len * w / rotary / 60.0);

@@ -141,9 +141,7 @@ pub fn axes_at(m: &Move, s: f64) -> [f64; 6] {
 }
 
 fn step_count(m: &Move, opts: &RotaryFeedOptions) -> usize {
-    let rot = (3..6)
-        .map(|k| (m.end[k] - m.start[k]).abs())
-        .fold(0.0, f64::max);
+    let rot = m.rotary_travel();
     let lin = move_length(m);
     let n = (rot / opts.max_step_deg.max(1e-6))
         .ceil()

@@ -216,6 +216,20 @@ pub struct Move {
     pub arc: Option<Box<ArcGeometry>>,
 }
 
+impl Move {
+    /// The largest travel of a rotary axis (A, B or C) over the move, degrees.
+    pub fn rotary_travel(&self) -> f64 {
+        (3..6)
+            .map(|i| (self.end[i] - self.start[i]).abs())
+            .fold(0.0, f64::max)
+    }
+
+    /// Whether a rotary axis turns during the move.
+    pub fn turns_rotary(&self) -> bool {
+        self.rotary_travel() > 1e-9
+    }
+}
+
 /// Result of interpreting a program.
 #[derive(Clone, Debug, Default)]
 pub struct Interpretation {

@@ -411,7 +411,7 @@ pub fn write_splits(
             skip("only G1 moves at a per-minute or inverse-time feed are split");
             continue;
         }
-        let rotary = (3..6).any(|k| (m.end[k] - m.start[k]).abs() > 1e-9);
+        let rotary = m.turns_rotary();
         if rotary && factor[b] != 1.0 {
             skip("rotary axes move in an inch program");
             continue;

@@ -80,8 +80,7 @@ impl PartFrame {
             let length = move_length(m);
             return Some((vec![whole(machine_segment)], length));
         };
-        let rotary_turns = (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9);
-        if !rotary_turns {
+        if !m.turns_rotary() {
             // Fixed angles: a rigid motion, so lines stay lines and arcs stay arcs.
             let p0 = self.pose(&m.start);
             let p1 = self.pose(&m.end);
@@ -190,9 +189,7 @@ pub(super) fn feed_scale(
     machine: &Machine,
     axes: AxisReading,
 ) -> optimize::FeedScale {
-    let rotary = (3..6)
-        .map(|i| (m.end[i] - m.start[i]).abs())
-        .fold(0.0, f64::max);
+    let rotary = m.rotary_travel();
     if !matches!(m.kind, MoveKind::Linear | MoveKind::Arc) || rotary <= 1e-9 || row.length <= 0.0 {
         return optimize::FeedScale::UNIT;
     }

@@ -149,8 +149,7 @@ fn check_inputs(
     moves: &[Move],
     tools: &tools::ToolLookup,
 ) -> Result<(), SimulateError> {
-    let turns_rotary = |m: &Move| (3..6).any(|i| (m.end[i] - m.start[i]).abs() > 1e-9);
-    if let Some(m) = moves.iter().find(|m| turns_rotary(m)) {
+    if let Some(m) = moves.iter().find(|m| m.turns_rotary()) {
         if spec.machine.kinematics == Kinematics::Xyz {
             return Err(SimulateError::RotaryAxes { line: m.line });
         }

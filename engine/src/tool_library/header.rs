@@ -31,27 +31,14 @@ pub fn tools_from_header(program: &str) -> ToolLibrary {
             continue;
         }
         let name = format!("T{number} (line {})", i + 1);
-        let lower = text.to_ascii_lowercase();
-        let shape = if lower.contains("ball") {
-            ToolShape::Ball
-        } else if lower.contains("bull") {
-            ToolShape::BullNose
-        } else if lower.contains("chamfer") || lower.contains("drill") || lower.contains("spot") {
-            ToolShape::Chamfer
-        } else {
-            if !(lower.contains("flat")
-                || lower.contains("end mill")
-                || lower.contains("endmill")
-                || lower.contains("face"))
-            {
-                lib.assumed(
-                    &name,
-                    "type",
-                    format!("`{comment}` does not name the shape: flat end mill assumed"),
-                );
-            }
+        let shape = super::shape_named_in(text).unwrap_or_else(|| {
+            lib.assumed(
+                &name,
+                "type",
+                format!("`{comment}` does not name the shape: flat end mill assumed"),
+            );
             ToolShape::Flat
-        };
+        });
         let mut tool = default_tool(shape, diameter * unit);
         tool.name = Some(comment.to_string());
         let value = |key: &str| {
@@ -60,30 +47,12 @@ pub fn tools_from_header(program: &str) -> ToolLibrary {
                 .find_map(|w| w.strip_prefix(key))
                 .and_then(|v| v.trim_end_matches("deg").parse::<f64>().ok())
         };
-        match shape {
-            ToolShape::BullNose => match value("CR=") {
-                Some(r) if r > 0.0 => tool.corner_radius = r * unit,
-                _ => {
-                    tool.corner_radius = tool.diameter / 10.0;
-                    lib.assumed(
-                        &name,
-                        "corner_radius_mm",
-                        format!("no CR=: {} (D/10) assumed", tool.corner_radius),
-                    );
-                }
-            },
-            ToolShape::Chamfer => match value("TAPER=") {
-                Some(a) if a > 0.0 && a < 90.0 => tool.taper_half_angle_deg = a,
-                _ => {
-                    tool.taper_half_angle_deg = if lower.contains("drill") { 59.0 } else { 45.0 };
-                    lib.assumed(
-                        &name,
-                        "taper_half_angle_deg",
-                        format!("no TAPER=: {}° assumed", tool.taper_half_angle_deg),
-                    );
-                }
-            },
-            _ => {}
+        match (shape, value("CR="), value("TAPER=")) {
+            (ToolShape::BullNose, Some(r), _) if r > 0.0 => tool.corner_radius = r * unit,
+            (ToolShape::Chamfer, _, Some(a)) if a > 0.0 && a < 90.0 => {
+                tool.taper_half_angle_deg = a
+            }
+            _ => super::assume_shape_details(&mut lib, &name, &mut tool, text),
         }
         note_defaults(&mut lib, &name, &tool, &[]);
         if tool.validate().is_ok() {

@@ -52,52 +52,19 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
                 "the cutting diameter is missing or not positive",
             )
         })?;
-        let c = comment.to_ascii_lowercase();
-        let (shape, said) = if c.contains("ball") {
-            (ToolShape::Ball, true)
-        } else if c.contains("bull") {
-            (ToolShape::BullNose, true)
-        } else if c.contains("chamfer") || c.contains("drill") || c.contains("spot") {
-            (ToolShape::Chamfer, true)
-        } else {
-            (
-                ToolShape::Flat,
-                c.contains("flat") || c.contains("end mill") || c.contains("endmill"),
-            )
-        };
-        let mut tool = super::default_tool(shape, d);
-        tool.name = Some(comment.trim())
-            .filter(|s| !s.is_empty())
-            .map(str::to_string);
-        if !said {
+        let shape = super::shape_named_in(comment);
+        if shape.is_none() {
             lib.assumed(
                 &name,
                 "type",
                 "the comment does not name the shape: flat end mill assumed",
             );
         }
-        match shape {
-            ToolShape::BullNose => {
-                tool.corner_radius = d / 10.0;
-                lib.assumed(
-                    &name,
-                    "corner_radius_mm",
-                    format!("not in a tool table: {} (D/10) assumed", tool.corner_radius),
-                );
-            }
-            ToolShape::Chamfer => {
-                tool.taper_half_angle_deg = if c.contains("drill") { 59.0 } else { 45.0 };
-                lib.assumed(
-                    &name,
-                    "taper_half_angle_deg",
-                    format!(
-                        "not in a tool table: {}° assumed",
-                        tool.taper_half_angle_deg
-                    ),
-                );
-            }
-            _ => {}
-        }
+        let mut tool = super::default_tool(shape.unwrap_or(ToolShape::Flat), d);
+        tool.name = Some(comment.trim())
+            .filter(|s| !s.is_empty())
+            .map(str::to_string);
+        super::assume_shape_details(&mut lib, &name, &mut tool, comment);
         lib.assumed(
             &name,
             "unit",

@@ -139,6 +139,57 @@ fn default_tool(shape: crate::tool::ToolShape, diameter: f64) -> Tool {
     t
 }
 
+/// The shape a free text names (a tool table's comment, a CAM post's tool comment): None
+/// when it names none.
+fn shape_named_in(text: &str) -> Option<crate::tool::ToolShape> {
+    use crate::tool::ToolShape;
+    let t = text.to_ascii_lowercase();
+    if t.contains("ball") {
+        Some(ToolShape::Ball)
+    } else if t.contains("bull") {
+        Some(ToolShape::BullNose)
+    } else if t.contains("chamfer") || t.contains("drill") || t.contains("spot") {
+        Some(ToolShape::Chamfer)
+    } else if t.contains("flat")
+        || t.contains("end mill")
+        || t.contains("endmill")
+        || t.contains("face")
+    {
+        Some(ToolShape::Flat)
+    } else {
+        None
+    }
+}
+
+/// A corner radius or cone angle a source does not give: D/10 for a bull nose, 59° for a
+/// drill's point and 45° for other cones, reported as assumed.
+fn assume_shape_details(lib: &mut ToolLibrary, name: &str, tool: &mut Tool, text: &str) {
+    use crate::tool::ToolShape;
+    match tool.shape {
+        ToolShape::BullNose => {
+            tool.corner_radius = tool.diameter / 10.0;
+            lib.assumed(
+                name,
+                "corner_radius_mm",
+                format!("not given: {} (D/10) assumed", tool.corner_radius),
+            );
+        }
+        ToolShape::Chamfer => {
+            tool.taper_half_angle_deg = if text.to_ascii_lowercase().contains("drill") {
+                59.0
+            } else {
+                45.0
+            };
+            lib.assumed(
+                name,
+                "taper_half_angle_deg",
+                format!("not given: {}° assumed", tool.taper_half_angle_deg),
+            );
+        }
+        _ => {}
+    }
+}
+
 /// The assumed values of [`default_tool`] as report notes.
 fn note_defaults(lib: &mut ToolLibrary, name: &str, t: &Tool, given: &[&str]) {
     for (field, value) in [
