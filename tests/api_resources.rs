@@ -341,3 +341,34 @@ async fn bad_input_is_a_problem_document_naming_what_and_where() {
     let (st, _) = problem(c.put(s.url("/v1/tools")).send().await.unwrap()).await;
     assert_eq!(st, 405);
 }
+
+#[tokio::test]
+async fn download_names_are_cleaned_of_paths_and_control_characters() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    // `../../etc/pass<CR><LF>wd "ö".nc`, percent-encoded in the query.
+    let (st, v) = json(
+        c.post(s.url("/v1/programs?name=..%2F..%2Fetc%2Fpass%0D%0Awd%20%22%C3%B6%22.nc"))
+            .body("G0 X1\n")
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 201, "{v}");
+    let res = c
+        .get(s.url(&format!(
+            "/v1/programs/{}/content",
+            v["id"].as_str().unwrap()
+        )))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 200);
+    let cd = res.headers()["content-disposition"].to_str().unwrap();
+    assert_eq!(
+        cd, "attachment; filename=\"passwd ___.nc\"; filename*=UTF-8''passwd%20%22%C3%B6%22.nc",
+        "{cd}"
+    );
+}

@@ -580,15 +580,12 @@ async fn artifact(
             ),
         )
     })?;
-    let disposition = format!("attachment; filename=\"{}\"", a.file_name.replace('"', ""));
-    Ok((
-        [
-            (header::CONTENT_TYPE, a.media_type),
-            (header::CONTENT_DISPOSITION, disposition),
-        ],
-        a.content,
-    )
-        .into_response())
+    let mut res = ([(header::CONTENT_TYPE, a.media_type)], a.content).into_response();
+    res.headers_mut().insert(
+        header::CONTENT_DISPOSITION,
+        super::download::attachment(&a.file_name),
+    );
+    Ok(res)
 }
 
 #[derive(Deserialize)]

@@ -2,6 +2,7 @@
 
 pub mod auth;
 pub mod body;
+pub mod download;
 pub mod jobs;
 pub mod ops;
 pub mod problem;

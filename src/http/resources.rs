@@ -225,13 +225,10 @@ pub async fn content(
         .ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
     let mut res = ([(header::CONTENT_TYPE, mt)], bytes).into_response();
     if let Some(name) = name {
-        let safe: String = name
-            .chars()
-            .filter(|c| !matches!(c, '"' | '\\' | '\r' | '\n'))
-            .collect();
-        if let Ok(v) = format!("attachment; filename=\"{safe}\"").parse() {
-            res.headers_mut().insert(header::CONTENT_DISPOSITION, v);
-        }
+        res.headers_mut().insert(
+            header::CONTENT_DISPOSITION,
+            super::download::attachment(&name),
+        );
     }
     Ok(res)
 }
