@@ -62,6 +62,171 @@ pub(crate) struct Sweep<'a> {
     cap_r: f64,
     /// Horizontal moves: the path's stadium seen by X rays and by Y rays.
     stadium: [Stadium; 2],
+    /// Per ray family, two slabs `lo ≤ p·normal ≤ hi` holding the swept body (see
+    /// `slab_range`).
+    slabs: [[Slab; 2]; 3],
+}
+
+/// The points p with `lo ≤ p·normal ≤ hi`.
+#[derive(Clone, Copy, Debug)]
+struct Slab {
+    normal: [f64; 3],
+    lo: f64,
+    hi: f64,
+}
+
+impl Slab {
+    const ALL: Slab = Slab {
+        normal: [0.0; 3],
+        lo: f64::NEG_INFINITY,
+        hi: f64::INFINITY,
+    };
+
+    /// Along the rays of family `fam` in row v: (lo, hi, slope) of the range as a linear
+    /// function of u, and the u-range where it applies (all u unless the slab is parallel
+    /// to the rays).
+    fn row(&self, fam: usize, v: f64) -> ((f64, f64, f64), (f64, f64)) {
+        let (ua, va) = other_axes(fam);
+        let n = self.normal;
+        let (lo, hi) = (self.lo - n[va] * v, self.hi - n[va] * v);
+        let nf = n[fam];
+        let all = (f64::NEG_INFINITY, f64::INFINITY);
+        if nf.abs() > 1e-9 {
+            let slope = -n[ua] / nf;
+            let (x, y) = (lo / nf, hi / nf);
+            ((x.min(y), x.max(y), slope), all)
+        } else if n[ua].abs() > 1e-12 {
+            // lo ≤ n_u·u ≤ hi, whatever s.
+            let (x, y) = (lo / n[ua], hi / n[ua]);
+            (
+                (f64::NEG_INFINITY, f64::INFINITY, 0.0),
+                (x.min(y), x.max(y)),
+            )
+        } else if lo <= 0.0 && 0.0 <= hi {
+            ((f64::NEG_INFINITY, f64::INFINITY, 0.0), all)
+        } else {
+            (
+                (f64::NEG_INFINITY, f64::INFINITY, 0.0),
+                (f64::INFINITY, f64::NEG_INFINITY),
+            )
+        }
+    }
+
+    /// The slab's range along the ray of family `fam` at cross coordinates (u, v).
+    #[inline]
+    fn along(&self, fam: usize, u: f64, v: f64) -> (f64, f64) {
+        let (ua, va) = other_axes(fam);
+        let n = self.normal;
+        let rest = n[ua] * u + n[va] * v;
+        let (lo, hi) = (self.lo - rest, self.hi - rest);
+        let nf = n[fam];
+        if nf.abs() > 1e-9 {
+            let (x, y) = (lo / nf, hi / nf);
+            if nf > 0.0 {
+                (x, y)
+            } else {
+                (y, x)
+            }
+        } else if lo <= 0.0 && 0.0 <= hi {
+            (f64::NEG_INFINITY, f64::INFINITY)
+        } else {
+            (f64::INFINITY, f64::NEG_INFINITY)
+        }
+    }
+}
+
+/// A sweep's slabs along the rays of one row, each range linear in the cross coordinate
+/// u: `lo[k] + slope[k]·u ..= hi[k] + slope[k]·u`, for u within `u_clip`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RowSlabs {
+    lo: [f64; 2],
+    hi: [f64; 2],
+    slope: [f64; 2],
+    u_clip: (f64, f64),
+}
+
+impl RowSlabs {
+    /// The range along the ray at u where the sweep may lie (empty when lo > hi).
+    #[inline]
+    pub(crate) fn at(&self, u: f64) -> (f64, f64) {
+        let (s0, s1) = (self.slope[0] * u, self.slope[1] * u);
+        (
+            (self.lo[0] + s0).max(self.lo[1] + s1),
+            (self.hi[0] + s0).min(self.hi[1] + s1),
+        )
+    }
+
+    /// The u-range of the rays whose range is non-empty and meets (a, b): the rays the
+    /// candidates' test could pass, widened a little for rounding.
+    pub(crate) fn chord(&self, a: f64, b: f64) -> Option<(f64, f64)> {
+        let (mut ulo, mut uhi) = self.u_clip;
+        // Each pair (a lower end, an upper end) must stay ordered: c + d·u ≤ 0.
+        let lows = [
+            (self.lo[0], self.slope[0]),
+            (self.lo[1], self.slope[1]),
+            (a, 0.0),
+        ];
+        let highs = [
+            (self.hi[0], self.slope[0]),
+            (self.hi[1], self.slope[1]),
+            (b, 0.0),
+        ];
+        for (i, &(l, ls)) in lows.iter().enumerate() {
+            for (j, &(h, hs)) in highs.iter().enumerate() {
+                if i == j && i < 2 {
+                    continue;
+                }
+                let (c, d) = (l - h, ls - hs);
+                if c.is_nan() {
+                    return None;
+                }
+                if d.abs() < 1e-300 {
+                    if c > 0.0 {
+                        return None;
+                    }
+                } else if d > 0.0 {
+                    uhi = uhi.min(-c / d);
+                } else {
+                    ulo = ulo.max(-c / d);
+                }
+            }
+        }
+        let margin = 1e-9 * (1.0 + ulo.abs().max(uhi.abs()));
+        (ulo <= uhi).then_some((ulo - margin, uhi + margin))
+    }
+}
+
+/// The two slabs holding the body swept from `p0` to `p1` that bound the rays of family
+/// `fam` most tightly: across the axis (between the tip's plane at its lowest and the
+/// top's at its highest), and along the ray's direction with the axis part taken out
+/// (the body lies within R of its axis). Shrunk by 1e-9 mm: material within that of the
+/// bound is not worth an exact intersection.
+fn slabs_for(body: &ToolBody, mv: &SubMove, fam: usize) -> [Slab; 2] {
+    const SHRINK: f64 = 1e-9;
+    let a = mv.axis;
+    let (h0, h1) = (dot(mv.p0, a), dot(mv.p1, a));
+    let across = Slab {
+        normal: a,
+        lo: h0.min(h1) + SHRINK,
+        hi: h0.max(h1) + body.length - SHRINK,
+    };
+    let mut n = [0.0; 3];
+    n[fam] = 1.0;
+    let t = n[fam] * a[fam];
+    let n = [n[0] - t * a[0], n[1] - t * a[1], n[2] - t * a[2]];
+    let len = norm(n);
+    let side = if len > 1e-6 {
+        let n = [n[0] / len, n[1] / len, n[2] / len];
+        let (c0, c1) = (dot(mv.p0, n), dot(mv.p1, n));
+        Slab {
+            normal: n,
+            lo: c0.min(c1) - body.radius + SHRINK,
+            hi: c0.max(c1) + body.radius - SHRINK,
+        }
+    } else {
+        Slab::ALL
+    };
+    [across, side]
 }
 
 impl<'a> Sweep<'a> {
@@ -103,6 +268,7 @@ impl<'a> Sweep<'a> {
                 Stadium::new([mv.p0[0], mv.p0[1]], [mv.p1[0], mv.p1[1]]),
                 Stadium::new([mv.p0[1], mv.p0[0]], [mv.p1[1], mv.p1[0]]),
             ],
+            slabs: [0, 1, 2].map(|fam| slabs_for(body, &mv, fam)),
         }
     }
 
@@ -141,7 +307,32 @@ impl<'a> Sweep<'a> {
                 _ => self.h_ray(1, 0, v, u),
             }
         } else {
-            self.general_ray(fam, u, v, s_min, s_max, material)
+            let (a, b) = self.slab_range(fam, u, v);
+            self.general_ray(fam, u, v, (a.max(s_min), b.min(s_max)), material)
+        }
+    }
+
+    /// Where along the ray of family `fam` at (u, v) the sweep may lie (empty when
+    /// lo > hi): the two slabs' common range, cheap enough to test before any exact
+    /// intersection.
+    #[inline]
+    pub(crate) fn slab_range(&self, fam: usize, u: f64, v: f64) -> (f64, f64) {
+        let [a, b] = self.slabs[fam];
+        let (a0, a1) = a.along(fam, u, v);
+        let (b0, b1) = b.along(fam, u, v);
+        (a0.max(b0), a1.min(b1))
+    }
+
+    /// The slabs' ranges along the rays of family `fam` in row v.
+    pub(crate) fn row_slabs(&self, fam: usize, v: f64) -> RowSlabs {
+        let [a, b] = self.slabs[fam];
+        let ((alo, ahi, asl), aclip) = a.row(fam, v);
+        let ((blo, bhi, bsl), bclip) = b.row(fam, v);
+        RowSlabs {
+            lo: [alo, blo],
+            hi: [ahi, bhi],
+            slope: [asl, bsl],
+            u_clip: (aclip.0.max(bclip.0), aclip.1.min(bclip.1)),
         }
     }
 
@@ -298,6 +489,67 @@ mod tests {
             }
             assert!(checked > 50, "{checked}");
         }
+    }
+
+    #[test]
+    fn slabs_hold_the_exact_interval_and_chords_hold_the_rays() {
+        let mut seed = 99u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let full = Intervals::from_slice(&[[-100.0, 100.0]]);
+        let mut hits = 0;
+        for tool in [Tool::flat(6.0, 2), Tool::ball(6.0, 2)] {
+            let mut t = tool.clone();
+            t.flute_length = 10.0;
+            let body = ToolBody::cutting_part(&t);
+            for _ in 0..400 {
+                let th = rnd() * 1.2 + 0.01;
+                let ph = rnd() * std::f64::consts::TAU;
+                let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                let p1 = [rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0, rnd() * 2.0 - 1.0];
+                let sw = Sweep::new(
+                    &body,
+                    SubMove {
+                        p0: [0.0; 3],
+                        p1,
+                        axis,
+                    },
+                );
+                let fam = (rnd() * 3.0) as usize % 3;
+                let v = rnd() * 16.0 - 8.0;
+                let rs = sw.row_slabs(fam, v);
+                let chord = rs.chord(-100.0, 100.0);
+                for k in 0..40 {
+                    let u = -8.0 + 0.4 * k as f64;
+                    let (lo, hi) = rs.at(u);
+                    let (a, b) = sw.slab_range(fam, u, v);
+                    assert!(
+                        (lo - a).abs() < 1e-9 * (1.0 + a.abs()) || lo == a,
+                        "{lo} {a}"
+                    );
+                    assert!(
+                        (hi - b).abs() < 1e-9 * (1.0 + b.abs()) || hi == b,
+                        "{hi} {b}"
+                    );
+                    // The exact interval, cast over the whole ray, lies within the slabs.
+                    let Some((s0, s1)) = sw.general_ray(fam, u, v, (-60.0, 60.0), &full) else {
+                        continue;
+                    };
+                    if s1 - s0 < 1e-6 {
+                        continue;
+                    }
+                    hits += 1;
+                    assert!(s0 >= lo - 1e-6 && s1 <= hi + 1e-6, "{s0} {s1} vs {lo} {hi}");
+                    let (c0, c1) = chord.expect("a ray meets the sweep inside its chord");
+                    assert!(c0 <= u && u <= c1, "{u} outside {c0} {c1}");
+                }
+            }
+        }
+        assert!(hits > 500, "{hits}");
     }
 
     #[test]

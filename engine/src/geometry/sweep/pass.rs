@@ -304,7 +304,8 @@ fn remove_family(
                 group,
             } = &sweeps[bx.sweep];
             let (removed, exact, changed) = &mut out[*group];
-            let (lo_f, hi_f) = (lo[fam], hi[fam]);
+            let (lo_f, hi_f) = (lo[fam].max(s_min), hi[fam].min(s_max));
+            let row_slabs = (!sweep.vertical).then(|| sweep.row_slabs(fam, v));
             let row_in_section = !bx.column_sections.is_empty() && sweep.in_constant_section(v);
             // Y rays (fam 1) of one row share their interval in the constant section.
             let mut row_section = None;
@@ -318,13 +319,13 @@ fn remove_family(
                     }
                     None => continue,
                 }
-            } else if !sweep.vertical {
-                // Any other sweep lies in its capsule: the rays that can meet it are the
-                // row's chord of the capsule's shadow along them (the others the capsule
-                // test would turn away one by one).
-                match sweep.capsule_chord(fam, v) {
-                    Some((x0, x1)) => {
-                        let (a, b) = index_range(g.origin[ua], h, g.n[ua], x0, x1);
+            } else if let Some(rs) = &row_slabs {
+                // Any other sweep lies in its capsule and in its slabs: the rays that can
+                // meet it are the row's chord of the capsule's shadow along them, and of
+                // the slabs' (the others the per-ray tests would turn away one by one).
+                match sweep.capsule_chord(fam, v).zip(rs.chord(lo_f, hi_f)) {
+                    Some(((x0, x1), (y0, y1))) => {
+                        let (a, b) = index_range(g.origin[ua], h, g.n[ua], x0.max(y0), x1.min(y1));
                         (a.max(bx.u0), b.min(bx.u1))
                     }
                     None => continue,
@@ -338,14 +339,26 @@ fn remove_family(
                 // half the rays pass, in no order a branch predictor could learn.
                 let chunk = &row_summaries[c0..bu1.min(c0 + 64)];
                 let mut candidates = 0u64;
+                // A tilted sweep's extent along each ray is its slab's there: far tighter
+                // than its box under a tilted tool's upper part, where the material is
+                // the floor far below the flank.
+                let extent = |iu: usize| match &row_slabs {
+                    None => (lo_f, hi_f),
+                    Some(rs) => {
+                        let (a, b) = rs.at(ou + (iu as f64 + 0.5) * h);
+                        (a.max(lo_f), b.min(hi_f))
+                    }
+                };
                 for (i, s) in chunk.iter().enumerate() {
-                    candidates |= (s.may_overlap(lo_f, hi_f) as u64) << i;
+                    let (a, b) = extent(c0 + i);
+                    candidates |= (s.may_overlap(a, b) as u64) << i;
                 }
                 while candidates != 0 {
                     let iu = c0 + candidates.trailing_zeros() as usize;
                     candidates &= candidates - 1;
                     let ray = &mut row[iu];
-                    if !ray.iter().any(|r| r[0] < hi_f && lo_f < r[1]) {
+                    let (ea, eb) = extent(iu);
+                    if !ray.iter().any(|r| r[0] < eb && ea < r[1]) {
                         continue;
                     }
                     let u = ou + (iu as f64 + 0.5) * h;
@@ -354,8 +367,10 @@ fn remove_family(
                         bx.column_sections[iu - bx.u0]
                     } else if fam == 1 && sweep.in_constant_section(u) {
                         *row_section.get_or_insert_with(|| sweep.section(1, v))
-                    } else {
+                    } else if sweep.vertical {
                         sweep.ray_interval(fam, u, v, s_min, s_max, ray)
+                    } else {
+                        sweep.general_ray(fam, u, v, (ea, eb), ray)
                     };
                     if let Some((a, b)) = hit {
                         let r = subtract(ray, a, b);

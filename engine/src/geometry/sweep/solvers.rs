@@ -1,8 +1,6 @@
 //! The 1-D and 2-D solvers of the sweeps: convex searches, chords of stadiums, and the
-//! closed-form intersections of a line with a capsule, a swept cylinder and a capsule
-//! seen along a grid axis.
+//! closed-form intersections of a line with a capsule and with a swept cylinder.
 
-use crate::geometry::dexel::other_axes;
 use crate::vec3::{dot, sub};
 
 const GOLDEN_ITERS: usize = 56;
@@ -379,57 +377,4 @@ pub(super) fn swept_cylinder(
         }
     }
     (lo <= hi && lo.is_finite() && hi.is_finite()).then_some((lo, hi))
-}
-
-/// Intersection of the axis-parallel line through `o` along axis `fam` with the capsule
-/// of radius `r` around segment a–b, as an interval of the coordinate along the line.
-pub(super) fn ray_capsule(
-    o: [f64; 3],
-    fam: usize,
-    a: [f64; 3],
-    b: [f64; 3],
-    r: f64,
-) -> Option<(f64, f64)> {
-    let mut lo = f64::INFINITY;
-    let mut hi = f64::NEG_INFINITY;
-    let (ua, va) = other_axes(fam);
-    for c in [a, b] {
-        let d2 = (o[ua] - c[ua]).powi(2) + (o[va] - c[va]).powi(2);
-        if d2 <= r * r {
-            let w = (r * r - d2).sqrt();
-            lo = lo.min(c[fam] - w);
-            hi = hi.max(c[fam] + w);
-        }
-    }
-    // Finite cylinder: distance to the axis line ≤ r with the projection inside a–b.
-    let d = sub(b, a);
-    let dd = dot(d, d);
-    let mut m = sub(o, a);
-    m[fam] = 0.0; // measure along the line from the point level with a
-    let nd = d[fam];
-    let md = dot(m, d);
-    let qa = dd - nd * nd;
-    if qa > 1e-12 * dd {
-        let mn = 0.0; // m has no component along the line
-        let qb = dd * mn - nd * md;
-        let qc = dd * (dot(m, m) - r * r) - md * md;
-        let disc = qb * qb - qa * qc;
-        if disc >= 0.0 {
-            let sq = disc.sqrt();
-            let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
-            // Axial parameter t(s) = (md + s·nd)/dd must lie in [0, 1].
-            if nd.abs() > 1e-15 {
-                let (t0, t1) = ((0.0 - md) / nd, (dd - md) / nd);
-                s0 = s0.max(t0.min(t1));
-                s1 = s1.min(t0.max(t1));
-            } else if md < 0.0 || md > dd {
-                s1 = s0 - 1.0;
-            }
-            if s0 <= s1 {
-                lo = lo.min(a[fam] + s0);
-                hi = hi.max(a[fam] + s1);
-            }
-        }
-    }
-    (lo <= hi).then_some((lo, hi))
 }

@@ -8,7 +8,7 @@ use parry3d_f64::query::Ray;
 use parry3d_f64::shape::SupportMap;
 
 use super::profile::{Profile, ToolBody};
-use super::solvers::{hull, line_capsule, ray_capsule, swept_cylinder};
+use super::solvers::{hull, line_capsule, swept_cylinder};
 use super::Sweep;
 use crate::geometry::dexel::{other_axes, Intervals};
 use crate::vec3::{cross, dot, norm, sub};
@@ -46,33 +46,30 @@ pub(crate) fn frame_around(axis: [f64; 3]) -> ([f64; 3], [f64; 3]) {
 }
 
 impl Sweep<'_> {
-    pub(super) fn general_ray(
+    /// The interval of the ray of family `fam` at (u, v) within `extent` (a range along
+    /// it that holds the sweep there, see `slab_range`, clipped to the grid).
+    pub(crate) fn general_ray(
         &self,
         fam: usize,
         u: f64,
         v: f64,
-        s_min: f64,
-        s_max: f64,
+        extent: (f64, f64),
         material: &Intervals,
     ) -> Option<(f64, f64)> {
         let (ua, va) = other_axes(fam);
         let mut o = [0.0; 3];
         o[ua] = u;
         o[va] = v;
-        // Conservative bound first: the cutting part lies within R of its axis from the
-        // corner-arc centre height up (true for flat, ball, bull-nose and chamfer
-        // profiles), so the sub-move lies within R + |Δ|/2 of that segment at the
-        // sub-move's middle. Rays missing that capsule, or whose material lies outside
-        // it, need no GJK cast.
-        let (c_in, c_out) = ray_capsule(o, fam, self.cap_a, self.cap_b, self.cap_r)?;
-        if !material.iter().any(|iv| iv[0] < c_out && c_in < iv[1]) {
+        let (c_in, c_out) = extent;
+        if !(c_in <= c_out) || !material.iter().any(|iv| iv[0] < c_out && c_in < iv[1]) {
             return None;
         }
         let a = self.mv.axis;
         let mut e = [0.0; 3];
         e[fam] = 1.0;
-        let start = c_in.max(s_min) - 1e-3;
-        let span = c_out.min(s_max) + 1e-3 - start;
+        // The slabs are shrunk by 1e-9 mm: the margin takes the cast's start well outside.
+        let start = c_in - 1e-3;
+        let span = c_out + 1e-3 - start;
         if span <= 0.0 {
             return None;
         }
