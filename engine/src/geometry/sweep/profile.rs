@@ -1,6 +1,7 @@
 //! The cutting part of a tool as a solid of revolution: its profile r(z), the inverse
 //! profile and the support function the sweeps use.
 
+use super::solvers::Frustum;
 use crate::tool::{Tool, ToolShape};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -29,7 +30,19 @@ pub struct ToolBody {
     /// profile's top).
     pub top_radius: f64,
     pub(super) profile: Profile,
+    /// The cutting part as a stack of frustums from the tip up (`n_pieces` of them): exact
+    /// for flat and chamfer profiles; a bull-nose's corner arc by chords whose inner
+    /// vertices stand out by half their sagitta (so the error is ± half a sagitta, at
+    /// most `radius / CHORD_TOLERANCE_DIVISOR`). Tilted sweeps of these are closed forms.
+    pub(super) pieces: [Frustum; MAX_PIECES],
+    pub(super) n_pieces: usize,
 }
+
+/// At most this many frustums stand for a profile.
+pub(super) const MAX_PIECES: usize = 10;
+
+/// A corner arc's chords deviate from it by at most the tool radius over this.
+const CHORD_TOLERANCE_DIVISOR: f64 = 200.0;
 
 impl ToolBody {
     pub fn cutting_part(tool: &Tool) -> ToolBody {
@@ -50,9 +63,66 @@ impl ToolBody {
             length: tool.flute_length,
             top_radius: r,
             profile,
+            pieces: [Frustum::default(); MAX_PIECES],
+            n_pieces: 0,
         };
         b.top_radius = b.radius_at(b.length);
+        b.stack_pieces();
         b
+    }
+
+    /// Fills `pieces`: the profile's vertices (r, z) from the tip up, joined by frustums,
+    /// cut at the flute length.
+    fn stack_pieces(&mut self) {
+        let r = self.radius;
+        let mut verts: Vec<(f64, f64)> = Vec::with_capacity(MAX_PIECES + 1);
+        match self.profile {
+            Profile::Flat => verts.push((r, 0.0)),
+            Profile::Corner { rc } => {
+                // Chords of the arc (centre (r − rc, rc)) within the tolerance, the inner
+                // vertices moved out by half the sagitta.
+                let tol = r / CHORD_TOLERANCE_DIVISOR;
+                let half = (1.0 - tol / rc).clamp(-1.0, 1.0).acos().max(1e-3);
+                let n = ((std::f64::consts::FRAC_PI_2 / (2.0 * half)).ceil() as usize)
+                    .clamp(1, MAX_PIECES - 1);
+                let dpsi = std::f64::consts::FRAC_PI_2 / n as f64;
+                let grow = 1.0 + 0.5 * (1.0 - (0.5 * dpsi).cos());
+                for i in 0..=n {
+                    let psi = i as f64 * dpsi;
+                    let rr = if i == 0 || i == n { rc } else { rc * grow };
+                    verts.push((r - rc + rr * psi.sin(), rc - rr * psi.cos()));
+                }
+            }
+            Profile::Cone { rtip, ztop, .. } => {
+                verts.push((rtip, 0.0));
+                verts.push((r, ztop));
+            }
+        }
+        let top = verts.last().map_or(0.0, |v| v.1);
+        if top < self.length {
+            verts.push((r, self.length));
+        }
+        self.n_pieces = 0;
+        for w in verts.windows(2) {
+            let ((r0, z0), (r1, z1)) = (w[0], w[1]);
+            if z0 >= self.length || z1 <= z0 {
+                continue;
+            }
+            let z1c = z1.min(self.length);
+            let r1c = r0 + (r1 - r0) * (z1c - z0) / (z1 - z0);
+            self.pieces[self.n_pieces] = Frustum {
+                z0,
+                z1: z1c,
+                r0,
+                r1: r1c,
+            };
+            self.n_pieces += 1;
+        }
+    }
+
+    /// The frustums that make up the cutting part, from the tip up.
+    pub(super) fn pieces(&self) -> &[Frustum] {
+        &self.pieces[..self.n_pieces]
     }
 
     /// A ball of radius `r` with flute length `length` (handy in tests).

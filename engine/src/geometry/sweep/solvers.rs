@@ -378,3 +378,133 @@ pub(super) fn swept_cylinder(
     }
     (lo <= hi && lo.is_finite() && hi.is_finite()).then_some((lo, hi))
 }
+
+/// A frustum on the tool frame's z axis: radius `r0` at height `z0`, linearly to `r1` at
+/// `z1` (a cylinder when they are equal). The cutting part of every tool is a stack of
+/// these, exactly or within a tolerance (a bull-nose's corner arc by its chords).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Frustum {
+    pub z0: f64,
+    pub z1: f64,
+    pub r0: f64,
+    pub r1: f64,
+}
+
+/// Line o + s·e (e unit, tool frame) against the volume swept by the frustum `f` when it
+/// translates by d: the (s, β) with 0 ≤ β ≤ 1, z0 ≤ z ≤ z1 and |q| ≤ r(z), where
+/// (q, z) = o + s·e − β·d. That set is convex (a second-order cone cut by four
+/// half-planes), so its extreme s lie at a corner of the half-planes, where an edge of
+/// them crosses the cone's boundary, or where that boundary is tangent to a line of
+/// constant s (∂F/∂β = 0 with F = |q|² − r(z)²).
+pub(crate) fn swept_frustum(
+    o: [f64; 3],
+    e: [f64; 3],
+    d: [f64; 3],
+    f: &Frustum,
+) -> Option<(f64, f64)> {
+    const TOL: f64 = 1e-9;
+    let Frustum { z0, z1, r0, r1 } = *f;
+    if !(z1 > z0) {
+        return None;
+    }
+    let k = (r1 - r0) / (z1 - z0);
+    // q = g + s·ws + β·wb;  r = l0 + ks·s + kb·β  (valid for z within the frustum).
+    let (g, ws, wb) = ([o[0], o[1]], [e[0], e[1]], [-d[0], -d[1]]);
+    let l0 = r0 + k * (o[2] - z0);
+    let (ks, kb) = (k * e[2], -k * d[2]);
+    let inside = |s: f64, b: f64| {
+        let z = o[2] + s * e[2] - b * d[2];
+        if !(b >= -TOL && b <= 1.0 + TOL && z >= z0 - TOL && z <= z1 + TOL) {
+            return false;
+        }
+        let qx = g[0] + s * ws[0] + b * wb[0];
+        let qy = g[1] + s * ws[1] + b * wb[1];
+        let r = l0 + ks * s + kb * b;
+        r >= -TOL && qx * qx + qy * qy <= r * r * (1.0 + 1e-9) + TOL
+    };
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let mut take = |s: f64, b: f64| {
+        if s.is_finite() && inside(s, b) {
+            lo = lo.min(s);
+            hi = hi.max(s);
+        }
+    };
+    // Roots of a·t² + 2·b·t + c = 0.
+    let roots = |a: f64, b: f64, c: f64| -> [f64; 2] {
+        if a.abs() > 1e-14 {
+            let disc = b * b - a * c;
+            if disc < 0.0 {
+                return [f64::NAN; 2];
+            }
+            let sq = disc.sqrt();
+            [(-b - sq) / a, (-b + sq) / a]
+        } else if b.abs() > 1e-300 {
+            [-c / (2.0 * b), f64::NAN]
+        } else {
+            [f64::NAN; 2]
+        }
+    };
+    // |G + t·W|² = (L + K·t)²
+    let cone_roots = |gg: [f64; 2], w: [f64; 2], l: f64, kk: f64| {
+        roots(
+            w[0] * w[0] + w[1] * w[1] - kk * kk,
+            gg[0] * w[0] + gg[1] * w[1] - l * kk,
+            gg[0] * gg[0] + gg[1] * gg[1] - l * l,
+        )
+    };
+    // Edges β = 0 and 1.
+    for b in [0.0, 1.0] {
+        let gg = [g[0] + b * wb[0], g[1] + b * wb[1]];
+        for s in cone_roots(gg, ws, l0 + kb * b, ks) {
+            take(s, b);
+        }
+    }
+    // Edges z = z0 and z1: e_z·s − d_z·β = z − o_z, parametrized by whichever of s and β
+    // it moves fastest with (a ray almost across the axis has a tiny e_z).
+    let (ez, dz) = (e[2], d[2]);
+    if ez.abs() <= 1e-12 && dz.abs() <= 1e-12 {
+        if o[2] < z0 - TOL || o[2] > z1 + TOL {
+            return None;
+        }
+    } else {
+        for (zc, rc) in [(z0, r0), (z1, r1)] {
+            if ez.abs() >= dz.abs() {
+                let (s0, sb) = ((zc - o[2]) / ez, dz / ez);
+                let gg = [g[0] + s0 * ws[0], g[1] + s0 * ws[1]];
+                let w = [wb[0] + sb * ws[0], wb[1] + sb * ws[1]];
+                for b in cone_roots(gg, w, rc, 0.0) {
+                    take(s0 + sb * b, b);
+                }
+                for b in [0.0, 1.0] {
+                    take(s0 + sb * b, b);
+                }
+            } else {
+                let (b0, bs) = ((o[2] - zc) / dz, ez / dz);
+                let gg = [g[0] + b0 * wb[0], g[1] + b0 * wb[1]];
+                let w = [ws[0] + bs * wb[0], ws[1] + bs * wb[1]];
+                for s in cone_roots(gg, w, rc, 0.0) {
+                    take(s, b0 + bs * s);
+                }
+                if bs.abs() > 1e-300 {
+                    for b in [0.0, 1.0] {
+                        take((b - b0) / bs, b);
+                    }
+                }
+            }
+        }
+    }
+    // Tangent points: ∂F/∂β = 0 gives β = α·s + γ; on F = 0 that is a quadratic in s.
+    let dd = wb[0] * wb[0] + wb[1] * wb[1] - kb * kb;
+    if dd.abs() > 1e-14 {
+        let p = ws[0] * wb[0] + ws[1] * wb[1] - ks * kb;
+        let q = g[0] * wb[0] + g[1] * wb[1] - l0 * kb;
+        let (alpha, gamma) = (-p / dd, -q / dd);
+        let gg = [g[0] + gamma * wb[0], g[1] + gamma * wb[1]];
+        let w = [ws[0] + alpha * wb[0], ws[1] + alpha * wb[1]];
+        for s in cone_roots(gg, w, l0 + kb * gamma, ks + kb * alpha) {
+            take(s, alpha * s + gamma);
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}

@@ -8,7 +8,7 @@ use parry3d_f64::query::Ray;
 use parry3d_f64::shape::SupportMap;
 
 use super::profile::{Profile, ToolBody};
-use super::solvers::{hull, line_capsule, swept_cylinder};
+use super::solvers::{hull, line_capsule, swept_cylinder, swept_frustum};
 use super::Sweep;
 use crate::geometry::dexel::{other_axes, Intervals};
 use crate::vec3::{cross, dot, norm, sub};
@@ -82,7 +82,6 @@ impl Sweep<'_> {
         let body = self.body;
         let d = self.delta_local;
         let analytic = match body.profile {
-            Profile::Flat => Some(swept_cylinder(ol, el, d, body.radius, 0.0, body.length)),
             Profile::Corner { rc } if rc >= body.radius && body.length >= rc => {
                 let c = [0.0, 0.0, rc];
                 let c1 = [d[0], d[1], rc + d[2]];
@@ -91,6 +90,12 @@ impl Sweep<'_> {
                     swept_cylinder(ol, el, d, body.radius, rc, body.length),
                 ))
             }
+            // Every other profile is a stack of frustums (see `ToolBody::pieces`).
+            _ if body.n_pieces > 0 => Some(
+                body.pieces()
+                    .iter()
+                    .fold(None, |acc, f| hull(acc, swept_frustum(ol, el, d, f))),
+            ),
             _ => None,
         };
         if let Some(iv) = analytic {
