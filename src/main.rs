@@ -3,6 +3,7 @@
 mod config;
 mod csv;
 mod http;
+mod job_library;
 mod metrics;
 mod queue;
 mod run_cli;

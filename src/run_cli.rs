@@ -217,23 +217,15 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         for n in &library.report.assumed {
             eprintln!("{}: {} {}: {}", path.display(), n.tool, n.field, n.note);
         }
-        // Explicit tools win; a single --tool serves every number on its own.
-        if !inputs.contains_key("tool") {
-            for (number, tool) in &library.tools {
-                let name = format!("T{number}");
-                if !inputs.contains_key(&name) {
-                    let content = serde_json::to_vec(tool).map_err(|e| e.to_string())?;
-                    inputs.insert(
-                        name,
-                        LoadedInput {
-                            file_name: None,
-                            media_type: "application/json".into(),
-                            content,
-                        },
-                    );
-                }
-            }
-        }
+        // The runner gives each T number no --tool names its tool, as for a service job.
+        inputs.insert(
+            "tool_library".into(),
+            LoadedInput {
+                file_name: path.file_name().map(|n| n.to_string_lossy().to_string()),
+                media_type: "text/plain".into(),
+                content: text.into_bytes(),
+            },
+        );
     }
     runner::check_tool_inputs("simulate", inputs.keys()).map_err(|(_, m)| m)?;
     if let Some(path) = &args.part {

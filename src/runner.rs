@@ -21,6 +21,7 @@ use millsim_engine::pipeline::{self, SimulateError, SimulateSpec, StockSource};
 use millsim_engine::tool::Tool;
 use millsim_engine::{geometry, nc};
 
+use crate::job_library::JobLibrary;
 use crate::store::ResourceKind;
 
 /// Job kinds the API knows. Only the ones whose engine exists run; the others are refused
@@ -61,12 +62,14 @@ const fn input(name: &'static str, kind: ResourceKind, required: bool) -> InputS
 /// The inputs each kind takes.
 pub fn inputs_of(kind: &str) -> &'static [InputSpec] {
     const INTERPRET: [InputSpec; 1] = [input("program", ResourceKind::Program, true)];
-    const SIMULATE: [InputSpec; 6] = [
+    const SIMULATE: [InputSpec; 7] = [
         input("program", ResourceKind::Program, true),
         input("stock", ResourceKind::Stock, true),
         // The tool for every T number; or one input per number, `T1`, `T2`, ...
-        // (see `tool_number_input`): one of the two forms is required.
+        // (see `tool_number_input`); else the tool library's, else the program header's.
         input("tool", ResourceKind::Tool, false),
+        // The tools of the T numbers no tool input names.
+        input("tool_library", ResourceKind::ToolLibrary, false),
         // Else `options.material` names a built-in material.
         input("material", ResourceKind::Material, false),
         // Else a generic 3-axis machine.
@@ -477,6 +480,10 @@ struct SimulateSummary<'a> {
     force_peak_opt_n: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     optimization: Option<&'a pipeline::OptimizationSummary>,
+    /// With a `tool_library` input: its file and format, the T numbers it gave that cut,
+    /// and its import report's notes on them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tool_library: Option<Value>,
     row_columns: Vec<String>,
 }
 
@@ -508,6 +515,15 @@ fn simulate_job(
         let tool: Tool = required(json_input(&mut inputs, &name, "tool")?, &name)?;
         tools.insert(number, tool);
     }
+    let library = inputs
+        .remove("tool_library")
+        .map(JobLibrary::load)
+        .transpose()
+        .map_err(JobFailure::Invalid)?
+        .map(|mut library| {
+            library.fill(&mut tools);
+            library
+        });
     let material = job_material(opts.material.as_deref(), &mut inputs)?;
     let machine = json_input(&mut inputs, "machine", "machine")?.unwrap_or_else(Machine::generic);
     let stock = inputs
@@ -550,7 +566,7 @@ fn simulate_job(
             None => None,
         },
     };
-    let out = pipeline::simulate(&spec, cancel, progress).map_err(|e| match e {
+    let mut out = pipeline::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,
         SimulateError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
         other => invalid("Simulation refused", format!("{file}: {other}")),
@@ -582,6 +598,11 @@ fn simulate_job(
         }
     });
     let stl = stl.map_err(|e| invalid("Stock export failed", e.to_string()))?;
+    let tool_library = library.map(|library| {
+        let (section, warnings) = library.report(&out.tool_numbers);
+        out.summary.tool_warnings.extend(warnings);
+        section
+    });
     let row_columns = match serde_json::to_value(out.rows.first().cloned().unwrap_or_default()) {
         Ok(Value::Object(o)) => o.keys().cloned().collect(),
         _ => Vec::new(),
@@ -614,6 +635,7 @@ fn simulate_job(
             cycle_time_opt_s: out.optimization.as_ref().map(|o| o.cycle_time_after_s),
             force_peak_opt_n: out.optimization.as_ref().map(|o| o.peak_force_after),
             optimization: out.optimization.as_ref(),
+            tool_library,
             row_columns,
         })
         .expect("summary serializes"),

@@ -4,6 +4,7 @@
 
 use serde_json::{json, Value};
 
+use millsim_engine::tool_library::ToolLibrary;
 use millsim_engine::{geometry, machine::Machine, nc, physics::Material, tool::Tool};
 
 use crate::http::problem::{parse_json, ApiError};
@@ -62,14 +63,20 @@ pub fn looks_like_cls(text: &str) -> bool {
     })
 }
 
-/// NC program text: UTF-8 (or plain ASCII), then the syntax of G-code or CLS.
-pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
-    let text = std::str::from_utf8(bytes).map_err(|e| {
+/// An uploaded text file as UTF-8 (or plain ASCII), else a problem naming the line and
+/// column of the first byte that is not.
+fn utf8<'a>(
+    bytes: &'a [u8],
+    file: &str,
+    slug: &'static str,
+    title: &'static str,
+) -> Result<&'a str, ApiError> {
+    std::str::from_utf8(bytes).map_err(|e| {
         let (line, column) = line_col(bytes, e.valid_up_to());
         ApiError::new(
             axum::http::StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid-program",
-            "Program is not text",
+            slug,
+            title,
             format!(
                 "{file}:{line}:{column}: byte 0x{:02x} is not UTF-8 text",
                 bytes[e.valid_up_to()]
@@ -78,7 +85,12 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
         .with("file", file.to_string())
         .with("line", line)
         .with("column", column)
-    })?;
+    })
+}
+
+/// NC program text: UTF-8 (or plain ASCII), then the syntax of G-code or CLS.
+pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
+    let text = utf8(bytes, file, "invalid-program", "Program is not text")?;
     if text.trim().is_empty() {
         return Err(ApiError::invalid_field(
             "content",
@@ -129,6 +141,40 @@ pub fn stock_json(bytes: &[u8]) -> Result<Validated, ApiError> {
     Ok(Validated {
         media_type: "application/json",
         summary: json!({ "format": "parametric", "bounds": { "min": min, "max": max } }),
+    })
+}
+
+/// A tool library (Fusion 360 JSON, LinuxCNC tool table or CSV, told apart by content)
+/// read by the engine; errors name the file, the tool or line, and the field.
+pub fn read_tool_library(bytes: &[u8], file: &str) -> Result<ToolLibrary, ApiError> {
+    let text = utf8(
+        bytes,
+        file,
+        "invalid-tool-library",
+        "Tool library is not text",
+    )?;
+    ToolLibrary::read(text).map_err(|e| {
+        let mut err = ApiError::from(e);
+        err.detail = format!("{file}: {}", err.detail);
+        err.with("file", file.to_string())
+    })
+}
+
+/// A tool library to store: its media type follows the format read.
+pub fn tool_library(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
+    let lib = read_tool_library(bytes, file)?;
+    Ok(Validated {
+        media_type: match lib.format {
+            "fusion360" => "application/json",
+            "csv" => "text/csv",
+            _ => "text/plain",
+        },
+        summary: json!({
+            "format": lib.format,
+            "tools": lib.tools.len(),
+            "unmodelled": lib.report.unmodelled.len(),
+            "assumed": lib.report.assumed.len(),
+        }),
     })
 }
 

@@ -642,3 +642,11 @@ fn g43_jump_and_g49() {
         (30.0, 5.0, None)
     );
 }
+
+#[test]
+fn t_words_are_recorded_with_the_line_of_their_first_selection() {
+    // T1 selected but never loaded (a one-tool Fusion post), then T2 loaded, T1 again.
+    let i = run("T1\nG0 X1\nT2 M6\nG0 X2\nT1 M6\nG0 X3\n");
+    assert_eq!(i.selected_tools, vec![(1, 1), (2, 3)]);
+    assert!(run("G0 X1\n").selected_tools.is_empty());
+}

@@ -220,11 +220,17 @@ fn the_example_job_runs_with_its_tool_from_a_library_or_from_its_own_header() {
     )
     .unwrap();
     assert_eq!(lib.tools[&1], tool_json);
-    let from_library = run(BTreeMap::from([(0, lib.tools[&1].clone())]));
+    // The library's tools by number, as a job gives them (with one the program never uses):
+    // T1, the number the program selects, cuts every move.
+    let mut tools = lib.tools.clone();
+    tools.insert(9, Tool::ball(0.5, 2));
+    let from_library = run(tools);
     assert_eq!(
         from_library.summary.peak_force,
         reference.summary.peak_force
     );
+    assert_eq!(from_library.tool_numbers, vec![1]);
+    assert!(from_library.summary.tool_warnings.is_empty());
 
     // No tool at all: T1 from the header comment `(T1 D=2.65 CR=0 - ... - flat end mill)`,
     // 2 flutes and a 30° helix assumed (as tool.json has them), flute length 3·D.

@@ -4,6 +4,8 @@ use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use serde_json::{json, Map, Value};
 
+use millsim_engine::tool_library::ToolLibraryError;
+
 use crate::store::StoreError;
 
 pub const PROBLEM_JSON: &str = "application/problem+json";
@@ -143,6 +145,29 @@ impl From<StoreError> for ApiError {
             "Storage unavailable",
             "the database could not complete the request; retry later",
         )
+    }
+}
+
+impl From<ToolLibraryError> for ApiError {
+    fn from(e: ToolLibraryError) -> Self {
+        // The engine names the tool by its T number and place ("T3 (line 4)", "data[2]"):
+        // a line there is the file's line.
+        let line = e
+            .tool
+            .split_once("line ")
+            .and_then(|(_, rest)| rest.trim_end_matches(')').parse::<u64>().ok());
+        let mut err = ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid-tool-library",
+            "Tool library does not read",
+            e.to_string(),
+        )
+        .with("field", e.field)
+        .with("tool", e.tool);
+        if let Some(line) = line {
+            err = err.with("line", line);
+        }
+        err
     }
 }
 

@@ -1,16 +1,22 @@
-//! Inputs: stocks, tools, materials, machines, programs. Stored unchanged after the
-//! engine's readers validated them.
+//! Inputs: stocks, tools, materials, machines, programs, tool libraries. Stored unchanged
+//! after the engine's readers validated them.
+
+use std::collections::BTreeMap;
 
 use axum::extract::{FromRequest, Multipart, Path, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
+use serde::Serialize;
 use serde_json::json;
+
+use millsim_engine::tool::Tool;
+use millsim_engine::tool_library::ImportReport;
 
 use super::body::{media_type, read_limited};
 use super::problem::ApiError;
 use super::{parse_query, AppState, Owner, PageQuery};
-use crate::store::resources::NewResource;
+use crate::store::resources::{NewResource, ResourceRecord};
 use crate::store::ResourceKind;
 use crate::validate::{self, Validated};
 
@@ -129,6 +135,21 @@ pub async fn create(
             .map_err(|_| ApiError::bad_request("the program could not be read"))??;
             (v.0, name, v.1)
         }
+        ResourceKind::ToolLibrary => {
+            // Any media type: the engine tells the format from the content, as offline.
+            let (bytes, name) = upload_bytes(req, limits.max_program_bytes).await?;
+            let file = query
+                .name
+                .clone()
+                .or(name.clone())
+                .unwrap_or_else(|| "tools".into());
+            let v = tokio::task::spawn_blocking(move || {
+                validate::tool_library(&bytes, &file).map(|v| (bytes, v))
+            })
+            .await
+            .map_err(|_| ApiError::bad_request("the tool library could not be read"))??;
+            (v.0, name, v.1)
+        }
         ResourceKind::Tool | ResourceKind::Material | ResourceKind::Machine => {
             if !(mt == "application/json" || mt.is_empty()) {
                 return Err(ApiError::new(
@@ -209,7 +230,50 @@ pub async fn get_one(
         .get_resource(&owner, kind, &id)
         .await?
         .ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
+    if kind == ResourceKind::ToolLibrary {
+        return library_view(&state, &owner, r).await;
+    }
     Ok(Json(r).into_response())
+}
+
+/// A tool library's record with what it holds: its format, its tools by T number (`"T1"`,
+/// each as POST /v1/tools takes a tool) and the import report (fields not modelled,
+/// values assumed).
+#[derive(Serialize)]
+struct LibraryView {
+    #[serde(flatten)]
+    record: ResourceRecord,
+    format: &'static str,
+    tools: BTreeMap<String, Tool>,
+    report: ImportReport,
+}
+
+/// The library read again from the stored file (the reader is cheap; the file is the truth).
+async fn library_view(
+    state: &AppState,
+    owner: &str,
+    record: ResourceRecord,
+) -> Result<Response, ApiError> {
+    let (name, _, bytes) = state
+        .db
+        .resource_content(owner, ResourceKind::ToolLibrary, &record.id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(ResourceKind::ToolLibrary.as_str(), &record.id))?;
+    let file = name.unwrap_or_else(|| "tools".into());
+    let lib = tokio::task::spawn_blocking(move || validate::read_tool_library(&bytes, &file))
+        .await
+        .map_err(|_| ApiError::bad_request("the tool library could not be read"))??;
+    Ok(Json(LibraryView {
+        record,
+        format: lib.format,
+        tools: lib
+            .tools
+            .into_iter()
+            .map(|(n, t)| (format!("T{n}"), t))
+            .collect(),
+        report: lib.report,
+    })
+    .into_response())
 }
 
 pub async fn content(

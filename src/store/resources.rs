@@ -1,4 +1,4 @@
-//! Uploaded inputs: stocks, tools, materials, machines, programs.
+//! Uploaded inputs: stocks, tools, materials, machines, programs, tool libraries.
 
 use serde::Serialize;
 use sqlx::Row;
@@ -12,15 +12,17 @@ pub enum ResourceKind {
     Material,
     Machine,
     Program,
+    ToolLibrary,
 }
 
 impl ResourceKind {
-    pub const ALL: [ResourceKind; 5] = [
+    pub const ALL: [ResourceKind; 6] = [
         ResourceKind::Stock,
         ResourceKind::Tool,
         ResourceKind::Material,
         ResourceKind::Machine,
         ResourceKind::Program,
+        ResourceKind::ToolLibrary,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -30,6 +32,7 @@ impl ResourceKind {
             ResourceKind::Material => "material",
             ResourceKind::Machine => "machine",
             ResourceKind::Program => "program",
+            ResourceKind::ToolLibrary => "tool_library",
         }
     }
 
@@ -41,6 +44,7 @@ impl ResourceKind {
             ResourceKind::Material => "materials",
             ResourceKind::Machine => "machines",
             ResourceKind::Program => "programs",
+            ResourceKind::ToolLibrary => "tool-libraries",
         }
     }
 }
@@ -74,12 +78,16 @@ fn record(
     with_definition: bool,
 ) -> Result<ResourceRecord, StoreError> {
     let media_type: String = row.try_get("media_type")?;
-    let definition = if with_definition && media_type == "application/json" {
-        let content: Vec<u8> = row.try_get("content")?;
-        Some(serde_json::from_slice(&content)?)
-    } else {
-        None
-    };
+    // A tool library's JSON is Fusion's file, not a definition in the API's terms: its
+    // tools are served read, by T number, instead.
+    let definition =
+        if with_definition && media_type == "application/json" && kind != ResourceKind::ToolLibrary
+        {
+            let content: Vec<u8> = row.try_get("content")?;
+            Some(serde_json::from_slice(&content)?)
+        } else {
+            None
+        };
     Ok(ResourceRecord {
         id: row.try_get("id")?,
         kind: kind.as_str(),

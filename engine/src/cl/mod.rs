@@ -119,6 +119,7 @@ pub fn read_cls(source: &str) -> Result<Interpretation, Diagnostics> {
             moves: r.moves,
             warnings: r.warnings,
             block_count: lines.len(),
+            selected_tools: Vec::new(),
         })
     } else {
         Err(Diagnostics(errors))

@@ -544,6 +544,8 @@ struct Interp<'p> {
     spindle: SpindleDir,
     tool: u32,
     selected_tool: Option<u32>,
+    /// Each T number selected, with the line of its first selection.
+    selected_tools: Vec<(u32, u32)>,
     // Canned cycle sticky values (program units).
     cycle_r: f64,
     cycle_cc: f64,
@@ -619,6 +621,7 @@ pub(crate) fn interpret_view(
         spindle: SpindleDir::Off,
         tool: 0,
         selected_tool: None,
+        selected_tools: Vec::new(),
         cycle_r: 0.0,
         cycle_cc: 0.0,
         cycle_p: 0.0,
@@ -647,6 +650,7 @@ pub(crate) fn interpret_view(
             moves: it.moves,
             warnings: it.warnings,
             block_count: prog.len(),
+            selected_tools: it.selected_tools,
         }),
         Err(d) => Err(Diagnostics(vec![d])),
     }
@@ -1450,6 +1454,9 @@ impl<'p> Interp<'p> {
                 return Err(self.err_word(w, 'T', format!("T{t} is not a tool number")));
             }
             self.selected_tool = Some(t as u32);
+            if !self.selected_tools.iter().any(|&(n, _)| n == t as u32) {
+                self.selected_tools.push((t as u32, self.cur_line));
+            }
         }
         // 8-10 act on M codes only; most CAM blocks have none.
         if !w.ms.is_empty() {

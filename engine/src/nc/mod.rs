@@ -237,6 +237,9 @@ pub struct Interpretation {
     pub warnings: Vec<Diagnostic>,
     /// Number of blocks (source lines) in the program.
     pub block_count: usize,
+    /// Every T number a T word selects, with the line of its first selection, in program
+    /// order: a program that selects a tool but never loads it (no M6) is cut with it.
+    pub selected_tools: Vec<(u32, u32)>,
 }
 
 /// Parse and interpret a program. Same result as [`Program::parse`] then

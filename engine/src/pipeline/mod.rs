@@ -46,7 +46,7 @@ pub fn simulate(
         nc::interpret(&spec.program, &spec.interpret).map_err(SimulateError::Program)?;
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
-    let tools = tools::ToolLookup::new(spec, moves)?;
+    let tools = tools::ToolLookup::new(spec, moves, &interpretation.selected_tools)?;
     check_inputs(spec, moves, &tools)?;
 
     let radii: Vec<f64> = tools.all().map(Tool::radius).collect();
@@ -139,6 +139,7 @@ pub fn simulate(
         stock,
         timings,
         rays_tested: removal.rays_tested,
+        tool_numbers: tools.numbers,
     })
 }
 

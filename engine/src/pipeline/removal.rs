@@ -69,7 +69,7 @@ pub(super) fn remove_material(
         if !tools.sweeps(m) {
             if m.kind != MoveKind::Rapid {
                 return Err(SimulateError::UnknownTool {
-                    tool: 0,
+                    tool: tools.number(m),
                     line: m.line,
                 });
             }

@@ -328,6 +328,9 @@ pub struct SimulationOutput {
     pub timings: StageTimings,
     /// Dexel updates counted by the geometry engine (rays tested against the sweeps).
     pub rays_tested: u64,
+    /// The T numbers whose tools cut, in the order the program first uses them (a program
+    /// that selects a tool without loading it: that number).
+    pub tool_numbers: Vec<u32>,
 }
 
 pub(super) fn kind_name(k: MoveKind) -> &'static str {

@@ -37,7 +37,8 @@ pub struct SimulateSpec {
     pub interpret: nc::InterpretOptions,
     pub stock: StockSource,
     /// Tools by T number; the tool under key 0 (given alone) serves every tool number of
-    /// a program that uses one.
+    /// a program that uses one. A program that selects one number without loading it (no
+    /// M6) is cut with that number's tool. Numbers the program does not use are ignored.
     pub tools: BTreeMap<u32, Tool>,
     pub material: Material,
     /// For the cycle time (accelerations, junctions, rapid rate, tool change time).

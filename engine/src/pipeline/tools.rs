@@ -14,13 +14,22 @@ pub(super) struct ToolLookup {
     tools: BTreeMap<u32, Tool>,
     /// The tool given under key 0, alone: it serves every move.
     single: bool,
+    /// The T number a program selects but never loads (no M6): its moves carry none.
+    unloaded: Option<u32>,
+    /// The T numbers whose tools cut, in the order the program first uses them.
+    pub(super) numbers: Vec<u32>,
     /// What was assumed for the derived tools, one line each.
     pub(super) warnings: Vec<String>,
 }
 
 impl ToolLookup {
-    /// Checks that the tools given fit the program's tool numbers.
-    pub(super) fn new(spec: &SimulateSpec, moves: &[Move]) -> Result<Self, SimulateError> {
+    /// Checks that the tools given fit the program's tool numbers; `selected` are the T
+    /// numbers the program's T words select, with their lines.
+    pub(super) fn new(
+        spec: &SimulateSpec,
+        moves: &[Move],
+        selected: &[(u32, u32)],
+    ) -> Result<Self, SimulateError> {
         let single = match (spec.tools.len(), spec.tools.get(&0)) {
             (1, Some(_)) => true,
             (_, None) => false,
@@ -47,23 +56,34 @@ impl ToolLookup {
                 });
             }
         }
+        // A program that selects one tool (T1) but never loads it (no M6, as Fusion's posts
+        // write a one-tool program): its moves carry no number and are cut with that tool.
+        let unloaded = match selected {
+            [(t, _)] if used.is_empty() && !single => Some(*t),
+            _ => None,
+        };
+        let mut numbers: Vec<u32> = match unloaded {
+            Some(t) => vec![t],
+            None => used.iter().map(|(t, _)| *t).collect(),
+        };
         let mut tools = spec.tools.clone();
         let mut single = single;
         let mut warnings = Vec::new();
-        let mut missing: Vec<u32> = used
+        let mut missing: Vec<u32> = numbers
             .iter()
-            .map(|(t, _)| *t)
+            .copied()
             .filter(|t| !single && !tools.contains_key(t))
             .collect();
         let header =
             (!missing.is_empty() || tools.is_empty()).then(|| tools_from_header(&spec.program));
         if let Some(header) = header {
-            // A program that never changes tools (a T word without M6) and whose header
-            // describes one tool is cut with that tool.
+            // A program that never changes tools (a T word without M6, or none) and whose
+            // header describes one tool is cut with that tool.
             let only = (header.tools.len() == 1 && used.is_empty() && tools.is_empty())
                 .then(|| *header.tools.keys().next().expect("one tool"));
             if let Some(t) = only {
                 missing = vec![t];
+                numbers = vec![t];
                 single = true;
             }
             for t in missing {
@@ -92,6 +112,11 @@ impl ToolLookup {
                 ));
             }
         }
+        // The selected number's tool, given or derived, serves every move.
+        if let Some(tool) = unloaded.filter(|_| !single).and_then(|t| tools.remove(&t)) {
+            tools = BTreeMap::from([(0, tool)]);
+            single = true;
+        }
         // Only the tools that cut: a library's others must not set the grid or be checked.
         tools.retain(|t, _| {
             if single {
@@ -103,6 +128,8 @@ impl ToolLookup {
         Ok(ToolLookup {
             tools,
             single,
+            unloaded,
+            numbers,
             warnings,
         })
     }
@@ -114,6 +141,16 @@ impl ToolLookup {
             tool: m.tool,
             line: m.line,
         })
+    }
+
+    /// The T number move `m` is cut with: its own, else the one the program selects
+    /// without loading (0: none).
+    pub(super) fn number(&self, m: &Move) -> u32 {
+        if m.tool == 0 {
+            self.unloaded.unwrap_or(0)
+        } else {
+            m.tool
+        }
     }
 
     /// Every tool that may cut.
