@@ -224,13 +224,19 @@ pub(crate) fn compute(
                 input.pos[1] + radial[1] * (r + out),
                 input.pos[2] + radial[2] * (r + out),
             ];
+            // Cell coordinates along the line: linear in the slice index.
+            let inv = 1.0 / grid.cell;
+            let fx = |j: usize, k: usize| {
+                ((base[k] - grid.origin[k]) + a[k] * (j as f64 + 0.5) * dz) * inv
+            };
+            let (nx, ny) = (grid.n[0] as f64, grid.n[1] as f64);
             let mut cell = None;
             let mut ray: &[[f64; 2]] = &[];
             let mut open: Option<usize> = None;
             for j in jf0..j_end {
-                let z = (j as f64 + 0.5) * dz;
-                let p = [base[0] + a[0] * z, base[1] + a[1] * z, base[2] + a[2] * z];
-                let here = grid.cell_of(0, p[0]).zip(grid.cell_of(1, p[1]));
+                let (x, y) = (fx(j, 0), fx(j, 1));
+                let here = (x >= 0.0 && x < nx && y >= 0.0 && y < ny)
+                    .then_some((x as usize, y as usize));
                 if here != cell {
                     cell = here;
                     ray = match here {
@@ -238,7 +244,8 @@ pub(crate) fn compute(
                         None => &[],
                     };
                 }
-                let inside = ray.iter().any(|iv| iv[0] <= p[2] && p[2] <= iv[1]);
+                let pz = base[2] + a[2] * ((j as f64 + 0.5) * dz);
+                let inside = ray.iter().any(|iv| iv[0] <= pz && pz <= iv[1]);
                 match (inside, open) {
                     (true, None) => open = Some(j),
                     (false, Some(lo)) => {

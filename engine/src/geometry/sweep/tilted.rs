@@ -90,12 +90,29 @@ impl Sweep<'_> {
                     swept_cylinder(ol, el, d, body.radius, rc, body.length),
                 ))
             }
-            // Every other profile is a stack of frustums (see `ToolBody::pieces`).
-            _ if body.n_pieces > 0 => Some(
-                body.pieces()
-                    .iter()
-                    .fold(None, |acc, f| hull(acc, swept_frustum(ol, el, d, f))),
-            ),
+            // Every other profile is a stack of frustums (see `ToolBody::pieces`). A
+            // piece whose heights the ray crosses, over the move, only where it has no
+            // material is left out: the hull of the others covers all between them, and
+            // what it loses at its ends held nothing to remove.
+            _ if body.n_pieces > 0 => {
+                let dz = (d[2].min(0.0), d[2].max(0.0));
+                let mut iv = None;
+                for f in body.pieces() {
+                    if el[2].abs() > 1e-9 {
+                        // z = ol_z + s·el_z − β·d_z within [z0, z1] for some β ∈ [0, 1].
+                        let (x, y) = (
+                            (f.z0 + dz.0 - ol[2]) / el[2],
+                            (f.z1 + dz.1 - ol[2]) / el[2],
+                        );
+                        let (lo, hi) = (start + x.min(y), start + x.max(y));
+                        if !material.iter().any(|m| m[0] <= hi && lo <= m[1]) {
+                            continue;
+                        }
+                    }
+                    iv = hull(iv, swept_frustum(ol, el, d, f));
+                }
+                Some(iv)
+            }
             _ => None,
         };
         if let Some(iv) = analytic {
