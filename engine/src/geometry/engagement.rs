@@ -235,8 +235,8 @@ pub(crate) fn compute(
             let mut open: Option<usize> = None;
             for j in jf0..j_end {
                 let (x, y) = (fx(j, 0), fx(j, 1));
-                let here = (x >= 0.0 && x < nx && y >= 0.0 && y < ny)
-                    .then_some((x as usize, y as usize));
+                let here =
+                    (x >= 0.0 && x < nx && y >= 0.0 && y < ny).then_some((x as usize, y as usize));
                 if here != cell {
                     cell = here;
                     ray = match here {

@@ -626,6 +626,66 @@ mod tests {
     }
 
     #[test]
+    fn the_floor_a_tilted_bottom_shaves_is_the_exact_sweep_s() {
+        // Z rays whose material is a floor just above where the sweep enters them: the
+        // shortcut through the bottom disk must remove what the exact interval removes.
+        let mut seed = 17u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut chamfer = Tool::flat(6.0, 2);
+        chamfer.shape = crate::tool::ToolShape::Chamfer;
+        chamfer.taper_half_angle_deg = 30.0;
+        chamfer.tip_diameter = 2.0;
+        let full = Intervals::from_slice(&[[-100.0, 100.0]]);
+        let mut checked = 0;
+        for tool in [Tool::flat(6.0, 2), Tool::bull_nose(6.0, 1.0, 2), chamfer] {
+            let mut t = tool.clone();
+            t.flute_length = 10.0;
+            let body = ToolBody::cutting_part(&t);
+            for _ in 0..3000 {
+                let th = rnd() * 0.8 + 0.05;
+                let ph = rnd() * std::f64::consts::TAU;
+                let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                let p1 = [rnd() * 0.4 - 0.2, rnd() * 0.4 - 0.2, rnd() * 0.2 - 0.1];
+                let sw = Sweep::new(
+                    &body,
+                    SubMove {
+                        p0: [0.0; 3],
+                        p1,
+                        axis,
+                    },
+                );
+                let (u, v) = (rnd() * 6.0 - 3.0, rnd() * 6.0 - 3.0);
+                let Some((a, b)) = sw.general_ray(2, u, v, (-60.0, 60.0), &full) else {
+                    continue;
+                };
+                let depth = rnd() * 0.5;
+                let mut exact = Intervals::from_slice(&[[a - 1.0, a + depth]]);
+                let mut fast = exact.clone();
+                let extent = sw.slab_range(2, u, v);
+                let Some((fa, fb)) = sw.general_ray(2, u, v, extent, &fast) else {
+                    panic!("{a} {b}: the floor was not met");
+                };
+                let removed = (
+                    crate::geometry::dexel::subtract(&mut exact, a, b),
+                    crate::geometry::dexel::subtract(&mut fast, fa, fb),
+                );
+                assert!(
+                    (removed.0 - removed.1).abs() < 1e-9,
+                    "{removed:?} {a} {b} {fa} {fb}"
+                );
+                assert_eq!(exact.len(), fast.len());
+                checked += 1;
+            }
+        }
+        assert!(checked > 1000, "{checked}");
+    }
+
+    #[test]
     fn prepared_stadium_matches_line_stadium() {
         let mut seed = 7u64;
         let mut rnd = || {

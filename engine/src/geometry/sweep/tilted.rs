@@ -78,9 +78,11 @@ impl Sweep<'_> {
         let to_local = |w: [f64; 3]| [dot(w, self.e1), dot(w, self.e2), dot(w, a)];
         let ol = to_local(rel);
         let el = to_local(e);
-        // Flat and ball tools: exact closed forms (cylinder and sphere pieces).
         let body = self.body;
         let d = self.delta_local;
+        if let Some(iv) = through_the_bottom(body, ol, el, d, material, start) {
+            return Some(iv);
+        }
         let analytic = match body.profile {
             Profile::Corner { rc } if rc >= body.radius && body.length >= rc => {
                 let c = [0.0, 0.0, rc];
@@ -100,10 +102,7 @@ impl Sweep<'_> {
                 for f in body.pieces() {
                     if el[2].abs() > 1e-9 {
                         // z = ol_z + s·el_z − β·d_z within [z0, z1] for some β ∈ [0, 1].
-                        let (x, y) = (
-                            (f.z0 + dz.0 - ol[2]) / el[2],
-                            (f.z1 + dz.1 - ol[2]) / el[2],
-                        );
+                        let (x, y) = ((f.z0 + dz.0 - ol[2]) / el[2], (f.z1 + dz.1 - ol[2]) / el[2]);
                         let (lo, hi) = (start + x.min(y), start + x.max(y));
                         if !material.iter().any(|m| m[0] <= hi && lo <= m[1]) {
                             continue;
@@ -155,4 +154,57 @@ impl Sweep<'_> {
         let s_out = start + span - hit_out.time_of_impact;
         (s_out >= s_in).then_some((s_in, s_out))
     }
+}
+
+/// A ray running up the axis's way (within 60° of it) that crosses the tool's bottom disk
+/// (radius `r_b`, the first frustum's) at both ends of the move, well inside it, enters the
+/// swept body there and nowhere lower: at the lower of the two crossings (the crossing
+/// moves linearly with the move). Above that, the body holds at least the cylinder of
+/// radius r_b up the axis at either end, so when the ray's material ends below where that
+/// cylinder lets the ray out, the material to remove is known without the exact exit: the
+/// sliver a tilted bottom shaves off the floor at each step, in closed form. `None` when
+/// this does not apply (the caller solves the pieces).
+fn through_the_bottom(
+    body: &ToolBody,
+    ol: [f64; 3],
+    el: [f64; 3],
+    d: [f64; 3],
+    material: &Intervals,
+    start: f64,
+) -> Option<(f64, f64)> {
+    let rb = body.pieces().first()?.r0;
+    // Two cells' worth of margin from the rim would be ideal; the tool's scale serves.
+    let margin = 0.05 * body.radius;
+    if el[2] < 0.5 || rb <= margin {
+        return None;
+    }
+    // Crossing of the bottom plane at move fraction β: q(β) = q0 + β·w.
+    let t = ol[2] / el[2];
+    let q0 = [ol[0] - t * el[0], ol[1] - t * el[1]];
+    let w = [d[2] / el[2] * el[0] - d[0], d[2] / el[2] * el[1] - d[1]];
+    let q1 = [q0[0] + w[0], q0[1] + w[1]];
+    let lim = (rb - margin) * (rb - margin);
+    if q0[0] * q0[0] + q0[1] * q0[1] > lim || q1[0] * q1[0] + q1[1] * q1[1] > lim {
+        return None;
+    }
+    let s_in = (d[2].min(0.0) - ol[2]) / el[2];
+    // Where the ray leaves the cylinder of radius r_b at the end of the move whose crossing
+    // is higher along the ray (both cylinders lie in the swept body).
+    let exit = |b: f64| {
+        let g = [ol[0] - b * d[0], ol[1] - b * d[1]];
+        let ee = el[0] * el[0] + el[1] * el[1];
+        let top = (body.length + b * d[2] - ol[2]) / el[2];
+        if ee < 1e-18 {
+            return top;
+        }
+        let ge = g[0] * el[0] + g[1] * el[1];
+        let disc = ge * ge - ee * (g[0] * g[0] + g[1] * g[1] - rb * rb);
+        if disc < 0.0 {
+            return f64::NEG_INFINITY;
+        }
+        ((-ge + disc.sqrt()) / ee).min(top)
+    };
+    let s_lb = exit(0.0).max(exit(1.0));
+    let top = material.last()?[1];
+    (s_lb > s_in && top <= start + s_lb).then_some((start + s_in, start + s_lb))
 }
