@@ -7,6 +7,8 @@ pub struct Limits {
     pub max_program_bytes: u64,
     pub max_json_bytes: u64,
     pub upload_timeout_secs: u64,
+    /// Queued jobs one API key may have; a submission over it is answered 429.
+    pub max_queued_per_key: i64,
 }
 
 impl Default for Limits {
@@ -16,6 +18,7 @@ impl Default for Limits {
             max_program_bytes: 64 << 20,
             max_json_bytes: 1 << 20,
             upload_timeout_secs: 600,
+            max_queued_per_key: 1000,
         }
     }
 }

@@ -148,6 +148,9 @@ struct ServeArgs {
     /// Open connections at most; over it, new connections are closed at once.
     #[arg(long, env = "MILLSIM_MAX_CONNECTIONS", default_value_t = 8192)]
     max_connections: usize,
+    /// Queued jobs one API key may have; over it, submissions are answered 429.
+    #[arg(long, env = "MILLSIM_MAX_QUEUED_PER_KEY", default_value_t = 1000)]
+    max_queued_per_key: i64,
 }
 
 #[derive(clap::Args)]
@@ -334,6 +337,12 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     if args.max_connections == 0 {
         return Err("--max-connections must be at least 1".into());
     }
+    if args.max_queued_per_key < 1 {
+        return Err(format!(
+            "--max-queued-per-key must be at least 1, got {}",
+            args.max_queued_per_key
+        ));
+    }
     let auth = match &args.api_key_file {
         Some(path) => {
             let text =
@@ -355,6 +364,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     let wake = Arc::new(Notify::new());
     let limits = Limits {
         max_stl_bytes: args.max_upload_bytes,
+        max_queued_per_key: args.max_queued_per_key,
         ..Limits::default()
     };
     let shutdown = shutdown_signal();

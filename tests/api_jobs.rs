@@ -818,3 +818,62 @@ async fn stability_job_recommends_a_speed_and_computes_3d_lobes() {
         "{f0} {f1} {f2}"
     );
 }
+
+#[tokio::test]
+async fn queued_jobs_per_key_are_limited_with_429_and_retry_after_but_replays_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    // No workers: every submission stays queued.
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "0", "--max-queued-per-key", "2"],
+    );
+    let c = client();
+    let body = |n: u32| json!({"kind": "interpret", "inputs": {"program": {"name": "a.nc", "content": format!("G0 X{n}\n")}}});
+    let submit = |n: u32, key: &str| {
+        c.post(s.url("/v1/jobs"))
+            .header("idempotency-key", key.to_string())
+            .json(&body(n))
+            .send()
+    };
+    let (st, first) = json(submit(1, "k1").await.unwrap()).await;
+    assert_eq!(st, 202, "{first}");
+    let (st, _) = json(submit(2, "k2").await.unwrap()).await;
+    assert_eq!(st, 202);
+
+    let res = submit(3, "k3").await.unwrap();
+    assert_eq!(res.status(), 429);
+    let retry: u64 = res.headers()["retry-after"]
+        .to_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(retry >= 1);
+    assert_eq!(res.headers()["content-type"], "application/problem+json");
+    let (_, p) = json(res).await;
+    assert_eq!(p["status"], 429);
+    assert_eq!(p["limit"], 2);
+    assert!(
+        p["detail"].as_str().unwrap().contains("max_queued_per_key"),
+        "{p}"
+    );
+
+    // Replaying a job that exists is not a new job: it is answered as before.
+    let res = submit(1, "k1").await.unwrap();
+    assert_eq!(res.status(), 202);
+    assert_eq!(res.headers()["idempotent-replayed"], "true");
+    let (_, again) = json(res).await;
+    assert_eq!(again["id"], first["id"]);
+
+    // Once a queued job leaves the queue, there is room again.
+    let id = first["id"].as_str().unwrap();
+    let (st, _) = json(
+        c.post(s.url(&format!("/v1/jobs/{id}/cancel")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 202);
+    let (st, v) = json(submit(3, "k3").await.unwrap()).await;
+    assert_eq!(st, 202, "{v}");
+}

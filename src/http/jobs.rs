@@ -33,6 +33,9 @@ struct JobRequest {
     options: Option<Value>,
 }
 
+/// What a refused submission is told to wait: long enough for workers to start a few jobs.
+const QUEUE_FULL_RETRY_AFTER_SECS: &str = "5";
+
 fn job_response(status: StatusCode, job: &JobRecord, replayed: bool) -> Response {
     let mut res = (
         status,
@@ -244,6 +247,7 @@ pub async fn create(
                 idempotency_key: key.clone(),
                 request_hash,
                 max_attempts: state.max_attempts,
+                max_queued: state.limits.max_queued_per_key,
             },
         )
         .await?;
@@ -259,6 +263,25 @@ pub async fn create(
             job.id
         ))
         .with("job_id", job.id)),
+        CreateOutcome::QueueFull => {
+            let limit = state.limits.max_queued_per_key;
+            let mut res = ApiError::new(
+                StatusCode::TOO_MANY_REQUESTS,
+                "queue-full",
+                "Too many queued jobs",
+                format!(
+                    "this API key already has {limit} queued jobs (max_queued_per_key); retry once some have started"
+                ),
+            )
+            .with("limit", limit)
+            .with("limit_name", "max_queued_per_key")
+            .into_response();
+            res.headers_mut().insert(
+                header::RETRY_AFTER,
+                header::HeaderValue::from_static(QUEUE_FULL_RETRY_AFTER_SECS),
+            );
+            Ok(res)
+        }
     }
 }
 

@@ -137,6 +137,8 @@ pub struct NewJob {
     pub idempotency_key: Option<String>,
     pub request_hash: String,
     pub max_attempts: i64,
+    /// Queued jobs this owner may have; a submission over it is refused.
+    pub max_queued: i64,
 }
 
 pub enum CreateOutcome {
@@ -145,6 +147,8 @@ pub enum CreateOutcome {
     Replayed(JobRecord),
     /// Same idempotency key, another body.
     KeyConflict(JobRecord),
+    /// The owner already has `max_queued` queued jobs; nothing was stored.
+    QueueFull,
 }
 
 /// A job as a worker sees it after claiming it.
@@ -218,9 +222,12 @@ impl Db {
                 .insert(inline.input.clone(), serde_json::Value::String(rid));
         }
         let spec = serde_json::json!({ "inputs": new.inputs, "options": new.options });
+        // The queue limit is checked in the INSERT itself, so concurrent submissions
+        // cannot both pass a count taken before either was stored.
         let inserted = sqlx::query(
             "INSERT INTO jobs (id, owner, kind, status, spec, idempotency_key, request_hash, max_attempts, created_at, updated_at)
-             VALUES (?, ?, ?, 'queued', ?, ?, ?, ?, ?, ?)",
+             SELECT ?, ?, ?, 'queued', ?, ?, ?, ?, ?, ?
+             WHERE (SELECT COUNT(*) FROM jobs WHERE owner = ? AND status = 'queued') < ?",
         )
         .bind(&id)
         .bind(owner)
@@ -231,9 +238,23 @@ impl Db {
         .bind(new.max_attempts)
         .bind(now)
         .bind(now)
+        .bind(owner)
+        .bind(new.max_queued)
         .execute(&mut *tx)
         .await;
         match inserted {
+            Ok(done) if done.rows_affected() == 0 => {
+                tx.rollback().await?;
+                // A replay that raced its first submission is answered as a replay.
+                if let Some(key) = &new.idempotency_key {
+                    if let Some(existing) = self.job_by_idempotency_key(owner, key).await? {
+                        return self
+                            .replay_or_conflict(owner, &new.request_hash, existing)
+                            .await;
+                    }
+                }
+                Ok(CreateOutcome::QueueFull)
+            }
             Ok(_) => {
                 // Read back inside the transaction: after the commit a worker may already
                 // have claimed it, and the answer to the submission is the job as created.
