@@ -19,6 +19,7 @@ use axum::response::Response;
 use axum::routing::{get, post};
 use axum::Router;
 use tokio::sync::Notify;
+use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
 use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::{DefaultOnResponse, TraceLayer};
@@ -139,6 +140,8 @@ pub fn router(state: AppState) -> Router {
         .merge(ops)
         .fallback(fallback)
         .method_not_allowed_fallback(method_not_allowed)
+        // Innermost of the outer layers, so metrics and the trace see the 500 it answers.
+        .layer(CatchPanicLayer::custom(problem::panic_response))
         .layer(middleware::from_fn_with_state(state.clone(), record_metrics))
         .layer(
             TraceLayer::new_for_http()

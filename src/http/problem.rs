@@ -110,6 +110,25 @@ impl ApiError {
         )
     }
 
+    /// A fault of the server's: the client's request may well have been fine.
+    pub fn internal(detail: impl Into<String>) -> Self {
+        Self::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "internal",
+            "Internal error",
+            detail,
+        )
+    }
+
+    /// A blocking task (a reader, a parser) that did not return: it panicked or was
+    /// cancelled. That is a bug of ours, never the client's input being wrong.
+    pub fn blocking_failed(e: tokio::task::JoinError, what: &str) -> Self {
+        tracing::error!(error = %e, "{what} stopped on an internal error");
+        Self::internal(format!(
+            "{what} stopped on an internal error; this is a bug in millsim, please report it with the request id"
+        ))
+    }
+
     pub fn to_json(&self) -> Value {
         let mut doc = json!({
             "type": format!("https://millsim.dev/problems/{}", self.slug),
@@ -135,8 +154,32 @@ impl IntoResponse for ApiError {
     }
 }
 
+/// The answer to a handler that panicked (tower-http's CatchPanicLayer): a problem
+/// document rather than a dropped connection.
+pub fn panic_response(panic: Box<dyn std::any::Any + Send + 'static>) -> Response {
+    let message = panic
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| panic.downcast_ref::<&str>().copied())
+        .unwrap_or("(no message)");
+    tracing::error!(panic = %message, "request handler panicked");
+    ApiError::internal(
+        "the server stopped on an internal error while answering; this is a bug in millsim, please report it with the request id",
+    )
+    .into_response()
+}
+
 impl From<StoreError> for ApiError {
     fn from(e: StoreError) -> Self {
+        if let StoreError::Vanished(what) = &e {
+            // A race with a DELETE, not a fault: the same request again gets a clean answer.
+            return ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "concurrent-change",
+                "Changed while answering",
+                format!("{what} was deleted while this request ran; retry the request"),
+            );
+        }
         // Storage failures are ours, not the client's; the log has the cause.
         tracing::error!(error = %e, "storage error");
         ApiError::new(
@@ -200,4 +243,56 @@ pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Api
             ApiError::invalid_field(field.clone(), format!("`{field}`: {msg}"))
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    async fn body_json(res: Response) -> Value {
+        let bytes = axum::body::to_bytes(res.into_body(), 1 << 20)
+            .await
+            .unwrap();
+        serde_json::from_slice(&bytes).unwrap()
+    }
+
+    #[tokio::test]
+    async fn a_panic_in_a_blocking_reader_is_a_500_problem_not_a_400() {
+        let join = tokio::task::spawn_blocking(|| -> Result<(), ApiError> { panic!("reader bug") })
+            .await
+            .unwrap_err();
+        let res = ApiError::blocking_failed(join, "the STL reader").into_response();
+        assert_eq!(res.status(), StatusCode::INTERNAL_SERVER_ERROR);
+        assert_eq!(res.headers()[header::CONTENT_TYPE], PROBLEM_JSON);
+        let doc = body_json(res).await;
+        assert_eq!(doc["status"], 500);
+        assert!(doc["detail"].as_str().unwrap().contains("STL reader"));
+    }
+
+    #[tokio::test]
+    async fn a_panicking_handler_is_answered_500_with_a_problem() {
+        use tower::ServiceExt;
+        let app = axum::Router::new()
+            .route(
+                "/boom",
+                axum::routing::get(|| async {
+                    panic!("handler bug");
+                    #[allow(unreachable_code)]
+                    StatusCode::OK
+                }),
+            )
+            .layer(tower_http::catch_panic::CatchPanicLayer::custom(
+                panic_response,
+            ));
+        let req = axum::http::Request::get("/boom")
+            .body(axum::body::Body::empty())
+            .unwrap();
+        let res = app.oneshot(req).await.unwrap();
+        assert_eq!(res.status(), StatusCode::INTERNAL_SERVER_ERROR);
+        assert_eq!(res.headers()[header::CONTENT_TYPE], PROBLEM_JSON);
+        assert_eq!(
+            body_json(res).await["type"],
+            "https://millsim.dev/problems/internal"
+        );
+    }
 }

@@ -118,7 +118,7 @@ pub async fn create(
                 validate::stl(&bytes, &file).map(|v| (bytes, v))
             })
             .await
-            .map_err(|_| ApiError::bad_request("the STL could not be read"))??;
+            .map_err(|e| ApiError::blocking_failed(e, "the STL reader"))??;
             (v.0, name, v.1)
         }
         ResourceKind::Program => {
@@ -132,7 +132,7 @@ pub async fn create(
                 validate::program(&bytes, &file).map(|v| (bytes, v))
             })
             .await
-            .map_err(|_| ApiError::bad_request("the program could not be read"))??;
+            .map_err(|e| ApiError::blocking_failed(e, "the program reader"))??;
             (v.0, name, v.1)
         }
         ResourceKind::ToolLibrary => {
@@ -147,7 +147,7 @@ pub async fn create(
                 validate::tool_library(&bytes, &file).map(|v| (bytes, v))
             })
             .await
-            .map_err(|_| ApiError::bad_request("the tool library could not be read"))??;
+            .map_err(|e| ApiError::blocking_failed(e, "the tool library reader"))??;
             (v.0, name, v.1)
         }
         ResourceKind::Tool | ResourceKind::Material | ResourceKind::Machine => {
@@ -262,7 +262,7 @@ async fn library_view(
     let file = name.unwrap_or_else(|| "tools".into());
     let lib = tokio::task::spawn_blocking(move || validate::read_tool_library(&bytes, &file))
         .await
-        .map_err(|_| ApiError::bad_request("the tool library could not be read"))??;
+        .map_err(|e| ApiError::blocking_failed(e, "the tool library reader"))??;
     Ok(Json(LibraryView {
         record,
         format: lib.format,

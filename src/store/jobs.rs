@@ -201,9 +201,14 @@ impl Db {
     ) -> Result<CreateOutcome, StoreError> {
         if let Some(key) = &new.idempotency_key {
             if let Some(existing) = self.job_by_idempotency_key(owner, key).await? {
-                return self
+                match self
                     .replay_or_conflict(owner, &new.request_hash, existing)
-                    .await;
+                    .await
+                {
+                    // Deleted since it was found: the key is free, this is a new job.
+                    Err(StoreError::Vanished(_)) => {}
+                    other => return other,
+                }
             }
         }
         let now = now_ms();
@@ -310,7 +315,11 @@ impl Db {
         hash: &str,
         (id, stored_hash): (String, String),
     ) -> Result<CreateOutcome, StoreError> {
-        let job = self.get_job(owner, &id).await?.expect("job found by key");
+        // A DELETE may have come between the lookup by key and this read.
+        let job = self
+            .get_job(owner, &id)
+            .await?
+            .ok_or_else(|| StoreError::Vanished(format!("job {id}")))?;
         Ok(if stored_hash == hash {
             CreateOutcome::Replayed(job)
         } else {
@@ -706,5 +715,20 @@ impl Db {
             .bind(job_id)
             .fetch_all(&self.pool)
             .await?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn a_replay_whose_job_was_deleted_is_an_error_not_a_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        let url = format!("sqlite://{}", dir.path().join("t.db").display());
+        let db = Db::open(&url).await.unwrap();
+        let gone = ("nosuchjob".to_string(), "hash".to_string());
+        let out = db.replay_or_conflict("mes", "hash", gone).await;
+        assert!(matches!(out, Err(StoreError::Vanished(_))));
     }
 }

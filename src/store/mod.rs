@@ -24,6 +24,9 @@ pub enum StoreError {
     Migrate(#[from] sqlx::migrate::MigrateError),
     #[error("stored JSON is corrupt: {0}")]
     Json(#[from] serde_json::Error),
+    /// A row this request had just found or written was deleted by another one.
+    #[error("{0} was deleted while this request ran")]
+    Vanished(String),
 }
 
 #[derive(Clone)]

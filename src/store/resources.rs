@@ -134,11 +134,19 @@ impl Db {
         owner: &str,
         new: &NewResource<'_>,
     ) -> Result<ResourceRecord, StoreError> {
-        let id = insert(&self.pool, owner, new).await?;
-        Ok(self
-            .get_resource(owner, new.kind, &id)
+        // Read back in the insert's transaction: once committed, a DELETE may come first.
+        let mut tx = self.pool.begin().await?;
+        let id = insert(&mut *tx, owner, new).await?;
+        let row = sqlx::query("SELECT * FROM resources WHERE owner = ? AND kind = ? AND id = ?")
+            .bind(owner)
+            .bind(new.kind.as_str())
+            .bind(&id)
+            .fetch_optional(&mut *tx)
             .await?
-            .expect("row just inserted"))
+            .ok_or_else(|| StoreError::Vanished(format!("{} {id}", new.kind.as_str())))?;
+        let created = record(new.kind, &row, true)?;
+        tx.commit().await?;
+        Ok(created)
     }
 
     pub async fn get_resource(
