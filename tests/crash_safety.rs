@@ -261,3 +261,43 @@ async fn sigterm_gives_a_running_job_back_and_exits_cleanly() {
     }
     assert!(gave_back, "SIGTERM never caught a running job");
 }
+
+/// A program that never ends on its own (moves inside an endless loop).
+pub const RUNAWAY: &str =
+    "G21 G90\nG0 X0 Y0 Z5\no100 while [1 EQ 1]\nG1 X10 F1000\nG1 X0\no100 endwhile\nM30\n";
+
+#[tokio::test]
+async fn a_job_cancelled_while_its_worker_is_dead_closes_its_attempt() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("t.db");
+    let c = client();
+    let mut server = Server::start(&db, &["--workers", "1", "--lease-secs", "0.5"]);
+    let body = serde_json::json!({"kind": "interpret", "inputs": {"program": {"name": "loop.ngc", "content": RUNAWAY}}});
+    let (st, job) = post_json(&c, &server, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap().to_string();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while get_json(&c, &server, &format!("/v1/jobs/{id}")).await["status"] != "running" {
+        assert!(Instant::now() < deadline, "the job did not start");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    server.child.kill().unwrap(); // SIGKILL: the attempt stays open
+    server.child.wait().unwrap();
+    // No workers now: nothing reclaims the job; its lease runs out.
+    let server = Server::start(&db, &["--workers", "0"]);
+    tokio::time::sleep(Duration::from_millis(800)).await;
+    let (st, after) = json(
+        c.post(server.url(&format!("/v1/jobs/{id}/cancel")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 202, "{after}");
+    assert_eq!(after["status"], "cancelled", "{after}");
+    let attempts = get_json(&c, &server, &format!("/v1/jobs/{id}/attempts")).await;
+    let items = attempts["items"].as_array().unwrap();
+    assert_eq!(items.len(), 1, "{attempts}");
+    assert_eq!(items[0]["outcome"], "lost", "{attempts}");
+    assert!(items[0]["finished_at"].is_string(), "{attempts}");
+}

@@ -206,14 +206,22 @@ pub async fn create(
                     .and_then(Value::as_str)
                     .unwrap_or("program.nc")
                     .to_string();
-                let checked = validate::program(content.as_bytes(), &file)?;
+                // Up to the body limit of G-code: parse it off the async runtime.
+                let (content, file, checked) = {
+                    let content = content.as_bytes().to_vec();
+                    tokio::task::spawn_blocking(move || {
+                        validate::program(&content, &file).map(|c| (content, file, c))
+                    })
+                    .await
+                    .map_err(|e| ApiError::blocking_failed(e, "the program reader"))??
+                };
                 inline.push(InlineInput {
                     input: name.to_string(),
                     kind,
                     name: Some(file),
                     media_type: checked.media_type,
                     summary: checked.summary,
-                    content: content.as_bytes().to_vec(),
+                    content,
                 });
             }
             Some(_) => {
@@ -646,8 +654,17 @@ pub async fn stock_stl(
     artifact(&state, &owner, &id, "stock.stl", "final stock").await
 }
 
+/// The last event of a stream that cannot follow the job any more: a problem document.
+fn error_event(e: &ApiError) -> Event {
+    Event::default()
+        .event("error")
+        .json_data(e.to_json())
+        .unwrap_or_default()
+}
+
 /// Server-sent events: `progress` whenever it changes, then one `status` event with the
-/// final job, then the stream ends. Reads the database, so progress from workers in other
+/// final job (or an `error` event with a problem if the job cannot be read), then the
+/// stream ends. Reads the database, so progress from workers in other
 /// processes arrives too.
 pub async fn events(
     State(state): State<AppState>,
@@ -689,8 +706,16 @@ pub async fn events(
                     }
                     match s.db.get_job(&s.owner, &s.id).await {
                         Ok(Some(j)) => j,
-                        // Deleted or unreadable: end the stream.
-                        _ => return None,
+                        // Deleted or unreadable: say so in a last `error` event, so a
+                        // client does not take the end of the stream for the job's end.
+                        Ok(None) => {
+                            s.finished = true;
+                            return Some((Ok(error_event(&ApiError::not_found("job", &s.id))), s));
+                        }
+                        Err(e) => {
+                            s.finished = true;
+                            return Some((Ok(error_event(&ApiError::from(e))), s));
+                        }
                     }
                 }
             };

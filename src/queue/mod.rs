@@ -15,7 +15,15 @@ use crate::config::QueueConfig;
 use crate::metrics::Metrics;
 use crate::runner::{self, JobFailure, LoadedInputs};
 use crate::store::jobs::{Artifact, ClaimedJob, Finish, LeaseState};
-use crate::store::{Db, ResourceKind};
+use crate::store::{Db, ResourceKind, StoreError};
+
+/// Why a job's inputs could not be loaded.
+enum InputsError {
+    /// The database did not answer: the job is not at fault and is tried again.
+    Storage(StoreError),
+    /// The inputs themselves are unusable (deleted): the job fails with this problem.
+    Invalid(serde_json::Value),
+}
 
 #[derive(Default)]
 struct SharedProgress {
@@ -69,6 +77,9 @@ pub async fn run_workers(
     tracing::info!("workers stopped");
 }
 
+/// How long a worker waits after giving a job back for a storage error.
+const STORAGE_BACKOFF_MS: u64 = 500;
+
 struct Worker {
     id: String,
     db: Db,
@@ -101,7 +112,7 @@ impl Worker {
         }
     }
 
-    async fn load_inputs(&self, job: &ClaimedJob) -> Result<LoadedInputs, serde_json::Value> {
+    async fn load_inputs(&self, job: &ClaimedJob) -> Result<LoadedInputs, InputsError> {
         let mut loaded = LoadedInputs::new();
         let mut wanted: Vec<(String, ResourceKind)> = runner::inputs_of(&job.kind)
             .iter()
@@ -123,15 +134,13 @@ impl Worker {
                 .db
                 .resource_content(&job.owner, kind, id)
                 .await
-                .map_err(
-                    |e| json!({"title": "storage error", "detail": e.to_string(), "status": 503}),
-                )?;
+                .map_err(InputsError::Storage)?;
             let Some((file_name, media_type, content)) = found else {
-                return Err(json!({
+                return Err(InputsError::Invalid(json!({
                     "type": "https://millsim.dev/problems/input-gone",
                     "title": "Input deleted", "status": 422,
                     "detail": format!("input `{name}` ({} {id}) was deleted before the job ran", kind.as_str()),
-                }));
+                })));
             };
             loaded.insert(
                 name,
@@ -149,7 +158,16 @@ impl Worker {
         let started = Instant::now();
         tracing::info!(worker = %self.id, job = %job.id, kind = %job.kind, attempt = job.attempt, "job claimed");
         let outcome = match self.load_inputs(&job).await {
-            Err(problem) => Finish::Failed { error: problem },
+            Err(InputsError::Invalid(problem)) => Finish::Failed { error: problem },
+            Err(InputsError::Storage(e)) => {
+                tracing::warn!(worker = %self.id, job = %job.id, error = %e, "could not load the job's inputs; giving the job back");
+                if let Err(e) = self.db.release_job(&job, &self.id).await {
+                    tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not give the job back; its lease will expire");
+                }
+                // The database is struggling: do not claim the job straight back.
+                tokio::time::sleep(Duration::from_millis(STORAGE_BACKOFF_MS)).await;
+                return;
+            }
             Ok(inputs) => match self.execute(&job, inputs).await {
                 Some(finish) => finish,
                 // Lease lost or given back: whoever holds the job now writes its outcome.

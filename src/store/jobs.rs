@@ -189,6 +189,22 @@ pub enum LeaseState {
     Lost,
 }
 
+/// Ends a dead worker's attempt (still open) as lost.
+async fn close_lost_attempt(
+    tx: &mut sqlx::Transaction<'_, sqlx::Sqlite>,
+    job_id: &str,
+    attempt: i64,
+    now: i64,
+) -> Result<(), StoreError> {
+    sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = ? WHERE job_id = ? AND attempt = ? AND outcome IS NULL")
+        .bind(now)
+        .bind(job_id)
+        .bind(attempt)
+        .execute(&mut **tx)
+        .await?;
+    Ok(())
+}
+
 fn is_unique_violation(e: &sqlx::Error) -> bool {
     matches!(e, sqlx::Error::Database(d) if d.is_unique_violation())
 }
@@ -370,21 +386,31 @@ impl Db {
 
     /// Cancels a queued job at once; asks a running one to stop (its worker sees the
     /// flag at the next heartbeat). Returns the job as it now is.
+    /// A running job whose lease has expired (its worker died) is cancelled at once too,
+    /// and its open attempt closed as lost.
     pub async fn cancel_job(&self, owner: &str, id: &str) -> Result<Option<JobRecord>, StoreError> {
         let now = now_ms();
-        sqlx::query(
+        let mut tx = self.pool.begin().await?;
+        let settled: Option<(String, i64)> = sqlx::query_as(
             "UPDATE jobs SET
-                status = CASE WHEN status = 'queued' THEN 'cancelled' ELSE status END,
-                finished_at = CASE WHEN status = 'queued' THEN ? ELSE finished_at END,
-                cancel_requested = 1, updated_at = ?
-             WHERE owner = ? AND id = ? AND status IN ('queued', 'running')",
+                status = CASE WHEN status = 'queued' OR lease_expires_at < ?1 THEN 'cancelled' ELSE status END,
+                finished_at = CASE WHEN status = 'queued' OR lease_expires_at < ?1 THEN ?1 ELSE finished_at END,
+                lease_owner = CASE WHEN status = 'queued' OR lease_expires_at < ?1 THEN NULL ELSE lease_owner END,
+                cancel_requested = 1, updated_at = ?1
+             WHERE owner = ?2 AND id = ?3 AND status IN ('queued', 'running')
+             RETURNING status, attempts",
         )
-        .bind(now)
         .bind(now)
         .bind(owner)
         .bind(id)
-        .execute(&self.pool)
+        .fetch_optional(&mut *tx)
         .await?;
+        if let Some((status, attempt)) = settled {
+            if status == "cancelled" {
+                close_lost_attempt(&mut tx, id, attempt, now).await?;
+            }
+        }
+        tx.commit().await?;
         self.get_job(owner, id).await
     }
 
@@ -427,15 +453,22 @@ impl Db {
     ) -> Result<Option<ClaimedJob>, StoreError> {
         let now = now_ms();
         self.fail_exhausted().await?;
-        sqlx::query(
+        let mut tx = self.pool.begin().await?;
+        let cancelled: Vec<(String, i64)> = sqlx::query_as(
             "UPDATE jobs SET status = 'cancelled', finished_at = ?, updated_at = ?, lease_owner = NULL
-             WHERE status = 'running' AND lease_expires_at < ? AND cancel_requested = 1",
+             WHERE status = 'running' AND lease_expires_at < ? AND cancel_requested = 1
+             RETURNING id, attempts",
         )
         .bind(now)
         .bind(now)
         .bind(now)
-        .execute(&self.pool)
+        .fetch_all(&mut *tx)
         .await?;
+        // Their workers died: the attempts end here, or they would stay open for ever.
+        for (id, attempt) in &cancelled {
+            close_lost_attempt(&mut tx, id, *attempt, now).await?;
+        }
+        tx.commit().await?;
         let mut tx = self.pool.begin().await?;
         let row = sqlx::query(
             "UPDATE jobs SET status = 'running', lease_owner = ?, lease_expires_at = ?,
