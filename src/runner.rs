@@ -293,6 +293,16 @@ fn program_text(inputs: &mut LoadedInputs) -> Result<(String, String), JobFailur
     Ok((file, text))
 }
 
+/// An interpretation that stopped: on a cancel (the interpreter stops with an error when
+/// its flag is set) the job is cancelled, otherwise the program is at fault.
+fn program_failure(cancel: &CancelFlag, file: &str, d: &nc::Diagnostics) -> JobFailure {
+    if cancel.is_cancelled() {
+        JobFailure::Cancelled
+    } else {
+        JobFailure::Invalid(diagnostics_problem(file, d))
+    }
+}
+
 fn interpret(
     options: &Value,
     mut inputs: LoadedInputs,
@@ -305,15 +315,16 @@ fn interpret(
             json!({"title": "Invalid options", "status": 422, "detail": e.to_string()}),
         )
     })?;
-    let engine_opts = opts
+    let mut engine_opts = opts
         .engine_options()
         .map_err(|d| JobFailure::Invalid(diagnostics_problem("tool_table", &d)))?;
+    engine_opts.cancel = Some(cancel.clone());
     let result = if crate::validate::looks_like_cls(&text) {
         millsim_engine::cl::read_cls(&text)
     } else {
         nc::interpret(&text, &engine_opts)
     }
-    .map_err(|d| JobFailure::Invalid(diagnostics_problem(&file, &d)))?;
+    .map_err(|d| program_failure(cancel, &file, &d))?;
     if cancel.is_cancelled() {
         return Err(JobFailure::Cancelled);
     }
@@ -543,6 +554,7 @@ fn simulate_job(
             dialect: opts.dialect,
             fanuc_implied_decimal: opts.fanuc_implied_decimal,
             passthrough_m_codes: opts.passthrough_m_codes.clone(),
+            cancel: Some(cancel.clone()),
             ..Default::default()
         },
         stock,
@@ -568,7 +580,7 @@ fn simulate_job(
     };
     let mut out = pipeline::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,
-        SimulateError::Program(d) => JobFailure::Invalid(diagnostics_problem(&file, &d)),
+        SimulateError::Program(d) => program_failure(cancel, &file, &d),
         other => invalid("Simulation refused", format!("{file}: {other}")),
     })?;
     // The stock mesh and the rows' JSON are independent: both at once.

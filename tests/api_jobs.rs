@@ -877,3 +877,42 @@ async fn queued_jobs_per_key_are_limited_with_429_and_retry_after_but_replays_pa
     let (st, v) = json(submit(3, "k3").await.unwrap()).await;
     assert_eq!(st, 202, "{v}");
 }
+
+/// Moves inside an endless loop: only the move cap (10 million) would end it.
+const RUNAWAY: &str =
+    "G21 G90\nG0 X0 Y0 Z5\no100 while [1 EQ 1]\nG1 X10 F1000\nG1 X0\no100 endwhile\nM30\n";
+
+#[tokio::test]
+async fn an_interpret_job_in_a_runaway_loop_is_cancelled_within_a_second() {
+    let dir = tempfile::tempdir().unwrap();
+    // The default lease: cancel must not wait for a long heartbeat either.
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let body = json!({"kind": "interpret", "inputs": {"program": {"name": "loop.ngc", "content": RUNAWAY}}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    while get_json(&c, &s, &format!("/v1/jobs/{id}")).await["status"] != "running" {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the job did not start"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    // Let it run into the loop.
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let asked = std::time::Instant::now();
+    let (st, _) = json(
+        c.post(s.url(&format!("/v1/jobs/{id}/cancel")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 202);
+    let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
+    let took = asked.elapsed();
+    assert_eq!(done["status"], "cancelled", "{done}");
+    assert!(took < Duration::from_secs(1), "cancel took {took:?}");
+}

@@ -650,3 +650,30 @@ fn t_words_are_recorded_with_the_line_of_their_first_selection() {
     assert_eq!(i.selected_tools, vec![(1, 1), (2, 3)]);
     assert!(run("G0 X1\n").selected_tools.is_empty());
 }
+
+#[test]
+fn a_runaway_loop_stops_soon_after_its_cancel_flag_is_set() {
+    let src =
+        "G21 G90\nG0 X0 Y0 Z5\no100 while [1 EQ 1]\nG1 X10 F1000\nG1 X0\no100 endwhile\nM30\n";
+    let cancel = millsim_engine::job::CancelFlag::new();
+    let opts = millsim_engine::nc::InterpretOptions {
+        // No cap would stop it in time: only the flag can.
+        max_moves: usize::MAX,
+        max_blocks: usize::MAX,
+        cancel: Some(cancel.clone()),
+        ..Default::default()
+    };
+    let setter = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        cancel.cancel();
+        std::time::Instant::now()
+    });
+    let result = millsim_engine::nc::interpret(src, &opts);
+    let stopped = std::time::Instant::now();
+    let cancelled_at = setter.join().unwrap();
+    let err = result
+        .err()
+        .expect("a cancelled interpretation is an error");
+    assert!(err.0[0].message.contains("cancelled"), "{err:?}");
+    assert!(stopped.duration_since(cancelled_at) < std::time::Duration::from_millis(500));
+}

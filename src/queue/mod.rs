@@ -210,7 +210,9 @@ impl Worker {
                 runner::run(&kind, &options, inputs, &cancel, progress.as_ref())
             })
         };
-        let beat = Duration::from_millis((self.config.lease_ms as u64 / 3).clamp(100, 1000));
+        // The heartbeat is also how a cancel reaches the engine (from any process): often
+        // enough that a cancelled job stops within a second.
+        let beat = Duration::from_millis((self.config.lease_ms as u64 / 3).clamp(100, 250));
         let mut ticker = tokio::time::interval(beat);
         let mut grace_deadline: Option<tokio::time::Instant> = None;
         let mut give_back = false;

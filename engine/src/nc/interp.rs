@@ -13,6 +13,10 @@ use super::{
 };
 use std::collections::HashMap;
 
+/// Executed blocks between two looks at the cancel flag: an atomic load is cheap, but not
+/// free on every block, and a few thousand blocks take well under a millisecond.
+const CANCEL_CHECK_BLOCKS: usize = 4096;
+
 const MM_PER_INCH: f64 = 25.4;
 /// LinuxCNC's retract between pecks in G73/G83, inches.
 const G83_RAPID_DELTA_INCH: f64 = 0.010;
@@ -984,6 +988,11 @@ impl<'p> Interp<'p> {
             let b = prog.block(pc);
             self.cur_block = pc;
             self.cur_line = b.line;
+            if steps % CANCEL_CHECK_BLOCKS == 0
+                && self.opts.cancel.as_ref().is_some_and(|c| c.is_cancelled())
+            {
+                return Err(self.err_block("interpretation cancelled"));
+            }
             if steps > self.opts.max_blocks {
                 return Err(self.err_block(format!(
                     "program executed more than {} blocks (endless loop?); interpretation stopped",

@@ -82,6 +82,10 @@ pub struct InterpretOptions {
     pub passthrough_m_codes: Vec<u32>,
     /// State of the control's block-delete switch: when on, blocks starting with `/` are skipped.
     pub block_delete: bool,
+    /// Checked every few thousand executed blocks: once set, interpretation stops with an
+    /// error (the caller, who set it, knows it was a cancel). A runaway loop is thus
+    /// stopped at once, not at the move cap.
+    pub cancel: Option<crate::job::CancelFlag>,
 }
 
 impl Default for InterpretOptions {
@@ -95,6 +99,7 @@ impl Default for InterpretOptions {
             fanuc_corners_without_comma: false,
             passthrough_m_codes: Vec::new(),
             block_delete: false,
+            cancel: None,
         }
     }
 }
