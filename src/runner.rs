@@ -14,7 +14,8 @@ use millsim_engine::machine::Machine;
 use millsim_engine::optimize::energy_search::{run_energy_job, EnergySearchOptions};
 use millsim_engine::optimize::FeedLimits;
 use millsim_engine::physics::stability::{
-    compute_lobes, compute_lobes_3d, recommend_spindle_speed, Stability3dInput, StabilityInput,
+    compute_lobes_3d_with, compute_lobes_with, recommend_spindle_speed, Stability3dInput,
+    StabilityInput,
 };
 use millsim_engine::physics::Material;
 use millsim_engine::pipeline::{self, SimulateError, SimulateSpec, StockSource};
@@ -237,7 +238,7 @@ pub fn run(
         "simulate" | "optimize" => {
             simulate_job(kind == "optimize", options, inputs, cancel, progress)
         }
-        "stability" => stability_job(options, progress),
+        "stability" => stability_job(options, cancel, progress),
         "rotary-feed" => rotary_feed_job(options, inputs),
         "energy" => energy_job(options, inputs),
         other => Err(JobFailure::Invalid(json!({
@@ -735,14 +736,20 @@ pub fn stability_options(options: &Value) -> Result<StabilityRequest, (String, S
 
 /// Lobes as rows (rpm, critical depth) — or (allowance_mm, rpm, depth_mm) for a 3-D surface:
 /// /blocks serves them as JSON pages and CSV.
-fn stability_job(options: &Value, progress: &dyn Progress) -> Result<JobOutput, JobFailure> {
+fn stability_job(
+    options: &Value,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<JobOutput, JobFailure> {
     let request = stability_options(options)
         .map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
-    let refused =
-        |e: millsim_engine::physics::PhysicsError| invalid("Stability refused", e.to_string());
+    let refused = |e: millsim_engine::physics::PhysicsError| match e {
+        millsim_engine::physics::PhysicsError::Cancelled => JobFailure::Cancelled,
+        e => invalid("Stability refused", e.to_string()),
+    };
     let (summary, rows): (Value, Vec<String>) = match request {
         StabilityRequest::Lobes(input, recommend) => {
-            let curve = compute_lobes(&input).map_err(refused)?;
+            let curve = compute_lobes_with(&input, cancel, progress).map_err(refused)?;
             let recommendation = recommend.map(|r| {
                 recommend_spindle_speed(&curve.points, r.near_rpm, r.depth_mm, r.window_rpm)
             });
@@ -764,7 +771,7 @@ fn stability_job(options: &Value, progress: &dyn Progress) -> Result<JobOutput, 
             (summary, rows)
         }
         StabilityRequest::Surface(input) => {
-            let surface = compute_lobes_3d(&input).map_err(refused)?;
+            let surface = compute_lobes_3d_with(&input, cancel, progress).map_err(refused)?;
             let rows = surface
                 .rows
                 .iter()

@@ -916,3 +916,49 @@ async fn an_interpret_job_in_a_runaway_loop_is_cancelled_within_a_second() {
     assert_eq!(done["status"], "cancelled", "{done}");
     assert!(took < Duration::from_secs(1), "cancel took {took:?}");
 }
+
+#[tokio::test]
+async fn a_long_stability_job_is_cancelled_within_a_second_and_reports_progress() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    // Semi-discretization over 20,000 speeds, two modes a direction: a minute of work.
+    let mode = |f: f64| json!({"freq_hz": f, "damping": 0.02, "stiffness_n_m": 2e6});
+    let options = json!({"method": "sdm", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200, "radial_immersion": 0.5, "milling": "down",
+        "modes_x": [mode(900.0), mode(1400.0)], "modes_y": [mode(950.0), mode(1500.0)],
+        "rpm": {"from": 5000, "to": 25000, "step": 1}, "steps_per_period": 40});
+    let (st, job) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "stability", "options": options}),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    // Progress counts speeds while it runs (it stayed 0/0 before).
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    loop {
+        let now = get_json(&c, &s, &format!("/v1/jobs/{id}")).await;
+        if now["progress"]["done"].as_u64().unwrap_or(0) > 0 {
+            assert_eq!(now["status"], "running", "{now}");
+            assert_eq!(now["progress"]["total"], 20001, "{now}");
+            break;
+        }
+        assert!(std::time::Instant::now() < deadline, "no progress: {now}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let asked = std::time::Instant::now();
+    let (st, _) = json(
+        c.post(s.url(&format!("/v1/jobs/{id}/cancel")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 202);
+    let done = wait_job(&c, &s, id, Duration::from_secs(300)).await;
+    let took = asked.elapsed();
+    assert_eq!(done["status"], "cancelled", "{done}");
+    assert!(took < Duration::from_secs(1), "cancel took {took:?}");
+}

@@ -98,6 +98,9 @@ pub enum PhysicsError {
     },
     #[error(transparent)]
     Tool(#[from] ToolError),
+    /// The caller's cancel flag was set during a long computation.
+    #[error("cancelled")]
+    Cancelled,
 }
 
 impl PhysicsError {
@@ -115,6 +118,7 @@ impl PhysicsError {
             PhysicsError::TooFewFeeds { .. } => "measurements",
             PhysicsError::Unidentifiable { .. } => "setup",
             PhysicsError::Tool(e) => e.field,
+            PhysicsError::Cancelled => "",
         }
     }
 }

@@ -38,6 +38,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{finite, positive, PhysicsError};
+use crate::job::{CancelFlag, NoProgress, Progress};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Depth up to which lobes are searched (mm); speeds stable at this depth report it. The
 /// reference curves of the benchmark reach 12.9 mm at low immersion, so 10 mm is too low; the
@@ -329,22 +331,36 @@ impl LobeCurve {
 
 /// Runs the input: validation, then the chosen method over the speed grid.
 pub fn compute_lobes(input: &StabilityInput) -> Result<LobeCurve, PhysicsError> {
+    compute_lobes_with(input, &CancelFlag::new(), &NoProgress)
+}
+
+/// [`compute_lobes`] for a job: reports speeds done, and stops with
+/// [`PhysicsError::Cancelled`] soon after `cancel` is set (the time-domain methods look at it
+/// before every depth they test; the zero-order method is closed-form and short).
+pub fn compute_lobes_with(
+    input: &StabilityInput,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<LobeCurve, PhysicsError> {
     input.validate()?;
     let sys = input.system()?;
     let rpms = input.rpm.speeds();
+    let steps = input.steps_per_period.unwrap_or(DEFAULT_STEPS_PER_PERIOD) as usize;
     let depths = match input.method {
         Method::Zoa => sys.zoa_lobes(&rpms, DEFAULT_MAX_DEPTH_MM),
-        Method::Sdm => sys.sd_lobes(
-            &rpms,
-            input.steps_per_period.unwrap_or(DEFAULT_STEPS_PER_PERIOD) as usize,
-            &input.search_options(),
-        )?,
-        Method::Fdm => sys.fd_lobes(
-            &rpms,
-            input.steps_per_period.unwrap_or(DEFAULT_STEPS_PER_PERIOD) as usize,
-            &input.search_options(),
-        )?,
+        Method::Sdm => {
+            sys.sd_model(steps)?
+                .lobes(&rpms, &input.search_options(), cancel, progress)?
+        }
+        Method::Fdm => {
+            sys.fd_model(steps)?
+                .lobes(&rpms, &input.search_options(), cancel, progress)?
+        }
     };
+    if cancel.is_cancelled() {
+        return Err(PhysicsError::Cancelled);
+    }
+    progress.report(rpms.len() as u64, rpms.len() as u64);
     Ok(LobeCurve {
         method: input.method,
         points: rpms
@@ -624,10 +640,8 @@ impl StabilitySystem {
         steps: usize,
         opts: &SearchOptions,
     ) -> Result<Vec<f64>, PhysicsError> {
-        let model = self.fd_model(steps)?;
-        rpms.par_iter()
-            .map(|&rpm| model.critical_depth_mm(rpm, opts))
-            .collect()
+        self.fd_model(steps)?
+            .lobes(rpms, opts, &CancelFlag::new(), &NoProgress)
     }
 
     /// H at one cutter angle (sum over the teeth in the cut), N/m².
@@ -655,10 +669,8 @@ impl StabilitySystem {
         steps: usize,
         opts: &SearchOptions,
     ) -> Result<Vec<f64>, PhysicsError> {
-        let model = self.sd_model(steps)?;
-        rpms.par_iter()
-            .map(|&rpm| model.critical_depth_mm(rpm, opts))
-            .collect()
+        self.sd_model(steps)?
+            .lobes(rpms, opts, &CancelFlag::new(), &NoProgress)
     }
 }
 
@@ -969,10 +981,45 @@ impl SdModel {
     /// Critical depth (mm) at one speed by bisection to `tolerance_mm` (see [`SearchOptions`]
     /// for the plain and the scanning search); `max_depth_mm` if stable there.
     pub fn critical_depth_mm(&self, rpm: f64, opts: &SearchOptions) -> Result<f64, PhysicsError> {
+        self.critical_depth_until(rpm, opts, None)
+    }
+
+    /// The critical depth at each speed, parallel over speeds, reporting speeds done and
+    /// stopping with [`PhysicsError::Cancelled`] once `cancel` is set.
+    pub fn lobes(
+        &self,
+        rpms: &[f64],
+        opts: &SearchOptions,
+        cancel: &CancelFlag,
+        progress: &dyn Progress,
+    ) -> Result<Vec<f64>, PhysicsError> {
+        let done = AtomicU64::new(0);
+        let total = rpms.len() as u64;
+        rpms.par_iter()
+            .map(|&rpm| {
+                let depth = self.critical_depth_until(rpm, opts, Some(cancel))?;
+                progress.report(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+                Ok(depth)
+            })
+            .collect()
+    }
+
+    fn critical_depth_until(
+        &self,
+        rpm: f64,
+        opts: &SearchOptions,
+        cancel: Option<&CancelFlag>,
+    ) -> Result<f64, PhysicsError> {
         positive("rpm", rpm)?;
         positive("max_depth_mm", opts.max_depth_mm)?;
         positive("tolerance_mm", opts.tolerance_mm)?;
-        let stable = |a: f64| self.spectral_radius(rpm, a).map(|r| r < 1.0);
+        // One depth is one Floquet analysis, the unit of work: cancel is looked at before each.
+        let stable = |a: f64| {
+            if cancel.is_some_and(CancelFlag::is_cancelled) {
+                return Err(PhysicsError::Cancelled);
+            }
+            self.spectral_radius(rpm, a).map(|r| r < 1.0)
+        };
         let (mut lo, mut hi) = match opts.scan_step_mm {
             None => {
                 if stable(opts.max_depth_mm)? {
@@ -1311,10 +1358,21 @@ fn non_negative_field(field: &str, v: f64) -> Result<(), PhysicsError> {
 /// The lobe curve at every requested allowance ([`compute_lobes`] of
 /// [`Stability3dInput::input_at`]): a surface rpm × allowance → critical depth.
 pub fn compute_lobes_3d(input: &Stability3dInput) -> Result<LobeSurface, PhysicsError> {
+    compute_lobes_3d_with(input, &CancelFlag::new(), &NoProgress)
+}
+
+/// [`compute_lobes_3d`] for a job: reports allowances done and stops once `cancel` is set.
+pub fn compute_lobes_3d_with(
+    input: &Stability3dInput,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<LobeSurface, PhysicsError> {
     input.validate()?;
     let mut rows = Vec::new();
-    for &a in &input.allowances_mm {
-        let curve = compute_lobes(&input.input_at(a)?)?;
+    let total = input.allowances_mm.len() as u64;
+    for (i, &a) in input.allowances_mm.iter().enumerate() {
+        progress.report(i as u64, total);
+        let curve = compute_lobes_with(&input.input_at(a)?, cancel, &NoProgress)?;
         rows.extend(curve.points.iter().map(|p| LobeSurfacePoint {
             allowance_mm: a,
             rpm: p.rpm,
