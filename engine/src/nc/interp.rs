@@ -988,7 +988,7 @@ impl<'p> Interp<'p> {
             let b = prog.block(pc);
             self.cur_block = pc;
             self.cur_line = b.line;
-            if steps % CANCEL_CHECK_BLOCKS == 0
+            if steps.is_multiple_of(CANCEL_CHECK_BLOCKS)
                 && self.opts.cancel.as_ref().is_some_and(|c| c.is_cancelled())
             {
                 return Err(self.err_block("interpretation cancelled"));
