@@ -421,6 +421,7 @@ mod tests {
     use super::*;
     use crate::geometry::stock::Stock;
     use crate::geometry::sweep::{remove_sweep, SubMove};
+    use crate::vec3::sub;
 
     /// The bins of each slice as `compute` finds them, against every edge point tested
     /// one by one (`material_at`), for tilted tools in a block with a tilted slot cut in
@@ -450,7 +451,7 @@ mod tests {
             let input = StepInput {
                 pos,
                 axis,
-                motion: sub3(pos, p1),
+                motion: sub(pos, p1),
                 top_z: 0.0,
             };
             let opts = EngagementOptions::default();
@@ -500,9 +501,5 @@ mod tests {
             }
         }
         assert!(cases > 200, "{cases}");
-    }
-
-    fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
     }
 }

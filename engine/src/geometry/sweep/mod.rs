@@ -111,28 +111,6 @@ impl Slab {
             )
         }
     }
-
-    /// The slab's range along the ray of family `fam` at cross coordinates (u, v).
-    #[inline]
-    fn along(&self, fam: usize, u: f64, v: f64) -> (f64, f64) {
-        let (ua, va) = other_axes(fam);
-        let n = self.normal;
-        let rest = n[ua] * u + n[va] * v;
-        let (lo, hi) = (self.lo - rest, self.hi - rest);
-        let nf = n[fam];
-        if nf.abs() > 1e-9 {
-            let (x, y) = (lo / nf, hi / nf);
-            if nf > 0.0 {
-                (x, y)
-            } else {
-                (y, x)
-            }
-        } else if lo <= 0.0 && 0.0 <= hi {
-            (f64::NEG_INFINITY, f64::INFINITY)
-        } else {
-            (f64::INFINITY, f64::NEG_INFINITY)
-        }
-    }
 }
 
 /// A sweep's slabs along the rays of one row, each range linear in the cross coordinate
@@ -149,6 +127,9 @@ impl RowSlabs {
     /// The range along the ray at u where the sweep may lie (empty when lo > hi).
     #[inline]
     pub(crate) fn at(&self, u: f64) -> (f64, f64) {
+        if !(self.u_clip.0 <= u && u <= self.u_clip.1) {
+            return (f64::INFINITY, f64::NEG_INFINITY);
+        }
         let (s0, s1) = (self.slope[0] * u, self.slope[1] * u);
         (
             (self.lo[0] + s0).max(self.lo[1] + s1),
@@ -317,10 +298,7 @@ impl<'a> Sweep<'a> {
     /// intersection.
     #[inline]
     pub(crate) fn slab_range(&self, fam: usize, u: f64, v: f64) -> (f64, f64) {
-        let [a, b] = self.slabs[fam];
-        let (a0, a1) = a.along(fam, u, v);
-        let (b0, b1) = b.along(fam, u, v);
-        (a0.max(b0), a1.min(b1))
+        self.row_slabs(fam, v).at(u)
     }
 
     /// The slabs' ranges along the rays of family `fam` in row v.
@@ -354,6 +332,25 @@ mod tests {
     use super::solvers::line_stadium;
     use super::*;
     use crate::tool::Tool;
+
+    /// A deterministic stream of numbers in [0, 1) (a 64-bit LCG) for the random cases.
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// A 30° chamfer mill of `diameter` with a tip of `tip` mm.
+    fn chamfer_30(diameter: f64, tip: f64) -> Tool {
+        let mut t = Tool::flat(diameter, 2);
+        t.shape = crate::tool::ToolShape::Chamfer;
+        t.taper_half_angle_deg = 30.0;
+        t.tip_diameter = tip;
+        t
+    }
 
     #[test]
     fn stadium_chords() {
@@ -425,17 +422,8 @@ mod tests {
     fn tilted_flat_and_ball_sweeps_bound_the_swept_points() {
         // Pseudo-random tilted sweeps; the interval's ends must separate points of the
         // swept volume (checked by sampling the sweep) from points outside it.
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut chamfer = Tool::flat(6.0, 2);
-        chamfer.shape = crate::tool::ToolShape::Chamfer;
-        chamfer.taper_half_angle_deg = 30.0;
-        chamfer.tip_diameter = 1.0;
+        let mut rnd = uniform(12345);
+        let chamfer = chamfer_30(6.0, 1.0);
         for tool in [
             Tool::flat(6.0, 2),
             Tool::ball(6.0, 2),
@@ -515,13 +503,7 @@ mod tests {
 
     #[test]
     fn slabs_hold_the_exact_interval_and_chords_hold_the_rays() {
-        let mut seed = 99u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = uniform(99);
         let full = Intervals::from_slice(&[[-100.0, 100.0]]);
         let mut hits = 0;
         for tool in [Tool::flat(6.0, 2), Tool::ball(6.0, 2)] {
@@ -577,13 +559,8 @@ mod tests {
     #[test]
     fn swept_frustum_of_a_cylinder_is_the_swept_cylinder() {
         use super::solvers::{swept_cylinder, swept_frustum, Frustum};
-        let mut seed = 5u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut unit = uniform(5);
+        let mut rnd = || unit() * 2.0 - 1.0;
         let mut both = 0;
         for k in 0..5000 {
             let o = [rnd() * 5.0, rnd() * 5.0, rnd() * 5.0];
@@ -629,17 +606,8 @@ mod tests {
     fn the_floor_a_tilted_bottom_shaves_is_the_exact_sweep_s() {
         // Z rays whose material is a floor just above where the sweep enters them: the
         // shortcut through the bottom disk must remove what the exact interval removes.
-        let mut seed = 17u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut chamfer = Tool::flat(6.0, 2);
-        chamfer.shape = crate::tool::ToolShape::Chamfer;
-        chamfer.taper_half_angle_deg = 30.0;
-        chamfer.tip_diameter = 2.0;
+        let mut rnd = uniform(17);
+        let chamfer = chamfer_30(6.0, 2.0);
         let full = Intervals::from_slice(&[[-100.0, 100.0]]);
         let mut checked = 0;
         for tool in [Tool::flat(6.0, 2), Tool::bull_nose(6.0, 1.0, 2), chamfer] {
@@ -687,13 +655,8 @@ mod tests {
 
     #[test]
     fn prepared_stadium_matches_line_stadium() {
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 10.0 - 5.0
-        };
+        let mut unit = uniform(7);
+        let mut rnd = || unit() * 10.0 - 5.0;
         for k in 0..2000 {
             let a = [rnd(), rnd()];
             let b = if k % 7 == 0 {
