@@ -84,7 +84,7 @@ fn setup() -> (String, Vec<Move>, Vec<MoveEngagement<'static>>) {
                     (base + 0.1 * (rng.next() - 0.5)).clamp(0.02, 1.0)
                 };
                 EngagementStep {
-                    engagement: Cow::Owned(engagement(2.0, ae)),
+                    engagement: Cow::Owned(engagement(2.0, ae).into()),
                     spindle_rpm: RPM,
                     tip_ratio: 1.0,
                     at: k as f64 * 0.6,

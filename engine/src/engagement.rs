@@ -60,3 +60,258 @@ impl Engagement {
         }
     }
 }
+
+/// An [`Engagement`] as the later stages keep it, one per step of a whole program. The
+/// geometry engine's slices lie on a grid (slice j centred at (j + ½)·dz, one dz high) and
+/// its arcs run between multiples of dφ, and neighbouring slices of a flank share their
+/// arcs: so it keeps runs of slice indices with the arcs' bin indices. A buried tool's two
+/// hundred 64-byte slices become a few runs of a few bytes. Exact: [`unpack`](Self::unpack)
+/// gives back the same numbers bit for bit; an engagement off the grid is kept as it is.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "Engagement", into = "Engagement")]
+pub struct PackedEngagement(Packing);
+
+#[derive(Clone, Debug, PartialEq)]
+enum Packing {
+    Grid {
+        dz: f64,
+        dphi: f64,
+        feed_dir: [f64; 3],
+        tool_axis: [f64; 3],
+        runs: Box<[SliceRun]>,
+        /// Each arc as the bin indices of its ends; a run's arcs from its `arcs_start` to
+        /// the next run's.
+        bins: Box<[[u32; 2]]>,
+    },
+    Full(Engagement),
+}
+
+/// Slices `first..first + count` with the same arcs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SliceRun {
+    first: u32,
+    count: u32,
+    arcs_start: u32,
+}
+
+impl Default for PackedEngagement {
+    fn default() -> Self {
+        PackedEngagement(Packing::Full(Engagement::default()))
+    }
+}
+
+impl From<Engagement> for PackedEngagement {
+    /// Kept as it is (no grid known).
+    fn from(e: Engagement) -> Self {
+        PackedEngagement(Packing::Full(e))
+    }
+}
+
+impl From<PackedEngagement> for Engagement {
+    fn from(p: PackedEngagement) -> Self {
+        match p.0 {
+            Packing::Full(e) => e,
+            Packing::Grid { .. } => p.unpack(),
+        }
+    }
+}
+
+impl PackedEngagement {
+    /// `e` on the grid of slice height `dz` and arc bin `dphi` when every number lies on
+    /// it exactly, else `e` as it is.
+    pub fn pack(e: Engagement, dz: f64, dphi: f64) -> PackedEngagement {
+        match Self::on_grid(&e, dz, dphi) {
+            Some(p) => PackedEngagement(p),
+            None => PackedEngagement(Packing::Full(e)),
+        }
+    }
+
+    fn on_grid(e: &Engagement, dz: f64, dphi: f64) -> Option<Packing> {
+        let finite = |v: f64| v.is_finite() && v > 0.0;
+        if !finite(dz) || !finite(dphi) {
+            return None;
+        }
+        // An index whose value, computed as unpacking computes it, is `v` exactly.
+        let index = |v: f64, step: f64, half: f64| -> Option<u32> {
+            let i = (v / step - half).round();
+            (i >= 0.0 && i < u32::MAX as f64 && (i + half) * step == v).then_some(i as u32)
+        };
+        let mut runs: Vec<SliceRun> = Vec::new();
+        let mut bins: Vec<[u32; 2]> = Vec::new();
+        for s in &e.slices {
+            if s.dz != dz {
+                return None;
+            }
+            let j = index(s.z, dz, 0.5)?;
+            let start = bins.len();
+            for &(a, b) in &s.arcs {
+                bins.push([index(a, dphi, 0.0)?, index(b, dphi, 0.0)?]);
+            }
+            if let Some(r) = runs.last_mut() {
+                let prev = r.arcs_start as usize..start;
+                if r.first as u64 + r.count as u64 == j as u64 && bins[prev] == bins[start..] {
+                    r.count += 1;
+                    bins.truncate(start);
+                    continue;
+                }
+            }
+            runs.push(SliceRun {
+                first: j,
+                count: 1,
+                arcs_start: u32::try_from(start).ok()?,
+            });
+        }
+        Some(Packing::Grid {
+            dz,
+            dphi,
+            feed_dir: e.feed_dir,
+            tool_axis: e.tool_axis,
+            runs: runs.into_boxed_slice(),
+            bins: bins.into_boxed_slice(),
+        })
+    }
+
+    /// The engagement, unpacked.
+    pub fn unpack(&self) -> Engagement {
+        let mut e = Engagement::default();
+        self.unpack_into(&mut e);
+        e
+    }
+
+    /// The engagement into `out` (its buffers reused).
+    pub fn unpack_into(&self, out: &mut Engagement) {
+        match &self.0 {
+            Packing::Full(e) => out.clone_from(e),
+            Packing::Grid {
+                dz,
+                dphi,
+                feed_dir,
+                tool_axis,
+                runs,
+                bins,
+            } => {
+                out.feed_dir = *feed_dir;
+                out.tool_axis = *tool_axis;
+                out.slices.clear();
+                for (k, r) in runs.iter().enumerate() {
+                    let end = runs.get(k + 1).map_or(bins.len(), |n| n.arcs_start as usize);
+                    let arcs: Arcs = bins[r.arcs_start as usize..end]
+                        .iter()
+                        .map(|&[a, b]| (a as f64 * dphi, b as f64 * dphi))
+                        .collect();
+                    for j in r.first..r.first + r.count {
+                        out.slices.push(EngagedSlice {
+                            z: (j as f64 + 0.5) * dz,
+                            dz: *dz,
+                            arcs: arcs.clone(),
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    /// The engagement itself where it is kept as it is, else unpacked into `scratch`.
+    pub fn view<'a>(&'a self, scratch: &'a mut Engagement) -> &'a Engagement {
+        match &self.0 {
+            Packing::Full(e) => e,
+            Packing::Grid { .. } => {
+                self.unpack_into(scratch);
+                scratch
+            }
+        }
+    }
+
+    /// No edge meets material: an air step.
+    pub fn is_air(&self) -> bool {
+        match &self.0 {
+            Packing::Full(e) => e.is_air(),
+            Packing::Grid { bins, .. } => bins.is_empty(),
+        }
+    }
+
+    /// Bytes held on the heap (for memory estimates).
+    pub fn heap_bytes(&self) -> usize {
+        match &self.0 {
+            Packing::Full(e) => {
+                e.slices.capacity() * std::mem::size_of::<EngagedSlice>()
+                    + e.slices
+                        .iter()
+                        .filter(|s| s.arcs.spilled())
+                        .map(|s| s.arcs.capacity() * 16)
+                        .sum::<usize>()
+            }
+            Packing::Grid { runs, bins, .. } => {
+                runs.len() * std::mem::size_of::<SliceRun>() + bins.len() * 8
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn slice(j: usize, dz: f64, arcs: &[(usize, usize)], dphi: f64) -> EngagedSlice {
+        EngagedSlice {
+            z: (j as f64 + 0.5) * dz,
+            dz,
+            arcs: arcs
+                .iter()
+                .map(|&(a, b)| (a as f64 * dphi, b as f64 * dphi))
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn packing_is_exact_and_shares_the_arcs_of_a_flank() {
+        let (dz, dphi) = (0.1, 2.0 * PI / 180.0);
+        // Tip slices each their own, a buried flank of 150 slices alike, a gap, three arcs.
+        let mut slices = vec![slice(3, dz, &[(10, 80)], dphi), slice(4, dz, &[(8, 85)], dphi)];
+        slices.extend((5..155).map(|j| slice(j, dz, &[(0, 90)], dphi)));
+        slices.push(slice(160, dz, &[(1, 2), (5, 9), (100, 179)], dphi));
+        let e = Engagement {
+            slices,
+            feed_dir: [0.6, 0.8, 0.0],
+            tool_axis: [0.0, -0.6, 0.8],
+        };
+        let p = PackedEngagement::pack(e.clone(), dz, dphi);
+        assert_eq!(p.unpack(), e, "bit for bit");
+        assert!(!p.is_air());
+        // Four runs and six arcs instead of 153 slices.
+        let full = PackedEngagement::from(e.clone());
+        assert!(p.heap_bytes() * 50 < full.heap_bytes(), "{}", p.heap_bytes());
+        // Unpacking into a used buffer leaves nothing of what was there.
+        let mut scratch = slice_buffer();
+        assert_eq!(p.view(&mut scratch), &e);
+    }
+
+    fn slice_buffer() -> Engagement {
+        Engagement {
+            slices: vec![EngagedSlice::default(); 300],
+            feed_dir: [1.0, 0.0, 0.0],
+            tool_axis: [0.0, 0.0, 1.0],
+        }
+    }
+
+    #[test]
+    fn an_engagement_off_the_grid_is_kept_as_it_is() {
+        let (dz, dphi) = (0.1, 2.0 * PI / 180.0);
+        let mut e = Engagement {
+            slices: vec![slice(2, dz, &[(3, 40)], dphi)],
+            ..Default::default()
+        };
+        e.slices[0].arcs[0].1 += 1e-9;
+        let p = PackedEngagement::pack(e.clone(), dz, dphi);
+        assert_eq!(p, PackedEngagement::from(e.clone()));
+        assert_eq!(p.unpack(), e);
+        // A slice of another height is off the grid too; no slices at all is air.
+        let other = Engagement {
+            slices: vec![slice(2, 0.2, &[(3, 40)], dphi)],
+            ..Default::default()
+        };
+        assert_eq!(PackedEngagement::pack(other.clone(), dz, dphi).unpack(), other);
+        assert!(PackedEngagement::pack(Engagement::default(), dz, dphi).is_air());
+    }
+}

@@ -54,7 +54,7 @@ fn rapid_through_the_stock_is_reported_on_its_block() {
     assert!(rep.blocks[3]
         .steps
         .iter()
-        .all(|s| s.engagement.slices.is_empty()));
+        .all(|s| s.engagement.unpack().slices.is_empty()));
     assert!(rep.blocks[3].air_fraction < 1.0);
     assert_eq!(rep.blocks[0].air_fraction, 1.0);
 }

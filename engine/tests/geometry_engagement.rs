@@ -83,7 +83,7 @@ fn down_milling_straight_edge() {
                 m.radial_width
             );
             // Every slice of the flank sees the same arcs.
-            for sl in &s.engagement.slices {
+            for sl in &s.engagement.unpack().slices {
                 assert_eq!(sl.arcs.len(), 1);
             }
         }
@@ -247,7 +247,7 @@ fn ball_slot_engages_the_front_half_over_the_depth() {
             m.engaged_edge_length
         );
         // Each slice's arc is the front half.
-        for sl in &s.engagement.slices {
+        for sl in &s.engagement.unpack().slices {
             assert_eq!(sl.arcs.len(), 1, "{sl:?}");
             assert!(
                 sl.arcs[0].0 <= bin() && (sl.arcs[0].1 - PI).abs() <= bin(),

@@ -55,7 +55,7 @@ fn tenth() -> Engagement {
 
 fn step(e: Engagement) -> EngagementStep<'static> {
     EngagementStep {
-        engagement: Cow::Owned(e),
+        engagement: Cow::Owned(e.into()),
         spindle_rpm: RPM,
         tip_ratio: 1.0,
         at: 0.0,

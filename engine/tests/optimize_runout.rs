@@ -76,7 +76,7 @@ fn setup(
             cutter: 0,
             scale: FeedScale::UNIT,
             steps: vec![EngagementStep {
-                engagement: Cow::Owned(e.clone()),
+                engagement: Cow::Owned(e.clone().into()),
                 spindle_rpm: RPM,
                 tip_ratio: 1.0,
                 at: 0.0,

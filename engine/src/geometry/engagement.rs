@@ -89,6 +89,12 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
+/// The slice height and the arc bin the engagement is computed on, for a grid of `cell`.
+pub(crate) fn grid_steps(cell: f64, opts: &EngagementOptions) -> (f64, f64) {
+    let nb = opts.angular_bins.max(4);
+    (opts.axial_step.unwrap_or(cell).max(1e-6), 2.0 * PI / nb as f64)
+}
+
 pub(crate) fn compute(
     grid: &DexelGrid,
     tool: &Tool,
@@ -123,8 +129,7 @@ pub(crate) fn compute(
         tool_axis: a,
     };
     let nb = opts.angular_bins.max(4);
-    let dz = opts.axial_step.unwrap_or(grid.cell).max(1e-6);
-    let dphi = 2.0 * PI / nb as f64;
+    let (dz, dphi) = grid_steps(grid.cell, opts);
     let length = body.length.min(tool.flute_length);
     // Slices that can meet material: above the grid floor and below the stock's top.
     let vertical = (a[2] - 1.0).abs() < 1e-12;

@@ -8,12 +8,14 @@ use serde::{Deserialize, Serialize};
 
 use super::checks::{check_position, CheckFlags, ToolChecks};
 use super::dexel::DexelGrid;
-use super::engagement::{compute, EngagementOptions, Scratch, StepInput, StepMetrics};
+use super::engagement::{
+    compute, grid_steps, EngagementOptions, Scratch, StepInput, StepMetrics,
+};
 use super::path::Segment;
 use super::stock::Stock;
 use super::sweep::{RemovalPass, RemovalStats, SubMove, ToolBody};
 use super::GeometryError;
-use crate::engagement::Engagement;
+use crate::engagement::{Engagement, PackedEngagement};
 use crate::job::CancelFlag;
 use crate::tool::Tool;
 use crate::vec3::sub;
@@ -66,8 +68,9 @@ pub struct StepGeometry {
     pub distance: f64,
     /// Path length of this step, mm.
     pub length: f64,
-    /// Engagement at `position`, before this step removed material.
-    pub engagement: Engagement,
+    /// Engagement at `position`, before this step removed material (packed: a program's
+    /// steps keep theirs until the forces are computed).
+    pub engagement: PackedEngagement,
     pub metrics: StepMetrics,
     /// No edge point met material.
     pub air: bool,
@@ -310,6 +313,7 @@ fn run_segments(
     let mut scratch = Scratch::default();
     let Pass { blocks, step_stats } = out;
     let mut sub_moves = Vec::new();
+    let (slice_dz, arc_bin) = grid_steps(h, &opts.engagement);
     for (index, seg) in segments.iter().enumerate() {
         let invalid = |message: String| GeometryError::InvalidSegment {
             index,
@@ -491,7 +495,7 @@ fn run_segments(
                 axis,
                 distance: u * len,
                 length: this_len,
-                engagement,
+                engagement: PackedEngagement::pack(engagement, slice_dz, arc_bin),
                 metrics,
                 air,
                 // Filled in by `finish_block`.

@@ -32,7 +32,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::engagement::Engagement;
+use crate::engagement::{Engagement, PackedEngagement};
 use crate::machine::cycle_time::{feed_velocity, move_length};
 use crate::machine::Machine;
 use crate::nc::{FeedMode, Move, MoveKind};
@@ -46,7 +46,7 @@ use crate::tool::Tool;
 #[derive(Clone, Debug, PartialEq)]
 pub struct EngagementStep<'a> {
     /// Borrowed from the removal's steps when the caller keeps them (no copy per step).
-    pub engagement: Cow<'a, Engagement>,
+    pub engagement: Cow<'a, PackedEngagement>,
     pub spindle_rpm: f64,
     /// Tool-tip speed in the part frame per unit of the move's machine-axis feed at this
     /// step: 1 on a 3-axis move; where rotary axes turn, the tip's path over the axes'.
@@ -515,9 +515,18 @@ fn evaluate(
         let (g, which) = limits.ratio_of(force, torque * c.omega(), torque, chip);
         return Ok((g, which, chip));
     }
-    cutter
-        .model
-        .evaluate_into(&step.engagement, &cutter.coefficients, &c, out)?;
+    thread_local! {
+        // The packed engagement unpacked, its buffers kept from one evaluation to the next.
+        static SCRATCH: std::cell::RefCell<Engagement> = Default::default();
+    }
+    SCRATCH.with_borrow_mut(|scratch| {
+        cutter.model.evaluate_into(
+            step.engagement.view(scratch),
+            &cutter.coefficients,
+            &c,
+            out,
+        )
+    })?;
     let (g, which) = limits.ratio(out);
     Ok((g, which, out.max_chip_thickness))
 }

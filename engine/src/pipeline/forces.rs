@@ -10,6 +10,7 @@ use super::frame::feed_scale;
 use super::removal::{MoveStep, Removal};
 use super::rows::MoveRow;
 use super::spec::{SimulateError, SimulateSpec};
+use crate::engagement::Engagement;
 use crate::geometry;
 use crate::nc::{self, Move};
 use crate::optimize;
@@ -52,8 +53,8 @@ pub(super) fn evaluate_forces(
         .zip(step_feeds)
         .zip(&same_as_previous)
         .map_init(
-            || models.clone(),
-            |models, ((step, &feed), &same)| {
+            || (models.clone(), Engagement::default()),
+            |(models, scratch), ((step, &feed), &same)| {
                 let (m, t, s) = (&moves[step.move_index], &step.tool, &step.geometry);
                 let flutes = models[t].table().flutes() as f64;
                 let Some(conditions) = cutting_conditions(m, s, feed, flutes).filter(|_| !same)
@@ -68,7 +69,7 @@ pub(super) fn evaluate_forces(
                         let per_tooth = |v: f64| step.tip_ratio * v / (m.spindle * flutes);
                         model
                             .evaluate_with_response(
-                                &s.engagement,
+                                s.engagement.view(scratch),
                                 k,
                                 &conditions,
                                 (per_tooth(lo), per_tooth(hi)),
@@ -77,7 +78,12 @@ pub(super) fn evaluate_forces(
                             .map(Arc::new)
                     }
                     None => {
-                        model.evaluate_into(&s.engagement, k, &conditions, &mut out)?;
+                        model.evaluate_into(
+                            s.engagement.view(scratch),
+                            k,
+                            &conditions,
+                            &mut out,
+                        )?;
                         None
                     }
                 };
@@ -115,8 +121,8 @@ pub(super) fn peak_forces(
         .zip(responses)
         .zip(step_feeds)
         .map_init(
-            || models.clone(),
-            |models, ((step, response), &feed)| {
+            || (models.clone(), Engagement::default()),
+            |(models, scratch), ((step, response), &feed)| {
                 let (m, t, s) = (&moves[step.move_index], &step.tool, &step.geometry);
                 let flutes = models[t].table().flutes() as f64;
                 let Some(conditions) = cutting_conditions(m, s, feed, flutes) else {
@@ -128,7 +134,10 @@ pub(super) fn peak_forces(
                 }
                 let model = models.get_mut(t).expect("model per tool");
                 Ok(Some(
-                    model.evaluate(&s.engagement, k, &conditions)?.force.peak,
+                    model
+                        .evaluate(s.engagement.view(scratch), k, &conditions)?
+                        .force
+                        .peak,
                 ))
             },
         )

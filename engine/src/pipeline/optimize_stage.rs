@@ -68,7 +68,7 @@ pub(super) fn optimize_stage(
             engagement: if cuts {
                 std::borrow::Cow::Borrowed(&s.engagement)
             } else {
-                std::borrow::Cow::Owned(crate::engagement::Engagement::default())
+                std::borrow::Cow::Owned(crate::engagement::PackedEngagement::default())
             },
             spindle_rpm: moves[mi].spindle,
             tip_ratio: step.tip_ratio,

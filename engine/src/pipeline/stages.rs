@@ -125,7 +125,7 @@ pub(super) fn wear_and_roughness(
         let g = &s.geometry;
         if !g.air && g.removed_volume > 0.0 {
             let tool = tools.tool_for(&moves[s.move_index])?;
-            let d = effective_diameter(tool, &g.engagement);
+            let d = effective_diameter(tool, &g.engagement.unpack());
             diameter[s.move_index] = diameter[s.move_index].max(d);
             scallops[s.move_index].push(scallop_of(tool, &g.metrics)?);
         }
