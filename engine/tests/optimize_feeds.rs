@@ -685,7 +685,7 @@ fn schedule_is_the_same_whatever_the_thread_count() {
     for s in one.moves.iter().filter(|s| s.engaged) {
         for st in &segs[s.move_index - 1].steps {
             if !st.engagement.is_air() {
-                assert!(force_at(&st.engagement, s.feed).force.peak <= 450.0);
+                assert!(force_at(&st.engagement.unpack(), s.feed).force.peak <= 450.0);
             }
         }
     }
