@@ -300,7 +300,7 @@ fn run_segments(
     (pass, xy): (&mut RemovalPass, &XyRemoval),
     out: &mut Pass,
 ) -> Result<(), GeometryError> {
-    let checks = ToolChecks::new(tool);
+    let mut checks = ToolChecks::new(tool);
     let h = grid.cell;
     let arc_tol = opts.arc_tolerance.unwrap_or(h / 20.0).max(1e-6);
     let axis_tol = opts.axis_tolerance.unwrap_or(h / 2.0).max(1e-6);
@@ -414,7 +414,7 @@ fn run_segments(
             let motion = sub(pos, p_prev);
             check_position(
                 &*grid,
-                &checks,
+                &mut checks,
                 pos,
                 axis,
                 top_z,

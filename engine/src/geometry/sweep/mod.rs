@@ -40,6 +40,7 @@ mod vertical;
 pub(crate) use pass::RemovalPass;
 pub use pass::{remove_sweep, remove_sweeps, RemovalStats, SubMove};
 pub use profile::ToolBody;
+pub(crate) use solvers::{swept_frustum, Frustum};
 pub(crate) use tilted::frame_around;
 
 use crate::geometry::dexel::{other_axes, Intervals};
