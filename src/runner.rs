@@ -499,6 +499,9 @@ struct SimulateSummary<'a> {
     force_peak_opt_n: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     optimization: Option<&'a pipeline::OptimizationSummary>,
+    /// The job's memory budget and the estimate it was held to (MiB; by buffer, bytes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    memory: Option<Value>,
     /// With a `tool_library` input: its file and format, the T numbers it gave that cut,
     /// and its import report's notes on them.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -575,7 +578,7 @@ fn simulate_job(
         tools: &tools,
         cell: opts.cell_mm,
     };
-    check_simulation(&check, limits).map_err(|r| match r {
+    let estimate = check_simulation(&check, limits).map_err(|r| match r {
         Refusal::Program(d) => program_failure(cancel, &file, &d),
         Refusal::Problem(p) => JobFailure::Invalid(p),
     })?;
@@ -671,6 +674,13 @@ fn simulate_job(
             cycle_time_opt_s: out.optimization.as_ref().map(|o| o.cycle_time_after_s),
             force_peak_opt_n: out.optimization.as_ref().map(|o| o.peak_force_after),
             optimization: out.optimization.as_ref(),
+            memory: estimate.map(|e| {
+                json!({
+                    "budget_mb": limits.memory_mb(),
+                    "estimate_mb": e.peak_bytes.div_ceil(1 << 20),
+                    "estimate": e,
+                })
+            }),
             tool_library,
             row_columns,
         })

@@ -110,12 +110,17 @@ pub const FIXED_BYTES: u64 = 96 << 20;
 /// JSON text of one stored row, bytes (a simulate row has about 40 fields).
 const ROW_JSON_BYTES: u64 = 1400;
 
-/// Bytes one removal step holds until the job ends, engaged slices apart: its geometry,
-/// engagement and force records and its sample. Measured: a 1000-turn circle of radius 5
-/// mm in a block (D10 flat, 0.25 mm cells, 125,600 steps) peaked 420 MB over the same
-/// program's 100 turns, 3.3 to 3.7 KB per step. (The per-step records are being reworked;
-/// this follows them.)
-pub const STEP_BYTES: u64 = 3584;
+/// Bytes one removal step of a straight move holds until the job ends, engaged slices
+/// apart (its geometry, engagement, force records and sample). Calibrated on the adaptive
+/// example (examples/adaptive: 81,000 steps of 0.066 mm, 295 MB peak in all): a cut step
+/// holds 2 to 2.5 KB with its slices; steps in air hold far less (a straight zigzag in air:
+/// 175 B per cell of path), so this is an upper bound for them.
+pub const STEP_BYTES: u64 = 2048;
+
+/// The same for a step of an arc (its sampled pieces too). Measured: a 1000-turn circle of
+/// radius 5 mm in a block (D10 flat, 0.25 mm cells, 125,600 steps, 0.5 to 2 mm deep) peaked
+/// 420 MB over the same program's 100 turns, 3.3 to 3.7 KB per step.
+pub const ARC_STEP_BYTES: u64 = 3584;
 
 /// Bytes per engaged slice of a step (measured: 60 B from a 0.5 mm to an 8 mm deep cut).
 pub const SLICE_BYTES: u64 = 64;
@@ -173,11 +178,11 @@ pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, Geom
         .min(size.flute_length)
         .max(size.cell);
     let slices_per_step = (0.25 * engaged_height / size.cell).ceil().max(1.0) as u64;
-    let step_bytes = STEP_BYTES + slices_per_step * SLICE_BYTES;
+    let slice_bytes = slices_per_step * SLICE_BYTES;
     let reach = size.tool_radius.max(0.0);
     let lo = size.stock_min.map(|v| v - reach);
     let hi = size.stock_max.map(|v| v + reach);
-    let mut steps = 0u64;
+    let mut steps_bytes = 0u64;
     for m in size.moves {
         if matches!(m.kind, MoveKind::Dwell | MoveKind::ToolChange) {
             continue;
@@ -211,9 +216,13 @@ pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, Geom
         } else {
             u64::MAX / 4
         };
-        steps = steps.saturating_add(n);
+        let per_step = if m.arc.is_some() {
+            ARC_STEP_BYTES
+        } else {
+            STEP_BYTES
+        } + slice_bytes;
+        steps_bytes = steps_bytes.saturating_add(n.saturating_mul(per_step));
     }
-    let steps_bytes = steps.saturating_mul(step_bytes);
 
     // Export: the voxel bit columns (layers 0..=nz) of a band of rows at a time, and the
     // triangles, a strip per run of boundary faces (about a quarter of the faces of the
