@@ -415,3 +415,52 @@ async fn sigterm_exits_within_the_grace_period_with_a_long_job_running() {
         "{job}"
     );
 }
+
+/// Review item 6f: a job submission's inline program (up to the 64 MiB body limit) is read
+/// off the async runtime, so the server keeps answering while it reads one. With a single
+/// runtime thread, reading 49 MB of G-code on it held /healthz for the whole read.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn healthz_answers_while_a_large_inline_program_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start_with_env(
+        &dir.path().join("t.db"),
+        &["--workers", "0"],
+        &[("TOKIO_WORKER_THREADS", "1")],
+    );
+    let program: String = (0..1_500_000)
+        .map(|i| format!("G1 X{}.125 Y{}.250 Z-0.500 F1000\n", i % 97, i % 89))
+        .collect();
+    let body =
+        json!({"kind": "interpret", "inputs": {"program": {"name": "big.nc", "content": program}}});
+    let body = serde_json::to_vec(&body).unwrap();
+    let c = client();
+    let submit = {
+        let (c, url) = (c.clone(), s.url("/v1/jobs"));
+        tokio::spawn(async move {
+            let t = Instant::now();
+            let res = c
+                .post(url)
+                .header("content-type", "application/json")
+                .body(body)
+                .send()
+                .await
+                .unwrap();
+            (res.status().as_u16(), t.elapsed())
+        })
+    };
+    let mut worst = Duration::ZERO;
+    while !submit.is_finished() {
+        let t = Instant::now();
+        let (st, _) = json(c.get(s.url("/healthz")).send().await.unwrap()).await;
+        assert_eq!(st, 200);
+        worst = worst.max(t.elapsed());
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let (status, took) = submit.await.unwrap();
+    assert_eq!(status, 202);
+    println!("submission took {took:?}; slowest /healthz {worst:?}");
+    assert!(
+        worst < Duration::from_millis(700),
+        "/healthz took {worst:?} (submission {took:?})"
+    );
+}

@@ -158,7 +158,14 @@ pub async fn create(
     req: Request,
 ) -> Result<Response, ApiError> {
     let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes).await?;
-    let request: JobRequest = parse_json(&bytes)?;
+    // Up to the body limit of JSON (an inline program): parsed and hashed off the async
+    // runtime, as the program itself is read below.
+    let (request, request_hash) = tokio::task::spawn_blocking(move || {
+        let request: JobRequest = parse_json(&bytes)?;
+        Ok::<_, ApiError>((request, hex(&Sha256::digest(&bytes))))
+    })
+    .await
+    .map_err(|e| ApiError::blocking_failed(e, "the job request reader"))??;
     let key = match headers.get("idempotency-key") {
         None => None,
         Some(v) => {
@@ -291,7 +298,6 @@ pub async fn create(
         request.inputs.contains_key("material"),
     )?;
     check_memory_budget(&state, &owner, &request.kind, &inputs, &options).await?;
-    let request_hash = hex(&Sha256::digest(&bytes));
     let outcome = state
         .db
         .create_job(
