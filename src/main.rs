@@ -424,6 +424,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
         .await
         .map_err(|e| format!("cannot bind {}: {e}", args.bind))?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
+    let shutdown_grace_ms = queue.shutdown_grace_ms;
     let workers = tokio::spawn(queue::run_workers(
         db,
         queue,
@@ -438,7 +439,9 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     let limits = http::server::ConnectionLimits {
         header_timeout: std::time::Duration::from_secs_f64(args.header_timeout_s),
         max_connections: args.max_connections,
-        grace: std::time::Duration::from_secs(30),
+        // Open requests get the same grace as running jobs: SIGTERM ends the process
+        // within it (plus the time to give jobs back), whatever the clients do.
+        grace: std::time::Duration::from_millis(shutdown_grace_ms),
     };
     http::server::serve(listener, http::router(state), limits, shutdown.clone()).await;
     let _ = workers.await;

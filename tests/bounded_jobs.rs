@@ -399,6 +399,12 @@ async fn sigterm_exits_within_the_grace_period_with_a_long_job_running() {
     let (tool, machine) = energy_inputs(&c, &s).await;
     let id = submit(&c, &s, &long_energy_job(&tool, &machine)).await;
     wait_status(&c, &s, &id, "running").await;
+    // A client in the middle of a slow upload does not hold the server either.
+    let mut upload = TcpStream::connect(s.base.trim_start_matches("http://")).unwrap();
+    upload
+        .write_all(b"POST /v1/programs?name=p.nc HTTP/1.1\r\nHost: millsim\r\nContent-Type: text/plain\r\nContent-Length: 1000\r\n\r\nG0 X1")
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
     let asked = Instant::now();
     assert!(s.terminate(), "serve did not exit 0 on SIGTERM");
     let took = asked.elapsed();
