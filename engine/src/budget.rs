@@ -140,7 +140,7 @@ fn clipped_length(a: &[f64; 6], b: &[f64; 6], lo: [f64; 3], hi: [f64; 3]) -> f64
         t0 = t0.max(u.min(v));
         t1 = t1.min(u.max(v));
     }
-    if !(t1 > t0) {
+    if t1.partial_cmp(&t0) != Some(std::cmp::Ordering::Greater) {
         return 0.0;
     }
     let len = (0..3).map(|k| (b[k] - a[k]).powi(2)).sum::<f64>().sqrt();
