@@ -111,7 +111,7 @@ async fn read_frame_async(r: &mut (impl AsyncRead + Unpin)) -> std::io::Result<(
 
 /// Progress to the parent, at most every 100 ms (and always the last report).
 struct PipeProgress {
-    out: Arc<Mutex<BufWriter<std::io::Stdout>>>,
+    out: Arc<Mutex<BufWriter<std::fs::File>>>,
     last: Mutex<Option<Instant>>,
 }
 
@@ -167,10 +167,15 @@ pub fn job_exec_main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let out = Arc::new(Mutex::new(BufWriter::with_capacity(
-        1 << 16,
-        std::io::stdout(),
-    )));
+    // The frames get stdout to themselves: anything else printed goes to stderr.
+    let frames = match private_stdout() {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("millsim job-exec: taking stdout: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let out = Arc::new(Mutex::new(BufWriter::with_capacity(1 << 16, frames)));
     let progress = PipeProgress {
         out: out.clone(),
         last: Mutex::new(None),
@@ -197,6 +202,22 @@ pub fn job_exec_main() -> ExitCode {
             eprintln!("millsim job-exec: writing the outcome: {e}");
             ExitCode::from(3)
         }
+    }
+}
+
+/// A private handle on stdout for the frames; file descriptor 1 then points at stderr.
+fn private_stdout() -> std::io::Result<std::fs::File> {
+    use std::os::fd::FromRawFd;
+    // SAFETY: plain descriptor calls; the duplicate is owned by the File alone.
+    unsafe {
+        let fd = libc::dup(1);
+        if fd < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        if libc::dup2(2, 1) < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        Ok(std::fs::File::from_raw_fd(fd))
     }
 }
 
