@@ -470,3 +470,31 @@ async fn healthz_answers_while_a_large_inline_program_is_read() {
         "/healthz took {worst:?} (submission {took:?})"
     );
 }
+
+/// The server holds a job's results (rows, samples, files) until it stores them: they are
+/// bounded by the job's budget too, so a job cannot grow the server past it.
+#[tokio::test]
+async fn results_over_the_budget_fail_the_job_and_stay_out_of_the_server() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "1", "--job-memory-mb", "64"],
+    );
+    let c = client();
+    // 600,000 moves: about 100 MB of rows as JSON.
+    let program =
+        "G21 G90\nG0 X0 Y0 Z5\no100 repeat [300000]\nG1 X10 F1000\nG1 X0\no100 endrepeat\nM30\n";
+    let body = json!({"kind": "interpret", "inputs": {"program": {"name": "many.ngc", "content": program}}});
+    let id = submit(&c, &s, &body).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(120)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    let e = &job["error"];
+    assert_eq!(
+        e["type"], "https://millsim.dev/problems/resource-limit",
+        "{e}"
+    );
+    assert_eq!(e["limit"], 64, "{e}");
+    assert!(e["detail"].as_str().unwrap().contains("results"), "{e}");
+    let rss = peak_rss_kb(s.child.id());
+    assert!(rss < 64 * 1024 + 100_000, "server peak RSS {rss} kB");
+}
