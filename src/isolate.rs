@@ -282,14 +282,20 @@ pub struct ChildJob {
     pid: i32,
     /// Set when this side killed the child (cancel, lost lease, shutdown).
     killed: Arc<std::sync::atomic::AtomicBool>,
+    /// Set once the child is reaped: its pid may then be another process's.
+    reaped: Arc<std::sync::atomic::AtomicBool>,
     pub ended: std::pin::Pin<Box<dyn std::future::Future<Output = Ended> + Send>>,
 }
 
 impl ChildJob {
     /// Kills the child at once (SIGKILL); `ended` then resolves to cancelled.
     pub fn kill(&self) {
+        if self.pid <= 0 || self.reaped.load(Ordering::SeqCst) {
+            return;
+        }
         if !self.killed.swap(true, Ordering::SeqCst) {
-            // The child is not reaped before `ended` resolves, so the pid is still its own.
+            // SAFETY: a plain signal to our own unreaped child (kill and `ended` run on the
+            // same task, never at once).
             unsafe {
                 libc::kill(self.pid, libc::SIGKILL);
             }
@@ -378,7 +384,8 @@ pub fn spawn(
         String::from_utf8_lossy(&tail).trim().to_string()
     });
     let killed = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let was_killed = killed.clone();
+    let reaped = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let (was_killed, now_reaped) = (killed.clone(), reaped.clone());
     let memory_mb = limits.memory_mb();
     let ended = Box::pin(async move {
         let outcome = read_outcome(&mut stdout, &progress, limits.memory_bytes).await;
@@ -387,6 +394,7 @@ pub fn spawn(
             let _ = child.start_kill();
         }
         let status = child.wait().await;
+        now_reaped.store(true, Ordering::SeqCst);
         let said = stderr_tail.await.unwrap_or_default();
         match outcome {
             Some(result) => Ended::Returned(result),
@@ -404,7 +412,12 @@ pub fn spawn(
             },
         }
     });
-    Ok(ChildJob { pid, killed, ended })
+    Ok(ChildJob {
+        pid,
+        killed,
+        reaped,
+        ended,
+    })
 }
 
 async fn send_job(
