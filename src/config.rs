@@ -7,6 +7,8 @@ pub struct Limits {
     pub max_program_bytes: u64,
     pub max_json_bytes: u64,
     pub upload_timeout_secs: u64,
+    /// A request body that stalls this long (no byte arrives) is answered 408.
+    pub body_timeout: std::time::Duration,
     /// Queued jobs one API key may have; a submission over it is answered 429.
     pub max_queued_per_key: i64,
 }
@@ -18,9 +20,21 @@ impl Default for Limits {
             max_program_bytes: 64 << 20,
             max_json_bytes: 1 << 20,
             upload_timeout_secs: 600,
+            body_timeout: std::time::Duration::from_secs(30),
             max_queued_per_key: 1000,
         }
     }
+}
+
+/// Where a job's engine work runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Isolation {
+    /// In a child process per job under an address-space limit: a job that dies takes
+    /// only itself down.
+    Process,
+    /// On a blocking thread of the server (no containment; a job whose attempt was lost
+    /// is then not retried, since it may have brought the server down).
+    Thread,
 }
 
 /// How workers hold and renew jobs.
@@ -33,4 +47,7 @@ pub struct QueueConfig {
     pub poll_ms: u64,
     /// On shutdown, how long running jobs may take to finish before their leases are given back.
     pub shutdown_grace_ms: u64,
+    pub isolation: Isolation,
+    /// What each job is held to (memory budget).
+    pub limits: crate::job_limits::JobLimits,
 }

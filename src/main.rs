@@ -3,7 +3,9 @@
 mod config;
 mod csv;
 mod http;
+mod isolate;
 mod job_library;
+mod job_limits;
 mod metrics;
 mod queue;
 mod run_cli;
@@ -70,6 +72,9 @@ enum Command {
     /// Print every HTTP route as `METHOD PATH`, one per line (checked against openapi.yaml).
     #[command(hide = true)]
     Routes,
+    /// Runs one job read from stdin (the service's child process per job).
+    #[command(hide = true)]
+    JobExec,
     /// Make a new API key: prints the key, and the line to add to the key file.
     ApiKey {
         /// Name of the key's owner (a CAM station, an MES, ...).
@@ -94,6 +99,19 @@ struct QueueArgs {
     /// On SIGTERM/SIGINT, how long running jobs may finish before their leases are given back, seconds.
     #[arg(long, env = "MILLSIM_SHUTDOWN_GRACE_SECS", default_value_t = 30.0)]
     shutdown_grace_secs: f64,
+    /// Memory budget of one job, MiB; default: the machine's memory / workers (512 MiB to
+    /// 16 GiB). Jobs estimated over it are refused; a job's process is limited to it.
+    #[arg(long, env = "MILLSIM_JOB_MEMORY_MB")]
+    job_memory_mb: Option<u64>,
+    /// Where jobs run: `process` (a child process each, under the memory limit) or
+    /// `thread` (inside the server, no containment).
+    #[arg(
+        long,
+        env = "MILLSIM_JOB_ISOLATION",
+        value_enum,
+        default_value = "process"
+    )]
+    job_isolation: config::Isolation,
 }
 
 impl QueueArgs {
@@ -116,12 +134,25 @@ impl QueueArgs {
                 self.shutdown_grace_secs
             ));
         }
+        let workers = self.workers.unwrap_or(default_workers);
+        let memory_mb = self
+            .job_memory_mb
+            .unwrap_or_else(|| job_limits::default_job_memory_mb(workers));
+        if !(64..=1 << 22).contains(&memory_mb) {
+            return Err(format!(
+                "--job-memory-mb must be in [64, 4194304], got {memory_mb}"
+            ));
+        }
         Ok(QueueConfig {
-            workers: self.workers.unwrap_or(default_workers),
+            workers,
             lease_ms: (self.lease_secs * 1000.0) as i64,
             max_attempts: self.max_attempts,
             poll_ms: 250,
             shutdown_grace_ms: (self.shutdown_grace_secs * 1000.0) as u64,
+            isolation: self.job_isolation,
+            limits: job_limits::JobLimits {
+                memory_bytes: memory_mb << 20,
+            },
         })
     }
 }
@@ -145,6 +176,9 @@ struct ServeArgs {
     /// Seconds a client has to send a request's headers before its connection is closed.
     #[arg(long, env = "MILLSIM_HEADER_TIMEOUT_S", default_value_t = 10.0)]
     header_timeout_s: f64,
+    /// Seconds a request body may stall (no byte arrives) before it is answered 408.
+    #[arg(long, env = "MILLSIM_BODY_TIMEOUT_S", default_value_t = 30.0)]
+    body_timeout_s: f64,
     /// Open connections at most; over it, new connections are closed at once.
     #[arg(long, env = "MILLSIM_MAX_CONNECTIONS", default_value_t = 8192)]
     max_connections: usize,
@@ -250,6 +284,7 @@ fn main() -> ExitCode {
                 ExitCode::FAILURE
             }
         },
+        Command::JobExec => isolate::job_exec_main(),
         Command::Routes => {
             for (method, path) in http::route_table() {
                 println!("{method} {path}");
@@ -334,6 +369,12 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
             args.header_timeout_s
         ));
     }
+    if !(args.body_timeout_s.is_finite() && args.body_timeout_s > 0.0) {
+        return Err(format!(
+            "--body-timeout-s must be a positive number of seconds, got {}",
+            args.body_timeout_s
+        ));
+    }
     if args.max_connections == 0 {
         return Err("--max-connections must be at least 1".into());
     }
@@ -365,6 +406,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     let limits = Limits {
         max_stl_bytes: args.max_upload_bytes,
         max_queued_per_key: args.max_queued_per_key,
+        body_timeout: std::time::Duration::from_secs_f64(args.body_timeout_s),
         ..Limits::default()
     };
     let shutdown = shutdown_signal();
@@ -375,12 +417,14 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
         auth: Arc::new(auth),
         job_submitted: wake.clone(),
         max_attempts: queue.max_attempts,
+        job_limits: queue.limits,
         shutdown: shutdown.clone(),
     };
     let listener = tokio::net::TcpListener::bind(args.bind)
         .await
         .map_err(|e| format!("cannot bind {}: {e}", args.bind))?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
+    let shutdown_grace_ms = queue.shutdown_grace_ms;
     let workers = tokio::spawn(queue::run_workers(
         db,
         queue,
@@ -395,7 +439,9 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     let limits = http::server::ConnectionLimits {
         header_timeout: std::time::Duration::from_secs_f64(args.header_timeout_s),
         max_connections: args.max_connections,
-        grace: std::time::Duration::from_secs(30),
+        // Open requests get the same grace as running jobs: SIGTERM ends the process
+        // within it (plus the time to give jobs back), whatever the clients do.
+        grace: std::time::Duration::from_millis(shutdown_grace_ms),
     };
     http::server::serve(listener, http::router(state), limits, shutdown.clone()).await;
     let _ = workers.await;

@@ -299,7 +299,18 @@ pub fn run(args: RunArgs) -> Result<(), String> {
 
     let started = std::time::Instant::now();
     let progress = StderrProgress::new();
-    let result = runner::run(kind, &options, inputs, &CancelFlag::new(), &progress);
+    // Offline, the job may use the machine's memory (as one worker would).
+    let limits = crate::job_limits::JobLimits {
+        memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
+    };
+    let result = runner::run(
+        kind,
+        &options,
+        inputs,
+        &limits,
+        &CancelFlag::new(),
+        &progress,
+    );
     progress.finish();
     let out = result.map_err(|f| match f {
         JobFailure::Invalid(problem) => problem["detail"]

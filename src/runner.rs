@@ -11,7 +11,7 @@ use millsim_engine::machine::rotary_feed::{
     correct_program, FeedOutput, RotaryFeedError, RotaryFeedOptions,
 };
 use millsim_engine::machine::Machine;
-use millsim_engine::optimize::energy_search::{run_energy_job, EnergySearchOptions};
+use millsim_engine::optimize::energy_search::{run_energy_job_with, EnergySearchOptions};
 use millsim_engine::optimize::FeedLimits;
 use millsim_engine::physics::stability::{
     compute_lobes_3d_with, compute_lobes_with, recommend_spindle_speed, Stability3dInput,
@@ -23,6 +23,7 @@ use millsim_engine::tool::Tool;
 use millsim_engine::{geometry, nc};
 
 use crate::job_library::JobLibrary;
+use crate::job_limits::{check_simulation, JobLimits, Refusal, SimulationCheck};
 use crate::store::ResourceKind;
 
 /// Job kinds the API knows. Only the ones whose engine exists run; the others are refused
@@ -230,17 +231,23 @@ pub fn run(
     kind: &str,
     options: &Value,
     inputs: LoadedInputs,
+    limits: &JobLimits,
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<JobOutput, JobFailure> {
     match kind {
         "interpret" => interpret(options, inputs, cancel, progress),
-        "simulate" | "optimize" => {
-            simulate_job(kind == "optimize", options, inputs, cancel, progress)
-        }
+        "simulate" | "optimize" => simulate_job(
+            kind == "optimize",
+            options,
+            inputs,
+            limits,
+            cancel,
+            progress,
+        ),
         "stability" => stability_job(options, cancel, progress),
         "rotary-feed" => rotary_feed_job(options, inputs),
-        "energy" => energy_job(options, inputs),
+        "energy" => energy_job(options, inputs, cancel),
         other => Err(JobFailure::Invalid(json!({
             "type": "https://millsim.dev/problems/not-supported",
             "title": "Not supported yet",
@@ -492,6 +499,9 @@ struct SimulateSummary<'a> {
     force_peak_opt_n: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     optimization: Option<&'a pipeline::OptimizationSummary>,
+    /// The job's memory budget and the estimate it was held to (MiB; by buffer, bytes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    memory: Option<Value>,
     /// With a `tool_library` input: its file and format, the T numbers it gave that cut,
     /// and its import report's notes on them.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -503,6 +513,7 @@ fn simulate_job(
     optimize: bool,
     options: &Value,
     mut inputs: LoadedInputs,
+    limits: &JobLimits,
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<JobOutput, JobFailure> {
@@ -549,15 +560,31 @@ fn simulate_job(
     } else {
         StockSource::Stl(stock.content)
     };
+    let interpret = nc::InterpretOptions {
+        dialect: opts.dialect,
+        fanuc_implied_decimal: opts.fanuc_implied_decimal,
+        passthrough_m_codes: opts.passthrough_m_codes.clone(),
+        cancel: Some(cancel.clone()),
+        ..Default::default()
+    };
+    // Travel and memory budget, before the pipeline allocates anything.
+    let check = SimulationCheck {
+        file: &file,
+        program: &text,
+        interpret: &interpret,
+        machine: &machine,
+        axes: opts.axes,
+        stock: &stock,
+        tools: &tools,
+        cell: opts.cell_mm,
+    };
+    let estimate = check_simulation(&check, limits).map_err(|r| match r {
+        Refusal::Program(d) => program_failure(cancel, &file, &d),
+        Refusal::Problem(p) => JobFailure::Invalid(p),
+    })?;
     let spec = SimulateSpec {
         program: text,
-        interpret: nc::InterpretOptions {
-            dialect: opts.dialect,
-            fanuc_implied_decimal: opts.fanuc_implied_decimal,
-            passthrough_m_codes: opts.passthrough_m_codes.clone(),
-            cancel: Some(cancel.clone()),
-            ..Default::default()
-        },
+        interpret,
         stock,
         tools,
         material,
@@ -602,9 +629,8 @@ fn simulate_job(
             (rows, samples)
         });
         let clock = std::time::Instant::now();
-        let mut stl = Vec::new();
-        let written = geometry::export_stl(&out.stock, &mut stl);
-        let exported = (written.map(|_| stl), clock.elapsed().as_secs_f64());
+        let written = geometry::export_stl_vec(&out.stock);
+        let exported = (written.map(|(stl, _)| stl), clock.elapsed().as_secs_f64());
         match serialized.join() {
             Ok(v) => (v, exported),
             Err(panic) => std::panic::resume_unwind(panic),
@@ -648,6 +674,13 @@ fn simulate_job(
             cycle_time_opt_s: out.optimization.as_ref().map(|o| o.cycle_time_after_s),
             force_peak_opt_n: out.optimization.as_ref().map(|o| o.peak_force_after),
             optimization: out.optimization.as_ref(),
+            memory: estimate.map(|e| {
+                json!({
+                    "budget_mb": limits.memory_mb(),
+                    "estimate_mb": e.peak_bytes.div_ceil(1 << 20),
+                    "estimate": e,
+                })
+            }),
             tool_library,
             row_columns,
         })
@@ -858,21 +891,27 @@ pub fn energy_options(
 /// Spindle speed, depths and feed of a face or side milling task that maximize the energy
 /// utilization or minimize energy or time under the machine's and the stability limits;
 /// the Pareto front of time against energy when asked. Rows: the front (or the best point).
-fn energy_job(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
+fn energy_job(
+    options: &Value,
+    mut inputs: LoadedInputs,
+    cancel: &CancelFlag,
+) -> Result<JobOutput, JobFailure> {
     let (search, material_name) = energy_options(options, inputs.contains_key("material"))
         .map_err(|(f, m)| invalid("Invalid options", format!("{f}: {m}")))?;
     let tool: Tool = required(json_input(&mut inputs, "tool", "tool")?, "tool")?;
     let machine: Machine = required(json_input(&mut inputs, "machine", "machine")?, "machine")?;
     let material = job_material(material_name.as_deref(), &mut inputs)?;
-    let result = run_energy_job(&search, &tool, &material.coefficients, &machine).map_err(|e| {
-        JobFailure::Invalid(json!({
-            "type": "https://millsim.dev/problems/energy-search",
-            "title": "Energy search refused",
-            "status": 422,
-            "detail": e.to_string(),
-            "field": e.field(),
-        }))
-    })?;
+    let result = run_energy_job_with(&search, &tool, &material.coefficients, &machine, cancel)
+        .map_err(|e| match e {
+            millsim_engine::physics::PhysicsError::Cancelled => JobFailure::Cancelled,
+            e => JobFailure::Invalid(json!({
+                "type": "https://millsim.dev/problems/energy-search",
+                "title": "Energy search refused",
+                "status": 422,
+                "detail": e.to_string(),
+                "field": e.field(),
+            })),
+        })?;
     let points = result
         .pareto
         .clone()

@@ -521,3 +521,32 @@ fn options_json_is_strict_and_validated() {
         assert_eq!(o.validate().unwrap_err().field(), name);
     }
 }
+
+/// A job's cancel reaches the search: set before it starts (or while the lobes are built),
+/// the search ends with `Cancelled` at once instead of running to the end.
+#[test]
+fn a_cancelled_energy_search_stops_with_cancelled() {
+    use millsim_engine::job::CancelFlag;
+    use millsim_engine::optimize::energy_search::run_energy_job_with;
+    use millsim_engine::physics::PhysicsError;
+    let tool: Tool = serde_json::from_value(serde_json::json!({
+        "type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 30.0, "flute_length_mm": 25.0
+    }))
+    .unwrap();
+    let k = Material::builtin("Al7075-T6").unwrap().coefficients;
+    let cancel = CancelFlag::new();
+    cancel.cancel();
+    for task in [
+        side_task(Objective::MinEnergy),
+        face_task(Objective::MinTime),
+    ] {
+        let mut sdm = task.clone();
+        sdm.stability_method = millsim_engine::physics::stability::Method::Sdm;
+        for o in [task, sdm] {
+            let t = Instant::now();
+            let r = run_energy_job_with(&o, &tool, &k, &machine(), &cancel);
+            assert!(matches!(r, Err(PhysicsError::Cancelled)), "{:?}", r.err());
+            assert!(t.elapsed().as_millis() < 500, "{:?}", t.elapsed());
+        }
+    }
+}

@@ -1,11 +1,71 @@
 //! Reading request bodies within a per-route limit, streamed: a body over the limit
 //! is refused as soon as it crosses it, never buffered whole first.
 
+use std::time::Duration;
+
 use axum::body::Body;
+use axum::extract::{Request, State};
 use axum::http::{header, HeaderMap};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
 use futures_util::StreamExt;
 
 use super::problem::ApiError;
+use super::AppState;
+
+/// The error a request body's stream ends with when no byte came for the body timeout.
+#[derive(Debug, thiserror::Error)]
+#[error("no part of the request body arrived for {0:?}")]
+pub struct BodyTimeout(pub Duration);
+
+/// Whether a body read failed for the body timeout (anywhere in the error's sources).
+pub fn is_body_timeout(e: &(dyn std::error::Error + 'static)) -> bool {
+    let mut cur: Option<&(dyn std::error::Error + 'static)> = Some(e);
+    while let Some(err) = cur {
+        if err.is::<BodyTimeout>() {
+            return true;
+        }
+        cur = err.source();
+    }
+    false
+}
+
+/// Middleware: a request body that stalls (no byte for `limits.body_timeout`, such as a
+/// body shorter than its Content-Length held open) ends in a `BodyTimeout` error, which
+/// the readers answer 408; the connection is then closed with the unread rest.
+pub async fn body_timeout(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let has_body = req.headers().contains_key(header::TRANSFER_ENCODING)
+        || req
+            .headers()
+            .get(header::CONTENT_LENGTH)
+            .is_some_and(|v| v.as_bytes() != b"0");
+    if !has_body {
+        return next.run(req).await;
+    }
+    let timeout = state.limits.body_timeout;
+    let (parts, body) = req.into_parts();
+    let timed = futures_util::stream::unfold(
+        (body.into_data_stream(), false),
+        move |(mut stream, ended)| async move {
+            if ended {
+                return None;
+            }
+            match tokio::time::timeout(timeout, stream.next()).await {
+                Ok(Some(Ok(chunk))) => Some((Ok(chunk), (stream, false))),
+                Ok(Some(Err(e))) => Some((Err(axum::BoxError::from(e)), (stream, true))),
+                Ok(None) => None,
+                Err(_) => Some((
+                    Err(axum::BoxError::from(BodyTimeout(timeout))),
+                    (stream, true),
+                )),
+            }
+        },
+    );
+    let res = next
+        .run(Request::from_parts(parts, Body::from_stream(timed)))
+        .await;
+    res.into_response()
+}
 
 pub async fn read_limited(
     headers: &HeaderMap,
@@ -24,8 +84,14 @@ pub async fn read_limited(
     let mut out = Vec::new();
     let mut stream = body.into_data_stream();
     while let Some(chunk) = stream.next().await {
-        let chunk = chunk
-            .map_err(|e| ApiError::bad_request(format!("could not read the request body: {e}")))?;
+        let chunk = chunk.map_err(|e| {
+            let e = e.into_inner();
+            if is_body_timeout(e.as_ref()) {
+                ApiError::body_timeout()
+            } else {
+                ApiError::bad_request(format!("could not read the request body: {e}"))
+            }
+        })?;
         if out.len() as u64 + chunk.len() as u64 > limit {
             return Err(ApiError::too_large(limit));
         }

@@ -21,7 +21,7 @@ use super::{parse_query, AppState, Owner, PageQuery};
 use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
 use crate::validate;
-use crate::{csv, runner};
+use crate::{csv, job_limits, runner};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -103,6 +103,54 @@ fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Resul
     Ok(())
 }
 
+/// A simulation whose grid and stock export alone cannot fit the job memory budget is
+/// refused now (422 naming the budget and the estimate) rather than failed later; what
+/// needs the program (step records, rows) is checked when the job runs.
+async fn check_memory_budget(
+    state: &AppState,
+    owner: &str,
+    kind: &str,
+    inputs: &Map<String, Value>,
+    options: &Value,
+) -> Result<(), ApiError> {
+    if !matches!(kind, "simulate" | "optimize") {
+        return Ok(());
+    }
+    let Ok(o) = serde_json::from_value::<runner::SimulateOptions>(options.clone()) else {
+        return Ok(());
+    };
+    let Some(stock) = inputs.get("stock").and_then(Value::as_str) else {
+        return Ok(());
+    };
+    let Some(stock) = state
+        .db
+        .get_resource(owner, ResourceKind::Stock, stock)
+        .await?
+    else {
+        return Ok(());
+    };
+    let Some(bounds) = job_limits::summary_bounds(&stock.summary) else {
+        return Ok(());
+    };
+    let mut diameters = Vec::new();
+    for (name, id) in inputs {
+        if name != "tool" && runner::tool_number_input(kind, name).is_none() {
+            continue;
+        }
+        let Some(id) = id.as_str() else { continue };
+        if let Some(tool) = state.db.get_resource(owner, ResourceKind::Tool, id).await? {
+            diameters.extend(tool.summary["diameter"].as_f64());
+        }
+    }
+    let limits = &state.job_limits;
+    match job_limits::submission_estimate(bounds, o.cell_mm, &diameters, limits) {
+        None => Ok(()),
+        Some(estimate) => Err(ApiError::over_budget(job_limits::over_budget_problem(
+            None, &estimate, limits,
+        ))),
+    }
+}
+
 pub async fn create(
     State(state): State<AppState>,
     Owner(owner): Owner,
@@ -110,7 +158,14 @@ pub async fn create(
     req: Request,
 ) -> Result<Response, ApiError> {
     let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes).await?;
-    let request: JobRequest = parse_json(&bytes)?;
+    // Up to the body limit of JSON (an inline program): parsed and hashed off the async
+    // runtime, as the program itself is read below.
+    let (request, request_hash) = tokio::task::spawn_blocking(move || {
+        let request: JobRequest = parse_json(&bytes)?;
+        Ok::<_, ApiError>((request, hex(&Sha256::digest(&bytes))))
+    })
+    .await
+    .map_err(|e| ApiError::blocking_failed(e, "the job request reader"))??;
     let key = match headers.get("idempotency-key") {
         None => None,
         Some(v) => {
@@ -242,7 +297,7 @@ pub async fn create(
         &options,
         request.inputs.contains_key("material"),
     )?;
-    let request_hash = hex(&Sha256::digest(&bytes));
+    check_memory_budget(&state, &owner, &request.kind, &inputs, &options).await?;
     let outcome = state
         .db
         .create_job(

@@ -40,6 +40,8 @@ pub struct AppState {
     /// Turns true on SIGTERM/SIGINT: long responses (event streams) end so the server can stop.
     pub shutdown: tokio::sync::watch::Receiver<bool>,
     pub max_attempts: i64,
+    /// What each job is held to: submissions estimated over it are refused.
+    pub job_limits: crate::job_limits::JobLimits,
 }
 
 /// Every route of the service, as (method, path) in the router's syntax. The router is
@@ -124,6 +126,10 @@ pub fn router(state: AppState) -> Router {
         .route_layer(middleware::from_fn_with_state(
             state.clone(),
             auth::require_key,
+        ))
+        .route_layer(middleware::from_fn_with_state(
+            state.clone(),
+            body::body_timeout,
         ));
 
     let ops = Router::new()

@@ -88,6 +88,36 @@ impl ApiError {
         .with("limit_bytes", limit)
     }
 
+    /// A job over the server's job memory budget, from the same problem document a job
+    /// refused at run time carries (its detail and extensions: limit, estimate).
+    pub fn over_budget(problem: Value) -> Self {
+        let mut err = Self::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "resource-limit",
+            "Over the job's memory budget",
+            problem["detail"].as_str().unwrap_or_default(),
+        );
+        if let Value::Object(members) = problem {
+            for (k, v) in members {
+                if !matches!(k.as_str(), "type" | "title" | "status" | "detail") {
+                    err.extensions.insert(k, v);
+                }
+            }
+        }
+        err
+    }
+
+    /// A request body that stalled (see `body::body_timeout`).
+    pub fn body_timeout() -> Self {
+        Self::new(
+            StatusCode::REQUEST_TIMEOUT,
+            "body-timeout",
+            "Request body timeout",
+            "the request body stopped arriving before its end (body_timeout_s); send the whole body at once",
+        )
+        .with("limit_name", "body_timeout_s")
+    }
+
     pub fn conflict(detail: impl Into<String>) -> Self {
         Self::new(StatusCode::CONFLICT, "conflict", "Conflict", detail)
     }

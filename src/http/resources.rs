@@ -79,7 +79,9 @@ async fn upload_bytes(req: Request, limit: u64) -> Result<(Vec<u8>, Option<Strin
 }
 
 fn multipart_error(e: axum::extract::multipart::MultipartError, limit: u64) -> ApiError {
-    if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
+    if super::body::is_body_timeout(&e) {
+        ApiError::body_timeout()
+    } else if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
         ApiError::too_large(limit)
     } else {
         ApiError::bad_request(format!("multipart form: {}", e.body_text()))

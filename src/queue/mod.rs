@@ -11,10 +11,11 @@ use tokio::sync::{watch, Notify};
 
 use millsim_engine::job::{CancelFlag, Progress};
 
-use crate::config::QueueConfig;
+use crate::config::{Isolation, QueueConfig};
+use crate::isolate::{self, Ended};
 use crate::metrics::Metrics;
 use crate::runner::{self, JobFailure, LoadedInputs};
-use crate::store::jobs::{Artifact, ClaimedJob, Finish, LeaseState};
+use crate::store::jobs::{Artifact, ClaimedJob, Finish, LeaseState, IN_PROCESS_MARK};
 use crate::store::{Db, ResourceKind, StoreError};
 
 /// Why a job's inputs could not be loaded.
@@ -25,10 +26,11 @@ enum InputsError {
     Invalid(serde_json::Value),
 }
 
+/// Progress of a running job, read by the heartbeat.
 #[derive(Default)]
-struct SharedProgress {
-    done: AtomicU64,
-    total: AtomicU64,
+pub struct SharedProgress {
+    pub done: AtomicU64,
+    pub total: AtomicU64,
 }
 
 impl Progress for SharedProgress {
@@ -61,7 +63,10 @@ pub async fn run_workers(
     let mut handles = Vec::new();
     for i in 0..config.workers {
         let worker = Worker {
-            id: format!("{prefix}-w{i}"),
+            id: match config.isolation {
+                Isolation::Process => format!("{prefix}-w{i}"),
+                Isolation::Thread => format!("{prefix}{IN_PROCESS_MARK}w{i}"),
+            },
             db: db.clone(),
             config: config.clone(),
             metrics: metrics.clone(),
@@ -197,18 +202,18 @@ impl Worker {
     /// Runs the engine and heartbeats until it ends. None when the job must not be
     /// finished by this worker (lease lost, or given back on shutdown).
     async fn execute(&mut self, job: &ClaimedJob, inputs: LoadedInputs) -> Option<Finish> {
-        let cancel = CancelFlag::new();
         let progress = Arc::new(SharedProgress::default());
-        let mut engine = {
-            let (cancel, progress, kind, options) = (
-                cancel.clone(),
-                progress.clone(),
-                job.kind.clone(),
-                job.spec["options"].clone(),
-            );
-            tokio::task::spawn_blocking(move || {
-                runner::run(&kind, &options, inputs, &cancel, progress.as_ref())
-            })
+        let mut engine = match self.start_engine(job, inputs, progress.clone()) {
+            Ok(e) => e,
+            Err(e) => {
+                // Cannot start a process (descriptors, fork): not the job's fault.
+                tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not start the job's process; giving the job back");
+                if let Err(e) = self.db.release_job(job, &self.id).await {
+                    tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not give the job back; its lease will expire");
+                }
+                tokio::time::sleep(Duration::from_millis(STORAGE_BACKOFF_MS)).await;
+                return None;
+            }
         };
         // The heartbeat is also how a cancel reaches the engine (from any process): often
         // enough that a cancelled job stops within a second.
@@ -225,15 +230,15 @@ impl Worker {
                 }
             };
             tokio::select! {
-                r = &mut engine => break r,
+                r = engine.ended() => break r,
                 _ = ticker.tick() => {
                     let (done, total) = (progress.done.load(Ordering::Relaxed), progress.total.load(Ordering::Relaxed));
                     match self.db.heartbeat(job, &self.id, self.config.lease_ms, done, total).await {
-                        Ok(LeaseState::Held { cancel_requested }) => if cancel_requested { cancel.cancel() },
+                        Ok(LeaseState::Held { cancel_requested }) => if cancel_requested { engine.stop() },
                         Ok(LeaseState::Lost) => {
                             tracing::warn!(worker = %self.id, job = %job.id, "lease lost; stopping");
                             lost = true;
-                            cancel.cancel();
+                            engine.stop();
                         }
                         Err(e) => tracing::warn!(worker = %self.id, job = %job.id, error = %e, "heartbeat failed"),
                     }
@@ -244,7 +249,7 @@ impl Worker {
                 _ = grace => {
                     tracing::info!(worker = %self.id, job = %job.id, "shutdown grace over; giving the job back");
                     give_back = true;
-                    cancel.cancel();
+                    engine.stop();
                     grace_deadline = Some(tokio::time::Instant::now() + Duration::from_secs(3600));
                 }
             }
@@ -253,18 +258,18 @@ impl Worker {
             return None;
         }
         match result {
-            Ok(Ok(out)) => Some(Finish::Succeeded {
+            Ended::Returned(Ok(out)) => Some(Finish::Succeeded {
                 summary: out.summary,
                 rows: out.rows,
                 samples: out.samples,
                 artifacts: out
                     .files
                     .into_iter()
-                    .map(|f| Artifact {
-                        name: f.name.to_string(),
-                        media_type: f.media_type.to_string(),
-                        file_name: f.file_name,
-                        content: f.content,
+                    .map(|(name, media_type, file_name, content)| Artifact {
+                        name,
+                        media_type,
+                        file_name,
+                        content,
                     })
                     .collect(),
                 progress: (
@@ -272,8 +277,10 @@ impl Worker {
                     progress.total.load(Ordering::Relaxed),
                 ),
             }),
-            Ok(Err(JobFailure::Invalid(problem))) => Some(Finish::Failed { error: problem }),
-            Ok(Err(JobFailure::Cancelled)) if give_back => {
+            Ended::Returned(Err(JobFailure::Invalid(problem))) => {
+                Some(Finish::Failed { error: problem })
+            }
+            Ended::Returned(Err(JobFailure::Cancelled)) if give_back => {
                 match self.db.release_job(job, &self.id).await {
                     Ok(_) => {
                         tracing::info!(worker = %self.id, job = %job.id, "job given back to the queue")
@@ -284,9 +291,13 @@ impl Worker {
                 }
                 None
             }
-            Ok(Err(JobFailure::Cancelled)) => Some(Finish::Cancelled),
-            Err(join) => {
-                tracing::error!(worker = %self.id, job = %job.id, error = %join, "engine panicked");
+            Ended::Returned(Err(JobFailure::Cancelled)) => Some(Finish::Cancelled),
+            Ended::Died(problem) => {
+                tracing::error!(worker = %self.id, job = %job.id, error = %problem["detail"], "the job's process died");
+                Some(Finish::Failed { error: problem })
+            }
+            Ended::Panicked(said) => {
+                tracing::error!(worker = %self.id, job = %job.id, error = %said, "engine panicked");
                 Some(Finish::Failed {
                     error: json!({
                         "type": "https://millsim.dev/problems/internal",
@@ -295,6 +306,61 @@ impl Worker {
                     }),
                 })
             }
+        }
+    }
+
+    /// Starts the job's engine work: in a child process, or on a blocking thread.
+    fn start_engine(
+        &self,
+        job: &ClaimedJob,
+        inputs: LoadedInputs,
+        progress: Arc<SharedProgress>,
+    ) -> std::io::Result<Engine> {
+        let options = job.spec["options"].clone();
+        let limits = self.config.limits;
+        match self.config.isolation {
+            Isolation::Process => Ok(Engine::Process(isolate::spawn(
+                &job.kind, &options, inputs, limits, progress,
+            )?)),
+            Isolation::Thread => {
+                let cancel = CancelFlag::new();
+                let (flag, kind) = (cancel.clone(), job.kind.clone());
+                let handle = tokio::task::spawn_blocking(move || {
+                    runner::run(&kind, &options, inputs, &limits, &flag, progress.as_ref())
+                        .map(isolate::ParentOutput::from)
+                });
+                Ok(Engine::Thread { handle, cancel })
+            }
+        }
+    }
+}
+
+/// A job's engine work as it runs.
+enum Engine {
+    Process(isolate::ChildJob),
+    Thread {
+        handle: tokio::task::JoinHandle<Result<isolate::ParentOutput, JobFailure>>,
+        cancel: CancelFlag,
+    },
+}
+
+impl Engine {
+    /// Asks the work to stop: the child is killed, the thread's flag set.
+    fn stop(&self) {
+        match self {
+            Engine::Process(child) => child.kill(),
+            Engine::Thread { cancel, .. } => cancel.cancel(),
+        }
+    }
+
+    /// How it ended (cancel-safe: may be polled again after another branch won).
+    async fn ended(&mut self) -> Ended {
+        match self {
+            Engine::Process(child) => (&mut child.ended).await,
+            Engine::Thread { handle, .. } => match handle.await {
+                Ok(r) => Ended::Returned(r),
+                Err(join) => Ended::Panicked(join.to_string()),
+            },
         }
     }
 }

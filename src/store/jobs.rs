@@ -189,6 +189,9 @@ pub enum LeaseState {
     Lost,
 }
 
+/// In a worker's id: it runs jobs inside the server process (job isolation `thread`).
+pub const IN_PROCESS_MARK: &str = "-inproc-";
+
 /// Ends a dead worker's attempt (still open) as lost.
 async fn close_lost_attempt(
     tx: &mut sqlx::Transaction<'_, sqlx::Sqlite>,
@@ -466,6 +469,24 @@ impl Db {
         .await?;
         // Their workers died: the attempts end here, or they would stay open for ever.
         for (id, attempt) in &cancelled {
+            close_lost_attempt(&mut tx, id, *attempt, now).await?;
+        }
+        // A job whose worker ran it inside the server process (thread isolation) and was
+        // lost with it may have brought the server down: failed, not run again.
+        let crashed: Vec<(String, i64)> = sqlx::query_as(
+            "UPDATE jobs SET status = 'failed', finished_at = ?1, updated_at = ?1, lease_owner = NULL,
+                error = json_object('type', 'https://millsim.dev/problems/resource-limit',
+                    'title', 'Job lost with its server', 'status', 422,
+                    'detail', 'the server running this job inside its own process (job isolation `thread`) stopped while the job ran; the job may have brought it down (out of memory, a crash), so it is not retried',
+                    'limit_name', 'job_isolation')
+             WHERE status = 'running' AND lease_expires_at < ?1 AND lease_owner LIKE ?2
+             RETURNING id, attempts",
+        )
+        .bind(now)
+        .bind(format!("%{IN_PROCESS_MARK}%"))
+        .fetch_all(&mut *tx)
+        .await?;
+        for (id, attempt) in &crashed {
             close_lost_attempt(&mut tx, id, *attempt, now).await?;
         }
         tx.commit().await?;

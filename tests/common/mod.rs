@@ -46,11 +46,17 @@ pub struct Server {
 impl Server {
     /// Starts `millsim serve` on a free port against `db` (a file path).
     pub fn start(db: &Path, extra: &[&str]) -> Server {
+        Self::start_with_env(db, extra, &[])
+    }
+
+    /// `start` with extra environment variables for the server process.
+    pub fn start_with_env(db: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
         let db_url = format!("sqlite://{}", db.display());
         let mut child = Command::new(BIN)
             .args(["serve", "--bind", "127.0.0.1:0", "--database", &db_url])
             .args(extra)
             .env("RUST_LOG", "warn")
+            .envs(env.iter().copied())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()

@@ -48,7 +48,7 @@ pub use checks::CheckFlags;
 pub use compare::{compare_with_part, PartComparison};
 pub use dexel::{default_cell, DexelGrid, GridEstimate, GridOptions, DEFAULT_MEMORY_LIMIT};
 pub use engagement::{EngagementOptions, StepMetrics};
-pub use export::{export_stl, ExportStats};
+pub use export::{export_stl, export_stl_vec, stl_bytes, ExportStats};
 pub use path::{PathShape, Segment};
 pub use removal::{
     simulate_removal, simulate_removal_with_progress, BlockGeometry, SimOptions, SimulationReport,

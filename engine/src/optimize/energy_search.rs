@@ -16,6 +16,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use crate::engagement::{EngagedSlice, Engagement};
+use crate::job::{CancelFlag, NoProgress};
 use crate::machine::Machine;
 use crate::physics::energy::EnergyModel;
 use crate::physics::force::{CuttingConditions, ForceModel, ForceResult, ToolEdgeTable};
@@ -425,6 +426,8 @@ pub struct EnergyProblem {
     models: HashMap<u32, ForceModel>,
     cache: HashMap<(u32, u32, u64), ForceStats>,
     evaluations: usize,
+    /// Looked at before every lobe depth and every feed the search tries.
+    cancel: CancelFlag,
 }
 
 fn lin(lo: f64, hi: f64, i: u32, n: u32) -> f64 {
@@ -446,6 +449,18 @@ impl EnergyProblem {
         tool: &Tool,
         k: &CuttingCoefficients,
         machine: &Machine,
+    ) -> Result<EnergyProblem, PhysicsError> {
+        Self::new_with(opts, tool, k, machine, &CancelFlag::new())
+    }
+
+    /// [`new`](Self::new) for a job: the lobe tables and every later search stop with
+    /// [`PhysicsError::Cancelled`] soon after `cancel` is set.
+    pub fn new_with(
+        opts: &EnergySearchOptions,
+        tool: &Tool,
+        k: &CuttingCoefficients,
+        machine: &Machine,
+        cancel: &CancelFlag,
     ) -> Result<EnergyProblem, PhysicsError> {
         opts.validate()?;
         tool.validate()?;
@@ -546,6 +561,7 @@ impl EnergyProblem {
             models: HashMap::new(),
             cache: HashMap::new(),
             evaluations: 0,
+            cancel: cancel.clone(),
         };
         problem.build_lobes()?;
         Ok(problem)
@@ -624,8 +640,12 @@ impl EnergyProblem {
         )?;
         Ok(match o.stability_method {
             Method::Zoa => sys.zoa_lobes(rpms, search.max_depth_mm),
-            Method::Sdm => sys.sd_lobes(rpms, steps, &search)?,
-            Method::Fdm => sys.fd_lobes(rpms, steps, &search)?,
+            Method::Sdm => sys
+                .sd_model(steps)?
+                .lobes(rpms, &search, &self.cancel, &NoProgress)?,
+            Method::Fdm => sys
+                .fd_model(steps)?
+                .lobes(rpms, &search, &self.cancel, &NoProgress)?,
         })
     }
 
@@ -906,6 +926,9 @@ impl EnergyProblem {
         fz: f64,
         objective: Objective,
     ) -> Result<Option<EnergyPoint>, PhysicsError> {
+        if self.cancel.is_cancelled() {
+            return Err(PhysicsError::Cancelled);
+        }
         if fz < self.fz_range.0 || fz > self.fz_range.1 {
             return Ok(None);
         }
@@ -1075,6 +1098,9 @@ impl EnergyProblem {
         let mut out = Vec::new();
         for (pz, pw) in self.combos() {
             for j in 0..=r {
+                if self.cancel.is_cancelled() {
+                    return Err(PhysicsError::Cancelled);
+                }
                 let fz = lin(self.fz_range.0, self.fz_range.1, j, r);
                 for i in 0..=r {
                     let n = lin(self.n_range.0, self.n_range.1, i, r);
@@ -1260,7 +1286,19 @@ pub fn run_energy_job(
     coefficients: &CuttingCoefficients,
     machine: &Machine,
 ) -> Result<EnergySearchResult, PhysicsError> {
-    let mut p = EnergyProblem::new(options, tool, coefficients, machine)?;
+    run_energy_job_with(options, tool, coefficients, machine, &CancelFlag::new())
+}
+
+/// [`run_energy_job`] for a job: ends with [`PhysicsError::Cancelled`] soon after `cancel`
+/// is set (looked at before every lobe depth and every feed tried).
+pub fn run_energy_job_with(
+    options: &EnergySearchOptions,
+    tool: &Tool,
+    coefficients: &CuttingCoefficients,
+    machine: &Machine,
+    cancel: &CancelFlag,
+) -> Result<EnergySearchResult, PhysicsError> {
+    let mut p = EnergyProblem::new_with(options, tool, coefficients, machine, cancel)?;
     let best = p.search(options.objective)?;
     let stability_check = match p.direct_critical_depth_mm(best.radial_passes, best.spindle_rpm)? {
         Some(direct) => Some(StabilityCheck {

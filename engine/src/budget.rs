@@ -1,0 +1,321 @@
+//! What a job is held to before it runs: every move inside the machine's travel, and an
+//! estimate of a simulation's memory, buffer by buffer, to compare with the job's budget.
+//!
+//! Both read the interpreted moves (the interpreter itself is not touched): a move to
+//! `X1000000000000` or a kilometre-long cut is refused here, naming its line, before the
+//! removal allocates a step record per cell of its length.
+
+use serde::Serialize;
+
+use crate::geometry::{export, DexelGrid, GeometryError};
+use crate::machine::cycle_time::move_length;
+use crate::machine::Machine;
+use crate::nc::{Move, MoveKind};
+use crate::pipeline::MoveRow;
+
+/// Travel of each linear axis when the machine gives none: ±2 m, larger than any
+/// machining centre's table but small enough that a unit mistake or a runaway
+/// coordinate is caught.
+pub const DEFAULT_TRAVEL_MM: f64 = 2000.0;
+
+/// The machine's linear travel [min, max] for X, Y, Z, mm, or the generic default.
+pub fn travel_of(machine: &Machine) -> [[f64; 2]; 3] {
+    machine
+        .travel
+        .unwrap_or([[-DEFAULT_TRAVEL_MM, DEFAULT_TRAVEL_MM]; 3])
+}
+
+/// A move that leaves the travel.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("line {line}: {axis} reaches {value} mm, outside the machine's travel [{min}, {max}] mm")]
+pub struct TravelError {
+    pub line: u32,
+    /// `X`, `Y` or `Z`.
+    pub axis: char,
+    pub value: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+const AXES: [char; 3] = ['X', 'Y', 'Z'];
+
+/// Checks that every move's end point, and every arc's extreme points in its plane, lie
+/// inside `travel`; the first one outside is named with its line and axis. Not a number
+/// counts as outside.
+pub fn check_travel(moves: &[Move], travel: [[f64; 2]; 3]) -> Result<(), TravelError> {
+    let check = |line: u32, axis: usize, value: f64| {
+        let [min, max] = travel[axis];
+        if value >= min && value <= max {
+            Ok(())
+        } else {
+            Err(TravelError {
+                line,
+                axis: AXES[axis],
+                value,
+                min,
+                max,
+            })
+        }
+    };
+    for m in moves {
+        for axis in 0..3 {
+            check(m.line, axis, m.end[axis])?;
+        }
+        if let Some(arc) = &m.arc {
+            let [a, b, _] = arc.axes;
+            let r = arc.start_radius.max(arc.end_radius);
+            let theta0 = (arc.start[b] - arc.center[b]).atan2(arc.start[a] - arc.center[a]);
+            // The arc reaches an axis' extreme where its angle passes 0, 90, 180 or 270°.
+            for k in 0..4 {
+                let phi = k as f64 * std::f64::consts::FRAC_PI_2;
+                let turned = if arc.sweep >= 0.0 {
+                    (phi - theta0).rem_euclid(std::f64::consts::TAU)
+                } else {
+                    (theta0 - phi).rem_euclid(std::f64::consts::TAU)
+                };
+                if !(arc.sweep.abs() >= std::f64::consts::TAU || turned <= arc.sweep.abs()) {
+                    continue;
+                }
+                check(m.line, a, arc.center[a] + r * phi.cos())?;
+                check(m.line, b, arc.center[b] + r * phi.sin())?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Bytes a simulation is expected to hold, by buffer, and its peak.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct MemoryEstimate {
+    /// The tri-dexel grid: one ray header per ray of the three families.
+    pub grid_bytes: u64,
+    /// The interpreted moves.
+    pub moves_bytes: u64,
+    /// Per-step records: one per cell of the path where the tool can reach the stock, with
+    /// their engaged slices.
+    pub steps_bytes: u64,
+    /// Per-block rows, as structs and as the JSON text stored.
+    pub rows_bytes: u64,
+    /// The stock export: the voxel columns, the triangles, and the file.
+    pub export_bytes: u64,
+    /// The largest of the two phases: removal (grid, moves, steps, rows) and export
+    /// (grid, rows, step samples, export), plus a fixed allowance for the program text,
+    /// the force tables and the process.
+    pub peak_bytes: u64,
+}
+
+/// Fixed allowance for what does not grow with the job (code, runtime, force tables).
+pub const FIXED_BYTES: u64 = 96 << 20;
+
+/// JSON text of one stored row, bytes (a simulate row has about 40 fields).
+const ROW_JSON_BYTES: u64 = 1400;
+
+/// Bytes one removal step of a straight move holds until the job ends, engaged slices
+/// apart (its geometry, engagement, force records and sample). Calibrated on the adaptive
+/// example (examples/adaptive: 81,000 steps of 0.066 mm, 295 MB peak in all): a cut step
+/// holds 2 to 2.5 KB with its slices; steps in air hold far less (a straight zigzag in air:
+/// 175 B per cell of path), so this is an upper bound for them.
+pub const STEP_BYTES: u64 = 2048;
+
+/// The same for a step of an arc (its sampled pieces too). Measured: a 1000-turn circle of
+/// radius 5 mm in a block (D10 flat, 0.25 mm cells, 125,600 steps, 0.5 to 2 mm deep) peaked
+/// 420 MB over the same program's 100 turns, 3.3 to 3.7 KB per step.
+pub const ARC_STEP_BYTES: u64 = 3584;
+
+/// Bytes per engaged slice of a step (measured: 60 B from a 0.5 mm to an 8 mm deep cut).
+pub const SLICE_BYTES: u64 = 64;
+
+/// Length of the straight segment `a`–`b` (X Y Z) inside the box `[lo, hi]`.
+fn clipped_length(a: &[f64; 6], b: &[f64; 6], lo: [f64; 3], hi: [f64; 3]) -> f64 {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..3 {
+        let d = b[k] - a[k];
+        if d.abs() < 1e-300 {
+            if a[k] < lo[k] || a[k] > hi[k] {
+                return 0.0;
+            }
+            continue;
+        }
+        let (u, v) = ((lo[k] - a[k]) / d, (hi[k] - a[k]) / d);
+        t0 = t0.max(u.min(v));
+        t1 = t1.min(u.max(v));
+    }
+    if t1.partial_cmp(&t0) != Some(std::cmp::Ordering::Greater) {
+        return 0.0;
+    }
+    let len = (0..3).map(|k| (b[k] - a[k]).powi(2)).sum::<f64>().sqrt();
+    len * (t1 - t0)
+}
+
+/// How a simulation will run, as far as its memory goes.
+pub struct SimulationSize<'a> {
+    /// Bounds of the stock, mm.
+    pub stock_min: [f64; 3],
+    pub stock_max: [f64; 3],
+    /// Dexel spacing, mm.
+    pub cell: f64,
+    pub moves: &'a [Move],
+    /// The longest flute among the tools (the most slices an engagement can hold), mm.
+    pub flute_length: f64,
+    /// The largest tool radius, mm: how far from the stock a step can still engage.
+    pub tool_radius: f64,
+}
+
+/// The memory estimate of a simulation (see [`MemoryEstimate`]).
+pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, GeometryError> {
+    let grid = DexelGrid::estimate(size.stock_min, size.stock_max, size.cell)?;
+    let [nx, ny, nz] = grid.cells.map(|n| n as u64);
+    let moves_bytes = size.moves.len() as u64 * std::mem::size_of::<Move>() as u64
+        + size.moves.iter().filter(|m| m.arc.is_some()).count() as u64 * 160;
+    let rows_bytes =
+        size.moves.len() as u64 * (std::mem::size_of::<MoveRow>() as u64 + ROW_JSON_BYTES);
+
+    // Steps are one cell long (longer only where nothing changes), recorded only where the
+    // tool can reach the stock: one record per cell of the path inside the stock's box
+    // grown by the tool's radius, with the engaged slices (a quarter of the height the tool
+    // can engage, the stock's at most the flute, on average).
+    let engaged_height = (size.stock_max[2] - size.stock_min[2])
+        .min(size.flute_length)
+        .max(size.cell);
+    let slices_per_step = (0.25 * engaged_height / size.cell).ceil().max(1.0) as u64;
+    let slice_bytes = slices_per_step * SLICE_BYTES;
+    let reach = size.tool_radius.max(0.0);
+    let lo = size.stock_min.map(|v| v - reach);
+    let hi = size.stock_max.map(|v| v + reach);
+    let mut steps_bytes = 0u64;
+    for m in size.moves {
+        if matches!(m.kind, MoveKind::Dwell | MoveKind::ToolChange) {
+            continue;
+        }
+        let inside = match &m.arc {
+            // An arc whose box meets the stock's: all of it (it may wind many times).
+            Some(arc) => {
+                let [a, b, _] = arc.axes;
+                let r = arc.start_radius.max(arc.end_radius);
+                let mut amin = [0.0; 3];
+                let mut amax = [0.0; 3];
+                for k in 0..3 {
+                    amin[k] = m.start[k].min(m.end[k]);
+                    amax[k] = m.start[k].max(m.end[k]);
+                }
+                for k in [a, b] {
+                    amin[k] = arc.center[k] - r;
+                    amax[k] = arc.center[k] + r;
+                }
+                let meets = (0..3).all(|k| amin[k] <= hi[k] && amax[k] >= lo[k]);
+                if meets {
+                    move_length(m)
+                } else {
+                    0.0
+                }
+            }
+            None => clipped_length(&m.start, &m.end, lo, hi),
+        };
+        let n = if inside.is_finite() {
+            (inside / size.cell).ceil().min(1e15) as u64
+        } else {
+            u64::MAX / 4
+        };
+        let per_step = if m.arc.is_some() {
+            ARC_STEP_BYTES
+        } else {
+            STEP_BYTES
+        } + slice_bytes;
+        steps_bytes = steps_bytes.saturating_add(n.saturating_mul(per_step));
+    }
+
+    // Export: the voxel bit columns (layers 0..=nz) of a band of rows at a time, and the
+    // triangles, a strip per run of boundary faces (about a quarter of the faces of the
+    // stock's box, two triangles each), held in the band's rows and in the file.
+    let row_bytes = nx * (nz + 1).div_ceil(64) * 8;
+    let voxels = (ny * row_bytes).min(export::BAND_BYTES as u64 + 3 * row_bytes);
+    let boundary_faces = 2 * (nx * ny + ny * nz + nz * nx);
+    let stl = export::stl_bytes(2 * boundary_faces / 4);
+    let export_bytes = voxels + 2 * stl;
+
+    let removal = grid.bytes + moves_bytes + steps_bytes + rows_bytes;
+    let export = grid.bytes + rows_bytes + steps_bytes / 4 + export_bytes;
+    Ok(MemoryEstimate {
+        grid_bytes: grid.bytes,
+        moves_bytes,
+        steps_bytes,
+        rows_bytes,
+        export_bytes,
+        peak_bytes: removal.max(export).saturating_add(FIXED_BYTES),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nc::{interpret, InterpretOptions};
+
+    fn moves(program: &str) -> Vec<Move> {
+        interpret(program, &InterpretOptions::default())
+            .unwrap()
+            .moves
+    }
+
+    #[test]
+    fn a_move_past_the_travel_is_named_by_line_and_axis() {
+        let travel = travel_of(&Machine::generic());
+        let ok = moves("G0 X0 Y0 Z5\nG1 X100 Y-50 F500\n");
+        assert!(check_travel(&ok, travel).is_ok());
+        let far = moves("G0 X0 Y0 Z5\nG1 X1000000000000 F500\n");
+        let e = check_travel(&far, travel).unwrap_err();
+        assert_eq!((e.line, e.axis, e.max), (2, 'X', DEFAULT_TRAVEL_MM));
+        let mut machine = Machine::generic();
+        machine.travel = Some([[0.0, 500.0], [0.0, 400.0], [-300.0, 10.0]]);
+        let low = moves("G0 X10 Y10 Z5\nG1 Z-301 F100\n");
+        let e = check_travel(&low, travel_of(&machine)).unwrap_err();
+        assert_eq!((e.line, e.axis, e.min), (2, 'Z', -300.0));
+        assert!(e.to_string().contains("line 2: Z"), "{e}");
+    }
+
+    #[test]
+    fn an_arc_that_bulges_past_the_travel_is_refused_though_its_ends_are_inside() {
+        let travel = [[0.0, 100.0], [0.0, 100.0], [-50.0, 50.0]];
+        // A half circle from (90, 50) to (10, 50) over the top: it reaches y = 90.
+        let inside = moves("G0 X90 Y50 Z0\nG3 X10 Y50 I-40 J0 F500\n");
+        assert!(check_travel(&inside, travel).is_ok());
+        let arc = moves("G0 X80 Y50 Z0\nG3 X20 Y50 I-30 J0 F500\nG3 X80 Y50 I30 J0\n");
+        assert!(check_travel(&arc, travel).is_ok());
+        // Centre (50, 60), radius 45: the half circle over the top reaches y = 105.
+        let wide = moves("G0 X95 Y60 Z0\nG3 X5 Y60 I-45 J0 F500\n");
+        let e = check_travel(&wide, travel).unwrap_err();
+        assert_eq!((e.line, e.axis), (2, 'Y'), "{e}");
+    }
+
+    #[test]
+    fn the_estimate_grows_with_path_length_and_fine_cells() {
+        fn size(moves: &[Move], cell: f64) -> SimulationSize<'_> {
+            SimulationSize {
+                stock_min: [0.0, 0.0, -10.0],
+                stock_max: [40.0, 30.0, 0.0],
+                cell,
+                moves,
+                flute_length: 20.0,
+                tool_radius: 5.0,
+            }
+        }
+        let short = moves("G0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X40\n");
+        // The path outside the stock (and the tool's reach) records no steps.
+        let through = moves("G0 X-1900 Y15 Z5\nG1 Z-1 F500\nG1 X1900\n");
+        let a = estimate_simulation(&size(&short, 0.25)).unwrap();
+        let b = estimate_simulation(&size(&through, 0.25)).unwrap();
+        let step = STEP_BYTES + 10 * SLICE_BYTES;
+        // 5 mm down from the origin, 6 mm down, 40 mm across: 204 quarter-millimetre steps.
+        assert_eq!(a.steps_bytes, 204 * step);
+        // Of the 3.8 km move, the 50 mm across the stock and the tool's reach each side.
+        assert!((200 * step..230 * step).contains(&b.steps_bytes), "{b:?}");
+        // 10,000 turns of radius 5 in the stock: 314 m, 1.26 million steps.
+        let turns = moves("G0 X20 Y15 Z5\nG1 Z-2 F500\nG1 X25\nG2 X25 Y15 I-5 J0 P10000\n");
+        let c = estimate_simulation(&size(&turns, 0.25)).unwrap();
+        assert!(c.steps_bytes > 4_000_000_000, "{c:?}");
+        assert!(c.peak_bytes > c.steps_bytes);
+        let fine = estimate_simulation(&size(&short, 0.005)).unwrap();
+        // The boundary of 8000 × 6000 × 2000 cells: about 2.6 GB of triangles, twice.
+        assert!(fine.export_bytes > 5_000_000_000, "{fine:?}");
+        assert!(fine.peak_bytes > fine.export_bytes);
+    }
+}

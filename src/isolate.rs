@@ -1,0 +1,546 @@
+//! Containment: a job's engine work runs in a child process (`millsim job-exec`, this same
+//! binary) under an address-space limit, so a job that runs out of memory, aborts or
+//! crashes ends its own process and not the server or the other jobs; cancel, a lost
+//! lease and the end of the shutdown grace kill it at once.
+//!
+//! The child reads the job from stdin and writes progress and the outcome to stdout, as
+//! frames `[tag: u8][length: u64 LE][payload]`:
+//! - parent → child: `J` the job (kind, options, limits, each input's name, file name and
+//!   media type), then one `B` frame per input with its content, in the same order;
+//! - child → parent: `P` progress (done, total as two u64) at most every 100 ms; then `S`
+//!   the summary, `R` per row, `M` per sample (u64 row seq, then the JSON), `F` a file's
+//!   name, media type and file name followed by a `B` with its content, and `D` done; or
+//!   `X` a problem document (the inputs are at fault), or `C` cancelled.
+//!
+//! A child that ends without an outcome frame died: killed by a signal (the kernel's OOM
+//! killer, SIGSEGV) or aborted (an allocation over the address-space limit aborts with
+//! `memory allocation of N bytes failed`). The job is then failed with a `resource-limit`
+//! problem after that one attempt.
+
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::process::{ExitCode, Stdio};
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
+
+use millsim_engine::job::{CancelFlag, Progress};
+
+use crate::job_limits::JobLimits;
+use crate::queue::SharedProgress;
+use crate::runner::{self, JobFailure, JobOutput, LoadedInput, LoadedInputs, OutputFile};
+
+const JOB: u8 = b'J';
+const BYTES: u8 = b'B';
+const PROGRESS: u8 = b'P';
+const SUMMARY: u8 = b'S';
+const ROW: u8 = b'R';
+const SAMPLE: u8 = b'M';
+const FILE: u8 = b'F';
+const DONE: u8 = b'D';
+const PROBLEM: u8 = b'X';
+const CANCELLED: u8 = b'C';
+
+/// Largest frame either side accepts (an STL stock upload is at most a few hundred MiB).
+const MAX_FRAME: u64 = 8 << 30;
+
+/// Address space the child may reserve beyond the job's memory budget: code, thread
+/// stacks and the allocator's per-thread arenas (reserved, mostly never touched).
+pub fn address_space_limit(limits: &JobLimits) -> u64 {
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get() as u64)
+        .unwrap_or(1);
+    limits.memory_bytes + (512 << 20) + cores * (128 << 20)
+}
+
+#[derive(Serialize, Deserialize)]
+struct JobHeader {
+    kind: String,
+    options: Value,
+    limits: JobLimits,
+    inputs: Vec<InputHeader>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct InputHeader {
+    name: String,
+    file_name: Option<String>,
+    media_type: String,
+}
+
+#[derive(Serialize, Deserialize)]
+struct FileHeader {
+    name: String,
+    media_type: String,
+    file_name: String,
+}
+
+fn write_frame(w: &mut impl Write, tag: u8, payload: &[u8]) -> std::io::Result<()> {
+    w.write_all(&[tag])?;
+    w.write_all(&(payload.len() as u64).to_le_bytes())?;
+    w.write_all(payload)
+}
+
+fn read_frame(r: &mut impl Read) -> std::io::Result<(u8, Vec<u8>)> {
+    let mut head = [0u8; 9];
+    r.read_exact(&mut head)?;
+    let len = u64::from_le_bytes(head[1..9].try_into().expect("8 bytes"));
+    if len > MAX_FRAME {
+        return Err(std::io::Error::other(format!("frame of {len} bytes")));
+    }
+    let mut payload = vec![0u8; len as usize];
+    r.read_exact(&mut payload)?;
+    Ok((head[0], payload))
+}
+
+async fn read_frame_async(r: &mut (impl AsyncRead + Unpin)) -> std::io::Result<(u8, Vec<u8>)> {
+    let mut head = [0u8; 9];
+    r.read_exact(&mut head).await?;
+    let len = u64::from_le_bytes(head[1..9].try_into().expect("8 bytes"));
+    if len > MAX_FRAME {
+        return Err(std::io::Error::other(format!("frame of {len} bytes")));
+    }
+    let mut payload = vec![0u8; len as usize];
+    r.read_exact(&mut payload).await?;
+    Ok((head[0], payload))
+}
+
+/// Progress to the parent, at most every 100 ms (and always the last report).
+struct PipeProgress {
+    out: Arc<Mutex<BufWriter<std::fs::File>>>,
+    last: Mutex<Option<Instant>>,
+}
+
+impl Progress for PipeProgress {
+    fn report(&self, done: u64, total: u64) {
+        {
+            let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+            if done < total && last.is_some_and(|t| t.elapsed() < Duration::from_millis(100)) {
+                return;
+            }
+            *last = Some(Instant::now());
+        }
+        let mut payload = [0u8; 16];
+        payload[..8].copy_from_slice(&done.to_le_bytes());
+        payload[8..].copy_from_slice(&total.to_le_bytes());
+        let mut out = self.out.lock().unwrap_or_else(|e| e.into_inner());
+        // A parent that went away kills this process soon (PDEATHSIG): nothing to do here.
+        let _ = write_frame(&mut *out, PROGRESS, &payload).and_then(|_| out.flush());
+    }
+}
+
+/// `millsim job-exec`: runs one job read from stdin, writes its progress and outcome to
+/// stdout (see the module's doc). Exit 0 whenever an outcome was written.
+pub fn job_exec_main() -> ExitCode {
+    let mut stdin = BufReader::new(std::io::stdin().lock());
+    let mut read = || -> std::io::Result<(JobHeader, LoadedInputs)> {
+        let (tag, payload) = read_frame(&mut stdin)?;
+        if tag != JOB {
+            return Err(std::io::Error::other("the first frame is not a job"));
+        }
+        let header: JobHeader = serde_json::from_slice(&payload)?;
+        let mut inputs = LoadedInputs::new();
+        for i in &header.inputs {
+            let (tag, content) = read_frame(&mut stdin)?;
+            if tag != BYTES {
+                return Err(std::io::Error::other("an input frame is not bytes"));
+            }
+            inputs.insert(
+                i.name.clone(),
+                LoadedInput {
+                    file_name: i.file_name.clone(),
+                    media_type: i.media_type.clone(),
+                    content,
+                },
+            );
+        }
+        Ok((header, inputs))
+    };
+    let (header, inputs) = match read() {
+        Ok(v) => v,
+        Err(e) => {
+            eprintln!("millsim job-exec: reading the job: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    // The frames get stdout to themselves: anything else printed goes to stderr.
+    let frames = match private_stdout() {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("millsim job-exec: taking stdout: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let out = Arc::new(Mutex::new(BufWriter::with_capacity(1 << 16, frames)));
+    let progress = PipeProgress {
+        out: out.clone(),
+        last: Mutex::new(None),
+    };
+    let result = runner::run(
+        &header.kind,
+        &header.options,
+        inputs,
+        &header.limits,
+        &CancelFlag::new(),
+        &progress,
+    );
+    let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
+    let written = match result {
+        Ok(output) => write_output(&mut *out, output),
+        Err(JobFailure::Invalid(problem)) => {
+            write_frame(&mut *out, PROBLEM, problem.to_string().as_bytes())
+        }
+        Err(JobFailure::Cancelled) => write_frame(&mut *out, CANCELLED, &[]),
+    };
+    match written.and_then(|_| out.flush()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("millsim job-exec: writing the outcome: {e}");
+            ExitCode::from(3)
+        }
+    }
+}
+
+/// A private handle on stdout for the frames; file descriptor 1 then points at stderr.
+fn private_stdout() -> std::io::Result<std::fs::File> {
+    use std::os::fd::FromRawFd;
+    // SAFETY: plain descriptor calls; the duplicate is owned by the File alone.
+    unsafe {
+        let fd = libc::dup(1);
+        if fd < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        if libc::dup2(2, 1) < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        Ok(std::fs::File::from_raw_fd(fd))
+    }
+}
+
+fn write_output(w: &mut impl Write, output: JobOutput) -> std::io::Result<()> {
+    write_frame(w, SUMMARY, output.summary.to_string().as_bytes())?;
+    for row in &output.rows {
+        write_frame(w, ROW, row.as_bytes())?;
+    }
+    for (seq, json) in &output.samples {
+        let mut payload = Vec::with_capacity(8 + json.len());
+        payload.extend_from_slice(&(*seq as u64).to_le_bytes());
+        payload.extend_from_slice(json.as_bytes());
+        write_frame(w, SAMPLE, &payload)?;
+    }
+    for f in &output.files {
+        let header = FileHeader {
+            name: f.name.clone(),
+            media_type: f.media_type.to_string(),
+            file_name: f.file_name.clone(),
+        };
+        write_frame(w, FILE, &serde_json::to_vec(&header)?)?;
+        write_frame(w, BYTES, &f.content)?;
+    }
+    write_frame(w, DONE, &[])
+}
+
+/// How a job's engine work ended, in either way of running it.
+pub enum Ended {
+    /// The engine returned (output, a problem with the inputs, or cancelled).
+    Returned(Result<ParentOutput, JobFailure>),
+    /// The child died without an outcome: a `resource-limit` problem.
+    Died(Value),
+    /// The engine panicked (a bug): what it said.
+    Panicked(String),
+}
+
+/// A job's output as the parent stores it (file media types as strings).
+pub struct ParentOutput {
+    pub summary: Value,
+    pub rows: Vec<String>,
+    pub samples: Vec<(usize, String)>,
+    pub files: Vec<(String, String, String, Vec<u8>)>,
+}
+
+impl From<JobOutput> for ParentOutput {
+    fn from(o: JobOutput) -> Self {
+        ParentOutput {
+            summary: o.summary,
+            rows: o.rows,
+            samples: o.samples,
+            files: o
+                .files
+                .into_iter()
+                .map(|f: OutputFile| (f.name, f.media_type.to_string(), f.file_name, f.content))
+                .collect(),
+        }
+    }
+}
+
+/// A job running in a child process.
+pub struct ChildJob {
+    pid: i32,
+    /// Set when this side killed the child (cancel, lost lease, shutdown).
+    killed: Arc<std::sync::atomic::AtomicBool>,
+    /// Set once the child is reaped: its pid may then be another process's.
+    reaped: Arc<std::sync::atomic::AtomicBool>,
+    pub ended: std::pin::Pin<Box<dyn std::future::Future<Output = Ended> + Send>>,
+}
+
+impl ChildJob {
+    /// Kills the child at once (SIGKILL); `ended` then resolves to cancelled.
+    pub fn kill(&self) {
+        if self.pid <= 0 || self.reaped.load(Ordering::SeqCst) {
+            return;
+        }
+        if !self.killed.swap(true, Ordering::SeqCst) {
+            // SAFETY: a plain signal to our own unreaped child (kill and `ended` run on the
+            // same task, never at once).
+            unsafe {
+                libc::kill(self.pid, libc::SIGKILL);
+            }
+        }
+    }
+}
+
+/// Starts `millsim job-exec` for a job, with its address space limited, dying with the
+/// server (PR_SET_PDEATHSIG), and feeds it the job.
+pub fn spawn(
+    kind: &str,
+    options: &Value,
+    inputs: LoadedInputs,
+    limits: JobLimits,
+    progress: Arc<SharedProgress>,
+) -> std::io::Result<ChildJob> {
+    let exe = std::env::current_exe()?;
+    let parent = std::process::id() as libc::pid_t;
+    let address_space = address_space_limit(&limits);
+    let mut cmd = std::process::Command::new(exe);
+    cmd.arg("job-exec")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    // SAFETY: only async-signal-safe calls (setrlimit, prctl, getppid, _exit) between
+    // fork and exec.
+    unsafe {
+        cmd.pre_exec(move || {
+            let limit = libc::rlimit {
+                rlim_cur: address_space as libc::rlim_t,
+                rlim_max: address_space as libc::rlim_t,
+            };
+            if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // The server died between fork and prctl: do not outlive it.
+            if libc::getppid() != parent {
+                libc::_exit(1);
+            }
+            Ok(())
+        });
+    }
+    let mut child = tokio::process::Command::from(cmd)
+        .kill_on_drop(true)
+        .spawn()?;
+    let pid = child.id().map(|p| p as i32).unwrap_or(0);
+    let mut stdin = child.stdin.take().expect("piped stdin");
+    let mut stdout =
+        tokio::io::BufReader::with_capacity(1 << 16, child.stdout.take().expect("piped stdout"));
+    let mut stderr = child.stderr.take().expect("piped stderr");
+    let header = JobHeader {
+        kind: kind.to_string(),
+        options: options.clone(),
+        limits,
+        inputs: inputs
+            .iter()
+            .map(|(name, i)| InputHeader {
+                name: name.clone(),
+                file_name: i.file_name.clone(),
+                media_type: i.media_type.clone(),
+            })
+            .collect(),
+    };
+    let header = serde_json::to_vec(&header)?;
+    // The inputs go in on their own task: a child that dies early must not block them.
+    tokio::spawn(async move {
+        // A child that died early closed its end: its exit status says why.
+        let _ = send_job(&mut stdin, &header, &inputs).await;
+    });
+    // The last few KiB of the child's stderr: what a dying process said.
+    let stderr_tail = tokio::spawn(async move {
+        let mut tail: Vec<u8> = Vec::new();
+        let mut buf = [0u8; 4096];
+        while let Ok(n) = stderr.read(&mut buf).await {
+            if n == 0 {
+                break;
+            }
+            tail.extend_from_slice(&buf[..n]);
+            if tail.len() > 8192 {
+                tail.drain(..tail.len() - 4096);
+            }
+        }
+        String::from_utf8_lossy(&tail).trim().to_string()
+    });
+    let killed = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let reaped = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let (was_killed, now_reaped) = (killed.clone(), reaped.clone());
+    let memory_mb = limits.memory_mb();
+    let ended = Box::pin(async move {
+        let outcome = read_outcome(&mut stdout, &progress, limits.memory_bytes).await;
+        if outcome.is_some() {
+            // Done, or results over the budget: either way nothing more is read.
+            let _ = child.start_kill();
+        }
+        let status = child.wait().await;
+        now_reaped.store(true, Ordering::SeqCst);
+        let said = stderr_tail.await.unwrap_or_default();
+        match outcome {
+            Some(result) => Ended::Returned(result),
+            None if was_killed.load(Ordering::SeqCst) => {
+                Ended::Returned(Err(JobFailure::Cancelled))
+            }
+            None => match status {
+                Ok(s) if s.code() == Some(101) => Ended::Panicked(said),
+                Ok(s) => Ended::Died(died_problem(s, &said, memory_mb)),
+                Err(e) => Ended::Died(died_problem_text(
+                    &format!("could not be waited for: {e}"),
+                    &said,
+                    memory_mb,
+                )),
+            },
+        }
+    });
+    Ok(ChildJob {
+        pid,
+        killed,
+        reaped,
+        ended,
+    })
+}
+
+async fn send_job(
+    stdin: &mut tokio::process::ChildStdin,
+    header: &[u8],
+    inputs: &LoadedInputs,
+) -> std::io::Result<()> {
+    let frame = |tag: u8, len: usize| {
+        let mut h = vec![tag];
+        h.extend_from_slice(&(len as u64).to_le_bytes());
+        h
+    };
+    stdin.write_all(&frame(JOB, header.len())).await?;
+    stdin.write_all(header).await?;
+    for i in inputs.values() {
+        stdin.write_all(&frame(BYTES, i.content.len())).await?;
+        stdin.write_all(&i.content).await?;
+    }
+    stdin.flush().await
+}
+
+/// Reads frames until an outcome; None when the stream ends (or breaks) before one.
+/// Results over `budget` bytes are refused (the server holds them until they are stored:
+/// a job's budget bounds them too).
+async fn read_outcome(
+    r: &mut (impl AsyncRead + Unpin),
+    progress: &SharedProgress,
+    budget: u64,
+) -> Option<Result<ParentOutput, JobFailure>> {
+    let mut out = ParentOutput {
+        summary: Value::Null,
+        rows: Vec::new(),
+        samples: Vec::new(),
+        files: Vec::new(),
+    };
+    let mut file: Option<FileHeader> = None;
+    let mut received = 0u64;
+    loop {
+        let (tag, payload) = read_frame_async(r).await.ok()?;
+        received += payload.len() as u64;
+        if received > budget {
+            return Some(Err(JobFailure::Invalid(json!({
+                "type": "https://millsim.dev/problems/resource-limit",
+                "title": "Results over the job's memory budget",
+                "status": 422,
+                "detail": format!("the job's results (rows, samples, files) exceed its memory budget of {} MiB (job_memory_mb)", budget >> 20),
+                "limit_name": "job_memory_mb",
+                "limit": budget >> 20,
+            }))));
+        }
+        match tag {
+            PROGRESS if payload.len() == 16 => {
+                let done = u64::from_le_bytes(payload[..8].try_into().ok()?);
+                let total = u64::from_le_bytes(payload[8..].try_into().ok()?);
+                progress.total.store(total, Ordering::Relaxed);
+                progress.done.store(done, Ordering::Relaxed);
+            }
+            SUMMARY => out.summary = serde_json::from_slice(&payload).ok()?,
+            ROW => out.rows.push(String::from_utf8(payload).ok()?),
+            SAMPLE if payload.len() >= 8 => {
+                let seq = u64::from_le_bytes(payload[..8].try_into().ok()?) as usize;
+                out.samples
+                    .push((seq, String::from_utf8(payload[8..].to_vec()).ok()?));
+            }
+            FILE => file = Some(serde_json::from_slice(&payload).ok()?),
+            BYTES => {
+                let h = file.take()?;
+                out.files.push((h.name, h.media_type, h.file_name, payload));
+            }
+            DONE => return Some(Ok(out)),
+            PROBLEM => {
+                return Some(Err(JobFailure::Invalid(
+                    serde_json::from_slice(&payload).ok()?,
+                )))
+            }
+            CANCELLED => return Some(Err(JobFailure::Cancelled)),
+            _ => return None,
+        }
+    }
+}
+
+fn died_problem(status: std::process::ExitStatus, said: &str, memory_mb: u64) -> Value {
+    let how = match status.signal() {
+        Some(sig) => format!("was killed by signal {sig} ({})", signal_name(sig)),
+        None => format!(
+            "exited with status {} without a result",
+            status.code().unwrap_or(-1)
+        ),
+    };
+    died_problem_text(&how, said, memory_mb)
+}
+
+fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Value {
+    let out_of_memory = said.contains("memory allocation of") || said.contains("out of memory");
+    // What the process said that tells why: the failed allocation, a panic, else its last words.
+    let last_line = said
+        .lines()
+        .find(|l| l.contains("memory allocation of"))
+        .or_else(|| said.lines().find(|l| l.starts_with("thread '")))
+        .or_else(|| said.lines().last())
+        .unwrap_or("")
+        .trim()
+        .to_string();
+    json!({
+        "type": "https://millsim.dev/problems/resource-limit",
+        "title": if out_of_memory { "Job ran out of memory" } else { "Job's process died" },
+        "status": 422,
+        "detail": format!(
+            "the process running this job {how}{}; its memory budget is {memory_mb} MiB (job_memory_mb). The job is not retried: it would die again",
+            if last_line.is_empty() { String::new() } else { format!(" after: {last_line}") },
+        ),
+        "limit_name": "job_memory_mb",
+        "limit": memory_mb,
+    })
+}
+
+fn signal_name(sig: i32) -> &'static str {
+    match sig {
+        libc::SIGKILL => "SIGKILL: the kernel's out-of-memory killer, or an operator",
+        libc::SIGABRT => "SIGABRT: the process aborted, as on a failed allocation",
+        libc::SIGSEGV => "SIGSEGV",
+        libc::SIGBUS => "SIGBUS",
+        libc::SIGTERM => "SIGTERM",
+        _ => "a signal",
+    }
+}

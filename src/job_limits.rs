@@ -1,0 +1,268 @@
+//! What every job is held to before its engine work starts: the machine's travel and the
+//! job's memory budget. The checks read the interpreted moves and the engine's estimate
+//! (`millsim_engine::budget`); a job that cannot fit fails with a problem naming the
+//! limit, the file and line, or the budget and the estimate.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+
+use millsim_engine::budget::{self, MemoryEstimate, SimulationSize};
+use millsim_engine::geometry;
+use millsim_engine::machine::Machine;
+use millsim_engine::nc::{self, Move};
+use millsim_engine::pipeline::{AxisReading, StockSource};
+use millsim_engine::tool::Tool;
+use millsim_engine::tool_library::tools_from_header;
+
+/// What the server holds each job to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct JobLimits {
+    /// Memory a job may use, bytes (`--job-memory-mb`).
+    pub memory_bytes: u64,
+}
+
+impl JobLimits {
+    pub fn memory_mb(&self) -> u64 {
+        self.memory_bytes >> 20
+    }
+}
+
+/// The default memory budget per job: the machine's memory shared by the workers, at
+/// most 16 GiB and at least 512 MiB.
+pub fn default_job_memory_mb(workers: usize) -> u64 {
+    let total_mb = total_memory_bytes().map(|b| b >> 20).unwrap_or(4096);
+    (total_mb / workers.max(1) as u64).clamp(512, 16 << 10)
+}
+
+/// Total memory of the machine (MemTotal of /proc/meminfo), if known.
+fn total_memory_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// The problem of a job whose estimate is over its budget (422 at submission, a failed
+/// job at run time).
+pub fn over_budget_problem(
+    file: Option<&str>,
+    estimate: &MemoryEstimate,
+    limits: &JobLimits,
+) -> Value {
+    let mib = |b: u64| b.div_ceil(1 << 20);
+    let mut problem = json!({
+        "type": "https://millsim.dev/problems/resource-limit",
+        "title": "Over the job's memory budget",
+        "status": 422,
+        "detail": format!(
+            "{}the simulation needs about {} MiB (grid {} MiB, step records {} MiB, rows {} MiB, stock export {} MiB), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, a smaller stock or shorter moves",
+            file.map(|f| format!("{f}: ")).unwrap_or_default(),
+            mib(estimate.peak_bytes),
+            mib(estimate.grid_bytes),
+            mib(estimate.steps_bytes),
+            mib(estimate.rows_bytes),
+            mib(estimate.export_bytes),
+            limits.memory_mb(),
+        ),
+        "limit_name": "job_memory_mb",
+        "limit": limits.memory_mb(),
+        "estimate_mb": mib(estimate.peak_bytes),
+        "estimate": estimate,
+    });
+    if let Some(f) = file {
+        problem["file"] = json!(f);
+    }
+    problem
+}
+
+fn travel_problem(file: &str, e: &budget::TravelError, travel: [[f64; 2]; 3]) -> Value {
+    json!({
+        "type": "https://millsim.dev/problems/out-of-travel",
+        "title": "Move outside the machine's travel",
+        "status": 422,
+        "detail": format!("{file}:{e}"),
+        "file": file,
+        "line": e.line,
+        "axis": e.axis.to_string(),
+        "value": e.value,
+        "travel_mm": travel,
+    })
+}
+
+/// The grid spacing a simulation will use: the one asked for, else the engine's default
+/// from the radii of the tools the program uses (given, from the library, or described in
+/// its header).
+fn cell_and_tools(
+    cell: Option<f64>,
+    program: &str,
+    moves: &[Move],
+    tools: &BTreeMap<u32, Tool>,
+) -> (f64, Vec<Tool>) {
+    let header = tools_from_header(program);
+    let mut used: Vec<u32> = moves.iter().map(|m| m.tool).filter(|t| *t != 0).collect();
+    used.sort_unstable();
+    used.dedup();
+    let mut found: Vec<Tool> = match tools.get(&0) {
+        Some(t) => vec![t.clone()],
+        None => used
+            .iter()
+            .filter_map(|n| tools.get(n).or_else(|| header.tools.get(n)).cloned())
+            .collect(),
+    };
+    if found.is_empty() {
+        found = tools
+            .values()
+            .chain(header.tools.values())
+            .cloned()
+            .collect();
+    }
+    let radii: Vec<f64> = found.iter().map(Tool::radius).collect();
+    (
+        cell.unwrap_or_else(|| geometry::default_cell(&radii)),
+        found,
+    )
+}
+
+fn stock_bounds(stock: &StockSource) -> Option<([f64; 3], [f64; 3])> {
+    match stock {
+        StockSource::Shape(shape) => shape.bounds().ok(),
+        StockSource::Stl(bytes) => geometry::Mesh::from_stl_bytes(bytes)
+            .ok()
+            .map(|m| m.bounds()),
+    }
+}
+
+/// What a simulate/optimize job checks before the pipeline runs.
+pub struct SimulationCheck<'a> {
+    pub file: &'a str,
+    pub program: &'a str,
+    pub interpret: &'a nc::InterpretOptions,
+    pub machine: &'a Machine,
+    pub axes: AxisReading,
+    pub stock: &'a StockSource,
+    pub tools: &'a BTreeMap<u32, Tool>,
+    pub cell: Option<f64>,
+}
+
+/// Why a simulation may not start.
+pub enum Refusal {
+    /// The program does not interpret (the pipeline would say the same).
+    Program(nc::Diagnostics),
+    /// A problem document: out of travel, or over the memory budget.
+    Problem(Value),
+}
+
+/// Interprets the program and checks its moves against the machine's travel (under
+/// tool-tip reading, X Y Z are the tip in the part frame: the generic travel then) and
+/// the simulation's memory estimate against the budget. Returns the estimate.
+pub fn check_simulation(
+    c: &SimulationCheck,
+    limits: &JobLimits,
+) -> Result<Option<MemoryEstimate>, Refusal> {
+    let interpretation = nc::interpret(c.program, c.interpret).map_err(Refusal::Program)?;
+    let moves = &interpretation.moves;
+    let travel = match c.axes {
+        AxisReading::Machine => budget::travel_of(c.machine),
+        AxisReading::ToolTip => budget::travel_of(&Machine::generic()),
+    };
+    budget::check_travel(moves, travel)
+        .map_err(|e| Refusal::Problem(travel_problem(c.file, &e, travel)))?;
+    let Some((stock_min, stock_max)) = stock_bounds(c.stock) else {
+        // The pipeline reports an unreadable stock.
+        return Ok(None);
+    };
+    let (cell, tools) = cell_and_tools(c.cell, c.program, moves, c.tools);
+    let size = SimulationSize {
+        stock_min,
+        stock_max,
+        cell,
+        moves,
+        flute_length: tools.iter().map(|t| t.flute_length).fold(0.0, f64::max),
+        tool_radius: tools.iter().map(Tool::radius).fold(0.0, f64::max),
+    };
+    let Ok(estimate) = budget::estimate_simulation(&size) else {
+        // An absurd grid: the pipeline's own grid check names it.
+        return Ok(None);
+    };
+    if estimate.peak_bytes > limits.memory_bytes {
+        return Err(Refusal::Problem(over_budget_problem(
+            Some(c.file),
+            &estimate,
+            limits,
+        )));
+    }
+    Ok(Some(estimate))
+}
+
+/// At submission, without the program: the grid and the stock export alone, for a stock
+/// whose bounds are known and a cell that is (given, or from the tools' diameters).
+/// Some(estimate) when it is over the budget.
+pub fn submission_estimate(
+    stock_bounds: ([f64; 3], [f64; 3]),
+    cell: Option<f64>,
+    tool_diameters: &[f64],
+    limits: &JobLimits,
+) -> Option<MemoryEstimate> {
+    let cell = match cell {
+        Some(c) => c,
+        None if !tool_diameters.is_empty() => {
+            let radii: Vec<f64> = tool_diameters.iter().map(|d| d / 2.0).collect();
+            geometry::default_cell(&radii)
+        }
+        None => return None,
+    };
+    let size = SimulationSize {
+        stock_min: stock_bounds.0,
+        stock_max: stock_bounds.1,
+        cell,
+        moves: &[],
+        flute_length: 0.0,
+        tool_radius: 0.0,
+    };
+    let estimate = budget::estimate_simulation(&size).ok()?;
+    (estimate.peak_bytes > limits.memory_bytes).then_some(estimate)
+}
+
+/// Bounds of a stored stock from its summary (`{"bounds":{"min":..,"max":..}}`).
+pub fn summary_bounds(summary: &Value) -> Option<([f64; 3], [f64; 3])> {
+    let corner = |v: &Value| -> Option<[f64; 3]> {
+        let a = v.as_array()?;
+        Some([
+            a.first()?.as_f64()?,
+            a.get(1)?.as_f64()?,
+            a.get(2)?.as_f64()?,
+        ])
+    };
+    Some((
+        corner(&summary["bounds"]["min"])?,
+        corner(&summary["bounds"]["max"])?,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_budget_shares_the_memory_within_bounds() {
+        let one = default_job_memory_mb(1);
+        assert!((512..=16 << 10).contains(&one));
+        assert!(default_job_memory_mb(10_000) == 512);
+    }
+
+    #[test]
+    fn a_fine_grid_on_a_large_stock_is_over_a_small_budget_at_submission() {
+        let limits = JobLimits {
+            memory_bytes: 2 << 30,
+        };
+        let cube = ([0.0; 3], [27.0; 3]);
+        let e = submission_estimate(cube, Some(0.005), &[], &limits).unwrap();
+        let p = over_budget_problem(None, &e, &limits);
+        assert_eq!(p["limit"], 2048);
+        assert!(p["estimate_mb"].as_u64().unwrap() > 8_000, "{p}");
+        assert!(submission_estimate(cube, Some(0.1), &[], &limits).is_none());
+        assert!(submission_estimate(cube, None, &[], &limits).is_none());
+    }
+}

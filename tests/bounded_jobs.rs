@@ -1,0 +1,500 @@
+//! Bounded jobs (issue 16): moves inside the machine's travel, a memory budget per job
+//! checked at submission and before the engine allocates, each job's engine work in its
+//! own process under an address-space limit (a job that dies fails alone, once), stalled
+//! request bodies cut with 408, cancel within a second and SIGTERM within the grace period.
+
+mod common;
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+
+use common::*;
+
+const TOOL: &str =
+    r#"{"type":"flat","diameter_mm":10,"flutes":3,"helix_deg":30,"flute_length_mm":25}"#;
+
+async fn create(c: &reqwest::Client, s: &Server, path: &str, body: Value) -> String {
+    let (st, v) = post_json(c, s, path, &body).await;
+    assert_eq!(st, 201, "{path}: {v}");
+    v["id"].as_str().unwrap().to_string()
+}
+
+/// A simulate job of `program` (inline) on a 40×30×10 block with a D10 flat tool.
+async fn simulate_body(c: &reqwest::Client, s: &Server, name: &str, program: &str) -> Value {
+    let stock = create(
+        c,
+        s,
+        "/v1/stocks",
+        json!({"kind": "block", "min": [0, 0, -10], "max": [40, 30, 0]}),
+    )
+    .await;
+    let tool = create(c, s, "/v1/tools", serde_json::from_str(TOOL).unwrap()).await;
+    json!({"kind": "simulate",
+        "inputs": {"program": {"name": name, "content": program}, "stock": stock, "tool": tool},
+        "options": {"material": "Al7075-T6"}})
+}
+
+async fn submit(c: &reqwest::Client, s: &Server, body: &Value) -> String {
+    let (st, job) = post_json(c, s, "/v1/jobs", body).await;
+    assert_eq!(st, 202, "{job}");
+    job["id"].as_str().unwrap().to_string()
+}
+
+/// Resident memory of a process, kB (VmHWM: its peak).
+fn peak_rss_kb(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0)
+}
+
+#[tokio::test]
+async fn a_move_outside_the_travel_fails_naming_the_file_line_and_axis() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    // No machine: the generic travel of ±2000 mm.
+    let far = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X1000000000000\nM30\n";
+    let id = submit(&c, &s, &simulate_body(&c, &s, "far.nc", far).await).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    let e = &job["error"];
+    assert_eq!(
+        e["type"], "https://millsim.dev/problems/out-of-travel",
+        "{e}"
+    );
+    assert_eq!(
+        (e["file"].as_str(), e["line"].as_u64(), e["axis"].as_str()),
+        (Some("far.nc"), Some(4), Some("X")),
+        "{e}"
+    );
+    assert!(
+        e["detail"]
+            .as_str()
+            .unwrap()
+            .starts_with("far.nc:line 4: X"),
+        "{e}"
+    );
+
+    // A machine's own travel: Z below its lower end.
+    let machine = create(
+        &c,
+        &s,
+        "/v1/machines",
+        json!({"name": "small VMC", "rapid_rate": 24000, "max_feed": 8000, "acceleration": [2000, 2000, 1500],
+            "spindle_min_rpm": 100, "spindle_max_rpm": 12000, "rated_power": 11000,
+            "travel": [[-100, 600], [-100, 400], [-50, 300]]}),
+    )
+    .await;
+    let deep = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-60 F500\nM30\n";
+    let mut body = simulate_body(&c, &s, "deep.nc", deep).await;
+    body["inputs"]["machine"] = json!(machine);
+    let id = submit(&c, &s, &body).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
+    let e = &job["error"];
+    assert_eq!(
+        (e["line"].as_u64(), e["axis"].as_str()),
+        (Some(3), Some("Z")),
+        "{job}"
+    );
+    assert_eq!(e["travel_mm"][2], json!([-50.0, 300.0]), "{e}");
+    // Inside it, the same machine runs the program.
+    let ok = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X40\nM30\n";
+    let mut body = simulate_body(&c, &s, "ok.nc", ok).await;
+    body["inputs"]["machine"] = json!(machine);
+    let id = submit(&c, &s, &body).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
+    assert_eq!(job["status"], "succeeded", "{job}");
+}
+
+#[tokio::test]
+async fn a_grid_and_export_over_the_memory_budget_are_refused_at_submission() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "1", "--job-memory-mb", "1024"],
+    );
+    let c = client();
+    // The issue's case: a 27 mm cube at cell 0.005 passed the 4 GiB grid check and peaked
+    // at 23.7 GB in the stock export.
+    let stock = create(
+        &c,
+        &s,
+        "/v1/stocks",
+        json!({"kind": "block", "min": [0, 0, -27], "max": [27, 27, 0]}),
+    )
+    .await;
+    let tool = create(&c, &s, "/v1/tools", serde_json::from_str(TOOL).unwrap()).await;
+    let program = "G0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X27\nM30\n";
+    let body = |cell: f64| {
+        json!({"kind": "simulate",
+            "inputs": {"program": {"name": "cube.nc", "content": program}, "stock": stock, "tool": tool},
+            "options": {"material": "Al7075-T6", "cell_mm": cell}})
+    };
+    let (st, p) = post_json(&c, &s, "/v1/jobs", &body(0.005)).await;
+    assert_eq!(st, 422, "{p}");
+    assert_eq!(
+        p["type"], "https://millsim.dev/problems/resource-limit",
+        "{p}"
+    );
+    assert_eq!(
+        (p["limit_name"].as_str(), p["limit"].as_u64()),
+        (Some("job_memory_mb"), Some(1024)),
+        "{p}"
+    );
+    assert!(p["estimate_mb"].as_u64().unwrap() > 8_000, "{p}");
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("1024 MiB") && detail.contains("stock export"),
+        "{detail}"
+    );
+    // A sane cell fits.
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body(0.2)).await;
+    assert_eq!(st, 202, "{job}");
+}
+
+#[tokio::test]
+async fn a_path_over_the_budget_fails_resource_limit_before_the_engine_allocates() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "1", "--job-memory-mb", "1024"],
+    );
+    let c = client();
+    // The issue's case: 10,000 turns of radius 5 mm in the stock peaked at 5.67 GB, one
+    // step record per 0.25 mm cell of its 314 m.
+    let turns = "G21 G90\nG0 X20 Y15 Z5\nM3 S10000\nG1 Z-2 F500\nG1 X25\nG2 X25 Y15 I-5 J0 P10000 F1000\nM30\n";
+    let id = submit(&c, &s, &simulate_body(&c, &s, "turns.nc", turns).await).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    let e = &job["error"];
+    assert_eq!(
+        e["type"], "https://millsim.dev/problems/resource-limit",
+        "{e}"
+    );
+    assert_eq!(
+        (e["limit_name"].as_str(), e["limit"].as_u64()),
+        (Some("job_memory_mb"), Some(1024)),
+        "{e}"
+    );
+    assert_eq!(e["file"], "turns.nc", "{e}");
+    assert!(
+        e["estimate"]["steps_bytes"].as_u64().unwrap() > 4_000_000_000,
+        "{e}"
+    );
+    assert!(job["duration_seconds"].as_f64().unwrap() < 5.0, "{job}");
+    assert_eq!(job["attempts"], 1, "{job}");
+    // The same program with 100 turns fits and runs.
+    let few = turns.replace("P10000", "P100");
+    let id = submit(&c, &s, &simulate_body(&c, &s, "few.nc", &few).await).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(120)).await;
+    assert_eq!(job["status"], "succeeded", "{job}");
+    // The server itself never held the job's buffers.
+    let rss = peak_rss_kb(s.child.id());
+    assert!(rss < 300_000, "server peak RSS {rss} kB");
+}
+
+/// A program that never ends on its own (moves inside an endless loop): 10 million moves
+/// before the interpreter's cap, gigabytes of them.
+const RUNAWAY: &str =
+    "G21 G90\nG0 X0 Y0 Z5\no100 while [1 EQ 1]\nG1 X10 F1000\nG1 X0\no100 endwhile\nM30\n";
+
+#[tokio::test]
+async fn a_job_that_runs_out_of_memory_dies_alone_once_and_the_server_runs_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &[
+            "--workers",
+            "1",
+            "--job-memory-mb",
+            "256",
+            "--max-attempts",
+            "3",
+        ],
+    );
+    let c = client();
+    let body = json!({"kind": "interpret", "inputs": {"program": {"name": "loop.ngc", "content": RUNAWAY}}});
+    let id = submit(&c, &s, &body).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(120)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    let e = &job["error"];
+    assert_eq!(
+        e["type"], "https://millsim.dev/problems/resource-limit",
+        "{e}"
+    );
+    assert_eq!(e["limit"], 256, "{e}");
+    let detail = e["detail"].as_str().unwrap();
+    assert!(detail.contains("signal"), "{detail}");
+    // One attempt: not retried into a crash loop.
+    assert_eq!(job["attempts"], 1, "{job}");
+    let attempts = get_json(&c, &s, &format!("/v1/jobs/{id}/attempts")).await;
+    assert_eq!(attempts["items"].as_array().unwrap().len(), 1, "{attempts}");
+    // The server is up, small, and runs the next job.
+    let (st, _) = json(c.get(s.url("/healthz")).send().await.unwrap()).await;
+    assert_eq!(st, 200);
+    let program = upload_program(&c, &s, &adaptive_program()).await;
+    let next = submit_interpret(&c, &s, &program).await;
+    let next = wait_job(
+        &c,
+        &s,
+        next["id"].as_str().unwrap(),
+        Duration::from_secs(60),
+    )
+    .await;
+    assert_eq!(next["status"], "succeeded", "{next}");
+    let rss = peak_rss_kb(s.child.id());
+    assert!(rss < 400_000, "server peak RSS {rss} kB");
+}
+
+#[tokio::test]
+async fn a_job_lost_with_a_server_that_ran_it_in_process_is_failed_not_retried() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("t.db");
+    let args = [
+        "--workers",
+        "1",
+        "--lease-secs",
+        "0.5",
+        "--job-isolation",
+        "thread",
+    ];
+    let c = client();
+    let mut server = Server::start(&db, &args);
+    let body = json!({"kind": "interpret", "inputs": {"program": {"name": "loop.ngc", "content": RUNAWAY}}});
+    let id = submit(&c, &server, &body).await;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while get_json(&c, &server, &format!("/v1/jobs/{id}")).await["status"] != "running" {
+        assert!(Instant::now() < deadline, "the job did not start");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    server.child.kill().unwrap(); // as an out-of-memory abort would
+    server.child.wait().unwrap();
+    server = Server::start(&db, &args);
+    let job = wait_job(&c, &server, &id, Duration::from_secs(30)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    assert_eq!(
+        job["error"]["type"], "https://millsim.dev/problems/resource-limit",
+        "{job}"
+    );
+    assert_eq!(job["attempts"], 1, "{job}");
+    let attempts = get_json(&c, &server, &format!("/v1/jobs/{id}/attempts")).await;
+    assert_eq!(attempts["items"][0]["outcome"], "lost", "{attempts}");
+}
+
+#[test]
+fn a_body_shorter_than_its_content_length_is_answered_408_after_the_body_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "0", "--body-timeout-s", "1"],
+    );
+    let addr = s.base.trim_start_matches("http://").to_string();
+    for path in [
+        "/v1/programs?name=p.nc",
+        "/v1/jobs",
+        "/v1/stocks?name=s.stl",
+    ] {
+        let mut conn = TcpStream::connect(&addr).unwrap();
+        conn.set_read_timeout(Some(Duration::from_secs(10)))
+            .unwrap();
+        let t = Instant::now();
+        conn.write_all(
+            format!("POST {path} HTTP/1.1\r\nHost: millsim\r\nContent-Type: application/octet-stream\r\nContent-Length: 1000\r\n\r\nG0 X1").as_bytes(),
+        )
+        .unwrap();
+        let mut out = Vec::new();
+        let _ = conn.read_to_end(&mut out);
+        let took = t.elapsed();
+        let text = String::from_utf8_lossy(&out);
+        assert!(text.starts_with("HTTP/1.1 408"), "{path}: {text}");
+        assert!(text.contains("body_timeout_s"), "{path}: {text}");
+        assert!(took < Duration::from_secs(4), "{path}: took {took:?}");
+    }
+}
+
+/// An energy job whose lobe tables take minutes (fine semi-discretization at 2000 speeds).
+fn long_energy_job(tool: &str, machine: &str) -> Value {
+    let mode = |f: f64| json!({"freq_hz": f, "damping": 0.02, "stiffness_n_m": 2e6});
+    json!({"kind": "energy", "inputs": {"tool": tool, "machine": machine},
+        "options": {"material": "Al7075-T6", "length_mm": 200, "width_mm": 8, "depth_mm": 12,
+            "cutting_speed_m_min": {"min": 100, "max": 300}, "feed_per_tooth_mm": {"min": 0.02, "max": 0.2},
+            "objective": "min_energy", "modes_x": [mode(900.0), mode(1400.0)], "modes_y": [mode(950.0), mode(1500.0)],
+            "stability_method": "sdm", "steps_per_period": 40, "stability_rpm_points": 2000}})
+}
+
+async fn energy_inputs(c: &reqwest::Client, s: &Server) -> (String, String) {
+    let tool = create(
+        c,
+        s,
+        "/v1/tools",
+        json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 30.0, "flute_length_mm": 25.0}),
+    )
+    .await;
+    let machine = create(
+        c,
+        s,
+        "/v1/machines",
+        json!({"name": "VMC", "rapid_rate": 24000.0, "max_feed": 8000.0, "acceleration": [2000.0, 2000.0, 1500.0],
+        "spindle_min_rpm": 500.0, "spindle_max_rpm": 12000.0, "rated_power": 5500.0, "efficiency": 0.8,
+        "torque_limit": 30.0, "axis_thrust_limit": 3000.0,
+        "energy": {"idle": {"base_rpm": 3000, "below": [823.3, 0.0149, 2e-6], "above": [881.5, -0.0034, 3e-6]}, "aux_power_w": 804}}),
+    )
+    .await;
+    (tool, machine)
+}
+
+async fn wait_status(c: &reqwest::Client, s: &Server, id: &str, status: &str) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while get_json(c, s, &format!("/v1/jobs/{id}")).await["status"] != status {
+        assert!(Instant::now() < deadline, "job {id} never {status}");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
+#[tokio::test]
+async fn a_long_energy_job_is_cancelled_within_a_second_in_either_isolation() {
+    for isolation in ["thread", "process"] {
+        let dir = tempfile::tempdir().unwrap();
+        let s = Server::start(
+            &dir.path().join("t.db"),
+            &["--workers", "1", "--job-isolation", isolation],
+        );
+        let c = client();
+        let (tool, machine) = energy_inputs(&c, &s).await;
+        let id = submit(&c, &s, &long_energy_job(&tool, &machine)).await;
+        wait_status(&c, &s, &id, "running").await;
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        let asked = Instant::now();
+        let (st, _) = json(
+            c.post(s.url(&format!("/v1/jobs/{id}/cancel")))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
+        assert_eq!(st, 202);
+        let done = wait_job(&c, &s, &id, Duration::from_secs(120)).await;
+        let took = asked.elapsed();
+        assert_eq!(done["status"], "cancelled", "{isolation}: {done}");
+        assert!(
+            took < Duration::from_secs(1),
+            "{isolation}: cancel took {took:?}"
+        );
+    }
+}
+
+#[tokio::test]
+async fn sigterm_exits_within_the_grace_period_with_a_long_job_running() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("t.db");
+    let s = Server::start(&db, &["--workers", "1", "--shutdown-grace-secs", "1"]);
+    let c = client();
+    let (tool, machine) = energy_inputs(&c, &s).await;
+    let id = submit(&c, &s, &long_energy_job(&tool, &machine)).await;
+    wait_status(&c, &s, &id, "running").await;
+    // A client in the middle of a slow upload does not hold the server either.
+    let mut upload = TcpStream::connect(s.base.trim_start_matches("http://")).unwrap();
+    upload
+        .write_all(b"POST /v1/programs?name=p.nc HTTP/1.1\r\nHost: millsim\r\nContent-Type: text/plain\r\nContent-Length: 1000\r\n\r\nG0 X1")
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let asked = Instant::now();
+    assert!(s.terminate(), "serve did not exit 0 on SIGTERM");
+    let took = asked.elapsed();
+    assert!(
+        took < Duration::from_secs(5),
+        "exit took {took:?} (grace 1 s)"
+    );
+    // The job was given back, its attempt not counted; no job process is left behind.
+    let s = Server::start(&db, &["--workers", "0"]);
+    let job = get_json(&c, &s, &format!("/v1/jobs/{id}")).await;
+    assert_eq!(
+        (job["status"].as_str(), job["attempts"].as_u64()),
+        (Some("queued"), Some(0)),
+        "{job}"
+    );
+}
+
+/// Review item 6f: a job submission's inline program (up to the 64 MiB body limit) is read
+/// off the async runtime, so the server keeps answering while it reads one. With a single
+/// runtime thread, reading 49 MB of G-code on it held /healthz for the whole read.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn healthz_answers_while_a_large_inline_program_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start_with_env(
+        &dir.path().join("t.db"),
+        &["--workers", "0"],
+        &[("TOKIO_WORKER_THREADS", "1")],
+    );
+    let program: String = (0..1_500_000)
+        .map(|i| format!("G1 X{}.125 Y{}.250 Z-0.500 F1000\n", i % 97, i % 89))
+        .collect();
+    let body =
+        json!({"kind": "interpret", "inputs": {"program": {"name": "big.nc", "content": program}}});
+    let body = serde_json::to_vec(&body).unwrap();
+    let c = client();
+    let submit = {
+        let (c, url) = (c.clone(), s.url("/v1/jobs"));
+        tokio::spawn(async move {
+            let t = Instant::now();
+            let res = c
+                .post(url)
+                .header("content-type", "application/json")
+                .body(body)
+                .send()
+                .await
+                .unwrap();
+            (res.status().as_u16(), t.elapsed())
+        })
+    };
+    let mut worst = Duration::ZERO;
+    while !submit.is_finished() {
+        let t = Instant::now();
+        let (st, _) = json(c.get(s.url("/healthz")).send().await.unwrap()).await;
+        assert_eq!(st, 200);
+        worst = worst.max(t.elapsed());
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let (status, took) = submit.await.unwrap();
+    assert_eq!(status, 202);
+    println!("submission took {took:?}; slowest /healthz {worst:?}");
+    assert!(
+        worst < Duration::from_millis(700),
+        "/healthz took {worst:?} (submission {took:?})"
+    );
+}
+
+/// The server holds a job's results (rows, samples, files) until it stores them: they are
+/// bounded by the job's budget too, so a job cannot grow the server past it.
+#[tokio::test]
+async fn results_over_the_budget_fail_the_job_and_stay_out_of_the_server() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "1", "--job-memory-mb", "64"],
+    );
+    let c = client();
+    // 600,000 moves: about 100 MB of rows as JSON.
+    let program =
+        "G21 G90\nG0 X0 Y0 Z5\no100 repeat [300000]\nG1 X10 F1000\nG1 X0\no100 endrepeat\nM30\n";
+    let body = json!({"kind": "interpret", "inputs": {"program": {"name": "many.ngc", "content": program}}});
+    let id = submit(&c, &s, &body).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(120)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    let e = &job["error"];
+    assert_eq!(
+        e["type"], "https://millsim.dev/problems/resource-limit",
+        "{e}"
+    );
+    assert_eq!(e["limit"], 64, "{e}");
+    assert!(e["detail"].as_str().unwrap().contains("results"), "{e}");
+    let rss = peak_rss_kb(s.child.id());
+    assert!(rss < 64 * 1024 + 100_000, "server peak RSS {rss} kB");
+}
