@@ -303,13 +303,16 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     let limits = crate::job_limits::JobLimits {
         memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
     };
-    let result = runner::run(
+    // The stock goes straight to its file: at fine cells it is the largest output.
+    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
+    let result = runner::run_with_stock_file(
         kind,
         &options,
         inputs,
         &limits,
         &CancelFlag::new(),
         &progress,
+        Some(&args.out.join("stock.stl")),
     );
     progress.finish();
     let out = result.map_err(|f| match f {

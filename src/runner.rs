@@ -235,6 +235,21 @@ pub fn run(
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<JobOutput, JobFailure> {
+    run_with_stock_file(kind, options, inputs, limits, cancel, progress, None)
+}
+
+/// [`run`], with the machined stock of a simulate or optimize job streamed into
+/// `stock_file` (a file the size of the stock's surface is then never held in memory)
+/// instead of being returned among the output files.
+pub fn run_with_stock_file(
+    kind: &str,
+    options: &Value,
+    inputs: LoadedInputs,
+    limits: &JobLimits,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+    stock_file: Option<&std::path::Path>,
+) -> Result<JobOutput, JobFailure> {
     match kind {
         "interpret" => interpret(options, inputs, cancel, progress),
         "simulate" | "optimize" => simulate_job(
@@ -244,6 +259,7 @@ pub fn run(
             limits,
             cancel,
             progress,
+            stock_file,
         ),
         "stability" => stability_job(options, cancel, progress),
         "rotary-feed" => rotary_feed_job(options, inputs),
@@ -509,6 +525,15 @@ struct SimulateSummary<'a> {
     row_columns: Vec<String>,
 }
 
+/// The stock as a binary STL into the file at `path`.
+fn stream_stl(stock: &geometry::Stock, path: &std::path::Path) -> Result<(), String> {
+    let name = path.display();
+    let file = std::fs::File::create(path).map_err(|e| format!("{name}: {e}"))?;
+    let mut out = std::io::BufWriter::with_capacity(1 << 20, file);
+    geometry::export_stl(stock, &mut out).map_err(|e| format!("{name}: {e}"))?;
+    std::io::Write::flush(&mut out).map_err(|e| format!("{name}: {e}"))
+}
+
 fn simulate_job(
     optimize: bool,
     options: &Value,
@@ -516,6 +541,7 @@ fn simulate_job(
     limits: &JobLimits,
     cancel: &CancelFlag,
     progress: &dyn Progress,
+    stock_file: Option<&std::path::Path>,
 ) -> Result<JobOutput, JobFailure> {
     let opts: SimulateOptions = serde_json::from_value(options.clone())
         .map_err(|e| invalid("Invalid options", e.to_string()))?;
@@ -629,8 +655,13 @@ fn simulate_job(
             (rows, samples)
         });
         let clock = std::time::Instant::now();
-        let written = geometry::export_stl_vec(&out.stock);
-        let exported = (written.map(|(stl, _)| stl), clock.elapsed().as_secs_f64());
+        let written = match stock_file {
+            Some(path) => stream_stl(&out.stock, path).map(|()| None),
+            None => geometry::export_stl_vec(&out.stock)
+                .map(|(stl, _)| Some(stl))
+                .map_err(|e| e.to_string()),
+        };
+        let exported = (written, clock.elapsed().as_secs_f64());
         match serialized.join() {
             Ok(v) => (v, exported),
             Err(panic) => std::panic::resume_unwind(panic),
@@ -650,12 +681,15 @@ fn simulate_job(
         .rsplit_once('.')
         .map(|(s, e)| (s, format!(".{e}")))
         .unwrap_or((&file, String::new()));
-    let mut files = vec![OutputFile {
-        name: "stock.stl".into(),
-        media_type: "model/stl",
-        file_name: format!("{stem}.stock.stl"),
-        content: stl,
-    }];
+    let mut files: Vec<OutputFile> = stl
+        .map(|content| OutputFile {
+            name: "stock.stl".into(),
+            media_type: "model/stl",
+            file_name: format!("{stem}.stock.stl"),
+            content,
+        })
+        .into_iter()
+        .collect();
     if let Some(text) = out.optimized_program {
         files.push(OutputFile {
             name: "program".into(),

@@ -53,8 +53,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let part =
         millsim_engine::geometry::Stock::block([0.0, -20.0, -10.0], [100.0, 20.0, -3.0], 0.25)
             .unwrap();
-    let mut stl = Vec::new();
-    millsim_engine::geometry::export_stl(&part, &mut stl).unwrap();
+    let (stl, _) = millsim_engine::geometry::export_stl_vec(&part).unwrap();
     let (st, part) = json(
         c.post(s.url("/v1/stocks"))
             .header("content-type", "model/stl")

@@ -16,7 +16,7 @@
 use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use millsim_engine::geometry::{export_stl, simulate_removal, Mesh, Segment, SimOptions, Stock};
+use millsim_engine::geometry::{export_stl_vec, simulate_removal, Mesh, Segment, SimOptions, Stock};
 use millsim_engine::job::CancelFlag;
 use millsim_engine::nc::{interpret, InterpretOptions, MoveKind};
 use millsim_engine::tool::Tool;
@@ -106,8 +106,7 @@ fn timed(segs: &[Segment], base: &Stock, opts: &SimOptions, label: &str) -> Stoc
 /// Export of the machined stock as STL (the service's final-stock download).
 fn timed_export(stock: &Stock) {
     let t0 = Instant::now();
-    let mut out = Vec::new();
-    let stats = export_stl(stock, &mut out).unwrap();
+    let (out, stats) = export_stl_vec(stock).unwrap();
     println!(
         "export STL: {} triangles ({:.1} MB), volume {:.1} mm³ (stock {:.1}) in {:.3} s",
         stats.triangles,

@@ -2,14 +2,13 @@
 //! any edge not matched by an opposite edge, so T-junctions from merging would fail),
 //! enclose exactly the voxel volume, and stay close to the dexel volume.
 
-use millsim_engine::geometry::{export_stl, simulate_removal, Mesh, Segment, SimOptions, Stock};
+use millsim_engine::geometry::{export_stl_vec, simulate_removal, Mesh, Segment, SimOptions, Stock};
 use millsim_engine::job::CancelFlag;
 use millsim_engine::tool::Tool;
 
 /// Exports, reads back (closedness is checked by the reader) and compares volumes.
 fn export_and_check(stock: &Stock) -> u64 {
-    let mut out = Vec::new();
-    let stats = export_stl(stock, &mut out).unwrap();
+    let (out, stats) = export_stl_vec(stock).unwrap();
     assert_eq!(out.len() as u64, 84 + 50 * stats.triangles);
     let mesh = Mesh::from_stl_bytes(&out).unwrap();
     let mv = mesh.volume();

@@ -3,7 +3,7 @@
 mod common;
 
 use millsim_engine::geometry::{
-    export_stl, simulate_removal, GeometryError, GridOptions, Mesh, Segment, SimOptions, StlError,
+    export_stl_vec, simulate_removal, GeometryError, GridOptions, Mesh, Segment, SimOptions, StlError,
     Stock,
 };
 use millsim_engine::job::CancelFlag;
@@ -183,8 +183,7 @@ fn exported_stock_is_a_closed_mesh_with_the_stock_volume() {
         &CancelFlag::new(),
     )
     .unwrap();
-    let mut out = Vec::new();
-    let stats = export_stl(&stock, &mut out).unwrap();
+    let (out, stats) = export_stl_vec(&stock).unwrap();
     assert_eq!(out.len() as u64, 84 + 50 * stats.triangles);
     // Read back: closed, and its volume is the voxel volume.
     let mesh = Mesh::from_stl_bytes(&out).unwrap();

@@ -451,13 +451,12 @@ fn a_move_half_in_material_is_split_into_blocks_at_their_own_feeds() {
 
 #[test]
 fn a_design_part_reports_the_gouge_and_the_allowance_left() {
-    use millsim_engine::geometry::{export_stl, Stock};
+    use millsim_engine::geometry::{export_stl_vec, Stock};
     // The part: the stock's footprint up to z = −3. The slot goes to z = −5: it gouges the
     // part 2 mm deep over the slot's footprint, 2·(60·10 + π·5²/2) mm³, and leaves 3 mm
     // (the stock's top at 0) where it does not cut.
     let part = Stock::block([0.0, -20.0, -10.0], [100.0, 20.0, -3.0], 0.25).unwrap();
-    let mut stl = Vec::new();
-    export_stl(&part, &mut stl).unwrap();
+    let (stl, _) = export_stl_vec(&part).unwrap();
     let program =
         "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X20 F4000\nG1 X60\nG0 Z5\nM30\n";
     let mut s = spec(program);

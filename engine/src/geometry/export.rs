@@ -20,7 +20,7 @@
 //! volume. The work runs in parallel over rows of cells, with the rows' triangles
 //! written in row order (the same file whatever the thread count).
 
-use std::io::Write;
+use std::io::{Seek, SeekFrom, Write};
 
 use rayon::prelude::*;
 
@@ -40,19 +40,53 @@ pub struct ExportStats {
 /// held 19.8 GB of voxels at once before).
 pub const BAND_BYTES: usize = 64 << 20;
 
-/// Writes the stock as a binary STL.
-pub fn export_stl<W: Write>(stock: &Stock, out: &mut W) -> Result<ExportStats, GeometryError> {
-    let (file, stats) = export_stl_vec(stock)?;
-    out.write_all(&file)?;
+/// Writes the stock as a binary STL, a band of rows at a time: nothing but a band's
+/// voxels and triangles is held, however large the file (the triangle count in the
+/// header is written last, hence `Seek`).
+pub fn export_stl<W: Write + Seek>(
+    stock: &Stock,
+    out: &mut W,
+) -> Result<ExportStats, GeometryError> {
+    let start = out.stream_position()?;
+    out.write_all(&stl_header(0))?;
+    let stats = export_in_bands(stock, band_rows(stock), &mut |bytes| out.write_all(bytes))?;
+    let end = out.stream_position()?;
+    out.seek(SeekFrom::Start(start))?;
+    out.write_all(&stl_header(triangle_count(stats.triangles)?))?;
+    out.seek(SeekFrom::Start(end))?;
     Ok(stats)
 }
 
-/// The stock as a binary STL file in memory, written in place (no second copy).
+/// The stock as a binary STL file in memory.
 pub fn export_stl_vec(stock: &Stock) -> Result<(Vec<u8>, ExportStats), GeometryError> {
+    let mut file = std::io::Cursor::new(Vec::new());
+    let stats = export_stl(stock, &mut file)?;
+    Ok((file.into_inner(), stats))
+}
+
+/// Rows per band: about [`BAND_BYTES`] of voxels, and at most [`BAND_ROWS`] rows, whose
+/// triangles wait in memory until the band is written.
+fn band_rows(stock: &Stock) -> usize {
     let g = &stock.grid;
     let words = (g.n[2] + 1).div_ceil(64);
     let row_bytes = (g.n[0] * words * 8).max(1);
-    export_in_bands(stock, (BAND_BYTES / row_bytes).max(1))
+    (BAND_BYTES / row_bytes).clamp(1, BAND_ROWS)
+}
+
+/// Rows per band at most: enough row tasks for the threads, few enough that their
+/// triangles stay small (a whole 90 mm impeller blank at 0.1 mm in one band was 312 MB).
+const BAND_ROWS: usize = 64;
+
+fn stl_header(triangles: u32) -> [u8; 84] {
+    let mut header = [0u8; 84];
+    let title = b"millsim stock (voxel boundary of the tri-dexel grid)";
+    header[..title.len()].copy_from_slice(title);
+    header[80..].copy_from_slice(&triangles.to_le_bytes());
+    header
+}
+
+fn triangle_count(count: u64) -> Result<u32, GeometryError> {
+    u32::try_from(count).map_err(|_| GeometryError::InvalidGrid("too many triangles for STL".into()))
 }
 
 /// Bytes of the binary STL of a stock with `triangles` triangles.
@@ -60,15 +94,17 @@ pub fn stl_bytes(triangles: u64) -> u64 {
     84 + 50 * triangles
 }
 
-/// The export, `band` row tasks at a time. Row task j: faces normal to x and to z in
-/// row j, and faces normal to y on the plane y = y_j (j = ny: the far plane only); it
-/// reads the voxels of rows j − 1 to j + 1. The same bytes whatever the band.
-fn export_in_bands(stock: &Stock, band: usize) -> Result<(Vec<u8>, ExportStats), GeometryError> {
+/// The export, `band` row tasks at a time, each band's triangles handed to `sink` in
+/// order. Row task j: faces normal to x and to z in row j, and faces normal to y on the
+/// plane y = y_j (j = ny: the far plane only); it reads the voxels of rows j − 1 to
+/// j + 1. The same bytes whatever the band.
+fn export_in_bands(
+    stock: &Stock,
+    band: usize,
+    sink: &mut dyn FnMut(&[u8]) -> std::io::Result<()>,
+) -> Result<ExportStats, GeometryError> {
     let g = &stock.grid;
     let [nx, ny, _] = g.n;
-    let mut file = vec![0u8; 84];
-    let title = b"millsim stock (voxel boundary of the tri-dexel grid)";
-    file[..title.len()].copy_from_slice(title);
     let mut count = 0u64;
     let mut voxels = 0u64;
     let mut j0 = 0;
@@ -94,22 +130,17 @@ fn export_in_bands(stock: &Stock, band: usize) -> Result<(Vec<u8>, ExportStats),
             })
             .collect();
         for (bytes, n) in rows {
-            file.extend_from_slice(&bytes);
+            sink(&bytes)?;
             count += n;
         }
         voxels += vox.count_rows(j0, j1.min(ny));
         j0 = j1;
     }
-    let n = u32::try_from(count)
-        .map_err(|_| GeometryError::InvalidGrid("too many triangles for STL".into()))?;
-    file[80..84].copy_from_slice(&n.to_le_bytes());
-    Ok((
-        file,
-        ExportStats {
-            triangles: count,
-            volume: voxels as f64 * g.cell * g.cell * g.cell,
-        },
-    ))
+    triangle_count(count)?;
+    Ok(ExportStats {
+        triangles: count,
+        volume: voxels as f64 * g.cell * g.cell * g.cell,
+    })
 }
 
 /// The voxels as bit columns along z: column (i, j) at words `(i + nx·j)·words..`, bit
@@ -504,14 +535,34 @@ mod tests {
             ..GridOptions::default()
         };
         let stock = Stock::from_shape(&cylinder, &opts).unwrap();
-        let (whole, stats) = export_in_bands(&stock, stock.grid.n[1] + 1).unwrap();
+        let triangles_in = |band: usize| {
+            let mut bytes = Vec::new();
+            let stats = export_in_bands(&stock, band, &mut |b| {
+                bytes.extend_from_slice(b);
+                Ok(())
+            })
+            .unwrap();
+            (bytes, stats)
+        };
+        let (whole, stats) = triangles_in(stock.grid.n[1] + 1);
         assert!(stats.triangles > 100);
-        assert_eq!(whole.len() as u64, stl_bytes(stats.triangles));
+        assert_eq!(whole.len() as u64 + 84, stl_bytes(stats.triangles));
         for band in [1, 2, 3, 7] {
-            let (banded, s) = export_in_bands(&stock, band).unwrap();
+            let (banded, s) = triangles_in(band);
             assert_eq!(s, stats, "band {band}");
             assert!(banded == whole, "band {band}");
         }
+        // Streamed to a writer after something else: the header in its place, the count
+        // written last.
+        let mut out = std::io::Cursor::new(b"before".to_vec());
+        out.set_position(6);
+        let s = export_stl(&stock, &mut out).unwrap();
+        let file = out.into_inner();
+        assert_eq!(s, stats);
+        assert_eq!(&file[..6], b"before");
+        assert_eq!(file[6 + 80..6 + 84], (stats.triangles as u32).to_le_bytes());
+        assert!(file[6 + 84..] == whole[..]);
+        assert_eq!(export_stl_vec(&stock).unwrap().0, file[6..]);
     }
 
     #[test]
