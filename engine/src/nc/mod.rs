@@ -18,11 +18,19 @@
 //!   accepted; O labels may be reused by sequential (non-nested) structures.
 //! * Dialect Fanuc: G4 P in milliseconds (X in seconds), `,R`/`,C` corners, K as the cycle
 //!   repeat count, G98 at start, `O1234` program numbers; implied decimals on request.
+//!   Custom macro B: `IF [..] GOTO n`, `IF [..] THEN #i=..`, `WHILE [..] DOm`..`ENDm`, `GOTO n`,
+//!   expressions without brackets (Fanuc precedence), vacant variables (#0), the modal and
+//!   position system variables (#4001-#4120, #5001-#5046), #3000 alarms, G65 calls with
+//!   arguments (specification I); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
+//!   Subprograms: several `O` programs in one file, `M98 P.. L..` (and `P31234`), `M99`
+//!   (`M99 Pn`), `M99` in the main program ends it (a warning; the control would loop).
+//!   Inside brackets the LinuxCNC precedence applies in both dialects (they differ only when
+//!   AND/OR/XOR meet arithmetic without inner brackets).
 //!
 //! Refused with an error: cutter radius compensation (G41/G42/G41.1/G42.1), G33, G76, G5.x
 //! splines, G7/G8, G15/G16 and `@`/`^` polar words, G38.x probing, G50/G51 scaling, G68/G69
-//! rotation, G10 L1/L10/L11 and G10 rotation (R), U V W axes, M98/M99 and external
-//! subroutine files, M60, M62-M68, user/remapped M codes unless listed in
+//! rotation, G10 L1/L10/L11 and G10 rotation (R), U V W axes, external subroutine files and
+//! calls to programs not in the file, G66/G67, M60, M62-M68, user/remapped M codes unless listed in
 //! `passthrough_m_codes`, writes to the parameters that hold machine state (#5161-#5426).
 
 mod arc;
@@ -38,7 +46,8 @@ pub use arc::{sample_arc, ArcGeometry};
 pub use interp::interpret_program;
 pub(crate) use program::format_feed;
 pub use program::{
-    Assignment, Block, Comment, Expr, OKeyword, OName, OWord, ParamRef, Program, Span, Word,
+    Assignment, Block, Comment, Expr, MacroLine, MacroStatement, OKeyword, OName, OWord, ParamRef,
+    Program, Span, Word,
 };
 pub use tooltable::{parse_tool_table, ToolEntry, ToolTable};
 

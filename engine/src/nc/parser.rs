@@ -299,6 +299,92 @@ impl<'a> LineParser<'a> {
         Ok(lhs)
     }
 
+    /// After `#` (at `start`): `target = value`. The value may be an expression without
+    /// brackets (Fanuc macro B: `#1=#2*#3+1`), read with Fanuc's precedence.
+    fn assignment(&mut self, start: usize) -> PResult<Assignment> {
+        let target = self.param_ref()?;
+        let (t, s) = self.lx.next(false)?;
+        if t != Tok::Equals {
+            return err(
+                s.start,
+                "expected '=' after a parameter (a parameter can only be set here)",
+            );
+        }
+        let (value, bare) = self.bare_expr()?;
+        Ok(Assignment {
+            target,
+            value,
+            bare,
+            span: Span::new(start, self.lx.pos),
+        })
+    }
+
+    /// A value, then any `+ - * / MOD AND OR XOR` and further values without brackets (Fanuc
+    /// macro B). Fanuc precedence: `* / AND MOD` before `+ - OR XOR`, left to right. True
+    /// when there was at least one operator.
+    fn bare_expr(&mut self) -> PResult<(Expr, bool)> {
+        let first = self.value()?;
+        let mut rest: Vec<(BinOp, Expr)> = Vec::new();
+        loop {
+            let at = self.lx.after_blanks(self.lx.pos);
+            let (op, len) = match self.lx.byte(at) {
+                Some(b'+') => (BinOp::Add, 1),
+                Some(b'-') => (BinOp::Sub, 1),
+                Some(b'*') if self.lx.byte(at + 1) != Some(b'*') => (BinOp::Mul, 1),
+                Some(b'/') => (BinOp::Div, 1),
+                Some(c) if c.is_ascii_alphabetic() => match self.lx.peek_ident().as_str() {
+                    "MOD" => (BinOp::Mod, 3),
+                    "AND" => (BinOp::And, 3),
+                    "OR" => (BinOp::Or, 2),
+                    "XOR" => (BinOp::Xor, 3),
+                    _ => break,
+                },
+                _ => break,
+            };
+            self.ops += 1;
+            if self.ops > MAX_OPS {
+                return err(at, "expression too long");
+            }
+            self.lx.pos = at + len;
+            rest.push((op, self.value()?));
+        }
+        if rest.is_empty() {
+            return Ok((first, false));
+        }
+        Ok((reduce(first, rest, fanuc_precedence), true))
+    }
+
+    /// `[condition]` after IF or WHILE.
+    fn condition(&mut self, keyword: &str) -> PResult<Expr> {
+        let (t, s) = self.lx.next(false)?;
+        if t != Tok::LBracket {
+            return err(s.start, format!("{keyword} needs a [condition]"));
+        }
+        let e = self.expr(0)?;
+        self.expect_rbracket()?;
+        Ok(e)
+    }
+
+    /// The loop number after DO or END: a whole number 1..=99.
+    fn loop_id(&mut self, keyword: &str) -> PResult<u32> {
+        self.lx.skip_ws();
+        let at = self.lx.pos;
+        match self.lx.byte(at) {
+            Some(b'0'..=b'9') => {
+                let (v, point, end) = self.lx.number_at(at)?;
+                if point || !(1.0..=99.0).contains(&v) {
+                    return err(at, format!("{keyword}{v}: the loop number must be 1..99"));
+                }
+                self.lx.pos = end;
+                Ok(v as u32)
+            }
+            _ => err(
+                at,
+                format!("{keyword} needs a loop number ({keyword}1, {keyword}2, ...)"),
+            ),
+        }
+    }
+
     /// After `#`: `123`, `<name>`, `[expr]`, or `#...` (indirect).
     fn param_ref(&mut self) -> PResult<ParamRef> {
         self.depth += 1;
@@ -477,6 +563,14 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
     if matches!(p.lx.peek_byte(), Some(b'o' | b'O')) {
         return o_line(&mut p, block);
     }
+    // A word is a letter then a value, so two letters in a row start a macro statement (if
+    // anything); checked without allocating, as most lines start with a word.
+    let at = p.lx.after_blanks(p.lx.pos);
+    if p.lx.byte(at + 1).is_some_and(|b| b.is_ascii_alphabetic()) {
+        if let Some(kw) = MACRO_KEYWORDS.iter().find(|kw| p.lx.keyword_at(at, kw)) {
+            return macro_line(&mut p, block, kw);
+        }
+    }
     loop {
         if let Some(word) = p.plain_word() {
             words.push(word);
@@ -516,25 +610,141 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
                 });
             }
             Tok::Hash => {
-                let target = p.param_ref()?;
-                let (t, s) = p.lx.next(false)?;
-                if t != Tok::Equals {
-                    return err(
-                        s.start,
-                        "expected '=' after a parameter (a parameter can only be set here)",
-                    );
-                }
-                let value = p.value()?;
-                block.assignments.push(Assignment {
-                    target,
-                    value,
-                    span: Span::new(span.start, p.lx.pos),
-                });
+                let a = p.assignment(span.start)?;
+                block.assignments.push(a);
             }
             t => return err(span.start, format!("unexpected {}", tok_name(&t))),
         }
     }
     Ok(())
+}
+
+/// Keywords that start a Fanuc macro B statement line.
+const MACRO_KEYWORDS: [&str; 9] = [
+    "IF", "WHILE", "GOTO", "END", "DO", "DPRNT", "BPRNT", "POPEN", "PCLOS",
+];
+
+/// Fanuc macro B precedence: multiplication-type before addition-type operators.
+fn fanuc_precedence(op: BinOp) -> u8 {
+    match op {
+        BinOp::Mul | BinOp::Div | BinOp::Mod | BinOp::And | BinOp::Pow => 2,
+        _ => 1,
+    }
+}
+
+/// `first op1 e1 op2 e2 ...` into a tree, left-associative, by `prec`.
+fn reduce(first: Expr, rest: Vec<(BinOp, Expr)>, prec: fn(BinOp) -> u8) -> Expr {
+    fn apply(out: &mut Vec<Expr>, op: BinOp) {
+        let r = out.pop().expect("operand");
+        let l = out.pop().expect("operand");
+        out.push(Expr::Binary(op, Box::new(l), Box::new(r)));
+    }
+    let mut out = vec![first];
+    let mut ops: Vec<BinOp> = Vec::new();
+    for (op, e) in rest {
+        while let Some(&top) = ops.last() {
+            if prec(top) >= prec(op) {
+                ops.pop();
+                apply(&mut out, top);
+            } else {
+                break;
+            }
+        }
+        ops.push(op);
+        out.push(e);
+    }
+    while let Some(top) = ops.pop() {
+        apply(&mut out, top);
+    }
+    out.pop().expect("one expression")
+}
+
+/// A Fanuc macro B statement line starting with `kw` (upper case, not yet consumed).
+fn macro_line(p: &mut LineParser, block: &mut Block, kw: &str) -> PResult<()> {
+    p.lx.skip_ws();
+    let start = p.lx.pos;
+    p.lx.pos += kw.len();
+    let statement = match kw {
+        "GOTO" => MacroStatement::Goto(p.value()?),
+        "IF" => {
+            let cond = p.condition("IF")?;
+            let at = p.lx.after_blanks(p.lx.pos);
+            match p.lx.peek_ident().as_str() {
+                "GOTO" => {
+                    p.lx.pos = at + 4;
+                    MacroStatement::IfGoto {
+                        cond,
+                        target: p.value()?,
+                    }
+                }
+                "THEN" => {
+                    p.lx.pos = at + 4;
+                    let (t, s) = p.lx.next(false)?;
+                    if t != Tok::Hash {
+                        return err(s.start, "IF [..] THEN needs an assignment: THEN #i = value");
+                    }
+                    let a = p.assignment(s.start)?;
+                    block.assignments.push(a);
+                    MacroStatement::IfThen { cond }
+                }
+                _ => {
+                    return err(
+                        at,
+                        "IF [condition] must be followed by GOTO n or THEN #i = value",
+                    )
+                }
+            }
+        }
+        "WHILE" => {
+            let cond = p.condition("WHILE")?;
+            let at = p.lx.after_blanks(p.lx.pos);
+            if p.lx.peek_ident() != "DO" {
+                return err(at, "WHILE [condition] must be followed by DO1, DO2 or DO3");
+            }
+            p.lx.pos = at + 2;
+            MacroStatement::While {
+                cond,
+                id: p.loop_id("DO")?,
+            }
+        }
+        "DO" => MacroStatement::Do {
+            id: p.loop_id("DO")?,
+        },
+        "END" => MacroStatement::End {
+            id: p.loop_id("END")?,
+        },
+        "DPRNT" | "BPRNT" => {
+            // The argument is free text with its own format syntax: skip to the closing ']'.
+            let open = p.lx.after_blanks(p.lx.pos);
+            if p.lx.byte(open) != Some(b'[') {
+                return err(open, format!("{kw} needs [ .. ]"));
+            }
+            let mut depth = 0;
+            let mut i = open;
+            loop {
+                match p.lx.byte(i) {
+                    Some(b'[') => depth += 1,
+                    Some(b']') => {
+                        depth -= 1;
+                        if depth == 0 {
+                            break;
+                        }
+                    }
+                    Some(_) => {}
+                    None => return err(open, format!("{kw}[ is not closed: missing ']'")),
+                }
+                i += 1;
+            }
+            p.lx.pos = i + 1;
+            MacroStatement::Output(kw.to_string())
+        }
+        _ => MacroStatement::Output(kw.to_string()),
+    };
+    block.macro_line = Some(MacroLine {
+        statement,
+        span: Span::new(start, p.lx.pos),
+    });
+    rest_comments(p, block)
 }
 
 fn rest_comments(p: &mut LineParser, block: &mut Block) -> PResult<()> {

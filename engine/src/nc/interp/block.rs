@@ -10,6 +10,9 @@ use crate::nc::{FeedMode, MoveKind, SpindleDir};
 
 impl<'p> Interp<'p> {
     pub(super) fn exec_block(&mut self, idx: usize, b: &BlockView<'p>) -> R<()> {
+        if self.is_macro_call(b) {
+            return self.macro_call(b);
+        }
         // The G and M lists keep their allocations from block to block.
         let mut w = Words {
             vals: [None; 26],
@@ -390,9 +393,15 @@ impl<'p> Interp<'p> {
         {
             // exec_motion resolved it or failed; anything left is an error below.
         }
-        // 25. stops
+        // 25. stops, and Fanuc subprogram calls and returns (after the block's motion).
         if w.m(2).is_some() || w.m(30).is_some() {
             self.ended = true;
+        }
+        if let Some(i) = w.m(98) {
+            self.call_subprogram(w, i)?;
+        }
+        if let Some(i) = w.m(99) {
+            self.return_subprogram(w, i)?;
         }
         if w.m(60).is_some() {
             return Err(self.err_block("M60 pallet change is not supported"));

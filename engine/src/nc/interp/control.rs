@@ -3,7 +3,7 @@
 
 use super::modal::Modal;
 use super::{Interp, MAX_CALL_DEPTH, R};
-use crate::nc::program::{OKeyword, OName, OWord};
+use crate::nc::program::{MacroStatement, OKeyword, OName, OWord};
 use crate::nc::view::ProgramView;
 use crate::nc::Diagnostics;
 use std::collections::HashMap;
@@ -14,6 +14,18 @@ pub(super) struct Frame {
     pub(super) sub: OName,
     /// M73: modal state to restore when the call returns.
     pub(super) auto_restore: Option<Modal>,
+    /// A Fanuc M98/G65 call (None: a LinuxCNC o-word call).
+    pub(super) fanuc: Option<FanucCall>,
+}
+
+/// What a Fanuc subprogram (M98) or macro (G65) call needs on return.
+pub(super) struct FanucCall {
+    /// The first block of the called program's body.
+    pub(super) body: usize,
+    /// Runs still to make (M98 L, the repeat digits of M98 P, G65 L).
+    pub(super) repeats_left: u32,
+    /// G65: the caller's local variables #1-#33, restored on return (M98 shares them).
+    pub(super) locals: Option<Vec<f64>>,
 }
 
 /// Control structure links found by the pre-scan, by block index.
@@ -60,11 +72,23 @@ pub(super) enum Link {
     Return,
     Call,
     ProgramNumber,
+    /// Fanuc `WHILE [..] DOm` / `DOm`: its `ENDm`.
+    MacroLoop {
+        end: usize,
+    },
+    /// Fanuc `ENDm`: its `WHILE` or `DO` line.
+    MacroEnd {
+        start: usize,
+    },
 }
 
 pub(super) struct ControlMap {
     pub(super) links: HashMap<usize, Link>,
     pub(super) subs: HashMap<OName, usize>,
+    /// Fanuc programs in the file: O number -> block of its `O` line.
+    pub(super) programs: HashMap<u32, usize>,
+    /// Blocks of the `O` program-number lines, in order (a program runs to the next one).
+    pub(super) program_starts: Vec<usize>,
 }
 
 pub(super) fn prescan(prog: &ProgramView) -> Result<ControlMap, Diagnostics> {
@@ -78,6 +102,8 @@ pub(super) fn prescan(prog: &ProgramView) -> Result<ControlMap, Diagnostics> {
     let mut stack: Vec<Open> = Vec::new();
     let mut links = HashMap::new();
     let mut subs = HashMap::new();
+    let mut programs = HashMap::new();
+    let mut program_starts = Vec::new();
     let mut errors = Vec::new();
     for &idx in &prog.summary().o_word_blocks {
         let Some(o) = prog.block(idx).o_word else {
@@ -248,9 +274,16 @@ pub(super) fn prescan(prog: &ProgramView) -> Result<ControlMap, Diagnostics> {
             }
             OKeyword::ProgramNumber => {
                 links.insert(idx, Link::ProgramNumber);
+                if let OName::Number(n) = o.name {
+                    if programs.insert(n, idx).is_some() {
+                        errors.push(at(format!("program O{n} defined twice in this file")));
+                    }
+                }
+                program_starts.push(idx);
             }
         }
     }
+    prescan_macro_loops(prog, &mut links, &mut errors);
     for s in stack {
         errors.push(prog.diag(
             prog.block(s.idx).span.start,
@@ -259,10 +292,57 @@ pub(super) fn prescan(prog: &ProgramView) -> Result<ControlMap, Diagnostics> {
     }
     // Break/continue must have been resolved by their loop.
     if errors.is_empty() {
-        Ok(ControlMap { links, subs })
+        Ok(ControlMap {
+            links,
+            subs,
+            programs,
+            program_starts,
+        })
     } else {
         errors.sort_by_key(|d| (d.line, d.col));
         Err(Diagnostics(errors))
+    }
+}
+
+/// Link each Fanuc `WHILE [..] DOm` or `DOm` with its `ENDm`. Loops nest (the inner one
+/// ends first) and do not cross.
+fn prescan_macro_loops(
+    prog: &ProgramView,
+    links: &mut HashMap<usize, Link>,
+    errors: &mut Vec<crate::nc::Diagnostic>,
+) {
+    let mut open: Vec<(u32, usize)> = Vec::new();
+    for &idx in &prog.summary().macro_blocks {
+        let Some(m) = prog.block(idx).macro_line else {
+            continue;
+        };
+        let at = |msg: String| prog.diag(m.span.start, msg);
+        match m.statement {
+            MacroStatement::While { id, .. } | MacroStatement::Do { id } => open.push((id, idx)),
+            MacroStatement::End { id } => match open.last() {
+                Some(&(top, start)) if top == id => {
+                    open.pop();
+                    links.insert(start, Link::MacroLoop { end: idx });
+                    links.insert(idx, Link::MacroEnd { start });
+                }
+                Some(&(top, start)) if open.iter().any(|o| o.0 == id) => {
+                    errors.push(at(format!(
+                        "END{id} while DO{top} (line {}) is still open: loops may nest but not cross",
+                        prog.block(start).line
+                    )));
+                    return;
+                }
+                _ => errors.push(at(format!("END{id} without a matching DO{id}"))),
+            },
+            _ => {}
+        }
+    }
+    for (id, idx) in open {
+        let m = prog.block(idx).macro_line.expect("macro line");
+        errors.push(prog.diag(
+            m.span.start,
+            format!("DO{id} is never closed (END{id} missing)"),
+        ));
     }
 }
 
@@ -337,7 +417,7 @@ impl Interp<'_> {
                         format!("{} without a keyword is a Fanuc program number; not valid with dialect linuxcnc", o.name),
                     ));
                 }
-                pc + 1
+                return self.reach_program_start(pc, o);
             }
             Link::Sub { end } => end + 1,
             Link::EndSub | Link::Return => {
@@ -345,6 +425,17 @@ impl Interp<'_> {
                     Some(e) => Some(self.eval(e, o.span.start)?),
                     None => None,
                 };
+                if let Some(f) = self.frames.last().filter(|f| f.fanuc.is_some()) {
+                    return Err(self.err_at(
+                        o.span.start,
+                        format!(
+                            "{} {} inside Fanuc program O{} (called by M98/G65; it returns with M99)",
+                            o.name,
+                            kw_name(o.keyword),
+                            f.sub.number()
+                        ),
+                    ));
+                }
                 let Some(frame) = self.frames.pop() else {
                     return Err(self.err_at(o.span.start, "endsub/return reached outside a call"));
                 };
@@ -407,6 +498,7 @@ impl Interp<'_> {
                     saved,
                     sub: o.name.clone(),
                     auto_restore: None,
+                    fanuc: None,
                 });
                 self.params.globals.insert("_value_returned".into(), 0.0);
                 start + 1
@@ -483,6 +575,9 @@ impl Interp<'_> {
             Link::Break { start, end } => {
                 self.repeat_counts.remove(&(depth, start));
                 end + 1
+            }
+            Link::MacroLoop { .. } | Link::MacroEnd { .. } => {
+                return Err(self.err_at(o.span.start, "O-word line linked as a macro loop"))
             }
             Link::Continue { start, end } => {
                 // A while loop re-tests at its top; do-while and repeat at their closing line.

@@ -18,8 +18,10 @@ mod control;
 mod coords;
 mod corners;
 mod cycles;
+mod macro_b;
 mod modal;
 mod params;
+mod subprograms;
 mod words;
 
 use control::{prescan, ControlMap, Frame};
@@ -40,6 +42,8 @@ const MAX_ARC_TURNS: f64 = 10_000.0;
 
 struct Interp<'p> {
     prog: &'p ProgramView<'p>,
+    /// Control structure links, subroutines and Fanuc programs of `prog`.
+    control: &'p ControlMap,
     opts: &'p InterpretOptions,
     fanuc: bool,
     corners_without_comma: bool,
@@ -85,6 +89,16 @@ struct Interp<'p> {
     cur_block: usize,
     cur_line: u32,
     warned_tools: std::collections::HashSet<u32>,
+    /// Where the run loop goes after the current block, when not to the next one (M98, M99,
+    /// G65).
+    jump: Option<usize>,
+    /// The `O` line of the main program (the first one run).
+    main_program: Option<usize>,
+    /// Sequence numbers (N) of each Fanuc program searched so far, by the program's first
+    /// block: number -> block.
+    sequences: HashMap<usize, HashMap<u32, usize>>,
+    /// The last jump backwards (line, what), named when a runaway loop is stopped.
+    last_jump: Option<(u32, &'static str)>,
     /// Storage for the next block's G and M lists.
     spare_gs: Vec<(u16, usize)>,
     spare_ms: Vec<(u32, usize)>,
@@ -112,6 +126,7 @@ pub(crate) fn interpret_view(
     };
     let mut it = Interp {
         prog,
+        control: &control,
         opts: options,
         fanuc,
         corners_without_comma: options.fanuc_corners_without_comma,
@@ -161,10 +176,17 @@ pub(crate) fn interpret_view(
         cur_block: 0,
         cur_line: 1,
         warned_tools: Default::default(),
+        jump: None,
+        main_program: None,
+        sequences: HashMap::new(),
+        last_jump: None,
         spare_gs: Vec::new(),
         spare_ms: Vec::new(),
     };
-    match it.run(&control) {
+    if fanuc {
+        it.params.init_fanuc();
+    }
+    match it.run() {
         Ok(()) => Ok(Interpretation {
             moves: it.moves,
             warnings: it.warnings,
@@ -175,10 +197,11 @@ pub(crate) fn interpret_view(
     }
 }
 
-/// Fanuc-only syntax, and no LinuxCNC-only syntax.
+/// Fanuc macro B or subprogram syntax and no LinuxCNC control lines or named parameters;
+/// or, without either, Fanuc-only syntax (program number, `,R`) and no LinuxCNC-only syntax.
 fn detect_fanuc(prog: &ProgramView) -> bool {
-    let summary = prog.summary();
-    summary.fanuc_syntax && !summary.linuxcnc_syntax
+    let d = &prog.summary().dialect;
+    (d.fanuc_strong && !d.linuxcnc_strong) || (d.fanuc && !d.linuxcnc)
 }
 
 impl Interp<'_> {
@@ -295,8 +318,9 @@ impl Interp<'_> {
 
     // ----- main loop -----
 
-    fn run(&mut self, control: &ControlMap) -> R<()> {
+    fn run(&mut self) -> R<()> {
         let prog = self.prog;
+        let control = self.control;
         let mut pc = 0usize;
         let mut steps = 0usize;
         while pc < prog.len() && !self.ended {
@@ -310,8 +334,12 @@ impl Interp<'_> {
                 return Err(self.err_block("interpretation cancelled"));
             }
             if steps > self.opts.max_blocks {
+                let last = match self.last_jump {
+                    Some((line, what)) => format!("; the last jump back was {what} on line {line}"),
+                    None => String::new(),
+                };
                 return Err(self.err_block(format!(
-                    "program executed more than {} blocks (endless loop?); interpretation stopped",
+                    "program executed more than {} blocks (endless loop?){last}; interpretation stopped",
                     self.opts.max_blocks
                 )));
             }
@@ -326,10 +354,17 @@ impl Interp<'_> {
                 pc = self.exec_oword(control, pc, o)?;
                 continue;
             }
+            if let Some(m) = b.macro_line {
+                pc = self.exec_macro(pc, &b, m)?;
+                continue;
+            }
             if !b.is_empty() {
                 self.exec_block(pc, &b)?;
             }
-            pc += 1;
+            pc = match self.jump.take() {
+                Some(to) => to,
+                None => pc + 1,
+            };
         }
         if let Some(pc) = &self.pending_corner {
             return Err(self.err_at(

@@ -103,6 +103,8 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         510 | 511 | 500 => "scaling (G50/G51) is not supported",
         680 | 690 => "coordinate rotation (G68/G69) is not supported",
         760 => "threading cycle G76 is not supported",
+        650 => "macro call (G65) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
+        660 | 661 | 670 => "modal macro calls (G66/G67) are not supported",
         _ => "is not a supported G code",
     }
 }
@@ -110,7 +112,7 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
 /// M code modal group (LinuxCNC numbering); None: not a known M code.
 pub(super) fn m_group(code: u32) -> Option<u8> {
     Some(match code {
-        0 | 1 | 2 | 30 | 60 => 4,
+        0 | 1 | 2 | 30 | 60 | 98 | 99 => 4,
         6 | 61 => 6,
         3 | 4 | 5 => 7,
         7 | 8 | 9 => 8,

@@ -28,6 +28,9 @@ impl Env for EnvView<'_> {
     fn exists(&self, name: &str) -> bool {
         self.it.read_special(name).is_some() || self.it.params.get_named(name).is_some()
     }
+    fn fanuc(&self) -> bool {
+        self.it.fanuc
+    }
 }
 
 impl Interp<'_> {
@@ -43,6 +46,11 @@ impl Interp<'_> {
 
     /// Numbered parameters; the 5xxx system parameters reflect the live state.
     pub(super) fn read_numbered(&self, n: usize) -> f64 {
+        if self.fanuc && (4001..=5046).contains(&n) {
+            if let Some(v) = self.fanuc_system(n) {
+                return v;
+            }
+        }
         let axis = |base: usize| -> Option<usize> {
             if n > base && n <= base + 6 {
                 Some(n - base - 1)
@@ -86,6 +94,50 @@ impl Interp<'_> {
             return self.cur[i];
         }
         self.params.numbered[n]
+    }
+
+    /// Fanuc system variables that reflect the live state: modal information (#4001-#4120)
+    /// and positions (#5001-#5006 block end, #5021-#5026 machine, #5041-#5046 current), in
+    /// program units. None: an ordinary variable.
+    fn fanuc_system(&self, n: usize) -> Option<f64> {
+        let m = &self.modal;
+        let b = |c: bool, yes: f64, no: f64| if c { yes } else { no };
+        Some(match n {
+            4001 => match self.motion {
+                None => 80.0,
+                Some(Motion::Rapid) => 0.0,
+                Some(Motion::Linear) => 1.0,
+                Some(Motion::Arc { cw: true }) => 2.0,
+                Some(Motion::Arc { cw: false }) => 3.0,
+                Some(Motion::RigidTap) => 84.0,
+                Some(Motion::Cycle(g)) => f64::from(g),
+            },
+            4002 => match m.plane {
+                Plane::XY => 17.0,
+                Plane::XZ => 18.0,
+                Plane::YZ => 19.0,
+            },
+            4003 => b(m.absolute, 90.0, 91.0),
+            4005 => match m.feed_mode {
+                FeedMode::InverseTime => 93.0,
+                FeedMode::PerMin => 94.0,
+                FeedMode::PerRev => 95.0,
+            },
+            4006 => b(m.metric, 21.0, 20.0),
+            4008 => b(self.tlo.is_some(), 43.0, 49.0),
+            4010 => b(m.retract_r_plane, 99.0, 98.0),
+            4014 => [54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3][m.cs],
+            4109 => m.feed_word,
+            4119 => m.speed,
+            4120 => f64::from(self.tool),
+            5001..=5006 | 5041..=5046 => self.cur[(n - 1) % 20],
+            5021..=5026 => {
+                let i = n - 5021;
+                let machine = self.to_machine(self.cur)[i];
+                self.offset_param(machine, i < 3)
+            }
+            _ => return None,
+        })
     }
 
     pub(super) fn read_special(&self, name: &str) -> Option<f64> {
@@ -140,6 +192,12 @@ impl Interp<'_> {
     }
 
     pub(super) fn assign(&mut self, a: &Assignment, v: f64) -> R<()> {
+        if a.bare && !self.fanuc {
+            return Err(self.err_at(
+                a.span.start,
+                "expression without brackets is Fanuc macro B syntax; write [..] around it with dialect linuxcnc",
+            ));
+        }
         match &a.target {
             ParamRef::Named(n) => {
                 if self.read_special(n).is_some() {
@@ -150,6 +208,9 @@ impl Interp<'_> {
             ParamRef::Numbered(e) => {
                 let env = EnvView { it: self };
                 let n = expr::resolve_index(e, &env).map_err(|m| self.err_at(a.span.start, m))?;
+                if self.fanuc {
+                    self.fanuc_system_write(a, n, v)?;
+                }
                 if (5161..=5166).contains(&n)
                     || (5181..=5186).contains(&n)
                     || (5210..=5400).contains(&n)
@@ -165,5 +226,47 @@ impl Interp<'_> {
             }
         }
         Ok(())
+    }
+
+    /// Fanuc variables that cannot hold a value: #0 (always vacant), #3000 (alarm: stops the
+    /// program with its message), #4001-#4120 and the positions (read only).
+    fn fanuc_system_write(&mut self, a: &Assignment, n: usize, v: f64) -> R<()> {
+        let at = a.span.start;
+        match n {
+            0 => Err(self.err_at(at, "#0 is always vacant (null) and cannot be set")),
+            3000 => {
+                let message = self.block_comment();
+                Err(self.err_at(
+                    at,
+                    format!(
+                        "macro alarm #3000={}{message}: the program stops here",
+                        expr::num_text(v)
+                    ),
+                ))
+            }
+            3006 => {
+                let message = self.block_comment();
+                self.warnings.push(self.err_at(
+                    at,
+                    format!("#3006 program stop{message}: simulated as going on"),
+                ));
+                Ok(())
+            }
+            4001..=4120 | 5001..=5006 | 5021..=5026 | 5041..=5046 => Err(self.err_at(
+                at,
+                format!("Fanuc system variable #{n} (modal state or position) is read only"),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// The first comment of the current block, as ` (text)`, or nothing.
+    fn block_comment(&self) -> String {
+        let b = self.prog.block(self.cur_block);
+        let text = self.prog.text(b.span);
+        match (text.find('('), text.rfind(')')) {
+            (Some(s), Some(e)) if e > s => format!(" ({})", &text[s + 1..e]),
+            _ => String::new(),
+        }
     }
 }

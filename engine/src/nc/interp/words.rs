@@ -3,6 +3,7 @@
 
 use super::modal::{g_group, g_name, g_refusal, m_group};
 use super::{Interp, R};
+use crate::nc::expr::is_vacant;
 use crate::nc::program::Expr;
 use crate::nc::view::BlockView;
 
@@ -58,7 +59,14 @@ impl<'p> Interp<'p> {
             let mut v = match word.value {
                 // Most words are plain numbers: skip the expression evaluator.
                 Expr::Number { value, .. } if value.is_finite() => value,
-                ref e => self.eval(e, word.value_span.start)?,
+                ref e => {
+                    let v = self.eval(e, word.value_span.start)?;
+                    if is_vacant(v) {
+                        // Fanuc: a word whose value is vacant is not in the block.
+                        continue;
+                    }
+                    v
+                }
             };
             let c = word.letter;
             if implied
@@ -145,12 +153,17 @@ impl<'p> Interp<'p> {
                     let code = v as u32;
                     // Passthrough codes each get a group of their own, above every real one
                     // (u32: M codes run into the thousands).
+                    if matches!(code, 98 | 99) && !self.fanuc {
+                        return Err(self.err_at(
+                            pos,
+                            format!("M{code}: Fanuc subprogram call/return; not valid with dialect linuxcnc (use o-word call/endsub)"),
+                        ));
+                    }
                     let group = match m_group(code) {
                         Some(g) => u32::from(g),
                         None if self.opts.passthrough_m_codes.contains(&code) => 1000 + code,
                         None => {
                             let why = match code {
-                                98 | 99 => "Fanuc subprogram calls (M98/M99) are not supported".to_string(),
                                 100..=199 => "user M codes run external programs; list it in passthrough_m_codes if it does not move the machine".to_string(),
                                 62..=68 => "digital/analog output codes are not supported".to_string(),
                                 _ => "is not supported (list it in passthrough_m_codes if it does not move the machine)".to_string(),
