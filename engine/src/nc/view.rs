@@ -314,6 +314,13 @@ mod tests {
                 "O1234\nG0 X1 Y1\nG1 X2 ,R0.5 F100\nG1 Y3\nG4 P500\n%\nG1 X5\n%\nG1 Y9\n",
             ),
             ("late error", "G0 X0\nG1 X1 F10\nG1 Q3\n"),
+            (
+                "fanuc macro",
+                "O1\n#1=0\nN10 #1=#1+1\nWHILE [#1 LT 3] DO1\n#1=#1+1\nEND1\n\
+                 IF [#1 GE 3] GOTO 20\nG0 X9\nN20 G0 X#1\nG65 P2 A1\nM98 P2 L2\nDPRNT[X#1]\nM30\n\
+                 O2\nG91 G0 Y#1\nG90\nM99\n",
+            ),
+            ("goto missing", "O1\nGOTO 5\nN6 G0 X1\n"),
         ] {
             assert_same(name, source);
         }
