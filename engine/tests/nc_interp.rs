@@ -436,7 +436,8 @@ fn fanuc_implied_decimal_and_dwell() {
 
 #[test]
 fn refusals_name_line_column_and_word() {
-    let o = InterpretOptions::default();
+    let mut o = InterpretOptions::default();
+    o.strict_m_codes = true;
     let cases: Vec<(&str, (u32, u32), &str)> = vec![
         (
             "G0 X0\nG41 D1\n",
@@ -460,8 +461,12 @@ fn refusals_name_line_column_and_word() {
         ("G0 G1 X1\n", (1, 4), "same modal group"),
         ("G1 X1 X2 F1\n", (1, 7), "two X words"),
         ("M98 P100\n", (1, 1), "M98"),
-        ("G38.2 Z-1 F1\n", (1, 1), "probing"),
-        ("G10 L1 P1 Z1\n", (1, 1), "G10 L1 is not supported"),
+        (
+            "G38.2 Z0.1 F1\n",
+            (1, 1),
+            "start point too close to the probe point",
+        ),
+        ("G10 L3 P1 Z1\n", (1, 1), "G10 L3 is not supported"),
         ("G0 X#<nope>\n", (1, 5), "#<nope> is not defined"),
         ("o1 call\n", (1, 1), "subroutine o1 is not defined"),
         ("G0 X[1/0]\n", (1, 5), "division by zero"),
@@ -559,9 +564,23 @@ fn corpus_status() {
         [3.0 * 25.4, 4.0 * 25.4, -1.1 * 25.4, 0.0, 0.0, 0.0],
     );
 
-    let (l, c, msg) = fail(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"), &o);
+    // Its M428/M429 (the LinuxCNC sim's kinematics switches) are refused in strict mode and
+    // otherwise run as no-ops with a warning each.
+    let strict = InterpretOptions {
+        strict_m_codes: true,
+        ..InterpretOptions::default()
+    };
+    let (l, c, msg) = fail(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"), &strict);
     assert_eq!((l, c), (4, 1));
     assert!(msg.starts_with("M428"), "{msg}");
+    let warned = run(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"));
+    assert_eq!(warned.moves.len(), 4492);
+    let w: Vec<(u32, &str)> = warned
+        .warnings
+        .iter()
+        .map(|w| (w.line, &w.message[..4]))
+        .collect();
+    assert_eq!(w, vec![(4, "M428"), (4509, "M429")]);
     let mut p = InterpretOptions::default();
     p.passthrough_m_codes = vec![428, 429];
     // Passthrough codes: no motion, one group each (two in a block are fine, one twice is not).

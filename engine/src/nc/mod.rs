@@ -27,11 +27,16 @@
 //!   Inside brackets the LinuxCNC precedence applies in both dialects (they differ only when
 //!   AND/OR/XOR meet arithmetic without inner brackets).
 //!
+//! * Both dialects: `:1234` program numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
+//!   offset memory), G38.2-G38.5 probing as a feed move to the end point (a warning), a Fanuc
+//!   G80 returns to the G0/G1/G2/G3 mode from before the cycle, non-standard M codes run as
+//!   no-ops with a warning (`strict_m_codes` refuses them).
+//!
 //! Refused with an error: cutter radius compensation (G41/G42/G41.1/G42.1), G33, G76, G5.x
-//! splines, G7/G8, G15/G16 and `@`/`^` polar words, G38.x probing, G50/G51 scaling, G68/G69
-//! rotation, G10 L1/L10/L11 and G10 rotation (R), U V W axes, external subroutine files and
-//! calls to programs not in the file, G66/G67, M60, M62-M68, user/remapped M codes unless listed in
-//! `passthrough_m_codes`, writes to the parameters that hold machine state (#5161-#5426).
+//! splines, G7/G8, G15/G16 and `@`/`^` polar words, G50/G51 scaling, G68/G69
+//! rotation, G10 rotation (R), U V W axes, external subroutine files and
+//! calls to programs not in the file, G66/G67, M60, non-standard M codes with `strict_m_codes`
+//! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
 
 mod arc;
 mod expr;
@@ -86,9 +91,12 @@ pub struct InterpretOptions {
     /// comma on G1 blocks. With it set, C is no longer an axis address.
     pub fanuc_corners_without_comma: bool,
     /// M codes that are known to the caller's machine but do nothing we can model (e.g. the
-    /// LinuxCNC sim's remapped `M428`/`M429` kinematics switches). They are accepted as no-ops;
-    /// every other unknown M code is an error.
+    /// LinuxCNC sim's remapped `M428`/`M429` kinematics switches). They are accepted as no-ops
+    /// without a word; any other non-standard M code is accepted with a warning (once per code),
+    /// or refused with `strict_m_codes`.
     pub passthrough_m_codes: Vec<u32>,
+    /// Refuse non-standard M codes not listed in `passthrough_m_codes` instead of warning.
+    pub strict_m_codes: bool,
     /// State of the control's block-delete switch: when on, blocks starting with `/` are skipped.
     pub block_delete: bool,
     /// Checked every few thousand executed blocks: once set, interpretation stops with an
@@ -107,6 +115,7 @@ impl Default for InterpretOptions {
             max_blocks: 50_000_000,
             fanuc_corners_without_comma: false,
             passthrough_m_codes: Vec::new(),
+            strict_m_codes: false,
             block_delete: false,
             cancel: None,
         }

@@ -560,7 +560,7 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
             value_span: Span::new(vstart, end),
         });
     }
-    if matches!(p.lx.peek_byte(), Some(b'o' | b'O')) {
+    if matches!(p.lx.peek_byte(), Some(b'o' | b'O' | b':')) {
         return o_line(&mut p, block);
     }
     // A word is a letter then a value, so two letters in a row start a macro statement (if
@@ -740,10 +740,10 @@ fn macro_line(p: &mut LineParser, block: &mut Block, kw: &str) -> PResult<()> {
         }
         _ => MacroStatement::Output(kw.to_string()),
     };
-    block.macro_line = Some(MacroLine {
+    block.macro_line = Some(Box::new(MacroLine {
         statement,
         span: Span::new(start, p.lx.pos),
-    });
+    }));
     rest_comments(p, block)
 }
 
@@ -764,7 +764,15 @@ fn rest_comments(p: &mut LineParser, block: &mut Block) -> PResult<()> {
 }
 
 fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
-    let (_, os) = p.lx.next(false)?;
+    // `:1234` is the ISO form of a program number `O1234`.
+    let colon = p.lx.peek_byte() == Some(b':');
+    let os = if colon {
+        let start = p.lx.pos;
+        p.lx.pos += 1;
+        Span::new(start, start + 1)
+    } else {
+        p.lx.next(false)?.1
+    };
     let (t, s) = p.lx.next(false)?;
     let name = match t {
         Tok::Number { value, .. } if value.fract() == 0.0 && value <= u32::MAX as f64 => {
@@ -779,6 +787,12 @@ fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
         }
     };
     let kw_text = p.lx.peek_ident();
+    if colon && (!kw_text.is_empty() || !matches!(name, OName::Number(_))) {
+        return err(
+            os.start,
+            "':' starts a program number (:1234, the same as O1234); it takes no name or keyword",
+        );
+    }
     let keyword = if kw_text.is_empty() {
         OKeyword::ProgramNumber
     } else {

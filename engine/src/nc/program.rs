@@ -269,7 +269,7 @@ pub struct Block {
     pub line_number: Option<Word>,
     pub o_word: Option<OWord>,
     /// A Fanuc macro statement (`IF`, `WHILE`, `GOTO`, `END`, `DPRNT`, ...).
-    pub macro_line: Option<MacroLine>,
+    pub macro_line: Option<Box<MacroLine>>,
     pub words: Vec<Word>,
     pub assignments: Vec<Assignment>,
     pub comments: Vec<Comment>,

@@ -75,7 +75,7 @@ impl<'a> ProgramView<'a> {
                     block_delete: b.block_delete,
                     after_end: b.after_end,
                     o_word: b.o_word.as_ref(),
-                    macro_line: b.macro_line.as_ref(),
+                    macro_line: b.macro_line.as_deref(),
                     words: &b.words,
                     assignments: &b.assignments,
                 }
@@ -256,7 +256,7 @@ impl BlockSink for CompactProgram {
             index(self.o_words.len() - 1)
         });
         let macro_line = block.macro_line.take().map(|m| {
-            self.macro_lines.push(m);
+            self.macro_lines.push(*m);
             index(self.macro_lines.len() - 1)
         });
         self.blocks.push(CompactBlock {

@@ -2,7 +2,7 @@
 //! plane, units, offsets, distance modes, group 0 codes, motion, stops).
 
 use super::corners::PendingCorner;
-use super::modal::{g_group, g_name, Motion, Plane};
+use super::modal::{g_group, g_name, m_group, Motion, Plane};
 use super::words::{letter_index, Words, AXES};
 use super::{Interp, MM_PER_INCH, R};
 use crate::nc::view::BlockView;
@@ -241,8 +241,8 @@ impl<'p> Interp<'p> {
                     }
                     None => self.tool,
                 };
-                let off = match self.opts.tool_table.get(h) {
-                    Some(t) => t.z_offset,
+                let off = match self.tool_length(h) {
+                    Some(z) => z,
                     None => {
                         if self.warned_tools.insert(h) {
                             self.warnings.push(self.err_at(
@@ -311,8 +311,11 @@ impl<'p> Interp<'p> {
             w.gs.iter()
                 .find(|g| g_group(g.0) == Some(0) && g.0 != 40 && g.0 != 530)
                 .copied();
+        // G80: LinuxCNC cancels the motion mode; on a Fanuc control canned cycles are a group
+        // of their own, so the G0/G1/G2/G3 mode from before the cycle is back.
+        let after_g80 = if self.fanuc { self.motion_01 } else { None };
         if w.g(800).is_some() {
-            self.motion = None;
+            self.motion = after_g80;
             self.cycle_il = None;
         }
         let block_motion =
@@ -339,12 +342,19 @@ impl<'p> Interp<'p> {
                 20 => Some(Motion::Arc { cw: true }),
                 30 => Some(Motion::Arc { cw: false }),
                 331 => Some(Motion::RigidTap),
-                800 => None,
+                382..=385 => Some(Motion::Probe(gm)),
+                800 => after_g80,
                 g => Some(Motion::Cycle(g / 10)),
             };
+            if matches!(gm, 0 | 10 | 20 | 30) {
+                self.motion_01 = self.motion;
+            }
             if gm == 800 {
                 self.cycle_il = None;
-                if w.has_axis() && !matches!(group0, Some((100 | 280 | 300 | 920, _))) {
+                if w.has_axis()
+                    && self.motion.is_none()
+                    && !matches!(group0, Some((100 | 280 | 300 | 920, _)))
+                {
                     return Err(self.err_block("axis words with G80 (motion cancelled)"));
                 }
             }
@@ -406,10 +416,13 @@ impl<'p> Interp<'p> {
         if w.m(60).is_some() {
             return Err(self.err_block("M60 pallet change is not supported"));
         }
-        // Every word must have been used by something.
+        // Every word must have been used by something; P and Q go with a machine's own M code
+        // (M62 P1, M66 P0 L3 Q5: parameters we cannot interpret).
+        let own_m = !w.ms.is_empty() && w.ms.iter().any(|m| m_group(m.0).is_none());
         for li in 0..26 {
             if let Some((v, i)) = w.vals[li] {
-                if !w.used[li] {
+                let own_m_word = own_m && matches!(li, 11 | 15 | 16);
+                if !w.used[li] && !own_m_word {
                     let c = (b'A' + li as u8) as char;
                     let hint = if c == 'R' && self.motion == Some(Motion::Linear) {
                         " (Fanuc corner rounding is written ,R; for controls that take R/C without the comma set fanuc_corners_without_comma)"
@@ -488,6 +501,7 @@ impl<'p> Interp<'p> {
             }
             Motion::Arc { cw } => self.arc(w, cw),
             Motion::RigidTap => self.rigid_tap(w),
+            Motion::Probe(g) => self.probe(w, g),
             Motion::Cycle(g) => self.cycle(w, g),
         }
     }

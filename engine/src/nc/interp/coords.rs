@@ -63,10 +63,13 @@ impl Interp<'_> {
                 let p = w
                     .take('P')
                     .ok_or_else(|| self.err_at(self.word_pos(i), "G10 needs a P word"))?;
+                if matches!(l, 1.0 | 10.0 | 11.0) || (self.fanuc && matches!(l, 12.0 | 13.0)) {
+                    return self.g10_tool(w, l, p, i);
+                }
                 if l != 2.0 && l != 20.0 {
                     return Err(self.err_at(
                         self.word_pos(i),
-                        format!("G10 L{l} is not supported (only L2 and L20 work offsets)"),
+                        format!("G10 L{l} is not supported (L1/L10/L11 tool offsets, L2/L20 work offsets; Fanuc L10-L13)"),
                     ));
                 }
                 if w.has('R') {
@@ -189,5 +192,81 @@ impl Interp<'_> {
             }
         }
         Ok(t)
+    }
+
+    /// G10 tool offset writes. LinuxCNC: L1 sets tool P's length (Z) and radius (R); L10 sets
+    /// the length so that the current Z becomes the given one with that tool's offset, L11 the
+    /// same in G59.3 without G92. Fanuc (offset memory C): L10/L11 length geometry/wear, L12/L13
+    /// radius geometry/wear of offset number P, value R (added in G91).
+    fn g10_tool(&mut self, w: &mut Words, l: f64, p: f64, i: usize) -> R<()> {
+        let at = self.word_pos(i);
+        if p.fract() != 0.0 || !(0.0..=u32::MAX as f64).contains(&p) {
+            return Err(self.err_word(w, 'P', format!("G10 L{l} P{p}: P is a tool/offset number")));
+        }
+        let t = p as u32;
+        let u = self.unit();
+        if self.fanuc && l >= 10.0 {
+            let Some(r) = w.take('R') else {
+                return Err(self.err_at(at, format!("G10 L{l} needs R (the offset value)")));
+            };
+            let (map, base) = match l as u32 {
+                10 => (
+                    &mut self.tool_lengths,
+                    self.opts.tool_table.get(t).map(|e| e.z_offset),
+                ),
+                11 => (&mut self.tool_length_wear, None),
+                12 => (
+                    &mut self.tool_radii,
+                    self.opts
+                        .tool_table
+                        .get(t)
+                        .and_then(|e| e.diameter)
+                        .map(|d| d / 2.0),
+                ),
+                _ => (&mut self.tool_radius_wear, None),
+            };
+            let old = map.get(&t).copied().or(base).unwrap_or(0.0);
+            let new = if self.modal.absolute {
+                r * u
+            } else {
+                old + r * u
+            };
+            map.insert(t, new);
+            return Ok(());
+        }
+        if let Some(r) = w.take('R') {
+            self.tool_radii.insert(t, r * u);
+        }
+        let Some(z) = w.take('Z') else {
+            if l == 1.0 {
+                return Ok(());
+            }
+            return Err(self.err_at(at, format!("G10 L{l} needs a Z word")));
+        };
+        let length = if l == 1.0 {
+            z * u
+        } else {
+            // Where the spindle is: the controlled point plus the active length offset.
+            let spindle = self.to_machine(self.cur)[2] + self.tlo.unwrap_or(0.0);
+            let origin = if l == 10.0 {
+                self.g5x[self.modal.cs][2] + self.g92_eff()[2]
+            } else {
+                self.g5x[8][2]
+            };
+            spindle - origin - z * u
+        };
+        self.tool_lengths.insert(t, length);
+        Ok(())
+    }
+
+    /// Tool length (mm) of offset/tool number `h`: G10 writes, else the tool table (None: in
+    /// neither), plus any Fanuc wear.
+    pub(super) fn tool_length(&self, h: u32) -> Option<f64> {
+        let geometry = self
+            .tool_lengths
+            .get(&h)
+            .copied()
+            .or_else(|| self.opts.tool_table.get(h).map(|t| t.z_offset))?;
+        Some(geometry + self.tool_length_wear.get(&h).copied().unwrap_or(0.0))
     }
 }

@@ -331,4 +331,27 @@ impl Interp<'_> {
         t[ic] = cc;
         self.straight(rapid, t)
     }
+
+    /// G38.2..G38.5 probing: without a probe model the move runs to its programmed end point
+    /// (a probe that never trips), with a warning.
+    pub(super) fn probe(&mut self, w: &mut Words, g: u16) -> R<()> {
+        let name = format!("G{}.{}", g / 10, g % 10);
+        if self.modal.feed_mode == FeedMode::InverseTime {
+            return Err(self.err_block(format!("{name} probing in inverse time mode (G93)")));
+        }
+        let to = self.target(w, false)?;
+        let d: f64 = (0..3)
+            .map(|i| (to[i] - self.cur[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if d * self.unit() < 0.254 {
+            return Err(self.err_block(format!(
+                "{name}: start point too close to the probe point (under 0.254 mm)"
+            )));
+        }
+        self.warnings.push(self.err_block(format!(
+            "{name} probing: no probe contact is modelled; the move goes to its programmed end point"
+        )));
+        self.straight(false, to)
+    }
 }

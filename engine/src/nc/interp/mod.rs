@@ -53,6 +53,8 @@ struct Interp<'p> {
     motion: Option<Motion>,
     /// Motion mode before the current block (decides whether a cycle's words are sticky).
     motion_prev: Option<Motion>,
+    /// The last G0/G1/G2/G3 mode: a Fanuc G80 returns to it.
+    motion_01: Option<Motion>,
     /// Current position, program coordinates in program units (as LinuxCNC keeps it).
     cur: [f64; 6],
     /// Work offsets, mm/deg.
@@ -89,6 +91,14 @@ struct Interp<'p> {
     cur_block: usize,
     cur_line: u32,
     warned_tools: std::collections::HashSet<u32>,
+    /// Tool offsets written by G10 (mm), by tool/offset number: length, Fanuc length wear,
+    /// radius, Fanuc radius wear. They take precedence over the tool table.
+    tool_lengths: HashMap<u32, f64>,
+    tool_length_wear: HashMap<u32, f64>,
+    tool_radii: HashMap<u32, f64>,
+    tool_radius_wear: HashMap<u32, f64>,
+    /// Non-standard M codes already warned about.
+    warned_m_codes: std::collections::HashSet<u32>,
     /// Where the run loop goes after the current block, when not to the next one (M98, M99,
     /// G65).
     jump: Option<usize>,
@@ -146,6 +156,7 @@ pub(crate) fn interpret_view(
         },
         motion: None,
         motion_prev: None,
+        motion_01: None,
         cur: [0.0; 6],
         g5x: [[0.0; 6]; 9],
         g92: [0.0; 6],
@@ -176,6 +187,11 @@ pub(crate) fn interpret_view(
         cur_block: 0,
         cur_line: 1,
         warned_tools: Default::default(),
+        warned_m_codes: Default::default(),
+        tool_lengths: HashMap::new(),
+        tool_length_wear: HashMap::new(),
+        tool_radii: HashMap::new(),
+        tool_radius_wear: HashMap::new(),
         jump: None,
         main_program: None,
         sequences: HashMap::new(),

@@ -110,6 +110,7 @@ impl Interp<'_> {
                 Some(Motion::Arc { cw: true }) => 2.0,
                 Some(Motion::Arc { cw: false }) => 3.0,
                 Some(Motion::RigidTap) => 84.0,
+                Some(Motion::Probe(g)) => f64::from(g) / 10.0,
                 Some(Motion::Cycle(g)) => f64::from(g),
             },
             4002 => match m.plane {
@@ -180,6 +181,7 @@ impl Interp<'_> {
                 Some(Motion::Arc { cw: true }) => 20.0,
                 Some(Motion::Arc { cw: false }) => 30.0,
                 Some(Motion::RigidTap) => 331.0,
+                Some(Motion::Probe(g)) => f64::from(g),
                 Some(Motion::Cycle(g)) => g as f64 * 10.0,
             },
             _ => return None,

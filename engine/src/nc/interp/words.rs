@@ -162,13 +162,24 @@ impl<'p> Interp<'p> {
                     let group = match m_group(code) {
                         Some(g) => u32::from(g),
                         None if self.opts.passthrough_m_codes.contains(&code) => 1000 + code,
-                        None => {
+                        None if self.opts.strict_m_codes => {
                             let why = match code {
                                 100..=199 => "user M codes run external programs; list it in passthrough_m_codes if it does not move the machine".to_string(),
                                 62..=68 => "digital/analog output codes are not supported".to_string(),
                                 _ => "is not supported (list it in passthrough_m_codes if it does not move the machine)".to_string(),
                             };
                             return Err(self.err_at(pos, format!("M{code}: {why}")));
+                        }
+                        None => {
+                            // A machine's own M code (coolant variants, clamps, outputs, user
+                            // macros): assumed to move nothing, said once per code.
+                            if self.warned_m_codes.insert(code) {
+                                self.warnings.push(self.err_at(
+                                    pos,
+                                    format!("M{code} is not a standard M code: assumed to make no motion and ignored (strict_m_codes refuses it; passthrough_m_codes silences this)"),
+                                ));
+                            }
+                            1000 + code
                         }
                     };
                     if let Some(&(other, _)) = w.ms.iter().find(|m| {
