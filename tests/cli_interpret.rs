@@ -109,7 +109,10 @@ fn interpreter_options_reach_the_cli() {
         .unwrap();
     assert!(warned.status.success());
     let stderr = String::from_utf8_lossy(&warned.stderr);
-    assert!(stderr.contains("M428") && stderr.contains("(warning)"), "{stderr}");
+    assert!(
+        stderr.contains("M428") && stderr.contains("(warning)"),
+        "{stderr}"
+    );
     let out = Command::new(BIN)
         .arg("interpret")
         .arg(&impeller)
