@@ -32,7 +32,14 @@
 //!   G80 returns to the G0/G1/G2/G3 mode from before the cycle, non-standard M codes run as
 //!   no-ops with a warning (`strict_m_codes` refuses them).
 //!
-//! Refused with an error: cutter radius compensation (G41/G42/G41.1/G42.1), G33, G76, G5.x
+//! * Cutter radius compensation G41/G42 (radius from the tool table's diameter, a G10 radius
+//!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY plane, as
+//!   LinuxCNC 2.9 does it in both dialects (entry line or arc, arcs around outside corners,
+//!   inside corners trimmed, gouges refused naming the line); checked against LinuxCNC.
+//!   A Fanuc control's start-up and cancel blocks (types A/B/C) differ in the entry and exit
+//!   moves only.
+//!
+//! Refused with an error: cutter radius compensation outside G17, G33, G76, G5.x
 //! splines, G7/G8, G15/G16 and `@`/`^` polar words, G50/G51 scaling, G68/G69
 //! rotation, G10 rotation (R), U V W axes, external subroutine files and
 //! calls to programs not in the file, G66/G67, M60, non-standard M codes with `strict_m_codes`

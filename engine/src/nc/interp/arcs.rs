@@ -29,6 +29,64 @@ impl Interp<'_> {
             }
             None => 1,
         };
+        let (cx, cy) = self.arc_center(w, cw, &start, &end)?;
+        // Sweep: LinuxCNC counts turns CCW; equal start and end angles make a full circle.
+        let a0 = (start[b] - cy).atan2(start[a] - cx);
+        let a1 = (end[b] - cy).atan2(end[a] - cx);
+        let tau = std::f64::consts::TAU;
+        let same = (end[a] - start[a]).abs() < 1e-9 && (end[b] - start[b]).abs() < 1e-9;
+        let mut sweep = if same { 0.0 } else { a1 - a0 };
+        if cw {
+            if sweep >= 0.0 {
+                sweep -= tau;
+            }
+            sweep -= tau * (turns - 1) as f64;
+        } else {
+            if sweep <= 0.0 {
+                sweep += tau;
+            }
+            sweep += tau * (turns - 1) as f64;
+        }
+        let ms = self.to_machine(start);
+        let me = self.to_machine(end);
+        let mut cprog = start;
+        cprog[a] = cx;
+        cprog[b] = cy;
+        let mc = self.to_machine(cprog);
+        let center = [mc[0], mc[1], mc[2]];
+        let u = self.unit();
+        let geom = ArcGeometry {
+            start: ms,
+            end: me,
+            center,
+            normal: plane.normal(),
+            axes: plane.axes(),
+            sweep,
+            start_radius: (start[a] - cx).hypot(start[b] - cy) * u,
+            end_radius: (end[a] - cx).hypot(end[b] - cy) * u,
+            clockwise: cw,
+            turns,
+        };
+        let mut m = self.base_move(MoveKind::Arc, ms, me);
+        m.center = Some(center);
+        m.normal = Some(plane.normal());
+        m.clockwise = Some(cw);
+        m.arc = Some(Box::new(geom));
+        self.push(m)?;
+        self.cur = end;
+        Ok(())
+    }
+    /// Centre of an arc from `start` to `end` (program coordinates) in the selected plane,
+    /// from the block's R or I/J/K words, as LinuxCNC 2.9 checks them.
+    pub(super) fn arc_center(
+        &self,
+        w: &mut Words,
+        cw: bool,
+        start: &[f64; 6],
+        end: &[f64; 6],
+    ) -> R<(f64, f64)> {
+        let plane = self.modal.plane;
+        let [a, b, _n] = plane.axes();
         let [li, lj] = plane.ijk();
         let has_ijk = w.has(li) || w.has(lj);
         let inch = !self.modal.metric;
@@ -98,50 +156,6 @@ impl Interp<'_> {
             }
             c
         };
-        // Sweep: LinuxCNC counts turns CCW; equal start and end angles make a full circle.
-        let a0 = (start[b] - cy).atan2(start[a] - cx);
-        let a1 = (end[b] - cy).atan2(end[a] - cx);
-        let tau = std::f64::consts::TAU;
-        let same = (end[a] - start[a]).abs() < 1e-9 && (end[b] - start[b]).abs() < 1e-9;
-        let mut sweep = if same { 0.0 } else { a1 - a0 };
-        if cw {
-            if sweep >= 0.0 {
-                sweep -= tau;
-            }
-            sweep -= tau * (turns - 1) as f64;
-        } else {
-            if sweep <= 0.0 {
-                sweep += tau;
-            }
-            sweep += tau * (turns - 1) as f64;
-        }
-        let ms = self.to_machine(start);
-        let me = self.to_machine(end);
-        let mut cprog = start;
-        cprog[a] = cx;
-        cprog[b] = cy;
-        let mc = self.to_machine(cprog);
-        let center = [mc[0], mc[1], mc[2]];
-        let u = self.unit();
-        let geom = ArcGeometry {
-            start: ms,
-            end: me,
-            center,
-            normal: plane.normal(),
-            axes: plane.axes(),
-            sweep,
-            start_radius: (start[a] - cx).hypot(start[b] - cy) * u,
-            end_radius: (end[a] - cx).hypot(end[b] - cy) * u,
-            clockwise: cw,
-            turns,
-        };
-        let mut m = self.base_move(MoveKind::Arc, ms, me);
-        m.center = Some(center);
-        m.normal = Some(plane.normal());
-        m.clockwise = Some(cw);
-        m.arc = Some(Box::new(geom));
-        self.push(m)?;
-        self.cur = end;
-        Ok(())
+        Ok((cx, cy))
     }
 }

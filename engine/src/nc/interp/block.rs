@@ -121,6 +121,12 @@ impl<'p> Interp<'p> {
         // 8-10 act on M codes only; most CAM blocks have none.
         if !w.ms.is_empty() {
             // 8. M6 / M61
+            if let Some(i) = w.m(6).filter(|_| self.comp.is_some()) {
+                return Err(self.err_at(
+                    self.word_pos(i),
+                    "tool change with cutter radius compensation on (G40 first)",
+                ));
+            }
             if w.m(6).is_some() {
                 let t = self.selected_tool.unwrap_or(self.tool);
                 self.tool = t;
@@ -217,13 +223,18 @@ impl<'p> Interp<'p> {
                     self.modal.metric = metric;
                 }
             }
-            // 17. cutter radius compensation: refused.
-            for code in [410u16, 420, 411, 421] {
+            // 17. cutter radius compensation
+            if w.g(400).is_some() {
+                self.comp_off()?;
+            }
+            for (code, left, dynamic) in [
+                (410u16, true, false),
+                (420, false, false),
+                (411, true, true),
+                (421, false, true),
+            ] {
                 if let Some(i) = w.g(code) {
-                    return Err(self.err_at(
-                        self.word_pos(i),
-                        format!("{}: cutter radius compensation is not supported; program the tool centre path (CAM 'computer' compensation) or remove {}", g_name(code), g_name(code)),
-                    ));
+                    self.comp_on(w, left, dynamic, self.word_pos(i))?;
                 }
             }
             // 18. tool length offset
@@ -276,7 +287,13 @@ impl<'p> Interp<'p> {
                 .iter()
                 .enumerate()
             {
-                if w.g(*code).is_some() {
+                if let Some(i) = w.g(*code) {
+                    if self.comp.is_some() && self.modal.cs != k {
+                        return Err(self.err_at(
+                            self.word_pos(i),
+                            "coordinate system change with cutter radius compensation on (G40 first)",
+                        ));
+                    }
                     self.change_offsets(|s| s.modal.cs = k);
                 }
             }
@@ -333,6 +350,15 @@ impl<'p> Interp<'p> {
             }
         }
         if let Some((g0, i0)) = group0 {
+            if self.comp.is_some() && matches!(g0, 100 | 280 | 300 | 920 | 921 | 922 | 923) {
+                return Err(self.err_at(
+                    self.word_pos(i0),
+                    format!(
+                        "{} with cutter radius compensation on (G40 first)",
+                        g_name(g0)
+                    ),
+                ));
+            }
             self.exec_group0(w, g0, i0)?;
         }
         if let Some((gm, _)) = block_motion {
@@ -455,6 +481,32 @@ impl<'p> Interp<'p> {
         {
             return Err(self.err_block(
                 "G1/G2/G3 in inverse time mode (G93) needs an F word in the same block",
+            ));
+        }
+        if self.comp.is_some() {
+            if g53 {
+                return Err(self.err_block("G53 with cutter radius compensation on"));
+            }
+            if let Some((_, i, _)) = corner {
+                return Err(self.err_at(
+                    self.word_pos(i),
+                    "corner rounding/chamfer with cutter radius compensation on",
+                ));
+            }
+            return match motion {
+                Motion::Rapid | Motion::Linear => {
+                    let to = self.comp_target(w)?;
+                    self.comp_straight(motion == Motion::Rapid, to)
+                }
+                Motion::Arc { cw } => self.comp_arc(w, cw),
+                _ => Err(self.err_block(
+                    "canned cycles, tapping and probing are not allowed with cutter radius compensation on (G40 first)",
+                )),
+            };
+        }
+        if self.arc_not_allowed && matches!(motion, Motion::Arc { .. }) {
+            return Err(self.err_block(
+                "the move just after G40 (cutter compensation off) must be a line, not an arc",
             ));
         }
         let pending = self.pending_corner.take();

@@ -14,6 +14,7 @@ use std::collections::HashMap;
 
 mod arcs;
 mod block;
+mod comp;
 mod control;
 mod coords;
 mod corners;
@@ -99,6 +100,12 @@ struct Interp<'p> {
     tool_radius_wear: HashMap<u32, f64>,
     /// Non-standard M codes already warned about.
     warned_m_codes: std::collections::HashSet<u32>,
+    /// Cutter radius compensation, while G41/G42 is on.
+    comp: Option<comp::Comp>,
+    /// After G40: where the tool is (machine frame), the start of the next move.
+    exit_start: Option<[f64; 6]>,
+    /// After G40 the next move must be a line (LinuxCNC).
+    arc_not_allowed: bool,
     /// Where the run loop goes after the current block, when not to the next one (M98, M99,
     /// G65).
     jump: Option<usize>,
@@ -192,6 +199,9 @@ pub(crate) fn interpret_view(
         tool_length_wear: HashMap::new(),
         tool_radii: HashMap::new(),
         tool_radius_wear: HashMap::new(),
+        comp: None,
+        exit_start: None,
+        arc_not_allowed: false,
         jump: None,
         main_program: None,
         sequences: HashMap::new(),
@@ -281,7 +291,21 @@ impl Interp<'_> {
         }
     }
 
+    /// Adds a move; with cutter compensation waiting on a move, after it (in order).
     fn push(&mut self, m: Move) -> R<()> {
+        if let Some(c) = self.comp.as_mut() {
+            if !c.queue.is_empty() {
+                c.queue.push(comp::Queued {
+                    mv: m,
+                    kind: comp::QueuedKind::Other,
+                });
+                return Ok(());
+            }
+        }
+        self.push_now(m)
+    }
+
+    fn push_now(&mut self, m: Move) -> R<()> {
         if self.moves.len() >= self.opts.max_moves {
             return Err(self.err_block(format!(
                 "program makes more than {} moves (runaway loop?); interpretation stopped",
@@ -297,7 +321,12 @@ impl Interp<'_> {
         if !rapid {
             self.check_feed()?;
         }
-        let start = self.to_machine(self.cur);
+        // After G40 the tool is still where compensation left it.
+        let start = match self.exit_start.take() {
+            Some(p) => p,
+            None => self.to_machine(self.cur),
+        };
+        self.arc_not_allowed = false;
         let end = self.to_machine(to);
         let kind = if rapid {
             MoveKind::Rapid
@@ -382,6 +411,7 @@ impl Interp<'_> {
                 None => pc + 1,
             };
         }
+        self.comp_finish()?;
         if let Some(pc) = &self.pending_corner {
             return Err(self.err_at(
                 pc.word_pos,
