@@ -122,6 +122,14 @@ fn block() -> impl Strategy<Value = String> {
             "DPRNT[X#1[53]]",
             "POPEN",
             "#3000=1 (ALARM)",
+            "G41.1 D2",
+            "G42.1 D3",
+            "G40",
+            "G41.1 D1 G1 X10 Y0 F100\nG3 X0 Y10 R10\nG1 X-5\nG40 G1 X0 Y0",
+            "G10 L1 P1 Z5 R1.5\nG41 D1",
+            "G38.2 Z-20 F50",
+            "M123",
+            ":77",
         ])
         .prop_map(|s| s.to_string()),
     ]

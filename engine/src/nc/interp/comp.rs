@@ -279,7 +279,11 @@ impl Interp<'_> {
                         g.end_radius = r2 * self.unit();
                     }
                 }
-                QueuedKind::Other => {}
+                // A dwell waiting between two moves happens where the first one now ends.
+                QueuedKind::Other => {
+                    q.mv.start = new_end;
+                    q.mv.end = new_end;
+                }
             }
         }
         self.comp_mut().queue = queue;
