@@ -411,8 +411,7 @@ impl Interp<'_> {
                 opy + radius * (alpha + gamma).sin(),
             ];
             let front = self.front_arc();
-            let concave = beta < -SMALL
-                || beta > PI + SMALL
+            let concave = !(-SMALL..=PI + SMALL).contains(&beta)
                 || (beta > PI - SMALL
                     && front.is_some_and(|(_, turn, _)| {
                         (side == Side::Right && turn > 0) || (side == Side::Left && turn < 0)
@@ -577,7 +576,8 @@ impl Interp<'_> {
         );
         let sweep = find_turn([opx, opy], center, turn, [ex, ey]);
         let mut from = cur;
-        if beta < -SMALL || beta > PI + SMALL || ((beta - PI).abs() < SMALL && !inside(side, turn))
+        if !(-SMALL..=PI + SMALL).contains(&beta)
+            || ((beta - PI).abs() < SMALL && !inside(side, turn))
         {
             let m = match self.front_arc() {
                 None => {
