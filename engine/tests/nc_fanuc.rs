@@ -64,6 +64,22 @@ fn arithmetic_without_brackets_uses_fanuc_precedence() {
 }
 
 #[test]
+fn logical_operators_follow_each_dialect() {
+    // Fanuc: AND/OR/XOR work bit by bit and rank with * and + ; LinuxCNC: logical, last.
+    let src = "G0 X[6 AND 3] Y[4 OR 1] Z[6 XOR 3]\nG0 X[2 + 1 AND 1] Y[1 + 2 OR 4] Z[[1 GT 0] AND [2 GT 1]]\n";
+    let f = run_with(src, &fanuc());
+    assert_eq!(xyz(&f), vec![[2.0, 5.0, 5.0], [3.0, 7.0, 1.0]]);
+    let l = run_with(
+        src,
+        &InterpretOptions {
+            dialect: Dialect::LinuxCnc,
+            ..InterpretOptions::default()
+        },
+    );
+    assert_eq!(xyz(&l), vec![[1.0, 1.0, 0.0], [1.0, 1.0, 1.0]]);
+}
+
+#[test]
 fn if_goto_if_then_and_goto_with_sequence_search() {
     let src = "\
 O1000

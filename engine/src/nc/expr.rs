@@ -1,6 +1,6 @@
 //! Evaluation of LinuxCNC `[expressions]` and parameter storage.
 
-use super::program::{BinOp, Expr, Func, ParamRef};
+use super::program::{fanuc_precedence, reduce, BinOp, Expr, Func, ParamRef};
 use std::collections::HashMap;
 
 /// Highest numbered parameter (LinuxCNC: 5601 user-visible).
@@ -30,6 +30,11 @@ pub(crate) fn num_text(v: f64) -> String {
     } else {
         format!("{v}")
     }
+}
+
+/// A whole number that fits an i64 exactly.
+fn whole(v: f64) -> bool {
+    v.fract() == 0.0 && v.abs() < 9.0e15
 }
 
 /// A vacant value as an operand: 0.
@@ -90,6 +95,14 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
             ParamRef::Named(n) => env.named(n)?,
         },
         Expr::Neg(x) => -num(eval(x, env)?),
+        Expr::Mixed(first, rest) => {
+            let prec = if env.fanuc() {
+                fanuc_precedence
+            } else {
+                BinOp::precedence
+            };
+            eval(&reduce((**first).clone(), rest.clone(), prec), env)?
+        }
         Expr::Exists(n) => {
             if env.exists(n) {
                 1.0
@@ -182,6 +195,15 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
                 BinOp::Ge => t(a >= b),
                 BinOp::Lt => t(a < b),
                 BinOp::Le => t(a <= b),
+                // Fanuc: bit by bit on whole numbers (the same as LinuxCNC's logic on 0/1).
+                BinOp::And | BinOp::Or | BinOp::Xor if env.fanuc() && whole(a) && whole(b) => {
+                    let (x, y) = (a as i64, b as i64);
+                    (match op {
+                        BinOp::And => x & y,
+                        BinOp::Or => x | y,
+                        _ => x ^ y,
+                    }) as f64
+                }
                 BinOp::And => t(a != 0.0 && b != 0.0),
                 BinOp::Or => t(a != 0.0 || b != 0.0),
                 BinOp::Xor => t((a != 0.0) != (b != 0.0)),

@@ -24,8 +24,8 @@
 //!   arguments (specification I); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
 //!   Subprograms: several `O` programs in one file, `M98 P.. L..` (and `P31234`), `M99`
 //!   (`M99 Pn`), `M99` in the main program ends it (a warning; the control would loop).
-//!   Inside brackets the LinuxCNC precedence applies in both dialects (they differ only when
-//!   AND/OR/XOR meet arithmetic without inner brackets).
+//!   AND/OR/XOR work bit by bit on whole numbers and rank with `*` and `+` (LinuxCNC: logical,
+//!   ranked last); the dialect decides when an expression mixes them with arithmetic.
 //!
 //! * Both dialects: `:1234` program numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
 //!   offset memory), G38.2-G38.5 probing as a feed move to the end point (a warning), a Fanuc

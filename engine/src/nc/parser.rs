@@ -3,6 +3,7 @@
 
 use super::lexer::{LexError, Lexer, Tok};
 use super::program::*;
+use super::program::{fanuc_precedence, reduce};
 use super::Diagnostic;
 
 /// Deepest bracket nesting accepted; keeps the recursive parser off the stack limit.
@@ -279,24 +280,35 @@ impl<'a> LineParser<'a> {
     }
 
     /// Precedence climbing; all binary operators are left-associative (as in LinuxCNC).
-    fn expr(&mut self, min_prec: u8) -> PResult<Expr> {
-        let mut lhs = self.operand()?;
-        loop {
-            let save = self.lx.clone();
-            let Some(op) = self.binop()? else { break };
-            let p = op.precedence();
-            if p < min_prec {
-                self.lx = save;
-                break;
-            }
+    /// The operands and operators of one bracket level, then the tree by LinuxCNC's
+    /// precedence; when AND/OR/XOR meet arithmetic operators at one level the two dialects'
+    /// precedences disagree, and the flat list is kept for evaluation ([`Expr::Mixed`]).
+    fn expr(&mut self, _min_prec: u8) -> PResult<Expr> {
+        let first = self.operand()?;
+        let mut rest = Vec::new();
+        while let Some(op) = self.binop()? {
             self.ops += 1;
             if self.ops > MAX_OPS {
                 return err(self.lx.pos, "expression too long");
             }
-            let rhs = self.expr(p + 1)?;
-            lhs = Expr::Binary(op, Box::new(lhs), Box::new(rhs));
+            rest.push((op, self.operand()?));
         }
-        Ok(lhs)
+        if rest.is_empty() {
+            return Ok(first);
+        }
+        let logical = rest
+            .iter()
+            .any(|(op, _)| matches!(op, BinOp::And | BinOp::Or | BinOp::Xor));
+        let arithmetic = rest.iter().any(|(op, _)| {
+            matches!(
+                op,
+                BinOp::Pow | BinOp::Mul | BinOp::Div | BinOp::Mod | BinOp::Add | BinOp::Sub
+            )
+        });
+        if logical && arithmetic {
+            return Ok(Expr::Mixed(Box::new(first), rest));
+        }
+        Ok(reduce(first, rest, BinOp::precedence))
     }
 
     /// After `#` (at `start`): `target = value`. The value may be an expression without
@@ -623,41 +635,6 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
 const MACRO_KEYWORDS: [&str; 9] = [
     "IF", "WHILE", "GOTO", "END", "DO", "DPRNT", "BPRNT", "POPEN", "PCLOS",
 ];
-
-/// Fanuc macro B precedence: multiplication-type before addition-type operators.
-fn fanuc_precedence(op: BinOp) -> u8 {
-    match op {
-        BinOp::Mul | BinOp::Div | BinOp::Mod | BinOp::And | BinOp::Pow => 2,
-        _ => 1,
-    }
-}
-
-/// `first op1 e1 op2 e2 ...` into a tree, left-associative, by `prec`.
-fn reduce(first: Expr, rest: Vec<(BinOp, Expr)>, prec: fn(BinOp) -> u8) -> Expr {
-    fn apply(out: &mut Vec<Expr>, op: BinOp) {
-        let r = out.pop().expect("operand");
-        let l = out.pop().expect("operand");
-        out.push(Expr::Binary(op, Box::new(l), Box::new(r)));
-    }
-    let mut out = vec![first];
-    let mut ops: Vec<BinOp> = Vec::new();
-    for (op, e) in rest {
-        while let Some(&top) = ops.last() {
-            if prec(top) >= prec(op) {
-                ops.pop();
-                apply(&mut out, top);
-            } else {
-                break;
-            }
-        }
-        ops.push(op);
-        out.push(e);
-    }
-    while let Some(top) = ops.pop() {
-        apply(&mut out, top);
-    }
-    out.pop().expect("one expression")
-}
 
 /// A Fanuc macro B statement line starting with `kw` (upper case, not yet consumed).
 fn macro_line(p: &mut LineParser, block: &mut Block, kw: &str) -> PResult<()> {

@@ -50,6 +50,44 @@ impl BinOp {
     }
 }
 
+/// Fanuc macro B precedence: functions, then `* / AND MOD`, then `+ - OR XOR`, then the
+/// comparisons (`**` is not Fanuc; it stays first).
+pub(crate) fn fanuc_precedence(op: BinOp) -> u8 {
+    match op {
+        BinOp::Pow => 4,
+        BinOp::Mul | BinOp::Div | BinOp::Mod | BinOp::And => 3,
+        BinOp::Add | BinOp::Sub | BinOp::Or | BinOp::Xor => 2,
+        _ => 1,
+    }
+}
+
+/// `first op1 e1 op2 e2 ...` into a tree, left-associative, by `prec`.
+pub(crate) fn reduce(first: Expr, rest: Vec<(BinOp, Expr)>, prec: fn(BinOp) -> u8) -> Expr {
+    fn apply(out: &mut Vec<Expr>, op: BinOp) {
+        let r = out.pop().expect("operand");
+        let l = out.pop().expect("operand");
+        out.push(Expr::Binary(op, Box::new(l), Box::new(r)));
+    }
+    let mut out = vec![first];
+    let mut ops: Vec<BinOp> = Vec::new();
+    for (op, e) in rest {
+        while let Some(&top) = ops.last() {
+            if prec(top) >= prec(op) {
+                ops.pop();
+                apply(&mut out, top);
+            } else {
+                break;
+            }
+        }
+        ops.push(op);
+        out.push(e);
+    }
+    while let Some(top) = ops.pop() {
+        apply(&mut out, top);
+    }
+    out.pop().expect("one expression")
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Func {
     Abs,
@@ -103,6 +141,10 @@ pub enum Expr {
     Atan(Box<Expr>, Box<Expr>),
     /// `EXISTS[#<name>]`
     Exists(String),
+    /// Operands and operators of one bracket level where AND/OR/XOR meet arithmetic: the
+    /// dialect's precedence applies when it is evaluated (LinuxCNC: logical operators last;
+    /// Fanuc: AND with `*`, OR/XOR with `+`).
+    Mixed(Box<Expr>, Vec<(BinOp, Expr)>),
 }
 
 /// `#123`, `#[expr]`, `##1` (numbered) or `#<name>` (named; lower case, blanks removed).
@@ -341,6 +383,7 @@ fn has_named(e: &Expr) -> bool {
         Expr::Neg(x) | Expr::Func(_, x) => has_named(x),
         Expr::Binary(_, a, b) | Expr::Atan(a, b) => has_named(a) || has_named(b),
         Expr::Exists(_) => true,
+        Expr::Mixed(first, rest) => has_named(first) || rest.iter().any(|(_, e)| has_named(e)),
     }
 }
 
