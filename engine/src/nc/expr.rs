@@ -95,13 +95,13 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
             ParamRef::Named(n) => env.named(n)?,
         },
         Expr::Neg(x) => -num(eval(x, env)?),
-        Expr::Mixed(first, rest) => {
+        Expr::Mixed(m) => {
             let prec = if env.fanuc() {
                 fanuc_precedence
             } else {
                 BinOp::precedence
             };
-            eval(&reduce((**first).clone(), rest.clone(), prec), env)?
+            eval(&reduce(m.0.clone(), m.1.clone(), prec), env)?
         }
         Expr::Exists(n) => {
             if env.exists(n) {

@@ -306,7 +306,7 @@ impl<'a> LineParser<'a> {
             )
         });
         if logical && arithmetic {
-            return Ok(Expr::Mixed(Box::new(first), rest));
+            return Ok(Expr::Mixed(Box::new((first, rest))));
         }
         Ok(reduce(first, rest, BinOp::precedence))
     }
@@ -575,14 +575,7 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
     if matches!(p.lx.peek_byte(), Some(b'o' | b'O' | b':')) {
         return o_line(&mut p, block);
     }
-    // A word is a letter then a value, so two letters in a row start a macro statement (if
-    // anything); checked without allocating, as most lines start with a word.
-    let at = p.lx.after_blanks(p.lx.pos);
-    if p.lx.byte(at + 1).is_some_and(|b| b.is_ascii_alphabetic()) {
-        if let Some(kw) = MACRO_KEYWORDS.iter().find(|kw| p.lx.keyword_at(at, kw)) {
-            return macro_line(&mut p, block, kw);
-        }
-    }
+    let first_word = words.len();
     loop {
         if let Some(word) = p.plain_word() {
             words.push(word);
@@ -590,6 +583,16 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
         }
         if p.lx.peek_byte().is_none() {
             break;
+        }
+        // A word is a letter then a value, so two letters in a row at the start of a line
+        // begin a macro statement (if anything). Off the fast path: plain words never get here.
+        if words.len() == first_word && block.assignments.is_empty() {
+            let at = p.lx.pos;
+            if p.lx.byte(at + 1).is_some_and(|b| b.is_ascii_alphabetic()) {
+                if let Some(kw) = MACRO_KEYWORDS.iter().find(|kw| p.lx.keyword_at(at, kw)) {
+                    return macro_line(&mut p, block, kw);
+                }
+            }
         }
         let (tok, span) = p.lx.next(false)?;
         match tok {

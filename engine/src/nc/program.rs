@@ -144,7 +144,8 @@ pub enum Expr {
     /// Operands and operators of one bracket level where AND/OR/XOR meet arithmetic: the
     /// dialect's precedence applies when it is evaluated (LinuxCNC: logical operators last;
     /// Fanuc: AND with `*`, OR/XOR with `+`).
-    Mixed(Box<Expr>, Vec<(BinOp, Expr)>),
+    /// Boxed whole: every word's value is an `Expr`, so no variant may make it larger.
+    Mixed(Box<(Expr, Vec<(BinOp, Expr)>)>),
 }
 
 /// `#123`, `#[expr]`, `##1` (numbered) or `#<name>` (named; lower case, blanks removed).
@@ -383,7 +384,7 @@ fn has_named(e: &Expr) -> bool {
         Expr::Neg(x) | Expr::Func(_, x) => has_named(x),
         Expr::Binary(_, a, b) | Expr::Atan(a, b) => has_named(a) || has_named(b),
         Expr::Exists(_) => true,
-        Expr::Mixed(first, rest) => has_named(first) || rest.iter().any(|(_, e)| has_named(e)),
+        Expr::Mixed(m) => has_named(&m.0) || m.1.iter().any(|(_, e)| has_named(e)),
     }
 }
 
@@ -401,6 +402,7 @@ pub(crate) struct Summary {
 
 impl Summary {
     /// Adds block `index`, whose words are `words` (they may not be in `block.words` yet).
+    #[inline]
     pub fn add(&mut self, index: usize, block: &Block, words: &[Word]) {
         if block.o_word.is_some() {
             self.o_word_blocks.push(index);
@@ -593,5 +595,18 @@ impl fmt::Display for Program {
     /// The original text, byte for byte.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(&self.source)
+    }
+}
+
+#[cfg(test)]
+mod size_tests {
+    /// Every word holds an `Expr`: keep it three words wide (parse and interpret speed).
+    #[test]
+    fn expr_stays_small() {
+        assert!(
+            std::mem::size_of::<super::Expr>() <= 32,
+            "{}",
+            std::mem::size_of::<super::Expr>()
+        );
     }
 }

@@ -255,10 +255,14 @@ impl BlockSink for CompactProgram {
             self.o_words.push(o);
             index(self.o_words.len() - 1)
         });
-        let macro_line = block.macro_line.take().map(|m| {
-            self.macro_lines.push(*m);
-            index(self.macro_lines.len() - 1)
-        });
+        let macro_line = if block.macro_line.is_some() {
+            block.macro_line.take().map(|m| {
+                self.macro_lines.push(*m);
+                index(self.macro_lines.len() - 1)
+            })
+        } else {
+            None
+        };
         self.blocks.push(CompactBlock {
             line: block.line,
             span: block.span,

@@ -330,9 +330,8 @@ impl<'p> Interp<'p> {
                 .copied();
         // G80: LinuxCNC cancels the motion mode; on a Fanuc control canned cycles are a group
         // of their own, so the G0/G1/G2/G3 mode from before the cycle is back.
-        let after_g80 = if self.fanuc { self.motion_01 } else { None };
         if w.g(800).is_some() {
-            self.motion = after_g80;
+            self.motion = self.after_g80();
             self.cycle_il = None;
         }
         let block_motion =
@@ -369,7 +368,7 @@ impl<'p> Interp<'p> {
                 30 => Some(Motion::Arc { cw: false }),
                 331 => Some(Motion::RigidTap),
                 382..=385 => Some(Motion::Probe(gm)),
-                800 => after_g80,
+                800 => self.after_g80(),
                 g => Some(Motion::Cycle(g / 10)),
             };
             if matches!(gm, 0 | 10 | 20 | 30) {
@@ -433,22 +432,27 @@ impl<'p> Interp<'p> {
         if w.m(2).is_some() || w.m(30).is_some() {
             self.ended = true;
         }
-        if let Some(i) = w.m(98) {
-            self.call_subprogram(w, i)?;
-        }
-        if let Some(i) = w.m(99) {
-            self.return_subprogram(w, i)?;
+        if !w.ms.is_empty() {
+            if let Some(i) = w.m(98) {
+                self.call_subprogram(w, i)?;
+            }
+            if let Some(i) = w.m(99) {
+                self.return_subprogram(w, i)?;
+            }
         }
         if w.m(60).is_some() {
             return Err(self.err_block("M60 pallet change is not supported"));
         }
         // Every word must have been used by something; P and Q go with a machine's own M code
         // (M62 P1, M66 P0 L3 Q5: parameters we cannot interpret).
-        let own_m = !w.ms.is_empty() && w.ms.iter().any(|m| m_group(m.0).is_none());
+        if !w.ms.is_empty() && w.ms.iter().any(|m| m_group(m.0).is_none()) {
+            for c in ['L', 'P', 'Q'] {
+                w.used[letter_index(c)] = true;
+            }
+        }
         for li in 0..26 {
             if let Some((v, i)) = w.vals[li] {
-                let own_m_word = own_m && matches!(li, 11 | 15 | 16);
-                if !w.used[li] && !own_m_word {
+                if !w.used[li] {
                     let c = (b'A' + li as u8) as char;
                     let hint = if c == 'R' && self.motion == Some(Motion::Linear) {
                         " (Fanuc corner rounding is written ,R; for controls that take R/C without the comma set fanuc_corners_without_comma)"
@@ -504,7 +508,7 @@ impl<'p> Interp<'p> {
                 )),
             };
         }
-        if self.arc_not_allowed && matches!(motion, Motion::Arc { .. }) {
+        if self.exit_start.is_some() && matches!(motion, Motion::Arc { .. }) {
             return Err(self.err_block(
                 "the move just after G40 (cutter compensation off) must be a line, not an arc",
             ));
@@ -555,6 +559,16 @@ impl<'p> Interp<'p> {
             Motion::RigidTap => self.rigid_tap(w),
             Motion::Probe(g) => self.probe(w, g),
             Motion::Cycle(g) => self.cycle(w, g),
+        }
+    }
+
+    /// The motion mode after G80: none (LinuxCNC), or the G0/G1/G2/G3 mode from before the
+    /// cycle (Fanuc: canned cycles are a modal group of their own).
+    fn after_g80(&self) -> Option<Motion> {
+        if self.fanuc {
+            self.motion_01
+        } else {
+            None
         }
     }
 }

@@ -191,7 +191,6 @@ impl Interp<'_> {
         self.move_endpoint_and_flush(here)?;
         self.exit_start = Some(self.to_machine(self.cur));
         self.cur = prog;
-        self.arc_not_allowed = true;
         self.comp = None;
         Ok(())
     }

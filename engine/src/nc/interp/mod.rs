@@ -102,10 +102,9 @@ struct Interp<'p> {
     warned_m_codes: std::collections::HashSet<u32>,
     /// Cutter radius compensation, while G41/G42 is on.
     comp: Option<comp::Comp>,
-    /// After G40: where the tool is (machine frame), the start of the next move.
+    /// After G40: where the tool is (machine frame), the start of the next move, which must
+    /// be a line (LinuxCNC).
     exit_start: Option<[f64; 6]>,
-    /// After G40 the next move must be a line (LinuxCNC).
-    arc_not_allowed: bool,
     /// Where the run loop goes after the current block, when not to the next one (M98, M99,
     /// G65).
     jump: Option<usize>,
@@ -201,7 +200,6 @@ pub(crate) fn interpret_view(
         tool_radius_wear: HashMap::new(),
         comp: None,
         exit_start: None,
-        arc_not_allowed: false,
         jump: None,
         main_program: None,
         sequences: HashMap::new(),
@@ -316,17 +314,23 @@ impl Interp<'_> {
         Ok(())
     }
 
+    /// The first move after G40 starts where compensation left the tool.
+    #[cold]
+    fn take_exit_start(&mut self) -> [f64; 6] {
+        self.exit_start.take().expect("checked")
+    }
+
     /// Straight move to `to` (program coordinates).
     fn straight(&mut self, rapid: bool, to: [f64; 6]) -> R<()> {
         if !rapid {
             self.check_feed()?;
         }
         // After G40 the tool is still where compensation left it.
-        let start = match self.exit_start.take() {
-            Some(p) => p,
-            None => self.to_machine(self.cur),
+        let start = if self.exit_start.is_some() {
+            self.take_exit_start()
+        } else {
+            self.to_machine(self.cur)
         };
-        self.arc_not_allowed = false;
         let end = self.to_machine(to);
         let kind = if rapid {
             MoveKind::Rapid
