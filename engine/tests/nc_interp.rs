@@ -436,17 +436,18 @@ fn fanuc_implied_decimal_and_dwell() {
 
 #[test]
 fn refusals_name_line_column_and_word() {
-    let o = InterpretOptions::default();
+    let mut o = InterpretOptions::default();
+    o.strict_m_codes = true;
     let cases: Vec<(&str, (u32, u32), &str)> = vec![
         (
-            "G0 X0\nG41 D1\n",
-            (2, 1),
-            "G41: cutter radius compensation is not supported",
+            "G0 X0\nG18 G41 D1\n",
+            (2, 5),
+            "G41: cutter radius compensation is supported in the XY plane (G17) only",
         ),
         (
-            "G1 X1 F1\n  G42\n",
+            "G1 X1 F1\n  G42 G19\n",
             (2, 3),
-            "G42: cutter radius compensation is not supported",
+            "G42: cutter radius compensation is supported in the XY plane (G17) only",
         ),
         ("M428\n", (1, 1), "M428"),
         ("G0 U1\n", (1, 4), "U axis is not supported"),
@@ -460,8 +461,12 @@ fn refusals_name_line_column_and_word() {
         ("G0 G1 X1\n", (1, 4), "same modal group"),
         ("G1 X1 X2 F1\n", (1, 7), "two X words"),
         ("M98 P100\n", (1, 1), "M98"),
-        ("G38.2 Z-1 F1\n", (1, 1), "probing"),
-        ("G10 L1 P1 Z1\n", (1, 1), "G10 L1 is not supported"),
+        (
+            "G38.2 Z0.1 F1\n",
+            (1, 1),
+            "start point too close to the probe point",
+        ),
+        ("G10 L3 P1 Z1\n", (1, 1), "G10 L3 is not supported"),
         ("G0 X#<nope>\n", (1, 5), "#<nope> is not defined"),
         ("o1 call\n", (1, 1), "subroutine o1 is not defined"),
         ("G0 X[1/0]\n", (1, 5), "division by zero"),
@@ -559,9 +564,23 @@ fn corpus_status() {
         [3.0 * 25.4, 4.0 * 25.4, -1.1 * 25.4, 0.0, 0.0, 0.0],
     );
 
-    let (l, c, msg) = fail(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"), &o);
+    // Its M428/M429 (the LinuxCNC sim's kinematics switches) are refused in strict mode and
+    // otherwise run as no-ops with a warning each.
+    let strict = InterpretOptions {
+        strict_m_codes: true,
+        ..InterpretOptions::default()
+    };
+    let (l, c, msg) = fail(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"), &strict);
     assert_eq!((l, c), (4, 1));
     assert!(msg.starts_with("M428"), "{msg}");
+    let warned = run(&read("linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc"));
+    assert_eq!(warned.moves.len(), 4492);
+    let w: Vec<(u32, &str)> = warned
+        .warnings
+        .iter()
+        .map(|w| (w.line, &w.message[..4]))
+        .collect();
+    assert_eq!(w, vec![(4, "M428"), (4509, "M429")]);
     let mut p = InterpretOptions::default();
     p.passthrough_m_codes = vec![428, 429];
     // Passthrough codes: no motion, one group each (two in a block are fine, one twice is not).
@@ -591,12 +610,14 @@ G0 X1
         [16.339, -25.409, 33.353, -71.841, 0.0, -35.930],
     );
 
-    let (l, c, msg) = fail(&read("linuxcnc_mmount_g81_subs.ngc"), &o);
-    assert_eq!((l, c), (86, 1));
-    assert!(
-        msg.starts_with("G41: cutter radius compensation is not supported"),
-        "{msg}"
-    );
+    // mmount compensates with tools 15 and 5: without a tool table (no diameters) it runs
+    // uncompensated, with a warning at each G41 (see nc_linuxcnc's cutter compensation test
+    // for the compensated run).
+    let mm = run(&read("linuxcnc_mmount_g81_subs.ngc"));
+    assert!(mm
+        .warnings
+        .iter()
+        .any(|w| w.line == 86 && w.message.contains("no diameter")));
 
     let (l, _, _) = fail(&read("fanuc_R_arcs_G3R_G1R_G1C.nc"), &o);
     assert_eq!(l, 13); // see fanuc_corner_rounding_and_chamfer_corpus_file

@@ -104,9 +104,49 @@ fn block() -> impl Strategy<Value = String> {
             "O100",
             "G0 X1 ,R2",
             "G1 X1 ,C1 F10\nY5",
+            "#1=#2*3+1",
+            "#2=#1 MOD 3-#0",
+            "IF [#1 GT 2] GOTO 10",
+            "N10 G0 X#1",
+            "IF [#1 LT 5] THEN #1=#1+1",
+            "WHILE [#1 LT 3] DO1\n#1=#1+1\nEND1",
+            "DO2\nIF [#1 GT 4] GOTO 10\n#1=#1+1\nEND2",
+            "GOTO 10",
+            "M98 P100 L2",
+            "M98 P20100",
+            "M99",
+            "M99 P10",
+            "G65 P100 A1 X2 Y#1",
+            "O100",
+            "O200\nG91 G1 X1 F50\nG90\nM99",
+            "DPRNT[X#1[53]]",
+            "POPEN",
+            "#3000=1 (ALARM)",
+            "G41.1 D2",
+            "G42.1 D3",
+            "G40",
+            "G41.1 D1 G1 X10 Y0 F100\nG3 X0 Y10 R10\nG1 X-5\nG40 G1 X0 Y0",
+            "G10 L1 P1 Z5 R1.5\nG41 D1",
+            "G38.2 Z-20 F50",
+            "M123",
+            ":77",
         ])
         .prop_map(|s| s.to_string()),
     ]
+}
+
+/// Fragments of Fanuc macro B lines, joined at random: mostly broken syntax, some valid.
+fn macro_text() -> impl Strategy<Value = String> {
+    prop::collection::vec(
+        prop::sample::select(vec![
+            "IF", "WHILE", "GOTO", "END", "DO", "THEN", "DPRNT", "POPEN", "[", "]", "#", "#1",
+            "#0", "#100", "#3000", "#5001", "=", "+", "-", "*", "/", "MOD", "AND", "OR", "XOR",
+            "EQ", "NE", "GT", "LT", "1", "2", "10", "2.5", " ", "\n", "\nN10 ", "N10", "M98",
+            "M99", "P", "P10", "L", "L3", "G65", "O10\n", "O1\n", "G0 X", "G1 Y", "F100", "(C)",
+        ]),
+        0..60,
+    )
+    .prop_map(|v| v.concat())
 }
 
 fn program() -> impl Strategy<Value = String> {
@@ -130,6 +170,23 @@ proptest! {
         }
         let _ = interpret(&src, &small_limits());
         let _ = read_cls(&src);
+    }
+
+    #[test]
+    fn macro_syntax_never_panics_round_trips_and_is_deterministic(src in macro_text(), fanuc in any::<bool>()) {
+        if let Ok(p) = Program::parse(&src) {
+            prop_assert_eq!(p.to_string(), src.clone());
+        }
+        let opts = InterpretOptions {
+            dialect: if fanuc { Dialect::Fanuc } else { Dialect::Auto },
+            ..small_limits()
+        };
+        let a = interpret(&src, &opts);
+        let b = interpret(&src, &opts);
+        prop_assert_eq!(format!("{:?}", a), format!("{:?}", b));
+        if let Ok(i) = a {
+            prop_assert!(i.moves.iter().all(|m| m.end.iter().all(|v| v.is_finite())));
+        }
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Evaluation of LinuxCNC `[expressions]` and parameter storage.
 
-use super::program::{BinOp, Expr, Func, ParamRef};
+use super::program::{fanuc_precedence, reduce, BinOp, Expr, Func, ParamRef};
 use std::collections::HashMap;
 
 /// Highest numbered parameter (LinuxCNC: 5601 user-visible).
@@ -8,11 +8,53 @@ pub(crate) const MAX_PARAM: usize = 5601;
 /// LinuxCNC's tolerance for EQ / NE.
 const TOLERANCE_EQUAL: f64 = 1e-4;
 
+/// Bits of the value that marks a vacant (null) Fanuc variable: a quiet NaN with a payload no
+/// arithmetic produces. Only a Fanuc program holds it (LinuxCNC parameters start at 0 and
+/// `#0` does not exist there); every operator reads it as 0, EQ/NE tell it from 0, and a word
+/// whose value is vacant is left out of its block.
+const VACANT_BITS: u64 = 0x7ff8_0000_0000_0bad;
+
+/// The vacant value (Fanuc `#0`, a variable never set, an argument not given to G65).
+pub(crate) fn vacant() -> f64 {
+    f64::from_bits(VACANT_BITS)
+}
+
+pub(crate) fn is_vacant(v: f64) -> bool {
+    v.to_bits() == VACANT_BITS
+}
+
+/// A value for a message: `vacant`, or the number without trailing zeros.
+pub(crate) fn num_text(v: f64) -> String {
+    if is_vacant(v) {
+        "<vacant>".to_string()
+    } else {
+        format!("{v}")
+    }
+}
+
+/// A whole number that fits an i64 exactly.
+fn whole(v: f64) -> bool {
+    v.fract() == 0.0 && v.abs() < 9.0e15
+}
+
+/// A vacant value as an operand: 0.
+fn num(v: f64) -> f64 {
+    if v.is_nan() {
+        0.0
+    } else {
+        v
+    }
+}
+
 /// Where parameter values come from during evaluation.
 pub(crate) trait Env {
     fn numbered(&self, n: usize) -> Result<f64, String>;
     fn named(&self, name: &str) -> Result<f64, String>;
     fn exists(&self, name: &str) -> bool;
+    /// Fanuc rules: `#0` exists (always vacant).
+    fn fanuc(&self) -> bool {
+        false
+    }
 }
 
 /// Parameter number from a value: an integer in 1..=5601.
@@ -29,12 +71,16 @@ pub(crate) fn param_index(v: f64) -> Result<usize, String> {
 
 /// Resolve the index of a numbered parameter reference.
 pub(crate) fn resolve_index(e: &Expr, env: &dyn Env) -> Result<usize, String> {
-    param_index(eval(e, env)?)
+    let v = eval(e, env)?;
+    if v == 0.0 && env.fanuc() {
+        return Ok(0);
+    }
+    param_index(v)
 }
 
 pub(crate) fn eval(e: &Expr, env: &dyn Env) -> Result<f64, String> {
     let v = eval_inner(e, env)?;
-    if v.is_finite() {
+    if v.is_finite() || is_vacant(v) {
         Ok(v)
     } else {
         Err("expression result is not a finite number".to_string())
@@ -48,7 +94,15 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
             ParamRef::Numbered(ix) => env.numbered(resolve_index(ix, env)?)?,
             ParamRef::Named(n) => env.named(n)?,
         },
-        Expr::Neg(x) => -eval(x, env)?,
+        Expr::Neg(x) => -num(eval(x, env)?),
+        Expr::Mixed(m) => {
+            let prec = if env.fanuc() {
+                fanuc_precedence
+            } else {
+                BinOp::precedence
+            };
+            eval(&reduce(m.0.clone(), m.1.clone(), prec), env)?
+        }
         Expr::Exists(n) => {
             if env.exists(n) {
                 1.0
@@ -57,11 +111,11 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
             }
         }
         Expr::Atan(y, x) => {
-            let (y, x) = (eval(y, env)?, eval(x, env)?);
+            let (y, x) = (num(eval(y, env)?), num(eval(x, env)?));
             y.atan2(x).to_degrees()
         }
         Expr::Func(f, x) => {
-            let x = eval(x, env)?;
+            let x = num(eval(x, env)?);
             match f {
                 Func::Abs => x.abs(),
                 Func::Acos => {
@@ -100,6 +154,12 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
         Expr::Binary(op, l, r) => {
             let (a, b) = (eval(l, env)?, eval(r, env)?);
             let t = |c: bool| if c { 1.0 } else { 0.0 };
+            if matches!(op, BinOp::Eq | BinOp::Ne) && (is_vacant(a) || is_vacant(b)) {
+                // Fanuc: vacant equals only vacant.
+                let same = is_vacant(a) && is_vacant(b);
+                return Ok(t(same == (*op == BinOp::Eq)));
+            }
+            let (a, b) = (num(a), num(b));
             match op {
                 BinOp::Pow => {
                     if a < 0.0 && b.fract() != 0.0 {
@@ -135,6 +195,15 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
                 BinOp::Ge => t(a >= b),
                 BinOp::Lt => t(a < b),
                 BinOp::Le => t(a <= b),
+                // Fanuc: bit by bit on whole numbers (the same as LinuxCNC's logic on 0/1).
+                BinOp::And | BinOp::Or | BinOp::Xor if env.fanuc() && whole(a) && whole(b) => {
+                    let (x, y) = (a as i64, b as i64);
+                    (match op {
+                        BinOp::And => x & y,
+                        BinOp::Or => x | y,
+                        _ => x ^ y,
+                    }) as f64
+                }
                 BinOp::And => t(a != 0.0 && b != 0.0),
                 BinOp::Or => t(a != 0.0 || b != 0.0),
                 BinOp::Xor => t((a != 0.0) != (b != 0.0)),
@@ -159,6 +228,14 @@ impl Params {
             numbered: vec![0.0; MAX_PARAM + 1],
             globals: HashMap::new(),
             locals: vec![HashMap::new()],
+        }
+    }
+
+    /// Fanuc: local (#1-#33) and common (#100-#199, #500-#999) variables start vacant, and #0
+    /// is always vacant.
+    pub fn init_fanuc(&mut self) {
+        for r in [0..=33, 100..=199, 500..=999] {
+            self.numbered[r].fill(vacant());
         }
     }
 

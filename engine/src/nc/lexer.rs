@@ -82,6 +82,16 @@ impl<'a> Lexer<'a> {
         i
     }
 
+    /// Whether the upper-case `kw` is written at `i` (in any case) as a whole alphabetic run.
+    pub fn keyword_at(&self, i: usize, kw: &str) -> bool {
+        kw.bytes()
+            .enumerate()
+            .all(|(k, c)| self.byte(i + k).map(|b| b.to_ascii_uppercase()) == Some(c))
+            && !self
+                .byte(i + kw.len())
+                .is_some_and(|b| b.is_ascii_alphabetic())
+    }
+
     pub fn skip_ws(&mut self) {
         self.pos = self.after_blanks(self.pos);
     }

@@ -18,12 +18,32 @@
 //!   accepted; O labels may be reused by sequential (non-nested) structures.
 //! * Dialect Fanuc: G4 P in milliseconds (X in seconds), `,R`/`,C` corners, K as the cycle
 //!   repeat count, G98 at start, `O1234` program numbers; implied decimals on request.
+//!   Custom macro B: `IF [..] GOTO n`, `IF [..] THEN #i=..`, `WHILE [..] DOm`..`ENDm`, `GOTO n`,
+//!   expressions without brackets (Fanuc precedence), vacant variables (#0), the modal and
+//!   position system variables (#4001-#4120, #5001-#5046), #3000 alarms, G65 calls with
+//!   arguments (specification I); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
+//!   Subprograms: several `O` programs in one file, `M98 P.. L..` (and `P31234`), `M99`
+//!   (`M99 Pn`), `M99` in the main program ends it (a warning; the control would loop).
+//!   AND/OR/XOR work bit by bit on whole numbers and rank with `*` and `+` (LinuxCNC: logical,
+//!   ranked last); the dialect decides when an expression mixes them with arithmetic.
 //!
-//! Refused with an error: cutter radius compensation (G41/G42/G41.1/G42.1), G33, G76, G5.x
-//! splines, G7/G8, G15/G16 and `@`/`^` polar words, G38.x probing, G50/G51 scaling, G68/G69
-//! rotation, G10 L1/L10/L11 and G10 rotation (R), U V W axes, M98/M99 and external
-//! subroutine files, M60, M62-M68, user/remapped M codes unless listed in
-//! `passthrough_m_codes`, writes to the parameters that hold machine state (#5161-#5426).
+//! * Both dialects: `:1234` program numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
+//!   offset memory), G38.2-G38.5 probing as a feed move to the end point (a warning), a Fanuc
+//!   G80 returns to the G0/G1/G2/G3 mode from before the cycle, non-standard M codes run as
+//!   no-ops with a warning (`strict_m_codes` refuses them).
+//!
+//! * Cutter radius compensation G41/G42 (radius from the tool table's diameter, a G10 radius
+//!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY plane, as
+//!   LinuxCNC 2.9 does it in both dialects (entry line or arc, arcs around outside corners,
+//!   inside corners trimmed, gouges refused naming the line); checked against LinuxCNC.
+//!   A Fanuc control's start-up and cancel blocks (types A/B/C) differ in the entry and exit
+//!   moves only.
+//!
+//! Refused with an error: cutter radius compensation outside G17, G33, G76, G5.x
+//! splines, G7/G8, G15/G16 and `@`/`^` polar words, G50/G51 scaling, G68/G69
+//! rotation, G10 rotation (R), U V W axes, external subroutine files and
+//! calls to programs not in the file, G66/G67, M60, non-standard M codes with `strict_m_codes`
+//! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
 
 mod arc;
 mod expr;
@@ -38,7 +58,8 @@ pub use arc::{sample_arc, ArcGeometry};
 pub use interp::interpret_program;
 pub(crate) use program::format_feed;
 pub use program::{
-    Assignment, Block, Comment, Expr, OKeyword, OName, OWord, ParamRef, Program, Span, Word,
+    Assignment, Block, Comment, Expr, MacroLine, MacroStatement, OKeyword, OName, OWord, ParamRef,
+    Program, Span, Word,
 };
 pub use tooltable::{parse_tool_table, ToolEntry, ToolTable};
 
@@ -77,9 +98,12 @@ pub struct InterpretOptions {
     /// comma on G1 blocks. With it set, C is no longer an axis address.
     pub fanuc_corners_without_comma: bool,
     /// M codes that are known to the caller's machine but do nothing we can model (e.g. the
-    /// LinuxCNC sim's remapped `M428`/`M429` kinematics switches). They are accepted as no-ops;
-    /// every other unknown M code is an error.
+    /// LinuxCNC sim's remapped `M428`/`M429` kinematics switches). They are accepted as no-ops
+    /// without a word; any other non-standard M code is accepted with a warning (once per code),
+    /// or refused with `strict_m_codes`.
     pub passthrough_m_codes: Vec<u32>,
+    /// Refuse non-standard M codes not listed in `passthrough_m_codes` instead of warning.
+    pub strict_m_codes: bool,
     /// State of the control's block-delete switch: when on, blocks starting with `/` are skipped.
     pub block_delete: bool,
     /// Checked every few thousand executed blocks: once set, interpretation stops with an
@@ -98,6 +122,7 @@ impl Default for InterpretOptions {
             max_blocks: 50_000_000,
             fanuc_corners_without_comma: false,
             passthrough_m_codes: Vec::new(),
+            strict_m_codes: false,
             block_delete: false,
             cancel: None,
         }

@@ -3,6 +3,7 @@
 
 use super::lexer::{LexError, Lexer, Tok};
 use super::program::*;
+use super::program::{fanuc_precedence, reduce};
 use super::Diagnostic;
 
 /// Deepest bracket nesting accepted; keeps the recursive parser off the stack limit.
@@ -279,24 +280,121 @@ impl<'a> LineParser<'a> {
     }
 
     /// Precedence climbing; all binary operators are left-associative (as in LinuxCNC).
-    fn expr(&mut self, min_prec: u8) -> PResult<Expr> {
-        let mut lhs = self.operand()?;
-        loop {
-            let save = self.lx.clone();
-            let Some(op) = self.binop()? else { break };
-            let p = op.precedence();
-            if p < min_prec {
-                self.lx = save;
-                break;
-            }
+    /// The operands and operators of one bracket level, then the tree by LinuxCNC's
+    /// precedence; when AND/OR/XOR meet arithmetic operators at one level the two dialects'
+    /// precedences disagree, and the flat list is kept for evaluation ([`Expr::Mixed`]).
+    fn expr(&mut self, _min_prec: u8) -> PResult<Expr> {
+        let first = self.operand()?;
+        let mut rest = Vec::new();
+        while let Some(op) = self.binop()? {
             self.ops += 1;
             if self.ops > MAX_OPS {
                 return err(self.lx.pos, "expression too long");
             }
-            let rhs = self.expr(p + 1)?;
-            lhs = Expr::Binary(op, Box::new(lhs), Box::new(rhs));
+            rest.push((op, self.operand()?));
         }
-        Ok(lhs)
+        if rest.is_empty() {
+            return Ok(first);
+        }
+        let logical = rest
+            .iter()
+            .any(|(op, _)| matches!(op, BinOp::And | BinOp::Or | BinOp::Xor));
+        let arithmetic = rest.iter().any(|(op, _)| {
+            matches!(
+                op,
+                BinOp::Pow | BinOp::Mul | BinOp::Div | BinOp::Mod | BinOp::Add | BinOp::Sub
+            )
+        });
+        if logical && arithmetic {
+            return Ok(Expr::Mixed(Box::new((first, rest))));
+        }
+        Ok(reduce(first, rest, BinOp::precedence))
+    }
+
+    /// After `#` (at `start`): `target = value`. The value may be an expression without
+    /// brackets (Fanuc macro B: `#1=#2*#3+1`), read with Fanuc's precedence.
+    fn assignment(&mut self, start: usize) -> PResult<Assignment> {
+        let target = self.param_ref()?;
+        let (t, s) = self.lx.next(false)?;
+        if t != Tok::Equals {
+            return err(
+                s.start,
+                "expected '=' after a parameter (a parameter can only be set here)",
+            );
+        }
+        let (value, bare) = self.bare_expr()?;
+        Ok(Assignment {
+            target,
+            value,
+            bare,
+            span: Span::new(start, self.lx.pos),
+        })
+    }
+
+    /// A value, then any `+ - * / MOD AND OR XOR` and further values without brackets (Fanuc
+    /// macro B). Fanuc precedence: `* / AND MOD` before `+ - OR XOR`, left to right. True
+    /// when there was at least one operator.
+    fn bare_expr(&mut self) -> PResult<(Expr, bool)> {
+        let first = self.value()?;
+        let mut rest: Vec<(BinOp, Expr)> = Vec::new();
+        loop {
+            let at = self.lx.after_blanks(self.lx.pos);
+            let (op, len) = match self.lx.byte(at) {
+                Some(b'+') => (BinOp::Add, 1),
+                Some(b'-') => (BinOp::Sub, 1),
+                Some(b'*') if self.lx.byte(at + 1) != Some(b'*') => (BinOp::Mul, 1),
+                Some(b'/') => (BinOp::Div, 1),
+                Some(c) if c.is_ascii_alphabetic() => match self.lx.peek_ident().as_str() {
+                    "MOD" => (BinOp::Mod, 3),
+                    "AND" => (BinOp::And, 3),
+                    "OR" => (BinOp::Or, 2),
+                    "XOR" => (BinOp::Xor, 3),
+                    _ => break,
+                },
+                _ => break,
+            };
+            self.ops += 1;
+            if self.ops > MAX_OPS {
+                return err(at, "expression too long");
+            }
+            self.lx.pos = at + len;
+            rest.push((op, self.value()?));
+        }
+        if rest.is_empty() {
+            return Ok((first, false));
+        }
+        Ok((reduce(first, rest, fanuc_precedence), true))
+    }
+
+    /// `[condition]` after IF or WHILE.
+    fn condition(&mut self, keyword: &str) -> PResult<Expr> {
+        let (t, s) = self.lx.next(false)?;
+        if t != Tok::LBracket {
+            return err(s.start, format!("{keyword} needs a [condition]"));
+        }
+        let e = self.expr(0)?;
+        self.expect_rbracket()?;
+        Ok(e)
+    }
+
+    /// The loop number after DO or END: a whole number 1..=99.
+    fn loop_id(&mut self, keyword: &str) -> PResult<u32> {
+        self.lx.skip_ws();
+        let at = self.lx.pos;
+        match self.lx.byte(at) {
+            Some(b'0'..=b'9') => {
+                let (v, point, end) = self.lx.number_at(at)?;
+                if point || !(1.0..=99.0).contains(&v) {
+                    return err(at, format!("{keyword}{v}: the loop number must be 1..99"));
+                }
+                self.lx.pos = end;
+                Ok(v as u32)
+            }
+            _ => err(
+                at,
+                format!("{keyword} needs a loop number ({keyword}1, {keyword}2, ...)"),
+            ),
+        }
     }
 
     /// After `#`: `123`, `<name>`, `[expr]`, or `#...` (indirect).
@@ -474,9 +572,10 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
             value_span: Span::new(vstart, end),
         });
     }
-    if matches!(p.lx.peek_byte(), Some(b'o' | b'O')) {
+    if matches!(p.lx.peek_byte(), Some(b'o' | b'O' | b':')) {
         return o_line(&mut p, block);
     }
+    let first_word = words.len();
     loop {
         if let Some(word) = p.plain_word() {
             words.push(word);
@@ -484,6 +583,16 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
         }
         if p.lx.peek_byte().is_none() {
             break;
+        }
+        // A word is a letter then a value, so two letters in a row at the start of a line
+        // begin a macro statement (if anything). Off the fast path: plain words never get here.
+        if words.len() == first_word && block.assignments.is_empty() {
+            let at = p.lx.pos;
+            if p.lx.byte(at + 1).is_some_and(|b| b.is_ascii_alphabetic()) {
+                if let Some(kw) = MACRO_KEYWORDS.iter().find(|kw| p.lx.keyword_at(at, kw)) {
+                    return macro_line(&mut p, block, kw);
+                }
+            }
         }
         let (tok, span) = p.lx.next(false)?;
         match tok {
@@ -516,25 +625,106 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
                 });
             }
             Tok::Hash => {
-                let target = p.param_ref()?;
-                let (t, s) = p.lx.next(false)?;
-                if t != Tok::Equals {
-                    return err(
-                        s.start,
-                        "expected '=' after a parameter (a parameter can only be set here)",
-                    );
-                }
-                let value = p.value()?;
-                block.assignments.push(Assignment {
-                    target,
-                    value,
-                    span: Span::new(span.start, p.lx.pos),
-                });
+                let a = p.assignment(span.start)?;
+                block.assignments.push(a);
             }
             t => return err(span.start, format!("unexpected {}", tok_name(&t))),
         }
     }
     Ok(())
+}
+
+/// Keywords that start a Fanuc macro B statement line.
+const MACRO_KEYWORDS: [&str; 9] = [
+    "IF", "WHILE", "GOTO", "END", "DO", "DPRNT", "BPRNT", "POPEN", "PCLOS",
+];
+
+/// A Fanuc macro B statement line starting with `kw` (upper case, not yet consumed).
+fn macro_line(p: &mut LineParser, block: &mut Block, kw: &str) -> PResult<()> {
+    p.lx.skip_ws();
+    let start = p.lx.pos;
+    p.lx.pos += kw.len();
+    let statement = match kw {
+        "GOTO" => MacroStatement::Goto(p.value()?),
+        "IF" => {
+            let cond = p.condition("IF")?;
+            let at = p.lx.after_blanks(p.lx.pos);
+            match p.lx.peek_ident().as_str() {
+                "GOTO" => {
+                    p.lx.pos = at + 4;
+                    MacroStatement::IfGoto {
+                        cond,
+                        target: p.value()?,
+                    }
+                }
+                "THEN" => {
+                    p.lx.pos = at + 4;
+                    let (t, s) = p.lx.next(false)?;
+                    if t != Tok::Hash {
+                        return err(s.start, "IF [..] THEN needs an assignment: THEN #i = value");
+                    }
+                    let a = p.assignment(s.start)?;
+                    block.assignments.push(a);
+                    MacroStatement::IfThen { cond }
+                }
+                _ => {
+                    return err(
+                        at,
+                        "IF [condition] must be followed by GOTO n or THEN #i = value",
+                    )
+                }
+            }
+        }
+        "WHILE" => {
+            let cond = p.condition("WHILE")?;
+            let at = p.lx.after_blanks(p.lx.pos);
+            if p.lx.peek_ident() != "DO" {
+                return err(at, "WHILE [condition] must be followed by DO1, DO2 or DO3");
+            }
+            p.lx.pos = at + 2;
+            MacroStatement::While {
+                cond,
+                id: p.loop_id("DO")?,
+            }
+        }
+        "DO" => MacroStatement::Do {
+            id: p.loop_id("DO")?,
+        },
+        "END" => MacroStatement::End {
+            id: p.loop_id("END")?,
+        },
+        "DPRNT" | "BPRNT" => {
+            // The argument is free text with its own format syntax: skip to the closing ']'.
+            let open = p.lx.after_blanks(p.lx.pos);
+            if p.lx.byte(open) != Some(b'[') {
+                return err(open, format!("{kw} needs [ .. ]"));
+            }
+            let mut depth = 0;
+            let mut i = open;
+            loop {
+                match p.lx.byte(i) {
+                    Some(b'[') => depth += 1,
+                    Some(b']') => {
+                        depth -= 1;
+                        if depth == 0 {
+                            break;
+                        }
+                    }
+                    Some(_) => {}
+                    None => return err(open, format!("{kw}[ is not closed: missing ']'")),
+                }
+                i += 1;
+            }
+            p.lx.pos = i + 1;
+            MacroStatement::Output(kw.to_string())
+        }
+        _ => MacroStatement::Output(kw.to_string()),
+    };
+    block.macro_line = Some(Box::new(MacroLine {
+        statement,
+        span: Span::new(start, p.lx.pos),
+    }));
+    rest_comments(p, block)
 }
 
 fn rest_comments(p: &mut LineParser, block: &mut Block) -> PResult<()> {
@@ -554,7 +744,15 @@ fn rest_comments(p: &mut LineParser, block: &mut Block) -> PResult<()> {
 }
 
 fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
-    let (_, os) = p.lx.next(false)?;
+    // `:1234` is the ISO form of a program number `O1234`.
+    let colon = p.lx.peek_byte() == Some(b':');
+    let os = if colon {
+        let start = p.lx.pos;
+        p.lx.pos += 1;
+        Span::new(start, start + 1)
+    } else {
+        p.lx.next(false)?.1
+    };
     let (t, s) = p.lx.next(false)?;
     let name = match t {
         Tok::Number { value, .. } if value.fract() == 0.0 && value <= u32::MAX as f64 => {
@@ -569,6 +767,12 @@ fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
         }
     };
     let kw_text = p.lx.peek_ident();
+    if colon && (!kw_text.is_empty() || !matches!(name, OName::Number(_))) {
+        return err(
+            os.start,
+            "':' starts a program number (:1234, the same as O1234); it takes no name or keyword",
+        );
+    }
     let keyword = if kw_text.is_empty() {
         OKeyword::ProgramNumber
     } else {

@@ -50,6 +50,44 @@ impl BinOp {
     }
 }
 
+/// Fanuc macro B precedence: functions, then `* / AND MOD`, then `+ - OR XOR`, then the
+/// comparisons (`**` is not Fanuc; it stays first).
+pub(crate) fn fanuc_precedence(op: BinOp) -> u8 {
+    match op {
+        BinOp::Pow => 4,
+        BinOp::Mul | BinOp::Div | BinOp::Mod | BinOp::And => 3,
+        BinOp::Add | BinOp::Sub | BinOp::Or | BinOp::Xor => 2,
+        _ => 1,
+    }
+}
+
+/// `first op1 e1 op2 e2 ...` into a tree, left-associative, by `prec`.
+pub(crate) fn reduce(first: Expr, rest: Vec<(BinOp, Expr)>, prec: fn(BinOp) -> u8) -> Expr {
+    fn apply(out: &mut Vec<Expr>, op: BinOp) {
+        let r = out.pop().expect("operand");
+        let l = out.pop().expect("operand");
+        out.push(Expr::Binary(op, Box::new(l), Box::new(r)));
+    }
+    let mut out = vec![first];
+    let mut ops: Vec<BinOp> = Vec::new();
+    for (op, e) in rest {
+        while let Some(&top) = ops.last() {
+            if prec(top) >= prec(op) {
+                ops.pop();
+                apply(&mut out, top);
+            } else {
+                break;
+            }
+        }
+        ops.push(op);
+        out.push(e);
+    }
+    while let Some(top) = ops.pop() {
+        apply(&mut out, top);
+    }
+    out.pop().expect("one expression")
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Func {
     Abs,
@@ -103,6 +141,11 @@ pub enum Expr {
     Atan(Box<Expr>, Box<Expr>),
     /// `EXISTS[#<name>]`
     Exists(String),
+    /// Operands and operators of one bracket level where AND/OR/XOR meet arithmetic: the
+    /// dialect's precedence applies when it is evaluated (LinuxCNC: logical operators last;
+    /// Fanuc: AND with `*`, OR/XOR with `+`).
+    /// Boxed whole: every word's value is an `Expr`, so no variant may make it larger.
+    Mixed(Box<(Expr, Vec<(BinOp, Expr)>)>),
 }
 
 /// `#123`, `#[expr]`, `##1` (numbered) or `#<name>` (named; lower case, blanks removed).
@@ -131,6 +174,36 @@ pub struct Word {
 pub struct Assignment {
     pub target: ParamRef,
     pub value: Expr,
+    /// The value is an expression without brackets (`#1=#2*#3+1`): Fanuc macro B syntax,
+    /// with Fanuc's precedence (`* / AND MOD` before `+ - OR XOR`).
+    pub bare: bool,
+    pub span: Span,
+}
+
+/// A Fanuc custom macro B control statement, a line of its own (after an optional N word).
+#[derive(Clone, Debug, PartialEq)]
+pub enum MacroStatement {
+    /// `GOTO n`: sequence number search in the current program.
+    Goto(Expr),
+    /// `IF [cond] GOTO n`
+    IfGoto { cond: Expr, target: Expr },
+    /// `IF [cond] THEN #i = expr`: the assignment is the block's (see [`Block::assignments`]).
+    IfThen { cond: Expr },
+    /// `WHILE [cond] DOm`
+    While { cond: Expr, id: u32 },
+    /// `DOm` without WHILE: an endless loop, left by GOTO.
+    Do { id: u32 },
+    /// `ENDm`
+    End { id: u32 },
+    /// `DPRNT[..]`, `BPRNT[..]`, `POPEN`, `PCLOS`: external output, no motion (the keyword).
+    Output(String),
+}
+
+/// A macro statement and where it is.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MacroLine {
+    pub statement: MacroStatement,
+    /// From the keyword to the end of the statement.
     pub span: Span,
 }
 
@@ -145,6 +218,16 @@ pub struct Comment {
 pub enum OName {
     Number(u32),
     Named(String),
+}
+
+impl OName {
+    /// The number of a numbered name (0 for a named one).
+    pub fn number(&self) -> u32 {
+        match self {
+            OName::Number(n) => *n,
+            OName::Named(_) => 0,
+        }
+    }
 }
 
 impl fmt::Display for OName {
@@ -228,6 +311,8 @@ pub struct Block {
     /// `N123`
     pub line_number: Option<Word>,
     pub o_word: Option<OWord>,
+    /// A Fanuc macro statement (`IF`, `WHILE`, `GOTO`, `END`, `DPRNT`, ...).
+    pub macro_line: Option<Box<MacroLine>>,
     pub words: Vec<Word>,
     pub assignments: Vec<Assignment>,
     pub comments: Vec<Comment>,
@@ -236,32 +321,71 @@ pub struct Block {
 impl Block {
     /// True when the block has nothing to execute (blank or comment only).
     pub fn is_empty(&self) -> bool {
-        self.o_word.is_none() && self.words.is_empty() && self.assignments.is_empty()
+        self.o_word.is_none()
+            && self.macro_line.is_none()
+            && self.words.is_empty()
+            && self.assignments.is_empty()
     }
 }
 
-/// Dialect evidence in one block: (Fanuc-only syntax, LinuxCNC-only syntax). Fanuc-only: an
-/// `O1234` program number, `,R`/`,C` corners, M98/M99. LinuxCNC-only: O-word control lines,
-/// parameter assignments, word values that are not plain numbers.
-fn dialect_syntax(block: &Block, words: &[Word]) -> (bool, bool) {
-    let mut fanuc = false;
-    let mut linuxcnc = !block.assignments.is_empty();
+/// Dialect evidence in one block. Weak evidence (an `O1234` program number and `,R`/`,C`
+/// corners for Fanuc; parameter assignments and word values that are not plain numbers for
+/// LinuxCNC) decides when there is no strong evidence: Fanuc macro B statements, M98/M99, G65
+/// and unbracketed expressions for Fanuc; O-word control lines and named parameters for
+/// LinuxCNC.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct DialectEvidence {
+    pub fanuc: bool,
+    pub linuxcnc: bool,
+    pub fanuc_strong: bool,
+    pub linuxcnc_strong: bool,
+}
+
+fn dialect_syntax(block: &Block, words: &[Word]) -> DialectEvidence {
+    let mut e = DialectEvidence {
+        linuxcnc: !block.assignments.is_empty(),
+        fanuc_strong: block.macro_line.is_some(),
+        ..DialectEvidence::default()
+    };
     if let Some(o) = &block.o_word {
         if o.keyword == OKeyword::ProgramNumber {
-            fanuc = true;
+            e.fanuc = true;
         } else {
-            linuxcnc = true;
+            e.linuxcnc = true;
+            e.linuxcnc_strong = true;
         }
+    }
+    for a in &block.assignments {
+        e.fanuc_strong |= a.bare;
+        e.linuxcnc_strong |= matches!(a.target, ParamRef::Named(_)) || has_named(&a.value);
     }
     for w in words {
-        fanuc |= w.comma;
+        e.fanuc |= w.comma;
         if let Expr::Number { value, .. } = w.value {
-            fanuc |= w.letter == 'M' && (value == 98.0 || value == 99.0);
+            e.fanuc_strong |= (w.letter == 'M' && (value == 98.0 || value == 99.0))
+                || (w.letter == 'G' && value == 65.0);
         } else if !matches!(w.value, Expr::Neg(_)) {
-            linuxcnc = true;
+            e.linuxcnc = true;
+            e.linuxcnc_strong |= has_named(&w.value);
         }
     }
-    (fanuc, linuxcnc)
+    e.fanuc |= e.fanuc_strong;
+    e
+}
+
+/// Whether an expression reads a named parameter (`#<name>`, LinuxCNC only).
+fn has_named(e: &Expr) -> bool {
+    match e {
+        Expr::Number { .. } => false,
+        Expr::Param(p) => match p.as_ref() {
+            ParamRef::Named(_) => true,
+            ParamRef::Numbered(i) => has_named(i),
+        },
+        Expr::Neg(x) | Expr::Func(_, x) => has_named(x),
+        Expr::Binary(_, a, b) | Expr::Atan(a, b) => has_named(a) || has_named(b),
+        Expr::Exists(_) => true,
+        Expr::Mixed(m) => has_named(&m.0) || m.1.iter().any(|(_, e)| has_named(e)),
+    }
 }
 
 /// Facts about the whole program gathered while parsing, so the interpreter need not walk
@@ -270,21 +394,28 @@ fn dialect_syntax(block: &Block, words: &[Word]) -> (bool, bool) {
 pub(crate) struct Summary {
     /// Indices of the blocks with an O word, in order.
     pub o_word_blocks: Vec<usize>,
-    /// Some block has Fanuc-only syntax (see [`dialect_syntax`]).
-    pub fanuc_syntax: bool,
-    /// Some block has LinuxCNC-only syntax.
-    pub linuxcnc_syntax: bool,
+    /// Indices of the blocks with a Fanuc macro statement, in order.
+    pub macro_blocks: Vec<usize>,
+    /// What the blocks say about the dialect (see [`dialect_syntax`]), or-ed.
+    pub dialect: DialectEvidence,
 }
 
 impl Summary {
     /// Adds block `index`, whose words are `words` (they may not be in `block.words` yet).
+    #[inline]
     pub fn add(&mut self, index: usize, block: &Block, words: &[Word]) {
         if block.o_word.is_some() {
             self.o_word_blocks.push(index);
         }
-        let (fanuc, linuxcnc) = dialect_syntax(block, words);
-        self.fanuc_syntax |= fanuc;
-        self.linuxcnc_syntax |= linuxcnc;
+        if block.macro_line.is_some() {
+            self.macro_blocks.push(index);
+        }
+        let e = dialect_syntax(block, words);
+        let d = &mut self.dialect;
+        d.fanuc |= e.fanuc;
+        d.linuxcnc |= e.linuxcnc;
+        d.fanuc_strong |= e.fanuc_strong;
+        d.linuxcnc_strong |= e.linuxcnc_strong;
     }
 }
 
@@ -380,7 +511,11 @@ impl Program {
                 errors.push(at(format!("feed {feed} is not a positive number")));
                 continue;
             }
-            if block.o_word.is_some() || block.percent || block.after_end {
+            if block.o_word.is_some()
+                || block.macro_line.is_some()
+                || block.percent
+                || block.after_end
+            {
                 errors.push(at("an F word cannot be put on this line".to_string()));
                 continue;
             }
@@ -460,5 +595,18 @@ impl fmt::Display for Program {
     /// The original text, byte for byte.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(&self.source)
+    }
+}
+
+#[cfg(test)]
+mod size_tests {
+    /// Every word holds an `Expr`: keep it three words wide (parse and interpret speed).
+    #[test]
+    fn expr_stays_small() {
+        assert!(
+            std::mem::size_of::<super::Expr>() <= 32,
+            "{}",
+            std::mem::size_of::<super::Expr>()
+        );
     }
 }

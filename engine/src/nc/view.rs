@@ -5,7 +5,7 @@
 //! half the memory.
 
 use super::parser::{self, BlockSink};
-use super::program::{Assignment, Block, OWord, Program, Span, Summary, Word};
+use super::program::{Assignment, Block, Expr, MacroLine, OWord, Program, Span, Summary, Word};
 use super::{Diagnostic, Diagnostics};
 use std::ops::Range;
 
@@ -18,6 +18,7 @@ pub(crate) struct BlockView<'a> {
     pub block_delete: bool,
     pub after_end: bool,
     pub o_word: Option<&'a OWord>,
+    pub macro_line: Option<&'a MacroLine>,
     pub words: &'a [Word],
     pub assignments: &'a [Assignment],
 }
@@ -25,7 +26,10 @@ pub(crate) struct BlockView<'a> {
 impl BlockView<'_> {
     /// True when the block has nothing to execute (blank or comment only).
     pub fn is_empty(&self) -> bool {
-        self.o_word.is_none() && self.words.is_empty() && self.assignments.is_empty()
+        self.o_word.is_none()
+            && self.macro_line.is_none()
+            && self.words.is_empty()
+            && self.assignments.is_empty()
     }
 }
 
@@ -71,6 +75,7 @@ impl<'a> ProgramView<'a> {
                     block_delete: b.block_delete,
                     after_end: b.after_end,
                     o_word: b.o_word.as_ref(),
+                    macro_line: b.macro_line.as_deref(),
                     words: &b.words,
                     assignments: &b.assignments,
                 }
@@ -84,6 +89,7 @@ impl<'a> ProgramView<'a> {
                     block_delete: b.block_delete,
                     after_end: b.after_end,
                     o_word: b.o_word.map(|i| &p.o_words[i as usize]),
+                    macro_line: b.macro_line.map(|i| &p.macro_lines[i as usize]),
                     words: &p.words[range(&b.words)],
                     assignments: &p.assignments[range(&b.assignments)],
                 }
@@ -101,6 +107,48 @@ impl<'a> ProgramView<'a> {
 
     pub fn summary(&self) -> &Summary {
         self.summary
+    }
+
+    /// Source text of a span.
+    pub fn text(&self, span: Span) -> &'a str {
+        &self.source[span.start..span.end]
+    }
+
+    /// The N number of a block, if it has a whole one (read from the source text: the compact
+    /// form does not keep N words, and only sequence searches need them).
+    pub fn sequence_number(&self, index: usize) -> Option<u32> {
+        if let Blocks::Tree(blocks) = self.blocks {
+            return match blocks[index].line_number.as_ref().map(|w| &w.value) {
+                Some(Expr::Number { value, .. }) if value.fract() == 0.0 => Some(*value as u32),
+                _ => None,
+            };
+        }
+        let span = self.span(index);
+        let bytes = &self.source.as_bytes()[span.start..span.end];
+        let mut i = 0;
+        let blanks = |i: &mut usize| {
+            while matches!(bytes.get(*i), Some(b' ' | b'\t' | b'\r')) {
+                *i += 1;
+            }
+        };
+        blanks(&mut i);
+        if bytes.get(i) == Some(&b'/') {
+            i += 1;
+            blanks(&mut i);
+        }
+        if !matches!(bytes.get(i), Some(b'N' | b'n')) {
+            return None;
+        }
+        i += 1;
+        blanks(&mut i);
+        let digits = bytes[i..].iter().take_while(|b| b.is_ascii_digit()).count();
+        if digits == 0 || digits > 9 || bytes.get(i + digits) == Some(&b'.') {
+            return None;
+        }
+        std::str::from_utf8(&bytes[i..i + digits])
+            .ok()?
+            .parse()
+            .ok()
     }
 
     /// A diagnostic at a byte offset, at the position [`Program::position`] gives.
@@ -143,6 +191,7 @@ struct CompactBlock {
     block_delete: bool,
     after_end: bool,
     o_word: Option<u32>,
+    macro_line: Option<u32>,
     words: Range<u32>,
     assignments: Range<u32>,
 }
@@ -153,6 +202,7 @@ pub(crate) struct CompactProgram {
     words: Vec<Word>,
     assignments: Vec<Assignment>,
     o_words: Vec<OWord>,
+    macro_lines: Vec<MacroLine>,
     summary: Summary,
     /// Start in `words` of the line being parsed.
     line_words: usize,
@@ -168,6 +218,7 @@ impl CompactProgram {
             words: Vec::with_capacity(2 * lines),
             assignments: Vec::new(),
             o_words: Vec::new(),
+            macro_lines: Vec::new(),
             summary: Summary::default(),
             line_words: 0,
         };
@@ -204,12 +255,21 @@ impl BlockSink for CompactProgram {
             self.o_words.push(o);
             index(self.o_words.len() - 1)
         });
+        let macro_line = if block.macro_line.is_some() {
+            block.macro_line.take().map(|m| {
+                self.macro_lines.push(*m);
+                index(self.macro_lines.len() - 1)
+            })
+        } else {
+            None
+        };
         self.blocks.push(CompactBlock {
             line: block.line,
             span: block.span,
             block_delete: block.block_delete,
             after_end: block.after_end,
             o_word,
+            macro_line,
             words,
             assignments: first_assignment..index(self.assignments.len()),
         });
@@ -258,6 +318,13 @@ mod tests {
                 "O1234\nG0 X1 Y1\nG1 X2 ,R0.5 F100\nG1 Y3\nG4 P500\n%\nG1 X5\n%\nG1 Y9\n",
             ),
             ("late error", "G0 X0\nG1 X1 F10\nG1 Q3\n"),
+            (
+                "fanuc macro",
+                "O1\n#1=0\nN10 #1=#1+1\nWHILE [#1 LT 3] DO1\n#1=#1+1\nEND1\n\
+                 IF [#1 GE 3] GOTO 20\nG0 X9\nN20 G0 X#1\nG65 P2 A1\nM98 P2 L2\nDPRNT[X#1]\nM30\n\
+                 O2\nG91 G0 Y#1\nG90\nM99\n",
+            ),
+            ("goto missing", "O1\nGOTO 5\nN6 G0 X1\n"),
         ] {
             assert_same(name, source);
         }

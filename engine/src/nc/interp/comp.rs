@@ -1,0 +1,743 @@
+//! Cutter radius compensation (G41/G42, G41.1/G42.1, G40) in the XY plane, as LinuxCNC 2.9
+//! does it (`convert_straight_comp1/2`, `convert_arc_comp2`, the move queue of
+//! `interp_queue.cc`), checked against its interpreter:
+//!
+//! * The entry move (the first after G41/G42) is a line that ends tangent to a circle of the
+//!   tool radius around its programmed end. An arc as the entry move is refused here.
+//! * Each compensated move waits in a queue until the next one gives the corner: an outside
+//!   (convex) corner gets an arc around the programmed corner (a rapid gets a straight), an
+//!   inside (concave) corner moves the waiting move's end back to where the tool touches both
+//!   sides. A move whose end would have to go back past its start would gouge: refused, naming
+//!   the line.
+//! * G40 flushes the queue; the next move (a line) goes from the compensated position to its
+//!   programmed end. Offsets, cycles, G28/G30/G53 and tool changes are refused while it is on.
+
+use super::words::Words;
+use super::{Interp, R};
+use crate::nc::arc::ArcGeometry;
+use crate::nc::{Move, MoveKind};
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+/// LinuxCNC's angle tolerance for corners (TOLERANCE_CONCAVE_CORNER), radians.
+const SMALL: f64 = 0.05;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Side {
+    Left,
+    Right,
+}
+
+/// A compensated move waiting for the next one.
+pub(super) struct Queued {
+    pub(super) mv: Move,
+    pub(super) kind: QueuedKind,
+}
+
+pub(super) enum QueuedKind {
+    /// A line, with the direction of its programmed motion (gouge check).
+    Straight { dir: [f64; 2] },
+    /// An arc (program coordinates), with its sweep as first computed (0: do not check).
+    Arc {
+        center: [f64; 2],
+        turn: i32,
+        sweep: f64,
+    },
+    /// Anything else (a dwell): kept in order, never moved.
+    Other,
+}
+
+/// Compensation state while G41/G42 is on.
+pub(super) struct Comp {
+    pub(super) side: Side,
+    /// Tool radius, program units.
+    pub(super) radius: f64,
+    pub(super) first: bool,
+    /// The programmed (uncompensated) position, program coordinates.
+    pub(super) prog: [f64; 6],
+    pub(super) queue: Vec<Queued>,
+    /// Start of the queued moves (LinuxCNC `endpoint`), when known.
+    pub(super) endpoint: Option<[f64; 2]>,
+}
+
+/// Sweep of an arc from (x1, y1) to (x2, y2) about (cx, cy), `turn` turns (+ CCW, - CW), as
+/// LinuxCNC's `find_turn`.
+fn find_turn(p1: [f64; 2], c: [f64; 2], turn: i32, p2: [f64; 2]) -> f64 {
+    if turn == 0 {
+        return 0.0;
+    }
+    let mut alpha = (p1[1] - c[1]).atan2(p1[0] - c[0]);
+    let mut beta = (p2[1] - c[1]).atan2(p2[0] - c[0]);
+    if turn > 0 {
+        if beta <= alpha {
+            beta += TAU;
+        }
+        beta - alpha + f64::from(turn - 1) * TAU
+    } else {
+        if alpha <= beta {
+            alpha += TAU;
+        }
+        beta - alpha + f64::from(turn + 1) * TAU
+    }
+}
+
+fn inside(side: Side, turn: i32) -> bool {
+    (side == Side::Left && turn > 0) || (side == Side::Right && turn < 0)
+}
+
+fn xy(p: &[f64; 6]) -> [f64; 2] {
+    [p[0], p[1]]
+}
+
+fn with_xy(p: &[f64; 6], x: f64, y: f64) -> [f64; 6] {
+    let mut q = *p;
+    q[0] = x;
+    q[1] = y;
+    q
+}
+
+impl Interp<'_> {
+    /// G41/G42 (`dynamic`: G41.1/G42.1 with D the diameter).
+    pub(super) fn comp_on(&mut self, w: &mut Words, left: bool, dynamic: bool, at: usize) -> R<()> {
+        let name = match (left, dynamic) {
+            (true, false) => "G41",
+            (false, false) => "G42",
+            (true, true) => "G41.1",
+            (false, true) => "G42.1",
+        };
+        if self.modal.plane != super::Plane::XY {
+            return Err(self.err_at(
+                at,
+                format!(
+                    "{name}: cutter radius compensation is supported in the XY plane (G17) only"
+                ),
+            ));
+        }
+        if self.comp.is_some() {
+            return Err(self.err_at(
+                at,
+                format!("{name}: cutter radius compensation is already on (G40 first)"),
+            ));
+        }
+        let u = self.unit();
+        let mut radius = if dynamic {
+            let Some(d) = w.take('D') else {
+                return Err(self.err_at(at, format!("{name} needs D (the tool diameter)")));
+            };
+            w.take('L');
+            d / 2.0
+        } else {
+            let number = match w.take('D') {
+                Some(d) if d < 0.0 || d.fract() != 0.0 || d > u32::MAX as f64 => {
+                    return Err(self.err_word(
+                        w,
+                        'D',
+                        format!("{name} D{d}: D is a tool (offset) number"),
+                    ));
+                }
+                Some(d) => d as u32,
+                None => self.tool,
+            };
+            match self.tool_radius(number) {
+                Some(r) => r / u,
+                None => {
+                    self.warnings.push(self.err_at(
+                        at,
+                        format!("{name}: tool {number} has no diameter in the tool table (and no G10 radius); radius 0, no compensation"),
+                    ));
+                    0.0
+                }
+            }
+        };
+        let mut side = if left { Side::Left } else { Side::Right };
+        if radius < 0.0 {
+            radius = -radius;
+            side = if left { Side::Right } else { Side::Left };
+        }
+        if radius == 0.0 {
+            return Ok(());
+        }
+        self.comp = Some(Comp {
+            side,
+            radius,
+            first: true,
+            prog: self.cur,
+            queue: Vec::new(),
+            endpoint: None,
+        });
+        Ok(())
+    }
+
+    /// Radius (mm) of tool/offset number `n`: a G10 radius (plus Fanuc wear), else half the
+    /// tool table's diameter.
+    pub(super) fn tool_radius(&self, n: u32) -> Option<f64> {
+        let geometry = self.tool_radii.get(&n).copied().or_else(|| {
+            self.opts
+                .tool_table
+                .get(n)
+                .and_then(|t| t.diameter)
+                .map(|d| d / 2.0)
+        })?;
+        Some(geometry + self.tool_radius_wear.get(&n).copied().unwrap_or(0.0))
+    }
+
+    /// G40: the waiting moves go out; the next move starts where the tool is and goes to its
+    /// programmed end.
+    pub(super) fn comp_off(&mut self) -> R<()> {
+        let Some(c) = self.comp.as_ref() else {
+            return Ok(());
+        };
+        let prog = c.prog;
+        let here = xy(&self.cur);
+        self.move_endpoint_and_flush(here)?;
+        self.exit_start = Some(self.to_machine(self.cur));
+        self.cur = prog;
+        self.comp = None;
+        Ok(())
+    }
+
+    /// Moves still queued at the end of the program.
+    pub(super) fn comp_finish(&mut self) -> R<()> {
+        if self.comp.is_some() {
+            let here = xy(&self.cur);
+            self.move_endpoint_and_flush(here)?;
+        }
+        Ok(())
+    }
+
+    fn comp_mut(&mut self) -> &mut Comp {
+        self.comp.as_mut().expect("compensation on")
+    }
+
+    fn dequeue(&mut self) -> R<()> {
+        let c = self.comp_mut();
+        c.endpoint = None;
+        let queue = std::mem::take(&mut c.queue);
+        for q in queue {
+            self.push_now(q.mv)?;
+        }
+        Ok(())
+    }
+
+    fn set_endpoint(&mut self, p: [f64; 2]) {
+        self.comp_mut().endpoint = Some(p);
+    }
+
+    fn enqueue(&mut self, mv: Move, kind: QueuedKind) -> R<()> {
+        if self.moves.len() + self.comp_mut().queue.len() >= self.opts.max_moves {
+            return self.push_now(mv);
+        }
+        self.comp_mut().queue.push(Queued { mv, kind });
+        Ok(())
+    }
+
+    /// Move the end of every waiting move to `p` (program coordinates), refusing a move that
+    /// would then run backwards (a gouge), and send them out.
+    fn move_endpoint_and_flush(&mut self, p: [f64; 2]) -> R<()> {
+        let endpoint = self.comp_mut().endpoint;
+        let mut queue = std::mem::take(&mut self.comp_mut().queue);
+        for q in &mut queue {
+            let line = q.mv.line;
+            let end_prog = self.from_machine(q.mv.end);
+            let new_end = self.to_machine(with_xy(&end_prog, p[0], p[1]));
+            match &mut q.kind {
+                QueuedKind::Straight { dir } => {
+                    if let Some(ep) = endpoint {
+                        let dot = dir[0] * (p[0] - ep[0]) + dir[1] * (p[1] - ep[1]);
+                        if dot < 0.0 {
+                            let what = if q.mv.kind == MoveKind::Rapid {
+                                "rapid"
+                            } else {
+                                "feed move"
+                            };
+                            return Err(self.comp_gouge(line, format!("the compensated {what} of line {line} would have to run backwards to reach this inside corner (the tool does not fit: it would gouge)")));
+                        }
+                    }
+                    q.mv.end = new_end;
+                }
+                QueuedKind::Arc {
+                    center,
+                    turn,
+                    sweep,
+                } => {
+                    let old_end = xy(&end_prog);
+                    let r1 = (old_end[0] - center[0]).hypot(old_end[1] - center[1]);
+                    let r2 = (p[0] - center[0]).hypot(p[1] - center[1]);
+                    if (r1 - r2).abs() > 0.01 {
+                        return Err(self.comp_gouge(line, format!("cutter compensation made an arc with mismatched radii on line {line} ({r1:.4}, {r2:.4})")));
+                    }
+                    let start_prog = self.from_machine(q.mv.start);
+                    let from = endpoint.unwrap_or(xy(&start_prog));
+                    let l2 = find_turn(from, *center, *turn, p);
+                    if *sweep != 0.0 && endpoint.is_some() && l2.abs() > sweep.abs() + 0.001 {
+                        return Err(self.comp_gouge(line, format!("the compensated arc of line {line} cannot reach this inside corner without gouging")));
+                    }
+                    q.mv.end = new_end;
+                    if let Some(g) = q.mv.arc.as_mut() {
+                        g.end = new_end;
+                        g.sweep = find_turn(xy(&start_prog), *center, *turn, p);
+                        g.end_radius = r2 * self.unit();
+                    }
+                }
+                // A dwell waiting between two moves happens where the first one now ends.
+                QueuedKind::Other => {
+                    q.mv.start = new_end;
+                    q.mv.end = new_end;
+                }
+            }
+        }
+        self.comp_mut().queue = queue;
+        self.dequeue()?;
+        self.set_endpoint(p);
+        Ok(())
+    }
+
+    fn comp_gouge(&self, line: u32, msg: String) -> crate::nc::Diagnostic {
+        let _ = line;
+        self.err_block(format!("cutter radius compensation: {msg}"))
+    }
+
+    fn front_arc(&self) -> Option<([f64; 2], i32, [f64; 2])> {
+        let c = self.comp.as_ref()?;
+        let q = c.queue.first()?;
+        match q.kind {
+            QueuedKind::Arc { center, turn, .. } => {
+                let end = self.from_machine(q.mv.end);
+                Some((center, turn, xy(&end)))
+            }
+            _ => None,
+        }
+    }
+
+    fn straight_move(&self, rapid: bool, from: [f64; 6], to: [f64; 6]) -> Move {
+        let kind = if rapid {
+            MoveKind::Rapid
+        } else {
+            MoveKind::Linear
+        };
+        self.base_move(kind, self.to_machine(from), self.to_machine(to))
+    }
+
+    fn arc_move(&self, from: [f64; 6], to: [f64; 6], center: [f64; 2], turn: i32) -> Move {
+        let plane = super::Plane::XY;
+        let ms = self.to_machine(from);
+        let me = self.to_machine(to);
+        let mc = self.to_machine(with_xy(&from, center[0], center[1]));
+        let c = [mc[0], mc[1], mc[2]];
+        let u = self.unit();
+        let geom = ArcGeometry {
+            start: ms,
+            end: me,
+            center: c,
+            normal: plane.normal(),
+            axes: plane.axes(),
+            sweep: find_turn(xy(&from), center, turn, xy(&to)),
+            start_radius: (from[0] - center[0]).hypot(from[1] - center[1]) * u,
+            end_radius: (to[0] - center[0]).hypot(to[1] - center[1]) * u,
+            clockwise: turn < 0,
+            turns: turn.unsigned_abs().max(1),
+        };
+        let mut m = self.base_move(MoveKind::Arc, ms, me);
+        m.center = Some(c);
+        m.normal = Some(plane.normal());
+        m.clockwise = Some(turn < 0);
+        m.arc = Some(Box::new(geom));
+        m
+    }
+
+    /// A G0/G1 move to `to` (programmed, program coordinates) with compensation on.
+    pub(super) fn comp_straight(&mut self, rapid: bool, to: [f64; 6]) -> R<()> {
+        if !rapid {
+            self.check_feed()?;
+        }
+        let c = self.comp.as_ref().expect("compensation on");
+        let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
+        let cur = self.cur;
+        let [px, py] = xy(&to);
+        let [cx, cy] = xy(&cur);
+        if first {
+            let distance = (px - cx).hypot(py - cy);
+            if distance <= radius {
+                return Err(self.err_block(format!(
+                    "cutter radius compensation: the entry move is not longer than the tool radius ({radius})"
+                )));
+            }
+            let alpha = (py - cy).atan2(px - cx)
+                + if side == Side::Left {
+                    FRAC_PI_2
+                } else {
+                    -FRAC_PI_2
+                };
+            let end = with_xy(&to, px + radius * alpha.cos(), py + radius * alpha.sin());
+            self.set_endpoint([cx, cy]);
+            let mv = self.straight_move(rapid, cur, end);
+            self.enqueue(
+                mv,
+                QueuedKind::Straight {
+                    dir: [alpha.cos(), alpha.sin()],
+                },
+            )?;
+            let c = self.comp_mut();
+            c.first = false;
+            c.prog = to;
+            self.cur = end;
+            return Ok(());
+        }
+        let [opx, opy] = xy(&op);
+        let mut end = with_xy(&to, cx, cy);
+        // Where the next queued move starts.
+        let mut from = cur;
+        if !(px == opx && py == opy) {
+            let mut theta = (cy - opy).atan2(cx - opx);
+            let mut alpha = (py - opy).atan2(px - opx);
+            let (beta, gamma) = if side == Side::Left {
+                if theta < alpha {
+                    theta += TAU;
+                }
+                (theta - alpha - FRAC_PI_2, FRAC_PI_2)
+            } else {
+                if alpha < theta {
+                    alpha += TAU;
+                }
+                (alpha - theta - FRAC_PI_2, -FRAC_PI_2)
+            };
+            end = with_xy(
+                &to,
+                px + radius * (alpha + gamma).cos(),
+                py + radius * (alpha + gamma).sin(),
+            );
+            let mid = [
+                opx + radius * (alpha + gamma).cos(),
+                opy + radius * (alpha + gamma).sin(),
+            ];
+            let front = self.front_arc();
+            let concave = !(-SMALL..=PI + SMALL).contains(&beta)
+                || (beta > PI - SMALL
+                    && front.is_some_and(|(_, turn, _)| {
+                        (side == Side::Right && turn > 0) || (side == Side::Left && turn < 0)
+                    }));
+            if !concave && beta > SMALL {
+                // Outside corner: an arc around the programmed corner (a straight for G0).
+                self.move_endpoint_and_flush([cx, cy])?;
+                let corner_end = with_xy(&with_xy(&cur, mid[0], mid[1]), mid[0], mid[1]);
+                let mut corner_end = corner_end;
+                corner_end[3..].copy_from_slice(&to[3..]);
+                let mv = if rapid {
+                    self.straight_move(true, cur, corner_end)
+                } else {
+                    let turn = if side == Side::Left { -1 } else { 1 };
+                    self.arc_move(cur, corner_end, [opx, opy], turn)
+                };
+                self.push_now(mv)?;
+                self.set_endpoint(mid);
+                from = corner_end;
+            } else if concave {
+                match front {
+                    None => {
+                        // Line to line: back along the waiting move to where the tool
+                        // touches both lines.
+                        let halfcorner = (beta + PI) / 2.0;
+                        if halfcorner == 0.0 {
+                            return Err(self.err_block(
+                                "cutter radius compensation: a zero-degree inside corner",
+                            ));
+                        }
+                        let retreat = radius / halfcorner.tan();
+                        let m = [
+                            cx + retreat * (theta + gamma).cos(),
+                            cy + retreat * (theta + gamma).sin(),
+                        ];
+                        self.move_endpoint_and_flush(m)?;
+                        from = with_xy(&cur, m[0], m[1]);
+                    }
+                    Some((center, turn, arc_end)) => {
+                        // Arc to line: along the waiting (compensated) arc.
+                        let oldrad = (center[1] - arc_end[1]).hypot(center[0] - arc_end[0]);
+                        let base_dir = (py - opy).atan2(px - opx);
+                        let theta = if turn > 0 {
+                            base_dir + FRAC_PI_2
+                        } else {
+                            base_dir - FRAC_PI_2
+                        };
+                        let phi = (center[1] - opy).atan2(center[0] - opx);
+                        let ins = inside(side, turn);
+                        let oldrad_uncomp = if ins {
+                            oldrad + radius
+                        } else {
+                            oldrad - radius
+                        };
+                        let d = oldrad_uncomp * (theta - phi).cos();
+                        let l = if ins {
+                            (d - radius) / oldrad
+                        } else {
+                            (d + radius) / oldrad
+                        };
+                        if !(-1.0..=1.0).contains(&l) {
+                            return Err(self.err_block("cutter radius compensation: arc to straight motion makes a corner the tool cannot fit in without gouging"));
+                        }
+                        let angle = match (ins, turn > 0) {
+                            (true, true) | (false, false) => -l.acos() + theta + PI,
+                            _ => l.acos() + theta + PI,
+                        };
+                        let m = [
+                            center[0] + oldrad * angle.cos(),
+                            center[1] + oldrad * angle.sin(),
+                        ];
+                        self.move_endpoint_and_flush(m)?;
+                        from = with_xy(&cur, m[0], m[1]);
+                    }
+                }
+            } else {
+                // Straight on (collinear, or tangent arc to line).
+                self.dequeue()?;
+                self.set_endpoint([cx, cy]);
+            }
+        }
+        let mv = self.straight_move(rapid, from, end);
+        self.enqueue(
+            mv,
+            QueuedKind::Straight {
+                dir: [px - opx, py - opy],
+            },
+        )?;
+        self.comp_mut().prog = to;
+        self.cur = end;
+        Ok(())
+    }
+
+    /// A G2/G3 move with compensation on (not the entry move).
+    pub(super) fn comp_arc(&mut self, w: &mut Words, cw: bool) -> R<()> {
+        self.check_feed()?;
+        let c = self.comp.as_ref().expect("compensation on");
+        let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
+        if w.has('K') {
+            return Err(self.err_word(w, 'K', "K word in a G17 arc"));
+        }
+        let target = self.comp_target(w)?;
+        let turns = match w.take('P') {
+            Some(p) if p.fract() != 0.0 || !(1.0..=super::MAX_ARC_TURNS).contains(&p) => {
+                return Err(self.err_word(
+                    w,
+                    'P',
+                    format!("arc P{p}: turns must be a whole number"),
+                ))
+            }
+            Some(p) => p as i32,
+            None => 1,
+        };
+        let turn = if cw { -turns } else { turns };
+        if first {
+            return self.comp_entry_arc(w, cw, turn, target);
+        }
+        let (ccx, ccy) = self.arc_center(w, cw, &op, &target)?;
+        let center = [ccx, ccy];
+        let cur = self.cur;
+        let [cx, cy] = xy(&cur);
+        let [opx, opy] = xy(&op);
+        let [ex, ey] = xy(&target);
+        let arc_radius = (ccx - ex).hypot(ccy - ey);
+        let mut theta = (cy - opy).atan2(cx - opx);
+        theta = if side == Side::Left {
+            theta - FRAC_PI_2
+        } else {
+            theta + FRAC_PI_2
+        };
+        let mut delta = (ccy - opy).atan2(ccx - opx);
+        let alpha = if cw {
+            delta + FRAC_PI_2
+        } else {
+            delta - FRAC_PI_2
+        };
+        let mut beta = if side == Side::Left {
+            theta - alpha
+        } else {
+            alpha - theta
+        };
+        if beta > 1.5 * PI {
+            beta -= TAU;
+        } else if beta < -FRAC_PI_2 {
+            beta += TAU;
+        }
+        let gamma = if inside(side, turn) {
+            if arc_radius <= radius {
+                return Err(self.err_block(format!(
+                    "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
+                )));
+            }
+            (ccy - ey).atan2(ccx - ex)
+        } else {
+            delta += PI;
+            (ey - ccy).atan2(ex - ccx)
+        };
+        let new_end = with_xy(
+            &target,
+            ex + radius * gamma.cos(),
+            ey + radius * gamma.sin(),
+        );
+        let sweep = find_turn([opx, opy], center, turn, [ex, ey]);
+        let mut from = cur;
+        if !(-SMALL..=PI + SMALL).contains(&beta)
+            || ((beta - PI).abs() < SMALL && !inside(side, turn))
+        {
+            let m = match self.front_arc() {
+                None => {
+                    // Line to arc.
+                    let cyy = arc_radius * (beta - FRAC_PI_2).sin();
+                    let (dist, l, a) = if inside(side, turn) {
+                        let dist = arc_radius - radius;
+                        let l = (cyy + radius) / dist;
+                        (
+                            dist,
+                            l,
+                            if turn > 0 {
+                                theta + l.asin()
+                            } else {
+                                theta - l.asin()
+                            },
+                        )
+                    } else {
+                        let dist = arc_radius + radius;
+                        let l = (cyy - radius) / dist;
+                        (
+                            dist,
+                            l,
+                            if turn > 0 {
+                                theta + PI - l.asin()
+                            } else {
+                                theta + PI + l.asin()
+                            },
+                        )
+                    };
+                    if !(-1.0..=1.0).contains(&l) {
+                        return Err(self.err_block("cutter radius compensation: the arc in this inside corner cannot be reached by the tool without gouging"));
+                    }
+                    [ccx + dist * a.cos(), ccy + dist * a.sin()]
+                }
+                Some((pc, pturn, pend)) => {
+                    // Arc to arc.
+                    let oldrad = (pc[1] - pend[1]).hypot(pc[0] - pend[0]);
+                    let newrad = if inside(side, turn) {
+                        arc_radius - radius
+                    } else {
+                        arc_radius + radius
+                    };
+                    let arc_cc = (pc[1] - ccy).hypot(pc[0] - ccx);
+                    if oldrad == 0.0 || arc_cc == 0.0 {
+                        return Err(self.err_block("cutter radius compensation: arc to arc motion with both arcs on the same centre"));
+                    }
+                    let a = (oldrad * oldrad + arc_cc * arc_cc - newrad * newrad)
+                        / (2.0 * oldrad * arc_cc);
+                    if !(-1.0..=1.0).contains(&a) {
+                        return Err(self.err_block("cutter radius compensation: arc to arc motion makes a corner the tool cannot fit in without gouging"));
+                    }
+                    let pullback = a.acos();
+                    let cc_dir = (ccy - pc[1]).atan2(ccx - pc[0]);
+                    let dir = match (inside(side, pturn), turn > 0) {
+                        (true, true) | (false, false) => cc_dir + pullback,
+                        _ => cc_dir - pullback,
+                    };
+                    [pc[0] + oldrad * dir.cos(), pc[1] + oldrad * dir.sin()]
+                }
+            };
+            self.move_endpoint_and_flush(m)?;
+            from = with_xy(&cur, m[0], m[1]);
+        } else if beta > SMALL {
+            // Outside corner: an arc around the programmed corner first.
+            let mid = [opx + radius * delta.cos(), opy + radius * delta.sin()];
+            self.dequeue()?;
+            let mut corner_end = with_xy(&cur, mid[0], mid[1]);
+            corner_end[3..].copy_from_slice(&target[3..]);
+            let mv = self.arc_move(
+                cur,
+                corner_end,
+                [opx, opy],
+                if side == Side::Left { -1 } else { 1 },
+            );
+            self.push_now(mv)?;
+            self.set_endpoint(mid);
+            from = corner_end;
+        } else {
+            self.dequeue()?;
+            self.set_endpoint([cx, cy]);
+        }
+        let mv = self.arc_move(from, new_end, center, turn);
+        self.enqueue(
+            mv,
+            QueuedKind::Arc {
+                center,
+                turn,
+                sweep,
+            },
+        )?;
+        self.comp_mut().prog = target;
+        self.cur = new_end;
+        Ok(())
+    }
+
+    /// The first move after G41/G42 as an arc: an arc through the programmed end that the
+    /// tool, where it is now, touches; the tool ends offset from the programmed end.
+    fn comp_entry_arc(&mut self, w: &mut Words, cw: bool, turn: i32, target: [f64; 6]) -> R<()> {
+        let c = self.comp.as_ref().expect("compensation on");
+        let (side, radius) = (c.side, c.radius);
+        let cur = self.cur;
+        let [cx, cy] = xy(&cur);
+        let [ex, ey] = xy(&target);
+        if (ex - cx).hypot(ey - cy) <= radius {
+            return Err(self.err_block(format!(
+                "cutter radius compensation: the entry arc's end is not farther than the tool radius ({radius}) from the start"
+            )));
+        }
+        let (ccx, ccy) = self.arc_center(w, cw, &cur, &target)?;
+        let arc_radius = (ccx - cx).hypot(ccy - cy);
+        if arc_radius <= radius && inside(side, turn) {
+            return Err(self.err_block(format!(
+                "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
+            )));
+        }
+        let gamma = if inside(side, turn) {
+            (ccy - ey).atan2(ccx - ex)
+        } else {
+            (ey - ccy).atan2(ex - ccx)
+        };
+        let (nx, ny) = (ex + radius * gamma.cos(), ey + radius * gamma.sin());
+        // The compensated arc's centre: on the line from its end towards the programmed
+        // centre, equally far from its start and its end.
+        let b_len = (cy - ny).hypot(cx - nx) / 2.0;
+        let ab_ang = (ccy - ny).atan2(ccx - nx);
+        let a_ang = (cy - ny).atan2(cx - nx) - ab_ang;
+        if a_ang.cos().abs() < 1e-4 {
+            return Err(self.err_block("cutter radius compensation: the entry arc cannot be compensated (tool radius not less than the arc radius)"));
+        }
+        let c_len = b_len / a_ang.cos();
+        let center = [nx + c_len * ab_ang.cos(), ny + c_len * ab_ang.sin()];
+        let new_end = with_xy(&target, nx, ny);
+        let sweep = find_turn([cx, cy], center, turn, [nx, ny]);
+        let mv = self.arc_move(cur, new_end, center, turn);
+        self.enqueue(
+            mv,
+            QueuedKind::Arc {
+                center,
+                turn,
+                sweep,
+            },
+        )?;
+        let c = self.comp_mut();
+        c.first = false;
+        c.prog = target;
+        self.cur = new_end;
+        Ok(())
+    }
+
+    /// The programmed end of a move with compensation on: absent and incremental words count
+    /// from the programmed position, not the compensated one.
+    pub(super) fn comp_target(&self, w: &mut Words) -> R<[f64; 6]> {
+        let c = self.comp.as_ref().expect("compensation on");
+        let base = if c.first { self.cur } else { c.prog };
+        let mut t = base;
+        for (ai, &l) in super::words::AXES.iter().enumerate() {
+            if let Some(v) = w.take(l) {
+                t[ai] = if self.modal.absolute { v } else { base[ai] + v };
+            }
+        }
+        Ok(t)
+    }
+}

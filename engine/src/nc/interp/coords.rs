@@ -1,0 +1,272 @@
+//! Coordinate systems: program <-> machine frame, work offsets (G10, G54..G59.3), G92, G28/G30
+//! home positions, G53, the tool length offset.
+
+use super::words::{Words, AXES};
+use super::{Interp, R};
+
+impl Interp<'_> {
+    // ----- frames -----
+
+    pub(super) fn g92_eff(&self) -> [f64; 6] {
+        if self.g92_applied {
+            self.g92
+        } else {
+            [0.0; 6]
+        }
+    }
+
+    /// Program coordinates -> machine frame, mm/deg.
+    pub(super) fn to_machine(&self, p: [f64; 6]) -> [f64; 6] {
+        let u = self.unit();
+        let g92 = self.g92_eff();
+        let mut m = [0.0; 6];
+        for i in 0..6 {
+            let s = if i < 3 { u } else { 1.0 };
+            m[i] = p[i] * s + self.g5x[self.modal.cs][i] + g92[i];
+        }
+        m
+    }
+
+    pub(super) fn from_machine(&self, m: [f64; 6]) -> [f64; 6] {
+        let u = self.unit();
+        let g92 = self.g92_eff();
+        let mut p = [0.0; 6];
+        for i in 0..6 {
+            let s = if i < 3 { u } else { 1.0 };
+            p[i] = (m[i] - self.g5x[self.modal.cs][i] - g92[i]) / s;
+        }
+        p
+    }
+
+    /// Change offsets keeping the tool where it physically is.
+    pub(super) fn change_offsets(&mut self, f: impl FnOnce(&mut Self)) {
+        let phys = self.to_machine(self.cur);
+        f(self);
+        self.cur = self.from_machine(phys);
+    }
+
+    pub(super) fn set_tlo(&mut self, tlo: Option<f64>) {
+        // The spindle does not move; the controlled point (tool tip) is now elsewhere.
+        let old = self.tlo.unwrap_or(0.0);
+        let new = tlo.unwrap_or(0.0);
+        self.cur[2] += (old - new) / self.unit();
+        self.tlo = tlo;
+    }
+
+    pub(super) fn exec_group0(&mut self, w: &mut Words, g: u16, i: usize) -> R<()> {
+        let u = self.unit();
+        match g {
+            100 => {
+                let l = w
+                    .take('L')
+                    .ok_or_else(|| self.err_at(self.word_pos(i), "G10 needs an L word"))?;
+                let p = w
+                    .take('P')
+                    .ok_or_else(|| self.err_at(self.word_pos(i), "G10 needs a P word"))?;
+                if matches!(l, 1.0 | 10.0 | 11.0) || (self.fanuc && matches!(l, 12.0 | 13.0)) {
+                    return self.g10_tool(w, l, p, i);
+                }
+                if l != 2.0 && l != 20.0 {
+                    return Err(self.err_at(
+                        self.word_pos(i),
+                        format!("G10 L{l} is not supported (L1/L10/L11 tool offsets, L2/L20 work offsets; Fanuc L10-L13)"),
+                    ));
+                }
+                if w.has('R') {
+                    return Err(self.err_word(
+                        w,
+                        'R',
+                        "G10 coordinate system rotation (R) is not supported",
+                    ));
+                }
+                if p.fract() != 0.0 || !(0.0..=9.0).contains(&p) {
+                    return Err(self.err_word(
+                        w,
+                        'P',
+                        format!("G10 P{p}: coordinate system must be 0..9"),
+                    ));
+                }
+                let k = if p == 0.0 {
+                    self.modal.cs
+                } else {
+                    p as usize - 1
+                };
+                let phys = self.to_machine(self.cur);
+                let g92 = self.g92_eff();
+                let mut new = self.g5x[k];
+                for (ai, &c) in AXES.iter().enumerate() {
+                    if let Some(v) = w.take(c) {
+                        let s = if ai < 3 { u } else { 1.0 };
+                        new[ai] = if l == 2.0 {
+                            v * s
+                        } else {
+                            phys[ai] - g92[ai] - v * s
+                        };
+                    }
+                }
+                self.change_offsets(|st| st.g5x[k] = new);
+            }
+            280 | 300 => {
+                let home = if g == 280 { self.g28 } else { self.g30 };
+                if w.has_axis() {
+                    let mut mid = self.cur;
+                    let mut which = [false; 6];
+                    for (ai, &c) in AXES.iter().enumerate() {
+                        if let Some(v) = w.take(c) {
+                            mid[ai] = if self.modal.absolute {
+                                v
+                            } else {
+                                self.cur[ai] + v
+                            };
+                            which[ai] = true;
+                        }
+                    }
+                    self.straight(true, mid)?;
+                    let hp = self.from_machine(home);
+                    let mut end = self.cur;
+                    for ai in 0..6 {
+                        if which[ai] {
+                            end[ai] = hp[ai];
+                        }
+                    }
+                    self.straight(true, end)?;
+                } else {
+                    // LinuxCNC still makes the (zero-length) move to the intermediate point.
+                    self.straight(true, self.cur)?;
+                    let hp = self.from_machine(home);
+                    self.straight(true, hp)?;
+                }
+            }
+            281 | 301 => {
+                let m = self.to_machine(self.cur);
+                if g == 281 {
+                    self.g28 = m;
+                } else {
+                    self.g30 = m;
+                }
+            }
+            920 => {
+                if !w.has_axis() {
+                    return Err(self.err_at(self.word_pos(i), "G92 needs at least one axis word"));
+                }
+                let phys = self.to_machine(self.cur);
+                let mut new = self.g92_eff();
+                for (ai, &c) in AXES.iter().enumerate() {
+                    if let Some(v) = w.take(c) {
+                        let s = if ai < 3 { u } else { 1.0 };
+                        new[ai] = phys[ai] - self.g5x[self.modal.cs][ai] - v * s;
+                    }
+                }
+                self.change_offsets(|st| {
+                    st.g92 = new;
+                    st.g92_applied = true;
+                });
+            }
+            921 => self.change_offsets(|st| {
+                st.g92 = [0.0; 6];
+                st.g92_applied = true;
+            }),
+            922 => self.change_offsets(|st| st.g92_applied = false),
+            923 => self.change_offsets(|st| st.g92_applied = true),
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Target of a straight or arc move in program coordinates.
+    pub(super) fn target(&self, w: &mut Words, g53: bool) -> R<[f64; 6]> {
+        let mut t = self.cur;
+        if g53 && !self.modal.absolute {
+            return Err(self.err_block("G53 in incremental mode (G91)"));
+        }
+        for (ai, &c) in AXES.iter().enumerate() {
+            if let Some(v) = w.take(c) {
+                t[ai] = if g53 {
+                    let s = if ai < 3 { self.unit() } else { 1.0 };
+                    (v * s - self.g5x[self.modal.cs][ai] - self.g92_eff()[ai]) / s
+                } else if self.modal.absolute {
+                    v
+                } else {
+                    self.cur[ai] + v
+                };
+            }
+        }
+        Ok(t)
+    }
+
+    /// G10 tool offset writes. LinuxCNC: L1 sets tool P's length (Z) and radius (R); L10 sets
+    /// the length so that the current Z becomes the given one with that tool's offset, L11 the
+    /// same in G59.3 without G92. Fanuc (offset memory C): L10/L11 length geometry/wear, L12/L13
+    /// radius geometry/wear of offset number P, value R (added in G91).
+    fn g10_tool(&mut self, w: &mut Words, l: f64, p: f64, i: usize) -> R<()> {
+        let at = self.word_pos(i);
+        if p.fract() != 0.0 || !(0.0..=u32::MAX as f64).contains(&p) {
+            return Err(self.err_word(w, 'P', format!("G10 L{l} P{p}: P is a tool/offset number")));
+        }
+        let t = p as u32;
+        let u = self.unit();
+        if self.fanuc && l >= 10.0 {
+            let Some(r) = w.take('R') else {
+                return Err(self.err_at(at, format!("G10 L{l} needs R (the offset value)")));
+            };
+            let (map, base) = match l as u32 {
+                10 => (
+                    &mut self.tool_lengths,
+                    self.opts.tool_table.get(t).map(|e| e.z_offset),
+                ),
+                11 => (&mut self.tool_length_wear, None),
+                12 => (
+                    &mut self.tool_radii,
+                    self.opts
+                        .tool_table
+                        .get(t)
+                        .and_then(|e| e.diameter)
+                        .map(|d| d / 2.0),
+                ),
+                _ => (&mut self.tool_radius_wear, None),
+            };
+            let old = map.get(&t).copied().or(base).unwrap_or(0.0);
+            let new = if self.modal.absolute {
+                r * u
+            } else {
+                old + r * u
+            };
+            map.insert(t, new);
+            return Ok(());
+        }
+        if let Some(r) = w.take('R') {
+            self.tool_radii.insert(t, r * u);
+        }
+        let Some(z) = w.take('Z') else {
+            if l == 1.0 {
+                return Ok(());
+            }
+            return Err(self.err_at(at, format!("G10 L{l} needs a Z word")));
+        };
+        let length = if l == 1.0 {
+            z * u
+        } else {
+            // Where the spindle is: the controlled point plus the active length offset.
+            let spindle = self.to_machine(self.cur)[2] + self.tlo.unwrap_or(0.0);
+            let origin = if l == 10.0 {
+                self.g5x[self.modal.cs][2] + self.g92_eff()[2]
+            } else {
+                self.g5x[8][2]
+            };
+            spindle - origin - z * u
+        };
+        self.tool_lengths.insert(t, length);
+        Ok(())
+    }
+
+    /// Tool length (mm) of offset/tool number `h`: G10 writes, else the tool table (None: in
+    /// neither), plus any Fanuc wear.
+    pub(super) fn tool_length(&self, h: u32) -> Option<f64> {
+        let geometry = self
+            .tool_lengths
+            .get(&h)
+            .copied()
+            .or_else(|| self.opts.tool_table.get(h).map(|t| t.z_offset))?;
+        Some(geometry + self.tool_length_wear.get(&h).copied().unwrap_or(0.0))
+    }
+}

@@ -1,0 +1,427 @@
+//! The interpreter: runs a [`Program`] block by block with full modal state and produces
+//! [`Move`]s in the machine frame. It follows LinuxCNC 2.9's rs274ngc interpreter (order of
+//! execution within a block, canned cycle motions, arc tolerances), which the tests compare
+//! against, plus the Fanuc differences selected by the dialect.
+
+use super::expr::Params;
+use super::program::Program;
+use super::view::ProgramView;
+use super::{
+    Diagnostic, Diagnostics, Dialect, FeedMode, InterpretOptions, Interpretation, Move, MoveKind,
+    SpindleDir,
+};
+use std::collections::HashMap;
+
+mod arcs;
+mod block;
+mod comp;
+mod control;
+mod coords;
+mod corners;
+mod cycles;
+mod macro_b;
+mod modal;
+mod params;
+mod subprograms;
+mod words;
+
+use control::{prescan, ControlMap, Frame};
+use corners::PendingCorner;
+use modal::{Modal, Motion, Plane};
+use words::{letter_index, Words};
+
+/// Executed blocks between two looks at the cancel flag: an atomic load is cheap, but not
+/// free on every block, and a few thousand blocks take well under a millisecond.
+const CANCEL_CHECK_BLOCKS: usize = 4096;
+
+const MM_PER_INCH: f64 = 25.4;
+/// LinuxCNC's retract between pecks in G73/G83, inches.
+const G83_RAPID_DELTA_INCH: f64 = 0.010;
+const MAX_CALL_DEPTH: usize = 64;
+/// Most full turns accepted in one arc (P word).
+const MAX_ARC_TURNS: f64 = 10_000.0;
+
+struct Interp<'p> {
+    prog: &'p ProgramView<'p>,
+    /// Control structure links, subroutines and Fanuc programs of `prog`.
+    control: &'p ControlMap,
+    opts: &'p InterpretOptions,
+    fanuc: bool,
+    corners_without_comma: bool,
+    /// Modal state that M70/M72 save and restore (units, distance and feed modes, plane,
+    /// retract mode, coordinate system, F, S and spindle).
+    modal: Modal,
+    motion: Option<Motion>,
+    /// Motion mode before the current block (decides whether a cycle's words are sticky).
+    motion_prev: Option<Motion>,
+    /// The last G0/G1/G2/G3 mode: a Fanuc G80 returns to it.
+    motion_01: Option<Motion>,
+    /// Current position, program coordinates in program units (as LinuxCNC keeps it).
+    cur: [f64; 6],
+    /// Work offsets, mm/deg.
+    g5x: [[f64; 6]; 9],
+    g92: [f64; 6],
+    g92_applied: bool,
+    g28: [f64; 6],
+    g30: [f64; 6],
+    /// Active tool length offset (mm), None: G49.
+    tlo: Option<f64>,
+    tool: u32,
+    selected_tool: Option<u32>,
+    /// Each T number selected, with the line of its first selection.
+    selected_tools: Vec<(u32, u32)>,
+    // Canned cycle sticky values (program units).
+    cycle_r: f64,
+    cycle_cc: f64,
+    cycle_p: f64,
+    cycle_q: f64,
+    cycle_i: f64,
+    cycle_j: f64,
+    cycle_k: f64,
+    cycle_il: Option<f64>,
+    params: Params,
+    frames: Vec<Frame>,
+    repeat_counts: HashMap<(usize, usize), f64>,
+    moves: Vec<Move>,
+    warnings: Vec<Diagnostic>,
+    pending_corner: Option<PendingCorner>,
+    /// M70 saved state.
+    saved_modal: Option<Modal>,
+    ended: bool,
+    /// Block being executed (index, line) for moves and errors.
+    cur_block: usize,
+    cur_line: u32,
+    warned_tools: std::collections::HashSet<u32>,
+    /// Tool offsets written by G10 (mm), by tool/offset number: length, Fanuc length wear,
+    /// radius, Fanuc radius wear. They take precedence over the tool table.
+    tool_lengths: HashMap<u32, f64>,
+    tool_length_wear: HashMap<u32, f64>,
+    tool_radii: HashMap<u32, f64>,
+    tool_radius_wear: HashMap<u32, f64>,
+    /// Non-standard M codes already warned about.
+    warned_m_codes: std::collections::HashSet<u32>,
+    /// Cutter radius compensation, while G41/G42 is on.
+    comp: Option<comp::Comp>,
+    /// After G40: where the tool is (machine frame), the start of the next move, which must
+    /// be a line (LinuxCNC).
+    exit_start: Option<[f64; 6]>,
+    /// Where the run loop goes after the current block, when not to the next one (M98, M99,
+    /// G65).
+    jump: Option<usize>,
+    /// The `O` line of the main program (the first one run).
+    main_program: Option<usize>,
+    /// Sequence numbers (N) of each Fanuc program searched so far, by the program's first
+    /// block: number -> block.
+    sequences: HashMap<usize, HashMap<u32, usize>>,
+    /// The last jump backwards (line, what), named when a runaway loop is stopped.
+    last_jump: Option<(u32, &'static str)>,
+    /// Storage for the next block's G and M lists.
+    spare_gs: Vec<(u16, usize)>,
+    spare_ms: Vec<(u32, usize)>,
+}
+
+type R<T> = Result<T, Diagnostic>;
+
+/// Interpret a parsed program.
+pub fn interpret_program(
+    prog: &Program,
+    options: &InterpretOptions,
+) -> Result<Interpretation, Diagnostics> {
+    interpret_view(&ProgramView::of(prog), options)
+}
+
+pub(crate) fn interpret_view(
+    prog: &ProgramView,
+    options: &InterpretOptions,
+) -> Result<Interpretation, Diagnostics> {
+    let control = prescan(prog)?;
+    let fanuc = match options.dialect {
+        Dialect::Fanuc => true,
+        Dialect::LinuxCnc => false,
+        Dialect::Auto => detect_fanuc(prog),
+    };
+    let mut it = Interp {
+        prog,
+        control: &control,
+        opts: options,
+        fanuc,
+        corners_without_comma: options.fanuc_corners_without_comma,
+        modal: Modal {
+            metric: true,
+            absolute: true,
+            arc_absolute: false,
+            feed_mode: FeedMode::PerMin,
+            plane: Plane::XY,
+            // LinuxCNC starts in G99 (rs274 retracts to R); a Fanuc control powers up in G98.
+            retract_r_plane: !fanuc,
+            cs: 0,
+            feed_word: 0.0,
+            feed_factor: 1.0,
+            speed: 0.0,
+            spindle: SpindleDir::Off,
+        },
+        motion: None,
+        motion_prev: None,
+        motion_01: None,
+        cur: [0.0; 6],
+        g5x: [[0.0; 6]; 9],
+        g92: [0.0; 6],
+        g92_applied: true,
+        g28: [0.0; 6],
+        g30: [0.0; 6],
+        tlo: None,
+        tool: 0,
+        selected_tool: None,
+        selected_tools: Vec::new(),
+        cycle_r: 0.0,
+        cycle_cc: 0.0,
+        cycle_p: 0.0,
+        cycle_q: 0.0,
+        cycle_i: 0.0,
+        cycle_j: 0.0,
+        cycle_k: 0.0,
+        cycle_il: None,
+        params: Params::new(),
+        frames: Vec::new(),
+        repeat_counts: HashMap::new(),
+        // Most programs make about one move per block.
+        moves: Vec::with_capacity(prog.len().min(options.max_moves)),
+        warnings: Vec::new(),
+        pending_corner: None,
+        saved_modal: None,
+        ended: false,
+        cur_block: 0,
+        cur_line: 1,
+        warned_tools: Default::default(),
+        warned_m_codes: Default::default(),
+        tool_lengths: HashMap::new(),
+        tool_length_wear: HashMap::new(),
+        tool_radii: HashMap::new(),
+        tool_radius_wear: HashMap::new(),
+        comp: None,
+        exit_start: None,
+        jump: None,
+        main_program: None,
+        sequences: HashMap::new(),
+        last_jump: None,
+        spare_gs: Vec::new(),
+        spare_ms: Vec::new(),
+    };
+    if fanuc {
+        it.params.init_fanuc();
+    }
+    match it.run() {
+        Ok(()) => Ok(Interpretation {
+            moves: it.moves,
+            warnings: it.warnings,
+            block_count: prog.len(),
+            selected_tools: it.selected_tools,
+        }),
+        Err(d) => Err(Diagnostics(vec![d])),
+    }
+}
+
+/// Fanuc macro B or subprogram syntax and no LinuxCNC control lines or named parameters;
+/// or, without either, Fanuc-only syntax (program number, `,R`) and no LinuxCNC-only syntax.
+fn detect_fanuc(prog: &ProgramView) -> bool {
+    let d = &prog.summary().dialect;
+    (d.fanuc_strong && !d.linuxcnc_strong) || (d.fanuc && !d.linuxcnc)
+}
+
+impl Interp<'_> {
+    fn unit(&self) -> f64 {
+        if self.modal.metric {
+            1.0
+        } else {
+            MM_PER_INCH
+        }
+    }
+
+    fn err_at(&self, byte: usize, msg: impl Into<String>) -> Diagnostic {
+        self.prog.diag(byte, msg)
+    }
+
+    /// Error at the start of the current block.
+    fn err_block(&self, msg: impl Into<String>) -> Diagnostic {
+        let b = self.prog.block(self.cur_block);
+        self.prog.diag(b.span.start, msg)
+    }
+
+    fn word_pos(&self, idx: usize) -> usize {
+        self.prog.block(self.cur_block).words[idx].span.start
+    }
+
+    fn err_word(&self, w: &Words, letter: char, msg: impl Into<String>) -> Diagnostic {
+        match w.vals[letter_index(letter)] {
+            Some((_, i)) => self.err_at(self.word_pos(i), msg),
+            None => self.err_block(msg),
+        }
+    }
+
+    // ----- moves -----
+
+    fn out_feed(&self) -> f64 {
+        match self.modal.feed_mode {
+            FeedMode::InverseTime => self.modal.feed_word,
+            _ => self.modal.feed_word * self.modal.feed_factor,
+        }
+    }
+
+    fn base_move(&self, kind: MoveKind, start: [f64; 6], end: [f64; 6]) -> Move {
+        Move {
+            block: self.cur_block,
+            line: self.cur_line,
+            kind,
+            end,
+            feed: self.out_feed(),
+            feed_mode: self.modal.feed_mode,
+            spindle: self.modal.speed,
+            tool: self.tool,
+            center: None,
+            normal: None,
+            clockwise: None,
+            tool_length: self.tlo,
+            seconds: None,
+            tool_axis: None,
+            start,
+            spindle_dir: self.modal.spindle,
+            arc: None,
+        }
+    }
+
+    /// Adds a move; with cutter compensation waiting on a move, after it (in order).
+    fn push(&mut self, m: Move) -> R<()> {
+        if let Some(c) = self.comp.as_mut() {
+            if !c.queue.is_empty() {
+                c.queue.push(comp::Queued {
+                    mv: m,
+                    kind: comp::QueuedKind::Other,
+                });
+                return Ok(());
+            }
+        }
+        self.push_now(m)
+    }
+
+    fn push_now(&mut self, m: Move) -> R<()> {
+        if self.moves.len() >= self.opts.max_moves {
+            return Err(self.err_block(format!(
+                "program makes more than {} moves (runaway loop?); interpretation stopped",
+                self.opts.max_moves
+            )));
+        }
+        self.moves.push(m);
+        Ok(())
+    }
+
+    /// The first move after G40 starts where compensation left the tool.
+    #[cold]
+    fn take_exit_start(&mut self) -> [f64; 6] {
+        self.exit_start.take().expect("checked")
+    }
+
+    /// Straight move to `to` (program coordinates).
+    fn straight(&mut self, rapid: bool, to: [f64; 6]) -> R<()> {
+        if !rapid {
+            self.check_feed()?;
+        }
+        // After G40 the tool is still where compensation left it.
+        let start = if self.exit_start.is_some() {
+            self.take_exit_start()
+        } else {
+            self.to_machine(self.cur)
+        };
+        let end = self.to_machine(to);
+        let kind = if rapid {
+            MoveKind::Rapid
+        } else {
+            MoveKind::Linear
+        };
+        let m = self.base_move(kind, start, end);
+        self.push(m)?;
+        self.cur = to;
+        Ok(())
+    }
+
+    fn check_feed(&self) -> R<()> {
+        if self.modal.feed_word <= 0.0 {
+            return Err(self.err_block(match self.modal.feed_mode {
+                FeedMode::InverseTime => {
+                    "feed move in inverse time mode (G93) without an F word".to_string()
+                }
+                _ => "feed move with zero feed rate (no F word yet)".to_string(),
+            }));
+        }
+        if self.modal.feed_mode == FeedMode::PerRev && self.modal.speed <= 0.0 {
+            return Err(self.err_block("feed per revolution (G95) with zero spindle speed"));
+        }
+        Ok(())
+    }
+
+    fn dwell(&mut self, seconds: f64) -> R<()> {
+        let p = self.to_machine(self.cur);
+        let mut m = self.base_move(MoveKind::Dwell, p, p);
+        m.seconds = Some(seconds);
+        self.push(m)
+    }
+
+    // ----- main loop -----
+
+    fn run(&mut self) -> R<()> {
+        let prog = self.prog;
+        let control = self.control;
+        let mut pc = 0usize;
+        let mut steps = 0usize;
+        while pc < prog.len() && !self.ended {
+            steps += 1;
+            let b = prog.block(pc);
+            self.cur_block = pc;
+            self.cur_line = b.line;
+            if steps.is_multiple_of(CANCEL_CHECK_BLOCKS)
+                && self.opts.cancel.as_ref().is_some_and(|c| c.is_cancelled())
+            {
+                return Err(self.err_block("interpretation cancelled"));
+            }
+            if steps > self.opts.max_blocks {
+                let last = match self.last_jump {
+                    Some((line, what)) => format!("; the last jump back was {what} on line {line}"),
+                    None => String::new(),
+                };
+                return Err(self.err_block(format!(
+                    "program executed more than {} blocks (endless loop?){last}; interpretation stopped",
+                    self.opts.max_blocks
+                )));
+            }
+            if b.after_end {
+                break;
+            }
+            if b.block_delete && self.opts.block_delete {
+                pc += 1;
+                continue;
+            }
+            if let Some(o) = &b.o_word {
+                pc = self.exec_oword(control, pc, o)?;
+                continue;
+            }
+            if let Some(m) = b.macro_line {
+                pc = self.exec_macro(pc, &b, m)?;
+                continue;
+            }
+            if !b.is_empty() {
+                self.exec_block(pc, &b)?;
+            }
+            pc = match self.jump.take() {
+                Some(to) => to,
+                None => pc + 1,
+            };
+        }
+        self.comp_finish()?;
+        if let Some(pc) = &self.pending_corner {
+            return Err(self.err_at(
+                pc.word_pos,
+                "corner rounding/chamfer at the end of the program: it needs a following G1 move",
+            ));
+        }
+        Ok(())
+    }
+}

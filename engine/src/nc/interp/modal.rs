@@ -1,0 +1,163 @@
+//! Modal state: planes, motion modes, the G/M modal groups, and the `Modal` state that
+//! M70/M72/M73 save and restore.
+
+use super::{Interp, MM_PER_INCH};
+use crate::nc::{FeedMode, SpindleDir};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Plane {
+    XY,
+    XZ,
+    YZ,
+}
+
+impl Plane {
+    /// First and second axis of the plane, then the normal axis (right-handed).
+    pub(super) fn axes(self) -> [usize; 3] {
+        match self {
+            Plane::XY => [0, 1, 2],
+            Plane::XZ => [2, 0, 1],
+            Plane::YZ => [1, 2, 0],
+        }
+    }
+    pub(super) fn normal(self) -> [f64; 3] {
+        match self {
+            Plane::XY => [0.0, 0.0, 1.0],
+            Plane::XZ => [0.0, 1.0, 0.0],
+            Plane::YZ => [1.0, 0.0, 0.0],
+        }
+    }
+    /// Arc centre offset letters for the first and second axis.
+    pub(super) fn ijk(self) -> [char; 2] {
+        match self {
+            Plane::XY => ['I', 'J'],
+            Plane::XZ => ['K', 'I'],
+            Plane::YZ => ['J', 'K'],
+        }
+    }
+    /// The offset letter not allowed in this plane.
+    pub(super) fn forbidden_ijk(self) -> char {
+        match self {
+            Plane::XY => 'K',
+            Plane::XZ => 'J',
+            Plane::YZ => 'I',
+        }
+    }
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Plane::XY => "G17",
+            Plane::XZ => "G18",
+            Plane::YZ => "G19",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Motion {
+    Rapid,
+    Linear,
+    Arc {
+        cw: bool,
+    },
+    RigidTap,
+    /// G38.2..G38.5 (the G number times ten)
+    Probe(u16),
+    /// G73, G81..G89 (the G number)
+    Cycle(u16),
+}
+
+/// Modal group of a G code (times ten), LinuxCNC numbering; None: unsupported.
+pub(super) fn g_group(code: u16) -> Option<u8> {
+    Some(match code {
+        40 | 100 | 280 | 281 | 300 | 301 | 530 | 920 | 921 | 922 | 923 => 0,
+        0 | 10 | 20 | 30 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 800 | 810 | 820 | 830
+        | 840 | 850 | 860 | 870 | 880 | 890 => 1,
+        170 | 180 | 190 => 2,
+        900 | 910 => 3,
+        901 | 911 => 4,
+        930 | 940 | 950 => 5,
+        200 | 210 => 6,
+        400 | 410 | 420 | 411 | 421 => 7,
+        430 | 431 | 490 => 8,
+        980 | 990 => 10,
+        540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => 12,
+        610 | 611 | 640 => 13,
+        _ => return None,
+    })
+}
+
+pub(super) fn g_name(code: u16) -> String {
+    if code % 10 == 0 {
+        format!("G{}", code / 10)
+    } else {
+        format!("G{}.{}", code / 10, code % 10)
+    }
+}
+
+/// Why a G code is refused, for the error message.
+pub(super) fn g_refusal(code: u16) -> &'static str {
+    match code {
+        50..=59 => "spline/NURBS motion (G5.x) is not supported",
+        70 | 80 => "lathe diameter/radius mode is not supported",
+        150 | 160 => "polar coordinates (G15/G16) are not supported",
+        330 => "spindle-synchronized motion (G33) is not supported",
+        380..=389 => "probing (G38.x) cannot be simulated without a probe model",
+        510 | 511 | 500 => "scaling (G50/G51) is not supported",
+        680 | 690 => "coordinate rotation (G68/G69) is not supported",
+        760 => "threading cycle G76 is not supported",
+        650 => "macro call (G65) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
+        660 | 661 | 670 => "modal macro calls (G66/G67) are not supported",
+        _ => "is not a supported G code",
+    }
+}
+
+/// M code modal group (LinuxCNC numbering); None: not a known M code.
+pub(super) fn m_group(code: u32) -> Option<u8> {
+    Some(match code {
+        0 | 1 | 2 | 30 | 60 | 98 | 99 => 4,
+        6 | 61 => 6,
+        3 | 4 | 5 => 7,
+        7 | 8 | 9 => 8,
+        48 | 49 | 50 | 51 | 52 | 53 => 9,
+        70 | 71 | 72 | 73 => 5,
+        _ => return None,
+    })
+}
+
+/// Modal state saved by M70/M73 and restored by M72 (LinuxCNC).
+#[derive(Clone, Debug)]
+pub(super) struct Modal {
+    pub(super) metric: bool,
+    pub(super) absolute: bool,
+    pub(super) arc_absolute: bool,
+    pub(super) feed_mode: FeedMode,
+    pub(super) plane: Plane,
+    pub(super) retract_r_plane: bool,
+    pub(super) cs: usize,
+    pub(super) feed_word: f64,
+    pub(super) feed_factor: f64,
+    pub(super) speed: f64,
+    pub(super) spindle: SpindleDir,
+}
+
+impl Interp<'_> {
+    /// Back to a saved modal state (M72, or the return of an M73 subroutine): units convert
+    /// the current position, a coordinate system change keeps the tool where it is.
+    pub(super) fn restore_modal(&mut self, m: &Modal) {
+        if self.modal.metric != m.metric {
+            let f = if m.metric {
+                MM_PER_INCH
+            } else {
+                1.0 / MM_PER_INCH
+            };
+            for i in 0..3 {
+                self.cur[i] *= f;
+            }
+            self.modal.metric = m.metric;
+        }
+        if self.modal.cs != m.cs {
+            self.change_offsets(|s| s.modal.cs = m.cs);
+        }
+        self.modal = m.clone();
+    }
+}

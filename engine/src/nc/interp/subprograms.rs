@@ -1,0 +1,191 @@
+//! Fanuc subprograms: several `O` programs in one file, `M98 P.. L..` calls, `M99` returns,
+//! the sequence (N) search that GOTO and `M99 P` use.
+//!
+//! Rules (Fanuc 0i/30i manuals):
+//! * `M98 P1234 L3` runs O1234 three times. Without L, a P of five to eight digits whose
+//!   number is not a program in the file is the older form: the digits before the last four
+//!   are the repeat count (`M98 P31234` = O1234 three times).
+//! * `M99` returns to the block after the call; `M99 Pn` to block Nn of the caller.
+//! * `M99` in the main program restarts it on a real control (an endless loop, stopped by the
+//!   operator or a counter); here it ends the program, with a warning.
+//! * The main program is the first one run; reaching the `O` line of another program ends it
+//!   (with a warning); a subprogram that runs into another program's `O` line has no M99.
+//! * A call to a program that is not in the file is an error naming it.
+
+use super::control::{FanucCall, Frame};
+use super::words::Words;
+use super::{Interp, MAX_CALL_DEPTH, R};
+use crate::nc::expr::is_vacant;
+use crate::nc::program::{OName, OWord};
+use std::collections::HashMap;
+
+impl Interp<'_> {
+    /// A program number from a P value (whole, 1..99999999).
+    pub(super) fn program_number(&self, p: f64, at: usize, what: &str) -> R<u32> {
+        if is_vacant(p) || p.fract() != 0.0 || !(0.0..=99_999_999.0).contains(&p) {
+            return Err(self.err_at(
+                at,
+                format!("{what} P{p}: a program number is a whole number 0..99999999"),
+            ));
+        }
+        Ok(p as u32)
+    }
+
+    /// The first block of program `number`'s body. The one place a program library (other
+    /// uploaded programs, a folder) would be searched; today only this file is.
+    pub(super) fn resolve_program(&self, number: u32, at: usize, what: &str) -> R<usize> {
+        match self.control.programs.get(&number) {
+            Some(&start) => Ok(start + 1),
+            None => Err(self.err_at(
+                at,
+                format!("{what}: program O{number} is not in this file (calls to other files are not supported yet)"),
+            )),
+        }
+    }
+
+    /// The blocks of the Fanuc program containing block `pc`: from its `O` line (or the start
+    /// of the file) to the next `O` line.
+    fn program_range(&self, pc: usize) -> (usize, usize) {
+        let starts = &self.control.program_starts;
+        let k = starts.partition_point(|&s| s <= pc);
+        let start = if k == 0 { 0 } else { starts[k - 1] };
+        let end = starts.get(k).copied().unwrap_or(self.prog.len());
+        (start, end)
+    }
+
+    /// The block numbered `Nn` in the program containing `pc` (the first such block).
+    pub(super) fn find_sequence(&mut self, pc: usize, n: u32) -> Option<usize> {
+        let (start, end) = self.program_range(pc);
+        let prog = self.prog;
+        let map = self.sequences.entry(start).or_insert_with(|| {
+            let mut m = HashMap::new();
+            for i in start..end {
+                if let Some(n) = prog.sequence_number(i) {
+                    m.entry(n).or_insert(i);
+                }
+            }
+            m
+        });
+        map.get(&n).copied()
+    }
+
+    /// The run reaches an `O1234` line.
+    pub(super) fn reach_program_start(&mut self, pc: usize, o: &OWord) -> R<usize> {
+        if self.main_program.is_none() && self.frames.is_empty() {
+            self.main_program = Some(pc);
+            return Ok(pc + 1);
+        }
+        if let Some(f) = self.frames.last().filter(|f| f.fanuc.is_some()) {
+            return Err(self.err_at(
+                o.span.start,
+                format!(
+                    "program O{} (called on line {}) runs into {} without M99",
+                    f.sub.number(),
+                    self.prog.block(f.return_pc).line,
+                    o.name.to_string().to_uppercase()
+                ),
+            ));
+        }
+        if self.frames.is_empty() {
+            self.warnings.push(self.err_at(
+                o.span.start,
+                format!(
+                    "the main program ends where {} starts (no M30/M02 before it)",
+                    o.name.to_string().to_uppercase()
+                ),
+            ));
+            self.ended = true;
+        }
+        Ok(pc + 1)
+    }
+
+    /// `M98 P.. L..`: call a subprogram after the block's motion.
+    pub(super) fn call_subprogram(&mut self, w: &mut Words, m98: usize) -> R<()> {
+        let at = self.word_pos(m98);
+        let Some(p) = w.take('P') else {
+            return Err(self.err_at(at, "M98 needs P (the subprogram number)"));
+        };
+        let l = w.take('L');
+        let mut number = self.program_number(p, at, "M98")?;
+        let mut repeats = match l {
+            Some(l) if l.fract() != 0.0 || !(0.0..=9999.0).contains(&l) => {
+                return Err(self.err_word(
+                    w,
+                    'L',
+                    format!("M98 L{l}: the repeat count must be 0..9999"),
+                ))
+            }
+            Some(l) => l as u32,
+            None => 1,
+        };
+        if l.is_none() && number > 9999 && !self.control.programs.contains_key(&number) {
+            repeats = number / 10_000;
+            number %= 10_000;
+        }
+        let body = self.resolve_program(number, at, &format!("M98 P{p}"))?;
+        if repeats == 0 {
+            return Ok(());
+        }
+        if self.frames.len() >= MAX_CALL_DEPTH {
+            return Err(self.err_at(at, format!("calls nested deeper than {MAX_CALL_DEPTH}")));
+        }
+        self.frames.push(Frame {
+            return_pc: self.cur_block,
+            saved: Vec::new(),
+            sub: OName::Number(number),
+            auto_restore: None,
+            fanuc: Some(FanucCall {
+                body,
+                repeats_left: repeats - 1,
+                locals: None,
+            }),
+        });
+        self.jump = Some(body);
+        Ok(())
+    }
+
+    /// `M99` (or `M99 Pn`): end of a subprogram run: again if repeats are left, else back to
+    /// the caller.
+    pub(super) fn return_subprogram(&mut self, w: &mut Words, m99: usize) -> R<()> {
+        let at = self.word_pos(m99);
+        let p = w.take('P');
+        let Some(frame) = self.frames.last_mut() else {
+            self.warnings.push(self.err_at(
+                at,
+                "M99 in the main program: a Fanuc control would restart it from the top (an endless loop); simulated once, as the program end",
+            ));
+            self.ended = true;
+            return Ok(());
+        };
+        let Some(call) = frame.fanuc.as_mut() else {
+            let name = frame.sub.clone();
+            return Err(self.err_at(
+                at,
+                format!("M99 inside subroutine {name} (an o-word subroutine ends with endsub)"),
+            ));
+        };
+        if call.repeats_left > 0 {
+            call.repeats_left -= 1;
+            self.jump = Some(call.body);
+            self.last_jump = Some((self.cur_line, "M99 (repeated subprogram)"));
+            return Ok(());
+        }
+        let frame = self.frames.pop().expect("checked");
+        if let Some(locals) = frame.fanuc.and_then(|c| c.locals) {
+            self.params.numbered[1..=locals.len()].copy_from_slice(&locals);
+        }
+        self.jump = Some(match p {
+            None => frame.return_pc + 1,
+            Some(p) => {
+                let n = self.program_number(p, at, "M99")?;
+                self.find_sequence(frame.return_pc, n).ok_or_else(|| {
+                    self.err_at(
+                        at,
+                        format!("M99 P{n}: no block N{n} in the calling program"),
+                    )
+                })?
+            }
+        });
+        Ok(())
+    }
+}

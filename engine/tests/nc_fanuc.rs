@@ -1,0 +1,427 @@
+//! Fanuc custom macro B and subprograms: hand-computed end points (the semantics of the Fanuc
+//! 0i/30i operator's manuals; LinuxCNC does not run these), errors with line, column and the
+//! feature, the dialect rules, runaway guards.
+
+use millsim_engine::nc::{interpret, Dialect, InterpretOptions, Interpretation, MoveKind, Program};
+
+fn fanuc() -> InterpretOptions {
+    InterpretOptions {
+        dialect: Dialect::Fanuc,
+        ..InterpretOptions::default()
+    }
+}
+
+fn run(src: &str) -> Interpretation {
+    interpret(src, &InterpretOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn run_with(src: &str, opts: &InterpretOptions) -> Interpretation {
+    interpret(src, opts).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The first error: (line, col, message).
+fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
+    let e = interpret(src, opts).expect_err("should fail");
+    let d = &e.0[0];
+    (d.line, d.col, d.message.clone())
+}
+
+/// X Y Z of every motion (tool changes and dwells left out).
+fn xyz(i: &Interpretation) -> Vec<[f64; 3]> {
+    i.moves
+        .iter()
+        .filter(|m| !matches!(m.kind, MoveKind::ToolChange | MoveKind::Dwell))
+        .map(|m| {
+            let r = |v: f64| (v * 1e9).round() / 1e9;
+            [r(m.end[0]), r(m.end[1]), r(m.end[2])]
+        })
+        .collect()
+}
+
+#[test]
+fn arithmetic_without_brackets_uses_fanuc_precedence() {
+    // * / AND MOD before + - OR XOR, left to right.
+    let src = "O0001\n#2=3\n#3=4\n#1=#2*#3+1\n#4=1+#2*#3\n#5=10-4-3\n#6=12/2/3\n#7=2+3 MOD 2\n#3901=#3901-1\n\
+               #8=[1+2]*3\n#9=-#2+1\nG0 X#1 Y#4 Z#5\nG0 X#6 Y#7 Z#3901\nG0 X#8 Y#9\nM30\n";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![[13.0, 13.0, 3.0], [2.0, 3.0, -1.0], [9.0, -2.0, -1.0]]
+    );
+    // Round trip: the text is kept byte for byte.
+    assert_eq!(Program::parse(src).unwrap().to_string(), src);
+    // An assignment followed by words still ends at the first word.
+    let i = run_with("#1=2*3 G0 X#1\nG0 X#1\n", &fanuc());
+    assert_eq!(xyz(&i), vec![[0.0, 0.0, 0.0], [6.0, 0.0, 0.0]]);
+    // LinuxCNC keeps its rule: brackets needed.
+    let l = InterpretOptions {
+        dialect: Dialect::LinuxCnc,
+        ..InterpretOptions::default()
+    };
+    let (line, col, msg) = fail("#1=#2+1\n", &l);
+    assert_eq!((line, col), (1, 1));
+    assert!(msg.contains("without brackets is Fanuc macro B"), "{msg}");
+}
+
+#[test]
+fn logical_operators_follow_each_dialect() {
+    // Fanuc: AND/OR/XOR work bit by bit and rank with * and + ; LinuxCNC: logical, last.
+    let src = "G0 X[6 AND 3] Y[4 OR 1] Z[6 XOR 3]\nG0 X[2 + 1 AND 1] Y[1 + 2 OR 4] Z[[1 GT 0] AND [2 GT 1]]\n";
+    let f = run_with(src, &fanuc());
+    assert_eq!(xyz(&f), vec![[2.0, 5.0, 5.0], [3.0, 7.0, 1.0]]);
+    let l = run_with(
+        src,
+        &InterpretOptions {
+            dialect: Dialect::LinuxCnc,
+            ..InterpretOptions::default()
+        },
+    );
+    assert_eq!(xyz(&l), vec![[1.0, 1.0, 0.0], [1.0, 1.0, 1.0]]);
+}
+
+#[test]
+fn if_goto_if_then_and_goto_with_sequence_search() {
+    let src = "\
+O1000
+#1=0
+N10 #1=#1+1
+G91 G1 X1. F100
+IF [#1 LT 3] GOTO 10
+G90
+IF [#1 EQ 3] THEN #2=7.5
+IF [#1 NE 3] THEN #2=-1
+G0 Y#2
+GOTO 20
+G0 Z99. (skipped)
+N20 G0 Z-1.
+M30
+";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+            [3.0, 7.5, 0.0],
+            [3.0, 7.5, -1.0]
+        ]
+    );
+    // The moves keep the line that made them, inside loops too.
+    let lines: Vec<u32> = i.moves.iter().map(|m| m.line).collect();
+    assert_eq!(lines, vec![4, 4, 4, 9, 12]);
+    // GOTO to a number that is not there names it.
+    let (line, col, msg) = fail("O1\nGOTO 55\nM30\n", &fanuc());
+    assert_eq!((line, col), (2, 1));
+    assert!(msg.contains("GOTO 55") && msg.contains("N55"), "{msg}");
+    // GOTO with a computed target, and blanks and lower case.
+    let i = run_with("O1\n#5=30\ngoto #5\nG0 X5\nN30 G0 X3\nM30\n", &fanuc());
+    assert_eq!(xyz(&i), vec![[3.0, 0.0, 0.0]]);
+}
+
+#[test]
+fn while_do_end_loops_nest() {
+    // A 3 x 2 grid of points, row by row.
+    let src = "\
+O2000
+#1=0
+WHILE [#1 LT 3] DO1
+  #2=0
+  WHILE [#2 LT 2] DO2
+    G0 X[#1*10] Y[#2*5]
+    #2=#2+1
+  END2
+  #1=#1+1
+END1
+G0 Z50
+M30
+";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, 0.0, 0.0],
+            [0.0, 5.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [10.0, 5.0, 0.0],
+            [20.0, 0.0, 0.0],
+            [20.0, 5.0, 0.0],
+            [20.0, 5.0, 50.0]
+        ]
+    );
+    // DO without WHILE loops until a GOTO leaves it.
+    let i = run_with(
+        "O1\n#1=0\nDO1\n#1=#1+2\nIF [#1 GE 6] GOTO 9\nEND1\nN9 G0 X#1\nM30\n",
+        &fanuc(),
+    );
+    assert_eq!(xyz(&i), vec![[6.0, 0.0, 0.0]]);
+    // Crossing loops and unmatched ends are refused at their line.
+    let (line, _, msg) = fail("O1\nWHILE [1] DO1\nWHILE [1] DO2\nEND1\nEND2\n", &fanuc());
+    assert_eq!(line, 4);
+    assert!(msg.contains("not cross"), "{msg}");
+    let (line, col, msg) = fail("O1\nG0 X1\n  END3\n", &fanuc());
+    assert_eq!((line, col), (3, 3));
+    assert!(msg.contains("END3 without a matching DO3"), "{msg}");
+    let (line, _, msg) = fail("O1\nWHILE [1] DO1\nG0 X1\n", &fanuc());
+    assert_eq!(line, 2);
+    assert!(msg.contains("DO1 is never closed"), "{msg}");
+}
+
+#[test]
+fn vacant_variables_and_system_variables() {
+    // #0 and unset locals are vacant: EQ tells vacant from 0, arithmetic reads it as 0, and a
+    // word whose value is vacant is left out.
+    let src = "\
+O3000
+IF [#1 EQ #0] THEN #2=1
+IF [#1 EQ 0] THEN #3=1
+#4=#1+5
+G0 X10 Y#1
+G0 X[#2*2] Y[#3+1] Z#4
+G91 G0 X1
+#5=#5003
+#6=#4003
+G90 G0 X#5 Y#6
+M30
+";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [10.0, 0.0, 0.0],
+            [2.0, 1.0, 5.0],
+            [3.0, 1.0, 5.0],
+            [5.0, 91.0, 5.0]
+        ]
+    );
+    // #3000 stops with the alarm message; #0 cannot be set.
+    let (line, col, msg) = fail("O1\nG0 X1\n#3000=12 (TOOL BROKEN)\n", &fanuc());
+    assert_eq!((line, col), (3, 1));
+    assert!(msg.contains("macro alarm #3000=12 (TOOL BROKEN)"), "{msg}");
+    assert!(fail("O1\n#0=1\n", &fanuc())
+        .2
+        .contains("#0 is always vacant"));
+}
+
+#[test]
+fn subprograms_m98_m99_with_repeats() {
+    // The main program calls O100 (an incremental square side) three times with L3 and once
+    // more with the old P form (P1 0100 = once O100... written P10100).
+    let src = "\
+%
+O0001 (MAIN)
+G90 G0 X0 Y0 Z0
+M98 P100 L3
+M98 P20100
+G90 G0 Z10
+M30
+O100 (SUB)
+G91 G1 X5. F200
+M99
+%
+";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, 0.0, 0.0],
+            [5.0, 0.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [15.0, 0.0, 0.0],
+            [20.0, 0.0, 0.0],
+            [25.0, 0.0, 0.0],
+            [25.0, 0.0, 10.0]
+        ]
+    );
+    // The subprogram's moves keep their own line.
+    assert_eq!(i.moves[1].line, 9);
+    assert_eq!(i.moves[1].block, 8);
+    // Nested calls, and M99 P returning to a sequence number of the caller.
+    let src = "\
+O1
+M98 P2
+G0 Y1
+N50 G0 Y2
+M30
+O2
+M98 P3
+G0 X2
+M99 P50
+O3
+G0 X1
+M99
+";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0]]
+    );
+    // A call to a program that is not in the file names it.
+    let (line, col, msg) = fail("O1\nG0 X1\nM98 P1234\nM30\n", &fanuc());
+    assert_eq!((line, col), (3, 1));
+    assert!(msg.contains("O1234 is not in this file"), "{msg}");
+    // M99 in the main program: run once, end, warn.
+    let i = run("O1\nG0 X1\nM99\nG0 X2\n");
+    assert_eq!(xyz(&i), vec![[1.0, 0.0, 0.0]]);
+    assert!(i
+        .warnings
+        .iter()
+        .any(|w| w.message.contains("M99 in the main program")));
+    // The main program without M30 ends where the next program starts.
+    let i = run("O1\nG0 X1\nO2\nG0 X2\nM99\n");
+    assert_eq!(xyz(&i), vec![[1.0, 0.0, 0.0]]);
+    assert!(
+        i.warnings[0].message.contains("ends where O2 starts"),
+        "{:?}",
+        i.warnings
+    );
+    // A subprogram without M99 runs into the next program.
+    let (line, _, msg) = fail("O1\nM98 P2\nM30\nO2\nG0 X1\nO3\nM99\n", &fanuc());
+    assert_eq!(line, 6);
+    assert!(
+        msg.contains("O2 (called on line 2) runs into O3 without M99"),
+        "{msg}"
+    );
+    // M98 is Fanuc: refused with dialect linuxcnc.
+    let l = InterpretOptions {
+        dialect: Dialect::LinuxCnc,
+        ..InterpretOptions::default()
+    };
+    assert!(fail("M98 P100\n", &l)
+        .2
+        .contains("not valid with dialect linuxcnc"));
+}
+
+#[test]
+fn g65_macro_call_with_arguments() {
+    // A bolt-hole macro: X Y centre (#24 #25), R radius (#18), H holes (#11), Z depth (#26).
+    let src = "\
+O0001
+G65 P9100 X10. Y20. R5. H4. Z-2.
+G0 Z50.
+M30
+O9100
+#1=0
+WHILE [#1 LT #11] DO1
+  #2=#24+#18*COS[#1*360/#11]
+  #3=#25+#18*SIN[#1*360/#11]
+  G0 X#2 Y#3
+  G1 Z#26 F100
+  G0 Z2.
+  #1=#1+1
+END1
+M99
+";
+    let i = run(src);
+    let p = xyz(&i);
+    let expect_xy = [(15.0, 20.0), (10.0, 25.0), (5.0, 20.0), (10.0, 15.0)];
+    assert_eq!(p.len(), 13);
+    for (k, (x, y)) in expect_xy.iter().enumerate() {
+        assert!(
+            (p[3 * k][0] - x).abs() < 1e-9 && (p[3 * k][1] - y).abs() < 1e-9,
+            "{p:?}"
+        );
+        assert_eq!(p[3 * k + 1][2], -2.0);
+    }
+    assert_eq!(p[12], [10.0, 15.0, 50.0]);
+    // The caller's locals come back after the call; arguments not given are vacant.
+    let src = "O1\n#1=7\nG65 P2 A3\nG0 X#1\nM30\nO2\nIF [#2 EQ #0] THEN #100=#1*2\nM99\n";
+    let i = run(src);
+    assert_eq!(xyz(&i), vec![[7.0, 0.0, 0.0]]);
+    let i = run("O1\n#1=7\nG65 P2 A3\nG0 X#100\nM30\nO2\nIF [#2 EQ #0] THEN #100=#1*2\nM99\n");
+    assert_eq!(xyz(&i), vec![[6.0, 0.0, 0.0]]);
+    // Addresses that are not arguments are refused at the word.
+    let (line, col, msg) = fail("O1\nG65 P2 A1 G1\nM30\nO2\nM99\n", &fanuc());
+    assert_eq!((line, col), (2, 11));
+    assert!(msg.contains("G cannot be an argument"), "{msg}");
+    // G65 is Fanuc only.
+    let l = InterpretOptions {
+        dialect: Dialect::LinuxCnc,
+        ..InterpretOptions::default()
+    };
+    assert!(fail("G65 P2 A1\n", &l).2.contains("G65"));
+}
+
+#[test]
+fn external_output_warns_without_motion() {
+    let i = run("O1\nPOPEN\nDPRNT[X#5001[53]*Y#5002[53]]\nPCLOS\nG0 X1\nM30\n");
+    assert_eq!(xyz(&i), vec![[1.0, 0.0, 0.0]]);
+    let w: Vec<(u32, &str)> = i
+        .warnings
+        .iter()
+        .map(|w| (w.line, w.message.as_str()))
+        .collect();
+    assert_eq!(w.len(), 3);
+    assert!(w[1].0 == 3 && w[1].1.contains("DPRNT"), "{w:?}");
+}
+
+#[test]
+fn dialect_auto_picks_fanuc_for_macro_programs() {
+    // Macro statements, M98 and G65 are Fanuc evidence even with #-assignments (which alone
+    // count for LinuxCNC): G4 P is then in milliseconds.
+    for src in [
+        "O1\n#1=5\nIF [#1 GT 2] GOTO 5\nN5 G4 P500\nM30\n",
+        "O1\n#1=5\nM98 P2\nG4 P500\nM30\nO2\nM99\n",
+        "#1=2*3\nG4 P500\n",
+    ] {
+        let i = run(src);
+        let d = i.moves.iter().find(|m| m.kind == MoveKind::Dwell).unwrap();
+        assert_eq!(d.seconds, Some(0.5), "{src}");
+    }
+    // LinuxCNC-only syntax (o-word control, named parameters) keeps LinuxCNC rules: the macro
+    // statement is then refused, naming the feature.
+    let src = "#<a>=1\nIF [#<a> GT 0] GOTO 5\nN5 G0 X1\n";
+    let (line, col, msg) = fail(src, &InterpretOptions::default());
+    assert_eq!((line, col), (2, 1));
+    assert!(msg.contains("Fanuc macro B statement"), "{msg}");
+}
+
+#[test]
+fn runaway_macro_loops_stop_naming_the_loop() {
+    let o = InterpretOptions {
+        max_blocks: 10_000,
+        ..fanuc()
+    };
+    let (_, _, msg) = fail("O1\nWHILE [1 EQ 1] DO1\n#1=#1+1\nEND1\n", &o);
+    assert!(
+        msg.contains("more than 10000 blocks") && msg.contains("WHILE/DO loop's END on line 4"),
+        "{msg}"
+    );
+    let (_, _, msg) = fail("O1\nN1 #1=1\nGOTO 1\n", &o);
+    assert!(msg.contains("GOTO on line 3"), "{msg}");
+    let (_, _, msg) = fail("O1\nM98 P2\nM30\nO2\nM98 P2\nM99\n", &o);
+    assert!(msg.contains("nested deeper"), "{msg}");
+    // Cancel stops an endless GOTO loop too.
+    let flag = millsim_engine::job::CancelFlag::default();
+    flag.cancel();
+    let c = InterpretOptions {
+        cancel: Some(flag),
+        ..fanuc()
+    };
+    assert!(fail("O1\nN1 G0 X1\nGOTO 1\n", &c).2.contains("cancelled"));
+}
+
+#[test]
+fn macro_syntax_errors_name_line_column_and_feature() {
+    let cases: Vec<(&str, (u32, u32), &str)> = vec![
+        (
+            "O1\nIF [#1 GT 1] G0 X1\n",
+            (2, 14),
+            "followed by GOTO n or THEN",
+        ),
+        ("O1\nWHILE [1] D1\n", (2, 11), "followed by DO1"),
+        ("O1\nIF #1 GOTO 3\n", (2, 4), "IF needs a [condition]"),
+        ("O1\nDPRNT[X#1\n", (2, 6), "DPRNT[ is not closed"),
+        (
+            "O1\nWHILE [1] DO0\nEND0\n",
+            (2, 13),
+            "loop number must be 1..99",
+        ),
+    ];
+    for (src, pos, text) in cases {
+        let e = Program::parse(src).expect_err(src);
+        let d = &e.0[0];
+        assert_eq!((d.line, d.col), pos, "{src:?}: {d}");
+        assert!(d.message.contains(text), "{src:?}: {d}");
+    }
+}

@@ -1,0 +1,170 @@
+//! Small things real posts emit: `:1234` program numbers, Fanuc G80 keeping the G0/G1 mode,
+//! G38.x probing as a move to the end point, non-standard M codes as warnings, G10 tool
+//! offset writes. Hand-computed end points.
+
+use millsim_engine::nc::{
+    interpret, parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
+};
+
+fn run_with(src: &str, opts: &InterpretOptions) -> Interpretation {
+    interpret(src, opts).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn run(src: &str) -> Interpretation {
+    run_with(src, &InterpretOptions::default())
+}
+
+fn dialect(d: Dialect) -> InterpretOptions {
+    InterpretOptions {
+        dialect: d,
+        ..InterpretOptions::default()
+    }
+}
+
+fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
+    let e = interpret(src, opts).expect_err("should fail");
+    let d = &e.0[0];
+    (d.line, d.col, d.message.clone())
+}
+
+/// (kind, X Y Z) of every move.
+fn path(i: &Interpretation) -> Vec<(MoveKind, [f64; 3])> {
+    i.moves
+        .iter()
+        .map(|m| (m.kind, [m.end[0], m.end[1], m.end[2]]))
+        .collect()
+}
+
+#[test]
+fn colon_program_numbers_are_fanuc_program_numbers() {
+    let src = "%\n:1234 (ISO)\nG4 P250\nG0 X1\nM30\n%\n";
+    assert_eq!(Program::parse(src).unwrap().to_string(), src);
+    let i = run(src);
+    assert_eq!(i.moves[0].seconds, Some(0.25), "auto picks Fanuc: P in ms");
+    let (line, col, msg) = fail(src, &dialect(Dialect::LinuxCnc));
+    assert_eq!((line, col), (2, 1));
+    assert!(msg.contains("Fanuc program number"), "{msg}");
+    let e = Program::parse(":12 sub\n").unwrap_err();
+    assert!(e.0[0].message.contains("takes no name or keyword"), "{e}");
+}
+
+#[test]
+fn fanuc_g80_returns_to_the_motion_mode_before_the_cycle() {
+    use MoveKind::{Linear, Rapid};
+    let src = "O1\nG90 G0 X0 Y0 Z10\nG81 X5 Y5 Z-2 R2 F100\nG80\nX20 Y20\nG1 X30 F50\nG81 X1 Y1 Z-1 R1\nG80 X40\nM30\n";
+    let i = run(src);
+    // Fanuc starts in G98: the cycles retract to the initial level Z10.
+    assert_eq!(
+        path(&i),
+        vec![
+            (Rapid, [0.0, 0.0, 10.0]),
+            (Rapid, [5.0, 5.0, 10.0]),
+            (Rapid, [5.0, 5.0, 2.0]),
+            (Linear, [5.0, 5.0, -2.0]),
+            (Rapid, [5.0, 5.0, 10.0]),
+            (Rapid, [20.0, 20.0, 10.0]),
+            (Linear, [30.0, 20.0, 10.0]),
+            (Rapid, [1.0, 1.0, 10.0]),
+            (Rapid, [1.0, 1.0, 1.0]),
+            (Linear, [1.0, 1.0, -1.0]),
+            (Rapid, [1.0, 1.0, 10.0]),
+            (Linear, [40.0, 1.0, 10.0]),
+        ]
+    );
+    // LinuxCNC: G80 cancels the motion mode.
+    let (line, _, msg) = fail(
+        "G0 X0 Y0 Z10\nG81 X5 Y5 Z-2 R2 F100\nG80\nX20 Y20\n",
+        &dialect(Dialect::LinuxCnc),
+    );
+    assert_eq!(line, 4);
+    assert!(msg.contains("no motion mode"), "{msg}");
+}
+
+#[test]
+fn probing_moves_to_the_programmed_end_point_with_a_warning() {
+    let i = run("G0 X1 Z10\nG38.2 Z-5 F100\nG38.3 X4\nG0 Z10\n");
+    assert_eq!(
+        path(&i),
+        vec![
+            (MoveKind::Rapid, [1.0, 0.0, 10.0]),
+            (MoveKind::Linear, [1.0, 0.0, -5.0]),
+            (MoveKind::Linear, [4.0, 0.0, -5.0]),
+            (MoveKind::Rapid, [4.0, 0.0, 10.0]),
+        ]
+    );
+    assert_eq!(i.moves[1].feed, 100.0);
+    let w: Vec<(u32, bool)> = i
+        .warnings
+        .iter()
+        .map(|w| (w.line, w.message.contains("no probe contact")))
+        .collect();
+    assert_eq!(w, vec![(2, true), (3, true)]);
+    let (line, _, msg) = fail("G0 Z10\nG38.2 Z10.1 F100\n", &InterpretOptions::default());
+    assert_eq!(line, 2);
+    assert!(msg.contains("too close"), "{msg}");
+}
+
+#[test]
+fn non_standard_m_codes_warn_once_unless_strict() {
+    let src = "M8\nM123\nG0 X1\nM123\nM19 M8\nM66 P1 L3 Q5\n";
+    let i = run(src);
+    assert_eq!(path(&i), vec![(MoveKind::Rapid, [1.0, 0.0, 0.0])]);
+    let w: Vec<(u32, u32)> = i.warnings.iter().map(|w| (w.line, w.col)).collect();
+    assert_eq!(w, vec![(2, 1), (5, 1), (6, 1)]);
+    assert!(i.warnings[0]
+        .message
+        .contains("M123 is not a standard M code"));
+    let strict = InterpretOptions {
+        strict_m_codes: true,
+        ..InterpretOptions::default()
+    };
+    let (line, col, msg) = fail(src, &strict);
+    assert_eq!((line, col), (2, 1));
+    assert!(msg.contains("M123"), "{msg}");
+    // Listed codes pass silently.
+    let quiet = InterpretOptions {
+        passthrough_m_codes: vec![123, 19, 66],
+        ..InterpretOptions::default()
+    };
+    assert!(run_with(src, &quiet).warnings.is_empty());
+}
+
+#[test]
+fn g10_tool_offset_writes() {
+    let opts = InterpretOptions {
+        tool_table: parse_tool_table("T1 P1 Z+10.0 D6\n").unwrap(),
+        ..dialect(Dialect::LinuxCnc)
+    };
+    // L1: the table entry's length; G43 uses it.
+    let i = run_with("G10 L1 P1 Z25 R3\nG43 H1\nG0 Z0\n", &opts);
+    assert_eq!(i.moves[0].tool_length, Some(25.0));
+    // L10: the length that makes the current Z (spindle at 30 with no offset) read 5.
+    let i = run_with("T1 M6\nG0 Z30\nG10 L10 P1 Z5\nG43 H1\nG0 X#5423\n", &opts);
+    let m = i.moves.last().unwrap();
+    assert_eq!((m.tool_length, m.end[0], m.end[2]), (Some(25.0), 5.0, 5.0));
+    // L11: relative to G59.3 (offset Z2 there), G54's offset not used.
+    let i = run_with(
+        "G10 L2 P9 Z2\nG10 L2 P1 Z7\nG0 Z30\nG10 L11 P1 Z5\nG43 H1\nG0 X1\n",
+        &opts,
+    );
+    // Spindle at machine Z 37; 37 - 2 - 5 = 30.
+    assert_eq!(i.moves.last().unwrap().tool_length, Some(30.0));
+    // In inch, Z is in inches.
+    let i = run_with("G20\nG10 L1 P1 Z1\nG43 H1\nG0 X0\n", &opts);
+    assert_eq!(i.moves[0].tool_length, Some(25.4));
+
+    // Fanuc offset memory C: L10 length geometry, L11 wear (added in G91).
+    let f = InterpretOptions {
+        dialect: Dialect::Fanuc,
+        ..InterpretOptions::default()
+    };
+    let i = run_with(
+        "O1\nG10 L10 P3 R100.\nG10 L11 P3 R-0.5\nG91 G10 L11 P3 R-0.2\nG90 G43 H3 G0 Z0\nM30\n",
+        &f,
+    );
+    let tl = i.moves[0].tool_length.unwrap();
+    assert!((tl - 99.3).abs() < 1e-12, "{tl}");
+    let (line, _, msg) = fail("O1\nG10 L12 P1\n", &f);
+    assert_eq!(line, 2);
+    assert!(msg.contains("needs R"), "{msg}");
+}
