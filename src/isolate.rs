@@ -320,8 +320,8 @@ pub fn spawn(
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    // SAFETY: only async-signal-safe calls (setrlimit, prctl, getppid, _exit) between
-    // fork and exec.
+    // SAFETY: only async-signal-safe calls (setrlimit, prctl, getppid, _exit, open, write,
+    // close) between fork and exec.
     unsafe {
         cmd.pre_exec(move || {
             let limit = libc::rlimit {
@@ -337,6 +337,13 @@ pub fn spawn(
             // The server died between fork and prctl: do not outlive it.
             if libc::getppid() != parent {
                 libc::_exit(1);
+            }
+            // If the machine runs out of memory anyway, the kernel kills a job process
+            // before the server (best effort: raising one's own score needs no privilege).
+            let fd = libc::open(c"/proc/self/oom_score_adj".as_ptr(), libc::O_WRONLY);
+            if fd >= 0 {
+                libc::write(fd, b"1000".as_ptr().cast(), 4);
+                libc::close(fd);
             }
             Ok(())
         });

@@ -43,6 +43,28 @@ async fn submit(c: &reqwest::Client, s: &Server, body: &Value) -> String {
     job["id"].as_str().unwrap().to_string()
 }
 
+/// The processes whose parent is `pid`.
+fn child_processes(pid: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(p) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{p}/stat")) else {
+            continue;
+        };
+        // pid (comm) state ppid ...: the comm may hold spaces, so read after its ')'.
+        let ppid = stat
+            .rsplit_once(')')
+            .and_then(|(_, rest)| rest.split_whitespace().nth(1))
+            .and_then(|v| v.parse::<u32>().ok());
+        if ppid == Some(pid) {
+            out.push(p);
+        }
+    }
+    out
+}
+
 /// Resident memory of a process, kB (VmHWM: its peak).
 fn peak_rss_kb(pid: u32) -> u64 {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
@@ -399,6 +421,18 @@ async fn sigterm_exits_within_the_grace_period_with_a_long_job_running() {
     let (tool, machine) = energy_inputs(&c, &s).await;
     let id = submit(&c, &s, &long_energy_job(&tool, &machine)).await;
     wait_status(&c, &s, &id, "running").await;
+    // The job runs in its own process: address space limited, first in line for the
+    // kernel's out-of-memory killer.
+    let jobs = child_processes(s.child.id());
+    assert_eq!(jobs.len(), 1, "{jobs:?}");
+    let adj = std::fs::read_to_string(format!("/proc/{}/oom_score_adj", jobs[0])).unwrap();
+    assert_eq!(adj.trim(), "1000");
+    let limits = std::fs::read_to_string(format!("/proc/{}/limits", jobs[0])).unwrap();
+    let address = limits
+        .lines()
+        .find(|l| l.starts_with("Max address space"))
+        .unwrap();
+    assert!(!address.contains("unlimited"), "{address}");
     // A client in the middle of a slow upload does not hold the server either.
     let mut upload = TcpStream::connect(s.base.trim_start_matches("http://")).unwrap();
     upload
