@@ -610,14 +610,11 @@ G0 X1
         [16.339, -25.409, 33.353, -71.841, 0.0, -35.930],
     );
 
-    // mmount compensates with tools 15 and 5: without a tool table (no diameters) it runs
-    // uncompensated, with a warning at each G41 (see nc_linuxcnc's cutter compensation test
-    // for the compensated run).
-    let mm = run(&read("linuxcnc_mmount_g81_subs.ngc"));
-    assert!(mm
-        .warnings
-        .iter()
-        .any(|w| w.line == 86 && w.message.contains("no diameter")));
+    // mmount compensates with its tools' diameters: without a tool table it is refused at
+    // the first G41 it runs (tool 4 loaded; nc_linuxcnc's compensation test runs it).
+    let (l, c, msg) = fail(&read("linuxcnc_mmount_g81_subs.ngc"), &o);
+    assert_eq!((l, c), (86, 1));
+    assert!(msg.starts_with("G41 D4: no radius for tool 4"), "{msg}");
 
     let (l, _, _) = fail(&read("fanuc_R_arcs_G3R_G1R_G1C.nc"), &o);
     assert_eq!(l, 13); // see fanuc_corner_rounding_and_chamfer_corpus_file

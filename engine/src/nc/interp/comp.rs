@@ -139,12 +139,12 @@ impl Interp<'_> {
             };
             match self.tool_radius(number) {
                 Some(r) => r / u,
+                // Simulating the uncompensated path would cut in the wrong place: refuse.
                 None => {
-                    self.warnings.push(self.err_at(
+                    return Err(self.err_at(
                         at,
-                        format!("{name}: tool {number} has no diameter in the tool table (and no G10 radius); radius 0, no compensation"),
-                    ));
-                    0.0
+                        format!("{name} D{number}: no radius for tool {number} (no diameter in the tool table, no G10 radius); give a tool table with D, G10 L1 P{number} R.., or G41.1/G42.1 D<diameter>"),
+                    ))
                 }
             }
         };
