@@ -57,7 +57,7 @@ fn seg(move_index: usize, e: Engagement) -> MoveEngagement<'static> {
         cutter: 0,
         scale: FeedScale::UNIT,
         steps: vec![EngagementStep {
-            engagement: Cow::Owned(e),
+            engagement: Cow::Owned(e.into()),
             spindle_rpm: RPM,
             tip_ratio: 1.0,
             at: 0.0,
