@@ -242,6 +242,10 @@ struct InterpretArgs {
     /// Skip blocks that start with `/` (block-delete switch on).
     #[arg(long)]
     block_delete: bool,
+    /// Refuse M codes the interpreter does not know instead of running them as no-ops
+    /// with a warning.
+    #[arg(long)]
+    strict_m_codes: bool,
 }
 
 fn init_logs(format: LogFormat) {
@@ -506,6 +510,7 @@ fn interpret(args: InterpretArgs) -> ExitCode {
         fanuc_corners_without_comma: args.fanuc_corners_without_comma,
         passthrough_m_codes: args.passthrough_m.clone(),
         block_delete: args.block_delete,
+        strict_m_codes: args.strict_m_codes,
         tool_table,
     };
     // The same options a job gets; only the tool table's errors name its own file.

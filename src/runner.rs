@@ -157,6 +157,10 @@ pub struct InterpretOptions {
     /// Skip blocks that start with `/` (the control's block-delete switch on).
     #[serde(default)]
     pub block_delete: bool,
+    /// Refuse M codes the interpreter does not know (and `passthrough_m_codes` does not
+    /// list) instead of running them as no-ops with a warning.
+    #[serde(default)]
+    pub strict_m_codes: bool,
 }
 
 fn default_dialect() -> nc::Dialect {
@@ -171,6 +175,7 @@ impl InterpretOptions {
             fanuc_corners_without_comma: self.fanuc_corners_without_comma,
             passthrough_m_codes: self.passthrough_m_codes.clone(),
             block_delete: self.block_delete,
+            strict_m_codes: self.strict_m_codes,
             ..Default::default()
         };
         if let Some(t) = &self.tool_table {
@@ -413,6 +418,9 @@ pub struct SimulateOptions {
     /// M codes that do not move the machine (e.g. a control's M428) and may be skipped.
     #[serde(default)]
     pub passthrough_m_codes: Vec<u32>,
+    /// Refuse M codes the interpreter does not know instead of warning.
+    #[serde(default)]
+    pub strict_m_codes: bool,
     /// On a machine with rotary axes: `machine` (X..C are machine axes, the default) or
     /// `tool_tip` (tool-centre-point control: X Y Z are the tip in the part frame).
     #[serde(default)]
@@ -590,6 +598,7 @@ fn simulate_job(
         dialect: opts.dialect,
         fanuc_implied_decimal: opts.fanuc_implied_decimal,
         passthrough_m_codes: opts.passthrough_m_codes.clone(),
+        strict_m_codes: opts.strict_m_codes,
         cancel: Some(cancel.clone()),
         ..Default::default()
     };

@@ -240,7 +240,8 @@ async fn a_program_that_does_not_interpret_fails_with_its_line_and_is_not_retrie
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    // Syntax is fine (it uploads); G41 without compensation support is refused by the interpreter.
+    // Syntax is fine (it uploads); G41 D1 with no radius for number 1 (no tool table, no
+    // G10) is refused by the interpreter, naming the line.
     let job = submit_interpret(&c, &s, &{
         let (st, v) = json(
             c.post(s.url("/v1/programs?name=comp.nc"))

@@ -548,3 +548,42 @@ fn the_optimized_program_simulated_again_holds_the_limit_with_feeds_per_tooth_ov
     );
     assert!((resim.summary.removed_volume - out.summary.removed_volume).abs() < 1e-6);
 }
+
+#[test]
+fn cutter_compensation_takes_the_radius_of_the_jobs_tool() {
+    // A D10 tool runs along the stock's edge (y = -20) with G41 D1: compensated, its centre
+    // is 5 mm inside, so the pass cuts a full 10 mm strip (50·10·5 mm³) where the
+    // programmed path alone would cut half of it. No tool table: the radius is the job's T1.
+    let program = "G21 G90 G17 G40\nT1 M6\nS10000 M3\nG0 X-10 Y-30 Z5\nG0 Z-5\nG41 D1\n\
+                   G1 X0 Y-20 F1000\nG1 X50\nG40 G1 X60 Y-30\nG0 Z5\nM30\n";
+    let mut s = spec(program);
+    let tool = s.tools.remove(&0).unwrap();
+    s.tools.insert(1, tool);
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    // Line 8 goes round the entry's outside corner (an arc), then along the edge.
+    let pass = out
+        .rows
+        .iter()
+        .find(|r| r.line == 8 && r.kind == "linear")
+        .unwrap();
+    let full = 50.0 * 10.0 * 5.0;
+    assert!(
+        (pass.removed_volume - full).abs() < 0.02 * full,
+        "compensated pass removed {} mm³",
+        pass.removed_volume
+    );
+    // The same as the diameter written in the program (G41.1 D10).
+    s.program = program.replace("G41 D1", "G41.1 D10");
+    let written = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let removed = |o: &millsim_engine::pipeline::SimulationOutput| -> Vec<f64> {
+        o.rows.iter().map(|r| r.removed_volume).collect()
+    };
+    assert_eq!(removed(&written), removed(&out));
+    // One tool for every number gives no radius to number 1: refused, naming it.
+    let mut one = spec(program);
+    one.cell = Some(0.5);
+    let Err(err) = simulate(&one, &CancelFlag::new(), &NoProgress) else {
+        panic!("G41 D1 with no radius for number 1 ran");
+    };
+    assert!(err.to_string().contains("no radius for tool 1"), "{err}");
+}

@@ -85,6 +85,9 @@ pub enum Dialect {
 pub struct InterpretOptions {
     pub dialect: Dialect,
     pub tool_table: ToolTable,
+    /// Diameters of the tools the caller cuts with, by number (mm): the radius cutter
+    /// compensation takes for a number with no diameter in the tool table and no G10 radius.
+    pub tool_diameters: std::collections::BTreeMap<u32, f64>,
     /// Fanuc "implied decimal": a length/angle word written without a decimal point counts in
     /// least input increments (0.001 mm, 0.0001 inch, 0.001 degree). Off: the LinuxCNC rule
     /// (`X10` is 10 mm).
@@ -117,6 +120,7 @@ impl Default for InterpretOptions {
         InterpretOptions {
             dialect: Dialect::Auto,
             tool_table: ToolTable::default(),
+            tool_diameters: Default::default(),
             fanuc_implied_decimal: false,
             max_moves: 10_000_000,
             max_blocks: 50_000_000,

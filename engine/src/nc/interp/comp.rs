@@ -168,13 +168,14 @@ impl Interp<'_> {
     }
 
     /// Radius (mm) of tool/offset number `n`: a G10 radius (plus Fanuc wear), else half the
-    /// tool table's diameter.
+    /// tool table's diameter, else half the diameter of the caller's tool of that number.
     pub(super) fn tool_radius(&self, n: u32) -> Option<f64> {
         let geometry = self.tool_radii.get(&n).copied().or_else(|| {
             self.opts
                 .tool_table
                 .get(n)
                 .and_then(|t| t.diameter)
+                .or_else(|| self.opts.tool_diameters.get(&n).copied())
                 .map(|d| d / 2.0)
         })?;
         Some(geometry + self.tool_radius_wear.get(&n).copied().unwrap_or(0.0))
