@@ -168,3 +168,38 @@ fn g10_tool_offset_writes() {
     assert_eq!(line, 2);
     assert!(msg.contains("needs R"), "{msg}");
 }
+
+#[test]
+fn fanuc_d_on_a_g43_block_is_the_radius_offset_g41_takes() {
+    // Posts write `G43 H2 D12`: D12 is the radius offset later G41/G42 take, not an error.
+    // Offset 12 holds a D8 (radius 4), tool 2 a D6: G41 without D compensates by 4.
+    let table = parse_tool_table("T2 P2 Z0 D6.0\nT12 P12 Z0 D8.0\n").unwrap();
+    let opts = InterpretOptions {
+        dialect: Dialect::Fanuc,
+        tool_table: table,
+        ..InterpretOptions::default()
+    };
+    let prog = |comp: &str| {
+        format!(
+            "O1000\nG21 G17 G90 G40 G80\nT2 M6\nG0 X-20. Y-20.\nG43 H2 D12 Z5.\n{comp}\n\
+             G1 X0 Y0 F300.\nG1 Y50.\nG40 G1 X-20. Y60.\nM30\n"
+        )
+    };
+    let modal = run_with(&prog("G41"), &opts);
+    let explicit = run_with(&prog("G41 D12"), &opts);
+    assert_eq!(path(&modal), path(&explicit));
+    // Along Y with the tool on the left (-X side) at radius 4: x = -4.
+    let along = modal
+        .moves
+        .iter()
+        .find(|m| m.line == 8 && m.kind == MoveKind::Linear)
+        .expect("the pass along Y");
+    assert!((along.end[0] + 4.0).abs() < 1e-9, "{:?}", along.end);
+    // LinuxCNC has no such D: still refused there, naming it.
+    let (line, _, msg) = fail(
+        "G21 G90 G0 X0 Y0\nG43 H1 D1 Z10\nM2\n",
+        &dialect(Dialect::LinuxCnc),
+    );
+    assert_eq!(line, 2);
+    assert!(msg.contains("D1"), "{msg}");
+}

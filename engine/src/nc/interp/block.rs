@@ -252,6 +252,19 @@ impl<'p> Interp<'p> {
                     }
                     None => self.tool,
                 };
+                // Fanuc: a D here is the radius offset number later G41/G42 take.
+                if self.fanuc {
+                    if let Some(d) = w.take('D') {
+                        if d < 0.0 || d.fract() != 0.0 || d > u32::MAX as f64 {
+                            return Err(self.err_word(
+                                w,
+                                'D',
+                                format!("D{d} is not an offset number"),
+                            ));
+                        }
+                        self.radius_offset = Some(d as u32);
+                    }
+                }
                 let off = match self.tool_length(h) {
                     Some(z) => z,
                     None => {

@@ -134,8 +134,13 @@ impl Interp<'_> {
                         format!("{name} D{d}: D is a tool (offset) number"),
                     ));
                 }
-                Some(d) => d as u32,
-                None => self.tool,
+                Some(d) => {
+                    if self.fanuc {
+                        self.radius_offset = Some(d as u32);
+                    }
+                    d as u32
+                }
+                None => self.radius_offset.unwrap_or(self.tool),
             };
             match self.tool_radius(number) {
                 Some(r) => r / u,

@@ -67,6 +67,9 @@ struct Interp<'p> {
     /// Active tool length offset (mm), None: G49.
     tlo: Option<f64>,
     tool: u32,
+    /// Fanuc's modal D: the radius offset number a G41/G42 without D takes (set by D on a
+    /// G41/G42 block or on a G43 block, as Fanuc posts write `G43 H1 D1`).
+    radius_offset: Option<u32>,
     selected_tool: Option<u32>,
     /// Each T number selected, with the line of its first selection.
     selected_tools: Vec<(u32, u32)>,
@@ -171,6 +174,7 @@ pub(crate) fn interpret_view(
         g30: [0.0; 6],
         tlo: None,
         tool: 0,
+        radius_offset: None,
         selected_tool: None,
         selected_tools: Vec::new(),
         cycle_r: 0.0,
