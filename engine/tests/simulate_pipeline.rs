@@ -579,6 +579,17 @@ fn cutter_compensation_takes_the_radius_of_the_jobs_tool() {
         o.rows.iter().map(|r| r.removed_volume).collect()
     };
     assert_eq!(removed(&written), removed(&out));
+    // Optimized: the rewritten program is read again with the same radius (only F words
+    // change, so the path and the removal stay).
+    s.program = program.into();
+    s.optimize = Some(millsim_engine::optimize::FeedLimits {
+        max_force: Some(800.0),
+        ..Default::default()
+    });
+    let optimized = simulate(&s, &CancelFlag::new(), &NoProgress)
+        .unwrap_or_else(|e| panic!("optimize with G41 D1: {e}"));
+    assert_eq!(removed(&optimized), removed(&out));
+    assert!(optimized.optimized_program.is_some());
     // One tool for every number gives no radius to number 1: refused, naming it.
     let mut one = spec(program);
     one.cell = Some(0.5);

@@ -42,14 +42,8 @@ pub fn simulate(
 ) -> Result<SimulationOutput, SimulateError> {
     let mut timings = StageTimings::default();
     let clock = Instant::now();
-    // Cutter compensation takes the radius of the job's own tool where the program's tool
-    // table gives none.
-    let mut interpret = spec.interpret.clone();
-    for (&number, tool) in spec.tools.iter().filter(|(&n, _)| n > 0) {
-        interpret.tool_diameters.entry(number).or_insert(tool.diameter);
-    }
-    let interpretation =
-        nc::interpret(&spec.program, &interpret).map_err(SimulateError::Program)?;
+    let interpretation = nc::interpret(&spec.program, &spec.interpret_options())
+        .map_err(SimulateError::Program)?;
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
     let tools = tools::ToolLookup::new(spec, moves, &interpretation.selected_tools)?;

@@ -90,7 +90,7 @@ pub(super) fn optimize_stage(
         },
     )
     .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
-    let after = nc::interpret(&rewrite.text, &spec.interpret)
+    let after = nc::interpret(&rewrite.text, &spec.interpret_options())
         .map_err(|d| SimulateError::Rewrite(d.to_string()))?
         .moves;
     optimize::verify_rewrite(moves, &after, &rewrite).map_err(SimulateError::Rewrite)?;
@@ -127,7 +127,7 @@ pub(super) fn optimize_stage(
                 .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
         skipped = s;
         if !w.is_empty() {
-            let checked = nc::interpret(&split_text, &spec.interpret)
+            let checked = nc::interpret(&split_text, &spec.interpret_options())
                 .map_err(|d| d.to_string())
                 .and_then(|split| {
                     optimize::verify_splits(&after, &split.moves, &w).map(|o| (split.moves, o))

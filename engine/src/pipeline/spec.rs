@@ -58,6 +58,19 @@ pub struct SimulateSpec {
     pub part: Option<Vec<u8>>,
 }
 
+impl SimulateSpec {
+    /// The interpreter's options for this job's program and every rewrite of it: cutter
+    /// compensation takes the radius of the job's own tool where the program's tool table
+    /// gives none.
+    pub(super) fn interpret_options(&self) -> nc::InterpretOptions {
+        let mut o = self.interpret.clone();
+        for (&number, tool) in self.tools.iter().filter(|(&n, _)| n > 0) {
+            o.tool_diameters.entry(number).or_insert(tool.diameter);
+        }
+        o
+    }
+}
+
 /// Modal parameters of the tool (as a stability job takes them) for the per-block chatter
 /// margin: axial depth / critical depth at the block's speed, radial immersion and milling
 /// direction. The same modes serve every tool of the program.
