@@ -16,7 +16,9 @@
 use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use millsim_engine::geometry::{export_stl_vec, simulate_removal, Mesh, Segment, SimOptions, Stock};
+use millsim_engine::geometry::{
+    export_stl_vec, simulate_removal, Mesh, Segment, SimOptions, Stock,
+};
 use millsim_engine::job::CancelFlag;
 use millsim_engine::nc::{interpret, InterpretOptions, MoveKind};
 use millsim_engine::tool::Tool;

@@ -194,7 +194,9 @@ impl PackedEngagement {
                 out.tool_axis = *tool_axis;
                 out.slices.clear();
                 for (k, r) in runs.iter().enumerate() {
-                    let end = runs.get(k + 1).map_or(bins.len(), |n| n.arcs_start as usize);
+                    let end = runs
+                        .get(k + 1)
+                        .map_or(bins.len(), |n| n.arcs_start as usize);
                     let arcs: Arcs = bins[r.arcs_start as usize..end]
                         .iter()
                         .map(|&[a, b]| (a as f64 * dphi, b as f64 * dphi))
@@ -268,7 +270,10 @@ mod tests {
     fn packing_is_exact_and_shares_the_arcs_of_a_flank() {
         let (dz, dphi) = (0.1, 2.0 * PI / 180.0);
         // Tip slices each their own, a buried flank of 150 slices alike, a gap, three arcs.
-        let mut slices = vec![slice(3, dz, &[(10, 80)], dphi), slice(4, dz, &[(8, 85)], dphi)];
+        let mut slices = vec![
+            slice(3, dz, &[(10, 80)], dphi),
+            slice(4, dz, &[(8, 85)], dphi),
+        ];
         slices.extend((5..155).map(|j| slice(j, dz, &[(0, 90)], dphi)));
         slices.push(slice(160, dz, &[(1, 2), (5, 9), (100, 179)], dphi));
         let e = Engagement {
@@ -281,7 +286,11 @@ mod tests {
         assert!(!p.is_air());
         // Four runs and six arcs instead of 153 slices.
         let full = PackedEngagement::from(e.clone());
-        assert!(p.heap_bytes() * 50 < full.heap_bytes(), "{}", p.heap_bytes());
+        assert!(
+            p.heap_bytes() * 50 < full.heap_bytes(),
+            "{}",
+            p.heap_bytes()
+        );
         // Unpacking into a used buffer leaves nothing of what was there.
         let mut scratch = slice_buffer();
         assert_eq!(p.view(&mut scratch), &e);
@@ -311,7 +320,10 @@ mod tests {
             slices: vec![slice(2, 0.2, &[(3, 40)], dphi)],
             ..Default::default()
         };
-        assert_eq!(PackedEngagement::pack(other.clone(), dz, dphi).unpack(), other);
+        assert_eq!(
+            PackedEngagement::pack(other.clone(), dz, dphi).unpack(),
+            other
+        );
         assert!(PackedEngagement::pack(Engagement::default(), dz, dphi).is_air());
     }
 }

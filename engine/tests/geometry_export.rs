@@ -2,7 +2,9 @@
 //! any edge not matched by an opposite edge, so T-junctions from merging would fail),
 //! enclose exactly the voxel volume, and stay close to the dexel volume.
 
-use millsim_engine::geometry::{export_stl_vec, simulate_removal, Mesh, Segment, SimOptions, Stock};
+use millsim_engine::geometry::{
+    export_stl_vec, simulate_removal, Mesh, Segment, SimOptions, Stock,
+};
 use millsim_engine::job::CancelFlag;
 use millsim_engine::tool::Tool;
 

@@ -3,8 +3,8 @@
 mod common;
 
 use millsim_engine::geometry::{
-    export_stl_vec, simulate_removal, GeometryError, GridOptions, Mesh, Segment, SimOptions, StlError,
-    Stock,
+    export_stl_vec, simulate_removal, GeometryError, GridOptions, Mesh, Segment, SimOptions,
+    StlError, Stock,
 };
 use millsim_engine::job::CancelFlag;
 use millsim_engine::tool::Tool;

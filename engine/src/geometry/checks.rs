@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use super::dexel::{overlaps, DexelGrid};
 use super::sweep::{self, frame_around, swept_frustum};
 use crate::tool::Tool;
+use crate::vec3::dot;
 
 /// Per-block collision flags.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -327,10 +328,6 @@ fn tilted_hits(
     false
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 /// Checks of the tool body above the flutes against the stock at one position.
 pub(crate) fn check_position(
     grid: &DexelGrid,
@@ -377,7 +374,13 @@ mod tests {
 
     /// Brute force: points of the frustum (between its inner and outer radius) every
     /// `dz` along each Z ray of the grid; `grow` widens or narrows the body by that much.
-    fn sampled_hit(grid: &DexelGrid, pos: [f64; 3], axis: [f64; 3], f: &Frustum, grow: f64) -> bool {
+    fn sampled_hit(
+        grid: &DexelGrid,
+        pos: [f64; 3],
+        axis: [f64; 3],
+        f: &Frustum,
+        grow: f64,
+    ) -> bool {
         let (e1, e2) = frame_around(axis);
         let fam = &grid.families[2];
         let dz = grid.cell / 10.0;
@@ -430,11 +433,21 @@ mod tests {
             ([6.0, 4.0, -5.0], [6.5, 11.0, -4.0]),
             ([1.0, 9.0, -1.0], [11.0, 10.0, -2.5]),
         ] {
-            remove_sweep(&mut stock.grid, &ball, &SubMove { p0, p1, axis: [0.0, 0.0, 1.0] });
+            remove_sweep(
+                &mut stock.grid,
+                &ball,
+                &SubMove {
+                    p0,
+                    p1,
+                    axis: [0.0, 0.0, 1.0],
+                },
+            );
         }
         let mut seed = 0x5eed_u64;
         let mut next = move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64
         };
         let mut tops = ColumnTops::default();

@@ -20,6 +20,7 @@ use super::path::unit;
 use super::sweep::{frame_around, ToolBody};
 use crate::engagement::{Arcs, EngagedSlice, Engagement};
 use crate::tool::Tool;
+use crate::vec3::{cross, dot};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct EngagementOptions {
@@ -78,21 +79,13 @@ pub(crate) struct StepInput {
     pub top_z: f64,
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 /// The slice height and the arc bin the engagement is computed on, for a grid of `cell`.
 pub(crate) fn grid_steps(cell: f64, opts: &EngagementOptions) -> (f64, f64) {
     let nb = opts.angular_bins.max(4);
-    (opts.axial_step.unwrap_or(cell).max(1e-6), 2.0 * PI / nb as f64)
+    (
+        opts.axial_step.unwrap_or(cell).max(1e-6),
+        2.0 * PI / nb as f64,
+    )
 }
 
 pub(crate) fn compute(

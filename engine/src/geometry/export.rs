@@ -86,7 +86,8 @@ fn stl_header(triangles: u32) -> [u8; 84] {
 }
 
 fn triangle_count(count: u64) -> Result<u32, GeometryError> {
-    u32::try_from(count).map_err(|_| GeometryError::InvalidGrid("too many triangles for STL".into()))
+    u32::try_from(count)
+        .map_err(|_| GeometryError::InvalidGrid("too many triangles for STL".into()))
 }
 
 /// Bytes of the binary STL of a stock with `triangles` triangles.

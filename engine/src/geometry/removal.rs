@@ -8,9 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::checks::{check_position, CheckFlags, ToolChecks};
 use super::dexel::DexelGrid;
-use super::engagement::{
-    compute, grid_steps, EngagementOptions, Scratch, StepInput, StepMetrics,
-};
+use super::engagement::{compute, grid_steps, EngagementOptions, Scratch, StepInput, StepMetrics};
 use super::path::Segment;
 use super::stock::Stock;
 use super::sweep::{RemovalPass, RemovalStats, SubMove, ToolBody};

@@ -520,12 +520,9 @@ fn evaluate(
         static SCRATCH: std::cell::RefCell<Engagement> = Default::default();
     }
     SCRATCH.with_borrow_mut(|scratch| {
-        cutter.model.evaluate_into(
-            step.engagement.view(scratch),
-            &cutter.coefficients,
-            &c,
-            out,
-        )
+        cutter
+            .model
+            .evaluate_into(step.engagement.view(scratch), &cutter.coefficients, &c, out)
     })?;
     let (g, which) = limits.ratio(out);
     Ok((g, which, out.max_chip_thickness))

@@ -42,8 +42,8 @@ pub fn simulate(
 ) -> Result<SimulationOutput, SimulateError> {
     let mut timings = StageTimings::default();
     let clock = Instant::now();
-    let interpretation = nc::interpret(&spec.program, &spec.interpret_options())
-        .map_err(SimulateError::Program)?;
+    let interpretation =
+        nc::interpret(&spec.program, &spec.interpret_options()).map_err(SimulateError::Program)?;
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
     let tools = tools::ToolLookup::new(spec, moves, &interpretation.selected_tools)?;
