@@ -117,6 +117,21 @@ impl From<PackedEngagement> for Engagement {
 }
 
 impl PackedEngagement {
+    /// Maps the feed direction and the tool axis through `f` (a rotation: the slices and
+    /// arcs, measured from them, stay as they are).
+    pub(crate) fn map_directions(&mut self, f: impl Fn([f64; 3]) -> [f64; 3]) {
+        let (feed_dir, tool_axis) = match &mut self.0 {
+            Packing::Grid {
+                feed_dir,
+                tool_axis,
+                ..
+            } => (feed_dir, tool_axis),
+            Packing::Full(e) => (&mut e.feed_dir, &mut e.tool_axis),
+        };
+        *feed_dir = f(*feed_dir);
+        *tool_axis = f(*tool_axis);
+    }
+
     /// `e` on the grid of slice height `dz` and arc bin `dphi` when every number lies on
     /// it exactly, else `e` as it is.
     pub fn pack(e: Engagement, dz: f64, dphi: f64) -> PackedEngagement {

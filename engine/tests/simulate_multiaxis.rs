@@ -133,6 +133,10 @@ fn tilted_tool_in_tool_tip_and_machine_readings_cuts_the_same_segment() {
     assert!(out.rows.iter().all(|r| !r.rapid_in_material));
     let cut = row(&out.rows, 6);
     assert!((cut.tip_speed_mm_min - 600.0).abs() < 1e-9, "{cut:?}");
+    // A fixed tilted axis carries the cutting: the grid is turned so that its z is the
+    // tool axis (+Y on the part) and the tool cuts there as a vertical one.
+    let z = out.stock.frame.axis_in_part(2);
+    assert!(z[1] > 1.0 - 1e-12, "{z:?}");
 
     // Machine reading: the table turned A90 carries part point (x, y, z) to machine
     // (x, −z, y), so the same cut is X0 Y−15 → Y55 at Z8.

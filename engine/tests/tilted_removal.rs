@@ -102,3 +102,132 @@ fn tilted_sweeps_through_a_block_remove_the_closed_form_volume() {
         }
     }
 }
+
+/// The same cuts with the grid turned so that its z is the tool axis (what the pipeline
+/// does for a 3+2 program): the tool is vertical in the grid, the volume is the closed
+/// form's, and what comes out (step positions and directions, the exported mesh) is in
+/// the part frame.
+#[test]
+fn cuts_in_a_grid_turned_along_the_tool_remove_the_closed_form_volume() {
+    use millsim_engine::engagement::Engagement;
+    use millsim_engine::geometry::{
+        export_stl_vec, simulate_removal, GridFrame, GridOptions, Mesh, PathShape, Segment,
+        SimOptions, StockShape,
+    };
+    use millsim_engine::job::CancelFlag;
+
+    let cell = 0.05;
+    let mut flat = Tool::flat(6.0, 2);
+    flat.flute_length = 12.0;
+    let mut bull = Tool::bull_nose(6.0, 1.5, 2);
+    bull.flute_length = 12.0;
+    for tool in [&flat, &bull] {
+        for tilt_deg in [15.0f64, -20.0] {
+            let body = ToolBody::cutting_part(tool);
+            let tilt = tilt_deg.to_radians();
+            let (s, c) = tilt.sin_cos();
+            let (zlo, zhi, zt, half) = (-10.0, 0.0, -4.0, 5.0);
+            let axis = [0.0, -s, c];
+            let (min, max) = ([-half, -20.0, zlo], [half, 20.0, zhi]);
+            let frame = GridFrame::with_z_along(axis).unwrap();
+            let opts = GridOptions {
+                cell: Some(cell),
+                ..Default::default()
+            };
+            let mut stock =
+                Stock::from_shape_in(&StockShape::Block { min, max }, &opts, frame).unwrap();
+            assert_eq!(stock.frame, frame);
+            let before = stock.volume();
+            let block = 2.0 * half * 40.0 * 10.0;
+            assert!(
+                (before - block).abs() < 0.005 * block,
+                "{before} vs {block}"
+            );
+            let seg = Segment {
+                block: 0,
+                shape: PathShape::Linear,
+                from: [-15.0, 0.0, zt],
+                to: [15.0, 0.0, zt],
+                axis_from: axis,
+                axis_to: axis,
+                rapid: false,
+                feed: 1000.0,
+                spindle: 10000.0,
+            };
+            let report = simulate_removal(
+                &mut stock,
+                tool,
+                &[seg],
+                &SimOptions::default(),
+                &CancelFlag::new(),
+            )
+            .unwrap();
+            let removed = before - stock.volume();
+            let expected = 2.0 * half * section_area(&body, tool.flute_length, zt, tilt, zlo, zhi);
+            let err = (removed - expected).abs() / expected;
+            assert!(
+                err < 0.005,
+                "{:?} {tilt_deg}°: {removed} vs {expected}",
+                tool.shape
+            );
+            let b = &report.blocks[0];
+            assert!((b.removed_volume - removed).abs() < 0.005 * expected);
+            // Steps in the part frame: on the programmed line, with the programmed axis; the
+            // engagement's axis and feed direction too.
+            let engaged = b.steps.iter().filter(|st| !st.air).count();
+            assert!(engaged > 20, "{engaged}");
+            for st in &b.steps {
+                assert!(st.position[1].abs() < 1e-6 && (st.position[2] - zt).abs() < 1e-6);
+                assert!((0..3).all(|k| (st.axis[k] - axis[k]).abs() < 1e-12));
+                let e = Engagement::from(st.engagement.clone());
+                if !st.air {
+                    assert!((0..3).all(|k| (e.tool_axis[k] - axis[k]).abs() < 1e-12));
+                    assert!((e.feed_dir[0] - 1.0).abs() < 1e-9, "{:?}", e.feed_dir);
+                }
+            }
+            // The exported mesh is the part-frame stock: its bounds are the block's, its
+            // volume the grid's.
+            let (bytes, _) = export_stl_vec(&stock).unwrap();
+            let mesh = Mesh::from_stl_bytes(&bytes).unwrap();
+            let (lo, hi) = mesh.bounds();
+            for k in 0..3 {
+                assert!((lo[k] - min[k]).abs() < 2.0 * cell, "{lo:?} {min:?}");
+                assert!((hi[k] - max[k]).abs() < 2.0 * cell, "{hi:?} {max:?}");
+            }
+            let v = mesh.volume();
+            assert!(
+                (v - stock.volume()).abs() < 0.005 * v,
+                "{v} vs {}",
+                stock.volume()
+            );
+        }
+    }
+}
+
+/// A turned cylinder stock holds the cylinder's volume.
+#[test]
+fn a_cylinder_in_a_turned_grid_holds_its_volume() {
+    use millsim_engine::geometry::{GridFrame, GridOptions, StockShape};
+    let shape = StockShape::Cylinder {
+        base_center: [1.0, 2.0, -30.0],
+        radius: 20.0,
+        height: 30.0,
+    };
+    let opts = GridOptions {
+        cell: Some(0.25),
+        ..Default::default()
+    };
+    for axis in [
+        [0.0, -0.2588190451025208, 0.9659258262890683],
+        [0.3, 0.4, 0.8660254037844386],
+    ] {
+        let frame = GridFrame::with_z_along(axis).unwrap();
+        let stock = Stock::from_shape_in(&shape, &opts, frame).unwrap();
+        let exact = std::f64::consts::PI * 400.0 * 30.0;
+        let v = stock.volume();
+        assert!(
+            (v - exact).abs() < 0.005 * exact,
+            "{axis:?}: {v} vs {exact}"
+        );
+    }
+}

@@ -151,27 +151,41 @@ pub(crate) fn frustum_hits(
         let (i0, i1) = grid.index_range(0, pos[0] - rmax, pos[0] + rmax);
         let (j0, j1) = grid.index_range(1, pos[1] - rmax, pos[1] + rmax);
         let fam = &grid.families[2];
-        for j in j0..j1 {
-            let y = grid.center(1, j) - pos[1];
-            for i in i0..i1 {
-                let x = grid.center(0, i) - pos[0];
-                let rho = (x * x + y * y).sqrt();
-                if rho > rmax || rho <= f.r_inner {
+        // Blocks of rays whose material stays below the body's bottom are skipped whole
+        // (a turned grid's top is far above much of the stock).
+        tops.fit(grid);
+        let lowest = pos[2] + f.z0;
+        for bj in j0 / TOP_BLOCK..j1.div_ceil(TOP_BLOCK) {
+            for bi in i0 / TOP_BLOCK..i1.div_ceil(TOP_BLOCK) {
+                if !tops.may_rise_above(grid, (bi, bj), lowest) {
                     continue;
                 }
-                // Heights of the frustum at this distance from the axis (radius linear in z).
-                let (zlo, zhi) = if (f.r1 - f.r0).abs() < 1e-12 {
-                    (f.z0, f.z1)
-                } else {
-                    let zr = f.z0 + (rho - f.r0) / (f.r1 - f.r0) * (f.z1 - f.z0);
-                    if f.r1 > f.r0 {
-                        (zr.max(f.z0), f.z1)
-                    } else {
-                        (f.z0, zr.min(f.z1))
+                for j in (bj * TOP_BLOCK).max(j0)..((bj + 1) * TOP_BLOCK).min(j1) {
+                    let y = grid.center(1, j) - pos[1];
+                    for i in (bi * TOP_BLOCK).max(i0)..((bi + 1) * TOP_BLOCK).min(i1) {
+                        let x = grid.center(0, i) - pos[0];
+                        let rho = (x * x + y * y).sqrt();
+                        if rho > rmax || rho <= f.r_inner {
+                            continue;
+                        }
+                        // Heights of the frustum at this distance from the axis (radius
+                        // linear in z).
+                        let (zlo, zhi) = if (f.r1 - f.r0).abs() < 1e-12 {
+                            (f.z0, f.z1)
+                        } else {
+                            let zr = f.z0 + (rho - f.r0) / (f.r1 - f.r0) * (f.z1 - f.z0);
+                            if f.r1 > f.r0 {
+                                (zr.max(f.z0), f.z1)
+                            } else {
+                                (f.z0, zr.min(f.z1))
+                            }
+                        };
+                        if zlo < zhi
+                            && overlaps(&fam.rays[i + fam.nu * j], pos[2] + zlo, pos[2] + zhi)
+                        {
+                            return true;
+                        }
                     }
-                };
-                if zlo < zhi && overlaps(&fam.rays[i + fam.nu * j], pos[2] + zlo, pos[2] + zhi) {
-                    return true;
                 }
             }
         }

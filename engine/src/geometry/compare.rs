@@ -43,6 +43,20 @@ fn difference(a: &Intervals, b: &Intervals) -> Intervals {
 /// Compares the stock with the design part (placed in the same frame).
 pub fn compare_with_part(stock: &Stock, part: &Mesh) -> Result<PartComparison, GeometryError> {
     let g = &stock.grid;
+    let turned;
+    let part = if stock.frame.is_identity() {
+        part
+    } else {
+        turned = Mesh {
+            vertices: part
+                .vertices
+                .iter()
+                .map(|&v| stock.frame.to_grid(v))
+                .collect(),
+            triangles: part.triangles.clone(),
+        };
+        &turned
+    };
     let mut pg = DexelGrid::new(g.origin, g.max_corner(), g.cell, u64::MAX)?;
     // Same cell count as the stock (the constructor rounds the extent up the same way).
     debug_assert_eq!(pg.n, g.n);

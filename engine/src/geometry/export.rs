@@ -25,6 +25,7 @@ use std::io::{Seek, SeekFrom, Write};
 use rayon::prelude::*;
 
 use super::dexel::DexelGrid;
+use super::frame::GridFrame;
 use super::stock::Stock;
 use super::GeometryError;
 
@@ -115,7 +116,10 @@ fn export_in_bands(
         let rows: Vec<(Vec<u8>, u64)> = (j0..j1)
             .into_par_iter()
             .map(|j| {
-                let mut w = TriangleWriter::default();
+                let mut w = TriangleWriter {
+                    frame: stock.frame,
+                    ..TriangleWriter::default()
+                };
                 let lines_j = vox.z_line_changes(j);
                 if j < ny {
                     let lines_j1 = vox.z_line_changes(j + 1);
@@ -447,6 +451,8 @@ fn has(bits: &[u64], k: usize) -> bool {
 /// Binary STL triangles of one row task.
 #[derive(Default)]
 struct TriangleWriter {
+    /// Triangles are written in the part frame.
+    frame: GridFrame,
     bytes: Vec<u8>,
     count: u64,
     side_a: Vec<usize>,
@@ -502,6 +508,12 @@ impl TriangleWriter {
         if facing < 0.0 {
             t.swap(1, 2);
         }
+        let normal = if self.frame.is_identity() {
+            normal
+        } else {
+            t = t.map(|p| self.frame.to_part(p));
+            self.frame.to_part(normal.map(f64::from)).map(|c| c as f32)
+        };
         for c in normal {
             self.bytes.extend_from_slice(&c.to_le_bytes());
         }

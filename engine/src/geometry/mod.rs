@@ -38,6 +38,7 @@ pub mod compare;
 pub mod dexel;
 pub mod engagement;
 pub mod export;
+pub mod frame;
 pub mod path;
 pub mod removal;
 pub mod stl;
@@ -49,6 +50,7 @@ pub use compare::{compare_with_part, PartComparison};
 pub use dexel::{default_cell, DexelGrid, GridEstimate, GridOptions, DEFAULT_MEMORY_LIMIT};
 pub use engagement::{EngagementOptions, StepMetrics};
 pub use export::{export_stl, export_stl_vec, stl_bytes, ExportStats};
+pub use frame::GridFrame;
 pub use path::{PathShape, Segment};
 pub use removal::{
     simulate_removal, simulate_removal_with_progress, BlockGeometry, SimOptions, SimulationReport,

@@ -47,6 +47,9 @@ pub struct Segment {
 
 const Z: [f64; 3] = [0.0, 0.0, 1.0];
 
+/// Inverse of the quantum that turned points are rounded to (see `Segment::turned`).
+const GRID_QUANTUM: f64 = (1u64 << 30) as f64;
+
 fn one() -> u32 {
     1
 }
@@ -89,6 +92,48 @@ struct ArcGeom {
 }
 
 impl Segment {
+    /// This segment in the grid frame `frame` (every point and direction turned).
+    pub(crate) fn turned(&self, frame: &super::frame::GridFrame) -> Segment {
+        // Points on a grid of 2^-30 mm (1e-9 mm): a 3+2 path that is planar in the
+        // grid frame comes out of the rotation with its z varying in the last bits, which
+        // would make each level move a ramp for the sweeps.
+        let t = |p: [f64; 3]| {
+            frame
+                .to_grid(p)
+                .map(|c| (c * GRID_QUANTUM).round() / GRID_QUANTUM)
+        };
+        // The axis the grid was turned to is exactly z.
+        let axis = |a: [f64; 3]| {
+            let g = frame.to_grid(a);
+            if g[0].abs() < 1e-12 && g[1].abs() < 1e-12 && g[2] > 0.0 {
+                Z
+            } else {
+                g
+            }
+        };
+        Segment {
+            shape: match self.shape {
+                PathShape::Linear => PathShape::Linear,
+                PathShape::Arc {
+                    center,
+                    normal,
+                    clockwise,
+                    turns,
+                } => PathShape::Arc {
+                    center: t(center),
+                    normal: axis(normal),
+                    clockwise,
+                    turns,
+                },
+            },
+            from: t(self.from),
+            to: t(self.to),
+            axis_from: axis(self.axis_from),
+            axis_to: axis(self.axis_to),
+            ..self.clone()
+        }
+    }
+
     /// A 3-axis straight feed move.
     pub fn linear(block: usize, from: [f64; 3], to: [f64; 3], feed: f64, spindle: f64) -> Segment {
         Segment {

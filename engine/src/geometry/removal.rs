@@ -590,10 +590,29 @@ pub fn simulate_removal_with_progress(
     cancel: &CancelFlag,
     on_segment: &mut (dyn FnMut(usize) + Send),
 ) -> Result<SimulationReport, GeometryError> {
-    // Run the whole pass on a worker of the current rayon pool: parallel sections started
-    // from a worker are cheap forks, while from an outside thread each one is a hand-off
-    // to the pool and back (futex wake-ups, thousands of them per program).
-    rayon::scope(|_| simulate_inner(stock, tool, segments, opts, cancel, on_segment))
+    let frame = stock.frame;
+    if frame.is_identity() {
+        // Run the whole pass on a worker of the current rayon pool: parallel sections
+        // started from a worker are cheap forks, while from an outside thread each one is
+        // a hand-off to the pool and back (futex wake-ups, thousands of them per program).
+        return rayon::scope(|_| simulate_inner(stock, tool, segments, opts, cancel, on_segment));
+    }
+    // A turned grid: the path into its frame, the steps' positions and directions back.
+    if opts.fixture.is_some() {
+        return Err(GeometryError::InvalidStock(
+            "a fixture is checked on a stock grid along the part axes; this stock's grid is turned"
+                .into(),
+        ));
+    }
+    let turned: Vec<Segment> = segments.iter().map(|s| s.turned(&frame)).collect();
+    let mut report =
+        rayon::scope(|_| simulate_inner(stock, tool, &turned, opts, cancel, on_segment))?;
+    for step in report.blocks.iter_mut().flat_map(|b| b.steps.iter_mut()) {
+        step.position = frame.to_part(step.position);
+        step.axis = frame.to_part(step.axis);
+        step.engagement.map_directions(|d| frame.to_part(d));
+    }
+    Ok(report)
 }
 
 /// Batches of sweeps that may wait for the X and Y threads.

@@ -16,6 +16,7 @@ use parry3d_f64::shape::TriMesh;
 use rayon::prelude::*;
 
 use super::dexel::{intervals_from_crossings, other_axes, DexelGrid, GridOptions};
+use super::frame::GridFrame;
 use super::stock::{Stock, MAX_STOCK_SIZE};
 use super::GeometryError;
 
@@ -180,6 +181,20 @@ impl Mesh {
         (lo, hi)
     }
 
+    /// Bounding box in the grid frame `frame`.
+    pub fn bounds_in(&self, frame: &GridFrame) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for v in &self.vertices {
+            let q = frame.to_grid(*v);
+            for a in 0..3 {
+                lo[a] = lo[a].min(q[a]);
+                hi[a] = hi[a].max(q[a]);
+            }
+        }
+        (lo, hi)
+    }
+
     /// Enclosed volume (divergence theorem), mm³.
     pub fn volume(&self) -> f64 {
         self.triangles
@@ -227,6 +242,25 @@ impl Stock {
     }
 
     pub fn from_mesh(mesh: &Mesh, opts: &GridOptions) -> Result<Stock, GeometryError> {
+        Stock::from_mesh_in(mesh, opts, GridFrame::IDENTITY)
+    }
+
+    /// As [`Stock::from_mesh`], with the grid turned by `frame`.
+    pub fn from_mesh_in(
+        mesh: &Mesh,
+        opts: &GridOptions,
+        frame: GridFrame,
+    ) -> Result<Stock, GeometryError> {
+        let turned;
+        let mesh = if frame.is_identity() {
+            mesh
+        } else {
+            turned = Mesh {
+                vertices: mesh.vertices.iter().map(|&v| frame.to_grid(v)).collect(),
+                triangles: mesh.triangles.clone(),
+            };
+            &turned
+        };
         let cell = opts
             .cell
             .ok_or_else(|| GeometryError::InvalidGrid("no cell size given".into()))?;
@@ -240,7 +274,7 @@ impl Stock {
         lo[2] = hi[2] - nz as f64 * cell;
         let mut grid = DexelGrid::new(lo, hi, cell, opts.memory_limit)?;
         fill_grid(&mut grid, mesh)?;
-        Ok(Stock { grid })
+        Ok(Stock { grid, frame })
     }
 }
 

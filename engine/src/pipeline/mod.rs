@@ -28,7 +28,7 @@ pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StockSourc
 
 use std::time::Instant;
 
-use crate::geometry::{self, GridOptions, Stock};
+use crate::geometry::{self, GridFrame, GridOptions, Stock};
 use crate::job::{CancelFlag, Progress};
 use crate::machine::cycle_time::cycle_time;
 use crate::machine::Kinematics;
@@ -52,7 +52,7 @@ pub fn simulate(
     let radii: Vec<f64> = tools.all().map(Tool::radius).collect();
     let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
     let clock = Instant::now();
-    let mut stock = stock(spec, cell)?;
+    let mut stock = stock(spec, cell, removal::grid_frame(spec, moves, &tools, cell))?;
     let volume_before = stock.volume();
     timings.stock_s = clock.elapsed().as_secs_f64();
 
@@ -162,14 +162,49 @@ fn check_inputs(
     Ok(())
 }
 
-/// The stock's grid at dexel spacing `cell`.
-fn stock(spec: &SimulateSpec, cell: f64) -> Result<Stock, SimulateError> {
+/// A grid turned along a 3+2 program's tool axis holds more rays than one along the part's
+/// axes (a tall box turned 15° is taller); over this factor the grid stays along the axes.
+const MAX_TURNED_GRID_GROWTH: f64 = 1.5;
+
+/// The stock's grid at dexel spacing `cell`, turned by `frame` unless that grows it by more
+/// than `MAX_TURNED_GRID_GROWTH` or past the memory limit.
+fn stock(spec: &SimulateSpec, cell: f64, frame: GridFrame) -> Result<Stock, SimulateError> {
     let grid = GridOptions {
         cell: Some(cell),
         memory_limit: spec.memory_limit,
     };
-    Ok(match &spec.stock {
-        StockSource::Shape(shape) => Stock::from_shape(shape, &grid)?,
-        StockSource::Stl(bytes) => Stock::from_stl_bytes(bytes, &grid)?,
-    })
+    let mesh = match &spec.stock {
+        StockSource::Shape(_) => None,
+        StockSource::Stl(bytes) => {
+            Some(geometry::Mesh::from_stl_bytes(bytes).map_err(geometry::GeometryError::from)?)
+        }
+    };
+    let bounds = |frame: &GridFrame| -> Result<([f64; 3], [f64; 3]), SimulateError> {
+        Ok(match (&spec.stock, &mesh) {
+            (StockSource::Shape(shape), _) => shape.bounds_in(frame)?,
+            (_, Some(mesh)) => mesh.bounds_in(frame),
+            _ => unreachable!("an STL stock has its mesh"),
+        })
+    };
+    let build = |frame: GridFrame| -> Result<Stock, geometry::GeometryError> {
+        match (&spec.stock, &mesh) {
+            (StockSource::Shape(shape), _) => Stock::from_shape_in(shape, &grid, frame),
+            (_, Some(mesh)) => Stock::from_mesh_in(mesh, &grid, frame),
+            _ => unreachable!("an STL stock has its mesh"),
+        }
+    };
+    if !frame.is_identity() {
+        let bytes = |(lo, hi): ([f64; 3], [f64; 3])| {
+            geometry::DexelGrid::estimate(lo, hi, cell).map(|e| e.bytes as f64)
+        };
+        let (turned, straight) = (bytes(bounds(&frame)?), bytes(bounds(&GridFrame::IDENTITY)?));
+        if let (Ok(t), Ok(s)) = (turned, straight) {
+            if t <= MAX_TURNED_GRID_GROWTH * s {
+                if let Ok(stock) = build(frame) {
+                    return Ok(stock);
+                }
+            }
+        }
+    }
+    Ok(build(GridFrame::IDENTITY)?)
 }

@@ -8,7 +8,7 @@ use super::frame::{FramePiece, PartFrame};
 use super::rows::MoveRow;
 use super::spec::{SimulateError, SimulateSpec};
 use super::tools::ToolLookup;
-use crate::geometry::{self, Segment, SimOptions, Stock};
+use crate::geometry::{self, GridFrame, Segment, SimOptions, Stock};
 use crate::job::{CancelFlag, Progress};
 use crate::nc::{Move, MoveKind};
 use crate::physics::{ForceModel, ToolEdgeTable};
@@ -36,6 +36,57 @@ pub(super) struct Removal {
     pub(super) steps: Vec<MoveStep>,
     pub(super) models: BTreeMap<u32, ForceModel>,
     pub(super) rays_tested: u64,
+}
+
+/// Distinct tool axes counted when looking for the one most of the cutting is done on.
+const MAX_AXES_COUNTED: usize = 64;
+
+/// The grid frame for this program: along the tool axis of a 3+2 program, where a tilted
+/// axis that stays fixed over moves carries at least half of the cutting path (a tilted
+/// tool then cuts as fast as a vertical one, see `geometry::frame`); else the part's axes.
+pub(super) fn grid_frame(
+    spec: &SimulateSpec,
+    moves: &[Move],
+    tools: &ToolLookup,
+    cell: f64,
+) -> GridFrame {
+    if spec.machine.kinematics == crate::machine::Kinematics::Xyz {
+        return GridFrame::IDENTITY;
+    }
+    let reach = tools.all().map(|t| t.flute_length).fold(0.0, f64::max);
+    let frame = PartFrame::new(&spec.machine, spec.axes, cell, reach);
+    let mut axes: Vec<([f64; 3], f64)> = Vec::new();
+    let mut total = 0.0;
+    for m in moves {
+        if m.kind == MoveKind::Rapid || !tools.sweeps(m) {
+            continue;
+        }
+        let Some((pieces, tip_length)) = frame.segments(m) else {
+            continue;
+        };
+        let share = tip_length / pieces.len().max(1) as f64;
+        if !share.is_finite() {
+            continue;
+        }
+        total += share * pieces.len() as f64;
+        for p in &pieces {
+            let (a, b) = (p.segment.axis_from, p.segment.axis_to);
+            if a != b {
+                continue;
+            }
+            if let Some((_, len)) = axes.iter_mut().find(|(x, _)| *x == a) {
+                *len += share;
+            } else if axes.len() < MAX_AXES_COUNTED {
+                axes.push((a, share));
+            }
+        }
+    }
+    let best = axes
+        .iter()
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+        .filter(|(a, len)| *len >= 0.5 * total && (a[2] - 1.0).abs() > 1e-12);
+    best.and_then(|(a, _)| GridFrame::with_z_along(*a))
+        .unwrap_or(GridFrame::IDENTITY)
 }
 
 /// Sweeps every move through `stock`; fills the rows' tip path, removed volume, engagement
