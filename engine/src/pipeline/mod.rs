@@ -18,8 +18,10 @@ mod removal;
 mod rows;
 mod spec;
 mod stages;
+mod step_totals;
 mod tools;
 
+pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
     Collision, EnergyTotals, MoveRow, OptimizationSummary, RoughnessSummary, SimulationOutput,
     SimulationSummary, StageTimings, StepSample, ToolLife,
@@ -37,6 +39,18 @@ use crate::tool::Tool;
 
 pub fn simulate(
     spec: &SimulateSpec,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<SimulationOutput, SimulateError> {
+    simulate_in_batches(spec, DEFAULT_BATCH_STEPS, cancel, progress)
+}
+
+/// [`simulate`], the removal handing its steps on about `batch_steps` cells of path at a
+/// time (the forces, rows and wear inputs are added up batch by batch, and only what the
+/// optimizer reads is kept of each step). The results do not depend on the batch size.
+pub fn simulate_in_batches(
+    spec: &SimulateSpec,
+    batch_steps: usize,
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<SimulationOutput, SimulateError> {
@@ -59,18 +73,42 @@ pub fn simulate(
     let times = cycle_time(moves, &spec.machine, None)?;
     let mut rows = rows::initial_rows(&spec.program, moves, &times);
     let clock = Instant::now();
-    let removal = removal::remove_material(
-        spec, moves, &tools, cell, &mut stock, &mut rows, cancel, progress,
+    let plan = removal::plan_removal(spec, moves, &tools, cell, &mut rows)?;
+    let (scales, feed_ranges) = forces::feed_scales(spec, moves, &rows);
+    let context = step_totals::BatchContext {
+        moves,
+        tools: &tools,
+        models: &plan.models,
+        coefficients: spec.material.coefficients,
+        feed_ranges: feed_ranges.as_deref(),
+    };
+    let mut totals = step_totals::StepTotals::new(moves.len(), spec.optimize.is_some());
+    // The forces of each batch are computed as it comes (their time counts as removal's).
+    let rays_tested = removal::remove_material(
+        &plan,
+        moves,
+        &tools,
+        cell,
+        &mut stock,
+        &mut rows,
+        batch_steps.max(1),
+        cancel,
+        progress,
+        &mut |rows, steps| totals.add_batch(&context, rows, steps),
     )?;
     timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let programmed = forces::forces_at_programmed_feeds(spec, moves, &rows, &removal)?;
     if cancel.is_cancelled() {
         return Err(SimulateError::Cancelled);
     }
-    let (samples, evaluations) =
-        rows::add_step_forces(&mut rows, &removal.steps, &programmed.forces);
+    let step_totals::Totals {
+        samples,
+        evaluations,
+        diameters,
+        scallops,
+        kept,
+    } = totals.finish(&mut rows);
     let energy = match &spec.machine.energy {
         Some(model) => Some(stages::block_energy(model, moves, &mut rows)?),
         None => None,
@@ -79,7 +117,8 @@ pub fn simulate(
         Some(c) => Some(stages::chatter_margins(c, spec, moves, &mut rows, &tools)?),
         None => None,
     };
-    let tool_life = stages::wear_and_roughness(spec, moves, &mut rows, &removal.steps, &tools)?;
+    let tool_life =
+        stages::wear_and_roughness(spec, moves, &mut rows, (&diameters, &scallops), &tools)?;
     for row in rows.iter_mut() {
         row.set_flags();
     }
@@ -95,8 +134,8 @@ pub fn simulate(
                 limits,
                 moves,
                 &mut rows,
-                (&removal.steps, &programmed.responses, &programmed.scales),
-                &removal.models,
+                (kept.as_deref().unwrap_or_default(), &scales),
+                &plan.models,
                 &times,
                 &mut timings,
             )?;
@@ -138,7 +177,7 @@ pub fn simulate(
         summary,
         stock,
         timings,
-        rays_tested: removal.rays_tested,
+        rays_tested,
         tool_numbers: tools.numbers,
     })
 }
