@@ -261,7 +261,9 @@ pub struct EnergyTotals {
 pub struct StageTimings {
     pub interpret_s: f64,
     pub stock_s: f64,
+    /// The removal, with each batch's step forces (computed as the batches come).
     pub removal_and_engagement_s: f64,
+    /// What follows the removal: the rows' means, energy, chatter, wear and roughness.
     pub forces_s: f64,
     /// Feed scheduling, rewrite, re-interpretation and forces at the new feeds; and of it:
     /// the schedule (secant iterations on the force model), the rewrite with its checks
