@@ -37,6 +37,10 @@ impl MoveStep {
     }
 }
 
+/// Where each batch of steps goes, with the rows (in program order).
+pub(super) type StepSink<'a> =
+    dyn FnMut(&mut [MoveRow], Vec<MoveStep>) -> Result<(), SimulateError> + 'a;
+
 /// Steps swept before they are handed on (counted as cells of path, an upper bound of the
 /// steps): large enough that the pass's setup per batch (ray summaries, the X and Y
 /// threads) stays small beside the sweeping, small enough that a batch's step records
@@ -148,7 +152,7 @@ pub(super) fn remove_material(
     batch_steps: usize,
     cancel: &CancelFlag,
     progress: &dyn Progress,
-    sink: &mut dyn FnMut(&mut [MoveRow], Vec<MoveStep>) -> Result<(), SimulateError>,
+    sink: &mut StepSink,
 ) -> Result<u64, SimulateError> {
     let segments_total: usize = plan.runs.iter().map(|(_, r)| r.len()).sum();
     // Per move: (length of steps that cut, length of all steps).
@@ -188,7 +192,7 @@ pub(super) fn remove_material(
             let only: Vec<Segment> = batch.iter().map(|p| p.piece.segment.clone()).collect();
             let base = done;
             let mut on_segment = |k: usize| {
-                if k % PROGRESS_CHUNK == 0 || k == only.len() {
+                if k.is_multiple_of(PROGRESS_CHUNK) || k == only.len() {
                     progress.report(
                         (base + k as u64) * 9 * total / (10 * segments_total as u64).max(1),
                         total,

@@ -422,7 +422,7 @@ pub(super) fn summarize(
             .filter(|r| r.holder_contact || r.shank_contact)
             .count(),
         flute_length_exceeded_moves: rows.iter().filter(|r| r.flute_length_exceeded).count(),
-        collisions: collisions(&rows),
+        collisions: collisions(rows),
         force_evaluations: evaluations,
         cycle_time_s: times.total_s,
         cutting_time_s: times.cutting_s,
