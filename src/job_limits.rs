@@ -57,11 +57,12 @@ pub fn over_budget_problem(
         "title": "Over the job's memory budget",
         "status": 422,
         "detail": format!(
-            "{}the simulation needs about {} MiB (grid {} MiB, step records {} MiB, rows {} MiB, stock export {} MiB), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, a smaller stock or shorter moves",
+            "{}the simulation needs about {} MiB (grid {} MiB, step records held at once {} MiB, what the steps keep {} MiB, rows {} MiB, stock export {} MiB), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, a smaller stock or shorter moves",
             file.map(|f| format!("{f}: ")).unwrap_or_default(),
             mib(estimate.peak_bytes),
             mib(estimate.grid_bytes),
             mib(estimate.steps_bytes),
+            mib(estimate.kept_bytes),
             mib(estimate.rows_bytes),
             mib(estimate.export_bytes),
             limits.memory_mb(),
@@ -144,6 +145,8 @@ pub struct SimulationCheck<'a> {
     pub stock: &'a StockSource,
     pub tools: &'a BTreeMap<u32, Tool>,
     pub cell: Option<f64>,
+    /// An optimize job (the optimizer keeps a record of every step).
+    pub optimize: bool,
 }
 
 /// Why a simulation may not start.
@@ -179,8 +182,8 @@ pub fn check_simulation(
         stock_max,
         cell,
         moves,
-        flute_length: tools.iter().map(|t| t.flute_length).fold(0.0, f64::max),
         tool_radius: tools.iter().map(Tool::radius).fold(0.0, f64::max),
+        optimize: c.optimize,
     };
     let Ok(estimate) = budget::estimate_simulation(&size) else {
         // An absurd grid: the pipeline's own grid check names it.
@@ -218,8 +221,8 @@ pub fn submission_estimate(
         stock_max: stock_bounds.1,
         cell,
         moves: &[],
-        flute_length: 0.0,
         tool_radius: 0.0,
+        optimize: false,
     };
     let estimate = budget::estimate_simulation(&size).ok()?;
     (estimate.peak_bytes > limits.memory_bytes).then_some(estimate)

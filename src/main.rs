@@ -4,6 +4,7 @@ mod config;
 mod csv;
 mod http;
 mod isolate;
+mod job_estimates;
 mod job_library;
 mod job_limits;
 mod metrics;

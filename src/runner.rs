@@ -612,6 +612,7 @@ fn simulate_job(
         stock: &stock,
         tools: &tools,
         cell: opts.cell_mm,
+        optimize,
     };
     let estimate = check_simulation(&check, limits).map_err(|r| match r {
         Refusal::Program(d) => program_failure(cancel, &file, &d),

@@ -7,6 +7,7 @@
 
 use serde::Serialize;
 
+use crate::geometry::frame::MAX_TURNED_GRID_GROWTH;
 use crate::geometry::{export, DexelGrid, GeometryError};
 use crate::machine::cycle_time::move_length;
 use crate::machine::Machine;
@@ -91,16 +92,20 @@ pub struct MemoryEstimate {
     pub grid_bytes: u64,
     /// The interpreted moves.
     pub moves_bytes: u64,
-    /// Per-step records: one per cell of the path where the tool can reach the stock, with
-    /// their engaged slices.
+    /// Step records held at once: the removal hands its steps on in batches
+    /// (`pipeline::DEFAULT_BATCH_STEPS` cells of path), so this is one batch's, or the
+    /// longest move's where a single move is longer (its steps are held until it ends).
     pub steps_bytes: u64,
+    /// What every step keeps until the job ends: its force sample (and the sample's JSON),
+    /// and in an optimize job what the optimizer reads of it.
+    pub kept_bytes: u64,
     /// Per-block rows, as structs and as the JSON text stored.
     pub rows_bytes: u64,
     /// The stock export: the voxel columns, the triangles, and the file.
     pub export_bytes: u64,
-    /// The largest of the two phases: removal (grid, moves, steps, rows) and export
-    /// (grid, rows, step samples, export), plus a fixed allowance for the program text,
-    /// the force tables and the process.
+    /// The largest of the two phases: removal (grid, moves, a batch of steps, what the
+    /// steps keep, rows) and export (grid, rows, samples, export), plus a fixed allowance
+    /// for the program text, the force tables and the process.
     pub peak_bytes: u64,
 }
 
@@ -110,20 +115,35 @@ pub const FIXED_BYTES: u64 = 96 << 20;
 /// JSON text of one stored row, bytes (a simulate row has about 40 fields).
 const ROW_JSON_BYTES: u64 = 1400;
 
-/// Bytes one removal step of a straight move holds until the job ends, engaged slices
-/// apart (its geometry, engagement, force records and sample). Calibrated on the adaptive
-/// example (examples/adaptive: 81,000 steps of 0.066 mm, 295 MB peak in all): a cut step
-/// holds 2 to 2.5 KB with its slices; steps in air hold far less (a straight zigzag in air:
-/// 175 B per cell of path), so this is an upper bound for them.
+/// Bytes one removal step of a straight move holds while its batch is swept and
+/// evaluated (its geometry, packed engagement, the removal pass's record, its force
+/// result). Calibrated when every step lived until the end: the adaptive example (81,000
+/// cells of path, 295 MB peak RSS) held 2 to 2.5 KB per cut step before engagements were
+/// packed, 1.07 KB of heap per step after (131.7 MB peak heap, 91 MB of it the grid,
+/// 37,900 steps); a flank cut 8 mm deep at 0.1 mm (80 slices a step, packed into runs)
+/// 0.56 KB.
 pub const STEP_BYTES: u64 = 2048;
 
 /// The same for a step of an arc (its sampled pieces too). Measured: a 1000-turn circle of
-/// radius 5 mm in a block (D10 flat, 0.25 mm cells, 125,600 steps, 0.5 to 2 mm deep) peaked
-/// 420 MB over the same program's 100 turns, 3.3 to 3.7 KB per step.
+/// radius 5 mm in a block (D10 flat, 0.25 mm cells, 125,600 steps, one move, so one batch)
+/// peaked 420 MB over the same program's 100 turns, 3.3 to 3.7 KB per step (heaptrack puts
+/// 400 of its 457 MB heap in the removal pass's per-step records).
 pub const ARC_STEP_BYTES: u64 = 3584;
 
-/// Bytes per engaged slice of a step (measured: 60 B from a 0.5 mm to an 8 mm deep cut).
-pub const SLICE_BYTES: u64 = 64;
+/// Bytes every step keeps after its batch: its force sample (48 B) and the sample's JSON
+/// in the stored rows (about 130 B). Measured: 3000 one-turn circles hold 3 MB more heap
+/// than 1000 (146,000 more steps, most in air: 21 B each with their rows); the adaptive
+/// example's 31,000 samples 1.5 MB.
+pub const KEPT_STEP_BYTES: u64 = 256;
+
+/// Bytes the optimizer keeps of each step (its place and tip ratio, the packed engagement
+/// and peak response of a cutting step, and the schedule's per-step records). Measured
+/// (heaptrack, peak heap of optimize over simulate): 3000 one-turn circles over 1000, 333 B
+/// per added (air) step; the adaptive example, 362 B per step (37,900 steps, 31,200 cut).
+pub const OPTIMIZER_STEP_BYTES: u64 = 512;
+
+/// Cells of path per batch of steps (`pipeline::DEFAULT_BATCH_STEPS`).
+const BATCH_CELLS: u64 = crate::pipeline::DEFAULT_BATCH_STEPS as u64;
 
 /// Length of the straight segment `a`–`b` (X Y Z) inside the box `[lo, hi]`.
 fn clipped_length(a: &[f64; 6], b: &[f64; 6], lo: [f64; 3], hi: [f64; 3]) -> f64 {
@@ -155,15 +175,24 @@ pub struct SimulationSize<'a> {
     /// Dexel spacing, mm.
     pub cell: f64,
     pub moves: &'a [Move],
-    /// The longest flute among the tools (the most slices an engagement can hold), mm.
-    pub flute_length: f64,
     /// The largest tool radius, mm: how far from the stock a step can still engage.
     pub tool_radius: f64,
+    /// An optimize job: the optimizer keeps a compact record of every step.
+    pub optimize: bool,
 }
 
 /// The memory estimate of a simulation (see [`MemoryEstimate`]).
 pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, GeometryError> {
-    let grid = DexelGrid::estimate(size.stock_min, size.stock_max, size.cell)?;
+    let mut grid = DexelGrid::estimate(size.stock_min, size.stock_max, size.cell)?;
+    // A program on rotary axes may get its grid turned along a fixed tool axis, up to
+    // `MAX_TURNED_GRID_GROWTH` times larger (see `geometry::frame`).
+    if size
+        .moves
+        .iter()
+        .any(|m| m.end[3..].iter().any(|&a| a != 0.0))
+    {
+        grid.bytes = (grid.bytes as f64 * MAX_TURNED_GRID_GROWTH).ceil() as u64;
+    }
     let [nx, ny, nz] = grid.cells.map(|n| n as u64);
     let moves_bytes = size.moves.len() as u64 * std::mem::size_of::<Move>() as u64
         + size.moves.iter().filter(|m| m.arc.is_some()).count() as u64 * 160;
@@ -172,17 +201,19 @@ pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, Geom
 
     // Steps are one cell long (longer only where nothing changes), recorded only where the
     // tool can reach the stock: one record per cell of the path inside the stock's box
-    // grown by the tool's radius, with the engaged slices (a quarter of the height the tool
-    // can engage, the stock's at most the flute, on average).
-    let engaged_height = (size.stock_max[2] - size.stock_min[2])
-        .min(size.flute_length)
-        .max(size.cell);
-    let slices_per_step = (0.25 * engaged_height / size.cell).ceil().max(1.0) as u64;
-    let slice_bytes = slices_per_step * SLICE_BYTES;
+    // grown by the tool's radius.
     let reach = size.tool_radius.max(0.0);
     let lo = size.stock_min.map(|v| v - reach);
     let hi = size.stock_max.map(|v| v + reach);
-    let mut steps_bytes = 0u64;
+    // Steps held at once: a batch of BATCH_CELLS cells of path, or one longer move whole;
+    // every step then keeps its sample (and the optimizer's record).
+    let kept_per_step = KEPT_STEP_BYTES
+        + if size.optimize {
+            OPTIMIZER_STEP_BYTES
+        } else {
+            0
+        };
+    let (mut all_steps, mut all_bytes, mut longest_move) = (0u64, 0u64, 0u64);
     for m in size.moves {
         if matches!(m.kind, MoveKind::Dwell | MoveKind::ToolChange) {
             continue;
@@ -220,9 +251,21 @@ pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, Geom
             ARC_STEP_BYTES
         } else {
             STEP_BYTES
-        } + slice_bytes;
-        steps_bytes = steps_bytes.saturating_add(n.saturating_mul(per_step));
+        };
+        let bytes = n.saturating_mul(per_step);
+        all_steps = all_steps.saturating_add(n);
+        all_bytes = all_bytes.saturating_add(bytes);
+        longest_move = longest_move.max(bytes);
     }
+    // A batch of the program's own mix of straight and arc steps.
+    let batch = if all_steps > BATCH_CELLS {
+        all_bytes / all_steps * BATCH_CELLS
+    } else {
+        all_bytes
+    };
+    let steps_bytes = batch.max(longest_move);
+    let kept_bytes = all_steps.saturating_mul(kept_per_step);
+    let samples_bytes = all_steps.saturating_mul(KEPT_STEP_BYTES);
 
     // Export: the voxel bit columns (layers 0..=nz) of a band of rows at a time, and the
     // triangles, a strip per run of boundary faces (about a quarter of the faces of the
@@ -233,12 +276,22 @@ pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, Geom
     let stl = export::stl_bytes(2 * boundary_faces / 4);
     let export_bytes = voxels + 2 * stl;
 
-    let removal = grid.bytes + moves_bytes + steps_bytes + rows_bytes;
-    let export = grid.bytes + rows_bytes + steps_bytes / 4 + export_bytes;
+    let removal = grid
+        .bytes
+        .saturating_add(moves_bytes)
+        .saturating_add(steps_bytes)
+        .saturating_add(kept_bytes)
+        .saturating_add(rows_bytes);
+    let export = grid
+        .bytes
+        .saturating_add(rows_bytes)
+        .saturating_add(samples_bytes)
+        .saturating_add(export_bytes);
     Ok(MemoryEstimate {
         grid_bytes: grid.bytes,
         moves_bytes,
         steps_bytes,
+        kept_bytes,
         rows_bytes,
         export_bytes,
         peak_bytes: removal.max(export).saturating_add(FIXED_BYTES),
@@ -294,8 +347,8 @@ mod tests {
                 stock_max: [40.0, 30.0, 0.0],
                 cell,
                 moves,
-                flute_length: 20.0,
                 tool_radius: 5.0,
+                optimize: false,
             }
         }
         let short = moves("G0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X40\n");
@@ -303,7 +356,7 @@ mod tests {
         let through = moves("G0 X-1900 Y15 Z5\nG1 Z-1 F500\nG1 X1900\n");
         let a = estimate_simulation(&size(&short, 0.25)).unwrap();
         let b = estimate_simulation(&size(&through, 0.25)).unwrap();
-        let step = STEP_BYTES + 10 * SLICE_BYTES;
+        let step = STEP_BYTES;
         // 5 mm down from the origin, 6 mm down, 40 mm across: 204 quarter-millimetre steps.
         assert_eq!(a.steps_bytes, 204 * step);
         // Of the 3.8 km move, the 50 mm across the stock and the tool's reach each side.
@@ -317,5 +370,37 @@ mod tests {
         // The boundary of 8000 × 6000 × 2000 cells: about 2.6 GB of triangles, twice.
         assert!(fine.export_bytes > 5_000_000_000, "{fine:?}");
         assert!(fine.peak_bytes > fine.export_bytes);
+    }
+
+    #[test]
+    fn many_short_moves_hold_one_batch_of_steps_and_keep_a_little_per_step() {
+        // 2000 passes across the stock at 0.25 mm, far more steps than a batch.
+        let mut program = String::from("G0 X-10 Y15 Z5\nG1 Z-1 F500\n");
+        for _ in 0..1000 {
+            program += "G1 X50\nG1 X-10\n";
+        }
+        let passes = moves(&program);
+        let size = |optimize| SimulationSize {
+            stock_min: [0.0, 0.0, -10.0],
+            stock_max: [40.0, 30.0, 0.0],
+            cell: 0.25,
+            moves: &passes,
+            tool_radius: 5.0,
+            optimize,
+        };
+        let e = estimate_simulation(&size(false)).unwrap();
+        let step = STEP_BYTES;
+        // 2000 passes of 50 mm inside the reach box (the stock and 5 mm), 200 cells each.
+        let steps = e.kept_bytes / KEPT_STEP_BYTES;
+        assert!((400_000..400_100).contains(&steps), "{e:?}");
+        // One batch's worth, not the 2000 passes' 800 MB.
+        assert_eq!(e.steps_bytes, BATCH_CELLS * STEP_BYTES);
+        assert!(e.steps_bytes < steps * step / 5, "{e:?}");
+        let o = estimate_simulation(&size(true)).unwrap();
+        assert_eq!(
+            o.kept_bytes,
+            steps * (KEPT_STEP_BYTES + OPTIMIZER_STEP_BYTES)
+        );
+        assert!(o.peak_bytes > e.peak_bytes);
     }
 }

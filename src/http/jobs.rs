@@ -105,16 +105,29 @@ fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Resul
 
 /// A simulation whose grid and stock export alone cannot fit the job memory budget is
 /// refused now (422 naming the budget and the estimate) rather than failed later; what
-/// needs the program (step records, rows) is checked when the job runs.
+/// needs the program (step records, rows) is checked when the job runs. The other kinds
+/// are estimated from their options and program size (`job_estimates`).
 async fn check_memory_budget(
     state: &AppState,
     owner: &str,
     kind: &str,
-    inputs: &Map<String, Value>,
+    (inputs, inline_program): (&Map<String, Value>, Option<u64>),
     options: &Value,
 ) -> Result<(), ApiError> {
     if !matches!(kind, "simulate" | "optimize") {
-        return Ok(());
+        // The other kinds by their options and the program's size.
+        let stored = match inputs.get("program").and_then(Value::as_str) {
+            Some(id) => {
+                state
+                    .db
+                    .get_resource(owner, ResourceKind::Program, id)
+                    .await?
+            }
+            None => None,
+        };
+        let program = inline_program.or(stored.map(|r| r.size.max(0) as u64));
+        return crate::job_estimates::check(kind, options, program.unwrap_or(0), &state.job_limits)
+            .map_err(ApiError::over_budget);
     }
     let Ok(o) = serde_json::from_value::<runner::SimulateOptions>(options.clone()) else {
         return Ok(());
@@ -297,7 +310,18 @@ pub async fn create(
         &options,
         request.inputs.contains_key("material"),
     )?;
-    check_memory_budget(&state, &owner, &request.kind, &inputs, &options).await?;
+    let inline_program = inline
+        .iter()
+        .find(|i| i.kind == ResourceKind::Program)
+        .map(|i| i.content.len() as u64);
+    check_memory_budget(
+        &state,
+        &owner,
+        &request.kind,
+        (&inputs, inline_program),
+        &options,
+    )
+    .await?;
     let outcome = state
         .db
         .create_job(

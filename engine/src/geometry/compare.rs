@@ -21,7 +21,8 @@ pub struct PartComparison {
     pub max_gouge_depth: f64,
     /// Z rays through the part (where the allowance is measured).
     pub part_rays: u64,
-    /// Stock top minus part top over the Z rays through the part, mm.
+    /// Stock top minus part top over the Z rays through the part, mm (along the grid's z:
+    /// the tool axis where the grid is turned along a 3+2 program's axis).
     pub allowance_min: f64,
     pub allowance_mean: f64,
     pub allowance_max: f64,

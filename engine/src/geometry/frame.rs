@@ -10,6 +10,11 @@
 
 use crate::vec3::{cross, dot, norm, scale};
 
+/// A grid turned along a tool axis holds more rays than one along the part's axes (a tall
+/// box turned 15° is taller); over this factor the grid stays along the part's axes (the
+/// job's memory estimate allows for it).
+pub const MAX_TURNED_GRID_GROWTH: f64 = 1.5;
+
 /// A rotation from the part frame into the grid frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GridFrame {

@@ -7,11 +7,11 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::frame::feed_scale;
-use super::removal::{MoveStep, Removal};
+use super::removal::MoveStep;
 use super::rows::MoveRow;
-use super::spec::{SimulateError, SimulateSpec};
+use super::spec::SimulateSpec;
+use super::step_totals::KeptStep;
 use crate::engagement::Engagement;
-use crate::geometry;
 use crate::nc::{self, Move};
 use crate::optimize;
 use crate::physics::{
@@ -43,7 +43,7 @@ pub(super) fn evaluate_forces(
                     && p.tool == q.tool
                     && step_feeds[i - 1] == step_feeds[i]
                     && a.air == b.air
-                    && (a.removed_volume > 0.0) == (b.removed_volume > 0.0)
+                    && p.cuts() == q.cuts()
                     && a.engagement == b.engagement
             }
         })
@@ -57,7 +57,8 @@ pub(super) fn evaluate_forces(
             |(models, scratch), ((step, &feed), &same)| {
                 let (m, t, s) = (&moves[step.move_index], &step.tool, &step.geometry);
                 let flutes = models[t].table().flutes() as f64;
-                let Some(conditions) = cutting_conditions(m, s, feed, flutes).filter(|_| !same)
+                let Some(conditions) =
+                    cutting_conditions(m, step.cuts(), feed, flutes).filter(|_| !same)
                 else {
                     return Ok((None, None));
                 };
@@ -109,8 +110,7 @@ pub(super) type StepForces = (Option<ForceResult>, Option<Arc<PeakResponse>>);
 /// Peak |F| at every step that removes material, each at its own feed (mm/min): from the
 /// step's peak response when the feed lies in its range, else by evaluating the model.
 pub(super) fn peak_forces(
-    steps: &[MoveStep],
-    responses: &[Option<Arc<PeakResponse>>],
+    steps: &[KeptStep],
     moves: &[Move],
     step_feeds: &[f64],
     models: &BTreeMap<u32, ForceModel>,
@@ -118,24 +118,26 @@ pub(super) fn peak_forces(
 ) -> Result<Vec<Option<f64>>, crate::physics::PhysicsError> {
     steps
         .par_iter()
-        .zip(responses)
         .zip(step_feeds)
         .map_init(
             || (models.clone(), Engagement::default()),
-            |(models, scratch), ((step, response), &feed)| {
-                let (m, t, s) = (&moves[step.move_index], &step.tool, &step.geometry);
+            |(models, scratch), (step, &feed)| {
+                let (m, t) = (&moves[step.move_index], &step.tool);
                 let flutes = models[t].table().flutes() as f64;
-                let Some(conditions) = cutting_conditions(m, s, feed, flutes) else {
+                let Some(conditions) = cutting_conditions(m, step.cuts, feed, flutes) else {
                     return Ok(None);
                 };
                 let fz = conditions.feed_per_tooth;
-                if let Some(p) = response.as_ref().and_then(|r| r.at(fz)) {
+                if let Some(p) = step.response.as_ref().and_then(|r| r.at(fz)) {
                     return Ok(Some(p.force));
                 }
+                let Some(engagement) = &step.engagement else {
+                    return Ok(None);
+                };
                 let model = models.get_mut(t).expect("model per tool");
                 Ok(Some(
                     model
-                        .evaluate(s.engagement.view(scratch), k, &conditions)?
+                        .evaluate(engagement.view(scratch), k, &conditions)?
                         .force
                         .peak,
                 ))
@@ -145,14 +147,14 @@ pub(super) fn peak_forces(
 }
 
 /// Spindle speed and feed per tooth of a step on move `m` at `feed` (mm/min), when the step
-/// cuts: it meets and removes material, the spindle turns and the tool moves.
+/// cuts: it meets and removes material (`cuts`), the spindle turns and the tool moves.
 pub(super) fn cutting_conditions(
     m: &Move,
-    s: &geometry::StepGeometry,
+    cuts: bool,
     feed: f64,
     flutes: f64,
 ) -> Option<CuttingConditions> {
-    let idle = s.air || s.removed_volume <= 0.0 || turning_rpm(m) <= 0.0 || feed <= 0.0;
+    let idle = !cuts || turning_rpm(m) <= 0.0 || feed <= 0.0;
     (!idle).then(|| CuttingConditions {
         spindle_rpm: m.spindle,
         feed_per_tooth: feed / (m.spindle * flutes),
@@ -168,53 +170,21 @@ pub(super) fn turning_rpm(m: &Move) -> f64 {
     }
 }
 
-/// The step forces at the programmed feeds, and what the optimizer reads: per step the peak
-/// response over its feed range, per move the feed scale.
-pub(super) struct ProgrammedForces {
-    pub(super) forces: Vec<Option<ForceResult>>,
-    pub(super) responses: Vec<Option<Arc<PeakResponse>>>,
-    pub(super) scales: Vec<optimize::FeedScale>,
-}
-
-/// Forces at every step of the removal at the programmed feeds.
-pub(super) fn forces_at_programmed_feeds(
+/// Per move, how its machine-axis feed drives the tip, and with optimization the range of
+/// machine-axis feeds the optimizer may choose (for the steps' peak responses).
+pub(super) fn feed_scales(
     spec: &SimulateSpec,
     moves: &[Move],
     rows: &[MoveRow],
-    removal: &Removal,
-) -> Result<ProgrammedForces, SimulateError> {
-    let k = spec.material.coefficients;
-    // Each step at the tip speed the programmed feed gives there.
-    let step_feeds: Vec<f64> = removal
-        .steps
-        .iter()
-        .map(|s| s.tip_ratio * rows[s.move_index].feed_mm_min)
-        .collect();
-    // Per move, the machine-axis feeds the optimizer may choose, for the steps' peak
-    // responses.
+) -> (Vec<optimize::FeedScale>, Option<Vec<(f64, f64)>>) {
     let scales: Vec<optimize::FeedScale> = moves
         .iter()
         .zip(rows)
         .map(|(m, r)| feed_scale(m, r, &spec.machine, spec.axes))
         .collect();
-    let feed_ranges: Option<Vec<(f64, f64)>> = spec.optimize.as_ref().map(|l| {
+    let feed_ranges = spec.optimize.as_ref().map(|l| {
         let l = l.clone().with_machine(&spec.machine);
         scales.iter().map(|s| s.feed_range(&l)).collect()
     });
-    let (forces, responses): (Vec<Option<ForceResult>>, Vec<Option<Arc<PeakResponse>>>) =
-        evaluate_forces(
-            &removal.steps,
-            moves,
-            &step_feeds,
-            &removal.models,
-            &k,
-            feed_ranges.as_deref(),
-        )?
-        .into_iter()
-        .unzip();
-    Ok(ProgrammedForces {
-        forces,
-        responses,
-        scales,
-    })
+    (scales, feed_ranges)
 }

@@ -18,8 +18,10 @@ mod removal;
 mod rows;
 mod spec;
 mod stages;
+mod step_totals;
 mod tools;
 
+pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
     Collision, EnergyTotals, MoveRow, OptimizationSummary, RoughnessSummary, SimulationOutput,
     SimulationSummary, StageTimings, StepSample, ToolLife,
@@ -37,6 +39,18 @@ use crate::tool::Tool;
 
 pub fn simulate(
     spec: &SimulateSpec,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<SimulationOutput, SimulateError> {
+    simulate_in_batches(spec, DEFAULT_BATCH_STEPS, cancel, progress)
+}
+
+/// [`simulate`], the removal handing its steps on about `batch_steps` cells of path at a
+/// time (the forces, rows and wear inputs are added up batch by batch, and only what the
+/// optimizer reads is kept of each step). The results do not depend on the batch size.
+pub fn simulate_in_batches(
+    spec: &SimulateSpec,
+    batch_steps: usize,
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<SimulationOutput, SimulateError> {
@@ -59,18 +73,48 @@ pub fn simulate(
     let times = cycle_time(moves, &spec.machine, None)?;
     let mut rows = rows::initial_rows(&spec.program, moves, &times);
     let clock = Instant::now();
-    let removal = removal::remove_material(
-        spec, moves, &tools, cell, &mut stock, &mut rows, cancel, progress,
+    let plan = removal::plan_removal(spec, moves, &tools, cell, &mut rows)?;
+    let (scales, feed_ranges) = forces::feed_scales(spec, moves, &rows);
+    let context = step_totals::BatchContext {
+        moves,
+        tools: &tools,
+        models: &plan.models,
+        coefficients: spec.material.coefficients,
+        feed_ranges: feed_ranges.as_deref(),
+    };
+    let mut totals = step_totals::StepTotals::new(moves.len(), spec.optimize.is_some());
+    // The forces of each batch are computed as it comes; their time is counted apart.
+    let mut batch_forces_s = 0.0;
+    let rays_tested = removal::remove_material(
+        &plan,
+        moves,
+        &tools,
+        cell,
+        &mut stock,
+        &mut rows,
+        batch_steps.max(1),
+        cancel,
+        progress,
+        &mut |rows, steps| {
+            let clock = Instant::now();
+            let added = totals.add_batch(&context, rows, steps);
+            batch_forces_s += clock.elapsed().as_secs_f64();
+            added
+        },
     )?;
-    timings.removal_and_engagement_s = clock.elapsed().as_secs_f64();
+    timings.removal_and_engagement_s = clock.elapsed().as_secs_f64() - batch_forces_s;
 
     let clock = Instant::now();
-    let programmed = forces::forces_at_programmed_feeds(spec, moves, &rows, &removal)?;
     if cancel.is_cancelled() {
         return Err(SimulateError::Cancelled);
     }
-    let (samples, evaluations) =
-        rows::add_step_forces(&mut rows, &removal.steps, &programmed.forces);
+    let step_totals::Totals {
+        samples,
+        evaluations,
+        diameters,
+        scallops,
+        kept,
+    } = totals.finish(&mut rows);
     let energy = match &spec.machine.energy {
         Some(model) => Some(stages::block_energy(model, moves, &mut rows)?),
         None => None,
@@ -79,13 +123,14 @@ pub fn simulate(
         Some(c) => Some(stages::chatter_margins(c, spec, moves, &mut rows, &tools)?),
         None => None,
     };
-    let tool_life = stages::wear_and_roughness(spec, moves, &mut rows, &removal.steps, &tools)?;
+    let tool_life =
+        stages::wear_and_roughness(spec, moves, &mut rows, (&diameters, &scallops), &tools)?;
     for row in rows.iter_mut() {
         row.set_flags();
     }
     let total = moves.len() as u64;
     progress.report(total, total);
-    timings.forces_s = clock.elapsed().as_secs_f64();
+    timings.forces_s = batch_forces_s + clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
     let (optimized_program, optimization) = match &spec.optimize {
@@ -95,8 +140,8 @@ pub fn simulate(
                 limits,
                 moves,
                 &mut rows,
-                (&removal.steps, &programmed.responses, &programmed.scales),
-                &removal.models,
+                (kept.as_deref().unwrap_or_default(), &scales),
+                &plan.models,
                 &times,
                 &mut timings,
             )?;
@@ -138,7 +183,7 @@ pub fn simulate(
         summary,
         stock,
         timings,
-        rays_tested: removal.rays_tested,
+        rays_tested,
         tool_numbers: tools.numbers,
     })
 }
@@ -162,12 +207,8 @@ fn check_inputs(
     Ok(())
 }
 
-/// A grid turned along a 3+2 program's tool axis holds more rays than one along the part's
-/// axes (a tall box turned 15° is taller); over this factor the grid stays along the axes.
-const MAX_TURNED_GRID_GROWTH: f64 = 1.5;
-
 /// The stock's grid at dexel spacing `cell`, turned by `frame` unless that grows it by more
-/// than `MAX_TURNED_GRID_GROWTH` or past the memory limit.
+/// than `geometry::frame::MAX_TURNED_GRID_GROWTH` or past the memory limit.
 fn stock(spec: &SimulateSpec, cell: f64, frame: GridFrame) -> Result<Stock, SimulateError> {
     let grid = GridOptions {
         cell: Some(cell),
@@ -199,7 +240,7 @@ fn stock(spec: &SimulateSpec, cell: f64, frame: GridFrame) -> Result<Stock, Simu
         };
         let (turned, straight) = (bytes(bounds(&frame)?), bytes(bounds(&GridFrame::IDENTITY)?));
         if let (Ok(t), Ok(s)) = (turned, straight) {
-            if t <= MAX_TURNED_GRID_GROWTH * s {
+            if t <= geometry::frame::MAX_TURNED_GRID_GROWTH * s {
                 if let Ok(stock) = build(frame) {
                     return Ok(stock);
                 }

@@ -2,16 +2,15 @@
 //! and the rewritten program checked and evaluated at its new feeds.
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
 
 use super::forces::peak_forces;
-use super::removal::MoveStep;
 use super::rows::{MoveRow, OptimizationSummary, StageTimings};
 use super::spec::{SimulateError, SimulateSpec};
+use super::step_totals::KeptStep;
 use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length};
 use crate::nc::{self, Move, MoveKind};
 use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
-use crate::physics::{ForceModel, PeakResponse};
+use crate::physics::ForceModel;
 
 /// Feed scheduling on the engagement the removal pass recorded, the rewrite, and the
 /// rewritten program re-interpreted, checked and re-evaluated at its new feeds.
@@ -20,11 +19,7 @@ pub(super) fn optimize_stage(
     limits: &FeedLimits,
     moves: &[Move],
     rows: &mut [MoveRow],
-    (steps, responses, scales): (
-        &[MoveStep],
-        &[Option<Arc<PeakResponse>>],
-        &[optimize::FeedScale],
-    ),
+    (steps, scales): (&[KeptStep], &[optimize::FeedScale]),
     models: &BTreeMap<u32, ForceModel>,
     before: &crate::machine::cycle_time::CycleTime,
     timings: &mut StageTimings,
@@ -45,9 +40,10 @@ pub(super) fn optimize_stage(
     // One engagement per swept feed move (possibly without engaged steps: air), in move order.
     // A move whose tip stands still (a rotary-only move read at the tool tip) has no tip
     // speed to schedule: it keeps its F.
+    let air = crate::engagement::PackedEngagement::default();
     let mut engagements: Vec<optimize::MoveEngagement> = Vec::new();
-    for (step, response) in steps.iter().zip(responses) {
-        let (mi, s) = (step.move_index, &step.geometry);
+    for step in steps {
+        let mi = step.move_index;
         if !matches!(moves[mi].kind, MoveKind::Linear | MoveKind::Arc) || !scales[mi].schedulable()
         {
             continue;
@@ -60,20 +56,15 @@ pub(super) fn optimize_stage(
                 steps: Vec::new(),
             });
         }
-        // A step that removes nothing is air (an empty engagement): a split plan then sees
-        // where the cut begins and ends along the move.
-        let cuts = !s.air && s.removed_volume > 0.0;
+        // A step that removes nothing is air (an empty engagement, kept so): a split plan
+        // then sees where the cut begins and ends along the move.
         let seg = engagements.last_mut().expect("pushed above");
         seg.steps.push(EngagementStep {
-            engagement: if cuts {
-                std::borrow::Cow::Borrowed(&s.engagement)
-            } else {
-                std::borrow::Cow::Owned(crate::engagement::PackedEngagement::default())
-            },
+            engagement: std::borrow::Cow::Borrowed(step.engagement.as_deref().unwrap_or(&air)),
             spindle_rpm: moves[mi].spindle,
             tip_ratio: step.tip_ratio,
             at: step.machine_at,
-            response: response.clone().filter(|_| cuts),
+            response: step.response.clone(),
         });
     }
     let clock = std::time::Instant::now();
@@ -175,7 +166,7 @@ pub(super) fn optimize_stage(
             s.tip_ratio * feed
         })
         .collect();
-    let forces_after = peak_forces(steps, responses, moves, &step_feeds, models, &k)?;
+    let forces_after = peak_forces(steps, moves, &step_feeds, models, &k)?;
     timings.optimize_forces_after_s = clock.elapsed().as_secs_f64();
     let final_times = cycle_time(&final_moves, &spec.machine, None)?;
     // Time per original move: the sum over its parts.

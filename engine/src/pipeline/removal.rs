@@ -1,5 +1,7 @@
 //! The removal stage: every move swept through the tri-dexel stock in the part frame, in
-//! runs of one tool, recording each step's engagement before it removes material.
+//! runs of one tool, recording each step's engagement before it removes material. The
+//! steps go to the later stages in batches of a bounded size, so the step records of a
+//! program are never held at once.
 
 use std::collections::BTreeMap;
 
@@ -27,15 +29,32 @@ pub(super) struct MoveStep {
     pub(super) geometry: geometry::StepGeometry,
 }
 
+impl MoveStep {
+    /// The step meets material and removes some (a step that removes nothing is air, even
+    /// where the edge grazes a wall an earlier move cut to exactly the tool's radius).
+    pub(super) fn cuts(&self) -> bool {
+        !self.geometry.air && self.geometry.removed_volume > 0.0
+    }
+}
+
+/// Where each batch of steps goes, with the rows (in program order).
+pub(super) type StepSink<'a> =
+    dyn FnMut(&mut [MoveRow], Vec<MoveStep>) -> Result<(), SimulateError> + 'a;
+
+/// Steps swept before they are handed on (counted as cells of path, an upper bound of the
+/// steps): large enough that the pass's setup per batch (ray summaries, the X and Y
+/// threads) stays small beside the sweeping, small enough that a batch's step records
+/// (about 1 KB each with their forces) stay in tens of megabytes.
+pub const DEFAULT_BATCH_STEPS: usize = 32_768;
+
 /// Moves swept between two progress reports (and cancellation checks).
 const PROGRESS_CHUNK: usize = 256;
 
-/// What the removal leaves for the force stage: the steps in program order, a force model
-/// per tool number (its slices on the engagement's grid), and the dexel updates counted.
-pub(super) struct Removal {
-    pub(super) steps: Vec<MoveStep>,
-    pub(super) models: BTreeMap<u32, ForceModel>,
-    pub(super) rays_tested: u64,
+/// One piece of a move to sweep, with the move's index and the piece's tip path, mm.
+struct PlannedPiece {
+    move_index: usize,
+    piece: FramePiece,
+    tip_length: f64,
 }
 
 /// Distinct tool axes counted when looking for the one most of the cutting is done on.
@@ -89,24 +108,25 @@ pub(super) fn grid_frame(
         .unwrap_or(GridFrame::IDENTITY)
 }
 
-/// Sweeps every move through `stock`; fills the rows' tip path, removed volume, engagement
-/// figures, checks and air fraction.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn remove_material(
+/// What the removal will sweep: same-tool runs of pieces in program order, and a force
+/// model per tool number (its slices on the engagement's grid).
+pub(super) struct RemovalPlan {
+    runs: Vec<(u32, Vec<PlannedPiece>)>,
+    pub(super) models: BTreeMap<u32, ForceModel>,
+}
+
+/// The pieces of every move in the part frame, grouped into same-tool runs; fills the
+/// rows' tip path and tip speed.
+pub(super) fn plan_removal(
     spec: &SimulateSpec,
     moves: &[Move],
     tools: &ToolLookup,
     cell: f64,
-    stock: &mut Stock,
     rows: &mut [MoveRow],
-    cancel: &CancelFlag,
-    progress: &dyn Progress,
-) -> Result<Removal, SimulateError> {
-    // (move index, segment, distance of its start along the move) in program order,
-    // grouped into same-tool runs; a move whose rotary axes turn gives several segments.
+) -> Result<RemovalPlan, SimulateError> {
     let reach = tools.all().map(|t| t.flute_length).fold(0.0, f64::max);
     let frame = PartFrame::new(&spec.machine, spec.axes, cell, reach);
-    let mut runs: Vec<(u32, Vec<(usize, FramePiece)>)> = Vec::new();
+    let mut runs: Vec<(u32, Vec<PlannedPiece>)> = Vec::new();
     for (i, m) in moves.iter().enumerate() {
         let Some((pieces, tip_length)) = frame.segments(m) else {
             continue;
@@ -131,17 +151,67 @@ pub(super) fn remove_material(
             runs.push((m.tool, Vec::new()));
         }
         let run = &mut runs.last_mut().expect("pushed above").1;
-        run.extend(pieces.into_iter().map(|p| (i, p)));
+        let ends: Vec<f64> = pieces
+            .iter()
+            .skip(1)
+            .map(|p| p.tip_at)
+            .chain([tip_length])
+            .collect();
+        run.extend(
+            pieces
+                .into_iter()
+                .zip(ends)
+                .map(|(piece, end)| PlannedPiece {
+                    move_index: i,
+                    tip_length: (end - piece.tip_at).max(0.0),
+                    piece,
+                }),
+        );
     }
-    let segments_total: usize = runs.iter().map(|(_, r)| r.len()).sum();
+    let mut models: BTreeMap<u32, ForceModel> = BTreeMap::new();
+    for (tool_number, pieces) in &runs {
+        if models.contains_key(tool_number) {
+            continue;
+        }
+        let tool = tools.tool_for(&moves[pieces[0].move_index])?;
+        models.insert(
+            *tool_number,
+            // Table slices on the grid the engagement slices come on (one cell high), so
+            // each lookup is free instead of computing the slice's integrals.
+            ForceModel::from_table(
+                ToolEdgeTable::with_slice_height(tool, cell)?,
+                spec.force_positions,
+            )?
+            .keep_samples(false),
+        );
+    }
+    Ok(RemovalPlan { runs, models })
+}
+
+/// Sweeps every planned piece through `stock`, `batch_steps` cells of path at a time
+/// (a single longer piece is one batch), and hands each batch's steps, in program order,
+/// to `sink` with the rows; fills the rows' removed volume, engagement figures, checks and
+/// air fraction. Returns the dexel updates counted.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn remove_material(
+    plan: &RemovalPlan,
+    moves: &[Move],
+    tools: &ToolLookup,
+    cell: f64,
+    stock: &mut Stock,
+    rows: &mut [MoveRow],
+    batch_steps: usize,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+    sink: &mut StepSink,
+) -> Result<u64, SimulateError> {
+    let segments_total: usize = plan.runs.iter().map(|(_, r)| r.len()).sum();
     // Per move: (length of steps that cut, length of all steps).
     let mut step_lengths = vec![(0.0, 0.0); moves.len()];
     let mut swept = vec![false; moves.len()];
     let total = moves.len() as u64;
     let mut rays_tested = 0u64;
-    let mut steps: Vec<MoveStep> = Vec::new();
     let mut done = 0u64;
-    let mut models: BTreeMap<u32, ForceModel> = BTreeMap::new();
     // The volume is measured once before and once after, not after every chunk.
     let sim_options = SimOptions {
         // Steps are one cell long at any feed: a move over 8 cells lets its step grow
@@ -150,87 +220,95 @@ pub(super) fn remove_material(
         measure_stock_volume: false,
         ..SimOptions::default()
     };
-    for (tool_number, segs) in &runs {
-        let tool = tools.tool_for(&moves[segs[0].0])?;
-        if !models.contains_key(tool_number) {
-            models.insert(
-                *tool_number,
-                // Table slices on the grid the engagement slices come on (one cell high),
-                // so each lookup is free instead of computing the slice's integrals.
-                ForceModel::from_table(
-                    ToolEdgeTable::with_slice_height(tool, cell)?,
-                    spec.force_positions,
-                )?
-                .keep_samples(false),
-            );
-        }
-        // One pass per tool run (the X/Y removal thread and the ray summaries are set up
-        // once); progress every few hundred segments, the last tenth being the forces.
-        let only: Vec<Segment> = segs.iter().map(|(_, p)| p.segment.clone()).collect();
-        let base = done;
-        let mut on_segment = |k: usize| {
-            if k % PROGRESS_CHUNK == 0 || k == only.len() {
-                progress.report(
-                    (base + k as u64) * 9 * total / (10 * segments_total as u64).max(1),
-                    total,
-                );
-            }
-        };
-        let report = geometry::simulate_removal_with_progress(
-            stock,
-            tool,
-            &only,
-            &sim_options,
-            cancel,
-            &mut on_segment,
-        )
-        .map_err(|e| match e {
-            geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
-            other => SimulateError::Geometry(other),
-        })?;
-        done += only.len() as u64;
-        rays_tested += report.rays_tested;
-        for ((move_index, piece), b) in segs.iter().zip(report.blocks) {
-            let row = &mut rows[*move_index];
-            swept[*move_index] = true;
-            row.removed_volume += b.removed_volume;
-            row.max_axial_depth = row.max_axial_depth.max(b.max_axial_depth);
-            row.max_radial_width = row.max_radial_width.max(b.max_radial_width);
-            // The first piece of the move that engages gives the angles.
-            if row.entry_angle_deg.is_none() && row.exit_angle_deg.is_none() {
-                row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
-                row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
-            }
-            // A step that removes nothing is air, even where the edge grazes a wall that
-            // an earlier move cut to exactly the tool's radius.
-            let lengths = &mut step_lengths[*move_index];
-            for s in &b.steps {
-                if !s.air && s.removed_volume > 0.0 {
-                    lengths.0 += s.length;
+    for (tool_number, pieces) in &plan.runs {
+        let tool = tools.tool_for(&moves[pieces[0].move_index])?;
+        let mut start = 0;
+        while start < pieces.len() {
+            // The batch: pieces up to `batch_steps` cells of path, at least one.
+            let mut end = start;
+            let mut cells = 0.0;
+            while end < pieces.len() {
+                let n = (pieces[end].tip_length / cell).ceil() + 1.0;
+                if end > start && cells + n > batch_steps as f64 {
+                    break;
                 }
-                lengths.1 += s.length;
+                cells += n;
+                end += 1;
             }
-            row.rapid_in_material |= b.checks.rapid_in_material;
-            row.flute_length_exceeded |= b.checks.flute_length_exceeded;
-            row.shank_contact |= b.checks.shank_contact;
-            row.holder_contact |= b.checks.holder_contact;
-            row.steps += b.steps.len();
-            row.max_mrr = row.max_mrr.max(b.max_mrr / 60.0);
-            steps.extend(b.steps.into_iter().map(|mut s| {
-                let machine_at = if piece.tip_ratio > 0.0 {
-                    piece.machine_at + s.distance / piece.tip_ratio
-                } else {
-                    piece.machine_at
-                };
-                s.distance += piece.tip_at;
-                MoveStep {
-                    move_index: *move_index,
-                    tool: *tool_number,
-                    tip_ratio: piece.tip_ratio,
-                    machine_at,
-                    geometry: s,
+            let batch = &pieces[start..end];
+            start = end;
+            // One pass per batch (the X/Y removal threads and the ray summaries are set up
+            // once for it); progress every few hundred segments, the last tenth being the
+            // stages after the removal.
+            let only: Vec<Segment> = batch.iter().map(|p| p.piece.segment.clone()).collect();
+            let base = done;
+            let mut on_segment = |k: usize| {
+                if k.is_multiple_of(PROGRESS_CHUNK) || k == only.len() {
+                    progress.report(
+                        (base + k as u64) * 9 * total / (10 * segments_total as u64).max(1),
+                        total,
+                    );
                 }
-            }));
+            };
+            let report = geometry::simulate_removal_with_progress(
+                stock,
+                tool,
+                &only,
+                &sim_options,
+                cancel,
+                &mut on_segment,
+            )
+            .map_err(|e| match e {
+                geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
+                other => SimulateError::Geometry(other),
+            })?;
+            done += only.len() as u64;
+            rays_tested += report.rays_tested;
+            let mut steps: Vec<MoveStep> = Vec::new();
+            for (planned, b) in batch.iter().zip(report.blocks) {
+                let (move_index, piece) = (planned.move_index, &planned.piece);
+                let row = &mut rows[move_index];
+                swept[move_index] = true;
+                row.removed_volume += b.removed_volume;
+                row.max_axial_depth = row.max_axial_depth.max(b.max_axial_depth);
+                row.max_radial_width = row.max_radial_width.max(b.max_radial_width);
+                // The first piece of the move that engages gives the angles.
+                if row.entry_angle_deg.is_none() && row.exit_angle_deg.is_none() {
+                    row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
+                    row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
+                }
+                // A step that removes nothing is air, even where the edge grazes a wall
+                // that an earlier move cut to exactly the tool's radius.
+                let lengths = &mut step_lengths[move_index];
+                for s in &b.steps {
+                    if !s.air && s.removed_volume > 0.0 {
+                        lengths.0 += s.length;
+                    }
+                    lengths.1 += s.length;
+                }
+                row.rapid_in_material |= b.checks.rapid_in_material;
+                row.flute_length_exceeded |= b.checks.flute_length_exceeded;
+                row.shank_contact |= b.checks.shank_contact;
+                row.holder_contact |= b.checks.holder_contact;
+                row.steps += b.steps.len();
+                row.max_mrr = row.max_mrr.max(b.max_mrr / 60.0);
+                steps.extend(b.steps.into_iter().map(|mut s| {
+                    let machine_at = if piece.tip_ratio > 0.0 {
+                        piece.machine_at + s.distance / piece.tip_ratio
+                    } else {
+                        piece.machine_at
+                    };
+                    s.distance += piece.tip_at;
+                    MoveStep {
+                        move_index,
+                        tool: *tool_number,
+                        tip_ratio: piece.tip_ratio,
+                        machine_at,
+                        geometry: s,
+                    }
+                }));
+            }
+            sink(rows, steps)?;
         }
     }
     for (i, row) in rows.iter_mut().enumerate() {
@@ -243,9 +321,5 @@ pub(super) fn remove_material(
             && turning_rpm(&moves[i]) <= 0.0
             && moves[i].kind != MoveKind::Rapid;
     }
-    Ok(Removal {
-        steps,
-        models,
-        rays_tested,
-    })
+    Ok(rays_tested)
 }

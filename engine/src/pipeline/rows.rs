@@ -7,9 +7,6 @@ use crate::machine::cycle_time::{feed_velocity, move_length};
 use crate::machine::CycleTime;
 use crate::nc::{self, FeedMode, Move, MoveKind};
 use crate::optimize::{self, FeedLimits};
-use crate::physics::ForceResult;
-
-use super::removal::MoveStep;
 
 /// One row per move. The serialized names are the columns of `blocks.csv`, with units.
 #[derive(Clone, Debug, Default, Serialize)]
@@ -264,7 +261,9 @@ pub struct EnergyTotals {
 pub struct StageTimings {
     pub interpret_s: f64,
     pub stock_s: f64,
+    /// The removal, with each batch's step forces (computed as the batches come).
     pub removal_and_engagement_s: f64,
+    /// What follows the removal: the rows' means, energy, chatter, wear and roughness.
     pub forces_s: f64,
     /// Feed scheduling, rewrite, re-interpretation and forces at the new feeds; and of it:
     /// the schedule (secant iterations on the force model), the rewrite with its checks
@@ -373,77 +372,6 @@ pub(super) fn collisions(rows: &[MoveRow]) -> Vec<Collision> {
         .collect()
 }
 
-/// Adds the steps' forces up per move: peaks over the steps, means over the cutting time
-/// (each step weighted by its time), mean power over the whole move, energy and MRR.
-/// Returns the force samples per move and the number of steps evaluated.
-pub(super) fn add_step_forces(
-    rows: &mut [MoveRow],
-    steps: &[MoveStep],
-    forces: &[Option<ForceResult>],
-) -> (Vec<Vec<StepSample>>, usize) {
-    // Time-weighted sums per move: the axes run at one rate over the move, so a step's
-    // machine-axis length (its tip path over its tip ratio) stands for its time.
-    #[derive(Clone, Copy, Default)]
-    struct Weighted {
-        force: f64,
-        components: [f64; 3],
-        engaged_length: f64,
-        power: f64,
-    }
-    let mut weighted = vec![Weighted::default(); rows.len()];
-    let mut evaluations = 0;
-    let mut samples: Vec<Vec<StepSample>> = vec![Vec::new(); rows.len()];
-    for (step, f) in steps.iter().zip(forces) {
-        let Some(f) = f else { continue };
-        let (mi, s) = (&step.move_index, &step.geometry);
-        evaluations += 1;
-        samples[*mi].push(StepSample {
-            at: s.distance,
-            peak_force: f.force.peak,
-            mean_force: f.force.mean,
-            peak_torque: f.torque.peak,
-            mean_power: f.power.mean,
-            max_chip_thickness: f.max_chip_thickness,
-        });
-        let row = &mut rows[*mi];
-        row.peak_force = row.peak_force.max(f.force.peak);
-        row.peak_fx = row.peak_fx.max(f.part[0].peak());
-        row.peak_fy = row.peak_fy.max(f.part[1].peak());
-        row.peak_fz = row.peak_fz.max(f.part[2].peak());
-        row.peak_torque = row.peak_torque.max(f.torque.peak);
-        row.peak_power = row.peak_power.max(f.power.peak);
-        row.max_chip_thickness = row.max_chip_thickness.max(f.max_chip_thickness);
-        let w = &mut weighted[*mi];
-        let length = if step.tip_ratio > 0.0 {
-            s.length / step.tip_ratio
-        } else {
-            0.0
-        };
-        w.force += f.force.mean * length;
-        for (c, part) in w.components.iter_mut().zip(&f.part) {
-            *c += part.mean * length;
-        }
-        w.engaged_length += length;
-        w.power += f.power.mean * length;
-    }
-    for (row, w) in rows.iter_mut().zip(weighted) {
-        if w.engaged_length > 0.0 {
-            row.mean_force = w.force / w.engaged_length;
-            row.fx_mean_n = w.components[0] / w.engaged_length;
-            row.fy_mean_n = w.components[1] / w.engaged_length;
-            row.fz_mean_n = w.components[2] / w.engaged_length;
-        }
-        if row.length > 0.0 {
-            row.mean_power = w.power / row.length;
-        }
-        row.cutting_energy_j = row.mean_power * row.time_s;
-        if row.time_s > 0.0 {
-            row.mrr_mm3_s = row.removed_volume / row.time_s;
-        }
-    }
-    (samples, evaluations)
-}
-
 /// What the stages after the forces add to the summary.
 pub(super) struct SummaryExtras {
     pub(super) energy: Option<EnergyTotals>,
@@ -494,7 +422,7 @@ pub(super) fn summarize(
             .filter(|r| r.holder_contact || r.shank_contact)
             .count(),
         flute_length_exceeded_moves: rows.iter().filter(|r| r.flute_length_exceeded).count(),
-        collisions: collisions(&rows),
+        collisions: collisions(rows),
         force_evaluations: evaluations,
         cycle_time_s: times.total_s,
         cutting_time_s: times.cutting_s,

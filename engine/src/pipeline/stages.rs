@@ -4,7 +4,6 @@
 use std::collections::BTreeMap;
 
 use super::forces::turning_rpm;
-use super::removal::MoveStep;
 use super::rows::{EnergyTotals, MoveRow, ToolLife};
 use super::spec::{ChatterSpec, SimulateError, SimulateSpec};
 use super::tools::ToolLookup;
@@ -105,31 +104,18 @@ pub(super) fn chatter_margins(
 }
 
 /// Tool life used per move with the material's extended Taylor constants (each tool starts
-/// new), and the scallop and feed marks every cutting move leaves. Returns the life per tool
-/// number, or why there is none.
+/// new), and the scallop and feed marks every cutting move leaves, from each move's widest
+/// engaged diameter (where the edge runs fastest) and median scallop. Returns the life per
+/// tool number, or why there is none.
 pub(super) fn wear_and_roughness(
     spec: &SimulateSpec,
     moves: &[Move],
     rows: &mut [MoveRow],
-    steps: &[MoveStep],
+    (diameter, scallops): (&[f64], &[f64]),
     tools: &ToolLookup,
 ) -> Result<Result<Vec<ToolLife>, String>, SimulateError> {
-    use crate::physics::life::{cutting_speed_m_per_min, effective_diameter, tool_life, BlockWear};
+    use crate::physics::life::{cutting_speed_m_per_min, tool_life, BlockWear};
     use crate::physics::roughness::feed_mark_height;
-    // Per move: the widest engaged diameter (where the edge runs fastest), and the scallop
-    // its cutting steps leave, the median of them (a pass's ends meet material its
-    // neighbour did not reach: they are not its step-over).
-    let mut diameter = vec![0.0f64; moves.len()];
-    let mut scallops: Vec<Vec<f64>> = vec![Vec::new(); moves.len()];
-    for s in steps {
-        let g = &s.geometry;
-        if !g.air && g.removed_volume > 0.0 {
-            let tool = tools.tool_for(&moves[s.move_index])?;
-            let d = effective_diameter(tool, &g.engagement.unpack());
-            diameter[s.move_index] = diameter[s.move_index].max(d);
-            scallops[s.move_index].push(scallop_of(tool, &g.metrics)?);
-        }
-    }
     let mut wear: BTreeMap<u32, Vec<BlockWear>> = BTreeMap::new();
     for (i, m) in moves.iter().enumerate() {
         let r = &rows[i];
@@ -141,11 +127,7 @@ pub(super) fn wear_and_roughness(
         let tool = tools.tool_for(m)?;
         let row = &rows[i];
         let fz = row.tip_speed_mm_min / (m.spindle * tool.flutes as f64);
-        let scallop = {
-            let v = &mut scallops[i];
-            v.sort_by(f64::total_cmp);
-            v.get(v.len() / 2).copied().unwrap_or(0.0)
-        };
+        let scallop = scallops[i];
         let marks = feed_mark_height(tool, fz)?;
         let row = &mut rows[i];
         row.scallop_um = scallop * 1000.0;
@@ -186,7 +168,7 @@ pub(super) fn wear_and_roughness(
 /// The scallop a step leaves beside the pass before it, mm: beside an earlier pass the
 /// engaged width is the step-over; a lone groove engages its whole footprint at its depth
 /// (within the grid: 90 % of it is taken as alone) and leaves none.
-fn scallop_of(
+pub(super) fn scallop_of(
     tool: &crate::tool::Tool,
     m: &crate::geometry::engagement::StepMetrics,
 ) -> Result<f64, crate::physics::PhysicsError> {

@@ -1,0 +1,223 @@
+//! Memory estimates of the job kinds other than simulate/optimize, from what a submission
+//! says (the options, the program's size), checked against the job's budget at
+//! submission: an interpret or rotary-feed job holds its program parsed, its moves and
+//! their rows; a stability or energy job the transition matrices of its lobes.
+
+use serde::Serialize;
+use serde_json::{json, Value};
+
+use crate::job_limits::JobLimits;
+
+/// What a job's process holds whatever the job (code, runtime, buffers): measured 11.7 to
+/// 13.7 MB peak RSS for `millsim stability` on one mode and `millsim interpret` on a
+/// one-line program.
+pub const PROCESS_BYTES: u64 = 16 << 20;
+
+/// Bytes an interpret job holds per byte of program text: the parsed program and its
+/// moves (`millsim interpret` on 500,000 random G1 lines, 9.4 MB: 286 MB peak RSS, 29 B
+/// per byte) and the rows kept as JSON until they are stored (143 B a move, 7.6 B per
+/// byte of such a program).
+pub const INTERPRET_BYTES_PER_PROGRAM_BYTE: u64 = 40;
+
+/// A rotary-feed job also holds the corrected program and its report.
+pub const ROTARY_FEED_BYTES_PER_PROGRAM_BYTE: u64 = INTERPRET_BYTES_PER_PROGRAM_BYTE + 2;
+
+/// Square matrices of the transition's dimension each lobe worker holds (the product
+/// being built, the step map applied, and the eigenvalue solver's copies). Measured with
+/// `millsim stability` on 2 threads, over the one-mode run: dimension 420 (10 modes, 40
+/// steps) 10.6 MB more, 7.5 matrices; dimension 992 (16 modes, 60 steps, sdm and fdm) 50
+/// MB more, 6.4 matrices.
+pub const LOBE_MATRICES_PER_WORKER: u64 = 4;
+
+/// Bytes of one row of lobes (rpm, depth, allowance) as stored JSON.
+const LOBE_ROW_BYTES: u64 = 100;
+
+/// A job kind's memory, by part, bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct KindEstimate {
+    /// The program parsed, its moves and their rows (interpret, rotary-feed).
+    pub program_bytes: u64,
+    /// The lobe workers' transition matrices (stability, energy with modes).
+    pub lobe_matrices_bytes: u64,
+    /// Result rows.
+    pub rows_bytes: u64,
+    /// All of it and the process.
+    pub peak_bytes: u64,
+}
+
+/// The estimate of a `kind` job with `options` and a program of `program_bytes` bytes,
+/// when the kind is one this module knows (not simulate/optimize); `workers` lobe
+/// workers run at once (the job process's thread pool).
+pub fn estimate(
+    kind: &str,
+    options: &Value,
+    program_bytes: u64,
+    workers: u64,
+) -> Option<KindEstimate> {
+    let mut e = KindEstimate::default();
+    match kind {
+        "interpret" => {
+            e.program_bytes = program_bytes.saturating_mul(INTERPRET_BYTES_PER_PROGRAM_BYTE)
+        }
+        "rotary-feed" => {
+            e.program_bytes = program_bytes.saturating_mul(ROTARY_FEED_BYTES_PER_PROGRAM_BYTE)
+        }
+        "stability" => {
+            let mut modes = count(&options["modes_x"]) + count(&options["modes_y"]);
+            let mut rows = speeds(&options["rpm"]);
+            if let Some(entries) = options["allowance"].as_array() {
+                // A 3-D surface: the workpiece's modes join the tool's, per allowance.
+                modes += entries
+                    .iter()
+                    .map(|a| count(&a["modes_x"]) + count(&a["modes_y"]))
+                    .max()
+                    .unwrap_or(0);
+                rows = rows.saturating_mul(count(&options["allowances_mm"]).max(1));
+            }
+            let method = options["method"].as_str().unwrap_or("sdm");
+            let steps = options["steps_per_period"].as_u64().unwrap_or(40);
+            e.lobe_matrices_bytes = lobe_matrices_bytes(method, modes, steps, workers);
+            e.rows_bytes = rows.saturating_mul(LOBE_ROW_BYTES);
+        }
+        "energy" => {
+            let modes = count(&options["modes_x"]) + count(&options["modes_y"]);
+            if modes > 0 {
+                let method = options["stability_method"].as_str().unwrap_or("sdm");
+                let steps = options["steps_per_period"].as_u64().unwrap_or(20);
+                e.lobe_matrices_bytes = lobe_matrices_bytes(method, modes, steps, workers);
+            }
+        }
+        _ => return None,
+    }
+    e.peak_bytes = PROCESS_BYTES
+        .saturating_add(e.program_bytes)
+        .saturating_add(e.lobe_matrices_bytes)
+        .saturating_add(e.rows_bytes);
+    Some(e)
+}
+
+/// Transition matrices of the time-domain lobe methods: dimension 2n + steps·n for n
+/// modes (the state and the delayed states of a tooth period), 8 bytes an entry. The
+/// zero-order method solves n×n systems per frequency: nothing to count.
+pub fn lobe_matrices_bytes(method: &str, modes: u64, steps: u64, workers: u64) -> u64 {
+    if method == "zoa" {
+        return 0;
+    }
+    let dim = modes.saturating_mul(steps.saturating_add(2));
+    dim.saturating_mul(dim)
+        .saturating_mul(8 * LOBE_MATRICES_PER_WORKER)
+        .saturating_mul(workers.max(1))
+}
+
+fn count(v: &Value) -> u64 {
+    v.as_array().map_or(0, |a| a.len() as u64)
+}
+
+/// Speeds of an rpm range `{from, to, step}` (its own check bounds them).
+fn speeds(rpm: &Value) -> u64 {
+    let (Some(from), Some(to), Some(step)) = (
+        rpm["from"].as_f64(),
+        rpm["to"].as_f64(),
+        rpm["step"].as_f64(),
+    ) else {
+        return 0;
+    };
+    let n = ((to - from) / step).floor() + 1.0;
+    if n.is_finite() && n > 0.0 {
+        n.min(1e12) as u64
+    } else {
+        0
+    }
+}
+
+/// The lobe workers a job process runs at once.
+pub fn lobe_workers() -> u64 {
+    std::thread::available_parallelism().map_or(1, |n| n.get() as u64)
+}
+
+/// Checks a `kind` job against the budget: Err(problem) when its estimate is over it (a
+/// 422 resource-limit problem naming the budget and the estimate).
+pub fn check(
+    kind: &str,
+    options: &Value,
+    program_bytes: u64,
+    limits: &JobLimits,
+) -> Result<(), Value> {
+    let Some(e) = estimate(kind, options, program_bytes, lobe_workers()) else {
+        return Ok(());
+    };
+    if e.peak_bytes <= limits.memory_bytes {
+        return Ok(());
+    }
+    let mib = |b: u64| b.div_ceil(1 << 20);
+    Err(json!({
+        "type": "https://millsim.dev/problems/resource-limit",
+        "title": "Over the job's memory budget",
+        "status": 422,
+        "detail": format!(
+            "the {kind} job needs about {} MiB (program and moves {} MiB, lobe matrices {} MiB, rows {} MiB), over the job memory budget of {} MiB (job_memory_mb); {}",
+            mib(e.peak_bytes),
+            mib(e.program_bytes),
+            mib(e.lobe_matrices_bytes),
+            mib(e.rows_bytes),
+            limits.memory_mb(),
+            match kind {
+                "interpret" | "rotary-feed" => "split the program",
+                _ => "use fewer modes or steps_per_period, or the zoa method",
+            },
+        ),
+        "limit_name": "job_memory_mb",
+        "limit": limits.memory_mb(),
+        "estimate_mb": mib(e.peak_bytes),
+        "estimate": e,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mode() -> Value {
+        json!({"freq_hz": 900, "damping": 0.02, "stiffness_n_m": 2e7})
+    }
+
+    #[test]
+    fn lobe_matrices_cover_the_measured_runs() {
+        // `millsim stability` on 2 threads, peak RSS over the one-mode run's 11.7 MB.
+        for (modes, steps, measured) in [(10, 40, 10.6e6), (16, 60, 50.0e6)] {
+            for method in ["sdm", "fdm"] {
+                let b = lobe_matrices_bytes(method, modes, steps, 2) as f64;
+                assert!(b >= measured && b < 2.0 * measured, "{modes} {steps}: {b}");
+            }
+        }
+        assert_eq!(lobe_matrices_bytes("zoa", 16, 60, 2), 0);
+    }
+
+    #[test]
+    fn each_kind_is_refused_over_a_small_budget_and_runs_under_it() {
+        let limits = JobLimits {
+            memory_bytes: 256 << 20,
+        };
+        // The stability job: 100 modes a direction, 40 steps a period.
+        let many: Vec<Value> = (0..100).map(|_| mode()).collect();
+        let heavy = json!({"method": "sdm", "modes_x": many, "modes_y": many,
+            "rpm": {"from": 5000, "to": 6000, "step": 100}, "steps_per_period": 40});
+        let p = check("stability", &heavy, 0, &limits).unwrap_err();
+        assert_eq!(
+            (p["status"].as_u64(), p["limit"].as_u64()),
+            (Some(422), Some(256))
+        );
+        assert!(p["estimate_mb"].as_u64().unwrap() > 2_000, "{p}");
+        let light = json!({"method": "sdm", "modes_x": [mode()], "modes_y": [mode()],
+            "rpm": {"from": 5000, "to": 25000, "step": 1}, "steps_per_period": 40});
+        assert!(check("stability", &light, 0, &limits).is_ok());
+        let energy = json!({"modes_x": many, "modes_y": [], "steps_per_period": 100});
+        assert!(check("energy", &energy, 0, &limits).is_err());
+        assert!(check("energy", &json!({}), 0, &limits).is_ok());
+        // 10 MB of G-code: about 400 MB parsed with its moves and rows.
+        assert!(check("interpret", &json!({}), 10 << 20, &limits).is_err());
+        assert!(check("rotary-feed", &json!({}), 10 << 20, &limits).is_err());
+        assert!(check("interpret", &json!({}), 1 << 20, &limits).is_ok());
+        assert!(check("simulate", &json!({}), 1 << 30, &limits).is_ok());
+    }
+}
