@@ -471,7 +471,11 @@ fn refusals_name_line_column_and_word() {
         ("o1 call\n", (1, 1), "subroutine o1 is not defined"),
         ("G0 X[1/0]\n", (1, 5), "division by zero"),
         ("#5221 = 3\n", (1, 1), "cannot be assigned"),
-        ("G0 X@1\n", (1, 5), "polar coordinates"),
+        (
+            "G0 X1 @1\n",
+            (1, 4),
+            "both a polar coordinate (@ ^) and a X word",
+        ),
         ("o1 while [1]\n", (1, 1), "o1 while is never closed"),
         ("G1 X1\n", (1, 1), "zero feed rate"),
         ("O1234\nG0 X1\n", (0, 0), ""), // Fanuc program number: fine in auto

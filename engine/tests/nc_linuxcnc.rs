@@ -44,6 +44,7 @@ class Canon:
     def set_g5x_offset(self, *a): self.out("G5X", *a[:7])
     def set_g92_offset(self, *a): self.out("G92", *a[:6])
     def set_plane(self, p): self.out("PL", p)
+    def set_xy_rotation(self, t): self.out("ROT", t)
     def get_tool(self, n):
         z, d = self.tools.get(n, (0.0, 0.0))
         return (n, 0.0, 0.0, z, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, d, 0.0, 0.0, 0)
@@ -107,11 +108,22 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
     let mut plane = [0usize, 1, 2];
     let mut moves = Vec::new();
     let mut last = [0.0; 6];
+    // Rotation of the coordinate system (G10 L2 R), degrees: LinuxCNC's canon adds the G92
+    // offset, rotates about the coordinate system's origin, then adds the G5x offset.
+    let rot = std::cell::Cell::new(0.0f64);
     let to_m = |v: &[f64], g5x: &[f64; 6], g92: &[f64; 6]| {
+        let mut q = [0.0; 6];
+        for i in 0..6 {
+            q[i] = v[i] + g92[i];
+        }
+        let (s, c) = rot.get().to_radians().sin_cos();
+        let (x, y) = (q[0], q[1]);
+        q[0] = c * x - s * y;
+        q[1] = s * x + c * y;
         let mut m = [0.0; 6];
         for i in 0..6 {
             let s = if i < 3 { 25.4 } else { 1.0 };
-            m[i] = (v[i] + g5x[i] + g92[i]) * s;
+            m[i] = (q[i] + g5x[i]) * s;
         }
         m
     };
@@ -142,6 +154,7 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
         let v: Vec<f64> = f[2..].iter().map(|x| x.parse().unwrap()).collect();
         match f[0] {
             "G5X" => g5x.copy_from_slice(&v[1..7]),
+            "ROT" => rot.set(v[0]),
             "G92" => g92.copy_from_slice(&v[0..6]),
             "PL" => {
                 plane = match v[0] as i32 {
@@ -957,5 +970,95 @@ fn cutter_compensation_matches_linuxcnc() {
         let e = interpret(src, &opts).expect_err(name);
         assert!(e.0[0].message.contains(ours_says), "{name}: {}", e.0[0]);
         println!("{name}: refused by both (ours: {}; LinuxCNC: {})", e.0[0], theirs.unwrap_err());
+    }
+}
+
+/// Coordinate transforms LinuxCNC has: G10 L2 R rotation of a coordinate system (lines, arcs,
+/// canned cycles, G92 and G53 under it, switching systems), G52 (LinuxCNC's G92 offsets), and
+/// the polar words `@` `^` (absolute, incremental, in moves, arcs and a canned cycle with
+/// repeats). Each program runs on both interpreters; every move must be identical.
+#[test]
+fn coordinate_transforms_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let opts = InterpretOptions::default();
+    let programs = [
+        (
+            "rotation_lines_arcs",
+            "G21 G90 F100\nG0 X20 Y10\nG10 L2 P1 X20 Y10 R30\nG0 X5 Y0\nG1 X15 Y5 Z-1\nG2 X25 Y5 I5 J0\nG3 X15 Y5 R5\nG91 G1 X-5 Y-5\nG90 G53 G0 X0 Y0 Z0\nG0 X10 Y10\nM2\n",
+        ),
+        (
+            "rotation_per_system",
+            "G21 G90 F100\nG10 L2 P1 X10 Y0 R90\nG10 L2 P2 X0 Y10 R-45\nG54 G0 X5 Y0\nG55 G0 X5 Y0\nG1 X10 Y5\nG54 G1 X0 Y0\nG10 L2 P0 Y3 R10\nG1 X1\nG10 L2 P1 R0\nG1 X2 Y2\nM2\n",
+        ),
+        (
+            "rotation_with_g92",
+            "G21 G90 F100\nG10 L2 P1 X5 Y5 R60\nG0 X10 Y0\nG92 X0 Y0\nG1 X5\nG2 X10 Y0 I2.5 J0\nG92.1\nG1 X0 Y0\nM2\n",
+        ),
+        (
+            "rotation_canned_cycle",
+            "G21 G90 F100\nG10 L2 P1 X50 Y20 R15\nG0 X0 Y0 Z10\nG81 X10 Y0 Z-2 R2\nX20\nG91 X5 Y5 L3\nG90 G80\nG0 Z10\nM2\n",
+        ),
+        (
+            "rotation_g18_line",
+            "G21 G90 F100\nG10 L2 P1 R20\nG18 G1 X10 Z-2\nG17 G1 Y5\nG0 X0 Y0 Z0\nM2\n",
+        ),
+        (
+            "g52_local_offsets",
+            "G21 G90 F100\nG0 X20 Y10\nG52 X5 Y5\nG1 X0 Y0\nG52 X1\nG1 X0 Y0 Z-1\nG91 G52 X2\nG90 G1 X0 Y0\nG52 X0 Y0\nG1 X0 Y0\nG92 X3\nG52 Y2\nG1 X0 Y0\nG92.1\nG1 X0 Y0\nM2\n",
+        ),
+        (
+            "polar_moves",
+            "G21 G90 F100\nG0 @10 ^45\nG1 @5\nG1 ^90\nG1 @7.5 ^-30 Z-1\nG91 G1 @1\nG1 ^15\nG1 @-2 ^10\nG90 G2 @7.5 ^120 R7.5\nG3 ^0 I3.75 J-6.49519052838329\nM2\n",
+        ),
+        (
+            "polar_bolt_circle",
+            "G21 G90 F100\nG0 X0 Y0 Z5\nG81 @20 ^0 Z-3 R1\n^60\n^120\n@25 ^180\nG91 ^30 L4 Z-4 R-2\nG90 G80\nG0 Z5\nM2\n",
+        ),
+        (
+            "polar_under_rotation",
+            "G21 G90 F100\nG10 L2 P1 X10 Y10 R30\nG0 @10 ^0\nG1 ^90\nG3 @10 ^180 R10\nM2\n",
+        ),
+    ];
+    for (name, src) in programs {
+        let path = tmp_copy(&format!("{name}.ngc"), src);
+        let theirs = linuxcnc(&path, None).unwrap_or_else(|e| panic!("{name}: LinuxCNC: {e}"));
+        let ours = interpret(src, &opts).unwrap_or_else(|e| panic!("{name}: ours: {e}"));
+        compare(&ours.moves, &theirs, 1e-6).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(theirs.len() >= 3, "{name}: only {} moves", theirs.len());
+        println!("{name}: {} moves identical to LinuxCNC", theirs.len());
+    }
+    // Refused by both: polar words with X, outside G17, with G53, from the origin in G91.
+    for (name, src, ours_says) in [
+        (
+            "polar_with_x",
+            "G21 G90\nG0 X1 @2 ^3\nM2\n",
+            "both a polar coordinate",
+        ),
+        (
+            "polar_in_g18",
+            "G21 G90 G18\nG0 @2 ^3\nM2\n",
+            "only in the G17 plane",
+        ),
+        ("polar_g53", "G21 G90\nG53 G0 @2 ^3\nM2\n", "with G53"),
+        (
+            "polar_g91_origin",
+            "G21 G91\nG0 @2\nM2\n",
+            "from the origin",
+        ),
+        (
+            "g10_l20_rotation",
+            "G21 G90\nG10 L20 P1 X0 R10\nM2\n",
+            "only taken by G10 L2",
+        ),
+    ] {
+        let path = tmp_copy(&format!("{name}.ngc"), src);
+        let theirs = linuxcnc(&path, None);
+        assert!(theirs.is_err(), "{name}: LinuxCNC accepts it");
+        let e = interpret(src, &opts).expect_err(name);
+        assert!(e.0[0].message.contains(ours_says), "{name}: {}", e.0[0]);
+        println!("{name}: refused by both (ours: {})", e.0[0]);
     }
 }

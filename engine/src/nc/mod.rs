@@ -39,9 +39,16 @@
 //!   A Fanuc control's start-up and cancel blocks (types A/B/C) differ in the entry and exit
 //!   moves only.
 //!
+//! * Coordinate transforms (`interp/transforms.rs`, `interp/polar.rs`): LinuxCNC's G10 L2 R
+//!   rotation of a coordinate system, G52 (LinuxCNC: the G92 offsets; Fanuc: a local offset of
+//!   its own) and `@`/`^` polar words, checked against LinuxCNC; Fanuc G68/G69 rotation,
+//!   G51/G50 scaling (P or I/J/K, thousandths without a decimal point), G51.1/G50.1 mirror
+//!   image (applied mirror, scaling, rotation, as the manual orders them) and G16/G15 polar
+//!   mode. Arcs stay arcs where the transform is a similarity in their plane (a mirror
+//!   reverses them); per-axis scaling of an arc or a rotation out of its plane is refused.
+//!
 //! Refused with an error: cutter radius compensation outside G17, G33, G76, G5.x
-//! splines, G7/G8, G15/G16 and `@`/`^` polar words, G50/G51 scaling, G68/G69
-//! rotation, G10 rotation (R), U V W axes, external subroutine files and
+//! splines, G7/G8, U V W axes, external subroutine files and
 //! calls to programs not in the file, G66/G67, M60, non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
 

@@ -21,6 +21,9 @@ impl<'p> Interp<'p> {
             ms: std::mem::take(&mut self.spare_ms),
             corner_r: None,
             corner_c: None,
+            polar_r: None,
+            polar_a: None,
+            polar_used: false,
         };
         w.gs.clear();
         w.ms.clear();
@@ -36,6 +39,7 @@ impl<'p> Interp<'p> {
         for (a, v) in b.assignments.iter().zip(avals) {
             self.assign(a, v)?;
         }
+        self.check_polar_words(w)?;
         // Fanuc comma-less corners: R and C on a G1 block (CCR parameter).
         if self.fanuc && self.corners_without_comma {
             let g1 = w.g(10).is_some()
@@ -336,6 +340,39 @@ impl<'p> Interp<'p> {
                 self.modal.retract_r_plane = true;
             }
         }
+        // 22a. Fanuc transforms: scaling, mirror image, rotation (polar mode in words.rs).
+        if !w.gs.is_empty() {
+            for (code, i) in w.gs.clone() {
+                if matches!(code, 500 | 510 | 501 | 511 | 680 | 690 | 150 | 160) {
+                    if !self.fanuc {
+                        return Err(self.err_at(
+                            self.word_pos(i),
+                            format!(
+                                "{} is Fanuc ({}); not valid with dialect linuxcnc{}",
+                                g_name(code),
+                                match code {
+                                    500 | 510 => "scaling",
+                                    501 | 511 => "programmable mirror image",
+                                    680 | 690 => "coordinate rotation",
+                                    _ => "polar coordinates",
+                                },
+                                match code {
+                                    680 | 690 => " (LinuxCNC rotates a coordinate system with G10 L2 P.. R..)",
+                                    150 | 160 => " (LinuxCNC writes polar moves with @ radius and ^ angle)",
+                                    _ => "",
+                                }
+                            ),
+                        ));
+                    }
+                    if code == 150 || code == 160 {
+                        self.set_polar_mode(code == 160);
+                    } else {
+                        self.exec_transform(w, code, self.word_pos(i))?;
+                    }
+                }
+            }
+        }
+        self.fanuc_polar_words(w);
         // 23. group 0 codes that use axis words, and 24. motion.
         let group0 =
             w.gs.iter()
@@ -354,7 +391,7 @@ impl<'p> Interp<'p> {
                 .copied();
         let g53 = w.g(530);
         if let (Some((g0, i0)), Some((gm, _))) = (group0, block_motion) {
-            if matches!(g0, 100 | 280 | 300 | 920) && gm != 800 && w.has_axis() {
+            if matches!(g0, 100 | 280 | 300 | 520 | 920) && gm != 800 && w.has_axis() {
                 return Err(self.err_at(
                     self.word_pos(i0),
                     format!("{} and {} both use axis words", g_name(g0), g_name(gm)),
@@ -362,7 +399,7 @@ impl<'p> Interp<'p> {
             }
         }
         if let Some((g0, i0)) = group0 {
-            if self.comp.is_some() && matches!(g0, 100 | 280 | 300 | 920 | 921 | 922 | 923) {
+            if self.comp.is_some() && matches!(g0, 100 | 280 | 300 | 520 | 920 | 921 | 922 | 923) {
                 return Err(self.err_at(
                     self.word_pos(i0),
                     format!(
@@ -391,13 +428,13 @@ impl<'p> Interp<'p> {
                 self.cycle_il = None;
                 if w.has_axis()
                     && self.motion.is_none()
-                    && !matches!(group0, Some((100 | 280 | 300 | 920, _)))
+                    && !matches!(group0, Some((100 | 280 | 300 | 520 | 920, _)))
                 {
                     return Err(self.err_block("axis words with G80 (motion cancelled)"));
                 }
             }
         }
-        let axis_users = matches!(group0, Some((100 | 280 | 300 | 920, _)));
+        let axis_users = matches!(group0, Some((100 | 280 | 300 | 520 | 920, _)));
         let corner = w
             .corner_r
             .or(w.corner_c)
@@ -456,6 +493,7 @@ impl<'p> Interp<'p> {
         if w.m(60).is_some() {
             return Err(self.err_block("M60 pallet change is not supported"));
         }
+        self.unused_polar(w)?;
         // Every word must have been used by something; P and Q go with a machine's own M code
         // (M62 P1, M66 P0 L3 Q5: parameters we cannot interpret).
         if !w.ms.is_empty() && w.ms.iter().any(|m| m_group(m.0).is_none()) {

@@ -14,7 +14,6 @@
 
 use super::words::Words;
 use super::{Interp, R};
-use crate::nc::arc::ArcGeometry;
 use crate::nc::{Move, MoveKind};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -277,11 +276,14 @@ impl Interp<'_> {
                     if *sweep != 0.0 && endpoint.is_some() && l2.abs() > sweep.abs() + 0.001 {
                         return Err(self.comp_gouge(line, format!("the compensated arc of line {line} cannot reach this inside corner without gouging")));
                     }
+                    // The arc again with its new end (through the transforms, if any).
+                    let moved =
+                        self.arc_move(start_prog, with_xy(&end_prog, p[0], p[1]), *center, *turn)?;
                     q.mv.end = new_end;
-                    if let Some(g) = q.mv.arc.as_mut() {
+                    if let (Some(g), Some(n)) = (q.mv.arc.as_mut(), moved.arc) {
                         g.end = new_end;
-                        g.sweep = find_turn(xy(&start_prog), *center, *turn, p);
-                        g.end_radius = r2 * self.unit();
+                        g.sweep = n.sweep;
+                        g.end_radius = n.end_radius;
                     }
                 }
                 // A dwell waiting between two moves happens where the first one now ends.
@@ -323,31 +325,16 @@ impl Interp<'_> {
         self.base_move(kind, self.to_machine(from), self.to_machine(to))
     }
 
-    fn arc_move(&self, from: [f64; 6], to: [f64; 6], center: [f64; 2], turn: i32) -> Move {
-        let plane = super::Plane::XY;
-        let ms = self.to_machine(from);
-        let me = self.to_machine(to);
-        let mc = self.to_machine(with_xy(&from, center[0], center[1]));
-        let c = [mc[0], mc[1], mc[2]];
-        let u = self.unit();
-        let geom = ArcGeometry {
-            start: ms,
-            end: me,
-            center: c,
-            normal: plane.normal(),
-            axes: plane.axes(),
-            sweep: find_turn(xy(&from), center, turn, xy(&to)),
-            start_radius: (from[0] - center[0]).hypot(from[1] - center[1]) * u,
-            end_radius: (to[0] - center[0]).hypot(to[1] - center[1]) * u,
-            clockwise: turn < 0,
-            turns: turn.unsigned_abs().max(1),
-        };
-        let mut m = self.base_move(MoveKind::Arc, ms, me);
-        m.center = Some(c);
-        m.normal = Some(plane.normal());
-        m.clockwise = Some(turn < 0);
-        m.arc = Some(Box::new(geom));
-        m
+    fn arc_move(&self, from: [f64; 6], to: [f64; 6], center: [f64; 2], turn: i32) -> R<Move> {
+        let sweep = find_turn(xy(&from), center, turn, xy(&to));
+        self.arc_move_machine(
+            super::Plane::XY,
+            from,
+            to,
+            center,
+            sweep,
+            turn.unsigned_abs().max(1),
+        )
     }
 
     /// A G0/G1 move to `to` (programmed, program coordinates) with compensation on.
@@ -431,7 +418,7 @@ impl Interp<'_> {
                     self.straight_move(true, cur, corner_end)
                 } else {
                     let turn = if side == Side::Left { -1 } else { 1 };
-                    self.arc_move(cur, corner_end, [opx, opy], turn)
+                    self.arc_move(cur, corner_end, [opx, opy], turn)?
                 };
                 self.push_now(mv)?;
                 self.set_endpoint(mid);
@@ -657,7 +644,7 @@ impl Interp<'_> {
                 corner_end,
                 [opx, opy],
                 if side == Side::Left { -1 } else { 1 },
-            );
+            )?;
             self.push_now(mv)?;
             self.set_endpoint(mid);
             from = corner_end;
@@ -665,7 +652,7 @@ impl Interp<'_> {
             self.dequeue()?;
             self.set_endpoint([cx, cy]);
         }
-        let mv = self.arc_move(from, new_end, center, turn);
+        let mv = self.arc_move(from, new_end, center, turn)?;
         self.enqueue(
             mv,
             QueuedKind::Arc {
@@ -717,7 +704,7 @@ impl Interp<'_> {
         let center = [nx + c_len * ab_ang.cos(), ny + c_len * ab_ang.sin()];
         let new_end = with_xy(&target, nx, ny);
         let sweep = find_turn([cx, cy], center, turn, [nx, ny]);
-        let mv = self.arc_move(cur, new_end, center, turn);
+        let mv = self.arc_move(cur, new_end, center, turn)?;
         self.enqueue(
             mv,
             QueuedKind::Arc {
@@ -744,6 +731,7 @@ impl Interp<'_> {
                 t[ai] = if self.modal.absolute { v } else { base[ai] + v };
             }
         }
+        self.apply_polar(w, &mut t)?;
         Ok(t)
     }
 }

@@ -22,7 +22,9 @@ mod cycles;
 mod macro_b;
 mod modal;
 mod params;
+mod polar;
 mod subprograms;
+mod transforms;
 mod words;
 
 use control::{prescan, ControlMap, Frame};
@@ -62,6 +64,17 @@ struct Interp<'p> {
     g5x: [[f64; 6]; 9],
     g92: [f64; 6],
     g92_applied: bool,
+    /// Fanuc G52 local offset, mm/deg (LinuxCNC's G52 writes the G92 offset instead).
+    g52: [f64; 6],
+    /// LinuxCNC G10 L2 R: rotation of each coordinate system in XY, degrees.
+    rot_xy: [f64; 9],
+    /// Fanuc mirror image, scaling and rotation.
+    prog_xf: transforms::ProgramTransforms,
+    /// Fanuc G16 polar mode, and the last polar radius and angle (degrees) it went to.
+    polar_mode: bool,
+    polar_last: std::cell::Cell<Option<(f64, f64)>>,
+    /// No rotation, mirror or scaling active: `to_machine` is per-axis offsets only.
+    plain: bool,
     g28: [f64; 6],
     g30: [f64; 6],
     /// Active tool length offset (mm), None: G49.
@@ -170,6 +183,12 @@ pub(crate) fn interpret_view(
         g5x: [[0.0; 6]; 9],
         g92: [0.0; 6],
         g92_applied: true,
+        g52: [0.0; 6],
+        rot_xy: [0.0; 9],
+        prog_xf: Default::default(),
+        polar_mode: false,
+        polar_last: Default::default(),
+        plain: true,
         g28: [0.0; 6],
         g30: [0.0; 6],
         tlo: None,

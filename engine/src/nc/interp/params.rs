@@ -83,6 +83,9 @@ impl Interp<'_> {
             if k < 9 && i < 6 {
                 return self.offset_param(self.g5x[k][i], i < 3);
             }
+            if k < 9 && i == 9 {
+                return self.rot_xy[k];
+            }
         }
         if n == 5400 {
             return self.tool as f64;

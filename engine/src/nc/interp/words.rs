@@ -22,6 +22,11 @@ pub(super) struct Words {
     pub(super) ms: Vec<(u32, usize)>,
     pub(super) corner_r: Option<(f64, usize)>,
     pub(super) corner_c: Option<(f64, usize)>,
+    /// Polar radius and angle (LinuxCNC `@` `^`; Fanuc G16 moves the plane's axis words
+    /// here), and whether a motion took them.
+    pub(super) polar_r: Option<(f64, usize)>,
+    pub(super) polar_a: Option<(f64, usize)>,
+    pub(super) polar_used: bool,
 }
 
 impl Words {
@@ -42,6 +47,7 @@ impl Words {
     pub(super) fn has_axis(&self) -> bool {
         AXES.iter()
             .any(|&c| self.has(c) && !self.used[letter_index(c)])
+            || ((self.polar_r.is_some() || self.polar_a.is_some()) && !self.polar_used)
     }
     pub(super) fn g(&self, code: u16) -> Option<usize> {
         self.gs.iter().find(|g| g.0 == code).map(|g| g.1)
@@ -207,6 +213,17 @@ impl<'p> Interp<'p> {
                     ))
                 }
                 'E' => return Err(self.err_at(pos, "E word is not supported")),
+                '@' | '^' => {
+                    let slot = if c == '@' {
+                        &mut w.polar_r
+                    } else {
+                        &mut w.polar_a
+                    };
+                    if slot.is_some() {
+                        return Err(self.err_at(pos, format!("two {c} words in one block")));
+                    }
+                    *slot = Some((v, i));
+                }
                 _ => {
                     let li = letter_index(c);
                     if w.vals[li].is_some() {
