@@ -451,7 +451,13 @@ fn refusals_name_line_column_and_word() {
         ),
         ("M428\n", (1, 1), "M428"),
         ("G0 U1\n", (1, 4), "U axis is not supported"),
-        ("G5.1 X1 I1 J1\n", (1, 1), "G5.1 spline/NURBS motion"),
+        ("G5.1 X1 I1 F10\n", (1, 1), "G5.1 needs both I and J"),
+        (
+            "G5 X1 Z1 I1 J1 P1 Q1 F10\n",
+            (1, 7),
+            "splines may not move Z",
+        ),
+        ("G5.3\n", (1, 1), "G5.3 without G5.2 first"),
         (
             "G1 X1 F10 I2\n",
             (1, 11),

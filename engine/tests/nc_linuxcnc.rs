@@ -530,10 +530,12 @@ fn linuxcnc_sample_programs() {
         let theirs = linuxcnc(&copy, None);
         let ours = interpret(&src, &opts);
         match (ours, theirs) {
-            (Ok(o), Ok(t)) => match compare(&o.moves, &t, 1e-6) {
-                Ok(()) => same += 1,
-                Err(e) => mismatches.push(format!("{name}: {e}")),
-            },
+            (Ok(o), Ok(t)) => {
+                match compare_with_curves(&o.moves, &t, &src, opts.spline_tolerance) {
+                    Ok(_) => same += 1,
+                    Err(e) => mismatches.push(format!("{name}: {e}")),
+                }
+            }
             (Err(e), Ok(_)) => {
                 refused += 1;
                 println!("refused {name}: {}", e.0[0]);
@@ -1061,4 +1063,173 @@ fn coordinate_transforms_match_linuxcnc() {
         assert!(e.0[0].message.contains(ours_says), "{name}: {}", e.0[0]);
         println!("{name}: refused by both (ours: {})", e.0[0]);
     }
+}
+
+/// The distance from `p` to the polyline through `pts` (XY).
+fn dist_to_polyline(p: [f64; 2], pts: &[[f64; 2]]) -> f64 {
+    let seg = |a: [f64; 2], b: [f64; 2]| {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l2 = dx * dx + dy * dy;
+        let t = if l2 == 0.0 {
+            0.0
+        } else {
+            (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
+        };
+        (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
+    };
+    pts.windows(2)
+        .map(|w| seg(w[0], w[1]))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Splines G5, G5.1 and G5.2/G5.3 against LinuxCNC. Its preview interpreter samples a curve
+/// at its own fixed parameter steps, ours within the chord tolerance, so per curve block:
+/// the same end point, every one of LinuxCNC's points (on the curve) within the tolerance of
+/// our chords, and our points on LinuxCNC's polyline (within its own coarser chords). Every
+/// other move is compared as usual.
+#[test]
+fn splines_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let mut opts = InterpretOptions::default();
+    opts.spline_tolerance = 1e-3;
+    let programs = [
+        (
+            "g5_cubic_chain",
+            "G21 G90 F100\nG0 X0 Y0 Z1\nG1 Z-1\nG5 X10 Y10 I5 J0 P0 Q-5\nG5 X20 Y0 P0 Q5\nG5 X30 Y5 I2 J2 P-3 Q1\nG1 X35\nM2\n",
+        ),
+        (
+            "g5_1_quadratic_incremental_and_polar",
+            "G21 G90 F100\nG0 X0 Y0 Z1\nG5.1 X10 Y0 I5 J5\nG5.1 X20 Y0 I5 J-5\nG91 G5.1 X10 Y0 I5 J5\nG90 G5 @40 ^10 I0 J5 P0 Q5\nG1 X0 Y0\nM2\n",
+        ),
+        (
+            "nurbs_weights_and_order",
+            "G21 G90 F100\nG0 X1 Y1\nG5.2 X0 Y10 P1 L3\nX20 Y20 P1\nX20 Y0 P1\nX0 Y0 P2\nG5.3\nG0 X0 Y0\nG5.2 X5 Y5 P1 L4\nX10 Y-5 P3\nX15 Y5 P1\nX20 Y0 P0.5\nX25 Y2 P1\nG5.3\nG1 X0 Y0\nM2\n",
+        ),
+        (
+            "spline_under_rotation_and_inch",
+            "G20 G90 F10\nG10 L2 P1 X1 Y2 R30\nG0 X0 Y0\nG5 X1 Y1 I0.5 J0 P0 Q-0.5\nG21 G1 X0 Y0\nM2\n",
+        ),
+    ];
+    for (name, src) in programs {
+        let path = tmp_copy(&format!("{name}.ngc"), src);
+        let theirs = linuxcnc(&path, None).unwrap_or_else(|e| panic!("{name}: LinuxCNC: {e}"));
+        let ours = interpret(src, &opts).unwrap_or_else(|e| panic!("{name}: ours: {e}"));
+        let n = compare_with_curves(&ours.moves, &theirs, src, opts.spline_tolerance)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(n >= 1, "{name}: no curve compared");
+        println!("{name}: {n} curves and every other move as LinuxCNC's");
+    }
+}
+
+/// Compare move by move, except the moves of curve blocks (G5, G5.1, G5.2..G5.3, which
+/// LinuxCNC's preview samples at its own fixed parameter steps, ours within the chord
+/// tolerance `tol`): there the same end point, every one of LinuxCNC's points (on the curve)
+/// within `tol` of our chords, and our points on LinuxCNC's polyline within its coarser
+/// chords (1% of the curve's size). Returns the number of curve blocks compared.
+fn compare_with_curves(
+    ours: &[Move],
+    theirs: &[Canon],
+    src: &str,
+    tol: f64,
+) -> Result<usize, String> {
+    // Lines with G5, G5.1 or G5.3 (a NURBS is emitted on its G5.3 line); a line in modal G5
+    // (no G5 word) is recognised by its straight moves differing in number.
+    let prog = Program::parse(src).map_err(|e| e.to_string())?;
+    let spline_lines: Vec<u32> = prog
+        .blocks()
+        .iter()
+        .filter(|b| {
+            b.words.iter().any(|w| {
+                w.letter == 'G'
+                    && matches!(literal(&w.value), Some(v) if v == 5.0 || v == 5.1 || v == 5.3)
+            })
+        })
+        .map(|b| b.line)
+        .collect();
+    // Runs of consecutive moves of one line, in order.
+    let ours_m: Vec<&Move> = ours
+        .iter()
+        .filter(|m| m.kind != MoveKind::ToolChange)
+        .collect();
+    let runs = |lines: Vec<u32>| {
+        let mut r: Vec<(u32, std::ops::Range<usize>)> = Vec::new();
+        for (i, l) in lines.into_iter().enumerate() {
+            match r.last_mut() {
+                Some((line, range)) if *line == l => range.end = i + 1,
+                _ => r.push((l, i..i + 1)),
+            }
+        }
+        r
+    };
+    let our_runs = runs(ours_m.iter().map(|m| m.line).collect());
+    let their_runs = runs(theirs.iter().map(|c| c.line).collect());
+    if our_runs
+        .iter()
+        .map(|r| r.0)
+        .ne(their_runs.iter().map(|r| r.0))
+    {
+        return Err("the moves come from different lines".into());
+    }
+    let mut curves = 0;
+    let Some(first) = ours_m.first() else {
+        return if theirs.is_empty() {
+            Ok(0)
+        } else {
+            Err("no moves".into())
+        };
+    };
+    let mut start: [f64; 6] = first.start;
+    for ((line, ro), (_, rt)) in our_runs.iter().zip(&their_runs) {
+        let o = &ours_m[ro.clone()];
+        let t = &theirs[rt.clone()];
+        let all_straight =
+            o.iter().all(|m| m.kind == MoveKind::Linear) && t.iter().all(|c| c.kind == "linear");
+        let curve = spline_lines.contains(line) || (all_straight && o.len() != t.len());
+        if curve && t.len() > 1 {
+            curves += 1;
+            let (oe, te) = (o.last().unwrap().end, t.last().unwrap().end);
+            if !(0..6).all(|k| (oe[k] - te[k]).abs() < 1e-6) {
+                return Err(format!("line {line}: end {oe:?} vs {te:?}"));
+            }
+            let ours_poly: Vec<[f64; 2]> = std::iter::once([start[0], start[1]])
+                .chain(o.iter().map(|m| [m.end[0], m.end[1]]))
+                .collect();
+            let theirs_poly: Vec<[f64; 2]> = std::iter::once([start[0], start[1]])
+                .chain(t.iter().map(|c| [c.end[0], c.end[1]]))
+                .collect();
+            for p in &theirs_poly {
+                let d = dist_to_polyline(*p, &ours_poly);
+                if d > tol + 1e-6 {
+                    return Err(format!(
+                        "line {line}: LinuxCNC's point {p:?} is {d} from our chords"
+                    ));
+                }
+            }
+            // LinuxCNC's chords are coarser (fixed steps): ours lie on its polyline within
+            // its own sagitta, bounded here by 1% of the curve's size.
+            let size = theirs_poly
+                .iter()
+                .map(|p| (p[0] - start[0]).hypot(p[1] - start[1]))
+                .fold(0.0, f64::max);
+            for p in &ours_poly {
+                let d = dist_to_polyline(*p, &theirs_poly);
+                if d > 0.01 * size {
+                    return Err(format!(
+                        "line {line}: our point {p:?} is {d} from LinuxCNC's"
+                    ));
+                }
+            }
+            if !o.iter().all(|m| m.kind == MoveKind::Linear) {
+                return Err(format!("line {line}: a curve's moves must be straight"));
+            }
+        } else {
+            let owned: Vec<Move> = o.iter().map(|m| (*m).clone()).collect();
+            compare(&owned, t, 1e-6).map_err(|e| format!("line {line}: {e}"))?;
+        }
+        start = o.last().unwrap().end;
+    }
+    Ok(curves)
 }

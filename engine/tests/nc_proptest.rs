@@ -146,6 +146,11 @@ fn block() -> impl Strategy<Value = String> {
             "G50.1 X0",
             "G16",
             "G15",
+            "G5 X3 Y4 I1 J0 P0 Q-1 F40",
+            "G5 X6 Y1 P1 Q1",
+            "G5.1 X-2 Y3 I1 J2 F40",
+            "G5.2 X1 Y1 P1 L4\nX2 Y3 P2\nX4 Y1 P0.5\nX5 Y5 P1\nG5.3",
+            "G5.3",
         ])
         .prop_map(|s| s.to_string()),
     ]

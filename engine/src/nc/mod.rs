@@ -47,8 +47,10 @@
 //!   mode. Arcs stay arcs where the transform is a similarity in their plane (a mirror
 //!   reverses them); per-axis scaling of an arc or a rotation out of its plane is refused.
 //!
-//! Refused with an error: cutter radius compensation outside G17, G33, G76, G5.x
-//! splines, G7/G8, U V W axes, external subroutine files and
+//! * Splines (`interp/splines.rs`): G5, G5.1 and G5.2/G5.3 NURBS in G17 as LinuxCNC builds
+//!   them, as straight feed moves through points on the curve within `spline_tolerance`.
+//!
+//! Refused with an error: cutter radius compensation outside G17, G33, G76, G7/G8, U V W axes, external subroutine files and
 //! calls to programs not in the file, G66/G67, M60, non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
 
@@ -114,6 +116,9 @@ pub struct InterpretOptions {
     pub passthrough_m_codes: Vec<u32>,
     /// Refuse non-standard M codes not listed in `passthrough_m_codes` instead of warning.
     pub strict_m_codes: bool,
+    /// Splines (G5, G5.1, G5.2/G5.3) become straight feed moves whose chords stay within
+    /// this distance of the curve, mm.
+    pub spline_tolerance: f64,
     /// State of the control's block-delete switch: when on, blocks starting with `/` are skipped.
     pub block_delete: bool,
     /// Checked every few thousand executed blocks: once set, interpretation stops with an
@@ -134,6 +139,7 @@ impl Default for InterpretOptions {
             fanuc_corners_without_comma: false,
             passthrough_m_codes: Vec::new(),
             strict_m_codes: false,
+            spline_tolerance: 1e-3,
             block_delete: false,
             cancel: None,
         }

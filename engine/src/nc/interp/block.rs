@@ -418,6 +418,13 @@ impl<'p> Interp<'p> {
                 30 => Some(Motion::Arc { cw: false }),
                 331 => Some(Motion::RigidTap),
                 382..=385 => Some(Motion::Probe(gm)),
+                50 => Some(Motion::Spline { cubic: true }),
+                51 => Some(Motion::Spline { cubic: false }),
+                52 => Some(Motion::Nurbs),
+                53 => {
+                    self.nurbs_end(self.word_pos(w.g(53).expect("in block")))?;
+                    None
+                }
                 800 => self.after_g80(),
                 g => Some(Motion::Cycle(g / 10)),
             };
@@ -451,6 +458,9 @@ impl<'p> Interp<'p> {
                 }
             }
             self.exec_motion(w, motion, g53.is_some(), corner)?;
+        } else if matches!(block_motion, Some((52, _))) && !axis_users {
+            // G5.2 with only a weight for its first point (P) or an order (L).
+            self.exec_motion(w, Motion::Nurbs, false, None)?;
         } else if matches!(block_motion, Some((0 | 10 | 20 | 30, _)))
             && !axis_users
             && corner.is_none()
@@ -610,6 +620,11 @@ impl<'p> Interp<'p> {
             Motion::RigidTap => self.rigid_tap(w),
             Motion::Probe(g) => self.probe(w, g),
             Motion::Cycle(g) => self.cycle(w, g),
+            Motion::Spline { cubic } => self.spline(w, cubic),
+            Motion::Nurbs => {
+                let starts = self.motion_prev != Some(Motion::Nurbs);
+                self.nurbs_point(w, starts)
+            }
         }
     }
 

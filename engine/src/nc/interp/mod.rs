@@ -23,6 +23,7 @@ mod macro_b;
 mod modal;
 mod params;
 mod polar;
+mod splines;
 mod subprograms;
 mod transforms;
 mod words;
@@ -70,6 +71,8 @@ struct Interp<'p> {
     rot_xy: [f64; 9],
     /// Fanuc mirror image, scaling and rotation.
     prog_xf: transforms::ProgramTransforms,
+    /// A G5.2 NURBS being defined.
+    nurbs: Option<splines::NurbsInProgress>,
     /// Fanuc G16 polar mode, and the last polar radius and angle (degrees) it went to.
     polar_mode: bool,
     polar_last: std::cell::Cell<Option<(f64, f64)>>,
@@ -186,6 +189,7 @@ pub(crate) fn interpret_view(
         g52: [0.0; 6],
         rot_xy: [0.0; 9],
         prog_xf: Default::default(),
+        nurbs: None,
         polar_mode: false,
         polar_last: Default::default(),
         plain: true,
