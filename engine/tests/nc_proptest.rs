@@ -151,6 +151,11 @@ fn block() -> impl Strategy<Value = String> {
             "G5.1 X-2 Y3 I1 J2 F40",
             "G5.2 X1 Y1 P1 L4\nX2 Y3 P2\nX4 Y1 P0.5\nX5 Y5 P1\nG5.3",
             "G5.3",
+            "G66 P100 R2 Z-1",
+            "G67",
+            "G65 P100 I1 J2 K3 I4 K5",
+            "G53 G0 Z0 H0",
+            "G43 H1 D2\nG0 Z1 H0",
         ])
         .prop_map(|s| s.to_string()),
     ]

@@ -203,3 +203,18 @@ fn fanuc_d_on_a_g43_block_is_the_radius_offset_g41_takes() {
     assert_eq!(line, 2);
     assert!(msg.contains("D1"), "{msg}");
 }
+
+#[test]
+fn fanuc_h_without_g43_changes_the_length_offset_number() {
+    // Offset 1 is 10 mm long; `G53 Z0 H0` (a Fanuc post's retract) switches the active
+    // compensation to offset 0, which is always zero.
+    let src = "O1\nG10 L10 P1 R10.\nG43 H1\nG0 Z5\nG53 G0 Z0 H0\nG0 Z5\nG0 Z6 H1\nM30\n";
+    let lengths: Vec<Option<f64>> = run(src).moves.iter().map(|m| m.tool_length).collect();
+    assert_eq!(lengths, vec![Some(10.0), Some(0.0), Some(0.0), Some(10.0)]);
+    // Without G43 active an H changes nothing.
+    let src = "O1\nG10 L10 P1 R10.\nG0 Z5 H1\nM30\n";
+    assert_eq!(run(src).moves[0].tool_length, None);
+    // LinuxCNC keeps refusing a stray H.
+    let (_, _, msg) = fail("G21\nG0 Z5 H1\nM2\n", &dialect(Dialect::LinuxCnc));
+    assert!(msg.contains("H1 is not used"), "{msg}");
+}

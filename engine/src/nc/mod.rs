@@ -21,7 +21,8 @@
 //!   Custom macro B: `IF [..] GOTO n`, `IF [..] THEN #i=..`, `WHILE [..] DOm`..`ENDm`, `GOTO n`,
 //!   expressions without brackets (Fanuc precedence), vacant variables (#0), the modal and
 //!   position system variables (#4001-#4120, #5001-#5046), #3000 alarms, G65 calls with
-//!   arguments (specification I); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
+//!   arguments (specifications I and II), G66/G67 modal calls (after each moving block of the
+//!   calling level); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
 //!   Subprograms: several `O` programs in one file, `M98 P.. L..` (and `P31234`), `M99`
 //!   (`M99 Pn`), `M99` in the main program ends it (a warning; the control would loop).
 //!   AND/OR/XOR work bit by bit on whole numbers and rank with `*` and `+` (LinuxCNC: logical,
@@ -50,8 +51,12 @@
 //! * Splines (`interp/splines.rs`): G5, G5.1 and G5.2/G5.3 NURBS in G17 as LinuxCNC builds
 //!   them, as straight feed moves through points on the curve within `spline_tolerance`.
 //!
-//! Refused with an error: cutter radius compensation outside G17, G33, G76, G7/G8, U V W axes, external subroutine files and
-//! calls to programs not in the file, G66/G67, M60, non-standard M codes with `strict_m_codes`
+//! * Fanuc `H` without G43 (`G53 Z0 H0`): the active length compensation takes offset H (H0:
+//!   zero).
+//!
+//! Refused with an error: cutter radius compensation outside G17, G33, G76, G7/G8, U V W
+//! axes, external subroutine files and calls to programs not in the file, G66.1, M60,
+//! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
 
 mod arc;

@@ -340,6 +340,11 @@ impl<'p> Interp<'p> {
                 self.modal.retract_r_plane = true;
             }
         }
+        // Fanuc: an H without G43 (posts write `G53 Z0 H0`, `G91 G28 Z0 H0`) changes the
+        // length offset number of the active compensation; H0 is always zero.
+        if self.fanuc && w.has('H') && w.g(430).is_none() {
+            self.fanuc_h_word(w)?;
+        }
         // 22a. Fanuc transforms: scaling, mirror image, rotation (polar mode in words.rs).
         if !w.gs.is_empty() {
             for (code, i) in w.gs.clone() {
@@ -442,6 +447,7 @@ impl<'p> Interp<'p> {
             }
         }
         let axis_users = matches!(group0, Some((100 | 280 | 300 | 520 | 920, _)));
+        let mut moved = false;
         let corner = w
             .corner_r
             .or(w.corner_c)
@@ -458,6 +464,7 @@ impl<'p> Interp<'p> {
                 }
             }
             self.exec_motion(w, motion, g53.is_some(), corner)?;
+            moved = true;
         } else if matches!(block_motion, Some((52, _))) && !axis_users {
             // G5.2 with only a weight for its first point (P) or an order (L).
             self.exec_motion(w, Motion::Nurbs, false, None)?;
@@ -499,6 +506,17 @@ impl<'p> Interp<'p> {
             if let Some(i) = w.m(99) {
                 self.return_subprogram(w, i)?;
             }
+        }
+        if w.g(670).is_some() {
+            if !self.fanuc {
+                return Err(self.err_at(
+                    self.word_pos(w.g(670).expect("in block")),
+                    "G67 cancels a Fanuc G66 modal macro call; not valid with dialect linuxcnc",
+                ));
+            }
+            self.modal_call = None;
+        } else if moved {
+            self.modal_macro_after_move()?;
         }
         if w.m(60).is_some() {
             return Err(self.err_block("M60 pallet change is not supported"));

@@ -284,4 +284,24 @@ impl Interp<'_> {
             .or_else(|| self.opts.tool_table.get(h).map(|t| t.z_offset))?;
         Some(geometry + self.tool_length_wear.get(&h).copied().unwrap_or(0.0))
     }
+
+    /// Fanuc H without G43: the new offset number of the active length compensation (none
+    /// active: it waits for the next G43, which names its own H here anyway).
+    pub(super) fn fanuc_h_word(&mut self, w: &mut Words) -> R<()> {
+        let Some(h) = w.take('H') else {
+            return Ok(());
+        };
+        if h < 0.0 || h.fract() != 0.0 || h > u32::MAX as f64 {
+            return Err(self.err_word(w, 'H', format!("H{h} is not an offset number")));
+        }
+        if self.tlo.is_some() {
+            let length = if h == 0.0 {
+                0.0
+            } else {
+                self.tool_length(h as u32).unwrap_or(0.0)
+            };
+            self.set_tlo(Some(length));
+        }
+        Ok(())
+    }
 }

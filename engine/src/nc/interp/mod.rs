@@ -71,6 +71,8 @@ struct Interp<'p> {
     rot_xy: [f64; 9],
     /// Fanuc mirror image, scaling and rotation.
     prog_xf: transforms::ProgramTransforms,
+    /// G66: the macro called after each moving block, until G67.
+    modal_call: Option<macro_b::ModalCall>,
     /// A G5.2 NURBS being defined.
     nurbs: Option<splines::NurbsInProgress>,
     /// Fanuc G16 polar mode, and the last polar radius and angle (degrees) it went to.
@@ -189,6 +191,7 @@ pub(crate) fn interpret_view(
         g52: [0.0; 6],
         rot_xy: [0.0; 9],
         prog_xf: Default::default(),
+        modal_call: None,
         nurbs: None,
         polar_mode: false,
         polar_last: Default::default(),

@@ -93,6 +93,7 @@ pub(super) fn g_group(code: u16) -> Option<u8> {
         680 | 690 => 16,
         150 | 160 => 17,
         501 | 511 => 22,
+        670 => 23,
         _ => return None,
     })
 }
@@ -113,7 +114,8 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         380..=389 => "probing (G38.x) cannot be simulated without a probe model",
         760 => "threading cycle G76 is not supported",
         650 => "macro call (G65) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
-        660 | 661 | 670 => "modal macro calls (G66/G67) are not supported",
+        660 => "modal macro call (G66) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
+        661 => "modal macro call G66.1 (every block) is not supported",
         _ => "is not a supported G code",
     }
 }
