@@ -440,14 +440,19 @@ fn refusals_name_line_column_and_word() {
     o.strict_m_codes = true;
     let cases: Vec<(&str, (u32, u32), &str)> = vec![
         (
-            "G0 X0\nG18 G41 D1\n",
+            "G0 X0\nG19 G41 D1\n",
             (2, 5),
-            "G41: cutter radius compensation is supported in the XY plane (G17) only",
+            "G41: cutter radius compensation is supported in the XY (G17) and XZ (G18) planes only",
         ),
         (
             "G1 X1 F1\n  G42 G19\n",
             (2, 3),
-            "G42: cutter radius compensation is supported in the XY plane (G17) only",
+            "G42: cutter radius compensation is supported in the XY (G17) and XZ (G18) planes only",
+        ),
+        (
+            "G1 X1 F1\nG41.1 D2\nG18\n",
+            (3, 1),
+            "plane change with cutter radius compensation on",
         ),
         ("M428\n", (1, 1), "M428"),
         ("G0 U1\n", (1, 4), "U axis is not supported"),

@@ -914,6 +914,14 @@ fn cutter_compensation_matches_linuxcnc() {
             "G21 G90\nG0 X-5 Y-5 Z5\nG41.1 D4 G1 X0 Y0 F100\nG1 Z-1\nG1 X10\nG1 Z-2\nY10\nG91 G1 X-10\nG90 G0 Y0\nG40 G0 X-5 Y-5\nM2\n".into(),
         ),
         (
+            "g18_xz_lathe_profile",
+            "G21 G18 G90\nG0 X20 Z5\nG41.1 D4 G1 X10 Z0 F100\nG1 Z-10\nG2 X15 Z-15 R5\nG1 X20\nZ-25\nG3 X24 Z-29 I0 K-4\nG1 X30\nG40 G1 X35 Z-30\nM2\n".into(),
+        ),
+        (
+            "g18_g42_outside_corners",
+            "G21 G18 G90\nG0 X-10 Z10 Y3\nG42.1 D6 G1 X0 Z5 F100\nG1 X10\nG1 Z-5\nG1 X0 Z-10\nG1 X-5\nG40 G0 X-10 Z10\nM2\n".into(),
+        ),
+        (
             "mmount_compensated",
             // Empty (skipped below, the reason printed) in a clone without the corpus.
             strip_tools(

@@ -153,6 +153,7 @@ fn block() -> impl Strategy<Value = String> {
             "G5.3",
             "G66 P100 R2 Z-1",
             "G67",
+            "G18 G41.1 D2 G1 X5 Z-1 F50\nG1 Z-5\nG2 X9 Z-9 R4\nG40 G1 X12\nG17",
             "G65 P100 I1 J2 K3 I4 K5",
             "G53 G0 Z0 H0",
             "G43 H1 D2\nG0 Z1 H0",

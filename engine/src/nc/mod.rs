@@ -34,7 +34,7 @@
 //!   no-ops with a warning (`strict_m_codes` refuses them).
 //!
 //! * Cutter radius compensation G41/G42 (radius from the tool table's diameter, a G10 radius
-//!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY plane, as
+//!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY and XZ planes, as
 //!   LinuxCNC 2.9 does it in both dialects (entry line or arc, arcs around outside corners,
 //!   inside corners trimmed, gouges refused naming the line); checked against LinuxCNC.
 //!   A Fanuc control's start-up and cancel blocks (types A/B/C) differ in the entry and exit
@@ -54,7 +54,7 @@
 //! * Fanuc `H` without G43 (`G53 Z0 H0`): the active length compensation takes offset H (H0:
 //!   zero).
 //!
-//! Refused with an error: cutter radius compensation outside G17, G33, G76, G7/G8, U V W
+//! Refused with an error: cutter radius compensation in G19, G33, G76, G7/G8, U V W
 //! axes, external subroutine files and calls to programs not in the file, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5426).

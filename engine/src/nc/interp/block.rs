@@ -209,6 +209,15 @@ impl<'p> Interp<'p> {
             }
             // 15. plane
             for (code, plane) in [(170, Plane::XY), (180, Plane::XZ), (190, Plane::YZ)] {
+                if let Some(i) = w
+                    .g(code)
+                    .filter(|_| self.comp.is_some() && plane != self.modal.plane)
+                {
+                    return Err(self.err_at(
+                        self.word_pos(i),
+                        "plane change with cutter radius compensation on (G40 first)",
+                    ));
+                }
                 if w.g(code).is_some() {
                     self.modal.plane = plane;
                 }

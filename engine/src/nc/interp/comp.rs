@@ -1,4 +1,5 @@
-//! Cutter radius compensation (G41/G42, G41.1/G42.1, G40) in the XY plane, as LinuxCNC 2.9
+//! Cutter radius compensation (G41/G42, G41.1/G42.1, G40) in the XY and XZ planes (G17, G18:
+//! the plane's two axes in LinuxCNC's order, Z X in G18), as LinuxCNC 2.9
 //! does it (`convert_straight_comp1/2`, `convert_arc_comp2`, the move queue of
 //! `interp_queue.cc`), checked against its interpreter:
 //!
@@ -83,18 +84,22 @@ fn inside(side: Side, turn: i32) -> bool {
     (side == Side::Left && turn > 0) || (side == Side::Right && turn < 0)
 }
 
-fn xy(p: &[f64; 6]) -> [f64; 2] {
-    [p[0], p[1]]
-}
-
-fn with_xy(p: &[f64; 6], x: f64, y: f64) -> [f64; 6] {
-    let mut q = *p;
-    q[0] = x;
-    q[1] = y;
-    q
-}
-
 impl Interp<'_> {
+    /// A point's two coordinates in the compensation plane (X Y in G17, Z X in G18).
+    fn xy(&self, p: &[f64; 6]) -> [f64; 2] {
+        let [a, b, _] = self.comp_plane.axes();
+        [p[a], p[b]]
+    }
+
+    /// `p` with its two coordinates in the compensation plane replaced.
+    fn with_xy(&self, p: &[f64; 6], x: f64, y: f64) -> [f64; 6] {
+        let [a, b, _] = self.comp_plane.axes();
+        let mut q = *p;
+        q[a] = x;
+        q[b] = y;
+        q
+    }
+
     /// G41/G42 (`dynamic`: G41.1/G42.1 with D the diameter).
     pub(super) fn comp_on(&mut self, w: &mut Words, left: bool, dynamic: bool, at: usize) -> R<()> {
         let name = match (left, dynamic) {
@@ -103,14 +108,15 @@ impl Interp<'_> {
             (true, true) => "G41.1",
             (false, true) => "G42.1",
         };
-        if self.modal.plane != super::Plane::XY {
+        if self.modal.plane == super::Plane::YZ {
             return Err(self.err_at(
                 at,
                 format!(
-                    "{name}: cutter radius compensation is supported in the XY plane (G17) only"
+                    "{name}: cutter radius compensation is supported in the XY (G17) and XZ (G18) planes only, as on LinuxCNC"
                 ),
             ));
         }
+        self.comp_plane = self.modal.plane;
         if self.comp.is_some() {
             return Err(self.err_at(
                 at,
@@ -192,7 +198,7 @@ impl Interp<'_> {
             return Ok(());
         };
         let prog = c.prog;
-        let here = xy(&self.cur);
+        let here = self.xy(&self.cur);
         self.move_endpoint_and_flush(here)?;
         self.exit_start = Some(self.to_machine(self.cur));
         self.cur = prog;
@@ -203,7 +209,7 @@ impl Interp<'_> {
     /// Moves still queued at the end of the program.
     pub(super) fn comp_finish(&mut self) -> R<()> {
         if self.comp.is_some() {
-            let here = xy(&self.cur);
+            let here = self.xy(&self.cur);
             self.move_endpoint_and_flush(here)?;
         }
         Ok(())
@@ -243,7 +249,7 @@ impl Interp<'_> {
         for q in &mut queue {
             let line = q.mv.line;
             let end_prog = self.from_machine(q.mv.end);
-            let new_end = self.to_machine(with_xy(&end_prog, p[0], p[1]));
+            let new_end = self.to_machine(self.with_xy(&end_prog, p[0], p[1]));
             match &mut q.kind {
                 QueuedKind::Straight { dir } => {
                     if let Some(ep) = endpoint {
@@ -264,21 +270,25 @@ impl Interp<'_> {
                     turn,
                     sweep,
                 } => {
-                    let old_end = xy(&end_prog);
+                    let old_end = self.xy(&end_prog);
                     let r1 = (old_end[0] - center[0]).hypot(old_end[1] - center[1]);
                     let r2 = (p[0] - center[0]).hypot(p[1] - center[1]);
                     if (r1 - r2).abs() > 0.01 {
                         return Err(self.comp_gouge(line, format!("cutter compensation made an arc with mismatched radii on line {line} ({r1:.4}, {r2:.4})")));
                     }
                     let start_prog = self.from_machine(q.mv.start);
-                    let from = endpoint.unwrap_or(xy(&start_prog));
+                    let from = endpoint.unwrap_or(self.xy(&start_prog));
                     let l2 = find_turn(from, *center, *turn, p);
                     if *sweep != 0.0 && endpoint.is_some() && l2.abs() > sweep.abs() + 0.001 {
                         return Err(self.comp_gouge(line, format!("the compensated arc of line {line} cannot reach this inside corner without gouging")));
                     }
                     // The arc again with its new end (through the transforms, if any).
-                    let moved =
-                        self.arc_move(start_prog, with_xy(&end_prog, p[0], p[1]), *center, *turn)?;
+                    let moved = self.arc_move(
+                        start_prog,
+                        self.with_xy(&end_prog, p[0], p[1]),
+                        *center,
+                        *turn,
+                    )?;
                     q.mv.end = new_end;
                     if let (Some(g), Some(n)) = (q.mv.arc.as_mut(), moved.arc) {
                         g.end = new_end;
@@ -310,7 +320,7 @@ impl Interp<'_> {
         match q.kind {
             QueuedKind::Arc { center, turn, .. } => {
                 let end = self.from_machine(q.mv.end);
-                Some((center, turn, xy(&end)))
+                Some((center, turn, self.xy(&end)))
             }
             _ => None,
         }
@@ -326,9 +336,9 @@ impl Interp<'_> {
     }
 
     fn arc_move(&self, from: [f64; 6], to: [f64; 6], center: [f64; 2], turn: i32) -> R<Move> {
-        let sweep = find_turn(xy(&from), center, turn, xy(&to));
+        let sweep = find_turn(self.xy(&from), center, turn, self.xy(&to));
         self.arc_move_machine(
-            super::Plane::XY,
+            self.comp_plane,
             from,
             to,
             center,
@@ -345,8 +355,8 @@ impl Interp<'_> {
         let c = self.comp.as_ref().expect("compensation on");
         let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
         let cur = self.cur;
-        let [px, py] = xy(&to);
-        let [cx, cy] = xy(&cur);
+        let [px, py] = self.xy(&to);
+        let [cx, cy] = self.xy(&cur);
         if first {
             let distance = (px - cx).hypot(py - cy);
             if distance <= radius {
@@ -360,7 +370,7 @@ impl Interp<'_> {
                 } else {
                     -FRAC_PI_2
                 };
-            let end = with_xy(&to, px + radius * alpha.cos(), py + radius * alpha.sin());
+            let end = self.with_xy(&to, px + radius * alpha.cos(), py + radius * alpha.sin());
             self.set_endpoint([cx, cy]);
             let mv = self.straight_move(rapid, cur, end);
             self.enqueue(
@@ -375,8 +385,8 @@ impl Interp<'_> {
             self.cur = end;
             return Ok(());
         }
-        let [opx, opy] = xy(&op);
-        let mut end = with_xy(&to, cx, cy);
+        let [opx, opy] = self.xy(&op);
+        let mut end = self.with_xy(&to, cx, cy);
         // Where the next queued move starts.
         let mut from = cur;
         if !(px == opx && py == opy) {
@@ -393,7 +403,7 @@ impl Interp<'_> {
                 }
                 (alpha - theta - FRAC_PI_2, -FRAC_PI_2)
             };
-            end = with_xy(
+            end = self.with_xy(
                 &to,
                 px + radius * (alpha + gamma).cos(),
                 py + radius * (alpha + gamma).sin(),
@@ -411,7 +421,7 @@ impl Interp<'_> {
             if !concave && beta > SMALL {
                 // Outside corner: an arc around the programmed corner (a straight for G0).
                 self.move_endpoint_and_flush([cx, cy])?;
-                let corner_end = with_xy(&with_xy(&cur, mid[0], mid[1]), mid[0], mid[1]);
+                let corner_end = self.with_xy(&self.with_xy(&cur, mid[0], mid[1]), mid[0], mid[1]);
                 let mut corner_end = corner_end;
                 corner_end[3..].copy_from_slice(&to[3..]);
                 let mv = if rapid {
@@ -440,7 +450,7 @@ impl Interp<'_> {
                             cy + retreat * (theta + gamma).sin(),
                         ];
                         self.move_endpoint_and_flush(m)?;
-                        from = with_xy(&cur, m[0], m[1]);
+                        from = self.with_xy(&cur, m[0], m[1]);
                     }
                     Some((center, turn, arc_end)) => {
                         // Arc to line: along the waiting (compensated) arc.
@@ -476,7 +486,7 @@ impl Interp<'_> {
                             center[1] + oldrad * angle.sin(),
                         ];
                         self.move_endpoint_and_flush(m)?;
-                        from = with_xy(&cur, m[0], m[1]);
+                        from = self.with_xy(&cur, m[0], m[1]);
                     }
                 }
             } else {
@@ -502,8 +512,10 @@ impl Interp<'_> {
         self.check_feed()?;
         let c = self.comp.as_ref().expect("compensation on");
         let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
-        if w.has('K') {
-            return Err(self.err_word(w, 'K', "K word in a G17 arc"));
+        let plane = self.comp_plane;
+        let bad = plane.forbidden_ijk();
+        if w.has(bad) {
+            return Err(self.err_word(w, bad, format!("{bad} word in a {} arc", plane.name())));
         }
         let target = self.comp_target(w)?;
         let turns = match w.take('P') {
@@ -524,9 +536,9 @@ impl Interp<'_> {
         let (ccx, ccy) = self.arc_center(w, cw, &op, &target)?;
         let center = [ccx, ccy];
         let cur = self.cur;
-        let [cx, cy] = xy(&cur);
-        let [opx, opy] = xy(&op);
-        let [ex, ey] = xy(&target);
+        let [cx, cy] = self.xy(&cur);
+        let [opx, opy] = self.xy(&op);
+        let [ex, ey] = self.xy(&target);
         let arc_radius = (ccx - ex).hypot(ccy - ey);
         let mut theta = (cy - opy).atan2(cx - opx);
         theta = if side == Side::Left {
@@ -561,7 +573,7 @@ impl Interp<'_> {
             delta += PI;
             (ey - ccy).atan2(ex - ccx)
         };
-        let new_end = with_xy(
+        let new_end = self.with_xy(
             &target,
             ex + radius * gamma.cos(),
             ey + radius * gamma.sin(),
@@ -632,12 +644,12 @@ impl Interp<'_> {
                 }
             };
             self.move_endpoint_and_flush(m)?;
-            from = with_xy(&cur, m[0], m[1]);
+            from = self.with_xy(&cur, m[0], m[1]);
         } else if beta > SMALL {
             // Outside corner: an arc around the programmed corner first.
             let mid = [opx + radius * delta.cos(), opy + radius * delta.sin()];
             self.dequeue()?;
-            let mut corner_end = with_xy(&cur, mid[0], mid[1]);
+            let mut corner_end = self.with_xy(&cur, mid[0], mid[1]);
             corner_end[3..].copy_from_slice(&target[3..]);
             let mv = self.arc_move(
                 cur,
@@ -672,8 +684,8 @@ impl Interp<'_> {
         let c = self.comp.as_ref().expect("compensation on");
         let (side, radius) = (c.side, c.radius);
         let cur = self.cur;
-        let [cx, cy] = xy(&cur);
-        let [ex, ey] = xy(&target);
+        let [cx, cy] = self.xy(&cur);
+        let [ex, ey] = self.xy(&target);
         if (ex - cx).hypot(ey - cy) <= radius {
             return Err(self.err_block(format!(
                 "cutter radius compensation: the entry arc's end is not farther than the tool radius ({radius}) from the start"
@@ -702,7 +714,7 @@ impl Interp<'_> {
         }
         let c_len = b_len / a_ang.cos();
         let center = [nx + c_len * ab_ang.cos(), ny + c_len * ab_ang.sin()];
-        let new_end = with_xy(&target, nx, ny);
+        let new_end = self.with_xy(&target, nx, ny);
         let sweep = find_turn([cx, cy], center, turn, [nx, ny]);
         let mv = self.arc_move(cur, new_end, center, turn)?;
         self.enqueue(

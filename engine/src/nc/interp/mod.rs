@@ -123,6 +123,8 @@ struct Interp<'p> {
     warned_m_codes: std::collections::HashSet<u32>,
     /// Cutter radius compensation, while G41/G42 is on.
     comp: Option<comp::Comp>,
+    /// The plane of the last G41/G42 (G17 or G18).
+    comp_plane: Plane,
     /// After G40: where the tool is (machine frame), the start of the next move, which must
     /// be a line (LinuxCNC).
     exit_start: Option<[f64; 6]>,
@@ -229,6 +231,7 @@ pub(crate) fn interpret_view(
         tool_radii: HashMap::new(),
         tool_radius_wear: HashMap::new(),
         comp: None,
+        comp_plane: Plane::XY,
         exit_start: None,
         jump: None,
         main_program: None,
