@@ -80,6 +80,17 @@ fn find_turn(p1: [f64; 2], c: [f64; 2], turn: i32, p2: [f64; 2]) -> f64 {
     }
 }
 
+/// The compensated end of an arc ending at `e` about `c`: the tool radius `r` towards the
+/// centre on the arc's inside, away from it outside.
+fn arc_end_offset(inside: bool, c: [f64; 2], e: [f64; 2], r: f64) -> [f64; 2] {
+    let gamma = if inside {
+        (c[1] - e[1]).atan2(c[0] - e[0])
+    } else {
+        (e[1] - c[1]).atan2(e[0] - c[0])
+    };
+    [e[0] + r * gamma.cos(), e[1] + r * gamma.sin()]
+}
+
 fn inside(side: Side, turn: i32) -> bool {
     (side == Side::Left && turn > 0) || (side == Side::Right && turn < 0)
 }
@@ -306,6 +317,16 @@ impl Interp<'_> {
         self.comp_mut().queue = queue;
         self.dequeue()?;
         self.set_endpoint(p);
+        Ok(())
+    }
+
+    /// On the inside of an arc the tool must be smaller than the arc.
+    fn check_tool_fits(&self, radius: f64, arc_radius: f64) -> R<()> {
+        if arc_radius <= radius {
+            return Err(self.err_block(format!(
+                "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
+            )));
+        }
         Ok(())
     }
 
@@ -562,22 +583,13 @@ impl Interp<'_> {
         } else if beta < -FRAC_PI_2 {
             beta += TAU;
         }
-        let gamma = if inside(side, turn) {
-            if arc_radius <= radius {
-                return Err(self.err_block(format!(
-                    "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
-                )));
-            }
-            (ccy - ey).atan2(ccx - ex)
+        if inside(side, turn) {
+            self.check_tool_fits(radius, arc_radius)?;
         } else {
             delta += PI;
-            (ey - ccy).atan2(ex - ccx)
-        };
-        let new_end = self.with_xy(
-            &target,
-            ex + radius * gamma.cos(),
-            ey + radius * gamma.sin(),
-        );
+        }
+        let [nx, ny] = arc_end_offset(inside(side, turn), [ccx, ccy], [ex, ey], radius);
+        let new_end = self.with_xy(&target, nx, ny);
         let sweep = find_turn([opx, opy], center, turn, [ex, ey]);
         let mut from = cur;
         if !(-SMALL..=PI + SMALL).contains(&beta)
@@ -664,18 +676,7 @@ impl Interp<'_> {
             self.dequeue()?;
             self.set_endpoint([cx, cy]);
         }
-        let mv = self.arc_move(from, new_end, center, turn)?;
-        self.enqueue(
-            mv,
-            QueuedKind::Arc {
-                center,
-                turn,
-                sweep,
-            },
-        )?;
-        self.comp_mut().prog = target;
-        self.cur = new_end;
-        Ok(())
+        self.queue_comp_arc(from, new_end, center, turn, sweep, target)
     }
 
     /// The first move after G41/G42 as an arc: an arc through the programmed end that the
@@ -693,17 +694,10 @@ impl Interp<'_> {
         }
         let (ccx, ccy) = self.arc_center(w, cw, &cur, &target)?;
         let arc_radius = (ccx - cx).hypot(ccy - cy);
-        if arc_radius <= radius && inside(side, turn) {
-            return Err(self.err_block(format!(
-                "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
-            )));
+        if inside(side, turn) {
+            self.check_tool_fits(radius, arc_radius)?;
         }
-        let gamma = if inside(side, turn) {
-            (ccy - ey).atan2(ccx - ex)
-        } else {
-            (ey - ccy).atan2(ex - ccx)
-        };
-        let (nx, ny) = (ex + radius * gamma.cos(), ey + radius * gamma.sin());
+        let [nx, ny] = arc_end_offset(inside(side, turn), [ccx, ccy], [ex, ey], radius);
         // The compensated arc's centre: on the line from its end towards the programmed
         // centre, equally far from its start and its end.
         let b_len = (cy - ny).hypot(cx - nx) / 2.0;
@@ -716,7 +710,21 @@ impl Interp<'_> {
         let center = [nx + c_len * ab_ang.cos(), ny + c_len * ab_ang.sin()];
         let new_end = self.with_xy(&target, nx, ny);
         let sweep = find_turn([cx, cy], center, turn, [nx, ny]);
-        let mv = self.arc_move(cur, new_end, center, turn)?;
+        self.queue_comp_arc(cur, new_end, center, turn, sweep, target)
+    }
+
+    /// The compensated arc from `from` to `new_end` waits in the queue for the next move's
+    /// corner; the programmed position is `target`.
+    fn queue_comp_arc(
+        &mut self,
+        from: [f64; 6],
+        new_end: [f64; 6],
+        center: [f64; 2],
+        turn: i32,
+        sweep: f64,
+        target: [f64; 6],
+    ) -> R<()> {
+        let mv = self.arc_move(from, new_end, center, turn)?;
         self.enqueue(
             mv,
             QueuedKind::Arc {

@@ -3,10 +3,10 @@
 //! G65 macro call with its arguments as local variables (argument specifications I and II),
 //! and the G66/G67 modal call.
 
-use super::control::{FanucCall, Frame, Link};
-use super::{Interp, MAX_CALL_DEPTH, R};
+use super::control::Link;
+use super::{Interp, R};
 use crate::nc::expr::{is_vacant, vacant};
-use crate::nc::program::{Expr, MacroLine, MacroStatement, OName};
+use crate::nc::program::{Expr, MacroLine, MacroStatement};
 use crate::nc::view::BlockView;
 
 /// Local variables of a G65 call: #1-#33.
@@ -276,25 +276,11 @@ impl<'p> Interp<'p> {
         if call.repeats == 0 {
             return Ok(());
         }
-        if self.frames.len() >= MAX_CALL_DEPTH {
-            return Err(self.err_at(at, format!("calls nested deeper than {MAX_CALL_DEPTH}")));
-        }
         let saved = self.params.numbered[1..=LOCALS].to_vec();
+        self.call_fanuc_program(call.number, call.body, call.repeats, Some(saved), at)?;
         for (k, arg) in call.args.iter().enumerate().skip(1) {
             self.params.numbered[k] = arg.unwrap_or_else(vacant);
         }
-        self.frames.push(Frame {
-            return_pc: self.cur_block,
-            saved: Vec::new(),
-            sub: OName::Number(call.number),
-            auto_restore: None,
-            fanuc: Some(FanucCall {
-                body: call.body,
-                repeats_left: call.repeats - 1,
-                locals: Some(saved),
-            }),
-        });
-        self.jump = Some(call.body);
         Ok(())
     }
 }
