@@ -2,40 +2,13 @@
 //! 0i/30i operator's manuals; LinuxCNC does not run these), errors with line, column and the
 //! feature, the dialect rules, runaway guards.
 
-use millsim_engine::nc::{interpret, Dialect, InterpretOptions, Interpretation, MoveKind, Program};
+mod common;
+
+use common::nc::{dialect, fail, run, run_with, xyz};
+use millsim_engine::nc::{Dialect, InterpretOptions, MoveKind, Program};
 
 fn fanuc() -> InterpretOptions {
-    InterpretOptions {
-        dialect: Dialect::Fanuc,
-        ..InterpretOptions::default()
-    }
-}
-
-fn run(src: &str) -> Interpretation {
-    interpret(src, &InterpretOptions::default()).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn run_with(src: &str, opts: &InterpretOptions) -> Interpretation {
-    interpret(src, opts).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// The first error: (line, col, message).
-fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
-    let e = interpret(src, opts).expect_err("should fail");
-    let d = &e.0[0];
-    (d.line, d.col, d.message.clone())
-}
-
-/// X Y Z of every motion (tool changes and dwells left out).
-fn xyz(i: &Interpretation) -> Vec<[f64; 3]> {
-    i.moves
-        .iter()
-        .filter(|m| !matches!(m.kind, MoveKind::ToolChange | MoveKind::Dwell))
-        .map(|m| {
-            let r = |v: f64| (v * 1e9).round() / 1e9;
-            [r(m.end[0]), r(m.end[1]), r(m.end[2])]
-        })
-        .collect()
+    dialect(Dialect::Fanuc)
 }
 
 #[test]

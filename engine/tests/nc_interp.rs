@@ -2,6 +2,8 @@
 
 mod common;
 
+use common::nc::{close, fail, run, run_with};
+
 use millsim_engine::nc::{
     interpret, parse_tool_table, sample_arc, Dialect, FeedMode, InterpretOptions, Interpretation,
     Move, MoveKind, SpindleDir,
@@ -9,25 +11,6 @@ use millsim_engine::nc::{
 use std::path::Path;
 
 const CORPUS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/corpus/gcode");
-
-fn run(src: &str) -> Interpretation {
-    interpret(src, &InterpretOptions::default()).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn run_with(src: &str, opts: &InterpretOptions) -> Interpretation {
-    interpret(src, opts).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// The error of a program: (line, col, message).
-fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
-    let e = interpret(src, opts).expect_err("should fail");
-    let d = &e.0[0];
-    (d.line, d.col, d.message.clone())
-}
-
-fn close(a: &[f64], b: &[f64]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9)
-}
 
 #[track_caller]
 fn assert_end(m: &Move, expect: [f64; 6]) {

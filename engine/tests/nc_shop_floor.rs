@@ -2,30 +2,12 @@
 //! G38.x probing as a move to the end point, non-standard M codes as warnings, G10 tool
 //! offset writes. Hand-computed end points.
 
+mod common;
+
+use common::nc::{dialect, fail, run, run_with};
 use millsim_engine::nc::{
-    interpret, parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
+    parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
 };
-
-fn run_with(src: &str, opts: &InterpretOptions) -> Interpretation {
-    interpret(src, opts).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn run(src: &str) -> Interpretation {
-    run_with(src, &InterpretOptions::default())
-}
-
-fn dialect(d: Dialect) -> InterpretOptions {
-    InterpretOptions {
-        dialect: d,
-        ..InterpretOptions::default()
-    }
-}
-
-fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
-    let e = interpret(src, opts).expect_err("should fail");
-    let d = &e.0[0];
-    (d.line, d.col, d.message.clone())
-}
 
 /// (kind, X Y Z) of every move.
 fn path(i: &Interpretation) -> Vec<(MoveKind, [f64; 3])> {

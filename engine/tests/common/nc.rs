@@ -45,5 +45,5 @@ pub fn xyz(i: &Interpretation) -> Vec<[f64; 3]> {
 }
 
 pub fn close(a: &[f64], b: &[f64]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6)
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9)
 }
