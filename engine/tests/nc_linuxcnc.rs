@@ -1241,3 +1241,20 @@ fn compare_with_curves(
     }
     Ok(curves)
 }
+
+/// LinuxCNC reads a line without its blanks, so `else if` is `elseif` and `end if` is
+/// `endif` (its own sample go_to_zero.ngc writes `o<100> else if`).
+#[test]
+fn o_word_keywords_written_with_blanks_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let src = "G21 G90\n#1=2\no100 if [#1 EQ 1]\nG0 X1\no100 else if [#1 EQ 2]\nG0 X2\no100 else\nG0 X3\no100 end if\n#2=0\no101 while [#2 LT 3]\nG0 Y#2\n#2=[#2+1]\no101 end while\nM2\n";
+    let path = tmp_copy("else_if.ngc", src);
+    let theirs = linuxcnc(&path, None).unwrap();
+    let ours = interpret(src, &InterpretOptions::default()).unwrap();
+    compare(&ours.moves, &theirs, 1e-6).unwrap();
+    assert_eq!(theirs.len(), 4);
+    assert_eq!(Program::parse(src).unwrap().to_string(), src);
+}
