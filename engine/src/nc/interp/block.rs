@@ -23,7 +23,9 @@ impl<'p> Interp<'p> {
             corner_c: None,
             polar_r: None,
             polar_a: None,
-            polar_used: false,
+            polar_any: false,
+            polar_open: false,
+            transform: false,
         };
         w.gs.clear();
         w.ms.clear();
@@ -39,7 +41,9 @@ impl<'p> Interp<'p> {
         for (a, v) in b.assignments.iter().zip(avals) {
             self.assign(a, v)?;
         }
-        self.check_polar_words(w)?;
+        if w.polar_any {
+            self.check_polar_words(w)?;
+        }
         // Fanuc comma-less corners: R and C on a G1 block (CCR parameter).
         if self.fanuc && self.corners_without_comma {
             let g1 = w.g(10).is_some()
@@ -209,16 +213,13 @@ impl<'p> Interp<'p> {
             }
             // 15. plane
             for (code, plane) in [(170, Plane::XY), (180, Plane::XZ), (190, Plane::YZ)] {
-                if let Some(i) = w
-                    .g(code)
-                    .filter(|_| self.comp.is_some() && plane != self.modal.plane)
-                {
-                    return Err(self.err_at(
-                        self.word_pos(i),
-                        "plane change with cutter radius compensation on (G40 first)",
-                    ));
-                }
-                if w.g(code).is_some() {
+                if let Some(i) = w.g(code) {
+                    if self.comp.is_some() && plane != self.modal.plane {
+                        return Err(self.err_at(
+                            self.word_pos(i),
+                            "plane change with cutter radius compensation on (G40 first)",
+                        ));
+                    }
                     self.modal.plane = plane;
                 }
             }
@@ -354,39 +355,17 @@ impl<'p> Interp<'p> {
         if self.fanuc && w.has('H') && w.g(430).is_none() {
             self.fanuc_h_word(w)?;
         }
-        // 22a. Fanuc transforms: scaling, mirror image, rotation (polar mode in words.rs).
-        if !w.gs.is_empty() {
-            for (code, i) in w.gs.clone() {
-                if matches!(code, 500 | 510 | 501 | 511 | 680 | 690 | 150 | 160) {
-                    if !self.fanuc {
-                        return Err(self.err_at(
-                            self.word_pos(i),
-                            format!(
-                                "{} is Fanuc ({}); not valid with dialect linuxcnc{}",
-                                g_name(code),
-                                match code {
-                                    500 | 510 => "scaling",
-                                    501 | 511 => "programmable mirror image",
-                                    680 | 690 => "coordinate rotation",
-                                    _ => "polar coordinates",
-                                },
-                                match code {
-                                    680 | 690 => " (LinuxCNC rotates a coordinate system with G10 L2 P.. R..)",
-                                    150 | 160 => " (LinuxCNC writes polar moves with @ radius and ^ angle)",
-                                    _ => "",
-                                }
-                            ),
-                        ));
-                    }
-                    if code == 150 || code == 160 {
-                        self.set_polar_mode(code == 160);
-                    } else {
-                        self.exec_transform(w, code, self.word_pos(i))?;
-                    }
+        // 22a. Fanuc transforms: scaling, mirror image, rotation, polar mode.
+        if w.transform {
+            for k in 0..w.gs.len() {
+                if matches!(w.gs[k].0, 500 | 510 | 501 | 511 | 680 | 690 | 150 | 160) {
+                    self.fanuc_transform_code(w, k)?;
                 }
             }
         }
-        self.fanuc_polar_words(w);
+        if self.polar_mode {
+            self.fanuc_polar_words(w);
+        }
         // 23. group 0 codes that use axis words, and 24. motion.
         let group0 =
             w.gs.iter()
@@ -516,7 +495,7 @@ impl<'p> Interp<'p> {
                 self.return_subprogram(w, i)?;
             }
         }
-        if w.g(670).is_some() {
+        if w.transform && w.g(670).is_some() {
             if !self.fanuc {
                 return Err(self.err_at(
                     self.word_pos(w.g(670).expect("in block")),
@@ -524,13 +503,15 @@ impl<'p> Interp<'p> {
                 ));
             }
             self.modal_call = None;
-        } else if moved {
+        } else if moved && self.modal_call.is_some() {
             self.modal_macro_after_move()?;
         }
         if w.m(60).is_some() {
             return Err(self.err_block("M60 pallet change is not supported"));
         }
-        self.unused_polar(w)?;
+        if w.polar_any {
+            self.unused_polar(w)?;
+        }
         // Every word must have been used by something; P and Q go with a machine's own M code
         // (M62 P1, M66 P0 L3 Q5: parameters we cannot interpret).
         if !w.ms.is_empty() && w.ms.iter().any(|m| m_group(m.0).is_none()) {
@@ -588,7 +569,7 @@ impl<'p> Interp<'p> {
             return match motion {
                 Motion::Rapid | Motion::Linear => {
                     let to = self.comp_target(w)?;
-                    self.comp_straight(motion == Motion::Rapid, to)
+                    self.comp_straight(matches!(motion, Motion::Rapid), to)
                 }
                 Motion::Arc { cw } => self.comp_arc(w, cw),
                 _ => Err(self.err_block(
@@ -602,7 +583,7 @@ impl<'p> Interp<'p> {
             ));
         }
         let pending = self.pending_corner.take();
-        if pending.is_some() && motion != Motion::Linear {
+        if pending.is_some() && !matches!(motion, Motion::Linear) {
             let p = pending.expect("checked");
             return Err(self.err_at(
                 p.word_pos,
@@ -641,7 +622,7 @@ impl<'p> Interp<'p> {
                     });
                     return Ok(());
                 }
-                self.straight(motion == Motion::Rapid, to)
+                self.straight(matches!(motion, Motion::Rapid), to)
             }
             Motion::Arc { cw } => self.arc(w, cw),
             Motion::RigidTap => self.rigid_tap(w),
@@ -652,6 +633,38 @@ impl<'p> Interp<'p> {
                 let starts = self.motion_prev != Some(Motion::Nurbs);
                 self.nurbs_point(w, starts)
             }
+        }
+    }
+
+    /// G51/G50, G51.1/G50.1, G68/G69, G16/G15 (the block's G code number `k`): Fanuc only.
+    #[cold]
+    fn fanuc_transform_code(&mut self, w: &mut Words, k: usize) -> R<()> {
+        let (code, i) = w.gs[k];
+        if !self.fanuc {
+            return Err(self.err_at(
+                self.word_pos(i),
+                format!(
+                    "{} is Fanuc ({}); not valid with dialect linuxcnc{}",
+                    g_name(code),
+                    match code {
+                        500 | 510 => "scaling",
+                        501 | 511 => "programmable mirror image",
+                        680 | 690 => "coordinate rotation",
+                        _ => "polar coordinates",
+                    },
+                    match code {
+                        680 | 690 => " (LinuxCNC rotates a coordinate system with G10 L2 P.. R..)",
+                        150 | 160 => " (LinuxCNC writes polar moves with @ radius and ^ angle)",
+                        _ => "",
+                    }
+                ),
+            ));
+        }
+        if code == 150 || code == 160 {
+            self.set_polar_mode(code == 160);
+            Ok(())
+        } else {
+            self.exec_transform(w, code, self.word_pos(i))
         }
     }
 

@@ -179,10 +179,31 @@ impl Interp<'_> {
     /// Target of a straight or arc move in program coordinates.
     pub(super) fn target(&self, w: &mut Words, g53: bool) -> R<[f64; 6]> {
         let mut t = self.cur;
-        if g53 && !self.modal.absolute {
+        if g53 {
+            return self.g53_target(w);
+        }
+        for (ai, &c) in AXES.iter().enumerate() {
+            if let Some(v) = w.take(c) {
+                t[ai] = if self.modal.absolute {
+                    v
+                } else {
+                    self.cur[ai] + v
+                };
+            }
+        }
+        if w.polar_any {
+            self.apply_polar(w, &mut t)?;
+        }
+        Ok(t)
+    }
+
+    /// The target of a G53 move: machine coordinates for the given axes.
+    fn g53_target(&self, w: &mut Words) -> R<[f64; 6]> {
+        let mut t = self.cur;
+        if !self.modal.absolute {
             return Err(self.err_block("G53 in incremental mode (G91)"));
         }
-        if g53 && !self.plain {
+        if !self.only_offsets() {
             // Machine coordinates for the given axes, the current machine position for the
             // others, back through the transforms.
             let mut m = self.to_machine(self.cur);
@@ -195,17 +216,10 @@ impl Interp<'_> {
         }
         for (ai, &c) in AXES.iter().enumerate() {
             if let Some(v) = w.take(c) {
-                t[ai] = if g53 {
-                    let s = if ai < 3 { self.unit() } else { 1.0 };
-                    (v * s - self.g5x[self.modal.cs][ai] - self.local_offset()[ai]) / s
-                } else if self.modal.absolute {
-                    v
-                } else {
-                    self.cur[ai] + v
-                };
+                let s = if ai < 3 { self.unit() } else { 1.0 };
+                t[ai] = (v * s - self.g5x[self.modal.cs][ai] - self.local_offset()[ai]) / s;
             }
         }
-        self.apply_polar(w, &mut t)?;
         Ok(t)
     }
 

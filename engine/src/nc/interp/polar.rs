@@ -73,16 +73,19 @@ impl Interp<'_> {
         }
         w.polar_r = w.vals[la].take();
         w.polar_a = w.vals[lb].take();
+        w.polar_any = w.polar_r.is_some() || w.polar_a.is_some();
+        w.polar_open = w.polar_any;
     }
 
     /// The end point's two plane coordinates from polar words; `t` holds the point the move
     /// would go to without them (the current or programmed point in those axes).
+    #[cold]
     pub(super) fn apply_polar(&self, w: &mut Words, t: &mut [f64; 6]) -> R<()> {
         let (r, th) = (w.polar_r.map(|p| p.0), w.polar_a.map(|p| p.0));
         if r.is_none() && th.is_none() {
             return Ok(());
         }
-        w.polar_used = true;
+        w.polar_open = false;
         let [a, b, _] = if self.fanuc {
             self.modal.plane.axes()
         } else {
@@ -167,7 +170,7 @@ impl Interp<'_> {
             *bb = t[b];
             return Ok([0.0; 2]);
         }
-        w.polar_used = true;
+        w.polar_open = false;
         Ok([
             w.polar_r.map_or(0.0, |p| p.0),
             w.polar_a.map_or(0.0, |p| p.0.to_radians()),
@@ -200,7 +203,7 @@ impl Interp<'_> {
     /// Polar words that no motion used.
     pub(super) fn unused_polar(&self, w: &Words) -> R<()> {
         match w.polar_r.or(w.polar_a) {
-            Some((_, i)) if !w.polar_used => Err(self.err_at(
+            Some((_, i)) if w.polar_open => Err(self.err_at(
                 self.word_pos(i),
                 match self.motion {
                     Some(Motion::Cycle(_))

@@ -92,9 +92,15 @@ fn rotate_xy(q: &mut [f64; 6], deg: f64) {
 }
 
 impl Interp<'_> {
-    /// No rotation, mirror or scaling anywhere: the plain per-axis offsets do.
+    /// No rotation, mirror or scaling, no G52 and G92 not suspended: the machine position is
+    /// the G5x and G92 offsets added, axis by axis (the common case, kept fast).
     pub(super) fn update_plain(&mut self) {
-        self.plain = self.prog_xf.is_identity() && self.rot_xy[self.modal.cs] == 0.0;
+        self.plain = self.only_offsets() && self.g92_applied && self.g52 == [0.0; 6];
+    }
+
+    /// No rotation, mirror or scaling: the transform is a translation (per-axis offsets).
+    pub(super) fn only_offsets(&self) -> bool {
+        self.prog_xf.is_identity() && self.rot_xy[self.modal.cs] == 0.0
     }
 
     /// The G92 offset as applied, plus the Fanuc G52 local offset (mm/deg).
@@ -107,12 +113,30 @@ impl Interp<'_> {
     }
 
     /// Program coordinates -> machine frame, mm/deg.
+    #[inline(always)]
     pub(super) fn to_machine(&self, p: [f64; 6]) -> [f64; 6] {
+        if !self.plain {
+            return self.to_machine_transformed(p);
+        }
         let u = self.unit();
-        let local = self.local_offset();
         let g5x = &self.g5x[self.modal.cs];
         let mut m = [0.0; 6];
-        if self.plain {
+        for i in 0..6 {
+            let s = if i < 3 { u } else { 1.0 };
+            m[i] = p[i] * s + g5x[i] + self.g92[i];
+        }
+        m
+    }
+
+    /// `to_machine` when not `plain` (kept out of line: the common case stays small enough
+    /// to inline).
+    #[inline(never)]
+    fn to_machine_transformed(&self, p: [f64; 6]) -> [f64; 6] {
+        let u = self.unit();
+        let g5x = &self.g5x[self.modal.cs];
+        let mut m = [0.0; 6];
+        let local = self.local_offset();
+        if self.only_offsets() {
             for i in 0..6 {
                 let s = if i < 3 { u } else { 1.0 };
                 m[i] = p[i] * s + g5x[i] + local[i];
@@ -139,7 +163,7 @@ impl Interp<'_> {
         let local = self.local_offset();
         let g5x = &self.g5x[self.modal.cs];
         let mut p = [0.0; 6];
-        if self.plain {
+        if self.only_offsets() {
             for i in 0..6 {
                 let s = if i < 3 { u } else { 1.0 };
                 p[i] = (m[i] - g5x[i] - local[i]) / s;
@@ -187,7 +211,7 @@ impl Interp<'_> {
         let r0 = (start[a] - center[0]).hypot(start[b] - center[1]);
         let r1 = (end[a] - center[0]).hypot(end[b] - center[1]);
         let (mut sweep, mut k) = (sweep, u);
-        if !self.plain {
+        if !self.only_offsets() {
             // The transform's linear part on the plane's unit vectors.
             let mut ea = cprog;
             ea[a] += 1.0;
