@@ -1101,8 +1101,10 @@ fn splines_match_linuxcnc() {
         println!("SKIPPED: {why}");
         return;
     }
-    let mut opts = InterpretOptions::default();
-    opts.spline_tolerance = 1e-3;
+    let opts = InterpretOptions {
+        spline_tolerance: 1e-3,
+        ..InterpretOptions::default()
+    };
     let programs = [
         (
             "g5_cubic_chain",

@@ -94,8 +94,9 @@ impl<'a> Nurbs<'a> {
                 } else {
                     (u - self.knots[i]) / den
                 };
-                for c in 0..3 {
-                    d[j][c] = (1.0 - a) * d[j - 1][c] + a * d[j][c];
+                let prev = d[j - 1];
+                for (c, p) in d[j].iter_mut().zip(prev) {
+                    *c = (1.0 - a) * p + a * *c;
                 }
             }
         }
