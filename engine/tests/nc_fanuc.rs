@@ -2,40 +2,13 @@
 //! 0i/30i operator's manuals; LinuxCNC does not run these), errors with line, column and the
 //! feature, the dialect rules, runaway guards.
 
-use millsim_engine::nc::{interpret, Dialect, InterpretOptions, Interpretation, MoveKind, Program};
+mod common;
+
+use common::nc::{dialect, fail, run, run_with, xyz};
+use millsim_engine::nc::{Dialect, InterpretOptions, MoveKind, Program};
 
 fn fanuc() -> InterpretOptions {
-    InterpretOptions {
-        dialect: Dialect::Fanuc,
-        ..InterpretOptions::default()
-    }
-}
-
-fn run(src: &str) -> Interpretation {
-    interpret(src, &InterpretOptions::default()).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn run_with(src: &str, opts: &InterpretOptions) -> Interpretation {
-    interpret(src, opts).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// The first error: (line, col, message).
-fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
-    let e = interpret(src, opts).expect_err("should fail");
-    let d = &e.0[0];
-    (d.line, d.col, d.message.clone())
-}
-
-/// X Y Z of every motion (tool changes and dwells left out).
-fn xyz(i: &Interpretation) -> Vec<[f64; 3]> {
-    i.moves
-        .iter()
-        .filter(|m| !matches!(m.kind, MoveKind::ToolChange | MoveKind::Dwell))
-        .map(|m| {
-            let r = |v: f64| (v * 1e9).round() / 1e9;
-            [r(m.end[0]), r(m.end[1]), r(m.end[2])]
-        })
-        .collect()
+    dialect(Dialect::Fanuc)
 }
 
 #[test]
@@ -424,4 +397,59 @@ fn macro_syntax_errors_name_line_column_and_feature() {
         assert_eq!((d.line, d.col), pos, "{src:?}: {d}");
         assert!(d.message.contains(text), "{src:?}: {d}");
     }
+}
+
+#[test]
+fn g65_argument_specification_ii() {
+    // I J K repeat: set n gives #4+3(n-1), #5+3(n-1), #6+3(n-1); A B C stay #1-#3.
+    let src = "O1\nG65 P9000 A9 I1 J2 K3 I4 J5 K6 I7\nG65 P9001 I1 K3 J4\nM30\nO9000\nG0 X#4 Y#7 Z#10\nG0 X#5 Y#8 Z#6\nG0 X#9 Y#1\nM99\nO9001\nIF [#5 NE #0] GOTO 9\nG0 X#4 Y#6 Z#8\nN9 M99\n";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [1.0, 4.0, 7.0],
+            [2.0, 5.0, 3.0],
+            [6.0, 9.0, 3.0],
+            // I1 K3 then J: J starts the second set (#8), #5 stays vacant.
+            [1.0, 3.0, 4.0]
+        ]
+    );
+    let (line, _, msg) = fail(
+        "O1\nG65 P9000 I1 I2 I3 I4 I5 I6 I7 I8 I9 I10 I11\nM30\nO9000\nM99\n",
+        &fanuc(),
+    );
+    assert_eq!(line, 2);
+    assert!(msg.contains("more than 10 sets"), "{msg}");
+}
+
+#[test]
+fn g66_calls_its_macro_after_every_move_until_g67() {
+    // The classic drilling macro: R level and depth as arguments; the macro's own moves do
+    // not call it again.
+    let src = "O1\nG90 G0 X0 Y0 Z10\nG66 P9100 R2. Z-3.\nG0 X10 Y0\nX20\nG67\nX30\nM30\nO9100\nG0 Z#18\nG1 Z#26 F100\nG0 Z#18\nM99\n";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, 0.0, 10.0],
+            [10.0, 0.0, 10.0],
+            [10.0, 0.0, 2.0],
+            [10.0, 0.0, -3.0],
+            [10.0, 0.0, 2.0],
+            [20.0, 0.0, 2.0],
+            [20.0, 0.0, 2.0],
+            [20.0, 0.0, -3.0],
+            [20.0, 0.0, 2.0],
+            [30.0, 0.0, 2.0]
+        ]
+    );
+    let lcnc = InterpretOptions {
+        dialect: Dialect::LinuxCnc,
+        ..InterpretOptions::default()
+    };
+    let (_, _, msg) = fail("G66 P9100\nM2\n", &lcnc);
+    assert!(msg.contains("G66"), "{msg}");
+    let (line, _, msg) = fail("O1\nG66 R2\nM30\n", &fanuc());
+    assert_eq!(line, 2);
+    assert!(msg.contains("G66 needs P"), "{msg}");
 }

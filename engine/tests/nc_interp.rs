@@ -2,6 +2,8 @@
 
 mod common;
 
+use common::nc::{close, fail, run, run_with};
+
 use millsim_engine::nc::{
     interpret, parse_tool_table, sample_arc, Dialect, FeedMode, InterpretOptions, Interpretation,
     Move, MoveKind, SpindleDir,
@@ -9,25 +11,6 @@ use millsim_engine::nc::{
 use std::path::Path;
 
 const CORPUS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/corpus/gcode");
-
-fn run(src: &str) -> Interpretation {
-    interpret(src, &InterpretOptions::default()).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn run_with(src: &str, opts: &InterpretOptions) -> Interpretation {
-    interpret(src, opts).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// The error of a program: (line, col, message).
-fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
-    let e = interpret(src, opts).expect_err("should fail");
-    let d = &e.0[0];
-    (d.line, d.col, d.message.clone())
-}
-
-fn close(a: &[f64], b: &[f64]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9)
-}
 
 #[track_caller]
 fn assert_end(m: &Move, expect: [f64; 6]) {
@@ -440,18 +423,29 @@ fn refusals_name_line_column_and_word() {
     o.strict_m_codes = true;
     let cases: Vec<(&str, (u32, u32), &str)> = vec![
         (
-            "G0 X0\nG18 G41 D1\n",
+            "G0 X0\nG19 G41 D1\n",
             (2, 5),
-            "G41: cutter radius compensation is supported in the XY plane (G17) only",
+            "G41: cutter radius compensation is supported in the XY (G17) and XZ (G18) planes only",
         ),
         (
             "G1 X1 F1\n  G42 G19\n",
             (2, 3),
-            "G42: cutter radius compensation is supported in the XY plane (G17) only",
+            "G42: cutter radius compensation is supported in the XY (G17) and XZ (G18) planes only",
+        ),
+        (
+            "G1 X1 F1\nG41.1 D2\nG18\n",
+            (3, 1),
+            "plane change with cutter radius compensation on",
         ),
         ("M428\n", (1, 1), "M428"),
         ("G0 U1\n", (1, 4), "U axis is not supported"),
-        ("G5.1 X1 I1 J1\n", (1, 1), "G5.1 spline/NURBS motion"),
+        ("G5.1 X1 I1 F10\n", (1, 1), "G5.1 needs both I and J"),
+        (
+            "G5 X1 Z1 I1 J1 P1 Q1 F10\n",
+            (1, 7),
+            "splines may not move Z",
+        ),
+        ("G5.3\n", (1, 1), "G5.3 without G5.2 first"),
         (
             "G1 X1 F10 I2\n",
             (1, 11),
@@ -471,7 +465,11 @@ fn refusals_name_line_column_and_word() {
         ("o1 call\n", (1, 1), "subroutine o1 is not defined"),
         ("G0 X[1/0]\n", (1, 5), "division by zero"),
         ("#5221 = 3\n", (1, 1), "cannot be assigned"),
-        ("G0 X@1\n", (1, 5), "polar coordinates"),
+        (
+            "G0 X1 @1\n",
+            (1, 4),
+            "both a polar coordinate (@ ^) and a X word",
+        ),
         ("o1 while [1]\n", (1, 1), "o1 while is never closed"),
         ("G1 X1\n", (1, 1), "zero feed rate"),
         ("O1234\nG0 X1\n", (0, 0), ""), // Fanuc program number: fine in auto

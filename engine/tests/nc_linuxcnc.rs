@@ -44,6 +44,7 @@ class Canon:
     def set_g5x_offset(self, *a): self.out("G5X", *a[:7])
     def set_g92_offset(self, *a): self.out("G92", *a[:6])
     def set_plane(self, p): self.out("PL", p)
+    def set_xy_rotation(self, t): self.out("ROT", t)
     def get_tool(self, n):
         z, d = self.tools.get(n, (0.0, 0.0))
         return (n, 0.0, 0.0, z, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, d, 0.0, 0.0, 0)
@@ -107,11 +108,22 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
     let mut plane = [0usize, 1, 2];
     let mut moves = Vec::new();
     let mut last = [0.0; 6];
+    // Rotation of the coordinate system (G10 L2 R), degrees: LinuxCNC's canon adds the G92
+    // offset, rotates about the coordinate system's origin, then adds the G5x offset.
+    let rot = std::cell::Cell::new(0.0f64);
     let to_m = |v: &[f64], g5x: &[f64; 6], g92: &[f64; 6]| {
+        let mut q = [0.0; 6];
+        for i in 0..6 {
+            q[i] = v[i] + g92[i];
+        }
+        let (s, c) = rot.get().to_radians().sin_cos();
+        let (x, y) = (q[0], q[1]);
+        q[0] = c * x - s * y;
+        q[1] = s * x + c * y;
         let mut m = [0.0; 6];
         for i in 0..6 {
             let s = if i < 3 { 25.4 } else { 1.0 };
-            m[i] = (v[i] + g5x[i] + g92[i]) * s;
+            m[i] = (q[i] + g5x[i]) * s;
         }
         m
     };
@@ -142,6 +154,7 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
         let v: Vec<f64> = f[2..].iter().map(|x| x.parse().unwrap()).collect();
         match f[0] {
             "G5X" => g5x.copy_from_slice(&v[1..7]),
+            "ROT" => rot.set(v[0]),
             "G92" => g92.copy_from_slice(&v[0..6]),
             "PL" => {
                 plane = match v[0] as i32 {
@@ -517,10 +530,12 @@ fn linuxcnc_sample_programs() {
         let theirs = linuxcnc(&copy, None);
         let ours = interpret(&src, &opts);
         match (ours, theirs) {
-            (Ok(o), Ok(t)) => match compare(&o.moves, &t, 1e-6) {
-                Ok(()) => same += 1,
-                Err(e) => mismatches.push(format!("{name}: {e}")),
-            },
+            (Ok(o), Ok(t)) => {
+                match compare_with_curves(&o.moves, &t, &src, opts.spline_tolerance) {
+                    Ok(_) => same += 1,
+                    Err(e) => mismatches.push(format!("{name}: {e}")),
+                }
+            }
             (Err(e), Ok(_)) => {
                 refused += 1;
                 println!("refused {name}: {}", e.0[0]);
@@ -899,6 +914,14 @@ fn cutter_compensation_matches_linuxcnc() {
             "G21 G90\nG0 X-5 Y-5 Z5\nG41.1 D4 G1 X0 Y0 F100\nG1 Z-1\nG1 X10\nG1 Z-2\nY10\nG91 G1 X-10\nG90 G0 Y0\nG40 G0 X-5 Y-5\nM2\n".into(),
         ),
         (
+            "g18_xz_lathe_profile",
+            "G21 G18 G90\nG0 X20 Z5\nG41.1 D4 G1 X10 Z0 F100\nG1 Z-10\nG2 X15 Z-15 R5\nG1 X20\nZ-25\nG3 X24 Z-29 I0 K-4\nG1 X30\nG40 G1 X35 Z-30\nM2\n".into(),
+        ),
+        (
+            "g18_g42_outside_corners",
+            "G21 G18 G90\nG0 X-10 Z10 Y3\nG42.1 D6 G1 X0 Z5 F100\nG1 X10\nG1 Z-5\nG1 X0 Z-10\nG1 X-5\nG40 G0 X-10 Z10\nM2\n".into(),
+        ),
+        (
             "mmount_compensated",
             // Empty (skipped below, the reason printed) in a clone without the corpus.
             strip_tools(
@@ -958,4 +981,282 @@ fn cutter_compensation_matches_linuxcnc() {
         assert!(e.0[0].message.contains(ours_says), "{name}: {}", e.0[0]);
         println!("{name}: refused by both (ours: {}; LinuxCNC: {})", e.0[0], theirs.unwrap_err());
     }
+}
+
+/// Coordinate transforms LinuxCNC has: G10 L2 R rotation of a coordinate system (lines, arcs,
+/// canned cycles, G92 and G53 under it, switching systems), G52 (LinuxCNC's G92 offsets), and
+/// the polar words `@` `^` (absolute, incremental, in moves, arcs and a canned cycle with
+/// repeats). Each program runs on both interpreters; every move must be identical.
+#[test]
+fn coordinate_transforms_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let opts = InterpretOptions::default();
+    let programs = [
+        (
+            "rotation_lines_arcs",
+            "G21 G90 F100\nG0 X20 Y10\nG10 L2 P1 X20 Y10 R30\nG0 X5 Y0\nG1 X15 Y5 Z-1\nG2 X25 Y5 I5 J0\nG3 X15 Y5 R5\nG91 G1 X-5 Y-5\nG90 G53 G0 X0 Y0 Z0\nG0 X10 Y10\nM2\n",
+        ),
+        (
+            "rotation_per_system",
+            "G21 G90 F100\nG10 L2 P1 X10 Y0 R90\nG10 L2 P2 X0 Y10 R-45\nG54 G0 X5 Y0\nG55 G0 X5 Y0\nG1 X10 Y5\nG54 G1 X0 Y0\nG10 L2 P0 Y3 R10\nG1 X1\nG10 L2 P1 R0\nG1 X2 Y2\nM2\n",
+        ),
+        (
+            "rotation_with_g92",
+            "G21 G90 F100\nG10 L2 P1 X5 Y5 R60\nG0 X10 Y0\nG92 X0 Y0\nG1 X5\nG2 X10 Y0 I2.5 J0\nG92.1\nG1 X0 Y0\nM2\n",
+        ),
+        (
+            "rotation_canned_cycle",
+            "G21 G90 F100\nG10 L2 P1 X50 Y20 R15\nG0 X0 Y0 Z10\nG81 X10 Y0 Z-2 R2\nX20\nG91 X5 Y5 L3\nG90 G80\nG0 Z10\nM2\n",
+        ),
+        (
+            "rotation_g18_line",
+            "G21 G90 F100\nG10 L2 P1 R20\nG18 G1 X10 Z-2\nG17 G1 Y5\nG0 X0 Y0 Z0\nM2\n",
+        ),
+        (
+            "g52_local_offsets",
+            "G21 G90 F100\nG0 X20 Y10\nG52 X5 Y5\nG1 X0 Y0\nG52 X1\nG1 X0 Y0 Z-1\nG91 G52 X2\nG90 G1 X0 Y0\nG52 X0 Y0\nG1 X0 Y0\nG92 X3\nG52 Y2\nG1 X0 Y0\nG92.1\nG1 X0 Y0\nM2\n",
+        ),
+        (
+            "polar_moves",
+            "G21 G90 F100\nG0 @10 ^45\nG1 @5\nG1 ^90\nG1 @7.5 ^-30 Z-1\nG91 G1 @1\nG1 ^15\nG1 @-2 ^10\nG90 G2 @7.5 ^120 R7.5\nG3 ^0 I3.75 J-6.49519052838329\nM2\n",
+        ),
+        (
+            "polar_bolt_circle",
+            "G21 G90 F100\nG0 X0 Y0 Z5\nG81 @20 ^0 Z-3 R1\n^60\n^120\n@25 ^180\nG91 ^30 L4 Z-4 R-2\nG90 G80\nG0 Z5\nM2\n",
+        ),
+        (
+            "polar_under_rotation",
+            "G21 G90 F100\nG10 L2 P1 X10 Y10 R30\nG0 @10 ^0\nG1 ^90\nG3 @10 ^180 R10\nM2\n",
+        ),
+    ];
+    for (name, src) in programs {
+        let path = tmp_copy(&format!("{name}.ngc"), src);
+        let theirs = linuxcnc(&path, None).unwrap_or_else(|e| panic!("{name}: LinuxCNC: {e}"));
+        let ours = interpret(src, &opts).unwrap_or_else(|e| panic!("{name}: ours: {e}"));
+        compare(&ours.moves, &theirs, 1e-6).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(theirs.len() >= 3, "{name}: only {} moves", theirs.len());
+        println!("{name}: {} moves identical to LinuxCNC", theirs.len());
+    }
+    // Refused by both: polar words with X, outside G17, with G53, from the origin in G91.
+    for (name, src, ours_says) in [
+        (
+            "polar_with_x",
+            "G21 G90\nG0 X1 @2 ^3\nM2\n",
+            "both a polar coordinate",
+        ),
+        (
+            "polar_in_g18",
+            "G21 G90 G18\nG0 @2 ^3\nM2\n",
+            "only in the G17 plane",
+        ),
+        ("polar_g53", "G21 G90\nG53 G0 @2 ^3\nM2\n", "with G53"),
+        (
+            "polar_g91_origin",
+            "G21 G91\nG0 @2\nM2\n",
+            "from the origin",
+        ),
+        (
+            "g10_l20_rotation",
+            "G21 G90\nG10 L20 P1 X0 R10\nM2\n",
+            "only taken by G10 L2",
+        ),
+    ] {
+        let path = tmp_copy(&format!("{name}.ngc"), src);
+        let theirs = linuxcnc(&path, None);
+        assert!(theirs.is_err(), "{name}: LinuxCNC accepts it");
+        let e = interpret(src, &opts).expect_err(name);
+        assert!(e.0[0].message.contains(ours_says), "{name}: {}", e.0[0]);
+        println!("{name}: refused by both (ours: {})", e.0[0]);
+    }
+}
+
+/// The distance from `p` to the polyline through `pts` (XY).
+fn dist_to_polyline(p: [f64; 2], pts: &[[f64; 2]]) -> f64 {
+    let seg = |a: [f64; 2], b: [f64; 2]| {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l2 = dx * dx + dy * dy;
+        let t = if l2 == 0.0 {
+            0.0
+        } else {
+            (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
+        };
+        (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
+    };
+    pts.windows(2)
+        .map(|w| seg(w[0], w[1]))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Splines G5, G5.1 and G5.2/G5.3 against LinuxCNC. Its preview interpreter samples a curve
+/// at its own fixed parameter steps, ours within the chord tolerance, so per curve block:
+/// the same end point, every one of LinuxCNC's points (on the curve) within the tolerance of
+/// our chords, and our points on LinuxCNC's polyline (within its own coarser chords). Every
+/// other move is compared as usual.
+#[test]
+fn splines_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let opts = InterpretOptions {
+        spline_tolerance: 1e-3,
+        ..InterpretOptions::default()
+    };
+    let programs = [
+        (
+            "g5_cubic_chain",
+            "G21 G90 F100\nG0 X0 Y0 Z1\nG1 Z-1\nG5 X10 Y10 I5 J0 P0 Q-5\nG5 X20 Y0 P0 Q5\nG5 X30 Y5 I2 J2 P-3 Q1\nG1 X35\nM2\n",
+        ),
+        (
+            "g5_1_quadratic_incremental_and_polar",
+            "G21 G90 F100\nG0 X0 Y0 Z1\nG5.1 X10 Y0 I5 J5\nG5.1 X20 Y0 I5 J-5\nG91 G5.1 X10 Y0 I5 J5\nG90 G5 @40 ^10 I0 J5 P0 Q5\nG1 X0 Y0\nM2\n",
+        ),
+        (
+            "nurbs_weights_and_order",
+            "G21 G90 F100\nG0 X1 Y1\nG5.2 X0 Y10 P1 L3\nX20 Y20 P1\nX20 Y0 P1\nX0 Y0 P2\nG5.3\nG0 X0 Y0\nG5.2 X5 Y5 P1 L4\nX10 Y-5 P3\nX15 Y5 P1\nX20 Y0 P0.5\nX25 Y2 P1\nG5.3\nG1 X0 Y0\nM2\n",
+        ),
+        (
+            "spline_under_rotation_and_inch",
+            "G20 G90 F10\nG10 L2 P1 X1 Y2 R30\nG0 X0 Y0\nG5 X1 Y1 I0.5 J0 P0 Q-0.5\nG21 G1 X0 Y0\nM2\n",
+        ),
+    ];
+    for (name, src) in programs {
+        let path = tmp_copy(&format!("{name}.ngc"), src);
+        let theirs = linuxcnc(&path, None).unwrap_or_else(|e| panic!("{name}: LinuxCNC: {e}"));
+        let ours = interpret(src, &opts).unwrap_or_else(|e| panic!("{name}: ours: {e}"));
+        let n = compare_with_curves(&ours.moves, &theirs, src, opts.spline_tolerance)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(n >= 1, "{name}: no curve compared");
+        println!("{name}: {n} curves and every other move as LinuxCNC's");
+    }
+}
+
+/// Compare move by move, except the moves of curve blocks (G5, G5.1, G5.2..G5.3, which
+/// LinuxCNC's preview samples at its own fixed parameter steps, ours within the chord
+/// tolerance `tol`): there the same end point, every one of LinuxCNC's points (on the curve)
+/// within `tol` of our chords, and our points on LinuxCNC's polyline within its coarser
+/// chords (1% of the curve's size). Returns the number of curve blocks compared.
+fn compare_with_curves(
+    ours: &[Move],
+    theirs: &[Canon],
+    src: &str,
+    tol: f64,
+) -> Result<usize, String> {
+    // Lines with G5, G5.1 or G5.3 (a NURBS is emitted on its G5.3 line); a line in modal G5
+    // (no G5 word) is recognised by its straight moves differing in number.
+    let prog = Program::parse(src).map_err(|e| e.to_string())?;
+    let spline_lines: Vec<u32> = prog
+        .blocks()
+        .iter()
+        .filter(|b| {
+            b.words.iter().any(|w| {
+                w.letter == 'G'
+                    && matches!(literal(&w.value), Some(v) if v == 5.0 || v == 5.1 || v == 5.3)
+            })
+        })
+        .map(|b| b.line)
+        .collect();
+    // Runs of consecutive moves of one line, in order.
+    let ours_m: Vec<&Move> = ours
+        .iter()
+        .filter(|m| m.kind != MoveKind::ToolChange)
+        .collect();
+    let runs = |lines: Vec<u32>| {
+        let mut r: Vec<(u32, std::ops::Range<usize>)> = Vec::new();
+        for (i, l) in lines.into_iter().enumerate() {
+            match r.last_mut() {
+                Some((line, range)) if *line == l => range.end = i + 1,
+                _ => r.push((l, i..i + 1)),
+            }
+        }
+        r
+    };
+    let our_runs = runs(ours_m.iter().map(|m| m.line).collect());
+    let their_runs = runs(theirs.iter().map(|c| c.line).collect());
+    if our_runs
+        .iter()
+        .map(|r| r.0)
+        .ne(their_runs.iter().map(|r| r.0))
+    {
+        return Err("the moves come from different lines".into());
+    }
+    let mut curves = 0;
+    let Some(first) = ours_m.first() else {
+        return if theirs.is_empty() {
+            Ok(0)
+        } else {
+            Err("no moves".into())
+        };
+    };
+    let mut start: [f64; 6] = first.start;
+    for ((line, ro), (_, rt)) in our_runs.iter().zip(&their_runs) {
+        let o = &ours_m[ro.clone()];
+        let t = &theirs[rt.clone()];
+        let all_straight =
+            o.iter().all(|m| m.kind == MoveKind::Linear) && t.iter().all(|c| c.kind == "linear");
+        let curve = spline_lines.contains(line) || (all_straight && o.len() != t.len());
+        if curve && t.len() > 1 {
+            curves += 1;
+            let (oe, te) = (o.last().unwrap().end, t.last().unwrap().end);
+            if !(0..6).all(|k| (oe[k] - te[k]).abs() < 1e-6) {
+                return Err(format!("line {line}: end {oe:?} vs {te:?}"));
+            }
+            let ours_poly: Vec<[f64; 2]> = std::iter::once([start[0], start[1]])
+                .chain(o.iter().map(|m| [m.end[0], m.end[1]]))
+                .collect();
+            let theirs_poly: Vec<[f64; 2]> = std::iter::once([start[0], start[1]])
+                .chain(t.iter().map(|c| [c.end[0], c.end[1]]))
+                .collect();
+            for p in &theirs_poly {
+                let d = dist_to_polyline(*p, &ours_poly);
+                if d > tol + 1e-6 {
+                    return Err(format!(
+                        "line {line}: LinuxCNC's point {p:?} is {d} from our chords"
+                    ));
+                }
+            }
+            // LinuxCNC's chords are coarser (fixed steps): ours lie on its polyline within
+            // its own sagitta, bounded here by 1% of the curve's size.
+            let size = theirs_poly
+                .iter()
+                .map(|p| (p[0] - start[0]).hypot(p[1] - start[1]))
+                .fold(0.0, f64::max);
+            for p in &ours_poly {
+                let d = dist_to_polyline(*p, &theirs_poly);
+                if d > 0.01 * size {
+                    return Err(format!(
+                        "line {line}: our point {p:?} is {d} from LinuxCNC's"
+                    ));
+                }
+            }
+            if !o.iter().all(|m| m.kind == MoveKind::Linear) {
+                return Err(format!("line {line}: a curve's moves must be straight"));
+            }
+        } else {
+            let owned: Vec<Move> = o.iter().map(|m| (*m).clone()).collect();
+            compare(&owned, t, 1e-6).map_err(|e| format!("line {line}: {e}"))?;
+        }
+        start = o.last().unwrap().end;
+    }
+    Ok(curves)
+}
+
+/// LinuxCNC reads a line without its blanks, so `else if` is `elseif` and `end if` is
+/// `endif` (its own sample go_to_zero.ngc writes `o<100> else if`).
+#[test]
+fn o_word_keywords_written_with_blanks_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let src = "G21 G90\n#1=2\no100 if [#1 EQ 1]\nG0 X1\no100 else if [#1 EQ 2]\nG0 X2\no100 else\nG0 X3\no100 end if\n#2=0\no101 while [#2 LT 3]\nG0 Y#2\n#2=[#2+1]\no101 end while\nM2\n";
+    let path = tmp_copy("else_if.ngc", src);
+    let theirs = linuxcnc(&path, None).unwrap();
+    let ours = interpret(src, &InterpretOptions::default()).unwrap();
+    compare(&ours.moves, &theirs, 1e-6).unwrap();
+    assert_eq!(theirs.len(), 4);
+    assert_eq!(Program::parse(src).unwrap().to_string(), src);
 }

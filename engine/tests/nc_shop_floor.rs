@@ -2,30 +2,12 @@
 //! G38.x probing as a move to the end point, non-standard M codes as warnings, G10 tool
 //! offset writes. Hand-computed end points.
 
+mod common;
+
+use common::nc::{dialect, fail, run, run_with};
 use millsim_engine::nc::{
-    interpret, parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
+    parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
 };
-
-fn run_with(src: &str, opts: &InterpretOptions) -> Interpretation {
-    interpret(src, opts).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn run(src: &str) -> Interpretation {
-    run_with(src, &InterpretOptions::default())
-}
-
-fn dialect(d: Dialect) -> InterpretOptions {
-    InterpretOptions {
-        dialect: d,
-        ..InterpretOptions::default()
-    }
-}
-
-fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
-    let e = interpret(src, opts).expect_err("should fail");
-    let d = &e.0[0];
-    (d.line, d.col, d.message.clone())
-}
 
 /// (kind, X Y Z) of every move.
 fn path(i: &Interpretation) -> Vec<(MoveKind, [f64; 3])> {
@@ -202,4 +184,19 @@ fn fanuc_d_on_a_g43_block_is_the_radius_offset_g41_takes() {
     );
     assert_eq!(line, 2);
     assert!(msg.contains("D1"), "{msg}");
+}
+
+#[test]
+fn fanuc_h_without_g43_changes_the_length_offset_number() {
+    // Offset 1 is 10 mm long; `G53 Z0 H0` (a Fanuc post's retract) switches the active
+    // compensation to offset 0, which is always zero.
+    let src = "O1\nG10 L10 P1 R10.\nG43 H1\nG0 Z5\nG53 G0 Z0 H0\nG0 Z5\nG0 Z6 H1\nM30\n";
+    let lengths: Vec<Option<f64>> = run(src).moves.iter().map(|m| m.tool_length).collect();
+    assert_eq!(lengths, vec![Some(10.0), Some(0.0), Some(0.0), Some(10.0)]);
+    // Without G43 active an H changes nothing.
+    let src = "O1\nG10 L10 P1 R10.\nG0 Z5 H1\nM30\n";
+    assert_eq!(run(src).moves[0].tool_length, None);
+    // LinuxCNC keeps refusing a stray H.
+    let (_, _, msg) = fail("G21\nG0 Z5 H1\nM2\n", &dialect(Dialect::LinuxCnc));
+    assert!(msg.contains("H1 is not used"), "{msg}");
 }

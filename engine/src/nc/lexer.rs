@@ -265,11 +265,10 @@ impl<'a> Lexer<'a> {
                     Tok::Letter(c.to_ascii_uppercase() as char)
                 }
             }
-            b'@' | b'^' => {
-                return self.err(
-                    start,
-                    format!("polar coordinates ('{}' word) are not supported", b as char),
-                )
+            // LinuxCNC's polar words: radius and angle.
+            b'@' | b'^' if !names => {
+                self.pos += 1;
+                Tok::Letter(b as char)
             }
             _ => {
                 let ch = self.src[start..].chars().next().unwrap_or('?');

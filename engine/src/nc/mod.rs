@@ -21,7 +21,8 @@
 //!   Custom macro B: `IF [..] GOTO n`, `IF [..] THEN #i=..`, `WHILE [..] DOm`..`ENDm`, `GOTO n`,
 //!   expressions without brackets (Fanuc precedence), vacant variables (#0), the modal and
 //!   position system variables (#4001-#4120, #5001-#5046), #3000 alarms, G65 calls with
-//!   arguments (specification I); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
+//!   arguments (specifications I and II), G66/G67 modal calls (after each moving block of the
+//!   calling level); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
 //!   Subprograms: several `O` programs in one file, `M98 P.. L..` (and `P31234`), `M99`
 //!   (`M99 Pn`), `M99` in the main program ends it (a warning; the control would loop).
 //!   AND/OR/XOR work bit by bit on whole numbers and rank with `*` and `+` (LinuxCNC: logical,
@@ -33,16 +34,29 @@
 //!   no-ops with a warning (`strict_m_codes` refuses them).
 //!
 //! * Cutter radius compensation G41/G42 (radius from the tool table's diameter, a G10 radius
-//!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY plane, as
+//!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY and XZ planes, as
 //!   LinuxCNC 2.9 does it in both dialects (entry line or arc, arcs around outside corners,
 //!   inside corners trimmed, gouges refused naming the line); checked against LinuxCNC.
 //!   A Fanuc control's start-up and cancel blocks (types A/B/C) differ in the entry and exit
 //!   moves only.
 //!
-//! Refused with an error: cutter radius compensation outside G17, G33, G76, G5.x
-//! splines, G7/G8, G15/G16 and `@`/`^` polar words, G50/G51 scaling, G68/G69
-//! rotation, G10 rotation (R), U V W axes, external subroutine files and
-//! calls to programs not in the file, G66/G67, M60, non-standard M codes with `strict_m_codes`
+//! * Coordinate transforms (`interp/transforms.rs`, `interp/polar.rs`): LinuxCNC's G10 L2 R
+//!   rotation of a coordinate system, G52 (LinuxCNC: the G92 offsets; Fanuc: a local offset of
+//!   its own) and `@`/`^` polar words, checked against LinuxCNC; Fanuc G68/G69 rotation,
+//!   G51/G50 scaling (P or I/J/K, thousandths without a decimal point), G51.1/G50.1 mirror
+//!   image (applied mirror, scaling, rotation, as the manual orders them) and G16/G15 polar
+//!   mode. Arcs stay arcs where the transform is a similarity in their plane (a mirror
+//!   reverses them); per-axis scaling of an arc or a rotation out of its plane is refused.
+//!
+//! * Splines (`interp/splines.rs`): G5, G5.1 and G5.2/G5.3 NURBS in G17 as LinuxCNC builds
+//!   them, as straight feed moves through points on the curve within `spline_tolerance`.
+//!
+//! * Fanuc `H` without G43 (`G53 Z0 H0`): the active length compensation takes offset H (H0:
+//!   zero).
+//!
+//! Refused with an error: cutter radius compensation in G19, G33, G76, G7/G8, U V W
+//! axes, external subroutine files and calls to programs not in the file, G66.1, M60,
+//! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
 
 mod arc;
@@ -107,6 +121,9 @@ pub struct InterpretOptions {
     pub passthrough_m_codes: Vec<u32>,
     /// Refuse non-standard M codes not listed in `passthrough_m_codes` instead of warning.
     pub strict_m_codes: bool,
+    /// Splines (G5, G5.1, G5.2/G5.3) become straight feed moves whose chords stay within
+    /// this distance of the curve, mm.
+    pub spline_tolerance: f64,
     /// State of the control's block-delete switch: when on, blocks starting with `/` are skipped.
     pub block_delete: bool,
     /// Checked every few thousand executed blocks: once set, interpretation stops with an
@@ -127,6 +144,7 @@ impl Default for InterpretOptions {
             fanuc_corners_without_comma: false,
             passthrough_m_codes: Vec::new(),
             strict_m_codes: false,
+            spline_tolerance: 1e-3,
             block_delete: false,
             cancel: None,
         }

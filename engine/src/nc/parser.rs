@@ -766,7 +766,7 @@ fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
             )
         }
     };
-    let kw_text = p.lx.peek_ident();
+    let mut kw_text = p.lx.peek_ident();
     if colon && (!kw_text.is_empty() || !matches!(name, OName::Number(_))) {
         return err(
             os.start,
@@ -777,10 +777,28 @@ fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
         OKeyword::ProgramNumber
     } else {
         let at = p.lx.pos;
+        // LinuxCNC reads a line without its blanks: `else if` is `elseif`, `end while`
+        // `endwhile`. Words are joined while they make a longer keyword.
+        let mut end = at + kw_text.len();
+        loop {
+            let j = p.lx.after_blanks(end);
+            let mut k = j;
+            let mut next = String::new();
+            while let Some(b) = p.lx.byte(k).filter(u8::is_ascii_alphabetic) {
+                next.push(b.to_ascii_uppercase() as char);
+                k += 1;
+            }
+            let joined = format!("{kw_text}{next}");
+            if j == end || next.is_empty() || OKeyword::from_name(&joined).is_none() {
+                break;
+            }
+            kw_text = joined;
+            end = k;
+        }
         let Some(k) = OKeyword::from_name(&kw_text) else {
             return err(at, format!("unknown O-word keyword '{kw_text}'"));
         };
-        p.lx.pos += kw_text.len();
+        p.lx.pos = end;
         k
     };
     let mut args = Vec::new();

@@ -361,9 +361,14 @@ fn dialect_syntax(block: &Block, words: &[Word]) -> DialectEvidence {
     }
     for w in words {
         e.fanuc |= w.comma;
+        // Polar words are LinuxCNC's; Fanuc's transform codes (scaling, mirror, rotation,
+        // polar mode) are not in LinuxCNC.
+        e.linuxcnc |= matches!(w.letter, '@' | '^');
         if let Expr::Number { value, .. } = w.value {
             e.fanuc_strong |= (w.letter == 'M' && (value == 98.0 || value == 99.0))
                 || (w.letter == 'G' && value == 65.0);
+            e.fanuc |= w.letter == 'G'
+                && [15.0, 16.0, 50.0, 51.0, 50.1, 51.1, 68.0, 69.0].contains(&value);
         } else if !matches!(w.value, Expr::Neg(_)) {
             e.linuxcnc = true;
             e.linuxcnc_strong |= has_named(&w.value);

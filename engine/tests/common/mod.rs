@@ -3,6 +3,8 @@
 //! project does not have it: tests that read it skip, saying so, when it is absent.
 #![allow(dead_code)]
 
+pub mod nc;
+
 use std::path::PathBuf;
 
 /// The corpus folder, or None (and a printed reason) when it is absent.

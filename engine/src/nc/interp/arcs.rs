@@ -2,8 +2,6 @@
 
 use super::words::Words;
 use super::{Interp, MAX_ARC_TURNS, MM_PER_INCH, R};
-use crate::nc::arc::ArcGeometry;
-use crate::nc::MoveKind;
 
 impl Interp<'_> {
     pub(super) fn arc(&mut self, w: &mut Words, cw: bool) -> R<()> {
@@ -47,31 +45,7 @@ impl Interp<'_> {
             }
             sweep += tau * (turns - 1) as f64;
         }
-        let ms = self.to_machine(start);
-        let me = self.to_machine(end);
-        let mut cprog = start;
-        cprog[a] = cx;
-        cprog[b] = cy;
-        let mc = self.to_machine(cprog);
-        let center = [mc[0], mc[1], mc[2]];
-        let u = self.unit();
-        let geom = ArcGeometry {
-            start: ms,
-            end: me,
-            center,
-            normal: plane.normal(),
-            axes: plane.axes(),
-            sweep,
-            start_radius: (start[a] - cx).hypot(start[b] - cy) * u,
-            end_radius: (end[a] - cx).hypot(end[b] - cy) * u,
-            clockwise: cw,
-            turns,
-        };
-        let mut m = self.base_move(MoveKind::Arc, ms, me);
-        m.center = Some(center);
-        m.normal = Some(plane.normal());
-        m.clockwise = Some(cw);
-        m.arc = Some(Box::new(geom));
+        let m = self.arc_move_machine(plane, start, end, [cx, cy], sweep, turns)?;
         self.push(m)?;
         self.cur = end;
         Ok(())

@@ -21,6 +21,11 @@ impl<'p> Interp<'p> {
             ms: std::mem::take(&mut self.spare_ms),
             corner_r: None,
             corner_c: None,
+            polar_r: None,
+            polar_a: None,
+            polar_any: false,
+            polar_open: false,
+            transform: false,
         };
         w.gs.clear();
         w.ms.clear();
@@ -35,6 +40,9 @@ impl<'p> Interp<'p> {
         let avals = self.read_words(b, w)?;
         for (a, v) in b.assignments.iter().zip(avals) {
             self.assign(a, v)?;
+        }
+        if w.polar_any {
+            self.check_polar_words(w)?;
         }
         // Fanuc comma-less corners: R and C on a G1 block (CCR parameter).
         if self.fanuc && self.corners_without_comma {
@@ -205,7 +213,13 @@ impl<'p> Interp<'p> {
             }
             // 15. plane
             for (code, plane) in [(170, Plane::XY), (180, Plane::XZ), (190, Plane::YZ)] {
-                if w.g(code).is_some() {
+                if let Some(i) = w.g(code) {
+                    if self.comp.is_some() && plane != self.modal.plane {
+                        return Err(self.err_at(
+                            self.word_pos(i),
+                            "plane change with cutter radius compensation on (G40 first)",
+                        ));
+                    }
                     self.modal.plane = plane;
                 }
             }
@@ -336,6 +350,22 @@ impl<'p> Interp<'p> {
                 self.modal.retract_r_plane = true;
             }
         }
+        // Fanuc: an H without G43 (posts write `G53 Z0 H0`, `G91 G28 Z0 H0`) changes the
+        // length offset number of the active compensation; H0 is always zero.
+        if self.fanuc && w.has('H') && w.g(430).is_none() {
+            self.fanuc_h_word(w)?;
+        }
+        // 22a. Fanuc transforms: scaling, mirror image, rotation, polar mode.
+        if w.transform {
+            for k in 0..w.gs.len() {
+                if matches!(w.gs[k].0, 500 | 510 | 501 | 511 | 680 | 690 | 150 | 160) {
+                    self.fanuc_transform_code(w, k)?;
+                }
+            }
+        }
+        if self.polar_mode {
+            self.fanuc_polar_words(w);
+        }
         // 23. group 0 codes that use axis words, and 24. motion.
         let group0 =
             w.gs.iter()
@@ -354,7 +384,7 @@ impl<'p> Interp<'p> {
                 .copied();
         let g53 = w.g(530);
         if let (Some((g0, i0)), Some((gm, _))) = (group0, block_motion) {
-            if matches!(g0, 100 | 280 | 300 | 920) && gm != 800 && w.has_axis() {
+            if matches!(g0, 100 | 280 | 300 | 520 | 920) && gm != 800 && w.has_axis() {
                 return Err(self.err_at(
                     self.word_pos(i0),
                     format!("{} and {} both use axis words", g_name(g0), g_name(gm)),
@@ -362,7 +392,7 @@ impl<'p> Interp<'p> {
             }
         }
         if let Some((g0, i0)) = group0 {
-            if self.comp.is_some() && matches!(g0, 100 | 280 | 300 | 920 | 921 | 922 | 923) {
+            if self.comp.is_some() && matches!(g0, 100 | 280 | 300 | 520 | 920 | 921 | 922 | 923) {
                 return Err(self.err_at(
                     self.word_pos(i0),
                     format!(
@@ -381,6 +411,13 @@ impl<'p> Interp<'p> {
                 30 => Some(Motion::Arc { cw: false }),
                 331 => Some(Motion::RigidTap),
                 382..=385 => Some(Motion::Probe(gm)),
+                50 => Some(Motion::Spline { cubic: true }),
+                51 => Some(Motion::Spline { cubic: false }),
+                52 => Some(Motion::Nurbs),
+                53 => {
+                    self.nurbs_end(self.word_pos(w.g(53).expect("in block")))?;
+                    None
+                }
                 800 => self.after_g80(),
                 g => Some(Motion::Cycle(g / 10)),
             };
@@ -391,13 +428,14 @@ impl<'p> Interp<'p> {
                 self.cycle_il = None;
                 if w.has_axis()
                     && self.motion.is_none()
-                    && !matches!(group0, Some((100 | 280 | 300 | 920, _)))
+                    && !matches!(group0, Some((100 | 280 | 300 | 520 | 920, _)))
                 {
                     return Err(self.err_block("axis words with G80 (motion cancelled)"));
                 }
             }
         }
-        let axis_users = matches!(group0, Some((100 | 280 | 300 | 920, _)));
+        let axis_users = matches!(group0, Some((100 | 280 | 300 | 520 | 920, _)));
+        let mut moved = false;
         let corner = w
             .corner_r
             .or(w.corner_c)
@@ -414,6 +452,10 @@ impl<'p> Interp<'p> {
                 }
             }
             self.exec_motion(w, motion, g53.is_some(), corner)?;
+            moved = true;
+        } else if matches!(block_motion, Some((52, _))) && !axis_users {
+            // G5.2 with only a weight for its first point (P) or an order (L).
+            self.exec_motion(w, Motion::Nurbs, false, None)?;
         } else if matches!(block_motion, Some((0 | 10 | 20 | 30, _)))
             && !axis_users
             && corner.is_none()
@@ -453,8 +495,22 @@ impl<'p> Interp<'p> {
                 self.return_subprogram(w, i)?;
             }
         }
+        if w.transform && w.g(670).is_some() {
+            if !self.fanuc {
+                return Err(self.err_at(
+                    self.word_pos(w.g(670).expect("in block")),
+                    "G67 cancels a Fanuc G66 modal macro call; not valid with dialect linuxcnc",
+                ));
+            }
+            self.modal_call = None;
+        } else if moved && self.modal_call.is_some() {
+            self.modal_macro_after_move()?;
+        }
         if w.m(60).is_some() {
             return Err(self.err_block("M60 pallet change is not supported"));
+        }
+        if w.polar_any {
+            self.unused_polar(w)?;
         }
         // Every word must have been used by something; P and Q go with a machine's own M code
         // (M62 P1, M66 P0 L3 Q5: parameters we cannot interpret).
@@ -513,7 +569,7 @@ impl<'p> Interp<'p> {
             return match motion {
                 Motion::Rapid | Motion::Linear => {
                     let to = self.comp_target(w)?;
-                    self.comp_straight(motion == Motion::Rapid, to)
+                    self.comp_straight(matches!(motion, Motion::Rapid), to)
                 }
                 Motion::Arc { cw } => self.comp_arc(w, cw),
                 _ => Err(self.err_block(
@@ -527,7 +583,7 @@ impl<'p> Interp<'p> {
             ));
         }
         let pending = self.pending_corner.take();
-        if pending.is_some() && motion != Motion::Linear {
+        if pending.is_some() && !matches!(motion, Motion::Linear) {
             let p = pending.expect("checked");
             return Err(self.err_at(
                 p.word_pos,
@@ -566,12 +622,49 @@ impl<'p> Interp<'p> {
                     });
                     return Ok(());
                 }
-                self.straight(motion == Motion::Rapid, to)
+                self.straight(matches!(motion, Motion::Rapid), to)
             }
             Motion::Arc { cw } => self.arc(w, cw),
             Motion::RigidTap => self.rigid_tap(w),
             Motion::Probe(g) => self.probe(w, g),
             Motion::Cycle(g) => self.cycle(w, g),
+            Motion::Spline { cubic } => self.spline(w, cubic),
+            Motion::Nurbs => {
+                let starts = self.motion_prev != Some(Motion::Nurbs);
+                self.nurbs_point(w, starts)
+            }
+        }
+    }
+
+    /// G51/G50, G51.1/G50.1, G68/G69, G16/G15 (the block's G code number `k`): Fanuc only.
+    #[cold]
+    fn fanuc_transform_code(&mut self, w: &mut Words, k: usize) -> R<()> {
+        let (code, i) = w.gs[k];
+        if !self.fanuc {
+            return Err(self.err_at(
+                self.word_pos(i),
+                format!(
+                    "{} is Fanuc ({}); not valid with dialect linuxcnc{}",
+                    g_name(code),
+                    match code {
+                        500 | 510 => "scaling",
+                        501 | 511 => "programmable mirror image",
+                        680 | 690 => "coordinate rotation",
+                        _ => "polar coordinates",
+                    },
+                    match code {
+                        680 | 690 => " (LinuxCNC rotates a coordinate system with G10 L2 P.. R..)",
+                        150 | 160 => " (LinuxCNC writes polar moves with @ radius and ^ angle)",
+                        _ => "",
+                    }
+                ),
+            ));
+        }
+        if code == 150 || code == 160 {
+            self.set_polar_mode(code == 160);
+            Ok(())
+        } else {
+            self.exec_transform(w, code, self.word_pos(i))
         }
     }
 

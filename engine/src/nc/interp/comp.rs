@@ -1,4 +1,5 @@
-//! Cutter radius compensation (G41/G42, G41.1/G42.1, G40) in the XY plane, as LinuxCNC 2.9
+//! Cutter radius compensation (G41/G42, G41.1/G42.1, G40) in the XY and XZ planes (G17, G18:
+//! the plane's two axes in LinuxCNC's order, Z X in G18), as LinuxCNC 2.9
 //! does it (`convert_straight_comp1/2`, `convert_arc_comp2`, the move queue of
 //! `interp_queue.cc`), checked against its interpreter:
 //!
@@ -14,7 +15,6 @@
 
 use super::words::Words;
 use super::{Interp, R};
-use crate::nc::arc::ArcGeometry;
 use crate::nc::{Move, MoveKind};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -80,22 +80,37 @@ fn find_turn(p1: [f64; 2], c: [f64; 2], turn: i32, p2: [f64; 2]) -> f64 {
     }
 }
 
+/// The compensated end of an arc ending at `e` about `c`: the tool radius `r` towards the
+/// centre on the arc's inside, away from it outside.
+fn arc_end_offset(inside: bool, c: [f64; 2], e: [f64; 2], r: f64) -> [f64; 2] {
+    let gamma = if inside {
+        (c[1] - e[1]).atan2(c[0] - e[0])
+    } else {
+        (e[1] - c[1]).atan2(e[0] - c[0])
+    };
+    [e[0] + r * gamma.cos(), e[1] + r * gamma.sin()]
+}
+
 fn inside(side: Side, turn: i32) -> bool {
     (side == Side::Left && turn > 0) || (side == Side::Right && turn < 0)
 }
 
-fn xy(p: &[f64; 6]) -> [f64; 2] {
-    [p[0], p[1]]
-}
-
-fn with_xy(p: &[f64; 6], x: f64, y: f64) -> [f64; 6] {
-    let mut q = *p;
-    q[0] = x;
-    q[1] = y;
-    q
-}
-
 impl Interp<'_> {
+    /// A point's two coordinates in the compensation plane (X Y in G17, Z X in G18).
+    fn xy(&self, p: &[f64; 6]) -> [f64; 2] {
+        let [a, b, _] = self.comp_plane.axes();
+        [p[a], p[b]]
+    }
+
+    /// `p` with its two coordinates in the compensation plane replaced.
+    fn with_xy(&self, p: &[f64; 6], x: f64, y: f64) -> [f64; 6] {
+        let [a, b, _] = self.comp_plane.axes();
+        let mut q = *p;
+        q[a] = x;
+        q[b] = y;
+        q
+    }
+
     /// G41/G42 (`dynamic`: G41.1/G42.1 with D the diameter).
     pub(super) fn comp_on(&mut self, w: &mut Words, left: bool, dynamic: bool, at: usize) -> R<()> {
         let name = match (left, dynamic) {
@@ -104,14 +119,15 @@ impl Interp<'_> {
             (true, true) => "G41.1",
             (false, true) => "G42.1",
         };
-        if self.modal.plane != super::Plane::XY {
+        if self.modal.plane == super::Plane::YZ {
             return Err(self.err_at(
                 at,
                 format!(
-                    "{name}: cutter radius compensation is supported in the XY plane (G17) only"
+                    "{name}: cutter radius compensation is supported in the XY (G17) and XZ (G18) planes only, as on LinuxCNC"
                 ),
             ));
         }
+        self.comp_plane = self.modal.plane;
         if self.comp.is_some() {
             return Err(self.err_at(
                 at,
@@ -193,7 +209,7 @@ impl Interp<'_> {
             return Ok(());
         };
         let prog = c.prog;
-        let here = xy(&self.cur);
+        let here = self.xy(&self.cur);
         self.move_endpoint_and_flush(here)?;
         self.exit_start = Some(self.to_machine(self.cur));
         self.cur = prog;
@@ -204,7 +220,7 @@ impl Interp<'_> {
     /// Moves still queued at the end of the program.
     pub(super) fn comp_finish(&mut self) -> R<()> {
         if self.comp.is_some() {
-            let here = xy(&self.cur);
+            let here = self.xy(&self.cur);
             self.move_endpoint_and_flush(here)?;
         }
         Ok(())
@@ -244,7 +260,7 @@ impl Interp<'_> {
         for q in &mut queue {
             let line = q.mv.line;
             let end_prog = self.from_machine(q.mv.end);
-            let new_end = self.to_machine(with_xy(&end_prog, p[0], p[1]));
+            let new_end = self.to_machine(self.with_xy(&end_prog, p[0], p[1]));
             match &mut q.kind {
                 QueuedKind::Straight { dir } => {
                     if let Some(ep) = endpoint {
@@ -265,23 +281,30 @@ impl Interp<'_> {
                     turn,
                     sweep,
                 } => {
-                    let old_end = xy(&end_prog);
+                    let old_end = self.xy(&end_prog);
                     let r1 = (old_end[0] - center[0]).hypot(old_end[1] - center[1]);
                     let r2 = (p[0] - center[0]).hypot(p[1] - center[1]);
                     if (r1 - r2).abs() > 0.01 {
                         return Err(self.comp_gouge(line, format!("cutter compensation made an arc with mismatched radii on line {line} ({r1:.4}, {r2:.4})")));
                     }
                     let start_prog = self.from_machine(q.mv.start);
-                    let from = endpoint.unwrap_or(xy(&start_prog));
+                    let from = endpoint.unwrap_or(self.xy(&start_prog));
                     let l2 = find_turn(from, *center, *turn, p);
                     if *sweep != 0.0 && endpoint.is_some() && l2.abs() > sweep.abs() + 0.001 {
                         return Err(self.comp_gouge(line, format!("the compensated arc of line {line} cannot reach this inside corner without gouging")));
                     }
+                    // The arc again with its new end (through the transforms, if any).
+                    let moved = self.arc_move(
+                        start_prog,
+                        self.with_xy(&end_prog, p[0], p[1]),
+                        *center,
+                        *turn,
+                    )?;
                     q.mv.end = new_end;
-                    if let Some(g) = q.mv.arc.as_mut() {
+                    if let (Some(g), Some(n)) = (q.mv.arc.as_mut(), moved.arc) {
                         g.end = new_end;
-                        g.sweep = find_turn(xy(&start_prog), *center, *turn, p);
-                        g.end_radius = r2 * self.unit();
+                        g.sweep = n.sweep;
+                        g.end_radius = n.end_radius;
                     }
                 }
                 // A dwell waiting between two moves happens where the first one now ends.
@@ -297,6 +320,16 @@ impl Interp<'_> {
         Ok(())
     }
 
+    /// On the inside of an arc the tool must be smaller than the arc.
+    fn check_tool_fits(&self, radius: f64, arc_radius: f64) -> R<()> {
+        if arc_radius <= radius {
+            return Err(self.err_block(format!(
+                "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
+            )));
+        }
+        Ok(())
+    }
+
     fn comp_gouge(&self, line: u32, msg: String) -> crate::nc::Diagnostic {
         let _ = line;
         self.err_block(format!("cutter radius compensation: {msg}"))
@@ -308,7 +341,7 @@ impl Interp<'_> {
         match q.kind {
             QueuedKind::Arc { center, turn, .. } => {
                 let end = self.from_machine(q.mv.end);
-                Some((center, turn, xy(&end)))
+                Some((center, turn, self.xy(&end)))
             }
             _ => None,
         }
@@ -323,31 +356,16 @@ impl Interp<'_> {
         self.base_move(kind, self.to_machine(from), self.to_machine(to))
     }
 
-    fn arc_move(&self, from: [f64; 6], to: [f64; 6], center: [f64; 2], turn: i32) -> Move {
-        let plane = super::Plane::XY;
-        let ms = self.to_machine(from);
-        let me = self.to_machine(to);
-        let mc = self.to_machine(with_xy(&from, center[0], center[1]));
-        let c = [mc[0], mc[1], mc[2]];
-        let u = self.unit();
-        let geom = ArcGeometry {
-            start: ms,
-            end: me,
-            center: c,
-            normal: plane.normal(),
-            axes: plane.axes(),
-            sweep: find_turn(xy(&from), center, turn, xy(&to)),
-            start_radius: (from[0] - center[0]).hypot(from[1] - center[1]) * u,
-            end_radius: (to[0] - center[0]).hypot(to[1] - center[1]) * u,
-            clockwise: turn < 0,
-            turns: turn.unsigned_abs().max(1),
-        };
-        let mut m = self.base_move(MoveKind::Arc, ms, me);
-        m.center = Some(c);
-        m.normal = Some(plane.normal());
-        m.clockwise = Some(turn < 0);
-        m.arc = Some(Box::new(geom));
-        m
+    fn arc_move(&self, from: [f64; 6], to: [f64; 6], center: [f64; 2], turn: i32) -> R<Move> {
+        let sweep = find_turn(self.xy(&from), center, turn, self.xy(&to));
+        self.arc_move_machine(
+            self.comp_plane,
+            from,
+            to,
+            center,
+            sweep,
+            turn.unsigned_abs().max(1),
+        )
     }
 
     /// A G0/G1 move to `to` (programmed, program coordinates) with compensation on.
@@ -358,8 +376,8 @@ impl Interp<'_> {
         let c = self.comp.as_ref().expect("compensation on");
         let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
         let cur = self.cur;
-        let [px, py] = xy(&to);
-        let [cx, cy] = xy(&cur);
+        let [px, py] = self.xy(&to);
+        let [cx, cy] = self.xy(&cur);
         if first {
             let distance = (px - cx).hypot(py - cy);
             if distance <= radius {
@@ -373,7 +391,7 @@ impl Interp<'_> {
                 } else {
                     -FRAC_PI_2
                 };
-            let end = with_xy(&to, px + radius * alpha.cos(), py + radius * alpha.sin());
+            let end = self.with_xy(&to, px + radius * alpha.cos(), py + radius * alpha.sin());
             self.set_endpoint([cx, cy]);
             let mv = self.straight_move(rapid, cur, end);
             self.enqueue(
@@ -388,8 +406,8 @@ impl Interp<'_> {
             self.cur = end;
             return Ok(());
         }
-        let [opx, opy] = xy(&op);
-        let mut end = with_xy(&to, cx, cy);
+        let [opx, opy] = self.xy(&op);
+        let mut end = self.with_xy(&to, cx, cy);
         // Where the next queued move starts.
         let mut from = cur;
         if !(px == opx && py == opy) {
@@ -406,7 +424,7 @@ impl Interp<'_> {
                 }
                 (alpha - theta - FRAC_PI_2, -FRAC_PI_2)
             };
-            end = with_xy(
+            end = self.with_xy(
                 &to,
                 px + radius * (alpha + gamma).cos(),
                 py + radius * (alpha + gamma).sin(),
@@ -424,14 +442,14 @@ impl Interp<'_> {
             if !concave && beta > SMALL {
                 // Outside corner: an arc around the programmed corner (a straight for G0).
                 self.move_endpoint_and_flush([cx, cy])?;
-                let corner_end = with_xy(&with_xy(&cur, mid[0], mid[1]), mid[0], mid[1]);
+                let corner_end = self.with_xy(&self.with_xy(&cur, mid[0], mid[1]), mid[0], mid[1]);
                 let mut corner_end = corner_end;
                 corner_end[3..].copy_from_slice(&to[3..]);
                 let mv = if rapid {
                     self.straight_move(true, cur, corner_end)
                 } else {
                     let turn = if side == Side::Left { -1 } else { 1 };
-                    self.arc_move(cur, corner_end, [opx, opy], turn)
+                    self.arc_move(cur, corner_end, [opx, opy], turn)?
                 };
                 self.push_now(mv)?;
                 self.set_endpoint(mid);
@@ -453,7 +471,7 @@ impl Interp<'_> {
                             cy + retreat * (theta + gamma).sin(),
                         ];
                         self.move_endpoint_and_flush(m)?;
-                        from = with_xy(&cur, m[0], m[1]);
+                        from = self.with_xy(&cur, m[0], m[1]);
                     }
                     Some((center, turn, arc_end)) => {
                         // Arc to line: along the waiting (compensated) arc.
@@ -489,7 +507,7 @@ impl Interp<'_> {
                             center[1] + oldrad * angle.sin(),
                         ];
                         self.move_endpoint_and_flush(m)?;
-                        from = with_xy(&cur, m[0], m[1]);
+                        from = self.with_xy(&cur, m[0], m[1]);
                     }
                 }
             } else {
@@ -515,8 +533,10 @@ impl Interp<'_> {
         self.check_feed()?;
         let c = self.comp.as_ref().expect("compensation on");
         let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
-        if w.has('K') {
-            return Err(self.err_word(w, 'K', "K word in a G17 arc"));
+        let plane = self.comp_plane;
+        let bad = plane.forbidden_ijk();
+        if w.has(bad) {
+            return Err(self.err_word(w, bad, format!("{bad} word in a {} arc", plane.name())));
         }
         let target = self.comp_target(w)?;
         let turns = match w.take('P') {
@@ -537,9 +557,9 @@ impl Interp<'_> {
         let (ccx, ccy) = self.arc_center(w, cw, &op, &target)?;
         let center = [ccx, ccy];
         let cur = self.cur;
-        let [cx, cy] = xy(&cur);
-        let [opx, opy] = xy(&op);
-        let [ex, ey] = xy(&target);
+        let [cx, cy] = self.xy(&cur);
+        let [opx, opy] = self.xy(&op);
+        let [ex, ey] = self.xy(&target);
         let arc_radius = (ccx - ex).hypot(ccy - ey);
         let mut theta = (cy - opy).atan2(cx - opx);
         theta = if side == Side::Left {
@@ -563,22 +583,13 @@ impl Interp<'_> {
         } else if beta < -FRAC_PI_2 {
             beta += TAU;
         }
-        let gamma = if inside(side, turn) {
-            if arc_radius <= radius {
-                return Err(self.err_block(format!(
-                    "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
-                )));
-            }
-            (ccy - ey).atan2(ccx - ex)
+        if inside(side, turn) {
+            self.check_tool_fits(radius, arc_radius)?;
         } else {
             delta += PI;
-            (ey - ccy).atan2(ex - ccx)
-        };
-        let new_end = with_xy(
-            &target,
-            ex + radius * gamma.cos(),
-            ey + radius * gamma.sin(),
-        );
+        }
+        let [nx, ny] = arc_end_offset(inside(side, turn), [ccx, ccy], [ex, ey], radius);
+        let new_end = self.with_xy(&target, nx, ny);
         let sweep = find_turn([opx, opy], center, turn, [ex, ey]);
         let mut from = cur;
         if !(-SMALL..=PI + SMALL).contains(&beta)
@@ -645,19 +656,19 @@ impl Interp<'_> {
                 }
             };
             self.move_endpoint_and_flush(m)?;
-            from = with_xy(&cur, m[0], m[1]);
+            from = self.with_xy(&cur, m[0], m[1]);
         } else if beta > SMALL {
             // Outside corner: an arc around the programmed corner first.
             let mid = [opx + radius * delta.cos(), opy + radius * delta.sin()];
             self.dequeue()?;
-            let mut corner_end = with_xy(&cur, mid[0], mid[1]);
+            let mut corner_end = self.with_xy(&cur, mid[0], mid[1]);
             corner_end[3..].copy_from_slice(&target[3..]);
             let mv = self.arc_move(
                 cur,
                 corner_end,
                 [opx, opy],
                 if side == Side::Left { -1 } else { 1 },
-            );
+            )?;
             self.push_now(mv)?;
             self.set_endpoint(mid);
             from = corner_end;
@@ -665,18 +676,7 @@ impl Interp<'_> {
             self.dequeue()?;
             self.set_endpoint([cx, cy]);
         }
-        let mv = self.arc_move(from, new_end, center, turn);
-        self.enqueue(
-            mv,
-            QueuedKind::Arc {
-                center,
-                turn,
-                sweep,
-            },
-        )?;
-        self.comp_mut().prog = target;
-        self.cur = new_end;
-        Ok(())
+        self.queue_comp_arc(from, new_end, center, turn, sweep, target)
     }
 
     /// The first move after G41/G42 as an arc: an arc through the programmed end that the
@@ -685,8 +685,8 @@ impl Interp<'_> {
         let c = self.comp.as_ref().expect("compensation on");
         let (side, radius) = (c.side, c.radius);
         let cur = self.cur;
-        let [cx, cy] = xy(&cur);
-        let [ex, ey] = xy(&target);
+        let [cx, cy] = self.xy(&cur);
+        let [ex, ey] = self.xy(&target);
         if (ex - cx).hypot(ey - cy) <= radius {
             return Err(self.err_block(format!(
                 "cutter radius compensation: the entry arc's end is not farther than the tool radius ({radius}) from the start"
@@ -694,17 +694,10 @@ impl Interp<'_> {
         }
         let (ccx, ccy) = self.arc_center(w, cw, &cur, &target)?;
         let arc_radius = (ccx - cx).hypot(ccy - cy);
-        if arc_radius <= radius && inside(side, turn) {
-            return Err(self.err_block(format!(
-                "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
-            )));
+        if inside(side, turn) {
+            self.check_tool_fits(radius, arc_radius)?;
         }
-        let gamma = if inside(side, turn) {
-            (ccy - ey).atan2(ccx - ex)
-        } else {
-            (ey - ccy).atan2(ex - ccx)
-        };
-        let (nx, ny) = (ex + radius * gamma.cos(), ey + radius * gamma.sin());
+        let [nx, ny] = arc_end_offset(inside(side, turn), [ccx, ccy], [ex, ey], radius);
         // The compensated arc's centre: on the line from its end towards the programmed
         // centre, equally far from its start and its end.
         let b_len = (cy - ny).hypot(cx - nx) / 2.0;
@@ -715,9 +708,23 @@ impl Interp<'_> {
         }
         let c_len = b_len / a_ang.cos();
         let center = [nx + c_len * ab_ang.cos(), ny + c_len * ab_ang.sin()];
-        let new_end = with_xy(&target, nx, ny);
+        let new_end = self.with_xy(&target, nx, ny);
         let sweep = find_turn([cx, cy], center, turn, [nx, ny]);
-        let mv = self.arc_move(cur, new_end, center, turn);
+        self.queue_comp_arc(cur, new_end, center, turn, sweep, target)
+    }
+
+    /// The compensated arc from `from` to `new_end` waits in the queue for the next move's
+    /// corner; the programmed position is `target`.
+    fn queue_comp_arc(
+        &mut self,
+        from: [f64; 6],
+        new_end: [f64; 6],
+        center: [f64; 2],
+        turn: i32,
+        sweep: f64,
+        target: [f64; 6],
+    ) -> R<()> {
+        let mv = self.arc_move(from, new_end, center, turn)?;
         self.enqueue(
             mv,
             QueuedKind::Arc {
@@ -744,6 +751,7 @@ impl Interp<'_> {
                 t[ai] = if self.modal.absolute { v } else { base[ai] + v };
             }
         }
+        self.apply_polar(w, &mut t)?;
         Ok(t)
     }
 }

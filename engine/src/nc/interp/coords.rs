@@ -15,33 +15,11 @@ impl Interp<'_> {
         }
     }
 
-    /// Program coordinates -> machine frame, mm/deg.
-    pub(super) fn to_machine(&self, p: [f64; 6]) -> [f64; 6] {
-        let u = self.unit();
-        let g92 = self.g92_eff();
-        let mut m = [0.0; 6];
-        for i in 0..6 {
-            let s = if i < 3 { u } else { 1.0 };
-            m[i] = p[i] * s + self.g5x[self.modal.cs][i] + g92[i];
-        }
-        m
-    }
-
-    pub(super) fn from_machine(&self, m: [f64; 6]) -> [f64; 6] {
-        let u = self.unit();
-        let g92 = self.g92_eff();
-        let mut p = [0.0; 6];
-        for i in 0..6 {
-            let s = if i < 3 { u } else { 1.0 };
-            p[i] = (m[i] - self.g5x[self.modal.cs][i] - g92[i]) / s;
-        }
-        p
-    }
-
     /// Change offsets keeping the tool where it physically is.
     pub(super) fn change_offsets(&mut self, f: impl FnOnce(&mut Self)) {
         let phys = self.to_machine(self.cur);
         f(self);
+        self.update_plain();
         self.cur = self.from_machine(phys);
     }
 
@@ -72,11 +50,11 @@ impl Interp<'_> {
                         format!("G10 L{l} is not supported (L1/L10/L11 tool offsets, L2/L20 work offsets; Fanuc L10-L13)"),
                     ));
                 }
-                if w.has('R') {
+                if w.has('R') && (l != 2.0 || self.fanuc) {
                     return Err(self.err_word(
                         w,
                         'R',
-                        "G10 coordinate system rotation (R) is not supported",
+                        "R (coordinate system rotation) is only taken by G10 L2 (LinuxCNC)",
                     ));
                 }
                 if p.fract() != 0.0 || !(0.0..=9.0).contains(&p) {
@@ -91,8 +69,20 @@ impl Interp<'_> {
                 } else {
                     p as usize - 1
                 };
+                if l == 20.0 && self.rot_xy[k] != 0.0 {
+                    return Err(self.err_at(
+                        self.word_pos(i),
+                        "G10 L20 on a rotated coordinate system (G10 L2 R) is not supported",
+                    ));
+                }
+                if self.program_transform_on() {
+                    return Err(self.err_at(
+                        self.word_pos(i),
+                        "G10 work offsets with scaling, mirror image or rotation on (G50/G50.1/G69 first)",
+                    ));
+                }
                 let phys = self.to_machine(self.cur);
-                let g92 = self.g92_eff();
+                let g92 = self.local_offset();
                 let mut new = self.g5x[k];
                 for (ai, &c) in AXES.iter().enumerate() {
                     if let Some(v) = w.take(c) {
@@ -104,7 +94,11 @@ impl Interp<'_> {
                         };
                     }
                 }
+                let rot = w.take('R');
                 self.change_offsets(|st| st.g5x[k] = new);
+                if let Some(r) = rot {
+                    self.set_cs_rotation(k, r);
+                }
             }
             280 | 300 => {
                 let home = if g == 280 { self.g28 } else { self.g30 };
@@ -149,12 +143,20 @@ impl Interp<'_> {
                 if !w.has_axis() {
                     return Err(self.err_at(self.word_pos(i), "G92 needs at least one axis word"));
                 }
-                let phys = self.to_machine(self.cur);
+                if self.program_transform_on() {
+                    return Err(self.err_at(
+                        self.word_pos(i),
+                        "G92 with scaling, mirror image or rotation on (G50/G50.1/G69 first)",
+                    ));
+                }
+                // The new offset makes the current point (before any rotation of the
+                // coordinate system, which rs274 applies after G92) read as the given value.
                 let mut new = self.g92_eff();
+                let local = self.local_offset();
                 for (ai, &c) in AXES.iter().enumerate() {
                     if let Some(v) = w.take(c) {
                         let s = if ai < 3 { u } else { 1.0 };
-                        new[ai] = phys[ai] - self.g5x[self.modal.cs][ai] - v * s;
+                        new[ai] = self.cur[ai] * s + local[ai] - self.g52[ai] - v * s;
                     }
                 }
                 self.change_offsets(|st| {
@@ -168,6 +170,7 @@ impl Interp<'_> {
             }),
             922 => self.change_offsets(|st| st.g92_applied = false),
             923 => self.change_offsets(|st| st.g92_applied = true),
+            520 => self.g52(w, self.word_pos(i))?,
             _ => {}
         }
         Ok(())
@@ -176,19 +179,45 @@ impl Interp<'_> {
     /// Target of a straight or arc move in program coordinates.
     pub(super) fn target(&self, w: &mut Words, g53: bool) -> R<[f64; 6]> {
         let mut t = self.cur;
-        if g53 && !self.modal.absolute {
-            return Err(self.err_block("G53 in incremental mode (G91)"));
+        if g53 {
+            return self.g53_target(w);
         }
         for (ai, &c) in AXES.iter().enumerate() {
             if let Some(v) = w.take(c) {
-                t[ai] = if g53 {
-                    let s = if ai < 3 { self.unit() } else { 1.0 };
-                    (v * s - self.g5x[self.modal.cs][ai] - self.g92_eff()[ai]) / s
-                } else if self.modal.absolute {
+                t[ai] = if self.modal.absolute {
                     v
                 } else {
                     self.cur[ai] + v
                 };
+            }
+        }
+        if w.polar_any {
+            self.apply_polar(w, &mut t)?;
+        }
+        Ok(t)
+    }
+
+    /// The target of a G53 move: machine coordinates for the given axes.
+    fn g53_target(&self, w: &mut Words) -> R<[f64; 6]> {
+        let mut t = self.cur;
+        if !self.modal.absolute {
+            return Err(self.err_block("G53 in incremental mode (G91)"));
+        }
+        if !self.only_offsets() {
+            // Machine coordinates for the given axes, the current machine position for the
+            // others, back through the transforms.
+            let mut m = self.to_machine(self.cur);
+            for (ai, &c) in AXES.iter().enumerate() {
+                if let Some(v) = w.take(c) {
+                    m[ai] = if ai < 3 { v * self.unit() } else { v };
+                }
+            }
+            return Ok(self.from_machine(m));
+        }
+        for (ai, &c) in AXES.iter().enumerate() {
+            if let Some(v) = w.take(c) {
+                let s = if ai < 3 { self.unit() } else { 1.0 };
+                t[ai] = (v * s - self.g5x[self.modal.cs][ai] - self.local_offset()[ai]) / s;
             }
         }
         Ok(t)
@@ -268,5 +297,25 @@ impl Interp<'_> {
             .copied()
             .or_else(|| self.opts.tool_table.get(h).map(|t| t.z_offset))?;
         Some(geometry + self.tool_length_wear.get(&h).copied().unwrap_or(0.0))
+    }
+
+    /// Fanuc H without G43: the new offset number of the active length compensation (none
+    /// active: it waits for the next G43, which names its own H here anyway).
+    pub(super) fn fanuc_h_word(&mut self, w: &mut Words) -> R<()> {
+        let Some(h) = w.take('H') else {
+            return Ok(());
+        };
+        if h < 0.0 || h.fract() != 0.0 || h > u32::MAX as f64 {
+            return Err(self.err_word(w, 'H', format!("H{h} is not an offset number")));
+        }
+        if self.tlo.is_some() {
+            let length = if h == 0.0 {
+                0.0
+            } else {
+                self.tool_length(h as u32).unwrap_or(0.0)
+            };
+            self.set_tlo(Some(length));
+        }
+        Ok(())
     }
 }

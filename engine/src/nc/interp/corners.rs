@@ -3,7 +3,6 @@
 
 use super::modal::Plane;
 use super::{Interp, R};
-use crate::nc::arc::ArcGeometry;
 use crate::nc::MoveKind;
 
 /// A Fanuc corner (`,R` / `,C`) waiting for the next block's direction.
@@ -88,46 +87,26 @@ impl Interp<'_> {
         let (blk, line) = (self.cur_block, self.cur_line);
         self.cur_block = p.block;
         self.cur_line = self.prog.block(p.block).line;
-        let mut m = self.base_move(
-            if p.chamfer {
-                MoveKind::Linear
-            } else {
-                MoveKind::Arc
-            },
-            t1m,
-            t2m,
-        );
+        let mut m = if p.chamfer {
+            self.base_move(MoveKind::Linear, t1m, t2m)
+        } else {
+            // Centre: from T1 perpendicular to u1 towards the turn.
+            let side = if turn < 0.0 { -1.0 } else { 1.0 };
+            let centre = [t1[a] - u1[1] * p.size * side, t1[b] + u1[0] * p.size * side];
+            match self.arc_move_machine(p.plane, t1, t2, centre, turn, 1) {
+                Ok(m) => m,
+                Err(e) => {
+                    self.cur_block = blk;
+                    self.cur_line = line;
+                    return Err(e);
+                }
+            }
+        };
         // The corner belongs to the corner block, at the corner block's feed.
         let corner_move = &self.moves[p.move_index];
         m.feed = corner_move.feed;
         m.feed_mode = corner_move.feed_mode;
         m.spindle = corner_move.spindle;
-        if !p.chamfer {
-            let cw = turn < 0.0;
-            // Centre: from T1 perpendicular to u1 towards the turn.
-            let side = if cw { -1.0 } else { 1.0 };
-            let mut cp = t1;
-            cp[a] = t1[a] - u1[1] * p.size * side;
-            cp[b] = t1[b] + u1[0] * p.size * side;
-            let cm = self.to_machine(cp);
-            let center = [cm[0], cm[1], cm[2]];
-            let r = p.size * self.unit();
-            m.center = Some(center);
-            m.normal = Some(p.plane.normal());
-            m.clockwise = Some(cw);
-            m.arc = Some(Box::new(ArcGeometry {
-                start: t1m,
-                end: t2m,
-                center,
-                normal: p.plane.normal(),
-                axes: p.plane.axes(),
-                sweep: turn,
-                start_radius: r,
-                end_radius: r,
-                clockwise: cw,
-                turns: 1,
-            }));
-        }
         let res = self.push(m);
         self.cur_block = blk;
         self.cur_line = line;

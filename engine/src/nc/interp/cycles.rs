@@ -114,6 +114,7 @@ impl Interp<'_> {
             aa = self.cur[ia];
             bb = self.cur[ib];
         }
+        let polar_inc = self.cycle_polar(w, &mut aa, &mut bb)?;
         if r < cc {
             return Err(
                 self.err_block(format!("R ({r}) below the hole bottom {lc} ({cc}) in G{g}"))
@@ -205,6 +206,7 @@ impl Interp<'_> {
         while repeat >= 1.0 {
             aa += aa_inc;
             bb += bb_inc;
+            self.polar_step(&mut aa, &mut bb, polar_inc)?;
             self.cyc_move(true, plane, aa, bb, current_cc)?;
             // rs274 (2.9) moves down to R whenever the positioning height is not R.
             if current_cc != r {

@@ -1,11 +1,12 @@
 //! Fanuc custom macro B: `IF [..] GOTO n`, `IF [..] THEN #i = ..`, `WHILE [..] DOm` ..
 //! `ENDm`, `GOTO n`, external output (`DPRNT`, `POPEN`, `PCLOS`: no motion, a warning), and the
-//! G65 macro call with its arguments as local variables #1-#26 (argument specification I).
+//! G65 macro call with its arguments as local variables (argument specifications I and II),
+//! and the G66/G67 modal call.
 
-use super::control::{FanucCall, Frame, Link};
-use super::{Interp, MAX_CALL_DEPTH, R};
+use super::control::Link;
+use super::{Interp, R};
 use crate::nc::expr::{is_vacant, vacant};
-use crate::nc::program::{Expr, MacroLine, MacroStatement, OName};
+use crate::nc::program::{Expr, MacroLine, MacroStatement};
 use crate::nc::view::BlockView;
 
 /// Local variables of a G65 call: #1-#33.
@@ -145,85 +146,159 @@ impl<'p> Interp<'p> {
         Ok(to)
     }
 
-    /// Whether the block is a G65 call: G65 first (Fanuc requires it before the arguments).
+    /// Whether the block is a G65 call or a G66 modal call: the code first (Fanuc requires it
+    /// before the arguments).
     pub(super) fn is_macro_call(&self, b: &BlockView<'p>) -> bool {
-        self.fanuc
-            && b.words.first().is_some_and(|w| {
-                w.letter == 'G' && matches!(w.value, Expr::Number { value, .. } if value == 65.0)
-            })
+        self.fanuc && b.words.first().is_some_and(|w| {
+            w.letter == 'G'
+                && matches!(w.value, Expr::Number { value, .. } if value == 65.0 || value == 66.0)
+        })
     }
 
-    /// `G65 P<program> L<repeats> <arguments>`: a call with a new level of local variables,
-    /// #1-#26 set from the argument addresses (specification I), the others vacant.
+    /// `G65 P<program> L<repeats> <arguments>`: a call with a new level of local variables
+    /// set from the argument addresses, the others vacant. `G66` with the same words makes
+    /// it a modal call: after every later block that moves an axis, until G67.
     pub(super) fn macro_call(&mut self, b: &BlockView<'p>) -> R<()> {
-        let g65 = b.words[0].span.start;
+        let at = b.words[0].span.start;
+        let modal = matches!(b.words[0].value, Expr::Number { value, .. } if value == 66.0);
+        let what = if modal { "G66" } else { "G65" };
         if let Some(a) = b.assignments.first() {
             return Err(self.err_at(
                 a.span.start,
-                "a variable assignment on a G65 line; put it on a line of its own",
+                format!("a variable assignment on a {what} line; put it on a line of its own"),
             ));
         }
+        let call = self.call_arguments(b, what)?;
+        if modal {
+            if self.modal_call.is_some() {
+                return Err(self.err_at(
+                    at,
+                    "G66 while a modal macro call is on (G67 first; nested G66 is not supported)",
+                ));
+            }
+            self.modal_call = Some(ModalCall {
+                call,
+                depth: self.frames.len(),
+                at,
+            });
+            return Ok(());
+        }
+        self.enter_macro(&call, at)
+    }
+
+    /// A G66 call after a block that moved an axis (Fanuc: the move first, then the macro),
+    /// from the program level that set it only (the macro's own moves do not call it again).
+    pub(super) fn modal_macro_after_move(&mut self) -> R<()> {
+        let Some(mc) = self.modal_call.as_ref() else {
+            return Ok(());
+        };
+        if mc.depth != self.frames.len() || self.jump.is_some() {
+            return Ok(());
+        }
+        let (call, at) = (mc.call.clone(), mc.at);
+        self.enter_macro(&call, at)
+    }
+
+    /// The program, repeat count and arguments of a G65/G66 block. I, J and K may repeat
+    /// (argument specification II: up to ten sets, I J K of set n are #4+3(n-1)..#6+3(n-1));
+    /// where the two specifications give one variable, the later word wins (as the manual
+    /// says).
+    fn call_arguments(&mut self, b: &BlockView<'p>, what: &str) -> R<MacroCall> {
+        let at = b.words[0].span.start;
         let mut program = None;
         let mut repeats = 1.0;
         let mut args = [None; LOCALS + 1];
+        let mut seen = [false; 26];
+        let (mut set, mut last_ijk) = (0usize, None);
         for word in &b.words[1..] {
             let pos = word.span.start;
             let c = word.letter;
             if word.comma {
-                return Err(self.err_at(pos, format!("G65: ,{c} is not an argument")));
+                return Err(self.err_at(pos, format!("{what}: ,{c} is not an argument")));
             }
             let v = self.eval(&word.value, word.value_span.start)?;
             match c {
                 'P' => program = Some(v),
                 'L' => repeats = v,
+                'I' | 'J' | 'K' => {
+                    let o = (c as u8 - b'I') as usize;
+                    if last_ijk.is_some_and(|l| o <= l) {
+                        set += 1;
+                    }
+                    last_ijk = Some(o);
+                    if set >= 10 {
+                        return Err(self
+                            .err_at(pos, format!("{what}: more than 10 sets of I J K arguments")));
+                    }
+                    args[4 + 3 * set + o] = Some(v);
+                }
                 _ => {
                     let k = argument_variable(c);
                     if k == 0 {
                         return Err(self.err_at(
                             pos,
-                            format!("G65: {c} cannot be an argument (G, L, N, O and P are not argument addresses)"),
+                            format!("{what}: {c} cannot be an argument (G, L, N, O and P are not argument addresses)"),
                         ));
                     }
-                    if args[k].is_some() {
-                        return Err(self.err_at(pos, format!("G65: two {c} arguments")));
+                    let li = (c as u8 - b'A') as usize;
+                    if seen[li] {
+                        return Err(self.err_at(pos, format!("{what}: two {c} arguments")));
                     }
+                    seen[li] = true;
                     args[k] = Some(v);
                 }
             }
         }
         let Some(p) = program else {
-            return Err(self.err_at(g65, "G65 needs P (the number of the macro program)"));
+            return Err(self.err_at(
+                at,
+                format!("{what} needs P (the number of the macro program)"),
+            ));
         };
         if is_vacant(repeats) || repeats.fract() != 0.0 || !(0.0..=9999.0).contains(&repeats) {
             return Err(self.err_at(
-                g65,
-                format!("G65 L{repeats}: the repeat count must be 0..9999"),
+                at,
+                format!("{what} L{repeats}: the repeat count must be 0..9999"),
             ));
         }
-        let number = self.program_number(p, g65, "G65")?;
-        let body = self.resolve_program(number, g65, "G65")?;
-        if repeats == 0.0 {
+        let number = self.program_number(p, at, what)?;
+        let body = self.resolve_program(number, at, what)?;
+        Ok(MacroCall {
+            number,
+            body,
+            repeats: repeats as u32,
+            args,
+        })
+    }
+
+    /// Calls the macro program: a new level of local variables from the arguments.
+    fn enter_macro(&mut self, call: &MacroCall, at: usize) -> R<()> {
+        if call.repeats == 0 {
             return Ok(());
         }
-        if self.frames.len() >= MAX_CALL_DEPTH {
-            return Err(self.err_at(g65, format!("calls nested deeper than {MAX_CALL_DEPTH}")));
-        }
         let saved = self.params.numbered[1..=LOCALS].to_vec();
-        for (k, arg) in args.iter().enumerate().skip(1) {
+        self.call_fanuc_program(call.number, call.body, call.repeats, Some(saved), at)?;
+        for (k, arg) in call.args.iter().enumerate().skip(1) {
             self.params.numbered[k] = arg.unwrap_or_else(vacant);
         }
-        self.frames.push(Frame {
-            return_pc: self.cur_block,
-            saved: Vec::new(),
-            sub: OName::Number(number),
-            auto_restore: None,
-            fanuc: Some(FanucCall {
-                body,
-                repeats_left: repeats as u32 - 1,
-                locals: Some(saved),
-            }),
-        });
-        self.jump = Some(body);
         Ok(())
     }
+}
+
+/// A macro call's program (its number and first block), repeat count and arguments.
+#[derive(Clone, Debug)]
+pub(super) struct MacroCall {
+    number: u32,
+    body: usize,
+    repeats: u32,
+    args: [Option<f64>; LOCALS + 1],
+}
+
+/// A G66 modal call, made after each moving block at the call level `depth`.
+#[derive(Clone, Debug)]
+pub(super) struct ModalCall {
+    call: MacroCall,
+    depth: usize,
+    /// The G66 word, named by errors of its calls.
+    at: usize,
 }

@@ -22,7 +22,10 @@ mod cycles;
 mod macro_b;
 mod modal;
 mod params;
+mod polar;
+mod splines;
 mod subprograms;
+mod transforms;
 mod words;
 
 use control::{prescan, ControlMap, Frame};
@@ -62,6 +65,21 @@ struct Interp<'p> {
     g5x: [[f64; 6]; 9],
     g92: [f64; 6],
     g92_applied: bool,
+    /// Fanuc G52 local offset, mm/deg (LinuxCNC's G52 writes the G92 offset instead).
+    g52: [f64; 6],
+    /// LinuxCNC G10 L2 R: rotation of each coordinate system in XY, degrees.
+    rot_xy: [f64; 9],
+    /// Fanuc mirror image, scaling and rotation.
+    prog_xf: transforms::ProgramTransforms,
+    /// G66: the macro called after each moving block, until G67.
+    modal_call: Option<macro_b::ModalCall>,
+    /// A G5.2 NURBS being defined.
+    nurbs: Option<splines::NurbsInProgress>,
+    /// Fanuc G16 polar mode, and the last polar radius and angle (degrees) it went to.
+    polar_mode: bool,
+    polar_last: std::cell::Cell<Option<(f64, f64)>>,
+    /// No rotation, mirror or scaling active: `to_machine` is per-axis offsets only.
+    plain: bool,
     g28: [f64; 6],
     g30: [f64; 6],
     /// Active tool length offset (mm), None: G49.
@@ -105,6 +123,8 @@ struct Interp<'p> {
     warned_m_codes: std::collections::HashSet<u32>,
     /// Cutter radius compensation, while G41/G42 is on.
     comp: Option<comp::Comp>,
+    /// The plane of the last G41/G42 (G17 or G18).
+    comp_plane: Plane,
     /// After G40: where the tool is (machine frame), the start of the next move, which must
     /// be a line (LinuxCNC).
     exit_start: Option<[f64; 6]>,
@@ -170,6 +190,14 @@ pub(crate) fn interpret_view(
         g5x: [[0.0; 6]; 9],
         g92: [0.0; 6],
         g92_applied: true,
+        g52: [0.0; 6],
+        rot_xy: [0.0; 9],
+        prog_xf: Default::default(),
+        modal_call: None,
+        nurbs: None,
+        polar_mode: false,
+        polar_last: Default::default(),
+        plain: true,
         g28: [0.0; 6],
         g30: [0.0; 6],
         tlo: None,
@@ -203,6 +231,7 @@ pub(crate) fn interpret_view(
         tool_radii: HashMap::new(),
         tool_radius_wear: HashMap::new(),
         comp: None,
+        comp_plane: Plane::XY,
         exit_start: None,
         jump: None,
         main_program: None,

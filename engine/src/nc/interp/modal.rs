@@ -64,14 +64,20 @@ pub(super) enum Motion {
     Probe(u16),
     /// G73, G81..G89 (the G number)
     Cycle(u16),
+    /// G5 (cubic) / G5.1 (quadratic)
+    Spline {
+        cubic: bool,
+    },
+    /// G5.2: NURBS control points until G5.3
+    Nurbs,
 }
 
 /// Modal group of a G code (times ten), LinuxCNC numbering; None: unsupported.
 pub(super) fn g_group(code: u16) -> Option<u8> {
     Some(match code {
-        40 | 100 | 280 | 281 | 300 | 301 | 530 | 920 | 921 | 922 | 923 => 0,
-        0 | 10 | 20 | 30 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 800 | 810 | 820 | 830
-        | 840 | 850 | 860 | 870 | 880 | 890 => 1,
+        40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => 0,
+        0 | 10 | 20 | 30 | 50 | 51 | 52 | 53 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 800
+        | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880 | 890 => 1,
         170 | 180 | 190 => 2,
         900 | 910 => 3,
         901 | 911 => 4,
@@ -82,6 +88,12 @@ pub(super) fn g_group(code: u16) -> Option<u8> {
         980 | 990 => 10,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => 12,
         610 | 611 | 640 => 13,
+        // Fanuc's own groups: scaling, rotation, polar coordinates, mirror image.
+        500 | 510 => 11,
+        680 | 690 => 16,
+        150 | 160 => 17,
+        501 | 511 => 22,
+        670 => 23,
         _ => return None,
     })
 }
@@ -97,16 +109,13 @@ pub(super) fn g_name(code: u16) -> String {
 /// Why a G code is refused, for the error message.
 pub(super) fn g_refusal(code: u16) -> &'static str {
     match code {
-        50..=59 => "spline/NURBS motion (G5.x) is not supported",
         70 | 80 => "lathe diameter/radius mode is not supported",
-        150 | 160 => "polar coordinates (G15/G16) are not supported",
         330 => "spindle-synchronized motion (G33) is not supported",
         380..=389 => "probing (G38.x) cannot be simulated without a probe model",
-        510 | 511 | 500 => "scaling (G50/G51) is not supported",
-        680 | 690 => "coordinate rotation (G68/G69) is not supported",
         760 => "threading cycle G76 is not supported",
         650 => "macro call (G65) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
-        660 | 661 | 670 => "modal macro calls (G66/G67) are not supported",
+        660 => "modal macro call (G66) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
+        661 => "modal macro call G66.1 (every block) is not supported",
         _ => "is not a supported G code",
     }
 }

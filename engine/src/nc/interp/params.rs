@@ -83,6 +83,9 @@ impl Interp<'_> {
             if k < 9 && i < 6 {
                 return self.offset_param(self.g5x[k][i], i < 3);
             }
+            if k < 9 && i == 9 {
+                return self.rot_xy[k];
+            }
         }
         if n == 5400 {
             return self.tool as f64;
@@ -112,6 +115,9 @@ impl Interp<'_> {
                 Some(Motion::RigidTap) => 84.0,
                 Some(Motion::Probe(g)) => f64::from(g) / 10.0,
                 Some(Motion::Cycle(g)) => f64::from(g),
+                Some(Motion::Spline { cubic: true }) => 5.0,
+                Some(Motion::Spline { cubic: false }) => 5.1,
+                Some(Motion::Nurbs) => 5.2,
             },
             4002 => match m.plane {
                 Plane::XY => 17.0,
@@ -183,6 +189,9 @@ impl Interp<'_> {
                 Some(Motion::RigidTap) => 331.0,
                 Some(Motion::Probe(g)) => f64::from(g),
                 Some(Motion::Cycle(g)) => g as f64 * 10.0,
+                Some(Motion::Spline { cubic: true }) => 50.0,
+                Some(Motion::Spline { cubic: false }) => 51.0,
+                Some(Motion::Nurbs) => 52.0,
             },
             _ => return None,
         })

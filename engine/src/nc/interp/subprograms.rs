@@ -123,6 +123,20 @@ impl Interp<'_> {
             number %= 10_000;
         }
         let body = self.resolve_program(number, at, &format!("M98 P{p}"))?;
+        self.call_fanuc_program(number, body, repeats, None, at)
+    }
+
+    /// Runs program `number` (first block `body`) `repeats` times from the next block on,
+    /// then returns after the current block (M98, G65, G66). `locals`: the caller's local
+    /// variables to restore on return (a macro call's new level).
+    pub(super) fn call_fanuc_program(
+        &mut self,
+        number: u32,
+        body: usize,
+        repeats: u32,
+        locals: Option<Vec<f64>>,
+        at: usize,
+    ) -> R<()> {
         if repeats == 0 {
             return Ok(());
         }
@@ -137,7 +151,7 @@ impl Interp<'_> {
             fanuc: Some(FanucCall {
                 body,
                 repeats_left: repeats - 1,
-                locals: None,
+                locals,
             }),
         });
         self.jump = Some(body);

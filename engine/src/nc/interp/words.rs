@@ -22,6 +22,16 @@ pub(super) struct Words {
     pub(super) ms: Vec<(u32, usize)>,
     pub(super) corner_r: Option<(f64, usize)>,
     pub(super) corner_c: Option<(f64, usize)>,
+    /// Polar radius and angle (LinuxCNC `@` `^`; Fanuc G16 moves the plane's axis words
+    /// here), and whether a motion took them.
+    pub(super) polar_r: Option<(f64, usize)>,
+    pub(super) polar_a: Option<(f64, usize)>,
+    /// Polar words are in the block (`polar_any`) and no motion has taken them yet
+    /// (`polar_open`).
+    pub(super) polar_any: bool,
+    pub(super) polar_open: bool,
+    /// A G code of Fanuc's transform groups or G67 is in the block.
+    pub(super) transform: bool,
 }
 
 impl Words {
@@ -39,9 +49,11 @@ impl Words {
         self.vals[letter_index(c)].is_some()
     }
     /// Axis words not yet used by an earlier step of the block (G4 X, G43.1 Z).
+    #[inline]
     pub(super) fn has_axis(&self) -> bool {
         AXES.iter()
             .any(|&c| self.has(c) && !self.used[letter_index(c)])
+            || self.polar_open
     }
     pub(super) fn g(&self, code: u16) -> Option<usize> {
         self.gs.iter().find(|g| g.0 == code).map(|g| g.1)
@@ -144,6 +156,8 @@ impl<'p> Interp<'p> {
                             ),
                         ));
                     }
+                    // Fanuc's scaling, rotation, polar, mirror and modal call groups.
+                    w.transform |= matches!(group, 11 | 16 | 17 | 22 | 23);
                     w.gs.push((code, i));
                 }
                 'M' => {
@@ -207,6 +221,19 @@ impl<'p> Interp<'p> {
                     ))
                 }
                 'E' => return Err(self.err_at(pos, "E word is not supported")),
+                '@' | '^' => {
+                    let slot = if c == '@' {
+                        &mut w.polar_r
+                    } else {
+                        &mut w.polar_a
+                    };
+                    if slot.is_some() {
+                        return Err(self.err_at(pos, format!("two {c} words in one block")));
+                    }
+                    *slot = Some((v, i));
+                    w.polar_any = true;
+                    w.polar_open = true;
+                }
                 _ => {
                     let li = letter_index(c);
                     if w.vals[li].is_some() {
