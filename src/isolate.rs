@@ -24,15 +24,17 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use axum::http::StatusCode;
 use serde::{Deserialize, Serialize};
-use serde_json::{json, Value};
+use serde_json::Value;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 
 use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::job_limits::JobLimits;
+use crate::jobs::{JobFailure, JobKind, JobOutput, LoadedInput, LoadedInputs, OutputFile};
+use crate::problem::Problem;
 use crate::queue::SharedProgress;
-use crate::runner::{self, JobFailure, JobOutput, LoadedInput, LoadedInputs, OutputFile};
 
 const JOB: u8 = b'J';
 const BYTES: u8 = b'B';
@@ -59,7 +61,7 @@ pub fn address_space_limit(limits: &JobLimits) -> u64 {
 
 #[derive(Serialize, Deserialize)]
 struct JobHeader {
-    kind: String,
+    kind: JobKind,
     options: Value,
     limits: JobLimits,
     inputs: Vec<InputHeader>,
@@ -180,19 +182,19 @@ pub fn job_exec_main() -> ExitCode {
         out: out.clone(),
         last: Mutex::new(None),
     };
-    let result = runner::run(
-        &header.kind,
+    let result = header.kind.run(
         &header.options,
         inputs,
         &header.limits,
         &CancelFlag::new(),
         &progress,
+        None,
     );
     let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
     let written = match result {
         Ok(output) => write_output(&mut *out, output),
         Err(JobFailure::Invalid(problem)) => {
-            write_frame(&mut *out, PROBLEM, problem.to_string().as_bytes())
+            write_frame(&mut *out, PROBLEM, problem.to_json().to_string().as_bytes())
         }
         Err(JobFailure::Cancelled) => write_frame(&mut *out, CANCELLED, &[]),
     };
@@ -249,7 +251,7 @@ pub enum Ended {
     /// The engine returned (output, a problem with the inputs, or cancelled).
     Returned(Result<ParentOutput, JobFailure>),
     /// The child died without an outcome: a `resource-limit` problem.
-    Died(Value),
+    Died(Problem),
     /// The engine panicked (a bug): what it said.
     Panicked(String),
 }
@@ -306,7 +308,7 @@ impl ChildJob {
 /// Starts `millsim job-exec` for a job, with its address space limited, dying with the
 /// server (PR_SET_PDEATHSIG), and feeds it the job.
 pub fn spawn(
-    kind: &str,
+    kind: JobKind,
     options: &Value,
     inputs: LoadedInputs,
     limits: JobLimits,
@@ -357,7 +359,7 @@ pub fn spawn(
         tokio::io::BufReader::with_capacity(1 << 16, child.stdout.take().expect("piped stdout"));
     let mut stderr = child.stderr.take().expect("piped stderr");
     let header = JobHeader {
-        kind: kind.to_string(),
+        kind,
         options: options.clone(),
         limits,
         inputs: inputs
@@ -466,14 +468,16 @@ async fn read_outcome(
         let (tag, payload) = read_frame_async(r).await.ok()?;
         received += payload.len() as u64;
         if received > budget {
-            return Some(Err(JobFailure::Invalid(json!({
-                "type": "https://millsim.dev/problems/resource-limit",
-                "title": "Results over the job's memory budget",
-                "status": 422,
-                "detail": format!("the job's results (rows, samples, files) exceed its memory budget of {} MiB (job_memory_mb)", budget >> 20),
-                "limit_name": "job_memory_mb",
-                "limit": budget >> 20,
-            }))));
+            return Some(Err(JobFailure::Invalid(
+                Problem::new(
+                    StatusCode::UNPROCESSABLE_ENTITY,
+                    "resource-limit",
+                    "Results over the job's memory budget",
+                    format!("the job's results (rows, samples, files) exceed its memory budget of {} MiB (job_memory_mb)", budget >> 20),
+                )
+                .with("limit_name", "job_memory_mb")
+                .with("limit", budget >> 20),
+            )));
         }
         match tag {
             PROGRESS if payload.len() == 16 => {
@@ -496,9 +500,9 @@ async fn read_outcome(
             }
             DONE => return Some(Ok(out)),
             PROBLEM => {
-                return Some(Err(JobFailure::Invalid(
+                return Some(Err(JobFailure::Invalid(Problem::from_json(
                     serde_json::from_slice(&payload).ok()?,
-                )))
+                ))))
             }
             CANCELLED => return Some(Err(JobFailure::Cancelled)),
             _ => return None,
@@ -506,7 +510,7 @@ async fn read_outcome(
     }
 }
 
-fn died_problem(status: std::process::ExitStatus, said: &str, memory_mb: u64) -> Value {
+fn died_problem(status: std::process::ExitStatus, said: &str, memory_mb: u64) -> Problem {
     let how = match status.signal() {
         Some(sig) => format!("was killed by signal {sig} ({})", signal_name(sig)),
         None => format!(
@@ -517,7 +521,7 @@ fn died_problem(status: std::process::ExitStatus, said: &str, memory_mb: u64) ->
     died_problem_text(&how, said, memory_mb)
 }
 
-fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Value {
+fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Problem {
     let out_of_memory = said.contains("memory allocation of") || said.contains("out of memory");
     // What the process said that tells why: the failed allocation, a panic, else its last words.
     let last_line = said
@@ -528,17 +532,17 @@ fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Value {
         .unwrap_or("")
         .trim()
         .to_string();
-    json!({
-        "type": "https://millsim.dev/problems/resource-limit",
-        "title": if out_of_memory { "Job ran out of memory" } else { "Job's process died" },
-        "status": 422,
-        "detail": format!(
+    Problem::new(
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "resource-limit",
+        if out_of_memory { "Job ran out of memory" } else { "Job's process died" },
+        format!(
             "the process running this job {how}{}; its memory budget is {memory_mb} MiB (job_memory_mb). The job is not retried: it would die again",
             if last_line.is_empty() { String::new() } else { format!(" after: {last_line}") },
         ),
-        "limit_name": "job_memory_mb",
-        "limit": memory_mb,
-    })
+    )
+    .with("limit_name", "job_memory_mb")
+    .with("limit", memory_mb)
 }
 
 fn signal_name(sig: i32) -> &'static str {

@@ -6,10 +6,11 @@ mod http;
 mod isolate;
 mod job_library;
 mod job_limits;
+mod jobs;
 mod metrics;
+mod problem;
 mod queue;
 mod run_cli;
-mod runner;
 mod stability_cli;
 mod store;
 mod validate;
@@ -500,7 +501,7 @@ fn interpret(args: InterpretArgs) -> ExitCode {
         },
         None => None,
     };
-    let job_options = runner::InterpretOptions {
+    let job_options = jobs::InterpretOptions {
         dialect: match args.dialect {
             DialectArg::Auto => nc::Dialect::Auto,
             DialectArg::Fanuc => nc::Dialect::Fanuc,
