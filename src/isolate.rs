@@ -9,7 +9,8 @@
 //!   media type), then one `B` frame per input with its content, in the same order;
 //! - child → parent: `P` progress (done, total as two u64) at most every 100 ms; then `S`
 //!   the summary, `R` per row, `M` per sample (u64 row seq, then the JSON), `F` a file's
-//!   name, media type and file name followed by a `B` with its content, and `D` done; or
+//!   name, media type and file name followed by a `B` with its content, `N` a resource the
+//!   job made (JSON), and `D` done; or
 //!   `X` a problem document (the inputs are at fault), or `C` cancelled.
 //!
 //! A child that ends without an outcome frame died: killed by a signal (the kernel's OOM
@@ -32,7 +33,9 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::job_limits::JobLimits;
-use crate::jobs::{JobFailure, JobKind, JobOutput, LoadedInput, LoadedInputs, OutputFile};
+use crate::jobs::{
+    JobFailure, JobKind, JobOutput, LoadedInput, LoadedInputs, OutputFile, OutputResource,
+};
 use crate::problem::Problem;
 use crate::queue::SharedProgress;
 
@@ -46,6 +49,7 @@ const FILE: u8 = b'F';
 const DONE: u8 = b'D';
 const PROBLEM: u8 = b'X';
 const CANCELLED: u8 = b'C';
+const RESOURCE: u8 = b'N';
 
 /// Largest frame either side accepts (an STL stock upload is at most a few hundred MiB).
 const MAX_FRAME: u64 = 8 << 30;
@@ -243,6 +247,9 @@ fn write_output(w: &mut impl Write, output: JobOutput) -> std::io::Result<()> {
         write_frame(w, FILE, &serde_json::to_vec(&header)?)?;
         write_frame(w, BYTES, &f.content)?;
     }
+    for r in &output.resources {
+        write_frame(w, RESOURCE, &serde_json::to_vec(r)?)?;
+    }
     write_frame(w, DONE, &[])
 }
 
@@ -262,6 +269,7 @@ pub struct ParentOutput {
     pub rows: Vec<String>,
     pub samples: Vec<(usize, String)>,
     pub files: Vec<(String, String, String, Vec<u8>)>,
+    pub resources: Vec<OutputResource>,
 }
 
 impl From<JobOutput> for ParentOutput {
@@ -275,6 +283,7 @@ impl From<JobOutput> for ParentOutput {
                 .into_iter()
                 .map(|f: OutputFile| (f.name, f.media_type.to_string(), f.file_name, f.content))
                 .collect(),
+            resources: o.resources,
         }
     }
 }
@@ -461,6 +470,7 @@ async fn read_outcome(
         rows: Vec::new(),
         samples: Vec::new(),
         files: Vec::new(),
+        resources: Vec::new(),
     };
     let mut file: Option<FileHeader> = None;
     let mut received = 0u64;
@@ -498,6 +508,7 @@ async fn read_outcome(
                 let h = file.take()?;
                 out.files.push((h.name, h.media_type, h.file_name, payload));
             }
+            RESOURCE => out.resources.push(serde_json::from_slice(&payload).ok()?),
             DONE => return Some(Ok(out)),
             PROBLEM => {
                 return Some(Err(JobFailure::Invalid(Problem::from_json(

@@ -5,6 +5,7 @@
 //! line all go through it.
 
 mod energy;
+mod identify;
 mod inputs;
 mod interpret;
 mod rotary_feed;
@@ -79,7 +80,8 @@ impl JobKind {
     }
 
     pub fn is_supported(self) -> bool {
-        !matches!(self, JobKind::Identify)
+        // Every kind has its engine; a kind added before its engine lands answers false.
+        true
     }
 
     /// The inputs this kind takes by name (besides per-number tools, see
@@ -90,7 +92,8 @@ impl JobKind {
             JobKind::Interpret => &interpret::INPUTS,
             JobKind::RotaryFeed => &rotary_feed::INPUTS,
             JobKind::Simulate | JobKind::Optimize => &simulate::INPUTS,
-            JobKind::Stability | JobKind::Identify => &[],
+            JobKind::Identify => &identify::INPUTS,
+            JobKind::Stability => &[],
         }
     }
 
@@ -152,7 +155,7 @@ impl JobKind {
                 o.check(self == JobKind::Optimize, has_material_input)
                     .map_err(FieldError::into_problem)
             }
-            JobKind::Identify => Ok(()),
+            JobKind::Identify => identify::check(options),
         }
     }
 
@@ -182,10 +185,7 @@ impl JobKind {
             JobKind::Stability => stability::run(options, cancel, progress),
             JobKind::RotaryFeed => rotary_feed::run(options, inputs),
             JobKind::Energy => energy::run(options, inputs, cancel),
-            JobKind::Identify => Err(JobFailure::Invalid(Problem::not_supported(format!(
-                "job kind `{}` is not supported yet",
-                self.as_str()
-            )))),
+            JobKind::Identify => identify::run(options, inputs),
         }
     }
 }
@@ -253,6 +253,33 @@ pub struct OutputFile {
     pub content: Vec<u8>,
 }
 
+/// A resource a job makes (an identified material), stored with the job's success and
+/// then listed with the owner's other resources. Its id is chosen by the job, so the
+/// summary can name it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct OutputResource {
+    pub id: String,
+    /// The resource kind's name (`material`).
+    pub kind: String,
+    pub name: String,
+    pub media_type: String,
+    pub summary: Value,
+    pub content: Vec<u8>,
+}
+
+impl OutputResource {
+    pub fn new(kind: ResourceKind, name: &str, content: Vec<u8>, summary: Value) -> Self {
+        OutputResource {
+            id: crate::store::new_id(),
+            kind: kind.as_str().to_string(),
+            name: name.to_string(),
+            media_type: "application/json".into(),
+            summary,
+            content,
+        }
+    }
+}
+
 /// The result of a job attempt that ran to the end.
 pub struct JobOutput {
     pub summary: Value,
@@ -260,6 +287,7 @@ pub struct JobOutput {
     /// Per-step samples as (row seq, JSON array), for rows that have any.
     pub samples: Vec<(usize, String)>,
     pub files: Vec<OutputFile>,
+    pub resources: Vec<OutputResource>,
 }
 
 impl JobOutput {
@@ -270,6 +298,7 @@ impl JobOutput {
             rows,
             samples: Vec::new(),
             files: Vec::new(),
+            resources: Vec::new(),
         }
     }
 }

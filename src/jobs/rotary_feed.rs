@@ -117,6 +117,7 @@ fn post_cls_job(
         rows,
         samples: Vec::new(),
         files,
+        resources: Vec::new(),
     })
 }
 
@@ -169,6 +170,7 @@ pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFa
             file_name: format!("{stem}.rotary{ext}"),
             content: corrected.into_bytes(),
         }],
+        resources: Vec::new(),
     })
 }
 

@@ -409,5 +409,6 @@ pub fn run(
         rows,
         samples,
         files,
+        resources: Vec::new(),
     })
 }

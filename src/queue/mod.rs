@@ -16,7 +16,9 @@ use crate::isolate::{self, Ended};
 use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs};
 use crate::metrics::Metrics;
 use crate::problem::Problem;
-use crate::store::jobs::{Artifact, ClaimedJob, Finish, LeaseState, IN_PROCESS_MARK};
+use crate::store::jobs::{
+    Artifact, ClaimedJob, CreatedResource, Finish, LeaseState, IN_PROCESS_MARK,
+};
 use crate::store::{Db, ResourceKind, StoreError};
 
 /// Why a job's inputs could not be loaded.
@@ -288,6 +290,25 @@ impl Worker {
         }
         match result {
             Ended::Returned(Ok(out)) => Some(Finish::Succeeded {
+                // A kind the store does not know would be a bug of the job's: dropped,
+                // the summary still says what was identified.
+                resources: out
+                    .resources
+                    .into_iter()
+                    .filter_map(|r| {
+                        let kind = ResourceKind::ALL
+                            .into_iter()
+                            .find(|k| k.as_str() == r.kind)?;
+                        Some(CreatedResource {
+                            id: r.id,
+                            kind,
+                            name: r.name,
+                            media_type: r.media_type,
+                            summary: r.summary,
+                            content: r.content,
+                        })
+                    })
+                    .collect(),
                 summary: out.summary,
                 rows: out.rows,
                 samples: out.samples,

@@ -5,7 +5,7 @@
 use serde::Serialize;
 use sqlx::Row;
 
-use super::resources::{insert as insert_resource, NewResource};
+use super::resources::{insert as insert_resource, insert_with_id, NewResource};
 use super::{new_id, now_ms, rfc3339, Db, StoreError};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -168,12 +168,24 @@ pub enum Finish {
         rows: Vec<String>,
         samples: Vec<(usize, String)>,
         artifacts: Vec<Artifact>,
+        /// Resources the job made, owned by the job's owner.
+        resources: Vec<CreatedResource>,
         progress: (u64, u64),
     },
     Failed {
         error: serde_json::Value,
     },
     Cancelled,
+}
+
+/// A resource a job made, stored with its success under the id the job chose.
+pub struct CreatedResource {
+    pub id: String,
+    pub kind: super::ResourceKind,
+    pub name: String,
+    pub media_type: String,
+    pub summary: serde_json::Value,
+    pub content: Vec<u8>,
 }
 
 pub struct Artifact {
@@ -614,9 +626,24 @@ impl Db {
             rows,
             samples,
             artifacts,
+            resources,
             ..
         } = finish
         {
+            let owner: String = sqlx::query_scalar("SELECT owner FROM jobs WHERE id = ?")
+                .bind(&job.id)
+                .fetch_one(&mut *tx)
+                .await?;
+            for r in &resources {
+                let new = NewResource {
+                    kind: r.kind,
+                    name: Some(&r.name),
+                    media_type: &r.media_type,
+                    summary: r.summary.clone(),
+                    content: &r.content,
+                };
+                insert_with_id(&mut *tx, &r.id, &owner, &new).await?;
+            }
             let numbered: Vec<(usize, String)> = rows.into_iter().enumerate().collect();
             for (table, items) in [("job_rows", numbered), ("job_samples", samples)] {
                 sqlx::query(&format!("DELETE FROM {table} WHERE job_id = ?"))

@@ -110,11 +110,26 @@ where
     E: sqlx::Executor<'e, Database = sqlx::Sqlite>,
 {
     let id = super::new_id();
+    insert_with_id(exec, &id, owner, new).await?;
+    Ok(id)
+}
+
+/// [`insert`] with an id chosen beforehand (a job names the resource it makes in its
+/// summary before the resource is stored).
+pub async fn insert_with_id<'e, E>(
+    exec: E,
+    id: &str,
+    owner: &str,
+    new: &NewResource<'_>,
+) -> Result<(), StoreError>
+where
+    E: sqlx::Executor<'e, Database = sqlx::Sqlite>,
+{
     sqlx::query(
         "INSERT INTO resources (id, owner, kind, name, media_type, size, summary, content, created_at)
          VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
     )
-    .bind(&id)
+    .bind(id)
     .bind(owner)
     .bind(new.kind.as_str())
     .bind(new.name)
@@ -125,7 +140,7 @@ where
     .bind(now_ms())
     .execute(exec)
     .await?;
-    Ok(id)
+    Ok(())
 }
 
 impl Db {
