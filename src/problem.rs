@@ -306,8 +306,12 @@ pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Pro
                 .find_map(|p| msg.strip_prefix(p))
                 .and_then(|rest| rest.split('`').next())
                 .map(|f| {
+                    // An unknown field is already the last step of the path; a missing
+                    // one is not (the path stops at its parent).
                     if path == "." {
                         f.to_string()
+                    } else if path == f || path.ends_with(&format!(".{f}")) {
+                        path.clone()
                     } else {
                         format!("{path}.{f}")
                     }
@@ -337,6 +341,34 @@ pub fn parse_options<T: serde::de::DeserializeOwned>(options: &Value) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Outer {
+        url: String,
+        inner: Option<Inner>,
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Inner {
+        depth: f64,
+    }
+
+    #[test]
+    fn parse_json_names_unknown_and_missing_fields_once() {
+        let field = |body: &str| {
+            let e = parse_json::<Outer>(body.as_bytes()).unwrap_err();
+            e.extensions["field"].as_str().unwrap().to_string()
+        };
+        assert_eq!(field(r#"{"url":"x","secret":1}"#), "secret");
+        assert_eq!(field(r#"{"inner":{"depth":1}}"#), "url");
+        assert_eq!(field(r#"{"url":"x","inner":{"depth":1,"width":2}}"#), "inner.width");
+        assert_eq!(field(r#"{"url":"x","inner":{}}"#), "inner.depth");
+        assert_eq!(field(r#"{"url":"x","inner":{"depth":"deep"}}"#), "inner.depth");
+    }
 
     #[test]
     fn a_problem_read_back_from_its_json_is_the_same_document() {
