@@ -365,9 +365,15 @@ mod tests {
         };
         assert_eq!(field(r#"{"url":"x","secret":1}"#), "secret");
         assert_eq!(field(r#"{"inner":{"depth":1}}"#), "url");
-        assert_eq!(field(r#"{"url":"x","inner":{"depth":1,"width":2}}"#), "inner.width");
+        assert_eq!(
+            field(r#"{"url":"x","inner":{"depth":1,"width":2}}"#),
+            "inner.width"
+        );
         assert_eq!(field(r#"{"url":"x","inner":{}}"#), "inner.depth");
-        assert_eq!(field(r#"{"url":"x","inner":{"depth":"deep"}}"#), "inner.depth");
+        assert_eq!(
+            field(r#"{"url":"x","inner":{"depth":"deep"}}"#),
+            "inner.depth"
+        );
     }
 
     #[test]

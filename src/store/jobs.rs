@@ -6,6 +6,7 @@ use serde::Serialize;
 use sqlx::Row;
 
 use super::resources::{insert as insert_resource, insert_with_id, NewResource};
+use super::webhooks::enqueue_job_event;
 use super::{new_id, now_ms, rfc3339, Db, StoreError};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -423,6 +424,7 @@ impl Db {
         if let Some((status, attempt)) = settled {
             if status == "cancelled" {
                 close_lost_attempt(&mut tx, id, attempt, now).await?;
+                enqueue_job_event(&mut tx, id, "job.cancelled").await?;
             }
         }
         tx.commit().await?;
@@ -453,6 +455,7 @@ impl Db {
                 .bind(attempt)
                 .execute(&mut *tx)
                 .await?;
+            enqueue_job_event(&mut tx, id, "job.failed").await?;
         }
         tx.commit().await?;
         Ok(ids.len() as u64)
@@ -482,6 +485,7 @@ impl Db {
         // Their workers died: the attempts end here, or they would stay open for ever.
         for (id, attempt) in &cancelled {
             close_lost_attempt(&mut tx, id, *attempt, now).await?;
+            enqueue_job_event(&mut tx, id, "job.cancelled").await?;
         }
         // A job whose worker ran it inside the server process (thread isolation) and was
         // lost with it may have brought the server down: failed, not run again.
@@ -500,6 +504,7 @@ impl Db {
         .await?;
         for (id, attempt) in &crashed {
             close_lost_attempt(&mut tx, id, *attempt, now).await?;
+            enqueue_job_event(&mut tx, id, "job.failed").await?;
         }
         tx.commit().await?;
         let mut tx = self.pool.begin().await?;
@@ -681,6 +686,8 @@ impl Db {
         .bind(job.attempt)
         .execute(&mut *tx)
         .await?;
+        // The webhooks' outbox, with the state change: both commit or neither.
+        enqueue_job_event(&mut tx, &job.id, &format!("job.{outcome}")).await?;
         tx.commit().await?;
         Ok(true)
     }
