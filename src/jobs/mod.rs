@@ -259,8 +259,7 @@ pub struct OutputFile {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct OutputResource {
     pub id: String,
-    /// The resource kind's name (`material`).
-    pub kind: String,
+    pub kind: ResourceKind,
     pub name: String,
     pub media_type: String,
     pub summary: Value,
@@ -271,7 +270,7 @@ impl OutputResource {
     pub fn new(kind: ResourceKind, name: &str, content: Vec<u8>, summary: Value) -> Self {
         OutputResource {
             id: crate::store::new_id(),
-            kind: kind.as_str().to_string(),
+            kind,
             name: name.to_string(),
             media_type: "application/json".into(),
             summary,
@@ -323,5 +322,14 @@ mod tests {
             assert_eq!(json, Value::String(k.as_str().into()));
         }
         assert_eq!(JobKind::parse("teleport"), None);
+    }
+
+    #[test]
+    fn resource_kinds_serialize_as_their_names() {
+        for k in ResourceKind::ALL {
+            let json = serde_json::to_value(k).unwrap();
+            assert_eq!(json, Value::String(k.as_str().into()));
+            assert_eq!(serde_json::from_value::<ResourceKind>(json).unwrap(), k);
+        }
     }
 }

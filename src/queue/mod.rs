@@ -290,23 +290,16 @@ impl Worker {
         }
         match result {
             Ended::Returned(Ok(out)) => Some(Finish::Succeeded {
-                // A kind the store does not know would be a bug of the job's: dropped,
-                // the summary still says what was identified.
                 resources: out
                     .resources
                     .into_iter()
-                    .filter_map(|r| {
-                        let kind = ResourceKind::ALL
-                            .into_iter()
-                            .find(|k| k.as_str() == r.kind)?;
-                        Some(CreatedResource {
-                            id: r.id,
-                            kind,
-                            name: r.name,
-                            media_type: r.media_type,
-                            summary: r.summary,
-                            content: r.content,
-                        })
+                    .map(|r| CreatedResource {
+                        id: r.id,
+                        kind: r.kind,
+                        name: r.name,
+                        media_type: r.media_type,
+                        summary: r.summary,
+                        content: r.content,
                     })
                     .collect(),
                 summary: out.summary,

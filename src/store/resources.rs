@@ -1,11 +1,14 @@
 //! Uploaded inputs: stocks, tools, materials, machines, programs, tool libraries.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
 use super::{now_ms, rfc3339, Db, StoreError};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Serialized as [`as_str`](Self::as_str) names it (a job's process sends the kind of a
+/// resource it made to the server).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ResourceKind {
     Stock,
     Tool,
@@ -26,6 +29,7 @@ impl ResourceKind {
     ];
 
     pub fn as_str(self) -> &'static str {
+        // The serde names (snake_case) are these: a test checks them.
         match self {
             ResourceKind::Stock => "stock",
             ResourceKind::Tool => "tool",
