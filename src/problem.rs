@@ -23,7 +23,8 @@ pub struct Problem {
     pub slug: Cow<'static, str>,
     pub title: Cow<'static, str>,
     pub detail: String,
-    pub extensions: Map<String, Value>,
+    /// Boxed: a problem is the error of most results, which stay small this way.
+    pub extensions: Box<Map<String, Value>>,
 }
 
 impl Problem {
@@ -38,7 +39,7 @@ impl Problem {
             slug: slug.into(),
             title: title.into(),
             detail: detail.into(),
-            extensions: Map::new(),
+            extensions: Box::default(),
         }
     }
 
@@ -222,7 +223,7 @@ impl Problem {
             "detail": self.detail,
         });
         if let Value::Object(m) = &mut doc {
-            m.extend(self.extensions.clone());
+            m.extend(self.extensions.iter().map(|(k, v)| (k.clone(), v.clone())));
         }
         doc
     }
@@ -251,7 +252,7 @@ impl Problem {
             slug: slug.into(),
             title: title.into(),
             detail,
-            extensions: m,
+            extensions: Box::new(m),
         }
     }
 }

@@ -64,7 +64,7 @@ pub fn options(options: &Value) -> Result<StabilityRequest, FieldError> {
         .validate()
         .map_err(|e| FieldError::new(format!("options.{}", e.field()), e.to_string()))?;
     let recommend: Option<RecommendOptions> = recommend
-        .map(|r| serde_path_to_error::deserialize(r))
+        .map(serde_path_to_error::deserialize)
         .transpose()
         .map_err(|e: serde_path_to_error::Error<serde_json::Error>| {
             FieldError::new(

@@ -57,6 +57,9 @@ pub struct DeliveryRecord {
     pub attempts: Vec<AttemptRecord>,
 }
 
+/// An attempt as stored: (attempt, started_at, duration_ms, status_code, error).
+type AttemptRow = (i64, i64, i64, Option<i64>, Option<String>);
+
 /// A delivery a dispatcher claimed: where to post what, signed with which secret.
 #[derive(Clone, Debug)]
 pub struct DueDelivery {
@@ -298,7 +301,7 @@ impl Db {
         row: &sqlx::sqlite::SqliteRow,
     ) -> Result<DeliveryRecord, StoreError> {
         let id: String = row.try_get("id")?;
-        let attempts: Vec<(i64, i64, i64, Option<i64>, Option<String>)> = sqlx::query_as(
+        let attempts: Vec<AttemptRow> = sqlx::query_as(
             "SELECT attempt, started_at, duration_ms, status_code, error FROM webhook_attempts WHERE delivery_id = ? ORDER BY attempt",
         )
         .bind(&id)
