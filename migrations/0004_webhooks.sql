@@ -26,6 +26,7 @@ CREATE TABLE webhook_deliveries (
     next_attempt_at  INTEGER,                  -- unix ms, while pending
     lease_owner      TEXT,
     lease_expires_at INTEGER,
+    redeliver        INTEGER NOT NULL DEFAULT 0, -- asked again while an attempt was in flight
     last_error       TEXT,
     created_at       INTEGER NOT NULL,
     delivered_at     INTEGER,

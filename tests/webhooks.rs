@@ -761,3 +761,51 @@ async fn the_readme_recipes_tell_a_genuine_delivery_from_a_forged_one() {
         println!("skipped the shell recipe: openssl is not installed");
     }
 }
+
+fn two_seconds(_: usize) -> (u16, Duration) {
+    (200, Duration::from_secs(2))
+}
+
+#[tokio::test]
+async fn a_redelivery_asked_while_an_attempt_is_in_flight_is_sent_after_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "1", "--webhook-allow-private"],
+    );
+    let c = client();
+    let (rx, url) = receiver(two_seconds).await;
+    let hook = register(&c, &s, None, json!({"url": url})).await;
+    let hook_id = hook["id"].as_str().unwrap();
+    let job = inline_interpret(&c, &s, "G0 X1\nM30\n").await;
+    wait_job(&c, &s, &job, Duration::from_secs(30)).await;
+    // The first attempt is in flight (the receiver answers after 2 s): ask again now.
+    let got = rx.wait_for(1, Duration::from_secs(5)).await;
+    assert_eq!(got.len(), 1);
+    let (st, d) = json(
+        c.post(s.url(&format!(
+            "/v1/webhooks/{hook_id}/deliveries/{}/redeliver",
+            got[0].delivery
+        )))
+        .send()
+        .await
+        .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 202, "{d}");
+    // The answer to the first attempt does not swallow the request: a second one follows.
+    let got = rx.wait_for(2, Duration::from_secs(10)).await;
+    assert_eq!(got.len(), 2, "the redelivery was lost: {got:?}");
+    assert_eq!(got[1].delivery, got[0].delivery);
+    assert!(got[1].at_ms - got[0].at_ms >= 1900, "{got:?}");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let d = deliveries(&c, &s, None, hook_id).await["items"][0].clone();
+        if d["status"] == "delivered" && d["attempts"].as_array().unwrap().len() == 2 {
+            break;
+        }
+        assert!(Instant::now() < deadline, "{d}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert_eq!(rx.got().len(), 2);
+}

@@ -348,14 +348,15 @@ impl Db {
         id: &str,
     ) -> Result<bool, StoreError> {
         let now = now_ms();
+        // An attempt in flight (leased) will record its outcome after this: `redeliver`
+        // tells it to leave the delivery pending for one more attempt.
         let done = sqlx::query(
-            "UPDATE webhook_deliveries SET status = 'pending', next_attempt_at = ?, attempt_limit = attempts + ?,
-                updated_at = ?
-             WHERE owner = ? AND webhook_id = ? AND id = ?",
+            "UPDATE webhook_deliveries SET status = 'pending', next_attempt_at = ?1, attempt_limit = attempts + ?2,
+                redeliver = CASE WHEN lease_expires_at >= ?1 THEN 1 ELSE 0 END, updated_at = ?1
+             WHERE owner = ?3 AND webhook_id = ?4 AND id = ?5",
         )
         .bind(now)
         .bind(ATTEMPT_LIMIT)
-        .bind(now)
         .bind(owner)
         .bind(webhook_id)
         .bind(id)
@@ -448,10 +449,14 @@ impl Db {
                 .filter(|_| !outcome.delivered)
                 .map(|c| format!("the receiver answered {c}"))
         });
+        // A redelivery asked for during this attempt keeps the delivery pending, due now.
         let done = sqlx::query(
-            "UPDATE webhook_deliveries SET status = ?, next_attempt_at = ?, delivered_at = COALESCE(?, delivered_at),
-                last_error = ?, lease_owner = NULL, lease_expires_at = NULL, updated_at = ?
-             WHERE id = ? AND lease_owner = ? AND attempts = ?",
+            "UPDATE webhook_deliveries SET
+                status = CASE WHEN redeliver = 1 THEN 'pending' ELSE ?1 END,
+                next_attempt_at = CASE WHEN redeliver = 1 THEN ?5 ELSE ?2 END,
+                delivered_at = COALESCE(?3, delivered_at), last_error = ?4,
+                lease_owner = NULL, lease_expires_at = NULL, redeliver = 0, updated_at = ?5
+             WHERE id = ?6 AND lease_owner = ?7 AND attempts = ?8",
         )
         .bind(status)
         .bind(next)
