@@ -9,7 +9,8 @@
 //!   media type), then one `B` frame per input with its content, in the same order;
 //! - child → parent: `P` progress (done, total as two u64) at most every 100 ms; then `S`
 //!   the summary, `R` per row, `M` per sample (u64 row seq, then the JSON), `F` a file's
-//!   name, media type and file name followed by a `B` with its content, and `D` done; or
+//!   name, media type and file name followed by a `B` with its content, `N` a resource the
+//!   job made (JSON), and `D` done; or
 //!   `X` a problem document (the inputs are at fault), or `C` cancelled.
 //!
 //! A child that ends without an outcome frame died: killed by a signal (the kernel's OOM
@@ -24,15 +25,19 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use axum::http::StatusCode;
 use serde::{Deserialize, Serialize};
-use serde_json::{json, Value};
+use serde_json::Value;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 
 use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::job_limits::JobLimits;
+use crate::jobs::{
+    JobFailure, JobKind, JobOutput, LoadedInput, LoadedInputs, OutputFile, OutputResource,
+};
+use crate::problem::Problem;
 use crate::queue::SharedProgress;
-use crate::runner::{self, JobFailure, JobOutput, LoadedInput, LoadedInputs, OutputFile};
 
 const JOB: u8 = b'J';
 const BYTES: u8 = b'B';
@@ -44,6 +49,7 @@ const FILE: u8 = b'F';
 const DONE: u8 = b'D';
 const PROBLEM: u8 = b'X';
 const CANCELLED: u8 = b'C';
+const RESOURCE: u8 = b'N';
 
 /// Largest frame either side accepts (an STL stock upload is at most a few hundred MiB).
 const MAX_FRAME: u64 = 8 << 30;
@@ -59,7 +65,7 @@ pub fn address_space_limit(limits: &JobLimits) -> u64 {
 
 #[derive(Serialize, Deserialize)]
 struct JobHeader {
-    kind: String,
+    kind: JobKind,
     options: Value,
     limits: JobLimits,
     inputs: Vec<InputHeader>,
@@ -180,19 +186,19 @@ pub fn job_exec_main() -> ExitCode {
         out: out.clone(),
         last: Mutex::new(None),
     };
-    let result = runner::run(
-        &header.kind,
+    let result = header.kind.run(
         &header.options,
         inputs,
         &header.limits,
         &CancelFlag::new(),
         &progress,
+        None,
     );
     let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
     let written = match result {
         Ok(output) => write_output(&mut *out, output),
         Err(JobFailure::Invalid(problem)) => {
-            write_frame(&mut *out, PROBLEM, problem.to_string().as_bytes())
+            write_frame(&mut *out, PROBLEM, problem.to_json().to_string().as_bytes())
         }
         Err(JobFailure::Cancelled) => write_frame(&mut *out, CANCELLED, &[]),
     };
@@ -241,6 +247,9 @@ fn write_output(w: &mut impl Write, output: JobOutput) -> std::io::Result<()> {
         write_frame(w, FILE, &serde_json::to_vec(&header)?)?;
         write_frame(w, BYTES, &f.content)?;
     }
+    for r in &output.resources {
+        write_frame(w, RESOURCE, &serde_json::to_vec(r)?)?;
+    }
     write_frame(w, DONE, &[])
 }
 
@@ -249,7 +258,7 @@ pub enum Ended {
     /// The engine returned (output, a problem with the inputs, or cancelled).
     Returned(Result<ParentOutput, JobFailure>),
     /// The child died without an outcome: a `resource-limit` problem.
-    Died(Value),
+    Died(Problem),
     /// The engine panicked (a bug): what it said.
     Panicked(String),
 }
@@ -260,6 +269,7 @@ pub struct ParentOutput {
     pub rows: Vec<String>,
     pub samples: Vec<(usize, String)>,
     pub files: Vec<(String, String, String, Vec<u8>)>,
+    pub resources: Vec<OutputResource>,
 }
 
 impl From<JobOutput> for ParentOutput {
@@ -273,6 +283,7 @@ impl From<JobOutput> for ParentOutput {
                 .into_iter()
                 .map(|f: OutputFile| (f.name, f.media_type.to_string(), f.file_name, f.content))
                 .collect(),
+            resources: o.resources,
         }
     }
 }
@@ -306,7 +317,7 @@ impl ChildJob {
 /// Starts `millsim job-exec` for a job, with its address space limited, dying with the
 /// server (PR_SET_PDEATHSIG), and feeds it the job.
 pub fn spawn(
-    kind: &str,
+    kind: JobKind,
     options: &Value,
     inputs: LoadedInputs,
     limits: JobLimits,
@@ -357,7 +368,7 @@ pub fn spawn(
         tokio::io::BufReader::with_capacity(1 << 16, child.stdout.take().expect("piped stdout"));
     let mut stderr = child.stderr.take().expect("piped stderr");
     let header = JobHeader {
-        kind: kind.to_string(),
+        kind,
         options: options.clone(),
         limits,
         inputs: inputs
@@ -459,6 +470,7 @@ async fn read_outcome(
         rows: Vec::new(),
         samples: Vec::new(),
         files: Vec::new(),
+        resources: Vec::new(),
     };
     let mut file: Option<FileHeader> = None;
     let mut received = 0u64;
@@ -466,14 +478,16 @@ async fn read_outcome(
         let (tag, payload) = read_frame_async(r).await.ok()?;
         received += payload.len() as u64;
         if received > budget {
-            return Some(Err(JobFailure::Invalid(json!({
-                "type": "https://millsim.dev/problems/resource-limit",
-                "title": "Results over the job's memory budget",
-                "status": 422,
-                "detail": format!("the job's results (rows, samples, files) exceed its memory budget of {} MiB (job_memory_mb)", budget >> 20),
-                "limit_name": "job_memory_mb",
-                "limit": budget >> 20,
-            }))));
+            return Some(Err(JobFailure::Invalid(
+                Problem::new(
+                    StatusCode::UNPROCESSABLE_ENTITY,
+                    "resource-limit",
+                    "Results over the job's memory budget",
+                    format!("the job's results (rows, samples, files) exceed its memory budget of {} MiB (job_memory_mb)", budget >> 20),
+                )
+                .with("limit_name", "job_memory_mb")
+                .with("limit", budget >> 20),
+            )));
         }
         match tag {
             PROGRESS if payload.len() == 16 => {
@@ -494,11 +508,12 @@ async fn read_outcome(
                 let h = file.take()?;
                 out.files.push((h.name, h.media_type, h.file_name, payload));
             }
+            RESOURCE => out.resources.push(serde_json::from_slice(&payload).ok()?),
             DONE => return Some(Ok(out)),
             PROBLEM => {
-                return Some(Err(JobFailure::Invalid(
+                return Some(Err(JobFailure::Invalid(Problem::from_json(
                     serde_json::from_slice(&payload).ok()?,
-                )))
+                ))))
             }
             CANCELLED => return Some(Err(JobFailure::Cancelled)),
             _ => return None,
@@ -506,7 +521,7 @@ async fn read_outcome(
     }
 }
 
-fn died_problem(status: std::process::ExitStatus, said: &str, memory_mb: u64) -> Value {
+fn died_problem(status: std::process::ExitStatus, said: &str, memory_mb: u64) -> Problem {
     let how = match status.signal() {
         Some(sig) => format!("was killed by signal {sig} ({})", signal_name(sig)),
         None => format!(
@@ -517,7 +532,7 @@ fn died_problem(status: std::process::ExitStatus, said: &str, memory_mb: u64) ->
     died_problem_text(&how, said, memory_mb)
 }
 
-fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Value {
+fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Problem {
     let out_of_memory = said.contains("memory allocation of") || said.contains("out of memory");
     // What the process said that tells why: the failed allocation, a panic, else its last words.
     let last_line = said
@@ -528,17 +543,17 @@ fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Value {
         .unwrap_or("")
         .trim()
         .to_string();
-    json!({
-        "type": "https://millsim.dev/problems/resource-limit",
-        "title": if out_of_memory { "Job ran out of memory" } else { "Job's process died" },
-        "status": 422,
-        "detail": format!(
+    Problem::new(
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "resource-limit",
+        if out_of_memory { "Job ran out of memory" } else { "Job's process died" },
+        format!(
             "the process running this job {how}{}; its memory budget is {memory_mb} MiB (job_memory_mb). The job is not retried: it would die again",
             if last_line.is_empty() { String::new() } else { format!(" after: {last_line}") },
         ),
-        "limit_name": "job_memory_mb",
-        "limit": memory_mb,
-    })
+    )
+    .with("limit_name", "job_memory_mb")
+    .with("limit", memory_mb)
 }
 
 fn signal_name(sig: i32) -> &'static str {

@@ -9,7 +9,8 @@ use serde_json::{json, Value};
 use millsim_engine::tool::Tool;
 use millsim_engine::tool_library::{Note, ToolLibrary};
 
-use crate::runner::LoadedInput;
+use crate::jobs::LoadedInput;
+use crate::problem::Problem;
 
 /// A library as a job uses it.
 pub struct JobLibrary {
@@ -20,11 +21,10 @@ pub struct JobLibrary {
 }
 
 impl JobLibrary {
-    /// Reads the stored library (the problem document of the upload if it no longer reads).
-    pub fn load(input: LoadedInput) -> Result<JobLibrary, Value> {
+    /// Reads the stored library (the problem of the upload if it no longer reads).
+    pub fn load(input: LoadedInput) -> Result<JobLibrary, Problem> {
         let file = input.file_name.unwrap_or_else(|| "tools".into());
-        let library =
-            crate::validate::read_tool_library(&input.content, &file).map_err(|e| e.to_json())?;
+        let library = crate::validate::read_tool_library(&input.content, &file)?;
         Ok(JobLibrary {
             file,
             library,

@@ -7,13 +7,15 @@ mod isolate;
 mod job_estimates;
 mod job_library;
 mod job_limits;
+mod jobs;
 mod metrics;
+mod problem;
 mod queue;
 mod run_cli;
-mod runner;
 mod stability_cli;
 mod store;
 mod validate;
+mod webhooks;
 
 use std::io::Write;
 use std::net::SocketAddr;
@@ -113,9 +115,19 @@ struct QueueArgs {
         default_value = "process"
     )]
     job_isolation: config::Isolation,
+    /// Let webhooks post to private, loopback and link-local addresses (a plant network,
+    /// tests); by default only public hosts are targets.
+    #[arg(long, env = "MILLSIM_WEBHOOK_ALLOW_PRIVATE")]
+    webhook_allow_private: bool,
 }
 
 impl QueueArgs {
+    fn webhooks(&self) -> webhooks::WebhookConfig {
+        webhooks::WebhookConfig {
+            allow_private: self.webhook_allow_private,
+        }
+    }
+
     fn config(&self, default_workers: usize) -> Result<QueueConfig, String> {
         if !(self.lease_secs >= 0.2 && self.lease_secs <= 3600.0) {
             return Err(format!(
@@ -423,6 +435,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
         job_submitted: wake.clone(),
         max_attempts: queue.max_attempts,
         job_limits: queue.limits,
+        webhooks: args.queue.webhooks(),
         shutdown: shutdown.clone(),
     };
     let listener = tokio::net::TcpListener::bind(args.bind)
@@ -430,6 +443,12 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
         .map_err(|e| format!("cannot bind {}: {e}", args.bind))?;
     let addr = listener.local_addr().map_err(|e| e.to_string())?;
     let shutdown_grace_ms = queue.shutdown_grace_ms;
+    // Webhook deliveries run beside the workers, never on them.
+    let dispatcher = tokio::spawn(webhooks::run_dispatcher(
+        db.clone(),
+        args.queue.webhooks(),
+        shutdown.clone(),
+    ));
     let workers = tokio::spawn(queue::run_workers(
         db,
         queue,
@@ -450,6 +469,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     };
     http::server::serve(listener, http::router(state), limits, shutdown.clone()).await;
     let _ = workers.await;
+    let _ = dispatcher.await;
     Ok(())
 }
 
@@ -462,6 +482,11 @@ async fn worker(args: WorkerArgs) -> Result<(), String> {
         .await
         .map_err(|e| format!("{}: {e}", args.queue.database))?;
     let shutdown = shutdown_signal();
+    let dispatcher = tokio::spawn(webhooks::run_dispatcher(
+        db.clone(),
+        args.queue.webhooks(),
+        shutdown.clone(),
+    ));
     queue::run_workers(
         db,
         queue,
@@ -470,6 +495,7 @@ async fn worker(args: WorkerArgs) -> Result<(), String> {
         shutdown,
     )
     .await;
+    let _ = dispatcher.await;
     Ok(())
 }
 
@@ -501,7 +527,7 @@ fn interpret(args: InterpretArgs) -> ExitCode {
         },
         None => None,
     };
-    let job_options = runner::InterpretOptions {
+    let job_options = jobs::InterpretOptions {
         dialect: match args.dialect {
             DialectArg::Auto => nc::Dialect::Auto,
             DialectArg::Fanuc => nc::Dialect::Fanuc,

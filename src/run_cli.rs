@@ -1,4 +1,4 @@
-//! `millsim run`: a simulate job offline, for a CAM workstation. Same runner as the
+//! `millsim run`: a simulate job offline, for a CAM workstation. Same job code as the
 //! service's workers; writes summary.json, blocks.csv and stock.stl into --out.
 
 use std::path::{Path, PathBuf};
@@ -9,7 +9,7 @@ use serde_json::{json, Map, Value};
 use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::csv;
-use crate::runner::{self, JobFailure, LoadedInput, LoadedInputs};
+use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs, SimulateOptions};
 
 #[derive(clap::Args)]
 pub struct RunArgs {
@@ -176,7 +176,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         let (name, path) = match spec.split_once('=') {
             Some((t, p)) => {
                 let name = t.trim().to_ascii_uppercase();
-                if runner::tool_number_input("simulate", &name).is_none() {
+                if JobKind::Simulate.tool_number_input(&name).is_none() {
                     return Err(format!("--tool {spec}: `{t}` is not a tool number like T1"));
                 }
                 (name, p)
@@ -194,7 +194,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         // One tool: it serves every tool number of the program, whatever it is named.
         if let Some(k) = inputs
             .keys()
-            .find(|k| runner::tool_number_input("simulate", k).is_some())
+            .find(|k| JobKind::Simulate.tool_number_input(k).is_some())
             .cloned()
         {
             let tool = inputs.remove(&k).expect("key found above");
@@ -227,7 +227,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             },
         );
     }
-    runner::check_tool_inputs("simulate", inputs.keys()).map_err(|(_, m)| m)?;
+    crate::jobs::check_tool_inputs(JobKind::Simulate, inputs.keys()).map_err(|e| e.message)?;
     if let Some(path) = &args.part {
         let part = file_input(path, "model/stl")?;
         crate::validate::stl(&part.content, &path.display().to_string())
@@ -286,16 +286,16 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         options.insert("limits".into(), Value::Object(limits));
     }
     let kind = if args.optimize.is_some() {
-        "optimize"
+        JobKind::Optimize
     } else {
-        "simulate"
+        JobKind::Simulate
     };
     let options = Value::Object(options);
-    let parsed: runner::SimulateOptions = serde_json::from_value(options.clone())
+    let parsed: SimulateOptions = serde_json::from_value(options.clone())
         .map_err(|e| format!("--optimize or --axes: {e}"))?;
     parsed
-        .check(kind == "optimize", inputs.contains_key("material"))
-        .map_err(|(f, m)| format!("{f}: {m}"))?;
+        .check(kind == JobKind::Optimize, inputs.contains_key("material"))
+        .map_err(|e| e.to_string())?;
 
     let started = std::time::Instant::now();
     let progress = StderrProgress::new();
@@ -305,8 +305,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     };
     // The stock goes straight to its file: at fine cells it is the largest output.
     std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
-    let result = runner::run_with_stock_file(
-        kind,
+    let result = kind.run(
         &options,
         inputs,
         &limits,
@@ -316,10 +315,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     );
     progress.finish();
     let out = result.map_err(|f| match f {
-        JobFailure::Invalid(problem) => problem["detail"]
-            .as_str()
-            .map(str::to_string)
-            .unwrap_or_else(|| problem.to_string()),
+        JobFailure::Invalid(problem) => problem.detail,
         JobFailure::Cancelled => "cancelled".into(),
     })?;
     let wall = started.elapsed().as_secs_f64();

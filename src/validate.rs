@@ -7,35 +7,12 @@ use serde_json::{json, Value};
 use millsim_engine::tool_library::ToolLibrary;
 use millsim_engine::{geometry, machine::Machine, nc, physics::Material, tool::Tool};
 
-use crate::http::problem::{parse_json, ApiError};
+use crate::problem::{parse_json, Problem};
 
 /// A validated input ready to store.
 pub struct Validated {
     pub media_type: &'static str,
     pub summary: Value,
-}
-
-fn diagnostics_problem(file: &str, what: &'static str, d: &nc::Diagnostics) -> ApiError {
-    let errors: Vec<Value> =
-        d.0.iter()
-            .map(|e| json!({ "line": e.line, "column": e.col, "message": e.message }))
-            .collect();
-    let first =
-        d.0.first()
-            .map(|e| format!("{file}:{}:{}: {}", e.line, e.col, e.message))
-            .unwrap_or_default();
-    let mut err = ApiError::new(
-        axum::http::StatusCode::UNPROCESSABLE_ENTITY,
-        "invalid-program",
-        what,
-        format!("{} error(s); first: {first}", d.0.len()),
-    )
-    .with("file", file.to_string())
-    .with("errors", Value::Array(errors));
-    if let Some(e) = d.0.first() {
-        err = err.with("line", e.line).with("column", e.col);
-    }
-    err
 }
 
 /// The line and column of a byte offset in `bytes` (1-based).
@@ -70,10 +47,10 @@ fn utf8<'a>(
     file: &str,
     slug: &'static str,
     title: &'static str,
-) -> Result<&'a str, ApiError> {
+) -> Result<&'a str, Problem> {
     std::str::from_utf8(bytes).map_err(|e| {
         let (line, column) = line_col(bytes, e.valid_up_to());
-        ApiError::new(
+        Problem::new(
             axum::http::StatusCode::UNPROCESSABLE_ENTITY,
             slug,
             title,
@@ -89,10 +66,10 @@ fn utf8<'a>(
 }
 
 /// NC program text: UTF-8 (or plain ASCII), then the syntax of G-code or CLS.
-pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
+pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
     let text = utf8(bytes, file, "invalid-program", "Program is not text")?;
     if text.trim().is_empty() {
-        return Err(ApiError::invalid_field(
+        return Err(Problem::invalid_field(
             "content",
             format!("{file}: the program is empty"),
         ));
@@ -100,14 +77,14 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
     let lines = text.lines().count();
     if looks_like_cls(text) {
         let cls = millsim_engine::cl::read_cls(text)
-            .map_err(|d| diagnostics_problem(file, "CLS file does not read", &d))?;
+            .map_err(|d| Problem::program_unreadable(file, "CLS file does not read", &d))?;
         return Ok(Validated {
             media_type: "text/plain",
             summary: json!({ "format": "cls", "lines": lines, "moves": cls.moves.len() }),
         });
     }
     let parsed = nc::Program::parse(text)
-        .map_err(|d| diagnostics_problem(file, "G-code does not parse", &d))?;
+        .map_err(|d| Problem::program_unreadable(file, "G-code does not parse", &d))?;
     Ok(Validated {
         media_type: "text/plain",
         summary: json!({ "format": "gcode", "lines": lines, "blocks": parsed.blocks().len() }),
@@ -115,9 +92,9 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
 }
 
 /// STL stock or part: read and checked (closed, finite, sane size) by the engine.
-pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
+pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
     let mesh = geometry::Mesh::from_stl_bytes(bytes).map_err(|e| {
-        ApiError::new(
+        Problem::new(
             axum::http::StatusCode::UNPROCESSABLE_ENTITY,
             "invalid-stl",
             "STL is not usable",
@@ -133,11 +110,11 @@ pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
 }
 
 /// A parametric stock (block or cylinder) as JSON.
-pub fn stock_json(bytes: &[u8]) -> Result<Validated, ApiError> {
+pub fn stock_json(bytes: &[u8]) -> Result<Validated, Problem> {
     let shape: geometry::StockShape = parse_json(bytes)?;
     let (min, max) = shape
         .bounds()
-        .map_err(|e| ApiError::invalid_field("", e.to_string()))?;
+        .map_err(|e| Problem::invalid_field("", e.to_string()))?;
     Ok(Validated {
         media_type: "application/json",
         summary: json!({ "format": "parametric", "bounds": { "min": min, "max": max } }),
@@ -146,7 +123,7 @@ pub fn stock_json(bytes: &[u8]) -> Result<Validated, ApiError> {
 
 /// A tool library (Fusion 360 JSON, LinuxCNC tool table or CSV, told apart by content)
 /// read by the engine; errors name the file, the tool or line, and the field.
-pub fn read_tool_library(bytes: &[u8], file: &str) -> Result<ToolLibrary, ApiError> {
+pub fn read_tool_library(bytes: &[u8], file: &str) -> Result<ToolLibrary, Problem> {
     let text = utf8(
         bytes,
         file,
@@ -154,14 +131,14 @@ pub fn read_tool_library(bytes: &[u8], file: &str) -> Result<ToolLibrary, ApiErr
         "Tool library is not text",
     )?;
     ToolLibrary::read(text).map_err(|e| {
-        let mut err = ApiError::from(e);
+        let mut err = Problem::from(e);
         err.detail = format!("{file}: {}", err.detail);
         err.with("file", file.to_string())
     })
 }
 
 /// A tool library to store: its media type follows the format read.
-pub fn tool_library(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
+pub fn tool_library(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
     let lib = read_tool_library(bytes, file)?;
     Ok(Validated {
         media_type: match lib.format {
@@ -178,30 +155,30 @@ pub fn tool_library(bytes: &[u8], file: &str) -> Result<Validated, ApiError> {
     })
 }
 
-pub fn tool(bytes: &[u8]) -> Result<Validated, ApiError> {
+pub fn tool(bytes: &[u8]) -> Result<Validated, Problem> {
     let tool: Tool = parse_json(bytes)?;
     tool.validate()
-        .map_err(|e| ApiError::invalid_field(e.field, e.to_string()))?;
+        .map_err(|e| Problem::invalid_field(e.field, e.to_string()))?;
     Ok(Validated {
         media_type: "application/json",
         summary: json!({ "shape": tool.shape, "diameter": tool.diameter, "flutes": tool.flutes }),
     })
 }
 
-pub fn material(bytes: &[u8]) -> Result<Validated, ApiError> {
+pub fn material(bytes: &[u8]) -> Result<Validated, Problem> {
     let m: Material = parse_json(bytes)?;
     m.validate()
-        .map_err(|e| ApiError::invalid_field(e.field().to_string(), e.to_string()))?;
+        .map_err(|e| Problem::invalid_field(e.field().to_string(), e.to_string()))?;
     Ok(Validated {
         media_type: "application/json",
         summary: json!({ "name": m.name, "source": m.source }),
     })
 }
 
-pub fn machine(bytes: &[u8]) -> Result<Validated, ApiError> {
+pub fn machine(bytes: &[u8]) -> Result<Validated, Problem> {
     let m: Machine = parse_json(bytes)?;
     m.validate()
-        .map_err(|e| ApiError::invalid_field(e.field.clone(), e.to_string()))?;
+        .map_err(|e| Problem::invalid_field(e.field.clone(), e.to_string()))?;
     Ok(Validated {
         media_type: "application/json",
         summary: json!({ "name": m.name, "kinematics": m.kinematics }),

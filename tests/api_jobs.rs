@@ -228,10 +228,15 @@ async fn jobs_are_validated_at_submission() {
             "{body} -> {p}"
         );
     }
+    // identify runs now (tests/api_identify.rs): without its tool it is refused naming it.
     let (st, p) = post_json(&c, &s, "/v1/jobs", &json!({"kind": "identify"})).await;
     assert_eq!(
-        (st, p["type"].as_str()),
-        (422, Some("https://millsim.dev/problems/not-supported"))
+        (st, p["type"].as_str(), p["field"].as_str()),
+        (
+            422,
+            Some("https://millsim.dev/problems/invalid-field"),
+            Some("inputs.tool")
+        )
     );
 }
 

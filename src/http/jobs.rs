@@ -18,10 +18,11 @@ use super::auth::hex;
 use super::body::read_limited;
 use super::problem::{parse_json, ApiError};
 use super::{parse_query, AppState, Owner, PageQuery};
+use crate::jobs::{JobKind, SimulateOptions};
 use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
 use crate::validate;
-use crate::{csv, job_limits, runner};
+use crate::{csv, job_limits};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -52,57 +53,6 @@ fn job_response(status: StatusCode, job: &JobRecord, replayed: bool) -> Response
     res
 }
 
-/// Checks the options of a kind at submission, so a bad option is a 422 now rather
-/// than a failed job later.
-fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Result<(), ApiError> {
-    fn parse<T: serde::de::DeserializeOwned>(options: &Value) -> Result<T, ApiError> {
-        parse_json(options.to_string().as_bytes()).map_err(|mut e| {
-            let field = e
-                .extensions
-                .get("field")
-                .and_then(Value::as_str)
-                .unwrap_or("")
-                .to_string();
-            e.extensions
-                .insert("field".into(), Value::String(format!("options.{field}")));
-            e
-        })
-    }
-    match kind {
-        "interpret" => {
-            let o: runner::InterpretOptions = parse(options)?;
-            o.engine_options().map_err(|d| {
-                let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
-                ApiError::invalid_field("options.tool_table", format!("tool table: {first}"))
-            })?;
-        }
-        "rotary-feed" => {
-            let o: runner::RotaryFeedJobOptions = parse(options)?;
-            if !(1..=9).contains(&o.decimals) {
-                return Err(ApiError::invalid_field(
-                    "options.decimals",
-                    format!("must be 1 to 9, got {}", o.decimals),
-                ));
-            }
-        }
-        "energy" => {
-            runner::energy_options(options, has_material_input)
-                .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
-        }
-        "stability" => {
-            runner::stability_options(options)
-                .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
-        }
-        "simulate" | "optimize" => {
-            let o: runner::SimulateOptions = parse(options)?;
-            o.check(kind == "optimize", has_material_input)
-                .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
-        }
-        _ => {}
-    }
-    Ok(())
-}
-
 /// A simulation whose grid and stock export alone cannot fit the job memory budget is
 /// refused now (422 naming the budget and the estimate) rather than failed later; what
 /// needs the program (step records, rows) is checked when the job runs. The other kinds
@@ -110,11 +60,11 @@ fn check_options(kind: &str, options: &Value, has_material_input: bool) -> Resul
 async fn check_memory_budget(
     state: &AppState,
     owner: &str,
-    kind: &str,
+    kind: JobKind,
     (inputs, inline_program): (&Map<String, Value>, Option<u64>),
     options: &Value,
 ) -> Result<(), ApiError> {
-    if !matches!(kind, "simulate" | "optimize") {
+    if !matches!(kind, JobKind::Simulate | JobKind::Optimize) {
         // The other kinds by their options and the program's size.
         let stored = match inputs.get("program").and_then(Value::as_str) {
             Some(id) => {
@@ -126,10 +76,15 @@ async fn check_memory_budget(
             None => None,
         };
         let program = inline_program.or(stored.map(|r| r.size.max(0) as u64));
-        return crate::job_estimates::check(kind, options, program.unwrap_or(0), &state.job_limits)
-            .map_err(ApiError::over_budget);
+        return crate::job_estimates::check(
+            kind.as_str(),
+            options,
+            program.unwrap_or(0),
+            &state.job_limits,
+        )
+        .map_err(ApiError::over_budget);
     }
-    let Ok(o) = serde_json::from_value::<runner::SimulateOptions>(options.clone()) else {
+    let Ok(o) = serde_json::from_value::<SimulateOptions>(options.clone()) else {
         return Ok(());
     };
     let Some(stock) = inputs.get("stock").and_then(Value::as_str) else {
@@ -147,7 +102,7 @@ async fn check_memory_budget(
     };
     let mut diameters = Vec::new();
     for (name, id) in inputs {
-        if name != "tool" && runner::tool_number_input(kind, name).is_none() {
+        if name != "tool" && kind.tool_number_input(name).is_none() {
             continue;
         }
         let Some(id) = id.as_str() else { continue };
@@ -164,22 +119,9 @@ async fn check_memory_budget(
     }
 }
 
-pub async fn create(
-    State(state): State<AppState>,
-    Owner(owner): Owner,
-    headers: HeaderMap,
-    req: Request,
-) -> Result<Response, ApiError> {
-    let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes).await?;
-    // Up to the body limit of JSON (an inline program): parsed and hashed off the async
-    // runtime, as the program itself is read below.
-    let (request, request_hash) = tokio::task::spawn_blocking(move || {
-        let request: JobRequest = parse_json(&bytes)?;
-        Ok::<_, ApiError>((request, hex(&Sha256::digest(&bytes))))
-    })
-    .await
-    .map_err(|e| ApiError::blocking_failed(e, "the job request reader"))??;
-    let key = match headers.get("idempotency-key") {
+/// The `Idempotency-Key` header, if given: 1 to 255 visible ASCII characters.
+fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
+    Ok(match headers.get("idempotency-key") {
         None => None,
         Some(v) => {
             let k = v
@@ -193,67 +135,32 @@ pub async fn create(
             }
             Some(k.to_string())
         }
-    };
-    if !runner::KNOWN_KINDS.contains(&request.kind.as_str()) {
-        return Err(ApiError::invalid_field(
-            "kind",
-            format!(
-                "unknown job kind `{}`; one of: {}",
-                request.kind,
-                runner::KNOWN_KINDS.join(", ")
-            ),
-        ));
-    }
-    if !runner::is_supported(&request.kind) {
-        return Err(ApiError::not_supported(format!(
-            "job kind `{}` is not supported yet by this server",
-            request.kind
-        ))
-        .with("field", "kind"));
-    }
-    let options = request.options.clone().unwrap_or_else(|| json!({}));
-    if !options.is_object() {
-        return Err(ApiError::invalid_field(
-            "options",
-            "`options` must be a JSON object",
-        ));
-    }
+    })
+}
 
+/// Each input the kind wants, as given: the id of a stored resource of the owner's
+/// (checked to exist), or an inline program (read and stored with the job).
+async fn resolve_inputs(
+    state: &AppState,
+    owner: &str,
+    job_kind: JobKind,
+    given: &Map<String, Value>,
+) -> Result<(Map<String, Value>, Vec<InlineInput>), ApiError> {
     let mut inputs = Map::new();
     let mut inline = Vec::new();
-    let specs = runner::inputs_of(&request.kind);
-    for name in request.inputs.keys() {
-        if !specs.iter().any(|s| s.name == name)
-            && runner::tool_number_input(&request.kind, name).is_none()
-        {
-            return Err(ApiError::invalid_field(
-                format!("inputs.{name}"),
-                format!("a `{}` job takes no input `{name}`", request.kind),
-            ));
-        }
-    }
-    // The kind's fixed inputs, then any per-number tools (`T1`, `T2`, ...).
-    let mut wanted: Vec<(&str, ResourceKind, bool)> =
-        specs.iter().map(|s| (s.name, s.kind, s.required)).collect();
-    wanted.extend(
-        request
-            .inputs
-            .keys()
-            .filter(|n| runner::tool_number_input(&request.kind, n).is_some())
-            .map(|n| (n.as_str(), ResourceKind::Tool, true)),
-    );
+    let wanted = job_kind.wanted_inputs(given.keys())?;
     for (name, kind, required) in wanted {
         let field = format!("inputs.{name}");
-        match request.inputs.get(name) {
+        match given.get(name) {
             None if required => {
                 return Err(ApiError::invalid_field(
                     field,
-                    format!("a `{}` job needs input `{name}`", request.kind),
+                    format!("a `{}` job needs input `{name}`", job_kind.as_str()),
                 ))
             }
             None => {}
             Some(Value::String(id)) => {
-                if state.db.get_resource(&owner, kind, id).await?.is_none() {
+                if state.db.get_resource(owner, kind, id).await?.is_none() {
                     return Err(ApiError::invalid_field(
                         field,
                         format!("no {} with id `{id}`", kind.as_str()),
@@ -303,13 +210,43 @@ pub async fn create(
             }
         }
     }
-    runner::check_tool_inputs(&request.kind, request.inputs.keys())
-        .map_err(|(field, message)| ApiError::invalid_field(field, message))?;
-    check_options(
-        &request.kind,
-        &options,
-        request.inputs.contains_key("material"),
-    )?;
+    Ok((inputs, inline))
+}
+
+pub async fn create(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    headers: HeaderMap,
+    req: Request,
+) -> Result<Response, ApiError> {
+    let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes).await?;
+    // Up to the body limit of JSON (an inline program): parsed and hashed off the async
+    // runtime, as the program itself is read below.
+    let (request, request_hash) = tokio::task::spawn_blocking(move || {
+        let request: JobRequest = parse_json(&bytes)?;
+        Ok::<_, ApiError>((request, hex(&Sha256::digest(&bytes))))
+    })
+    .await
+    .map_err(|e| ApiError::blocking_failed(e, "the job request reader"))??;
+    let key = idempotency_key(&headers)?;
+    let job_kind = JobKind::from_request(&request.kind, "kind")?;
+    if !job_kind.is_supported() {
+        return Err(ApiError::not_supported(format!(
+            "job kind `{}` is not supported yet by this server",
+            request.kind
+        ))
+        .with("field", "kind"));
+    }
+    let options = request.options.clone().unwrap_or_else(|| json!({}));
+    if !options.is_object() {
+        return Err(ApiError::invalid_field(
+            "options",
+            "`options` must be a JSON object",
+        ));
+    }
+
+    let (inputs, inline) = resolve_inputs(&state, &owner, job_kind, &request.inputs).await?;
+    job_kind.check(request.inputs.keys(), &options)?;
     let inline_program = inline
         .iter()
         .find(|i| i.kind == ResourceKind::Program)
@@ -317,7 +254,7 @@ pub async fn create(
     check_memory_budget(
         &state,
         &owner,
-        &request.kind,
+        job_kind,
         (&inputs, inline_program),
         &options,
     )
@@ -404,15 +341,7 @@ pub async fn list(
         })?),
     };
     if let Some(k) = &q.kind {
-        if !runner::KNOWN_KINDS.contains(&k.as_str()) {
-            return Err(ApiError::invalid_field(
-                "kind",
-                format!(
-                    "unknown job kind `{k}`; one of: {}",
-                    runner::KNOWN_KINDS.join(", ")
-                ),
-            ));
-        }
+        JobKind::from_request(k, "kind")?;
     }
     let (items, next) = state
         .db

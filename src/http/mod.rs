@@ -8,6 +8,7 @@ pub mod ops;
 pub mod problem;
 pub mod resources;
 pub mod server;
+pub mod webhooks;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -42,6 +43,8 @@ pub struct AppState {
     pub max_attempts: i64,
     /// What each job is held to: submissions estimated over it are refused.
     pub job_limits: crate::job_limits::JobLimits,
+    /// Which webhook targets registration accepts.
+    pub webhooks: crate::webhooks::WebhookConfig,
 }
 
 /// Every route of the service, as (method, path) in the router's syntax. The router is
@@ -76,6 +79,15 @@ pub fn route_table() -> Vec<(Method, String)> {
         (Method::GET, "/v1/jobs/{id}/blocks/{range}/samples"),
         (Method::GET, "/v1/jobs/{id}/program"),
         (Method::GET, "/v1/jobs/{id}/stock.stl"),
+        (Method::POST, "/v1/webhooks"),
+        (Method::GET, "/v1/webhooks"),
+        (Method::GET, "/v1/webhooks/{id}"),
+        (Method::DELETE, "/v1/webhooks/{id}"),
+        (Method::GET, "/v1/webhooks/{id}/deliveries"),
+        (
+            Method::POST,
+            "/v1/webhooks/{id}/deliveries/{delivery_id}/redeliver",
+        ),
     ] {
         routes.push((m, p.into()));
     }
@@ -118,6 +130,16 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs/{id}/blocks/{range}/samples", get(jobs::samples))
         .route("/v1/jobs/{id}/program", get(jobs::program))
         .route("/v1/jobs/{id}/stock.stl", get(jobs::stock_stl))
+        .route("/v1/webhooks", post(webhooks::create).get(webhooks::list))
+        .route(
+            "/v1/webhooks/{id}",
+            get(webhooks::get_one).delete(webhooks::delete),
+        )
+        .route("/v1/webhooks/{id}/deliveries", get(webhooks::deliveries))
+        .route(
+            "/v1/webhooks/{id}/deliveries/{delivery_id}/redeliver",
+            post(webhooks::redeliver),
+        )
         .layer(timeout(limits.upload_timeout_secs))
         // Multipart reads through axum's limit; raw bodies are limited by body::read_limited.
         .layer(DefaultBodyLimit::max(limits.max_stl_bytes as usize))

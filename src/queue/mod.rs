@@ -6,16 +6,19 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use serde_json::json;
+use axum::http::StatusCode;
 use tokio::sync::{watch, Notify};
 
 use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::config::{Isolation, QueueConfig};
 use crate::isolate::{self, Ended};
+use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs};
 use crate::metrics::Metrics;
-use crate::runner::{self, JobFailure, LoadedInputs};
-use crate::store::jobs::{Artifact, ClaimedJob, Finish, LeaseState, IN_PROCESS_MARK};
+use crate::problem::Problem;
+use crate::store::jobs::{
+    Artifact, ClaimedJob, CreatedResource, Finish, LeaseState, IN_PROCESS_MARK,
+};
 use crate::store::{Db, ResourceKind, StoreError};
 
 /// Why a job's inputs could not be loaded.
@@ -23,7 +26,7 @@ enum InputsError {
     /// The database did not answer: the job is not at fault and is tried again.
     Storage(StoreError),
     /// The inputs themselves are unusable (deleted): the job fails with this problem.
-    Invalid(serde_json::Value),
+    Invalid(Problem),
 }
 
 /// Progress of a running job, read by the heartbeat.
@@ -117,9 +120,14 @@ impl Worker {
         }
     }
 
-    async fn load_inputs(&self, job: &ClaimedJob) -> Result<LoadedInputs, InputsError> {
+    async fn load_inputs(
+        &self,
+        job: &ClaimedJob,
+        kind: JobKind,
+    ) -> Result<LoadedInputs, InputsError> {
         let mut loaded = LoadedInputs::new();
-        let mut wanted: Vec<(String, ResourceKind)> = runner::inputs_of(&job.kind)
+        let mut wanted: Vec<(String, ResourceKind)> = kind
+            .inputs()
             .iter()
             .map(|s| (s.name.to_string(), s.kind))
             .collect();
@@ -127,7 +135,7 @@ impl Worker {
             wanted.extend(
                 given
                     .keys()
-                    .filter(|n| runner::tool_number_input(&job.kind, n).is_some())
+                    .filter(|n| kind.tool_number_input(n).is_some())
                     .map(|n| (n.clone(), ResourceKind::Tool)),
             );
         }
@@ -141,15 +149,19 @@ impl Worker {
                 .await
                 .map_err(InputsError::Storage)?;
             let Some((file_name, media_type, content)) = found else {
-                return Err(InputsError::Invalid(json!({
-                    "type": "https://millsim.dev/problems/input-gone",
-                    "title": "Input deleted", "status": 422,
-                    "detail": format!("input `{name}` ({} {id}) was deleted before the job ran", kind.as_str()),
-                })));
+                return Err(InputsError::Invalid(Problem::new(
+                    StatusCode::UNPROCESSABLE_ENTITY,
+                    "input-gone",
+                    "Input deleted",
+                    format!(
+                        "input `{name}` ({} {id}) was deleted before the job ran",
+                        kind.as_str()
+                    ),
+                )));
             };
             loaded.insert(
                 name,
-                runner::LoadedInput {
+                LoadedInput {
                     file_name,
                     media_type,
                     content,
@@ -162,8 +174,22 @@ impl Worker {
     async fn run_job(&mut self, job: ClaimedJob) {
         let started = Instant::now();
         tracing::info!(worker = %self.id, job = %job.id, kind = %job.kind, attempt = job.attempt, "job claimed");
-        let outcome = match self.load_inputs(&job).await {
-            Err(InputsError::Invalid(problem)) => Finish::Failed { error: problem },
+        // A kind this build does not know (stored by a newer server sharing the database):
+        // the job fails, saying so, rather than being claimed again and again.
+        let loaded = match JobKind::parse(&job.kind) {
+            Some(kind) => self
+                .load_inputs(&job, kind)
+                .await
+                .map(|inputs| (kind, inputs)),
+            None => Err(InputsError::Invalid(Problem::not_supported(format!(
+                "job kind `{}` is not known to this worker",
+                job.kind
+            )))),
+        };
+        let outcome = match loaded {
+            Err(InputsError::Invalid(problem)) => Finish::Failed {
+                error: problem.to_json(),
+            },
             Err(InputsError::Storage(e)) => {
                 tracing::warn!(worker = %self.id, job = %job.id, error = %e, "could not load the job's inputs; giving the job back");
                 if let Err(e) = self.db.release_job(&job, &self.id).await {
@@ -173,7 +199,7 @@ impl Worker {
                 tokio::time::sleep(Duration::from_millis(STORAGE_BACKOFF_MS)).await;
                 return;
             }
-            Ok(inputs) => match self.execute(&job, inputs).await {
+            Ok((kind, inputs)) => match self.execute(&job, kind, inputs).await {
                 Some(finish) => finish,
                 // Lease lost or given back: whoever holds the job now writes its outcome.
                 None => return,
@@ -201,9 +227,14 @@ impl Worker {
 
     /// Runs the engine and heartbeats until it ends. None when the job must not be
     /// finished by this worker (lease lost, or given back on shutdown).
-    async fn execute(&mut self, job: &ClaimedJob, inputs: LoadedInputs) -> Option<Finish> {
+    async fn execute(
+        &mut self,
+        job: &ClaimedJob,
+        kind: JobKind,
+        inputs: LoadedInputs,
+    ) -> Option<Finish> {
         let progress = Arc::new(SharedProgress::default());
-        let mut engine = match self.start_engine(job, inputs, progress.clone()) {
+        let mut engine = match self.start_engine(job, kind, inputs, progress.clone()) {
             Ok(e) => e,
             Err(e) => {
                 // Cannot start a process (descriptors, fork): not the job's fault.
@@ -259,6 +290,18 @@ impl Worker {
         }
         match result {
             Ended::Returned(Ok(out)) => Some(Finish::Succeeded {
+                resources: out
+                    .resources
+                    .into_iter()
+                    .map(|r| CreatedResource {
+                        id: r.id,
+                        kind: r.kind,
+                        name: r.name,
+                        media_type: r.media_type,
+                        summary: r.summary,
+                        content: r.content,
+                    })
+                    .collect(),
                 summary: out.summary,
                 rows: out.rows,
                 samples: out.samples,
@@ -277,9 +320,9 @@ impl Worker {
                     progress.total.load(Ordering::Relaxed),
                 ),
             }),
-            Ended::Returned(Err(JobFailure::Invalid(problem))) => {
-                Some(Finish::Failed { error: problem })
-            }
+            Ended::Returned(Err(JobFailure::Invalid(problem))) => Some(Finish::Failed {
+                error: problem.to_json(),
+            }),
             Ended::Returned(Err(JobFailure::Cancelled)) if give_back => {
                 match self.db.release_job(job, &self.id).await {
                     Ok(_) => {
@@ -293,17 +336,15 @@ impl Worker {
             }
             Ended::Returned(Err(JobFailure::Cancelled)) => Some(Finish::Cancelled),
             Ended::Died(problem) => {
-                tracing::error!(worker = %self.id, job = %job.id, error = %problem["detail"], "the job's process died");
-                Some(Finish::Failed { error: problem })
+                tracing::error!(worker = %self.id, job = %job.id, error = %problem.detail, "the job's process died");
+                Some(Finish::Failed {
+                    error: problem.to_json(),
+                })
             }
             Ended::Panicked(said) => {
                 tracing::error!(worker = %self.id, job = %job.id, error = %said, "engine panicked");
                 Some(Finish::Failed {
-                    error: json!({
-                        "type": "https://millsim.dev/problems/internal",
-                        "title": "Internal error", "status": 500,
-                        "detail": "the engine stopped on an internal error while running this job; this is a bug in millsim, please report it with the job id",
-                    }),
+                    error: Problem::internal("the engine stopped on an internal error while running this job; this is a bug in millsim, please report it with the job id").to_json(),
                 })
             }
         }
@@ -313,6 +354,7 @@ impl Worker {
     fn start_engine(
         &self,
         job: &ClaimedJob,
+        kind: JobKind,
         inputs: LoadedInputs,
         progress: Arc<SharedProgress>,
     ) -> std::io::Result<Engine> {
@@ -320,13 +362,13 @@ impl Worker {
         let limits = self.config.limits;
         match self.config.isolation {
             Isolation::Process => Ok(Engine::Process(isolate::spawn(
-                &job.kind, &options, inputs, limits, progress,
+                kind, &options, inputs, limits, progress,
             )?)),
             Isolation::Thread => {
                 let cancel = CancelFlag::new();
-                let (flag, kind) = (cancel.clone(), job.kind.clone());
+                let flag = cancel.clone();
                 let handle = tokio::task::spawn_blocking(move || {
-                    runner::run(&kind, &options, inputs, &limits, &flag, progress.as_ref())
+                    kind.run(&options, inputs, &limits, &flag, progress.as_ref(), None)
                         .map(isolate::ParentOutput::from)
                 });
                 Ok(Engine::Thread { handle, cancel })

@@ -5,7 +5,8 @@
 use serde::Serialize;
 use sqlx::Row;
 
-use super::resources::{insert as insert_resource, NewResource};
+use super::resources::{insert as insert_resource, insert_with_id, NewResource};
+use super::webhooks::enqueue_job_event;
 use super::{new_id, now_ms, rfc3339, Db, StoreError};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -168,12 +169,24 @@ pub enum Finish {
         rows: Vec<String>,
         samples: Vec<(usize, String)>,
         artifacts: Vec<Artifact>,
+        /// Resources the job made, owned by the job's owner.
+        resources: Vec<CreatedResource>,
         progress: (u64, u64),
     },
     Failed {
         error: serde_json::Value,
     },
     Cancelled,
+}
+
+/// A resource a job made, stored with its success under the id the job chose.
+pub struct CreatedResource {
+    pub id: String,
+    pub kind: super::ResourceKind,
+    pub name: String,
+    pub media_type: String,
+    pub summary: serde_json::Value,
+    pub content: Vec<u8>,
 }
 
 pub struct Artifact {
@@ -411,6 +424,7 @@ impl Db {
         if let Some((status, attempt)) = settled {
             if status == "cancelled" {
                 close_lost_attempt(&mut tx, id, attempt, now).await?;
+                enqueue_job_event(&mut tx, id, "job.cancelled").await?;
             }
         }
         tx.commit().await?;
@@ -441,6 +455,7 @@ impl Db {
                 .bind(attempt)
                 .execute(&mut *tx)
                 .await?;
+            enqueue_job_event(&mut tx, id, "job.failed").await?;
         }
         tx.commit().await?;
         Ok(ids.len() as u64)
@@ -470,6 +485,7 @@ impl Db {
         // Their workers died: the attempts end here, or they would stay open for ever.
         for (id, attempt) in &cancelled {
             close_lost_attempt(&mut tx, id, *attempt, now).await?;
+            enqueue_job_event(&mut tx, id, "job.cancelled").await?;
         }
         // A job whose worker ran it inside the server process (thread isolation) and was
         // lost with it may have brought the server down: failed, not run again.
@@ -488,6 +504,7 @@ impl Db {
         .await?;
         for (id, attempt) in &crashed {
             close_lost_attempt(&mut tx, id, *attempt, now).await?;
+            enqueue_job_event(&mut tx, id, "job.failed").await?;
         }
         tx.commit().await?;
         let mut tx = self.pool.begin().await?;
@@ -614,9 +631,24 @@ impl Db {
             rows,
             samples,
             artifacts,
+            resources,
             ..
         } = finish
         {
+            let owner: String = sqlx::query_scalar("SELECT owner FROM jobs WHERE id = ?")
+                .bind(&job.id)
+                .fetch_one(&mut *tx)
+                .await?;
+            for r in &resources {
+                let new = NewResource {
+                    kind: r.kind,
+                    name: Some(&r.name),
+                    media_type: &r.media_type,
+                    summary: r.summary.clone(),
+                    content: &r.content,
+                };
+                insert_with_id(&mut *tx, &r.id, &owner, &new).await?;
+            }
             let numbered: Vec<(usize, String)> = rows.into_iter().enumerate().collect();
             for (table, items) in [("job_rows", numbered), ("job_samples", samples)] {
                 sqlx::query(&format!("DELETE FROM {table} WHERE job_id = ?"))
@@ -654,6 +686,8 @@ impl Db {
         .bind(job.attempt)
         .execute(&mut *tx)
         .await?;
+        // The webhooks' outbox, with the state change: both commit or neither.
+        enqueue_job_event(&mut tx, &job.id, &format!("job.{outcome}")).await?;
         tx.commit().await?;
         Ok(true)
     }

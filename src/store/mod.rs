@@ -3,6 +3,7 @@
 
 pub mod jobs;
 pub mod resources;
+pub mod webhooks;
 
 use std::str::FromStr;
 use std::time::Duration;

@@ -1,11 +1,14 @@
 //! Uploaded inputs: stocks, tools, materials, machines, programs, tool libraries.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use sqlx::Row;
 
 use super::{now_ms, rfc3339, Db, StoreError};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Serialized as [`as_str`](Self::as_str) names it (a job's process sends the kind of a
+/// resource it made to the server).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ResourceKind {
     Stock,
     Tool,
@@ -26,6 +29,7 @@ impl ResourceKind {
     ];
 
     pub fn as_str(self) -> &'static str {
+        // The serde names (snake_case) are these: a test checks them.
         match self {
             ResourceKind::Stock => "stock",
             ResourceKind::Tool => "tool",
@@ -110,11 +114,26 @@ where
     E: sqlx::Executor<'e, Database = sqlx::Sqlite>,
 {
     let id = super::new_id();
+    insert_with_id(exec, &id, owner, new).await?;
+    Ok(id)
+}
+
+/// [`insert`] with an id chosen beforehand (a job names the resource it makes in its
+/// summary before the resource is stored).
+pub async fn insert_with_id<'e, E>(
+    exec: E,
+    id: &str,
+    owner: &str,
+    new: &NewResource<'_>,
+) -> Result<(), StoreError>
+where
+    E: sqlx::Executor<'e, Database = sqlx::Sqlite>,
+{
     sqlx::query(
         "INSERT INTO resources (id, owner, kind, name, media_type, size, summary, content, created_at)
          VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
     )
-    .bind(&id)
+    .bind(id)
     .bind(owner)
     .bind(new.kind.as_str())
     .bind(new.name)
@@ -125,7 +144,7 @@ where
     .bind(now_ms())
     .execute(exec)
     .await?;
-    Ok(id)
+    Ok(())
 }
 
 impl Db {

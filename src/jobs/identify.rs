@@ -1,0 +1,398 @@
+//! The `identify` job: the six cutting coefficients of a work material from mean forces
+//! measured in slotting tests at several feeds per tooth (the engine's average-force
+//! method), with the fit's R² and residuals per axis, and on request a material resource
+//! made from them.
+
+use std::f64::consts::PI;
+
+use serde::Deserialize;
+use serde_json::{json, Value};
+
+use millsim_engine::physics::{
+    identify_coefficients, AxisFit, ForceMeasurement, Identification, IdentificationSetup,
+    Material, PhysicsError,
+};
+use millsim_engine::tool::{Tool, ToolShape};
+
+use super::inputs::{invalid, json_input, required};
+use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputResource};
+use crate::problem::{parse_options, Problem};
+use crate::store::ResourceKind;
+
+pub const INPUTS: [InputSpec; 1] = [
+    // A flat end mill: its flutes scale the coefficients.
+    input("tool", ResourceKind::Tool, true),
+];
+
+/// Most measurements one job takes: a test campaign has tens, not thousands.
+const MAX_MEASUREMENTS: usize = 10_000;
+
+/// Options of an `identify` job.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IdentifyOptions {
+    /// Axial depth of cut of the tests, mm.
+    pub depth_mm: f64,
+    /// The mean forces per feed: an array of {feed_per_tooth_mm, fx_n, fy_n, fz_n}, or CSV
+    /// text whose header names those columns.
+    pub measurements: Value,
+    /// Immersion of the tests, degrees (slotting, the default: 0 to 180).
+    #[serde(default)]
+    pub entry_deg: Option<f64>,
+    #[serde(default)]
+    pub exit_deg: Option<f64>,
+    /// Store the coefficients as a material resource under this name.
+    #[serde(default)]
+    pub create_material: Option<MaterialRequest>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialRequest {
+    pub name: String,
+    /// What the tests were (a lot, a machine, a date): goes into the material's source.
+    #[serde(default)]
+    pub tests: Option<String>,
+}
+
+/// One row of `measurements`, as the API names the columns.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeasurementRow {
+    feed_per_tooth_mm: f64,
+    fx_n: f64,
+    fy_n: f64,
+    fz_n: f64,
+}
+
+/// The columns of a measurement, in the API's names, with the engine's.
+const COLUMNS: [(&str, &str); 4] = [
+    ("feed_per_tooth_mm", "feed_per_tooth"),
+    ("fx_n", "fx"),
+    ("fy_n", "fy"),
+    ("fz_n", "fz"),
+];
+
+/// The options checked and read: the tests' set-up (but the tool's flutes) and the
+/// measurements.
+struct Request {
+    options: IdentifyOptions,
+    entry: f64,
+    exit: f64,
+    measurements: Vec<ForceMeasurement>,
+}
+
+fn read(options: &Value) -> Result<Request, Problem> {
+    let o: IdentifyOptions = parse_options(options)?;
+    let field = |f: &str, m: String| Problem::invalid_field(format!("options.{f}"), m);
+    if !(o.depth_mm.is_finite() && o.depth_mm > 0.0) {
+        return Err(field(
+            "depth_mm",
+            format!("must be a positive number of mm, got {}", o.depth_mm),
+        ));
+    }
+    let entry = o.entry_deg.unwrap_or(0.0);
+    let exit = o.exit_deg.unwrap_or(180.0);
+    if !(entry.is_finite() && exit.is_finite() && 0.0 <= entry && entry < exit && exit <= 180.0) {
+        return Err(field(
+            "exit_deg",
+            format!("need 0 ≤ entry_deg < exit_deg ≤ 180, got {entry} and {exit}"),
+        ));
+    }
+    if let Some(m) = &o.create_material {
+        if m.name.trim().is_empty() || m.name.len() > 200 {
+            return Err(field(
+                "create_material.name",
+                "must be 1 to 200 characters".into(),
+            ));
+        }
+    }
+    let measurements = match &o.measurements {
+        Value::Array(rows) => rows_from_json(rows)?,
+        Value::String(text) => rows_from_csv(text)?,
+        _ => return Err(field(
+            "measurements",
+            "give an array of {feed_per_tooth_mm, fx_n, fy_n, fz_n} or CSV text with those columns"
+                .into(),
+        )),
+    };
+    if measurements.len() > MAX_MEASUREMENTS {
+        return Err(field(
+            "measurements",
+            format!(
+                "at most {MAX_MEASUREMENTS} measurements, got {}",
+                measurements.len()
+            ),
+        ));
+    }
+    Ok(Request {
+        entry: entry.to_radians(),
+        exit: exit.to_radians(),
+        options: o,
+        measurements,
+    })
+}
+
+fn rows_from_json(rows: &[Value]) -> Result<Vec<ForceMeasurement>, Problem> {
+    rows.iter()
+        .enumerate()
+        .map(|(i, row)| {
+            let r: MeasurementRow = serde_path_to_error::deserialize(row).map_err(|e| {
+                let inner = e.inner().to_string();
+                let path = e.path().to_string();
+                let at = if path == "." {
+                    String::new()
+                } else {
+                    format!(".{path}")
+                };
+                Problem::invalid_field(format!("options.measurements[{i}]{at}"), inner)
+            })?;
+            Ok(ForceMeasurement {
+                feed_per_tooth: r.feed_per_tooth_mm,
+                fx: r.fx_n,
+                fy: r.fy_n,
+                fz: r.fz_n,
+            })
+        })
+        .collect()
+}
+
+/// CSV text: a header naming the four columns (any order, others refused), then one row
+/// per measurement. Numbers as Rust reads them, so `NaN` and `inf` arrive and are refused
+/// by the finiteness check, naming the row.
+fn rows_from_csv(text: &str) -> Result<Vec<ForceMeasurement>, Problem> {
+    let field = "options.measurements";
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
+    let (_, header) = lines
+        .next()
+        .ok_or_else(|| Problem::invalid_field(field, "the CSV text is empty"))?;
+    let names: Vec<&str> = header
+        .split(',')
+        .map(|c| c.trim().trim_matches('"'))
+        .collect();
+    let mut at = [usize::MAX; 4];
+    for (i, name) in names.iter().enumerate() {
+        let Some(k) = COLUMNS.iter().position(|(c, _)| c == name) else {
+            return Err(Problem::invalid_field(
+                field,
+                format!(
+                    "CSV line 1: unknown column `{name}`; the columns are feed_per_tooth_mm, fx_n, fy_n, fz_n"
+                ),
+            ));
+        };
+        at[k] = i;
+    }
+    if let Some(k) = at.iter().position(|&i| i == usize::MAX) {
+        return Err(Problem::invalid_field(
+            field,
+            format!("CSV line 1: no column `{}`", COLUMNS[k].0),
+        ));
+    }
+    let mut out = Vec::new();
+    for (n, line) in lines {
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        if cells.len() != names.len() {
+            return Err(Problem::invalid_field(
+                field,
+                format!(
+                    "CSV line {}: {} values for {} columns",
+                    n + 1,
+                    cells.len(),
+                    names.len()
+                ),
+            ));
+        }
+        let mut v = [0.0; 4];
+        for k in 0..4 {
+            let cell = cells[at[k]];
+            v[k] = cell.parse().map_err(|_| {
+                Problem::invalid_field(
+                    field,
+                    format!(
+                        "CSV line {}: {} `{cell}` is not a number",
+                        n + 1,
+                        COLUMNS[k].0
+                    ),
+                )
+                .with("line", n + 1)
+            })?;
+        }
+        out.push(ForceMeasurement {
+            feed_per_tooth: v[0],
+            fx: v[1],
+            fy: v[2],
+            fz: v[3],
+        });
+    }
+    Ok(out)
+}
+
+/// An engine error as a problem naming the option: the engine names a measurement's
+/// fields by its own names (`measurements[2].fx`), the API by the columns' (`fx_n`).
+fn engine_problem(e: PhysicsError) -> Problem {
+    let engine_field = e.field().to_string();
+    let field = match engine_field.as_str() {
+        "axial_depth" => "options.depth_mm".to_string(),
+        "entry" | "exit" | "setup" => "options.exit_deg".to_string(),
+        "flutes" => "inputs.tool".to_string(),
+        f => {
+            let mut f = f.to_string();
+            for (api, engine) in COLUMNS {
+                if let Some(stem) = f.strip_suffix(&format!(".{engine}")) {
+                    f = format!("{stem}.{api}");
+                    break;
+                }
+            }
+            format!("options.{f}")
+        }
+    };
+    Problem::invalid_field(field, e.to_string())
+}
+
+/// The fit, refused when a coefficient came out negative: with forces of the right sign
+/// every one is positive, so a negative one means a sign convention or a unit is wrong.
+fn identify(
+    setup: &IdentificationSetup,
+    measurements: &[ForceMeasurement],
+) -> Result<Identification, Problem> {
+    let id = identify_coefficients(setup, measurements).map_err(engine_problem)?;
+    let k = &id.coefficients;
+    for (name, value, axis) in [
+        ("ktc", k.ktc, "x and y"),
+        ("krc", k.krc, "x and y"),
+        ("kac", k.kac, "z"),
+        ("kte", k.kte, "x and y"),
+        ("kre", k.kre, "x and y"),
+        ("kae", k.kae, "z"),
+    ] {
+        if value < 0.0 {
+            return Err(Problem::new(
+                axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+                "implausible-fit",
+                "Identified coefficients are not credible",
+                format!(
+                    "the fit gives {name} = {value:.4}, a negative coefficient: check the sign convention of the {axis} forces (forces on the tool, x along the feed; a dynamometer under the part measures the reaction: negate it) and their units (N)"
+                ),
+            )
+            .with("field", "options.measurements")
+            .with("coefficient", name)
+            .with("value", value));
+        }
+    }
+    Ok(id)
+}
+
+/// The options at submission: they read, there are two feeds or more, every number is
+/// finite, and the fit is credible (its signs do not depend on the tool's flutes, which
+/// only scale the coefficients, so one flute stands in for the tool here).
+pub fn check(options: &Value) -> Result<(), Problem> {
+    let r = read(options)?;
+    let setup = IdentificationSetup {
+        flutes: 1,
+        axial_depth: r.options.depth_mm,
+        entry: r.entry,
+        exit: r.exit,
+    };
+    identify(&setup, &r.measurements).map(|_| ())
+}
+
+fn fit_json(f: &AxisFit) -> Value {
+    json!({
+        "slope_n_per_mm": f.slope,
+        "intercept_n": f.intercept,
+        "r_squared": f.r_squared,
+        "rms_residual_n": f.rms_residual,
+        "residuals_n": f.residuals,
+    })
+}
+
+pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
+    let r = read(options).map_err(JobFailure::Invalid)?;
+    let tool: Tool = required(json_input(&mut inputs, "tool", "Invalid tool")?, "tool")?;
+    if tool.shape != ToolShape::Flat {
+        return Err(JobFailure::Invalid(Problem::invalid_field(
+            "inputs.tool",
+            "the average-force method needs a flat end mill (the tests' tool)",
+        )));
+    }
+    let setup = IdentificationSetup {
+        flutes: tool.flutes,
+        axial_depth: r.options.depth_mm,
+        entry: r.entry,
+        exit: r.exit,
+    };
+    let id = identify(&setup, &r.measurements).map_err(JobFailure::Invalid)?;
+    let slot = r.entry == 0.0 && (r.exit - PI).abs() < 1e-12;
+    let mut feeds: Vec<f64> = r.measurements.iter().map(|m| m.feed_per_tooth).collect();
+    feeds.sort_by(f64::total_cmp);
+    let tests = format!(
+        "{} {} tests at {} feeds per tooth from {} to {} mm, depth {} mm, a {} mm {}-flute flat end mill",
+        r.measurements.len(),
+        if slot { "slotting" } else { "milling" },
+        id.distinct_feeds,
+        feeds[0],
+        feeds[feeds.len() - 1],
+        r.options.depth_mm,
+        tool.diameter,
+        tool.flutes,
+    );
+    let mut summary = json!({
+        "method": "average force",
+        "tests": tests,
+        "measurements": r.measurements.len(),
+        "distinct_feeds": id.distinct_feeds,
+        "depth_mm": r.options.depth_mm,
+        "entry_deg": r.entry.to_degrees(),
+        "exit_deg": r.exit.to_degrees(),
+        "coefficients": id.coefficients,
+        "fit": { "x": fit_json(&id.fit_x), "y": fit_json(&id.fit_y), "z": fit_json(&id.fit_z) },
+        "row_columns": ["feed_per_tooth_mm", "fx_n", "fy_n", "fz_n", "fx_residual_n", "fy_residual_n", "fz_residual_n"],
+    });
+    let mut resources = Vec::new();
+    if let Some(request) = &r.options.create_material {
+        let source = match &request.tests {
+            Some(t) => format!("identified from {tests} ({t})"),
+            None => format!("identified from {tests}"),
+        };
+        let material = Material {
+            name: request.name.trim().to_string(),
+            coefficients: id.coefficients,
+            taylor: None,
+            source,
+        };
+        // Checked as an upload would be: a fit far outside what a metal can have is
+        // refused here rather than stored.
+        material
+            .validate()
+            .map_err(|e| invalid("Identified coefficients are not a material", e.to_string()))?;
+        let resource = OutputResource::new(
+            ResourceKind::Material,
+            &material.name,
+            serde_json::to_vec(&material).expect("materials serialize"),
+            json!({ "name": material.name, "source": material.source }),
+        );
+        summary["material"] =
+            json!({ "id": resource.id, "name": material.name, "source": material.source });
+        resources.push(resource);
+    }
+    let rows = r
+        .measurements
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            json!({
+                "feed_per_tooth_mm": m.feed_per_tooth, "fx_n": m.fx, "fy_n": m.fy, "fz_n": m.fz,
+                "fx_residual_n": id.fit_x.residuals[i],
+                "fy_residual_n": id.fit_y.residuals[i],
+                "fz_residual_n": id.fit_z.residuals[i],
+            })
+            .to_string()
+        })
+        .collect();
+    let mut out = JobOutput::rows(summary, rows);
+    out.resources = resources;
+    Ok(out)
+}

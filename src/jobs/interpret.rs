@@ -1,0 +1,128 @@
+//! The `interpret` job: a program (G-code or APT/CLS) read into moves, one row per move.
+
+use serde::Deserialize;
+use serde_json::{json, Value};
+
+use millsim_engine::job::{CancelFlag, Progress};
+use millsim_engine::nc;
+
+use super::inputs::{invalid, program_failure, program_text};
+use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs};
+use crate::problem::{parse_options, Problem};
+use crate::store::ResourceKind;
+
+pub const INPUTS: [InputSpec; 1] = [input("program", ResourceKind::Program, true)];
+
+/// Options of an `interpret` job.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InterpretOptions {
+    #[serde(default = "default_dialect")]
+    pub dialect: nc::Dialect,
+    /// Fanuc: a length word without a decimal point counts in thousandths of a mm.
+    #[serde(default)]
+    pub fanuc_implied_decimal: bool,
+    /// A LinuxCNC tool table (`T1 P1 D6 Z50`), for G43 tool lengths.
+    #[serde(default)]
+    pub tool_table: Option<String>,
+    /// Fanuc parameter CCR: corner rounding R and chamfer C written without the comma.
+    #[serde(default)]
+    pub fanuc_corners_without_comma: bool,
+    /// M codes that do not move the machine (e.g. a control's M428) and may be skipped.
+    #[serde(default)]
+    pub passthrough_m_codes: Vec<u32>,
+    /// Skip blocks that start with `/` (the control's block-delete switch on).
+    #[serde(default)]
+    pub block_delete: bool,
+    /// Refuse M codes the interpreter does not know (and `passthrough_m_codes` does not
+    /// list) instead of running them as no-ops with a warning.
+    #[serde(default)]
+    pub strict_m_codes: bool,
+}
+
+pub fn default_dialect() -> nc::Dialect {
+    nc::Dialect::Auto
+}
+
+impl InterpretOptions {
+    pub fn engine_options(&self) -> Result<nc::InterpretOptions, nc::Diagnostics> {
+        let mut o = nc::InterpretOptions {
+            dialect: self.dialect,
+            fanuc_implied_decimal: self.fanuc_implied_decimal,
+            fanuc_corners_without_comma: self.fanuc_corners_without_comma,
+            passthrough_m_codes: self.passthrough_m_codes.clone(),
+            block_delete: self.block_delete,
+            strict_m_codes: self.strict_m_codes,
+            ..Default::default()
+        };
+        if let Some(t) = &self.tool_table {
+            o.tool_table = nc::parse_tool_table(t)?;
+        }
+        Ok(o)
+    }
+}
+
+/// The options at submission: they parse, and the tool table reads.
+pub fn check(options: &Value) -> Result<(), Problem> {
+    let o: InterpretOptions = parse_options(options)?;
+    o.engine_options().map_err(|d| {
+        let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
+        Problem::invalid_field("options.tool_table", format!("tool table: {first}"))
+    })?;
+    Ok(())
+}
+
+pub fn run(
+    options: &Value,
+    mut inputs: LoadedInputs,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<JobOutput, JobFailure> {
+    let (file, text) = program_text(&mut inputs)?;
+    let opts: InterpretOptions = serde_json::from_value(options.clone())
+        .map_err(|e| invalid("Invalid options", e.to_string()))?;
+    let mut engine_opts = opts
+        .engine_options()
+        .map_err(|d| JobFailure::Invalid(Problem::program_failed("tool_table", &d)))?;
+    engine_opts.cancel = Some(cancel.clone());
+    let result = if crate::validate::looks_like_cls(&text) {
+        millsim_engine::cl::read_cls(&text)
+    } else {
+        nc::interpret(&text, &engine_opts)
+    }
+    .map_err(|d| program_failure(cancel, &file, &d))?;
+    if cancel.is_cancelled() {
+        return Err(JobFailure::Cancelled);
+    }
+    let total = result.moves.len() as u64;
+    let mut rows = Vec::with_capacity(result.moves.len());
+    // Rows differ (arcs carry a centre, dwells seconds): the CSV needs every column.
+    let mut columns: Vec<String> = Vec::new();
+    for (i, m) in result.moves.iter().enumerate() {
+        let row = serde_json::to_value(m).expect("moves serialize");
+        if let Value::Object(o) = &row {
+            for k in o.keys() {
+                if !columns.iter().any(|c| c == k) {
+                    columns.push(k.clone());
+                }
+            }
+        }
+        rows.push(row.to_string());
+        if i % 4096 == 0 {
+            progress.report(i as u64, total);
+            if cancel.is_cancelled() {
+                return Err(JobFailure::Cancelled);
+            }
+        }
+    }
+    progress.report(total, total);
+    let warnings: Vec<Value> = result
+        .warnings
+        .iter()
+        .map(|w| json!({"line": w.line, "column": w.col, "message": w.message}))
+        .collect();
+    Ok(JobOutput::rows(
+        json!({ "file": file, "moves": result.moves.len(), "blocks": result.block_count, "warnings": warnings, "row_columns": columns }),
+        rows,
+    ))
+}

@@ -1,0 +1,335 @@
+//! Job kinds: one module per kind with its inputs, options and checks, and its run on a
+//! blocking worker thread (the bridge from a stored job spec and its loaded inputs to the
+//! engine, and from the engine's result to stored rows). [`JobKind`] is the one place
+//! a kind's name is matched; the HTTP edge, the queue, the job process and the command
+//! line all go through it.
+
+mod energy;
+mod identify;
+mod inputs;
+mod interpret;
+mod rotary_feed;
+mod simulate;
+mod stability;
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use millsim_engine::job::{CancelFlag, Progress};
+
+use crate::job_limits::JobLimits;
+use crate::problem::Problem;
+use crate::store::ResourceKind;
+
+pub use interpret::InterpretOptions;
+pub use simulate::{check_tool_inputs, SimulateOptions};
+
+/// A kind of job the API knows. Only the ones whose engine exists run; the others are
+/// refused at submission with a clear "not supported yet".
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum JobKind {
+    Interpret,
+    Simulate,
+    Optimize,
+    Stability,
+    Energy,
+    RotaryFeed,
+    Identify,
+}
+
+impl JobKind {
+    /// Every kind, in the order error messages list them.
+    pub const ALL: [JobKind; 7] = [
+        JobKind::Interpret,
+        JobKind::Simulate,
+        JobKind::Optimize,
+        JobKind::Stability,
+        JobKind::Energy,
+        JobKind::RotaryFeed,
+        JobKind::Identify,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobKind::Interpret => "interpret",
+            JobKind::Simulate => "simulate",
+            JobKind::Optimize => "optimize",
+            JobKind::Stability => "stability",
+            JobKind::Energy => "energy",
+            JobKind::RotaryFeed => "rotary-feed",
+            JobKind::Identify => "identify",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<JobKind> {
+        JobKind::ALL.into_iter().find(|k| k.as_str() == name)
+    }
+
+    /// A kind named by a client, or a problem naming `field` and listing the kinds.
+    pub fn from_request(name: &str, field: &str) -> Result<JobKind, Problem> {
+        JobKind::parse(name).ok_or_else(|| {
+            let names: Vec<&str> = JobKind::ALL.iter().map(|k| k.as_str()).collect();
+            Problem::invalid_field(
+                field,
+                format!("unknown job kind `{name}`; one of: {}", names.join(", ")),
+            )
+        })
+    }
+
+    pub fn is_supported(self) -> bool {
+        // Every kind has its engine; a kind added before its engine lands answers false.
+        true
+    }
+
+    /// The inputs this kind takes by name (besides per-number tools, see
+    /// [`tool_number_input`](Self::tool_number_input)).
+    pub fn inputs(self) -> &'static [InputSpec] {
+        match self {
+            JobKind::Energy => &energy::INPUTS,
+            JobKind::Interpret => &interpret::INPUTS,
+            JobKind::RotaryFeed => &rotary_feed::INPUTS,
+            JobKind::Simulate | JobKind::Optimize => &simulate::INPUTS,
+            JobKind::Identify => &identify::INPUTS,
+            JobKind::Stability => &[],
+        }
+    }
+
+    /// For `simulate` and `optimize`: an input named `T<n>` (n in 1..=9999) is the tool for
+    /// tool number n of the program.
+    pub fn tool_number_input(self, name: &str) -> Option<u32> {
+        match self {
+            JobKind::Simulate | JobKind::Optimize => simulate::tool_number(name),
+            _ => None,
+        }
+    }
+
+    /// The inputs a request names, each with its resource kind and whether it must be
+    /// given: the kind's fixed inputs, then any per-number tools. An input the kind does
+    /// not take is refused, naming it.
+    pub fn wanted_inputs<'a>(
+        self,
+        given: impl Iterator<Item = &'a String> + Clone,
+    ) -> Result<Vec<(&'a str, ResourceKind, bool)>, Problem> {
+        let specs = self.inputs();
+        for name in given.clone() {
+            if !specs.iter().any(|s| s.name == name) && self.tool_number_input(name).is_none() {
+                return Err(Problem::invalid_field(
+                    format!("inputs.{name}"),
+                    format!("a `{}` job takes no input `{name}`", self.as_str()),
+                ));
+            }
+        }
+        let mut wanted: Vec<(&str, ResourceKind, bool)> =
+            specs.iter().map(|s| (s.name, s.kind, s.required)).collect();
+        wanted.extend(
+            given
+                .filter(|n| self.tool_number_input(n).is_some())
+                .map(|n| (n.as_str(), ResourceKind::Tool, true)),
+        );
+        Ok(wanted)
+    }
+
+    /// What can be checked before the job runs, once its inputs are known to exist: how
+    /// the tools are named and the options. Names the field on error.
+    pub fn check<'a>(
+        self,
+        input_names: impl Iterator<Item = &'a String> + Clone,
+        options: &Value,
+    ) -> Result<(), Problem> {
+        let has_material_input = input_names.clone().any(|n| n == "material");
+        match self {
+            JobKind::Interpret => interpret::check(options),
+            JobKind::RotaryFeed => rotary_feed::check(options),
+            JobKind::Energy => energy::options(options, has_material_input)
+                .map(|_| ())
+                .map_err(FieldError::into_problem),
+            JobKind::Stability => stability::options(options)
+                .map(|_| ())
+                .map_err(FieldError::into_problem),
+            JobKind::Simulate | JobKind::Optimize => {
+                check_tool_inputs(self, input_names).map_err(FieldError::into_problem)?;
+                let o: SimulateOptions = crate::problem::parse_options(options)?;
+                o.check(self == JobKind::Optimize, has_material_input)
+                    .map_err(FieldError::into_problem)
+            }
+            JobKind::Identify => identify::check(options),
+        }
+    }
+
+    /// Runs the job. With `stock_file`, the machined stock of a simulate or optimize job is
+    /// streamed into that file (a file the size of the stock's surface is then never held
+    /// in memory) instead of being returned among the output files.
+    pub fn run(
+        self,
+        options: &Value,
+        inputs: LoadedInputs,
+        limits: &JobLimits,
+        cancel: &CancelFlag,
+        progress: &dyn Progress,
+        stock_file: Option<&std::path::Path>,
+    ) -> Result<JobOutput, JobFailure> {
+        match self {
+            JobKind::Interpret => interpret::run(options, inputs, cancel, progress),
+            JobKind::Simulate | JobKind::Optimize => simulate::run(
+                self == JobKind::Optimize,
+                options,
+                inputs,
+                limits,
+                cancel,
+                progress,
+                stock_file,
+            ),
+            JobKind::Stability => stability::run(options, cancel, progress),
+            JobKind::RotaryFeed => rotary_feed::run(options, inputs),
+            JobKind::Energy => energy::run(options, inputs, cancel),
+            JobKind::Identify => identify::run(options, inputs),
+        }
+    }
+}
+
+/// One input a job kind takes: its name under `inputs`, the resource kind, and whether
+/// it must be given.
+pub struct InputSpec {
+    pub name: &'static str,
+    pub kind: ResourceKind,
+    pub required: bool,
+}
+
+const fn input(name: &'static str, kind: ResourceKind, required: bool) -> InputSpec {
+    InputSpec {
+        name,
+        kind,
+        required,
+    }
+}
+
+/// A value a check refused: the field (a JSON path under the request) and why.
+#[derive(Debug)]
+pub struct FieldError {
+    pub field: String,
+    pub message: String,
+}
+
+impl FieldError {
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        FieldError {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// At submission: a 422 naming the field.
+    pub fn into_problem(self) -> Problem {
+        Problem::invalid_field(self.field, self.message)
+    }
+}
+
+impl std::fmt::Display for FieldError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.field, self.message)
+    }
+}
+
+/// A stored input as a worker loaded it.
+pub struct LoadedInput {
+    pub file_name: Option<String>,
+    pub media_type: String,
+    pub content: Vec<u8>,
+}
+
+/// Inputs a worker loaded from the database for one job, by input name.
+pub type LoadedInputs = BTreeMap<String, LoadedInput>;
+
+/// A result file.
+pub struct OutputFile {
+    /// Result name: `program` (operation 1 of a posted CLS too), `program.op2`, ...,
+    /// `stock.stl`.
+    pub name: String,
+    pub media_type: &'static str,
+    pub file_name: String,
+    pub content: Vec<u8>,
+}
+
+/// A resource a job makes (an identified material), stored with the job's success and
+/// then listed with the owner's other resources. Its id is chosen by the job, so the
+/// summary can name it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct OutputResource {
+    pub id: String,
+    pub kind: ResourceKind,
+    pub name: String,
+    pub media_type: String,
+    pub summary: Value,
+    pub content: Vec<u8>,
+}
+
+impl OutputResource {
+    pub fn new(kind: ResourceKind, name: &str, content: Vec<u8>, summary: Value) -> Self {
+        OutputResource {
+            id: crate::store::new_id(),
+            kind,
+            name: name.to_string(),
+            media_type: "application/json".into(),
+            summary,
+            content,
+        }
+    }
+}
+
+/// The result of a job attempt that ran to the end.
+pub struct JobOutput {
+    pub summary: Value,
+    pub rows: Vec<String>,
+    /// Per-step samples as (row seq, JSON array), for rows that have any.
+    pub samples: Vec<(usize, String)>,
+    pub files: Vec<OutputFile>,
+    pub resources: Vec<OutputResource>,
+}
+
+impl JobOutput {
+    /// A summary and rows, no samples or files.
+    fn rows(summary: Value, rows: Vec<String>) -> JobOutput {
+        JobOutput {
+            summary,
+            rows,
+            samples: Vec::new(),
+            files: Vec::new(),
+            resources: Vec::new(),
+        }
+    }
+}
+
+/// Why a job attempt ended without output.
+#[derive(Debug)]
+pub enum JobFailure {
+    /// The inputs are wrong; running again will not help. The problem says why.
+    Invalid(Problem),
+    Cancelled,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_kind_reads_back_from_its_name_and_its_json() {
+        for k in JobKind::ALL {
+            assert_eq!(JobKind::parse(k.as_str()), Some(k));
+            let json = serde_json::to_value(k).unwrap();
+            assert_eq!(json, Value::String(k.as_str().into()));
+        }
+        assert_eq!(JobKind::parse("teleport"), None);
+    }
+
+    #[test]
+    fn resource_kinds_serialize_as_their_names() {
+        for k in ResourceKind::ALL {
+            let json = serde_json::to_value(k).unwrap();
+            assert_eq!(json, Value::String(k.as_str().into()));
+            assert_eq!(serde_json::from_value::<ResourceKind>(json).unwrap(), k);
+        }
+    }
+}

@@ -1,0 +1,415 @@
+//! The `simulate` and `optimize` jobs: a program cut from a stock with its tools,
+//! material and machine, block by block (forces, torque, power, chip); `optimize` also
+//! rewrites the feeds to the options' limits.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+
+use millsim_engine::job::{CancelFlag, Progress};
+use millsim_engine::machine::Machine;
+use millsim_engine::optimize::FeedLimits;
+use millsim_engine::pipeline::{self, SimulateError, SimulateSpec, StockSource};
+use millsim_engine::tool::Tool;
+use millsim_engine::{geometry, nc};
+
+use super::inputs::{
+    check_material, invalid, job_material, json_input, program_failure, program_text, required,
+    stem_and_ext,
+};
+use super::interpret::default_dialect;
+use super::{
+    input, FieldError, InputSpec, JobFailure, JobKind, JobOutput, LoadedInputs, OutputFile,
+};
+use crate::job_library::JobLibrary;
+use crate::job_limits::{check_simulation, JobLimits, Refusal, SimulationCheck};
+use crate::problem::Problem;
+use crate::store::ResourceKind;
+
+pub const INPUTS: [InputSpec; 7] = [
+    input("program", ResourceKind::Program, true),
+    input("stock", ResourceKind::Stock, true),
+    // The tool for every T number; or one input per number, `T1`, `T2`, ...
+    // (see `tool_number`); else the tool library's, else the program header's.
+    input("tool", ResourceKind::Tool, false),
+    // The tools of the T numbers no tool input names.
+    input("tool_library", ResourceKind::ToolLibrary, false),
+    // Else `options.material` names a built-in material.
+    input("material", ResourceKind::Material, false),
+    // Else a generic 3-axis machine.
+    input("machine", ResourceKind::Machine, false),
+    // The design part (an STL stock resource in the stock's frame): gouge and allowance.
+    input("part", ResourceKind::Stock, false),
+];
+
+/// An input named `T<n>` (n in 1..=9999) is the tool for tool number n of the program.
+pub fn tool_number(name: &str) -> Option<u32> {
+    let digits = name.strip_prefix('T')?;
+    if digits.is_empty() || digits.len() > 4 || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok().filter(|n| (1..=9999).contains(n))
+}
+
+/// Checks that a job names its tools one way: `tool`, or `T1`, `T2`, ...
+pub fn check_tool_inputs<'a>(
+    kind: JobKind,
+    names: impl Iterator<Item = &'a String> + Clone,
+) -> Result<(), FieldError> {
+    let numbered = names
+        .clone()
+        .filter(|n| kind.tool_number_input(n).is_some())
+        .count();
+    let single = names.clone().any(|n| n == "tool");
+    // No tool at all is allowed: the program's header comments may describe its tools (the
+    // job then fails naming the first T number nothing describes).
+    match (single, numbered) {
+        (true, n) if n > 0 => Err(FieldError::new(
+            "inputs.tool",
+            "give `tool` (one tool for the whole program) or `T1`, `T2`, ... (one per tool number), not both",
+        )),
+        _ => Ok(()),
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulateOptions {
+    #[serde(default = "default_dialect")]
+    pub dialect: nc::Dialect,
+    #[serde(default)]
+    pub fanuc_implied_decimal: bool,
+    /// A built-in material (TC6, Al7075-T6, Al6082-T6) when no `material` input is given.
+    #[serde(default)]
+    pub material: Option<String>,
+    /// Dexel spacing, mm; default: smallest tool radius / 20 within [0.02, 0.5].
+    #[serde(default)]
+    pub cell_mm: Option<f64>,
+    /// Angular positions per revolution in the force model.
+    #[serde(default = "default_positions")]
+    pub force_positions: usize,
+    /// Refuse grids over this size, MiB.
+    #[serde(default = "default_grid_mib")]
+    pub max_grid_mib: u64,
+    /// optimize jobs: the targets and bounds of the feed optimization.
+    #[serde(default)]
+    pub limits: Option<FeedLimits>,
+    /// M codes that do not move the machine (e.g. a control's M428) and may be skipped.
+    #[serde(default)]
+    pub passthrough_m_codes: Vec<u32>,
+    /// Refuse M codes the interpreter does not know instead of warning.
+    #[serde(default)]
+    pub strict_m_codes: bool,
+    /// On a machine with rotary axes: `machine` (X..C are machine axes, the default) or
+    /// `tool_tip` (tool-centre-point control: X Y Z are the tip in the part frame).
+    #[serde(default)]
+    pub axes: pipeline::AxisReading,
+    /// The tool's modes for a chatter margin per block: {"modes_x":[..],"modes_y":[..],
+    /// "method":"sdm","steps_per_period":40}.
+    #[serde(default)]
+    pub chatter: Option<pipeline::ChatterSpec>,
+}
+
+fn default_positions() -> usize {
+    180
+}
+
+fn default_grid_mib() -> u64 {
+    4096
+}
+
+impl SimulateOptions {
+    /// Checks what can be checked before the job runs; names the option.
+    pub fn check(&self, optimize: bool, has_material_input: bool) -> Result<(), FieldError> {
+        match (&self.limits, optimize) {
+            (None, true) => {
+                return Err(FieldError::new(
+                    "options.limits",
+                    "an optimize job needs limits, e.g. {\"max_force\": 800}",
+                ))
+            }
+            (Some(_), false) => {
+                return Err(FieldError::new(
+                    "options.limits",
+                    "limits are for optimize jobs; submit kind `optimize`",
+                ))
+            }
+            (Some(l), true) => {
+                l.validate()
+                    .map_err(|e| FieldError::new("options.limits", e.to_string()))?;
+                if l.max_force.is_none()
+                    && l.max_power.is_none()
+                    && l.max_torque.is_none()
+                    && l.max_chip_thickness.is_none()
+                {
+                    return Err(FieldError::new("options.limits", "give at least one target: max_force, max_power, max_torque or max_chip_thickness"));
+                }
+            }
+            (None, false) => {}
+        }
+        check_material(self.material.as_deref(), has_material_input)?;
+        if let Some(c) = self.cell_mm {
+            if !(0.005..=5.0).contains(&c) {
+                return Err(FieldError::new(
+                    "options.cell_mm",
+                    format!("must be in [0.005, 5] mm, got {c}"),
+                ));
+            }
+        }
+        if !(8..=3600).contains(&self.force_positions) {
+            return Err(FieldError::new(
+                "options.force_positions",
+                format!("must be in [8, 3600], got {}", self.force_positions),
+            ));
+        }
+        if let Some(c) = &self.chatter {
+            // The modes and method as the per-block chatter model will check them.
+            millsim_engine::physics::chatter::ChatterModel::new(
+                c.modes_x.clone(),
+                c.modes_y.clone(),
+                2,
+                600.0,
+                200.0,
+                c.method,
+                c.steps_per_period,
+            )
+            .map_err(|e| {
+                FieldError::new(format!("options.chatter.{}", e.field()), e.to_string())
+            })?;
+        }
+        if !(1..=16384).contains(&self.max_grid_mib) {
+            return Err(FieldError::new(
+                "options.max_grid_mib",
+                "must be in [1, 16384]",
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[derive(Serialize)]
+struct SimulateSummary<'a> {
+    file: &'a str,
+    #[serde(flatten)]
+    simulation: &'a pipeline::SimulationSummary,
+    /// Wall time per stage on the worker, seconds.
+    timings: &'a pipeline::StageTimings,
+    stock_export_s: f64,
+    dexel_updates: u64,
+    /// The optimized program's cycle time and peak |F| (optimize jobs), also inside
+    /// `optimization` with the benchmarks they are judged against.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cycle_time_opt_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    force_peak_opt_n: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    optimization: Option<&'a pipeline::OptimizationSummary>,
+    /// The job's memory budget and the estimate it was held to (MiB; by buffer, bytes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    memory: Option<Value>,
+    /// With a `tool_library` input: its file and format, the T numbers it gave that cut,
+    /// and its import report's notes on them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tool_library: Option<Value>,
+    row_columns: Vec<String>,
+}
+
+/// The stock as a binary STL into the file at `path`.
+fn stream_stl(stock: &geometry::Stock, path: &std::path::Path) -> Result<(), String> {
+    let name = path.display();
+    let file = std::fs::File::create(path).map_err(|e| format!("{name}: {e}"))?;
+    let mut out = std::io::BufWriter::with_capacity(1 << 20, file);
+    geometry::export_stl(stock, &mut out).map_err(|e| format!("{name}: {e}"))?;
+    std::io::Write::flush(&mut out).map_err(|e| format!("{name}: {e}"))
+}
+
+pub fn run(
+    optimize: bool,
+    options: &Value,
+    mut inputs: LoadedInputs,
+    limits: &JobLimits,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+    stock_file: Option<&std::path::Path>,
+) -> Result<JobOutput, JobFailure> {
+    let opts: SimulateOptions = serde_json::from_value(options.clone())
+        .map_err(|e| invalid("Invalid options", e.to_string()))?;
+    opts.check(optimize, inputs.contains_key("material"))
+        .map_err(|e| invalid("Invalid options", e.to_string()))?;
+    let (file, text) = program_text(&mut inputs)?;
+    // Key 0: one tool serves every tool number; else the tool of each number.
+    let mut tools = BTreeMap::new();
+    let names: Vec<String> = inputs.keys().cloned().collect();
+    for name in names {
+        let number = if name == "tool" {
+            0
+        } else if let Some(n) = tool_number(&name) {
+            n
+        } else {
+            continue;
+        };
+        let tool: Tool = required(json_input(&mut inputs, &name, "Invalid tool")?, &name)?;
+        tools.insert(number, tool);
+    }
+    let library = inputs
+        .remove("tool_library")
+        .map(JobLibrary::load)
+        .transpose()
+        .map_err(JobFailure::Invalid)?
+        .map(|mut library| {
+            library.fill(&mut tools);
+            library
+        });
+    let material = job_material(opts.material.as_deref(), &mut inputs)?;
+    let machine =
+        json_input(&mut inputs, "machine", "Invalid machine")?.unwrap_or_else(Machine::generic);
+    let stock = inputs
+        .remove("stock")
+        .ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
+    let stock = if stock.media_type == "application/json" {
+        StockSource::Shape(
+            serde_json::from_slice::<geometry::StockShape>(&stock.content)
+                .map_err(|e| invalid("Invalid stock", e.to_string()))?,
+        )
+    } else {
+        StockSource::Stl(stock.content)
+    };
+    let interpret = nc::InterpretOptions {
+        dialect: opts.dialect,
+        fanuc_implied_decimal: opts.fanuc_implied_decimal,
+        passthrough_m_codes: opts.passthrough_m_codes.clone(),
+        strict_m_codes: opts.strict_m_codes,
+        cancel: Some(cancel.clone()),
+        ..Default::default()
+    };
+    // Travel and memory budget, before the pipeline allocates anything.
+    let check = SimulationCheck {
+        file: &file,
+        program: &text,
+        interpret: &interpret,
+        machine: &machine,
+        axes: opts.axes,
+        stock: &stock,
+        tools: &tools,
+        cell: opts.cell_mm,
+        optimize,
+    };
+    let estimate = check_simulation(&check, limits).map_err(|r| match r {
+        Refusal::Program(d) => program_failure(cancel, &file, &d),
+        Refusal::Problem(p) => JobFailure::Invalid(Problem::from_json(p)),
+    })?;
+    let spec = SimulateSpec {
+        program: text,
+        interpret,
+        stock,
+        tools,
+        material,
+        machine,
+        cell: opts.cell_mm,
+        memory_limit: opts.max_grid_mib << 20,
+        force_positions: opts.force_positions,
+        optimize: opts.limits.clone(),
+        axes: opts.axes,
+        chatter: opts.chatter.clone(),
+        part: match inputs.remove("part") {
+            Some(p) if p.media_type == "application/json" => {
+                return Err(invalid(
+                    "Invalid part",
+                    "the design part must be an STL mesh, not a parametric stock",
+                ))
+            }
+            Some(p) => Some(p.content),
+            None => None,
+        },
+    };
+    let mut out = pipeline::simulate(&spec, cancel, progress).map_err(|e| match e {
+        SimulateError::Cancelled => JobFailure::Cancelled,
+        SimulateError::Program(d) => program_failure(cancel, &file, &d),
+        other => invalid("Simulation refused", format!("{file}: {other}")),
+    })?;
+    // The stock mesh and the rows' JSON are independent: both at once.
+    let ((rows, samples), (stl, export_s)) = std::thread::scope(|scope| {
+        let serialized = scope.spawn(|| {
+            let rows: Vec<String> = out
+                .rows
+                .iter()
+                .map(|r| serde_json::to_string(r).expect("rows serialize"))
+                .collect();
+            let samples: Vec<(usize, String)> = out
+                .samples
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| !s.is_empty())
+                .map(|(i, s)| (i, serde_json::to_string(s).expect("samples serialize")))
+                .collect();
+            (rows, samples)
+        });
+        let clock = std::time::Instant::now();
+        let written = match stock_file {
+            Some(path) => stream_stl(&out.stock, path).map(|()| None),
+            None => geometry::export_stl_vec(&out.stock)
+                .map(|(stl, _)| Some(stl))
+                .map_err(|e| e.to_string()),
+        };
+        let exported = (written, clock.elapsed().as_secs_f64());
+        match serialized.join() {
+            Ok(v) => (v, exported),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    });
+    let stl = stl.map_err(|e| invalid("Stock export failed", e.to_string()))?;
+    let tool_library = library.map(|library| {
+        let (section, warnings) = library.report(&out.tool_numbers);
+        out.summary.tool_warnings.extend(warnings);
+        section
+    });
+    let row_columns = match serde_json::to_value(out.rows.first().cloned().unwrap_or_default()) {
+        Ok(Value::Object(o)) => o.keys().cloned().collect(),
+        _ => Vec::new(),
+    };
+    let (stem, ext) = stem_and_ext(&file);
+    let mut files: Vec<OutputFile> = stl
+        .map(|content| OutputFile {
+            name: "stock.stl".into(),
+            media_type: "model/stl",
+            file_name: format!("{stem}.stock.stl"),
+            content,
+        })
+        .into_iter()
+        .collect();
+    if let Some(text) = out.optimized_program {
+        files.push(OutputFile {
+            name: "program".into(),
+            media_type: "text/plain; charset=utf-8",
+            file_name: format!("{stem}.opt{ext}"),
+            content: text.into_bytes(),
+        });
+    }
+    Ok(JobOutput {
+        summary: serde_json::to_value(SimulateSummary {
+            file: &file,
+            simulation: &out.summary,
+            timings: &out.timings,
+            stock_export_s: export_s,
+            dexel_updates: out.rays_tested,
+            cycle_time_opt_s: out.optimization.as_ref().map(|o| o.cycle_time_after_s),
+            force_peak_opt_n: out.optimization.as_ref().map(|o| o.peak_force_after),
+            optimization: out.optimization.as_ref(),
+            memory: estimate.map(|e| {
+                json!({
+                    "budget_mb": limits.memory_mb(),
+                    "estimate_mb": e.peak_bytes.div_ceil(1 << 20),
+                    "estimate": e,
+                })
+            }),
+            tool_library,
+            row_columns,
+        })
+        .expect("summary serializes"),
+        rows,
+        samples,
+        files,
+        resources: Vec::new(),
+    })
+}

@@ -1,0 +1,329 @@
+//! The `identify` job over HTTP: mean slotting forces synthesized by the engine's own force
+//! model (not the closed form the identification inverts) for known coefficients, plus
+//! noise, give the coefficients back; the material it makes simulates like the original;
+//! bad measurements are refused naming the field.
+
+mod common;
+
+use std::f64::consts::PI;
+use std::time::Duration;
+
+use common::*;
+use serde_json::{json, Value};
+
+use millsim_engine::engagement::{EngagedSlice, Engagement};
+use millsim_engine::physics::{CuttingConditions, ForceModel, Material};
+use millsim_engine::tool::Tool;
+
+const FEEDS: [f64; 5] = [0.02, 0.04, 0.06, 0.08, 0.10];
+const DEPTH: f64 = 2.0;
+
+/// Mean forces of a full slot at each feed by the engine's force model (a D10 4-flute 30°
+/// helix flat end mill, `DEPTH` deep), each axis off by up to ±0.1 N of pseudo-random
+/// "measurement noise", as (feed, fx, fy, fz).
+fn synthesized(material: &str) -> Vec<[f64; 4]> {
+    let truth = Material::builtin(material).unwrap().coefficients;
+    let tool = Tool {
+        helix_deg: 30.0,
+        ..Tool::flat(10.0, 4)
+    };
+    let mut model = ForceModel::new(&tool, 100, 360).unwrap();
+    let n = 40;
+    let dz = DEPTH / n as f64;
+    let slot = Engagement {
+        slices: (0..n)
+            .map(|i| EngagedSlice {
+                z: (i as f64 + 0.5) * dz,
+                dz,
+                arcs: vec![(0.0, PI)].into(),
+            })
+            .collect(),
+        feed_dir: [1.0, 0.0, 0.0],
+        tool_axis: [0.0, 0.0, 1.0],
+    };
+    // A fixed linear congruential sequence: the same noise at every run.
+    let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut noise = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 33) as f64 / (1u64 << 31) as f64 - 0.5) * 0.2
+    };
+    FEEDS
+        .iter()
+        .map(|&c| {
+            let r = model
+                .evaluate(
+                    &slot,
+                    &truth,
+                    &CuttingConditions {
+                        spindle_rpm: 3000.0,
+                        feed_per_tooth: c,
+                    },
+                )
+                .unwrap();
+            [
+                c,
+                r.fx.mean + noise(),
+                r.fy.mean + noise(),
+                r.fz.mean + noise(),
+            ]
+        })
+        .collect()
+}
+
+fn as_json(rows: &[[f64; 4]]) -> Value {
+    Value::Array(
+        rows.iter()
+            .map(|r| json!({"feed_per_tooth_mm": r[0], "fx_n": r[1], "fy_n": r[2], "fz_n": r[3]}))
+            .collect(),
+    )
+}
+
+/// The same rows as CSV text, columns in another order than the JSON's.
+fn as_csv(rows: &[[f64; 4]]) -> String {
+    let mut text = String::from("fz_n,feed_per_tooth_mm,fx_n,fy_n\n");
+    for r in rows {
+        text += &format!("{},{},{},{}\n", r[3], r[0], r[1], r[2]);
+    }
+    text
+}
+
+async fn upload_tool(c: &reqwest::Client, s: &Server, body: Value) -> String {
+    let (st, v) = post_json(c, s, "/v1/tools", &body).await;
+    assert_eq!(st, 201, "{v}");
+    v["id"].as_str().unwrap().to_string()
+}
+
+fn d10_helix30() -> Value {
+    json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 30.0, "flute_length_mm": 20.0})
+}
+
+fn check_within_one_percent(got: &Value, material: &str) {
+    let want = Material::builtin(material).unwrap().coefficients;
+    for (name, w) in [
+        ("ktc", want.ktc),
+        ("krc", want.krc),
+        ("kac", want.kac),
+        ("kte", want.kte),
+        ("kre", want.kre),
+        ("kae", want.kae),
+    ] {
+        let g = got[name]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{name} in {got}"));
+        assert!(
+            (g - w).abs() <= 0.01 * w.abs(),
+            "{material} {name}: identified {g}, true {w}"
+        );
+    }
+}
+
+#[tokio::test]
+async fn synthesized_forces_give_the_coefficients_back_and_the_material_simulates_like_the_original(
+) {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let tool = upload_tool(&c, &s, d10_helix30()).await;
+    let rows = synthesized("TC6");
+
+    // JSON measurements, with a material made from the result.
+    let body = json!({"kind": "identify", "inputs": {"tool": tool},
+        "options": {"depth_mm": DEPTH, "measurements": as_json(&rows),
+                    "create_material": {"name": "TC6 lot 7", "tests": "bench 2, 2026-11-25"}}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let done = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let summary = &done["summary"];
+    check_within_one_percent(&summary["coefficients"], "TC6");
+    for axis in ["x", "y", "z"] {
+        let fit = &summary["fit"][axis];
+        assert!(fit["r_squared"].as_f64().unwrap() > 0.999, "{fit}");
+        assert_eq!(fit["residuals_n"].as_array().unwrap().len(), FEEDS.len());
+        // The noise is at most 0.1 N: so are the residuals of a straight line through it.
+        assert!(fit["rms_residual_n"].as_f64().unwrap() < 0.1, "{fit}");
+    }
+    // Per-measurement rows with the residuals, as JSON pages and CSV.
+    let csv = get_text(
+        &c,
+        &s,
+        &format!("/v1/jobs/{}/blocks?format=csv", job["id"].as_str().unwrap()),
+    )
+    .await;
+    assert!(
+        csv.starts_with(
+            "feed_per_tooth_mm,fx_n,fy_n,fz_n,fx_residual_n,fy_residual_n,fz_residual_n\n"
+        ),
+        "{csv}"
+    );
+    assert_eq!(csv.lines().count(), 1 + FEEDS.len());
+
+    // The material it made: listed with the key's resources, sourced from the tests.
+    let material_id = summary["material"]["id"].as_str().unwrap().to_string();
+    let material = get_json(&c, &s, &format!("/v1/materials/{material_id}")).await;
+    assert_eq!(material["summary"]["name"], "TC6 lot 7", "{material}");
+    let source = material["summary"]["source"].as_str().unwrap();
+    assert!(
+        source.starts_with("identified from 5 slotting tests") && source.contains("bench 2"),
+        "{source}"
+    );
+    let content = get_json(&c, &s, &format!("/v1/materials/{material_id}/content")).await;
+    check_within_one_percent(&content["coefficients"], "TC6");
+
+    // The same measurements as CSV text give the same coefficients.
+    let body = json!({"kind": "identify", "inputs": {"tool": tool},
+        "options": {"depth_mm": DEPTH, "measurements": as_csv(&rows)}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let from_csv = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(60)).await;
+    assert_eq!(from_csv["status"], "succeeded", "{from_csv}");
+    for k in ["ktc", "krc", "kac", "kte", "kre", "kae"] {
+        let (a, b) = (
+            summary["coefficients"][k].as_f64().unwrap(),
+            from_csv["summary"]["coefficients"][k].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() <= 1e-9 * a.abs(), "{k}: {a} vs {b}");
+    }
+    assert!(from_csv["summary"].get("material").is_none());
+
+    // A slot simulated with the identified material cuts with the forces of the original.
+    let (st, stock) = post_json(
+        &c,
+        &s,
+        "/v1/stocks",
+        &json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
+    )
+    .await;
+    assert_eq!(st, 201, "{stock}");
+    let program = "G21 G90 G17\nS3000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-2\nG1 X60 F960\nG0 Z5\nM30\n";
+    let mut peaks = Vec::new();
+    for (inputs_material, options_material) in
+        [(Some(material_id.as_str()), None), (None, Some("TC6"))]
+    {
+        let mut inputs = json!({"program": {"name": "slot.nc", "content": program},
+                                "stock": stock["id"], "tool": tool});
+        let mut options = json!({"cell_mm": 0.25});
+        if let Some(m) = inputs_material {
+            inputs["material"] = json!(m);
+        }
+        if let Some(m) = options_material {
+            options["material"] = json!(m);
+        }
+        let (st, job) = post_json(
+            &c,
+            &s,
+            "/v1/jobs",
+            &json!({"kind": "simulate", "inputs": inputs, "options": options}),
+        )
+        .await;
+        assert_eq!(st, 202, "{job}");
+        let done = wait_job(
+            &c,
+            &s,
+            job["id"].as_str().unwrap(),
+            Duration::from_secs(120),
+        )
+        .await;
+        assert_eq!(done["status"], "succeeded", "{done}");
+        peaks.push(done["summary"]["force_peak_n"].as_f64().unwrap());
+    }
+    assert!(peaks[1] > 100.0, "the TC6 slot cuts: {peaks:?}");
+    assert!(
+        (peaks[0] - peaks[1]).abs() <= 0.01 * peaks[1],
+        "identified vs built-in TC6 peak force: {peaks:?}"
+    );
+}
+
+#[tokio::test]
+async fn bad_measurements_are_refused_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let tool = upload_tool(&c, &s, d10_helix30()).await;
+    let rows = synthesized("Al6082-T6");
+    let same_feed: Vec<[f64; 4]> = rows.iter().map(|r| [0.05, r[1], r[2], r[3]]).collect();
+    let mut nan_csv = as_csv(&rows);
+    nan_csv = nan_csv.replacen(
+        &format!("{},{},{}", rows[1][0], rows[1][1], rows[1][2]),
+        &format!("{},NaN,{}", rows[1][0], rows[1][2]),
+        1,
+    );
+    // Dynamometer readings (the reaction on the part) given as they are: every force
+    // negated, so the fit gives negative coefficients.
+    let reaction: Vec<[f64; 4]> = rows.iter().map(|r| [r[0], -r[1], -r[2], -r[3]]).collect();
+    let cases: Vec<(Value, &str, &str)> = vec![
+        (
+            as_json(&rows[..1]),
+            "options.measurements",
+            "at least 2 different feeds",
+        ),
+        (as_json(&same_feed), "options.measurements", "got 1"),
+        (json!(nan_csv), "options.measurements[1].fx_n", "finite"),
+        (
+            json!("feed_per_tooth_mm,fx_n,fy_n\n0.1,1,2\n"),
+            "options.measurements",
+            "no column `fz_n`",
+        ),
+        (
+            json!([{"feed_per_tooth_mm": 0.1, "fx_n": 1, "fy_n": 2}]),
+            "options.measurements[0]",
+            "fz_n",
+        ),
+        (as_json(&reaction), "options.measurements", "negative"),
+        (json!(42), "options.measurements", "CSV"),
+    ];
+    for (measurements, field, says) in cases {
+        let body = json!({"kind": "identify", "inputs": {"tool": tool},
+            "options": {"depth_mm": DEPTH, "measurements": measurements}});
+        let (st, p) = post_json(&c, &s, "/v1/jobs", &body).await;
+        assert_eq!(st, 422, "{body} -> {p}");
+        assert_eq!(p["field"], field, "{body} -> {p}");
+        assert!(
+            p["detail"].as_str().unwrap().contains(says),
+            "{body} -> {p}"
+        );
+    }
+    let (st, p) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "identify", "inputs": {"tool": tool},
+                "options": {"depth_mm": -1, "measurements": as_json(&rows)}}),
+    )
+    .await;
+    assert_eq!(
+        (st, p["field"].as_str()),
+        (422, Some("options.depth_mm")),
+        "{p}"
+    );
+    let (st, p) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "identify", "options": {"depth_mm": DEPTH, "measurements": as_json(&rows)}}),
+    )
+    .await;
+    assert_eq!((st, p["field"].as_str()), (422, Some("inputs.tool")), "{p}");
+    // A ball end mill is not what the method models: the job fails, naming the tool.
+    let ball = upload_tool(
+        &c,
+        &s,
+        json!({"type": "ball", "diameter_mm": 10.0, "flutes": 2, "flute_length_mm": 20.0}),
+    )
+    .await;
+    let (st, job) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "identify", "inputs": {"tool": ball},
+                "options": {"depth_mm": DEPTH, "measurements": as_json(&rows)}}),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let done = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "failed", "{done}");
+    assert_eq!(done["error"]["field"], "inputs.tool", "{done}");
+    assert_eq!(done["attempts"], 1);
+}
