@@ -809,3 +809,77 @@ async fn a_redelivery_asked_while_an_attempt_is_in_flight_is_sent_after_it() {
     }
     assert_eq!(rx.got().len(), 2);
 }
+
+/// A webhook that names `job.progress` hears a running job's progress, signed, at most once
+/// a second, then its end; one registered without events hears only the end.
+#[tokio::test]
+async fn progress_deliveries_come_at_most_once_a_second_while_the_job_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "1", "--webhook-allow-private"],
+    );
+    let c = client();
+    let (rx, url) = receiver(always_ok).await;
+    let hook = register(
+        &c,
+        &s,
+        None,
+        json!({"url": url, "events": ["job.progress", "job.cancelled"]}),
+    )
+    .await;
+    let secret = hook["secret"].as_str().unwrap().to_string();
+    let (quiet_rx, quiet_url) = receiver(always_ok).await;
+    register(&c, &s, None, json!({"url": quiet_url})).await;
+    // Semi-discretization over 20,000 speeds: a minute of work, progress counted by speed.
+    let mode = |f: f64| json!({"freq_hz": f, "damping": 0.02, "stiffness_n_m": 2e6});
+    let options = json!({"method": "sdm", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200, "radial_immersion": 0.5, "milling": "down",
+        "modes_x": [mode(900.0), mode(1400.0)], "modes_y": [mode(950.0), mode(1500.0)],
+        "rpm": {"from": 5000, "to": 25000, "step": 1}, "steps_per_period": 40});
+    let (st, job) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "stability", "options": options}),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap().to_string();
+    let got = rx.wait_for(3, Duration::from_secs(60)).await;
+    let progress: Vec<&Received> = got.iter().filter(|r| r.event == "job.progress").collect();
+    assert!(progress.len() >= 3, "{got:?}");
+    for r in &progress {
+        assert!(signature_valid(&secret, &r.signature, &r.body), "{r:?}");
+        let body: Value = serde_json::from_str(&r.body).unwrap();
+        assert_eq!(body["job"]["id"], json!(id));
+        assert_eq!(body["job"]["status"], json!("running"));
+        assert!(
+            body["job"]["progress"]["total"].as_i64().unwrap() > 0,
+            "{body}"
+        );
+    }
+    for w in progress.windows(2) {
+        // Written at least a second apart (the dispatcher may send them closer).
+        let t = |r: &Received| {
+            rfc3339_ms(
+                serde_json::from_str::<Value>(&r.body).unwrap()["created_at"]
+                    .as_str()
+                    .unwrap(),
+            )
+        };
+        assert!(t(w[1]) - t(w[0]) >= 1000, "{} {}", t(w[0]), t(w[1]));
+    }
+    let (st, _) = post_json(&c, &s, &format!("/v1/jobs/{id}/cancel"), &json!({})).await;
+    assert!(st == 202 || st == 200, "{st}");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !rx.got().iter().any(|r| r.event == "job.cancelled") && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(rx.got().iter().any(|r| r.event == "job.cancelled"));
+    // The webhook without events heard the end only.
+    let quiet = quiet_rx.wait_for(1, Duration::from_secs(10)).await;
+    assert!(
+        !quiet.is_empty() && quiet.iter().all(|r| r.event == "job.cancelled"),
+        "{quiet:?}"
+    );
+}

@@ -12,7 +12,7 @@ use serde_json::{json, Value};
 use super::body::read_limited;
 use super::problem::{parse_json, ApiError};
 use super::{parse_query, AppState, Owner, PageQuery};
-use crate::store::webhooks::EVENTS;
+use crate::store::webhooks::{DEFAULT_EVENTS, EVENTS};
 use crate::webhooks::{signature, target};
 
 /// Webhooks one API key may have: each one multiplies every job event.
@@ -60,7 +60,7 @@ pub async fn create(
     let url = target::check_url(&request.url, state.webhooks.allow_private)
         .map_err(|m| ApiError::invalid_field("url", format!("`{}`: {m}", request.url)))?;
     let events = match request.events {
-        None => EVENTS.iter().map(|e| e.to_string()).collect(),
+        None => DEFAULT_EVENTS.iter().map(|e| e.to_string()).collect(),
         Some(list) if list.is_empty() => {
             return Err(ApiError::invalid_field(
                 "events",

@@ -579,9 +579,12 @@ impl Db {
         .fetch_optional(&self.pool)
         .await?;
         Ok(match row {
-            Some((c,)) => LeaseState::Held {
-                cancel_requested: c != 0,
-            },
+            Some((c,)) => {
+                super::webhooks::enqueue_progress(self, &job.id).await?;
+                LeaseState::Held {
+                    cancel_requested: c != 0,
+                }
+            }
             None => LeaseState::Lost,
         })
     }

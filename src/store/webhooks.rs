@@ -9,7 +9,19 @@ use sqlx::Row;
 use super::{new_id, now_ms, rfc3339, Db, StoreError};
 
 /// The events a webhook may subscribe to.
-pub const EVENTS: [&str; 3] = ["job.succeeded", "job.failed", "job.cancelled"];
+pub const EVENTS: [&str; 4] = [
+    "job.succeeded",
+    "job.failed",
+    "job.cancelled",
+    "job.progress",
+];
+
+/// What a webhook registered without `events` gets: the end of every job.
+pub const DEFAULT_EVENTS: [&str; 3] = ["job.succeeded", "job.failed", "job.cancelled"];
+
+/// `job.progress` deliveries of one job are at least this far apart, ms (the worker's
+/// heartbeat records progress four times a second).
+pub const PROGRESS_INTERVAL_MS: i64 = 1000;
 
 /// Attempts a delivery gets before it is given up (see `webhooks::retry_delay` for the
 /// schedule: over a day from the first to the last).
@@ -94,7 +106,7 @@ pub async fn enqueue_job_event(
     event: &str,
 ) -> Result<(), StoreError> {
     let Some(job) = sqlx::query(
-        "SELECT id, owner, kind, status, attempts, error, created_at, finished_at FROM jobs WHERE id = ?",
+        "SELECT id, owner, kind, status, attempts, error, created_at, finished_at, progress_done, progress_total FROM jobs WHERE id = ?",
     )
     .bind(job_id)
     .fetch_optional(&mut **tx)
@@ -123,6 +135,10 @@ pub async fn enqueue_job_event(
             "attempts": job.try_get::<i64, _>("attempts")?,
             "created_at": rfc3339(job.try_get("created_at")?),
             "finished_at": job.try_get::<Option<i64>, _>("finished_at")?.map(rfc3339),
+            "progress": {
+                "done": job.try_get::<i64, _>("progress_done")?,
+                "total": job.try_get::<i64, _>("progress_total")?,
+            },
         });
         if let Some(error) = job.try_get::<Option<String>, _>("error")? {
             job_doc["error"] = serde_json::from_str::<Value>(&error)?;
@@ -158,6 +174,35 @@ pub async fn enqueue_job_event(
         .execute(&mut **tx)
         .await?;
     }
+    Ok(())
+}
+
+/// A `job.progress` delivery for each webhook of the job's owner that wants one, unless
+/// the job's last one is younger than `PROGRESS_INTERVAL_MS` or the job has not counted its
+/// work yet (called with each heartbeat).
+pub async fn enqueue_progress(db: &Db, job_id: &str) -> Result<(), StoreError> {
+    let (wanted,): (i64,) = sqlx::query_as(
+        "SELECT COUNT(*) FROM webhooks w JOIN jobs j ON w.owner = j.owner
+         WHERE j.id = ? AND j.progress_total > 0 AND w.events LIKE '%\"job.progress\"%'",
+    )
+    .bind(job_id)
+    .fetch_one(&db.pool)
+    .await?;
+    if wanted == 0 {
+        return Ok(());
+    }
+    let mut tx = db.pool.begin().await?;
+    let (last,): (Option<i64>,) = sqlx::query_as(
+        "SELECT MAX(created_at) FROM webhook_deliveries WHERE job_id = ? AND event = 'job.progress'",
+    )
+    .bind(job_id)
+    .fetch_one(&mut *tx)
+    .await?;
+    if last.is_some_and(|t| now_ms() - t < PROGRESS_INTERVAL_MS) {
+        return Ok(());
+    }
+    enqueue_job_event(&mut tx, job_id, "job.progress").await?;
+    tx.commit().await?;
     Ok(())
 }
 
