@@ -231,3 +231,68 @@ fn a_cylinder_in_a_turned_grid_holds_its_volume() {
         );
     }
 }
+
+/// The design-part comparison of a turned grid: the part (in the part frame) is turned into
+/// the grid, so an untouched stock gouges nothing and a tilted cut through the part's top
+/// gouges the closed-form volume.
+#[test]
+fn a_turned_grid_is_compared_with_the_part_in_the_part_frame() {
+    use millsim_engine::geometry::{
+        compare_with_part, export_stl_vec, simulate_removal, GridFrame, GridOptions, Mesh,
+        PathShape, Segment, SimOptions, StockShape,
+    };
+    use millsim_engine::job::CancelFlag;
+
+    let cell = 0.05;
+    // The design part: a box 3 mm below the stock's top, as an exact mesh.
+    let (plo, phi) = ([0.0, -10.0, -10.0], [40.0, 10.0, -3.0]);
+    let (bytes, _) = export_stl_vec(&Stock::block(plo, phi, cell).unwrap()).unwrap();
+    let part = Mesh::from_stl_bytes(&bytes).unwrap();
+    let tilt = 15f64.to_radians();
+    let (s, c) = tilt.sin_cos();
+    let axis = [0.0, -s, c];
+    let frame = GridFrame::with_z_along(axis).unwrap();
+    let opts = GridOptions {
+        cell: Some(cell),
+        ..Default::default()
+    };
+    let shape = StockShape::Block {
+        min: [0.0, -10.0, -10.0],
+        max: [40.0, 10.0, 0.0],
+    };
+    let mut stock = Stock::from_shape_in(&shape, &opts, frame).unwrap();
+    let c0 = compare_with_part(&stock, &part).unwrap();
+    assert!(c0.gouge_volume < 1e-6, "{c0:?}");
+    assert!(c0.part_rays > 0);
+    // A tilted flat mill right through along X with its tip 1 mm into the part.
+    let mut tool = Tool::flat(6.0, 2);
+    tool.flute_length = 12.0;
+    let zt = -4.0;
+    let seg = Segment {
+        block: 0,
+        shape: PathShape::Linear,
+        from: [-15.0, 0.0, zt],
+        to: [55.0, 0.0, zt],
+        axis_from: axis,
+        axis_to: axis,
+        rapid: false,
+        feed: 1000.0,
+        spindle: 10000.0,
+    };
+    simulate_removal(
+        &mut stock,
+        &tool,
+        &[seg],
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap();
+    let body = ToolBody::cutting_part(&tool);
+    let want = 40.0 * section_area(&body, tool.flute_length, zt, tilt, -10.0, -3.0);
+    let c1 = compare_with_part(&stock, &part).unwrap();
+    assert!(
+        (c1.gouge_volume - want).abs() < 0.01 * want,
+        "{} vs {want}",
+        c1.gouge_volume
+    );
+}
