@@ -389,6 +389,19 @@
       const feedSeries = [{ label: 'feed before', values: Float64Array.from(rows, (r) => r.feed_mm_min), color: '#7a5c00' }];
       if (opt) feedSeries.push({ label: 'feed after', values: Float64Array.from(rows, (r) => r.feed_opt_mm_min), color: '#18794e' });
       makePlot(plots, 'Feed', rows, feedSeries, { unit: 'mm/min', source, onClick: goToLine });
+      makePlot(plots, 'Material removal rate', rows, [{ label: 'MRR', values: Float64Array.from(rows, (r) => r.mrr_mm3_s), color: '#6a1b9a' }], { unit: 'mm³/s', source, onClick: goToLine });
+      makePlot(plots, 'Spindle power', rows, [
+        { label: 'peak power', values: Float64Array.from(rows, (r) => r.power_peak_w), color: '#ef6c00' },
+        { label: 'mean power', values: Float64Array.from(rows, (r) => r.power_mean_w), color: '#ffb74d' },
+      ], { unit: 'W', source, onClick: goToLine });
+      makePlot(plots, 'Torque', rows, [{ label: 'peak torque', values: Float64Array.from(rows, (r) => r.torque_peak_nm), color: '#00838f' }], { unit: 'N·m', source, onClick: goToLine });
+      if (rows.some((r) => r.chatter_margin !== null && r.chatter_margin !== undefined)) {
+        makePlot(plots, 'Chatter margin', rows, [
+          { label: 'axial depth / critical depth', values: rows.map((r) => r.chatter_margin ?? null), color: '#ad1457' },
+          { label: 'stability limit', values: Float64Array.from(rows, () => 1), color: '#444', dash: [6, 4], constant: true },
+        ], { unit: '', source, onClick: goToLine });
+      }
+      performance.mark('plots-drawn');
       if (source && (job.kind === 'optimize')) {
         const view = el('div', { id: 'programs' });
         app.append(el('h2', {}, 'Program and optimized program'), view);

@@ -154,9 +154,17 @@ async function main() {
     assert.ok(text.includes(secs), `${k}: ${text} lacks ${secs}`);
   }
   assert.match(await cardText('Collisions'), new RegExp('^Collisions' + s.collisions.length));
+  await page.waitForFunction(() => performance.getEntriesByName('plots-drawn').length > 0);
+  const timing = await page.evaluate(() => ({
+    nav: Math.round(performance.getEntriesByType('navigation')[0].duration),
+    plots: Math.round((performance.getEntriesByName('plots-drawn')[0] || {}).startTime || -1),
+    fcp: Math.round((performance.getEntriesByName('first-contentful-paint')[0] || {}).startTime || -1),
+    requests: performance.getEntriesByType('resource').filter((r) => r.name.includes('/v1/')).map((r) => r.name.replace(/^.*\/v1\//, '').slice(0, 60) + ' ' + Math.round(r.duration) + ' ms'),
+  }));
+  log('job page timing (ms since navigation): first contentful paint', timing.fcp, '; plots drawn by', timing.plots, '; API requests:', timing.requests.join(', '));
   const ink = await canvasInk(page, '#plots .plot:not([data-plot="Samples"]) canvas');
-  log('plot canvases ink (pixels drawn):', ink.join(', '), '; page to plots', Date.now() - tPaint, 'ms');
-  assert.ok(ink.length >= 2, 'two plots');
+  log('plot canvases ink (pixels drawn):', ink.join(', '));
+  assert.equal(ink.length, 5, 'force, feed, MRR, power and torque plots');
   for (const n of ink) assert.ok(n > 2000, 'a plot canvas is (nearly) empty: ' + n);
   // Hover the middle of the force plot: block, line, N.
   const over = await page.$('[data-plot="Cutting force"] .u-over');
