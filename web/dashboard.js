@@ -349,7 +349,8 @@
       if (s.cutting_energy_j != null) cards.append(card('Cutting energy', fmt(s.cutting_energy_j / 1000, 2) + ' kJ'));
       app.append(el('h2', {}, 'Summary'), cards);
     }
-    app.append(el('h2', {}, 'Downloads'), downloads);
+    const summarySlot = el('div');
+    app.append(summarySlot, el('h2', {}, 'Downloads'), downloads);
 
     if (hasRows) {
       const plots = el('div', { id: 'plots' });
@@ -410,6 +411,10 @@
           programView = programDiff(view, source, optimized);
         } catch (e) { handleError(e, view); }
       }
+    } else if (job.kind === 'stability' && Array.isArray(s.row_columns)) {
+      await renderStability(job, s, summarySlot);
+    } else if (job.kind === 'energy' && Array.isArray(s.pareto)) {
+      renderEnergy(s, summarySlot);
     } else if (job.summary) {
       app.append(el('h2', {}, 'Summary (JSON)'), el('pre', {}, JSON.stringify(job.summary, null, 2)));
     }
@@ -464,6 +469,73 @@
       }, [Float64Array.from(pts, (_, i) => i), Float64Array.from(pts, (p) => p.smp.peak_force), Float64Array.from(pts, (p) => p.smp.mean_force)], plotBox);
       plotBox.append(hover);
     });
+  }
+
+
+  // ---------- stability lobes and the energy Pareto front ----------
+  function xyPlot(container, title, xLabel, yLabel, x, series, describe) {
+    const box = el('div', { class: 'plot', 'data-plot': title }, el('div', { class: 'title' }, title));
+    const hover = el('div', { class: 'hover' }, 'hover a point');
+    container.append(box);
+    new uPlot({
+      width: Math.max(320, box.clientWidth - 20), height: 320,
+      cursor: { drag: { x: true, y: true, uni: 20 } },
+      scales: { x: { time: false } },
+      axes: [{ label: xLabel }, { label: yLabel, size: 70 }],
+      series: [{ label: xLabel }, ...series.map((s) => ({ label: s.label, stroke: s.color, width: s.width || 1.5, spanGaps: !!s.spanGaps,
+        points: s.pointsOnly ? { show: true, size: 10, fill: s.color } : { show: false }, paths: s.pointsOnly ? () => null : undefined }))],
+      hooks: { setCursor: [(u) => { const i = u.cursor.idx; if (i !== null && i !== undefined) hover.textContent = describe(i); }] },
+    }, [x, ...series.map((s) => s.values)], box);
+    box.append(hover);
+  }
+
+  async function renderStability(job, s, summarySlot) {
+    const cards = el('div', { class: 'cards', id: 'cards' });
+    if (s.minimum) cards.append(card('Smallest critical depth', fmt(s.minimum.depth_mm, 3) + ' mm', 'at ' + fmt(s.minimum.rpm, 0) + ' rpm'));
+    const rec = s.recommendation;
+    if (rec) cards.append(card('Recommended speed', fmt(rec.rpm, 0) + ' rpm', 'stable to ' + fmt(rec.stable_depth_mm, 3) + ' mm; pocket ' + fmt(rec.pocket_from_rpm, 0) + '–' + fmt(rec.pocket_to_rpm, 0) + ' rpm'));
+    cards.append(card('Speeds', String(s.speeds ?? '–'), s.method ? 'method ' + s.method : null));
+    summarySlot.append(el('h2', {}, 'Summary'), cards);
+    const plots = el('div', { id: 'plots' });
+    app.append(el('h2', {}, 'Stability lobes'), plots);
+    let rows;
+    try { rows = await fetchRows(job.id); } catch (e) { handleError(e, plots); return; }
+    const palette = ['#2463eb', '#c62828', '#18794e', '#ef6c00', '#6a1b9a', '#00838f', '#ad1457', '#5d4037'];
+    const rpms = [...new Set(rows.map((r) => r.rpm))].sort((a, b) => a - b);
+    const at = new Map(rpms.map((r, i) => [r, i]));
+    const groups = new Map();
+    for (const r of rows) {
+      const g = r.allowance_mm === undefined ? 'critical depth' : 'allowance ' + fmt(r.allowance_mm, 2) + ' mm';
+      if (!groups.has(g)) groups.set(g, rpms.map(() => null));
+      groups.get(g)[at.get(r.rpm)] = r.depth_mm;
+    }
+    const series = [...groups].map(([label, values], k) => ({ label, values, color: palette[k % palette.length], spanGaps: true }));
+    if (rec) series.push({ label: 'recommended', values: rpms.map((r) => (r === rec.rpm ? rec.stable_depth_mm : null)), color: '#111', pointsOnly: true });
+    xyPlot(plots, 'Critical axial depth against spindle speed', 'rpm', 'mm', Float64Array.from(rpms), series,
+      (i) => fmt(rpms[i], 0) + ' rpm · ' + series.filter((x) => x.values[i] !== null).map((x) => x.label + ' ' + fmt(x.values[i], 3) + ' mm').join(' · '));
+    if (groups.size > 1) plots.append(el('p', { class: 'muted' }, 'One lobe line per allowance (the 3-D lobe surface is not drawn yet).'));
+  }
+
+  function renderEnergy(s, summarySlot) {
+    const b = s.best || {};
+    const cards = el('div', { class: 'cards', id: 'cards' });
+    cards.append(card('Chosen point', fmt(b.spindle_rpm, 0) + ' rpm', 'F ' + fmt(b.feed_mm_min, 0) + ' mm/min · fz ' + fmt(b.feed_per_tooth_mm, 3) + ' mm'));
+    cards.append(card('Passes', (b.axial_passes ?? '–') + ' × ' + (b.radial_passes ?? '–'), 'ap ' + fmt(b.axial_depth_mm, 2) + ' mm · ae ' + fmt(b.radial_width_mm, 2) + ' mm'));
+    cards.append(card('Time', fmtTime(b.time_s)));
+    cards.append(card('Energy', fmt(b.energy_j / 1000, 2) + ' kJ', 'cutting ' + fmt(b.cutting_energy_j / 1000, 2) + ' kJ'));
+    cards.append(card('Utilization', fmt(100 * b.utilization, 1) + ' %', s.objective ? 'objective ' + s.objective : null));
+    summarySlot.append(el('h2', {}, 'Summary'), cards);
+    const plots = el('div', { id: 'plots' });
+    app.append(el('h2', {}, 'Pareto front'), plots);
+    // The chosen point is usually one of the front's: marked there, else added beside it.
+    const same = (p) => Math.abs(p.time_s - b.time_s) <= 1e-9 * Math.abs(b.time_s) && Math.abs(p.energy_j - b.energy_j) <= 1e-9 * Math.abs(b.energy_j);
+    const pts = s.pareto.map((p) => ({ p, best: same(p), front: true }));
+    if (!pts.some((x) => x.best)) pts.push({ p: b, best: true, front: false });
+    pts.sort((x, y) => x.p.time_s - y.p.time_s);
+    xyPlot(plots, 'Energy against time', 's', 'kJ', Float64Array.from(pts, (x) => x.p.time_s), [
+      { label: 'Pareto front', values: pts.map((x) => (x.front ? x.p.energy_j / 1000 : null)), color: '#2463eb', spanGaps: true },
+      { label: 'chosen', values: pts.map((x) => (x.best ? x.p.energy_j / 1000 : null)), color: '#c62828', pointsOnly: true },
+    ], (i) => { const p = pts[i].p; return (pts[i].best ? 'chosen · ' : '') + fmt(p.time_s, 3) + ' s · ' + fmt(p.energy_j / 1000, 3) + ' kJ · ' + fmt(p.spindle_rpm, 0) + ' rpm · F ' + fmt(p.feed_mm_min, 0) + ' · ' + p.axial_passes + '×' + p.radial_passes + ' passes'; });
   }
 
   // ---------- the program beside the optimized program ----------

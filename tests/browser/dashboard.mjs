@@ -139,7 +139,6 @@ async function main() {
   // 2. The job's page: cards with the summary's numbers, plots drawn, downloads served.
   await page.click(row + ' td.prog a');
   await page.waitForURL(base + '/jobs/' + job.id);
-  const tPaint = Date.now();
   await page.waitForSelector('#plots .plot canvas');
   const s = (await api(base, '/v1/jobs/' + job.id)).summary;
   const o = s.optimization;
@@ -216,11 +215,34 @@ async function main() {
   assert.match(await page.textContent('#problem dd[data-field="detail"]'), /outside the machine's travel/);
   await page.screenshot({ path: join(ARTIFACTS, 'failed.png'), fullPage: true });
 
+  // 4. A stability job: the lobes with the recommended speed; an energy job: the Pareto front.
+  const stab = await api(base, '/v1/jobs', { kind: 'stability', options: { method: 'sdm', teeth: 2, ktc_n_mm2: 600, krc_n_mm2: 200, radial_immersion: 0.05, milling: 'down',
+    modes_x: [{ freq_hz: 922, damping: 0.011, stiffness_n_m: 1.34005e6 }], modes_y: [], rpm: { from: 5000, to: 25000, step: 250 }, steps_per_period: 40,
+    recommend: { near_rpm: 15000, depth_mm: 0.5 } } });
+  const energy = await api(base, '/v1/jobs', { kind: 'energy', inputs: { tool: tool.id, machine: machine.id }, options: { material: 'Al7075-T6', length_mm: 200, width_mm: 8, depth_mm: 12,
+    cutting_speed_m_min: { min: 100, max: 300 }, feed_per_tooth_mm: { min: 0.02, max: 0.2 }, objective: 'min_energy', pareto: true } });
+  await page.goto(base + '/jobs/' + stab.id);
+  await page.waitForSelector('[data-plot^="Critical axial depth"] canvas', { timeout: 60000 });
+  const ss = (await api(base, '/v1/jobs/' + stab.id)).summary;
+  assert.match(await page.textContent('[data-card="Recommended speed"]'), new RegExp(fmt(ss.recommendation.rpm, 0).replace(',', '\\,') + ' rpm'));
+  const sink2 = await canvasInk(page, '#plots canvas');
+  log('stability lobes ink', sink2.join(','));
+  assert.ok(sink2[0] > 2000);
+  await page.screenshot({ path: join(ARTIFACTS, 'stability.png'), fullPage: true });
+  await page.goto(base + '/jobs/' + energy.id);
+  await page.waitForSelector('[data-plot="Energy against time"] canvas', { timeout: 60000 });
+  const es = (await api(base, '/v1/jobs/' + energy.id)).summary;
+  assert.match(await page.textContent('[data-card="Chosen point"]'), new RegExp(fmt(es.best.spindle_rpm, 0).replace(',', '\\,') + ' rpm'));
+  const eink = await canvasInk(page, '#plots canvas');
+  log('energy Pareto ink', eink.join(','), '; front of', es.pareto.length, 'points');
+  assert.ok(eink[0] > 1000);
+  await page.screenshot({ path: join(ARTIFACTS, 'energy.png'), fullPage: true });
+
   assert.deepEqual(consoleErrors, [], 'console errors');
   assert.deepEqual(foreign, [], 'requests that left the server origin');
   await context.close();
 
-  // 4. A server that requires API keys: the page asks for one and sends it.
+  // 5. A server that requires API keys: the page asks for one and sends it.
   const out = execFileSync(BIN, ['api-key', 'dash']).toString();
   const key = out.match(/^key: (\S+)$/m)[1];
   const keyLine = out.match(/^key file line: (.+)$/m)[1];
