@@ -352,6 +352,32 @@
     const summarySlot = el('div');
     app.append(summarySlot, el('h2', {}, 'Downloads'), downloads);
 
+    if (s.collisions && s.collisions.length) {
+      app.append(el('h2', {}, 'Collisions'), el('table', { class: 'jobs', id: 'collisions' },
+        el('thead', {}, el('tr', {}, ['Block', 'Line', 'Kind'].map((h) => el('th', {}, h)))),
+        el('tbody', {}, s.collisions.map((c) => el('tr', {}, el('td', {}, c.block), el('td', {}, c.line), el('td', {}, c.kind))))));
+    }
+    if (job.kind === 'simulate' || job.kind === 'optimize') {
+      // The machined stock in 3-D: loaded on request (the STL can be tens of MB).
+      const view = el('div', { id: 'stock3d' });
+      const partId = job.inputs && typeof job.inputs.part === 'string' ? job.inputs.part : null;
+      const button = el('button', { id: 'load-stock', onclick: async () => {
+        button.disabled = true;
+        view.replaceChildren(el('p', { class: 'muted' }, 'loading the stock…'));
+        try {
+          const [mod, stl, part] = await Promise.all([
+            import('/ui/stock3d.js'),
+            api(base + '/stock.stl').then((r) => r.arrayBuffer()),
+            partId ? api('/v1/stocks/' + encodeURIComponent(partId) + '/content').then((r) => r.arrayBuffer()) : Promise.resolve(null),
+          ]);
+          view.replaceChildren();
+          const v = mod.showStock(view, stl, part);
+          view.append(el('p', { class: 'muted', id: 'stockinfo' }, v.triangles.toLocaleString('en-US') + ' triangles · ' + v.size.map((x) => fmt(x, 1)).join(' × ') + ' mm · drag to orbit, wheel to zoom, right-drag to pan',
+            part ? el('label', {}, ' · ', el('input', { type: 'checkbox', checked: true, onchange: (e) => v.setPartVisible(e.target.checked) }), ' design part (green)') : ''));
+        } catch (e) { view.replaceChildren(); handleError(e, view); }
+      } }, 'Show the machined stock in 3-D');
+      app.append(el('h2', {}, 'Stock after machining'), button, view);
+    }
     if (hasRows) {
       const plots = el('div', { id: 'plots' });
       const status = el('p', { class: 'muted', id: 'rowstatus' }, 'loading rows…');

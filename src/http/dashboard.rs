@@ -17,12 +17,62 @@ use super::AppState;
 pub const ROUTES: [&str; 2] = ["/jobs/{id}", "/ui/{file}"];
 
 /// Every embedded file as (name under /ui/, content type, bytes).
-const FILES: [(&str, &str, &[u8]); 5] = [
-    ("dashboard.js", "text/javascript; charset=utf-8", include_bytes!("../../web/dashboard.js")),
-    ("dashboard.css", "text/css; charset=utf-8", include_bytes!("../../web/dashboard.css")),
-    ("uPlot.iife.min.js", "text/javascript; charset=utf-8", include_bytes!("../../web/vendor/uplot/uPlot.iife.min.js")),
-    ("uPlot.min.css", "text/css; charset=utf-8", include_bytes!("../../web/vendor/uplot/uPlot.min.css")),
-    ("uPlot.LICENSE.txt", "text/plain; charset=utf-8", include_bytes!("../../web/vendor/uplot/LICENSE")),
+const FILES: [(&str, &str, &[u8]); 11] = [
+    (
+        "dashboard.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../../web/dashboard.js"),
+    ),
+    (
+        "dashboard.css",
+        "text/css; charset=utf-8",
+        include_bytes!("../../web/dashboard.css"),
+    ),
+    (
+        "uPlot.iife.min.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../../web/vendor/uplot/uPlot.iife.min.js"),
+    ),
+    (
+        "uPlot.min.css",
+        "text/css; charset=utf-8",
+        include_bytes!("../../web/vendor/uplot/uPlot.min.css"),
+    ),
+    (
+        "uPlot.LICENSE.txt",
+        "text/plain; charset=utf-8",
+        include_bytes!("../../web/vendor/uplot/LICENSE"),
+    ),
+    (
+        "stock3d.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../../web/stock3d.js"),
+    ),
+    (
+        "three.module.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../../web/vendor/three/three.module.js"),
+    ),
+    (
+        "three.core.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../../web/vendor/three/three.core.js"),
+    ),
+    (
+        "STLLoader.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../../web/vendor/three/STLLoader.js"),
+    ),
+    (
+        "OrbitControls.js",
+        "text/javascript; charset=utf-8",
+        include_bytes!("../../web/vendor/three/OrbitControls.js"),
+    ),
+    (
+        "three.LICENSE.txt",
+        "text/plain; charset=utf-8",
+        include_bytes!("../../web/vendor/three/LICENSE"),
+    ),
 ];
 
 pub fn routes() -> Router<AppState> {

@@ -197,6 +197,28 @@ async function main() {
   const sink = await canvasInk(page, '[data-plot="Samples"] canvas');
   log('samples:', await page.textContent('[data-plot="Samples"] .title'), '; ink', sink.join(','));
   assert.ok(sink[0] > 1000, 'the samples plot is (nearly) empty');
+  // The machined stock in 3-D: the canvas shows the mesh (not just the clear colour), and a
+  // drag orbits it (the picture changes).
+  await page.click('#load-stock');
+  await page.waitForSelector('#stockinfo', { timeout: 60000 });
+  const glPixels = () => page.$eval('#stock3d canvas', (c) => {
+    const t = document.createElement('canvas'); t.width = c.width; t.height = c.height;
+    const g = t.getContext('2d'); g.drawImage(c, 0, 0);
+    const d = g.getImageData(0, 0, t.width, t.height).data;
+    let shape = 0; let sum = 0;
+    for (let i = 0; i < d.length; i += 4) { if (Math.abs(d[i] - 0xf4) + Math.abs(d[i + 1] - 0xf6) + Math.abs(d[i + 2] - 0xf9) > 24) shape++; sum = (sum + d[i] * 7 + d[i + 1] * 13 + d[i + 2] * 17 + i) % 1000000007; }
+    return { shape, total: d.length / 4, sum };
+  });
+  const before3d = await glPixels();
+  const cb = await (await page.$('#stock3d canvas')).boundingBox();
+  await page.mouse.move(cb.x + cb.width / 2, cb.y + cb.height / 2);
+  await page.mouse.down();
+  await page.mouse.move(cb.x + cb.width / 2 + 120, cb.y + cb.height / 2 + 30, { steps: 6 });
+  await page.mouse.up();
+  const after3d = await glPixels();
+  log('3-D stock:', await page.textContent('#stockinfo'), '; pixels on the mesh', before3d.shape, 'of', before3d.total, '; after orbit', after3d.shape);
+  assert.ok(before3d.shape > before3d.total * 0.05, 'the 3-D view is (nearly) blank');
+  assert.notEqual(before3d.sum, after3d.sum, 'orbiting did not change the picture');
   const links = await page.$$eval('#downloads a', (as) => as.map((a) => [a.textContent, a.getAttribute('href')]));
   assert.deepEqual(links.map((l) => l[0]), ['Optimized program', 'Rows (CSV)', 'Stock after machining (STL)', 'Summary (JSON)']);
   for (const [, href] of links) {
