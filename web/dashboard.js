@@ -156,7 +156,7 @@
     const tbody = el('tbody');
     const pager = el('div', { class: 'pager' });
     app.replaceChildren(
-      el('h1', {}, 'Jobs'),
+      el('h1', {}, 'Jobs ', el('a', { href: '/?new=1', id: 'new-job-link', class: 'small', onclick: (e) => { e.preventDefault(); history.pushState(null, '', '/?new=1'); route(); } }, '+ new job')),
       el('div', { class: 'toolbar' }, el('label', {}, 'Status ', sel('status', STATUSES, status)), el('label', {}, 'Kind ', sel('kind', KINDS, kind)),
         el('span', { class: 'muted', id: 'live' }, '')),
       el('table', { class: 'jobs' }, el('thead', {}, el('tr', {}, ['Status', 'Kind', 'Program', 'Created', 'Progress', 'Duration'].map((h) => el('th', {}, h)))), tbody),
@@ -626,6 +626,77 @@
     };
   }
 
+
+  // ---------- a new simulate/optimize job ----------
+  function renderNewJob() {
+    const num = (name, value, attrs) => el('input', { name, type: 'number', step: 'any', value, ...(attrs || {}) });
+    const field = (label, ...input) => el('label', { class: 'field' }, el('span', {}, label), ...input);
+    const out = el('div', { id: 'form-result' });
+    const form = el('form', { id: 'new-job', class: 'newjob' },
+      el('fieldset', {}, el('legend', {}, 'Job'),
+        field('Kind', el('select', { name: 'kind' }, el('option', { value: 'optimize' }, 'optimize (simulate, then schedule the feeds)'), el('option', { value: 'simulate' }, 'simulate'))),
+        field('NC program', el('input', { name: 'program', type: 'file', required: true }))),
+      el('fieldset', {}, el('legend', {}, 'Stock'),
+        field('STL file (optional)', el('input', { name: 'stock_stl', type: 'file', accept: '.stl' })),
+        el('div', { class: 'muted' }, 'or a block, min and max corners in mm:'),
+        el('div', { class: 'row' }, 'min', num('min_x', 0), num('min_y', 0), num('min_z', -20), 'max', num('max_x', 100), num('max_y', 80), num('max_z', 0))),
+      el('fieldset', {}, el('legend', {}, 'Tool (every tool number of the program)'),
+        field('Type', el('select', { name: 'tool_type' }, ['flat', 'ball', 'bull', 'chamfer'].map((t) => el('option', { value: t }, t)))),
+        field('Diameter mm', num('diameter_mm', 10)), field('Corner radius mm (bull)', num('corner_radius_mm', 1)),
+        field('Flutes', num('flutes', 4, { step: 1 })), field('Helix °', num('helix_deg', 30)), field('Flute length mm', num('flute_length_mm', 25))),
+      el('fieldset', {}, el('legend', {}, 'Material and machine'),
+        field('Material', el('select', { name: 'material' }, ['Al7075-T6', 'Al6082-T6', 'TC6'].map((m) => el('option', { value: m }, m)))),
+        field('Machine JSON (optional)', el('input', { name: 'machine', type: 'file', accept: '.json' }))),
+      el('fieldset', {}, el('legend', {}, 'Limits (optimize)'),
+        field('Max force N', num('max_force', 400)), field('Air feed mm/min', num('air_feed', 5000)), field('Max feed mm/min (optional)', num('max_feed', ''))),
+      el('button', { type: 'submit' }, 'Submit'), ' ', el('a', { href: '/' }, 'cancel'), out);
+    form.addEventListener('submit', async (e) => {
+      e.preventDefault();
+      const f = form.elements;
+      out.replaceChildren(el('p', { class: 'muted' }, 'uploading…'));
+      const post = async (path, body, type) => (await apiProblem(path, { method: 'POST', headers: { 'content-type': type }, body })).json();
+      try {
+        const prog = f.program.files[0];
+        const program = await post('/v1/programs?name=' + encodeURIComponent(prog.name), await prog.arrayBuffer(), 'text/plain');
+        const stl = f.stock_stl.files[0];
+        const stock = stl ? await post('/v1/stocks?name=' + encodeURIComponent(stl.name), await stl.arrayBuffer(), 'application/octet-stream')
+          : await post('/v1/stocks', JSON.stringify({ kind: 'block', min: [+f.min_x.value, +f.min_y.value, +f.min_z.value], max: [+f.max_x.value, +f.max_y.value, +f.max_z.value] }), 'application/json');
+        const t = { type: f.tool_type.value, diameter_mm: +f.diameter_mm.value, flutes: +f.flutes.value, helix_deg: +f.helix_deg.value, flute_length_mm: +f.flute_length_mm.value };
+        if (t.type === 'bull') t.corner_radius_mm = +f.corner_radius_mm.value;
+        const tool = await post('/v1/tools', JSON.stringify(t), 'application/json');
+        const inputs = { program: program.id, stock: stock.id, tool: tool.id };
+        const mfile = f.machine.files[0];
+        if (mfile) inputs.machine = (await post('/v1/machines?name=' + encodeURIComponent(mfile.name), await mfile.arrayBuffer(), 'application/json')).id;
+        const options = { material: f.material.value };
+        if (f.kind.value === 'optimize') {
+          options.limits = {};
+          for (const k of ['max_force', 'air_feed', 'max_feed']) if (f[k].value !== '') options.limits[k] = +f[k].value;
+        }
+        const job = await post('/v1/jobs', JSON.stringify({ kind: f.kind.value, inputs, options }), 'application/json');
+        history.pushState(null, '', '/jobs/' + job.id);
+        route();
+      } catch (err) {
+        out.replaceChildren();
+        if (err.problem) out.append(el('h2', {}, 'The server refused it'), problemView(err.problem));
+        else handleError(err, out);
+      }
+    });
+    app.replaceChildren(el('div', {}, el('a', { href: '/' }, '← all jobs')), el('h1', {}, 'New job'), form);
+  }
+  // Like api(), but a refusal keeps its problem document (file, line, column) for the form.
+  async function apiProblem(path, opts) {
+    const res = await fetch(path, { ...opts, headers: { ...authHeaders(), ...(opts.headers || {}) } });
+    if (res.status === 401) throw new NeedKey('401');
+    if (!res.ok) {
+      let p = null;
+      try { p = await res.json(); } catch (_) { /* not JSON */ }
+      const err = new Error((p && (p.detail || p.title)) || res.status + ' ' + res.statusText);
+      err.problem = p;
+      throw err;
+    }
+    return res;
+  }
+
   // ---------- routing ----------
   function route() {
     if (listTimer) { clearInterval(listTimer); listTimer = null; }
@@ -633,6 +704,7 @@
     renderKeyState();
     const m = location.pathname.match(/^\/jobs\/([^/]+)$/);
     if (m) renderJob(decodeURIComponent(m[1]));
+    else if (new URLSearchParams(location.search).get('new')) renderNewJob();
     else renderList();
   }
   window.addEventListener('popstate', route);

@@ -237,7 +237,35 @@ async function main() {
   assert.match(await page.textContent('#problem dd[data-field="detail"]'), /outside the machine's travel/);
   await page.screenshot({ path: join(ARTIFACTS, 'failed.png'), fullPage: true });
 
-  // 4. A stability job: the lobes with the recommended speed; an energy job: the Pareto front.
+  // 4. The new-job form: a program file, a block stock, a tool; the page then follows the job.
+  await page.goto(base + '/');
+  await page.click('#new-job-link');
+  await page.waitForSelector('form#new-job');
+  await page.setInputFiles('form#new-job input[name=program]', { name: 'form.nc', mimeType: 'text/plain', buffer: Buffer.from(zigzag(10)) });
+  await page.fill('form#new-job input[name=max_force]', '300');
+  await page.screenshot({ path: join(ARTIFACTS, 'new-job.png'), fullPage: true });
+  await page.click('form#new-job button[type=submit]');
+  await page.waitForURL(/\/jobs\/[0-9a-f-]+$/);
+  const formJobId = page.url().split('/').pop();
+  await page.waitForSelector('#cards', { timeout: 60000 });
+  const fj = await api(base, '/v1/jobs/' + formJobId);
+  log('form job', fj.kind, fj.status, 'program', (await api(base, '/v1/programs/' + fj.inputs.program)).name, 'limits', JSON.stringify(fj.options.limits));
+  assert.equal(fj.kind, 'optimize');
+  assert.equal(fj.options.limits.max_force, 300);
+  assert.match(await page.textContent('#progname'), /^form\.nc$/);
+  // A program that does not parse is refused with its line and column, shown on the form.
+  await page.goto(base + '/?new=1');
+  await page.setInputFiles('form#new-job input[name=program]', { name: 'syntax.nc', mimeType: 'text/plain', buffer: Buffer.from('G1 X10 F100\nG1 X#@!\n') });
+  await page.click('form#new-job button[type=submit]');
+  await page.waitForSelector('#form-result #problem');
+  assert.equal(await page.textContent('#form-result #problem dd[data-field="file"]'), 'syntax.nc');
+  assert.equal(await page.textContent('#form-result #problem dd[data-field="line"]'), '2');
+  assert.equal(await page.textContent('#form-result #problem dd[data-field="column"]'), '6');
+  await page.screenshot({ path: join(ARTIFACTS, 'new-job-refused.png'), fullPage: true });
+  // The 422 of the refused upload is logged by the browser as a failed resource load: expected.
+  for (let i = consoleErrors.length - 1; i >= 0; i--) if (/status of 422/.test(consoleErrors[i])) consoleErrors.splice(i, 1);
+
+  // 5. A stability job: the lobes with the recommended speed; an energy job: the Pareto front.
   const stab = await api(base, '/v1/jobs', { kind: 'stability', options: { method: 'sdm', teeth: 2, ktc_n_mm2: 600, krc_n_mm2: 200, radial_immersion: 0.05, milling: 'down',
     modes_x: [{ freq_hz: 922, damping: 0.011, stiffness_n_m: 1.34005e6 }], modes_y: [], rpm: { from: 5000, to: 25000, step: 250 }, steps_per_period: 40,
     recommend: { near_rpm: 15000, depth_mm: 0.5 } } });
@@ -264,7 +292,7 @@ async function main() {
   assert.deepEqual(foreign, [], 'requests that left the server origin');
   await context.close();
 
-  // 5. A server that requires API keys: the page asks for one and sends it.
+  // 6. A server that requires API keys: the page asks for one and sends it.
   const out = execFileSync(BIN, ['api-key', 'dash']).toString();
   const key = out.match(/^key: (\S+)$/m)[1];
   const keyLine = out.match(/^key file line: (.+)$/m)[1];
