@@ -168,6 +168,7 @@
     if (cursor) params.set('cursor', cursor);
 
     const rows = new Map(); // id -> tr
+    const latest = new Map(); // id -> the last progress event of its stream
     function fillRow(tr, job) {
       tr.dataset.status = job.status;
       tr.replaceChildren(
@@ -186,21 +187,31 @@
       follow(job.id, (ev, data) => {
         const tr = rows.get(job.id);
         if (!tr) return;
-        if (ev === 'progress') fillRow(tr, { ...job, status: data.status, progress: { done: data.done, total: data.total } });
-        else if (ev === 'status') { Object.assign(job, data); fillRow(tr, data); }
+        if (ev === 'progress') {
+          latest.set(job.id, data);
+          fillRow(tr, { ...job, status: data.status, progress: { done: data.done, total: data.total } });
+        } else if (ev === 'status') { latest.delete(job.id); Object.assign(job, data); fillRow(tr, data); }
       }, ctl.signal).catch(() => {}).finally(() => { if (streams.get(job.id) === ctl) streams.delete(job.id); });
     }
     async function load() {
       let page;
-      try { page = await getJson('/v1/jobs?' + params); } catch (e) { stopStreams(); handleError(e); return false; }
+      try { page = await getJson('/v1/jobs?' + params); } catch (e) {
+        stopStreams();
+        if (listTimer) { clearInterval(listTimer); listTimer = null; }
+        handleError(e);
+        return false;
+      }
       const ids = new Set(page.items.map((j) => j.id));
       for (const [id, c] of streams) if (!ids.has(id)) { c.abort(); streams.delete(id); }
       const order = [];
       for (const job of page.items) {
         let tr = rows.get(job.id);
         if (!tr) { tr = el('tr', { 'data-id': job.id }); rows.set(job.id, tr); programName(job).then((n) => { if (n) { tr.dataset.prog = n; const a = tr.querySelector('td.prog a'); if (a) a.textContent = n; } }); }
-        // A streamed row is ahead of (or equal to) the list's copy; a finished one is final.
-        if (!streams.has(job.id) || job.status !== 'queued') fillRow(tr, job);
+        // A row's event stream may be ahead of the list's copy: the further progress is kept.
+        const live = latest.get(job.id);
+        if (live && (job.status === 'queued' || job.status === 'running') && live.done >= (job.progress ? job.progress.done : 0)) {
+          fillRow(tr, { ...job, status: live.status, progress: { done: live.done, total: live.total } });
+        } else fillRow(tr, job);
         if (job.status === 'queued' || job.status === 'running') startStream(job);
         order.push(tr);
       }
