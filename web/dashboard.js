@@ -424,6 +424,7 @@
         hooks: { setScale: [(u, key) => { if (key === 'x') samplesBox.dispatchEvent(new CustomEvent('range', { detail: [u.scales.x.min, u.scales.x.max] })); }] } });
       plots.append(samplesBox);
       setUpSamples(samplesBox, base, rows, forcePlot);
+      timePlot(plots, rows, opt, limit, source, goToLine);
       const feedSeries = [{ label: 'feed before', values: Float64Array.from(rows, (r) => r.feed_mm_min), color: '#7a5c00' }];
       if (opt) feedSeries.push({ label: 'feed after', values: Float64Array.from(rows, (r) => r.feed_opt_mm_min), color: '#18794e' });
       makePlot(plots, 'Feed', rows, feedSeries, { unit: 'mm/min', source, onClick: goToLine });
@@ -457,6 +458,45 @@
     }
   }
 
+
+
+  // ---------- peak force against cycle time (before, and after where optimized) ----------
+  function timePlot(container, rows, opt, limit, source, goToLine) {
+    const cumulative = (key) => { let t = 0; return Float64Array.from(rows, (r) => (t += r[key] || 0)); };
+    const tb = cumulative('time_s');
+    const tables = [[tb, Float64Array.from(rows, (r) => r.force_peak_n)]];
+    const ta = opt ? cumulative('time_opt_s') : null;
+    if (ta) tables.push([ta, Float64Array.from(rows, (r) => r.force_peak_opt_n)]);
+    // One x (time) for both: uPlot.join aligns the two traces, leaving gaps where one has no point.
+    const data = uPlot.join(tables);
+    const series = [{ label: 'peak |F| before', color: '#c62828', spanGaps: true }];
+    if (ta) series.push({ label: 'peak |F| after', color: '#2463eb', spanGaps: true });
+    if (limit != null) { data.push(Array.from(data[0], () => limit)); series.push({ label: 'limit', color: '#444', dash: [6, 4] }); }
+    // The row running at time x: the first whose end time is at or after it.
+    const rowAt = (ends, x) => { let lo = 0; let hi = ends.length - 1; while (lo < hi) { const mid = (lo + hi) >> 1; if (ends[mid] < x) lo = mid + 1; else hi = mid; } return rows[lo]; };
+    const title = 'Peak force against cycle time' + (ta ? ' (before: ' + fmtTime(tb[tb.length - 1]) + ', after: ' + fmtTime(ta[ta.length - 1]) + ')' : '');
+    const box = el('div', { class: 'plot', 'data-plot': 'Force against time' }, el('div', { class: 'title' }, title));
+    const hover = el('div', { class: 'hover' }, 'hover: the block running at that time, before and after');
+    container.append(box);
+    const u = new uPlot({
+      width: Math.max(320, box.clientWidth - 20), height: 260,
+      cursor: { drag: { x: true, y: false } },
+      scales: { x: { time: false } },
+      axes: [{ label: 'cycle time (s)' }, { label: 'N', size: 70 }],
+      series: [{ label: 's' }, ...series.map((x) => ({ label: x.label, stroke: x.color, dash: x.dash, spanGaps: !!x.spanGaps, points: { show: false } }))],
+      hooks: { setCursor: [(u) => {
+        const i = u.cursor.idx;
+        if (i === null || i === undefined) return;
+        const x = u.data[0][i];
+        const b = rowAt(tb, x);
+        const parts = ['t ' + fmt(x, 2) + ' s', 'before: block ' + b.block + ' line ' + b.line + ' ' + fmt(b.force_peak_n, 1) + ' N'];
+        if (ta) { const a = rowAt(ta, x); parts.push('after: block ' + a.block + ' line ' + a.line + ' ' + fmt(a.force_peak_opt_n, 1) + ' N'); }
+        hover.replaceChildren(parts.join(' · '), source && source[b.line - 1] !== undefined ? el('div', { class: 'src' }, b.line + ': ' + source[b.line - 1]) : '');
+      }] },
+    }, data, box);
+    u.over.addEventListener('click', () => { const i = u.cursor.idx; if (i !== null && i !== undefined) goToLine(rowAt(tb, u.data[0][i])); });
+    box.append(hover);
+  }
 
   // ---------- per-step samples of the blocks in view ----------
   const MAX_SAMPLE_ROWS = 400;

@@ -163,9 +163,20 @@ async function main() {
   log('job page timing (ms since navigation): first contentful paint', timing.fcp, '; plots drawn by', timing.plots, '; API requests:', timing.requests.join(', '));
   const ink = await canvasInk(page, '#plots .plot:not([data-plot="Samples"]) canvas');
   log('plot canvases ink (pixels drawn):', ink.join(', '));
-  assert.equal(ink.length, 5, 'force, feed, MRR, power and torque plots');
+  assert.equal(ink.length, 6, 'force, force against time, feed, MRR, power and torque plots');
+  const timeTitle = await page.textContent('[data-plot="Force against time"] .title');
+  log('time plot:', timeTitle);
+  assert.ok(timeTitle.includes('before: ' + (o.cycle_time_before_s >= 60 ? Math.floor(o.cycle_time_before_s / 60) + ' min' : '')), timeTitle);
+  await page.$eval('[data-plot="Force against time"]', (e) => e.scrollIntoView());
+  const tover = await (await page.$('[data-plot="Force against time"] .u-over')).boundingBox();
+  await page.mouse.move(tover.x + tover.width * 0.2, tover.y + tover.height / 2);
+  const thover = await page.textContent('[data-plot="Force against time"] .hover');
+  log('time hover:', thover);
+  await page.locator('[data-plot="Force against time"]').screenshot({ path: join(ARTIFACTS, 'force-against-time.png') });
+  assert.match(thover, /^t [\d,.]+ s · before: block \d+ line \d+ [\d,.]+ N · after: block \d+ line \d+ [\d,.]+ N/);
   for (const n of ink) assert.ok(n > 2000, 'a plot canvas is (nearly) empty: ' + n);
   // Hover the middle of the force plot: block, line, N.
+  await page.$eval('[data-plot="Cutting force"]', (e) => e.scrollIntoView());
   const over = await page.$('[data-plot="Cutting force"] .u-over');
   const bb = await over.boundingBox();
   await page.mouse.move(bb.x + bb.width / 2, bb.y + bb.height / 2);
