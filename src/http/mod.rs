@@ -2,6 +2,7 @@
 
 pub mod auth;
 pub mod body;
+pub mod dashboard;
 pub mod download;
 pub mod jobs;
 pub mod ops;
@@ -58,6 +59,7 @@ pub fn route_table() -> Vec<(Method, String)> {
         (Method::GET, "/readyz".into()),
         (Method::GET, "/metrics".into()),
     ];
+    routes.extend(dashboard::ROUTES.iter().map(|p| (Method::GET, p.to_string())));
     for kind in ResourceKind::ALL {
         let c = kind.collection();
         routes.push((Method::POST, format!("/v1/{c}")));
@@ -160,6 +162,7 @@ pub fn router(state: AppState) -> Router {
         .route("/healthz", get(ops::healthz))
         .route("/readyz", get(ops::readyz))
         .route("/metrics", get(ops::metrics))
+        .merge(dashboard::routes())
         .layer(timeout(30));
 
     let request_id = HeaderName::from_static("x-request-id");

@@ -1,0 +1,54 @@
+// The machined stock in 3-D (three.js, vendored): the job's exported STL, and the design
+// part as a translucent overlay where the job has one. Orbit, zoom and pan with the mouse.
+import * as THREE from 'three';
+import { STLLoader } from '/ui/STLLoader.js';
+import { OrbitControls } from '/ui/OrbitControls.js';
+
+export function showStock(container, stockStl, partStl) {
+  const width = Math.max(320, container.clientWidth);
+  const height = 480;
+  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  renderer.setSize(width, height);
+  renderer.setClearColor(0xf4f6f9);
+  container.append(renderer.domElement);
+
+  const scene = new THREE.Scene();
+  const loader = new STLLoader();
+  const stock = loader.parse(stockStl);
+  stock.computeVertexNormals();
+  stock.computeBoundingBox();
+  const mesh = new THREE.Mesh(stock, new THREE.MeshStandardMaterial({ color: 0x9aa7b8, metalness: 0.35, roughness: 0.45 }));
+  scene.add(mesh);
+  let part = null;
+  if (partStl) {
+    const g = loader.parse(partStl);
+    g.computeVertexNormals();
+    part = new THREE.Mesh(g, new THREE.MeshStandardMaterial({ color: 0x2e7d32, transparent: true, opacity: 0.35, depthWrite: false }));
+    scene.add(part);
+  }
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x445566, 1.6));
+  const sun = new THREE.DirectionalLight(0xffffff, 1.8);
+  sun.position.set(1, -1.5, 2);
+  scene.add(sun);
+
+  // The part frame has Z up; look at the stock's box from the front-right, above.
+  const box = stock.boundingBox;
+  const centre = box.getCenter(new THREE.Vector3());
+  const size = box.getSize(new THREE.Vector3()).length();
+  const camera = new THREE.PerspectiveCamera(35, width / height, size / 1000, size * 20);
+  camera.up.set(0, 0, 1);
+  camera.position.copy(centre).add(new THREE.Vector3(0.9, -1.3, 1.0).multiplyScalar(size * 0.9));
+  const controls = new OrbitControls(camera, renderer.domElement);
+  controls.target.copy(centre);
+  const render = () => renderer.render(scene, camera);
+  controls.addEventListener('change', render);
+  controls.update();
+  render();
+  const dims = box.getSize(new THREE.Vector3());
+  return {
+    triangles: stock.attributes.position.count / 3,
+    size: [dims.x, dims.y, dims.z],
+    setPartVisible(v) { if (part) { part.visible = v; render(); } },
+  };
+}
