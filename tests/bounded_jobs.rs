@@ -422,8 +422,14 @@ async fn sigterm_exits_within_the_grace_period_with_a_long_job_running() {
     let id = submit(&c, &s, &long_energy_job(&tool, &machine)).await;
     wait_status(&c, &s, &id, "running").await;
     // The job runs in its own process: address space limited, first in line for the
-    // kernel's out-of-memory killer.
-    let jobs = child_processes(s.child.id());
+    // kernel's out-of-memory killer. A job is running once claimed, a moment before its
+    // process starts (longer on a loaded machine).
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut jobs = child_processes(s.child.id());
+    while jobs.is_empty() && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        jobs = child_processes(s.child.id());
+    }
     assert_eq!(jobs.len(), 1, "{jobs:?}");
     let adj = std::fs::read_to_string(format!("/proc/{}/oom_score_adj", jobs[0])).unwrap();
     assert_eq!(adj.trim(), "1000");

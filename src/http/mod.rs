@@ -59,7 +59,11 @@ pub fn route_table() -> Vec<(Method, String)> {
         (Method::GET, "/readyz".into()),
         (Method::GET, "/metrics".into()),
     ];
-    routes.extend(dashboard::ROUTES.iter().map(|p| (Method::GET, p.to_string())));
+    routes.extend(
+        dashboard::ROUTES
+            .iter()
+            .map(|p| (Method::GET, p.to_string())),
+    );
     for kind in ResourceKind::ALL {
         let c = kind.collection();
         routes.push((Method::POST, format!("/v1/{c}")));
