@@ -65,15 +65,19 @@ pub fn simulate_in_batches(
 
     let radii: Vec<f64> = tools.all().map(Tool::radius).collect();
     let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
-    let clock = Instant::now();
-    let mut stock = stock(spec, cell, removal::grid_frame(spec, moves, &tools, cell))?;
-    let volume_before = stock.volume();
-    timings.stock_s = clock.elapsed().as_secs_f64();
-
     let times = cycle_time(moves, &spec.machine, None)?;
     let mut rows = rows::initial_rows(&spec.program, moves, &times);
     let clock = Instant::now();
     let plan = removal::plan_removal(spec, moves, &tools, cell, &mut rows)?;
+    let plan_s = clock.elapsed().as_secs_f64();
+
+    // The grid's frame follows the plan's pieces (along a 3+2 program's tool axis).
+    let clock = Instant::now();
+    let mut stock = stock(spec, cell, plan.grid_frame(moves))?;
+    let volume_before = stock.volume();
+    timings.stock_s = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
     let (scales, feed_ranges) = forces::feed_scales(spec, moves, &rows);
     let context = step_totals::BatchContext {
         moves,
@@ -102,7 +106,7 @@ pub fn simulate_in_batches(
             added
         },
     )?;
-    timings.removal_and_engagement_s = clock.elapsed().as_secs_f64() - batch_forces_s;
+    timings.removal_and_engagement_s = plan_s + clock.elapsed().as_secs_f64() - batch_forces_s;
 
     let clock = Instant::now();
     if cancel.is_cancelled() {

@@ -60,59 +60,43 @@ struct PlannedPiece {
 /// Distinct tool axes counted when looking for the one most of the cutting is done on.
 const MAX_AXES_COUNTED: usize = 64;
 
-/// The grid frame for this program: along the tool axis of a 3+2 program, where a tilted
-/// axis that stays fixed over moves carries at least half of the cutting path (a tilted
-/// tool then cuts as fast as a vertical one, see `geometry::frame`); else the part's axes.
-pub(super) fn grid_frame(
-    spec: &SimulateSpec,
-    moves: &[Move],
-    tools: &ToolLookup,
-    cell: f64,
-) -> GridFrame {
-    if spec.machine.kinematics == crate::machine::Kinematics::Xyz {
-        return GridFrame::IDENTITY;
-    }
-    let reach = tools.all().map(|t| t.flute_length).fold(0.0, f64::max);
-    let frame = PartFrame::new(&spec.machine, spec.axes, cell, reach);
-    let mut axes: Vec<([f64; 3], f64)> = Vec::new();
-    let mut total = 0.0;
-    for m in moves {
-        if m.kind == MoveKind::Rapid || !tools.sweeps(m) {
-            continue;
-        }
-        let Some((pieces, tip_length)) = frame.segments(m) else {
-            continue;
-        };
-        let share = tip_length / pieces.len().max(1) as f64;
-        if !share.is_finite() {
-            continue;
-        }
-        total += share * pieces.len() as f64;
-        for p in &pieces {
-            let (a, b) = (p.segment.axis_from, p.segment.axis_to);
-            if a != b {
-                continue;
-            }
-            if let Some((_, len)) = axes.iter_mut().find(|(x, _)| *x == a) {
-                *len += share;
-            } else if axes.len() < MAX_AXES_COUNTED {
-                axes.push((a, share));
-            }
-        }
-    }
-    let best = axes
-        .iter()
-        .max_by(|x, y| x.1.total_cmp(&y.1))
-        .filter(|(a, len)| *len >= 0.5 * total && (a[2] - 1.0).abs() > 1e-12);
-    best.and_then(|(a, _)| GridFrame::with_z_along(*a))
-        .unwrap_or(GridFrame::IDENTITY)
-}
-
 /// What the removal will sweep: same-tool runs of pieces in program order, and a force
 /// model per tool number (its slices on the engagement's grid).
 pub(super) struct RemovalPlan {
     runs: Vec<(u32, Vec<PlannedPiece>)>,
     pub(super) models: BTreeMap<u32, ForceModel>,
+}
+
+impl RemovalPlan {
+    /// The grid frame for this plan: along the tool axis of a 3+2 program, where a tilted
+    /// axis that stays fixed over pieces carries at least half of the cutting path (a
+    /// tilted tool then cuts as fast as a vertical one, see `geometry::frame`); else the
+    /// part's axes.
+    pub(super) fn grid_frame(&self, moves: &[Move]) -> GridFrame {
+        let mut axes: Vec<([f64; 3], f64)> = Vec::new();
+        let mut total = 0.0;
+        for p in self.runs.iter().flat_map(|(_, pieces)| pieces) {
+            if moves[p.move_index].kind == MoveKind::Rapid || !p.tip_length.is_finite() {
+                continue;
+            }
+            total += p.tip_length;
+            let (a, b) = (p.piece.segment.axis_from, p.piece.segment.axis_to);
+            if a != b {
+                continue;
+            }
+            if let Some((_, len)) = axes.iter_mut().find(|(x, _)| *x == a) {
+                *len += p.tip_length;
+            } else if axes.len() < MAX_AXES_COUNTED {
+                axes.push((a, p.tip_length));
+            }
+        }
+        let best = axes
+            .iter()
+            .max_by(|x, y| x.1.total_cmp(&y.1))
+            .filter(|(a, len)| *len >= 0.5 * total && (a[2] - 1.0).abs() > 1e-12);
+        best.and_then(|(a, _)| GridFrame::with_z_along(*a))
+            .unwrap_or(GridFrame::IDENTITY)
+    }
 }
 
 /// The pieces of every move in the part frame, grouped into same-tool runs; fills the
