@@ -928,18 +928,7 @@ async fn a_long_stability_job_is_cancelled_within_a_second_and_reports_progress(
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    // Semi-discretization over 20,000 speeds, two modes a direction: a minute of work.
-    let mode = |f: f64| json!({"freq_hz": f, "damping": 0.02, "stiffness_n_m": 2e6});
-    let options = json!({"method": "sdm", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200, "radial_immersion": 0.5, "milling": "down",
-        "modes_x": [mode(900.0), mode(1400.0)], "modes_y": [mode(950.0), mode(1500.0)],
-        "rpm": {"from": 5000, "to": 25000, "step": 1}, "steps_per_period": 40});
-    let (st, job) = post_json(
-        &c,
-        &s,
-        "/v1/jobs",
-        &json!({"kind": "stability", "options": options}),
-    )
-    .await;
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &long_stability_job()).await;
     assert_eq!(st, 202, "{job}");
     let id = job["id"].as_str().unwrap();
     // Progress counts speeds while it runs (it stayed 0/0 before).

@@ -831,18 +831,7 @@ async fn progress_deliveries_come_at_most_once_a_second_while_the_job_runs() {
     let secret = hook["secret"].as_str().unwrap().to_string();
     let (quiet_rx, quiet_url) = receiver(always_ok).await;
     register(&c, &s, None, json!({"url": quiet_url})).await;
-    // Semi-discretization over 20,000 speeds: a minute of work, progress counted by speed.
-    let mode = |f: f64| json!({"freq_hz": f, "damping": 0.02, "stiffness_n_m": 2e6});
-    let options = json!({"method": "sdm", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200, "radial_immersion": 0.5, "milling": "down",
-        "modes_x": [mode(900.0), mode(1400.0)], "modes_y": [mode(950.0), mode(1500.0)],
-        "rpm": {"from": 5000, "to": 25000, "step": 1}, "steps_per_period": 40});
-    let (st, job) = post_json(
-        &c,
-        &s,
-        "/v1/jobs",
-        &json!({"kind": "stability", "options": options}),
-    )
-    .await;
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &long_stability_job()).await;
     assert_eq!(st, 202, "{job}");
     let id = job["id"].as_str().unwrap().to_string();
     let got = rx.wait_for(3, Duration::from_secs(60)).await;

@@ -31,6 +31,16 @@ pub fn corpus_present() -> bool {
     present
 }
 
+/// A stability job that runs for about a minute and counts its speeds as progress:
+/// semi-discretization over 20,000 speeds, two modes a direction.
+pub fn long_stability_job() -> Value {
+    let mode = |f: f64| serde_json::json!({"freq_hz": f, "damping": 0.02, "stiffness_n_m": 2e6});
+    serde_json::json!({"kind": "stability", "options": {"method": "sdm", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200,
+        "radial_immersion": 0.5, "milling": "down",
+        "modes_x": [mode(900.0), mode(1400.0)], "modes_y": [mode(950.0), mode(1500.0)],
+        "rpm": {"from": 5000, "to": 25000, "step": 1}, "steps_per_period": 40}})
+}
+
 /// The Fusion 360 adaptive program the project holds (examples/adaptive), for tests that
 /// need a real program whatever the checkout.
 pub fn adaptive_program() -> PathBuf {
