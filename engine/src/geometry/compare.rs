@@ -44,24 +44,11 @@ fn difference(a: &Intervals, b: &Intervals) -> Intervals {
 /// Compares the stock with the design part (placed in the same frame).
 pub fn compare_with_part(stock: &Stock, part: &Mesh) -> Result<PartComparison, GeometryError> {
     let g = &stock.grid;
-    let turned;
-    let part = if stock.frame.is_identity() {
-        part
-    } else {
-        turned = Mesh {
-            vertices: part
-                .vertices
-                .iter()
-                .map(|&v| stock.frame.to_grid(v))
-                .collect(),
-            triangles: part.triangles.clone(),
-        };
-        &turned
-    };
+    let part = part.in_frame(&stock.frame);
     let mut pg = DexelGrid::new(g.origin, g.max_corner(), g.cell, u64::MAX)?;
     // Same cell count as the stock (the constructor rounds the extent up the same way).
     debug_assert_eq!(pg.n, g.n);
-    fill_grid(&mut pg, part)?;
+    fill_grid(&mut pg, &part)?;
     let h2 = g.cell * g.cell;
     let mut gouge = [0.0; 3];
     let mut max_depth: f64 = 0.0;

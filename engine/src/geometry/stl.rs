@@ -181,6 +181,18 @@ impl Mesh {
         (lo, hi)
     }
 
+    /// This mesh in the grid frame `frame` (borrowed when the frame is the part's own).
+    pub fn in_frame(&self, frame: &GridFrame) -> std::borrow::Cow<'_, Mesh> {
+        if frame.is_identity() {
+            std::borrow::Cow::Borrowed(self)
+        } else {
+            std::borrow::Cow::Owned(Mesh {
+                vertices: self.vertices.iter().map(|&v| frame.to_grid(v)).collect(),
+                triangles: self.triangles.clone(),
+            })
+        }
+    }
+
     /// Bounding box in the grid frame `frame`.
     pub fn bounds_in(&self, frame: &GridFrame) -> ([f64; 3], [f64; 3]) {
         let mut lo = [f64::INFINITY; 3];
@@ -251,16 +263,7 @@ impl Stock {
         opts: &GridOptions,
         frame: GridFrame,
     ) -> Result<Stock, GeometryError> {
-        let turned;
-        let mesh = if frame.is_identity() {
-            mesh
-        } else {
-            turned = Mesh {
-                vertices: mesh.vertices.iter().map(|&v| frame.to_grid(v)).collect(),
-                triangles: mesh.triangles.clone(),
-            };
-            &turned
-        };
+        let mesh = mesh.in_frame(&frame);
         let cell = opts
             .cell
             .ok_or_else(|| GeometryError::InvalidGrid("no cell size given".into()))?;
@@ -273,7 +276,7 @@ impl Stock {
         let nz = DexelGrid::estimate(lo, hi, cell)?.cells[2];
         lo[2] = hi[2] - nz as f64 * cell;
         let mut grid = DexelGrid::new(lo, hi, cell, opts.memory_limit)?;
-        fill_grid(&mut grid, mesh)?;
+        fill_grid(&mut grid, &mesh)?;
         Ok(Stock { grid, frame })
     }
 }
