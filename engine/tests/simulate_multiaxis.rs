@@ -156,6 +156,69 @@ fn tilted_tool_in_tool_tip_and_machine_readings_cuts_the_same_segment() {
 }
 
 #[test]
+fn a_tool_turning_about_a_tilted_mean_cuts_in_a_grid_along_the_mean() {
+    // A Ø10 ball end mill whose axis rocks between A9 and A11 every millimetre while its
+    // ball's centre runs straight along X, 2 mm into a block: a ball removes the same
+    // whatever its axis, so the cut is the circular segment of depth 2 along the block's
+    // 20 mm (the shank, 4 mm above the ball's lowest point at 11°, stays clear). The axis
+    // turns on every move, so no fixed axis carries the cutting; the grid follows the
+    // mean axis (A10) instead of the part's z (a 30° mean would turn this flat block into
+    // a grid over 1.5 times larger, which the pipeline declines).
+    let (r, depth, len): (f64, f64, f64) = (5.0, 2.0, 20.0);
+    let area =
+        r * r * ((r - depth) / r).acos() - (r - depth) * (2.0 * r * depth - depth * depth).sqrt();
+    let machine = Machine {
+        kinematics: Kinematics::XyzAc,
+        ..Machine::generic()
+    };
+    let kin = millsim_engine::machine::MachineKinematics::of(&machine);
+    let mut program = String::from("G21 G90 S8000 M3\nG0 Z40\n");
+    let centre_z = r - depth;
+    for (i, x) in (-5..=25).enumerate() {
+        let a = if i % 2 == 0 { 9.0 } else { 11.0 };
+        let axis = kin.forward(&[0.0, 0.0, 0.0, a, 0.0, 0.0]).axis;
+        // Tool-tip reading: the tip sits r below the ball's centre along the axis.
+        let tip = [x as f64 - r * axis[0], -r * axis[1], centre_z - r * axis[2]];
+        if i == 0 {
+            program += &format!(
+                "G0 A{a} C0\nG0 X{:.9} Y{:.9} Z{:.9}\n",
+                tip[0],
+                tip[1],
+                tip[2] + 20.0
+            );
+            program += &format!("G0 Z{:.9}\n", tip[2]);
+        } else {
+            program += &format!(
+                "G1 X{:.9} Y{:.9} Z{:.9} A{a} F600\n",
+                tip[0], tip[1], tip[2]
+            );
+        }
+    }
+    program += "G0 Z40\n";
+    let mut s = spec(&program, Kinematics::XyzAc, 10.0);
+    s.tools.insert(0, {
+        let mut t = Tool::ball(10.0, 2);
+        t.flute_length = 20.0;
+        t
+    });
+    s.axes = AxisReading::ToolTip;
+    s.stock = StockSource::Shape(StockShape::Block {
+        min: [0.0, -10.0, -10.0],
+        max: [len, 10.0, 0.0],
+    });
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let got = removed(&out.rows);
+    let want = area * len;
+    assert!((got - want).abs() / want < 0.005, "{got} vs {want}");
+    let z = out.stock.frame.axis_in_part(2);
+    let mean = kin.forward(&[0.0, 0.0, 0.0, 10.0, 0.0, 0.0]).axis;
+    let angle = (z[0] * mean[0] + z[1] * mean[1] + z[2] * mean[2])
+        .acos()
+        .to_degrees();
+    assert!(angle < 0.1, "grid z {z:?}, mean axis {mean:?}");
+}
+
+#[test]
 fn rotary_moves_need_kinematics() {
     let program = "G0 Z10\nG0 X13 Y0\nG1 C90 F3600\n";
     let err = simulate(

@@ -70,17 +70,27 @@ pub(super) struct RemovalPlan {
 impl RemovalPlan {
     /// The grid frame for this plan: along the tool axis of a 3+2 program, where a tilted
     /// axis that stays fixed over pieces carries at least half of the cutting path (a
-    /// tilted tool then cuts as fast as a vertical one, see `geometry::frame`); else the
-    /// part's axes.
+    /// tilted tool then cuts as fast as a vertical one, see `geometry::frame`); else, for
+    /// a program whose axis turns about a tilted mean (a 4-axis wrap, lead and tilt
+    /// adjusted around one direction), along that mean, where it brings the axes at least
+    /// twice as close as the part's z (a tool a few degrees off the grid's z has a small
+    /// footprint and short flank crossings); else the part's axes.
     pub(super) fn grid_frame(&self, moves: &[Move]) -> GridFrame {
         let mut axes: Vec<([f64; 3], f64)> = Vec::new();
         let mut total = 0.0;
-        for p in self.runs.iter().flat_map(|(_, pieces)| pieces) {
-            if moves[p.move_index].kind == MoveKind::Rapid || !p.tip_length.is_finite() {
-                continue;
-            }
+        let mut mean = [0.0; 3];
+        let cutting = || {
+            self.runs
+                .iter()
+                .flat_map(|(_, pieces)| pieces)
+                .filter(|p| moves[p.move_index].kind != MoveKind::Rapid && p.tip_length.is_finite())
+        };
+        for p in cutting() {
             total += p.tip_length;
             let (a, b) = (p.piece.segment.axis_from, p.piece.segment.axis_to);
+            for k in 0..3 {
+                mean[k] += 0.5 * p.tip_length * (a[k] + b[k]);
+            }
             if a != b {
                 continue;
             }
@@ -93,9 +103,31 @@ impl RemovalPlan {
         let best = axes
             .iter()
             .max_by(|x, y| x.1.total_cmp(&y.1))
-            .filter(|(a, len)| *len >= 0.5 * total && (a[2] - 1.0).abs() > 1e-12);
-        best.and_then(|(a, _)| GridFrame::with_z_along(*a))
-            .unwrap_or(GridFrame::IDENTITY)
+            .filter(|(_, len)| *len >= 0.5 * total);
+        if let Some((a, _)) = best {
+            return GridFrame::with_z_along(*a).unwrap_or(GridFrame::IDENTITY);
+        }
+        let n = crate::vec3::norm(mean);
+        if !(n > 0.0 && n.is_finite()) {
+            return GridFrame::IDENTITY;
+        }
+        let mean = [mean[0] / n, mean[1] / n, mean[2] / n];
+        // Path-weighted angle of the pieces' axes from `to` (a turning piece by its farther end).
+        let spread = |to: [f64; 3]| {
+            let angle = |a: [f64; 3]| crate::vec3::dot(a, to).clamp(-1.0, 1.0).acos();
+            cutting()
+                .map(|p| {
+                    let s = &p.piece.segment;
+                    p.tip_length * angle(s.axis_from).max(angle(s.axis_to))
+                })
+                .sum::<f64>()
+        };
+        let (about_mean, about_z) = (spread(mean), spread([0.0, 0.0, 1.0]));
+        if about_mean <= 0.5 * about_z && (mean[2] - 1.0).abs() > 1e-12 {
+            GridFrame::with_z_along(mean).unwrap_or(GridFrame::IDENTITY)
+        } else {
+            GridFrame::IDENTITY
+        }
     }
 }
 
