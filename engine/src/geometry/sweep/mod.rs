@@ -42,6 +42,7 @@ pub use pass::{remove_sweep, remove_sweeps, RemovalStats, SubMove};
 pub use profile::ToolBody;
 pub(crate) use solvers::{swept_frustum, Frustum};
 pub(crate) use tilted::frame_around;
+use tilted::FullSection;
 
 use crate::geometry::dexel::{other_axes, Intervals};
 use crate::vec3::{dot, norm, sub};
@@ -63,6 +64,8 @@ pub(crate) struct Sweep<'a> {
     cap_r: f64,
     /// Horizontal moves: the path's stadium seen by X rays and by Y rays.
     stadium: [Stadium; 2],
+    /// Tilted axis: the whole elliptic sections of the top cylinder (X and Y rays).
+    full_section: Option<FullSection>,
     /// Per ray family, two slabs `lo ≤ p·normal ≤ hi` holding the swept body (see
     /// `slab_range`).
     slabs: [[Slab; 2]; 3],
@@ -251,6 +254,9 @@ impl<'a> Sweep<'a> {
                 Stadium::new([mv.p0[1], mv.p0[0]], [mv.p1[1], mv.p1[0]]),
             ],
             slabs: [0, 1, 2].map(|fam| slabs_for(body, &mv, fam)),
+            full_section: (!vertical)
+                .then(|| FullSection::new(body, mv.axis))
+                .flatten(),
         }
     }
 
@@ -652,6 +658,64 @@ mod tests {
             }
         }
         assert!(checked > 1000, "{checked}");
+    }
+
+    #[test]
+    fn horizontal_rays_through_the_full_section_are_the_solids_exact_intervals() {
+        // X and Y rays whose plane cuts only the top cylinder all along a tilted move: the
+        // elliptic stadium must give what the solids give, hits and misses alike.
+        let mut rnd = uniform(23);
+        let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
+        let (mut hits, mut misses) = (0, 0);
+        let tools = [
+            Tool::flat(6.0, 2),
+            Tool::ball(6.0, 2),
+            Tool::bull_nose(6.0, 1.0, 2),
+            chamfer_30(6.0, 2.0),
+        ];
+        for tool in tools {
+            let mut t = tool.clone();
+            t.flute_length = 12.0;
+            let body = ToolBody::cutting_part(&t);
+            for _ in 0..4000 {
+                let th = rnd() * 1.3;
+                let ph = rnd() * std::f64::consts::TAU;
+                let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                let p1 = [rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0, rnd() * 2.0 - 1.0];
+                let sw = Sweep::new(
+                    &body,
+                    SubMove {
+                        p0: [0.0; 3],
+                        p1,
+                        axis,
+                    },
+                );
+                let fam = (rnd() * 2.0) as usize;
+                let (z, across) = (rnd() * 12.0, rnd() * 30.0 - 15.0);
+                let (u, v) = if fam == 0 { (across, z) } else { (z, across) };
+                let Some(fast) = sw.full_section_ray(fam, u, v) else {
+                    continue;
+                };
+                let mut o = [0.0; 3];
+                let (ua, va) = other_axes(fam);
+                o[ua] = u;
+                o[va] = v;
+                o[fam] = -100.0;
+                let exact = sw.solid_ray(fam, o, 200.0, &full);
+                match (fast, exact) {
+                    (Some(f), Some(e)) => {
+                        assert!(
+                            (f.0 - e.0).abs() < 1e-7 && (f.1 - e.1).abs() < 1e-7,
+                            "{fam} {u} {v} {axis:?} {p1:?}: {f:?} vs {e:?}"
+                        );
+                        hits += 1;
+                    }
+                    (None, None) => misses += 1,
+                    _ => panic!("{fam} {u} {v} {axis:?} {p1:?}: {fast:?} vs {exact:?}"),
+                }
+            }
+        }
+        assert!(hits > 1000 && misses > 1000, "{hits} {misses}");
     }
 
     #[test]

@@ -125,7 +125,7 @@ impl ToolBody {
         &self.pieces[..self.n_pieces]
     }
 
-    /// A ball of radius `r` with flute length `length` (handy in tests).
+    /// A flat end mill's body.
     pub fn is_flat(&self) -> bool {
         matches!(self.profile, Profile::Flat)
     }

@@ -8,7 +8,7 @@ use parry3d_f64::query::Ray;
 use parry3d_f64::shape::SupportMap;
 
 use super::profile::{Profile, ToolBody};
-use super::solvers::{hull, line_capsule, swept_cylinder, swept_frustum};
+use super::solvers::{hull, line_capsule, line_stadium, swept_cylinder, swept_frustum};
 use super::Sweep;
 use crate::geometry::dexel::{other_axes, Intervals};
 use crate::vec3::{cross, dot, norm, sub};
@@ -64,9 +64,6 @@ impl Sweep<'_> {
         if !(c_in <= c_out) || !material.iter().any(|iv| iv[0] < c_out && c_in < iv[1]) {
             return None;
         }
-        let a = self.mv.axis;
-        let mut e = [0.0; 3];
-        e[fam] = 1.0;
         // The slabs are shrunk by 1e-9 mm: the margin takes the cast's start well outside.
         let start = c_in - 1e-3;
         let span = c_out + 1e-3 - start;
@@ -74,6 +71,27 @@ impl Sweep<'_> {
             return None;
         }
         o[fam] = start;
+        if fam != 2 {
+            if let Some(iv) = self.full_section_ray(fam, u, v) {
+                return iv;
+            }
+        }
+        self.solid_ray(fam, o, span, material)
+    }
+
+    /// `general_ray` by the tool's solids (pieces, sphere and cylinder, or a GJK cast): the
+    /// ray from `o` (on the ray's line, `span` before the far end of its range).
+    pub(super) fn solid_ray(
+        &self,
+        fam: usize,
+        o: [f64; 3],
+        span: f64,
+        material: &Intervals,
+    ) -> Option<(f64, f64)> {
+        let start = o[fam];
+        let a = self.mv.axis;
+        let mut e = [0.0; 3];
+        e[fam] = 1.0;
         let rel = sub(o, self.mv.p0);
         let to_local = |w: [f64; 3]| [dot(w, self.e1), dot(w, self.e2), dot(w, a)];
         let ol = to_local(rel);
@@ -153,6 +171,113 @@ impl Sweep<'_> {
         let s_in = start + hit_in.time_of_impact;
         let s_out = start + span - hit_out.time_of_impact;
         (s_out >= s_in).then_some((s_in, s_out))
+    }
+}
+
+/// A tilted sweep's horizontal sections where they are whole ellipses, prepared once per
+/// sweep for `Sweep::full_section_ray`: a plane at height z cuts the tool's top cylinder
+/// (radius R, the widest) in a whole ellipse when the axis crosses it at a height
+/// `t ∈ [band.0, band.1]` above the tip. Every part of the tool lies within R of its
+/// axis, so there the tool's section is that ellipse (semi-axes R across the tilt and
+/// R/a_z along it), translated linearly with the move: the union is an elliptic stadium.
+/// Squashing the plane by a_z along the tilt makes it a round one (`line_stadium`).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct FullSection {
+    band: (f64, f64),
+    inv_az: f64,
+    /// The horizontal direction of the tilt, and a_z − 1 (the squash along it).
+    hat: [f64; 2],
+    squash: f64,
+    /// Per horizontal ray family: the squashed ray's direction and its normal, and the
+    /// squashed ray's length per unit of the ray's own coordinate.
+    along: [[f64; 2]; 2],
+    across: [[f64; 2]; 2],
+    stretch: [f64; 2],
+}
+
+impl FullSection {
+    /// `None` where the tool has no top cylinder of its full radius, or its axis lies
+    /// within 6° of horizontal (an ellipse too long to be worth it).
+    pub(super) fn new(body: &ToolBody, axis: [f64; 3]) -> Option<FullSection> {
+        let (h0, h1, r) = (body.profile_top(), body.length, body.radius);
+        let a = axis;
+        if !(h0 < h1 && body.top_radius == r && a[2] > 0.1) {
+            return None;
+        }
+        let axy = (a[0] * a[0] + a[1] * a[1]).sqrt();
+        // The ellipse's points sit within R·|a_xy|/a_z of its centre's height on the axis.
+        let margin = r * axy / a[2];
+        let hat = if axy > 1e-12 {
+            [a[0] / axy, a[1] / axy]
+        } else {
+            [1.0, 0.0]
+        };
+        let mut f = FullSection {
+            band: (h0 + margin, h1 - margin),
+            inv_az: 1.0 / a[2],
+            hat,
+            squash: a[2] - 1.0,
+            along: [[0.0; 2]; 2],
+            across: [[0.0; 2]; 2],
+            stretch: [0.0; 2],
+        };
+        for fam in 0..2 {
+            let e = f.squashed(if fam == 0 { [1.0, 0.0] } else { [0.0, 1.0] });
+            let el = (e[0] * e[0] + e[1] * e[1]).sqrt();
+            f.along[fam] = [e[0] / el, e[1] / el];
+            f.across[fam] = [-e[1] / el, e[0] / el];
+            f.stretch[fam] = el;
+        }
+        Some(f)
+    }
+
+    #[inline]
+    fn squashed(&self, p: [f64; 2]) -> [f64; 2] {
+        let t = (p[0] * self.hat[0] + p[1] * self.hat[1]) * self.squash;
+        [p[0] + t * self.hat[0], p[1] + t * self.hat[1]]
+    }
+}
+
+impl Sweep<'_> {
+    /// A horizontal ray (X or Y family) in closed form where its plane cuts the tool in a
+    /// whole ellipse all along the move (see `FullSection`). `None` where this does not
+    /// apply (a plane near the tool's tip or top end): the caller takes the general path.
+    pub(super) fn full_section_ray(
+        &self,
+        fam: usize,
+        u: f64,
+        v: f64,
+    ) -> Option<Option<(f64, f64)>> {
+        let f = self.full_section.as_ref()?;
+        // fam 0: u = y, v = z; fam 1: u = z, v = x (see `other_axes`).
+        let (z, across) = if fam == 0 { (v, u) } else { (u, v) };
+        let (a, p0, d) = (self.mv.axis, self.mv.p0, self.delta);
+        let (t0, t1) = ((z - p0[2]) * f.inv_az, (z - p0[2] - d[2]) * f.inv_az);
+        if t0.min(t1) < f.band.0 || t0.max(t1) > f.band.1 {
+            return None;
+        }
+        // Centres relative to the ray's point at s = 0 (the ray's own coordinate is 0 there).
+        let base = if fam == 0 {
+            [0.0, across]
+        } else {
+            [across, 0.0]
+        };
+        let c0 = [p0[0] + t0 * a[0] - base[0], p0[1] + t0 * a[1] - base[1]];
+        let c1 = [
+            p0[0] + d[0] + t1 * a[0] - base[0],
+            p0[1] + d[1] + t1 * a[1] - base[1],
+        ];
+        // Squashed, in coordinates along the ray (x) and across it (y).
+        let (eh, nh) = (f.along[fam], f.across[fam]);
+        let turn = |p: [f64; 2]| {
+            let q = f.squashed(p);
+            [q[0] * eh[0] + q[1] * eh[1], q[0] * nh[0] + q[1] * nh[1]]
+        };
+        let el = f.stretch[fam];
+        Some(
+            line_stadium(turn(c0), turn(c1), self.body.radius, 0.0)
+                .map(|(x0, x1)| (x0 / el, x1 / el)),
+        )
     }
 }
 
