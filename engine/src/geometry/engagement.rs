@@ -204,10 +204,8 @@ pub(crate) fn compute(
     ranges.clear();
     if jf0 < j_end && !vertical {
         // A tilted flank: the test points of one bin lie on a straight line (the edge
-        // generator moved out half a cell), which crosses a few Z rays; each ray is read
-        // once for the run of slices whose points fall on it.
+        // generator moved out half a cell), which crosses a few Z rays (see `FlankLine`).
         let r = body.radius;
-        let zf = &grid.families[2];
         for m in 0..nb {
             let radial = [
                 trig[m].0 * xf[0] + trig[m].1 * yf[0],
@@ -222,39 +220,11 @@ pub(crate) fn compute(
                 input.pos[1] + radial[1] * (r + out),
                 input.pos[2] + radial[2] * (r + out),
             ];
-            // Cell coordinates along the line: linear in the slice index.
-            let inv = 1.0 / grid.cell;
-            let fx = |j: usize, k: usize| {
-                ((base[k] - grid.origin[k]) + a[k] * (j as f64 + 0.5) * dz) * inv
-            };
-            let (nx, ny) = (grid.n[0] as f64, grid.n[1] as f64);
-            let mut cell = None;
-            let mut ray: &[[f64; 2]] = &[];
-            let mut open: Option<usize> = None;
-            for j in jf0..j_end {
-                let (x, y) = (fx(j, 0), fx(j, 1));
-                let here =
-                    (x >= 0.0 && x < nx && y >= 0.0 && y < ny).then_some((x as usize, y as usize));
-                if here != cell {
-                    cell = here;
-                    ray = match here {
-                        Some((i, k)) => &zf.rays[i + zf.nu * k],
-                        None => &[],
-                    };
-                }
-                let pz = base[2] + a[2] * ((j as f64 + 0.5) * dz);
-                let inside = ray.iter().any(|iv| iv[0] <= pz && pz <= iv[1]);
-                match (inside, open) {
-                    (true, None) => open = Some(j),
-                    (false, Some(lo)) => {
-                        ranges.push((m, lo, j));
-                        open = None;
-                    }
-                    _ => {}
-                }
-            }
-            if let Some(lo) = open {
-                ranges.push((m, lo, j_end));
+            let line = FlankLine { base, axis: a, dz };
+            if a[2] > 0.5 && line.crossings(grid, jf0, j_end) * 4 < j_end - jf0 {
+                line.ranges_by_rays(grid, m, jf0, j_end, ranges);
+            } else {
+                line.ranges_by_slices(grid, m, jf0, j_end, ranges);
             }
         }
     }
@@ -387,6 +357,173 @@ pub(crate) fn compute(
     (eng, met)
 }
 
+/// The test points of one bin on a tilted flank: slice j's at `base + axis·(j + ½)·dz`, read
+/// from the nearest Z ray (the one whose cell holds the point).
+struct FlankLine {
+    base: [f64; 3],
+    axis: [f64; 3],
+    dz: f64,
+}
+
+impl FlankLine {
+    /// Slice j's point in cell units along grid axis k (0 or 1).
+    #[inline]
+    fn cell_coord(&self, grid: &DexelGrid, j: usize, k: usize) -> f64 {
+        ((self.base[k] - grid.origin[k]) + self.axis[k] * (j as f64 + 0.5) * self.dz) / grid.cell
+    }
+
+    /// The Z ray's cell of slice j's point, `None` off the grid.
+    #[inline]
+    fn cell(&self, grid: &DexelGrid, j: usize) -> Option<(usize, usize)> {
+        let (x, y) = (self.cell_coord(grid, j, 0), self.cell_coord(grid, j, 1));
+        let (nx, ny) = (grid.n[0] as f64, grid.n[1] as f64);
+        (x >= 0.0 && x < nx && y >= 0.0 && y < ny).then_some((x as usize, y as usize))
+    }
+
+    #[inline]
+    fn height(&self, j: usize) -> f64 {
+        self.base[2] + self.axis[2] * ((j as f64 + 0.5) * self.dz)
+    }
+
+    /// About how many Z rays the points of slices `j0..j1` fall on.
+    fn crossings(&self, grid: &DexelGrid, j0: usize, j1: usize) -> usize {
+        let run = (j1 - j0) as f64 * self.dz / grid.cell;
+        ((self.axis[0].abs() + self.axis[1].abs()) * run) as usize + 1
+    }
+
+    /// Pushes (m, lo, hi) for each run lo..hi of slices in `j0..j1` whose point is in
+    /// material, testing slice by slice (the points of a steep line cross a ray every few
+    /// slices: each ray is looked up once, for the slices on it).
+    fn ranges_by_slices(
+        &self,
+        grid: &DexelGrid,
+        m: usize,
+        j0: usize,
+        j1: usize,
+        ranges: &mut Vec<(usize, usize, usize)>,
+    ) {
+        let zf = &grid.families[2];
+        let mut cell = None;
+        let mut ray: &[[f64; 2]] = &[];
+        let mut open: Option<usize> = None;
+        for j in j0..j1 {
+            let here = self.cell(grid, j);
+            if here != cell {
+                cell = here;
+                ray = match here {
+                    Some((i, k)) => &zf.rays[i + zf.nu * k],
+                    None => &[],
+                };
+            }
+            let pz = self.height(j);
+            let inside = ray.iter().any(|iv| iv[0] <= pz && pz <= iv[1]);
+            match (inside, open) {
+                (true, None) => open = Some(j),
+                (false, Some(lo)) => {
+                    ranges.push((m, lo, j));
+                    open = None;
+                }
+                _ => {}
+            }
+        }
+        if let Some(lo) = open {
+            ranges.push((m, lo, j1));
+        }
+    }
+
+    /// The same runs as `ranges_by_slices`, ray by ray: for a line within a few degrees
+    /// of the grid's z (a tool turning about a mean axis the grid follows) the points of
+    /// tens of slices share a ray, whose material intervals give their slices at once.
+    /// Needs an axis pointing up (heights rise with j).
+    fn ranges_by_rays(
+        &self,
+        grid: &DexelGrid,
+        m: usize,
+        j0: usize,
+        j1: usize,
+        ranges: &mut Vec<(usize, usize, usize)>,
+    ) {
+        debug_assert!(self.axis[2] > 0.0);
+        let zf = &grid.families[2];
+        let mut open: Option<(usize, usize)> = None;
+        let mut take = |lo: usize, hi: usize| match open {
+            Some((olo, ohi)) if ohi == lo => open = Some((olo, hi)),
+            Some(run) => {
+                ranges.push((m, run.0, run.1));
+                open = Some((lo, hi));
+            }
+            None => open = Some((lo, hi)),
+        };
+        // The first slice in j..end whose height is at least (or above) `level`, estimated
+        // and then settled with `height` itself, so the runs are those slice by slice.
+        let first = |j: usize, end: usize, level: f64, strict: bool| {
+            let past = |t: usize| {
+                let h = self.height(t);
+                if strict {
+                    h > level
+                } else {
+                    h >= level
+                }
+            };
+            let est = ((level - self.base[2]) / (self.axis[2] * self.dz) - 0.5).ceil();
+            let mut t = if est.is_finite() {
+                (est.max(j as f64) as usize).min(end)
+            } else {
+                j
+            };
+            while t > j && past(t - 1) {
+                t -= 1;
+            }
+            while t < end && !past(t) {
+                t += 1;
+            }
+            t
+        };
+        let mut j = j0;
+        while j < j1 {
+            let here = self.cell(grid, j);
+            let Some((i, k)) = here else {
+                j += 1;
+                continue;
+            };
+            // Where the point leaves this cell: the nearer crossing of the cell's sides,
+            // estimated and then settled with `cell` itself.
+            let mut end = j1;
+            for (c, side) in [(0, i), (1, k)] {
+                let slope = self.axis[c] * self.dz / grid.cell;
+                let at0 = self.cell_coord(grid, 0, c);
+                let next = if slope > 0.0 {
+                    ((side + 1) as f64 - at0) / slope
+                } else if slope < 0.0 {
+                    (side as f64 - at0) / slope
+                } else {
+                    f64::INFINITY
+                };
+                if next.is_finite() {
+                    end = end.min((next.ceil().max(j as f64 + 1.0) as usize).min(j1));
+                }
+            }
+            while end > j + 1 && self.cell(grid, end - 1) != here {
+                end -= 1;
+            }
+            while end < j1 && self.cell(grid, end) == here {
+                end += 1;
+            }
+            for iv in zf.rays[i + zf.nu * k].iter() {
+                let lo = first(j, end, iv[0], false);
+                let hi = first(lo, end, iv[1], true);
+                if lo < hi {
+                    take(lo, hi);
+                }
+            }
+            j = end;
+        }
+        if let Some((lo, hi)) = open {
+            ranges.push((m, lo, hi));
+        }
+    }
+}
+
 /// Slice heights (above the tip) of a tilted tool whose test points can lie between the
 /// grid's floor and the stock's top: each point is within (R + out)·sin θ + out of the
 /// axis point at its height in z (θ the tilt).
@@ -428,9 +565,12 @@ mod tests {
     fn tilted_engagement_matches_point_by_point() {
         let mut stock = Stock::block([0.0, 0.0, -10.0], [30.0, 20.0, 0.0], 0.1).unwrap();
         let mut cases = 0;
+        // Steep tilts walk the flank slice by slice, tilts of a few degrees ray by ray.
         for (k, tool) in [
             Tool::flat(6.0, 2),
             Tool::ball(6.0, 2),
+            Tool::bull_nose(6.0, 1.0, 3),
+            Tool::flat(6.0, 2),
             Tool::bull_nose(6.0, 1.0, 3),
         ]
         .into_iter()
@@ -439,10 +579,10 @@ mod tests {
             let mut tool = tool;
             tool.flute_length = 12.0;
             let body = ToolBody::cutting_part(&tool);
-            let th = [0.26f64, -0.45, 0.7][k];
+            let th = [0.26f64, -0.45, 0.7, 0.02, -0.05][k];
             let axis = [0.2 * th.sin(), th.sin(), th.cos()];
             let axis = unit(axis);
-            let y = 5.0 + 5.0 * k as f64;
+            let y = 3.0 + 3.5 * k as f64;
             let (p0, p1) = ([2.0, y, -3.0], [14.0, y + 1.0, -3.5]);
             remove_sweep(&mut stock.grid, &body, &SubMove { p0, p1, axis });
             let pos = [14.3, y + 1.1, -3.52];
