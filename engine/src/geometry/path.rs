@@ -187,6 +187,58 @@ impl Segment {
         self
     }
 
+    /// The same path cut into `parts` consecutive segments of equal parameter span (equal
+    /// length on lines and helices), each with its own start and end axis (so long moves
+    /// can be swept a part at a time). An arc's part keeps the centre, the normal and the
+    /// direction; its `turns` are those that give it its share of the sweep. Errors as
+    /// `prepare` for a segment that is not valid.
+    pub fn split(&self, parts: usize) -> Result<Vec<Segment>, String> {
+        let prep = self.prepare()?;
+        let parts = parts.max(1);
+        if parts == 1 {
+            return Ok(vec![self.clone()]);
+        }
+        let mut out = Vec::with_capacity(parts);
+        for i in 0..parts {
+            let (u0, u1) = (i as f64 / parts as f64, (i + 1) as f64 / parts as f64);
+            let mut part = Segment {
+                from: prep.point(u0),
+                to: if i + 1 == parts {
+                    self.to
+                } else {
+                    prep.point(u1)
+                },
+                axis_from: prep.axis(u0),
+                axis_to: if i + 1 == parts {
+                    self.axis_to
+                } else {
+                    prep.axis(u1)
+                },
+                ..self.clone()
+            };
+            if i == 0 {
+                part.from = self.from;
+                part.axis_from = self.axis_from;
+            }
+            if let (PathShape::Arc { turns, .. }, Some(arc)) = (&mut part.shape, &prep.arc) {
+                // The part's sweep from its end points (one turn at most) is its share up
+                // to whole turns.
+                *turns = 1;
+                let share = arc.sweep.abs() / parts as f64;
+                let full = 2.0 * std::f64::consts::PI;
+                let got = part.prepare()?.arc.map_or(0.0, |a| a.sweep.abs());
+                let extra = ((share - got) / full)
+                    .round()
+                    .clamp(0.0, u32::MAX as f64 - 1.0);
+                if let PathShape::Arc { turns, .. } = &mut part.shape {
+                    *turns = 1 + extra as u32;
+                }
+            }
+            out.push(part);
+        }
+        Ok(out)
+    }
+
     pub(crate) fn prepare(&self) -> Result<Prepared, String> {
         let all = [self.from, self.to, self.axis_from, self.axis_to];
         if all.iter().flatten().any(|x| !x.is_finite()) {
@@ -384,6 +436,72 @@ mod tests {
         assert!(
             (m[0] - 10.0 / 2f64.sqrt()).abs() < 1e-9 && (m[1] + 10.0 / 2f64.sqrt()).abs() < 1e-9
         );
+    }
+
+    #[test]
+    fn split_parts_follow_the_whole_path() {
+        // A line with a turning axis, a 2.5-turn spiral helix and a 3-turn full circle, cut
+        // into parts of more and of less than a turn: each part's points, axes and length are the whole's over its share of the parameter.
+        let line = Segment::linear(0, [0.0, 0.0, 0.0], [30.0, -4.0, 2.0], 500.0, 8000.0)
+            .with_axes([0.0, 0.0, 1.0], unit([0.0, 0.5, 1.0]));
+        let helix = Segment {
+            shape: PathShape::Arc {
+                center: [0.0, 0.0, 0.0],
+                normal: [0.0, 0.0, 1.0],
+                clockwise: true,
+                turns: 3,
+            },
+            ..Segment::linear(0, [5.0, 0.0, 0.0], [-5.04, 0.0, -3.0], 500.0, 8000.0)
+        };
+        let circle = Segment {
+            shape: PathShape::Arc {
+                center: [0.0, 0.0, 0.0],
+                normal: [0.0, 0.0, 1.0],
+                clockwise: false,
+                turns: 3,
+            },
+            ..Segment::linear(0, [5.0, 0.0, 0.0], [5.0, 0.0, 0.0], 500.0, 8000.0)
+        };
+        for (seg, parts) in [
+            (&line, 7),
+            (&helix, 2),
+            (&helix, 4),
+            (&helix, 9),
+            (&circle, 2),
+            (&circle, 3),
+            (&circle, 12),
+        ] {
+            let whole = seg.prepare().unwrap();
+            let split = seg.split(parts).unwrap();
+            assert_eq!(split.len(), parts);
+            let mut length = 0.0;
+            for (i, part) in split.iter().enumerate() {
+                let p = part.prepare().unwrap();
+                length += p.length;
+                for k in 0..=8 {
+                    let v = k as f64 / 8.0;
+                    let u = (i as f64 + v) / parts as f64;
+                    let (a, b) = (p.point(v), whole.point(u));
+                    let (x, y) = (p.axis(v), whole.axis(u));
+                    for j in 0..3 {
+                        assert!(
+                            (a[j] - b[j]).abs() < 1e-9,
+                            "{parts} part {i} at {v}: {a:?} vs {b:?}"
+                        );
+                        assert!(
+                            (x[j] - y[j]).abs() < 1e-9,
+                            "{parts} part {i} at {v}: {x:?} vs {y:?}"
+                        );
+                    }
+                }
+            }
+            // A spiral's length is taken at its mean radius: its parts' differ in the 9th digit.
+            assert!(
+                (length - whole.length).abs() < 1e-7 * whole.length,
+                "{length} vs {}",
+                whole.length
+            );
+        }
     }
 
     #[test]
