@@ -93,8 +93,8 @@ pub struct MemoryEstimate {
     /// The interpreted moves.
     pub moves_bytes: u64,
     /// Step records held at once: the removal hands its steps on in batches
-    /// (`pipeline::DEFAULT_BATCH_STEPS` cells of path), so this is one batch's, or the
-    /// longest move's where a single move is longer (its steps are held until it ends).
+    /// (`pipeline::DEFAULT_BATCH_STEPS` cells of path; a single longer move in parts of
+    /// that), so this is one batch's.
     pub steps_bytes: u64,
     /// What every step keeps until the job ends: its force sample (and the sample's JSON),
     /// and in an optimize job what the optimizer reads of it.
@@ -205,8 +205,8 @@ pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, Geom
     let reach = size.tool_radius.max(0.0);
     let lo = size.stock_min.map(|v| v - reach);
     let hi = size.stock_max.map(|v| v + reach);
-    // Steps held at once: a batch of BATCH_CELLS cells of path, or one longer move whole;
-    // every step then keeps its sample (and the optimizer's record).
+    // Steps held at once: a batch of BATCH_CELLS cells of path, or a part of that size of
+    // one longer move; every step then keeps its sample (and the optimizer's record).
     let kept_per_step = KEPT_STEP_BYTES
         + if size.optimize {
             OPTIMIZER_STEP_BYTES
@@ -255,7 +255,8 @@ pub fn estimate_simulation(size: &SimulationSize) -> Result<MemoryEstimate, Geom
         let bytes = n.saturating_mul(per_step);
         all_steps = all_steps.saturating_add(n);
         all_bytes = all_bytes.saturating_add(bytes);
-        longest_move = longest_move.max(bytes);
+        // A move longer than a batch is swept in parts of a batch (and a cell).
+        longest_move = longest_move.max(n.min(BATCH_CELLS + 1).saturating_mul(per_step));
     }
     // A batch of the program's own mix of straight and arc steps.
     let batch = if all_steps > BATCH_CELLS {
@@ -361,11 +362,17 @@ mod tests {
         assert_eq!(a.steps_bytes, 204 * step);
         // Of the 3.8 km move, the 50 mm across the stock and the tool's reach each side.
         assert!((200 * step..230 * step).contains(&b.steps_bytes), "{b:?}");
-        // 10,000 turns of radius 5 in the stock: 314 m, 1.26 million steps.
+        // 10,000 turns of radius 5 in the stock: 314 m, 1.26 million steps (and the plunge
+        // and line before them), swept in parts of a batch; each keeps its sample.
         let turns = moves("G0 X20 Y15 Z5\nG1 Z-2 F500\nG1 X25\nG2 X25 Y15 I-5 J0 P10000\n");
         let c = estimate_simulation(&size(&turns, 0.25)).unwrap();
-        assert!(c.steps_bytes > 4_000_000_000, "{c:?}");
-        assert!(c.peak_bytes > c.steps_bytes);
+        assert_eq!(c.steps_bytes, (BATCH_CELLS + 1) * ARC_STEP_BYTES, "{c:?}");
+        let steps = 1_256_637;
+        assert!(
+            (steps..steps + 200).contains(&(c.kept_bytes / KEPT_STEP_BYTES)),
+            "{c:?}"
+        );
+        assert!(c.peak_bytes > c.steps_bytes + c.kept_bytes);
         let fine = estimate_simulation(&size(&short, 0.005)).unwrap();
         // The boundary of 8000 × 6000 × 2000 cells: about 2.6 GB of triangles, twice.
         assert!(fine.export_bytes > 5_000_000_000, "{fine:?}");

@@ -16,6 +16,7 @@ use millsim_engine::physics::life::TaylorLife;
 use millsim_engine::physics::Material;
 use millsim_engine::pipeline::{
     simulate_in_batches, ChatterSpec, SimulateSpec, SimulationOutput, StockSource,
+    DEFAULT_BATCH_STEPS,
 };
 use millsim_engine::tool::Tool;
 
@@ -196,4 +197,73 @@ fn the_adaptive_example_gives_the_same_blocks_in_small_batches() {
         whole.summary
     );
     assert_same(&whole, &run(&spec, 2000), "batch 2000");
+}
+
+#[test]
+fn a_move_longer_than_a_batch_is_swept_in_parts_like_its_parts_written_as_moves() {
+    // A 400-turn helix down 4 mm around an R5 circle at 0.25 mm cells: 50,000 cells of
+    // path, over a default batch, so it is swept in two parts (its steps handed on
+    // as they come, not held whole). The same helix written as two 200-turn moves is
+    // those two parts: the same figures, within rounding of the split point.
+    let program = |helix: &str| {
+        format!("G21 G90 G17\nT1 M6\nS10000 M3\nG0 X5 Y0 Z2\nG1 Z0 F600\n{helix}G0 Z5\nM30\n")
+    };
+    let spec_for = |program: String| {
+        let mut spec = two_tool_spec();
+        spec.program = program;
+        spec.optimize = None;
+        spec.chatter = None;
+        spec.stock = StockSource::Shape(StockShape::Block {
+            min: [-10.0, -10.0, -10.0],
+            max: [10.0, 10.0, -1.0],
+        });
+        spec
+    };
+    // The default batch, as `simulate` runs it.
+    let one = run(
+        &spec_for(program("G2 X5 Y0 Z-4 I-5 J0 P400\n")),
+        DEFAULT_BATCH_STEPS,
+    );
+    let two = run(
+        &spec_for(program(
+            "G2 X5 Y0 Z-2 I-5 J0 P200\nG2 X5 Y0 Z-4 I-5 J0 P200\n",
+        )),
+        usize::MAX,
+    );
+    let at_line =
+        |out: &SimulationOutput, line: u32| out.rows.iter().position(|r| r.line == line).unwrap();
+    let (h, k) = (at_line(&one, 6), at_line(&two, 6));
+    assert_eq!(two.rows[k + 1].line, 7);
+    let (helix, halves) = (&one.rows[h], &two.rows[k..k + 2]);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0);
+    let volume: f64 = halves.iter().map(|r| r.removed_volume).sum();
+    // 3 mm of the helix's 4 in the block: the Ø10 tool around the R5 circle clears a
+    // disc of radius 10, 3 mm deep.
+    let disc = std::f64::consts::PI * 10.0f64.powi(2) * 3.0;
+    assert!(
+        (helix.removed_volume - disc).abs() < 0.005 * disc,
+        "{helix:?}"
+    );
+    assert!(
+        close(helix.removed_volume, volume),
+        "{} vs {volume}",
+        helix.removed_volume
+    );
+    let peak = halves.iter().map(|r| r.peak_force).fold(0.0, f64::max);
+    assert!(
+        close(helix.peak_force, peak),
+        "{} vs {peak}",
+        helix.peak_force
+    );
+    assert_eq!(helix.steps, halves.iter().map(|r| r.steps).sum::<usize>());
+    // The helix's samples are the halves', the second's placed after the first's length.
+    let (samples, first, second) = (&one.samples[h], &two.samples[k], &two.samples[k + 1]);
+    assert_eq!(samples.len(), first.len() + second.len());
+    let offset = halves[0].tip_length_mm;
+    for (s, t) in samples.iter().zip(first.iter().chain(second)) {
+        assert!(close(s.peak_force, t.peak_force), "{s:?} vs {t:?}");
+    }
+    for (s, t) in samples[first.len()..].iter().zip(second) {
+        assert!((s.at - (t.at + offset)).abs() < 1e-6, "{s:?} vs {t:?}");
+    }
 }

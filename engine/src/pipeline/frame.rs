@@ -27,6 +27,7 @@ pub(super) struct PartFrame {
 const MAX_DEPTH: u32 = 12;
 
 /// One straight piece of a move in the part frame.
+#[derive(Clone)]
 pub(super) struct FramePiece {
     pub(super) segment: Segment,
     /// Where the piece starts along the move: the tip's path, mm, and the machine axes'

@@ -51,6 +51,7 @@ pub const DEFAULT_BATCH_STEPS: usize = 32_768;
 const PROGRESS_CHUNK: usize = 256;
 
 /// One piece of a move to sweep, with the move's index and the piece's tip path, mm.
+#[derive(Clone)]
 struct PlannedPiece {
     move_index: usize,
     piece: FramePiece,
@@ -204,8 +205,43 @@ pub(super) fn plan_removal(
     Ok(RemovalPlan { runs, models })
 }
 
+/// Parts a single long piece is cut into at most (a 10 km move at 0.1 mm makes about
+/// 3,000 parts of 3.3 m with the default batch).
+const MAX_PARTS: f64 = 1_000_000.0;
+
+/// `piece` cut into `parts` equal parts, each placed along its move; `None` when its
+/// segment cannot be cut (the removal reports why).
+fn split_piece(piece: &PlannedPiece, parts: usize) -> Option<Vec<PlannedPiece>> {
+    let segments = piece.piece.segment.split(parts).ok()?;
+    let n = segments.len() as f64;
+    let p = &piece.piece;
+    Some(
+        segments
+            .into_iter()
+            .enumerate()
+            .map(|(j, segment)| {
+                let offset = piece.tip_length * j as f64 / n;
+                PlannedPiece {
+                    move_index: piece.move_index,
+                    tip_length: piece.tip_length / n,
+                    piece: FramePiece {
+                        segment,
+                        tip_at: p.tip_at + offset,
+                        machine_at: if p.tip_ratio > 0.0 {
+                            p.machine_at + offset / p.tip_ratio
+                        } else {
+                            p.machine_at
+                        },
+                        tip_ratio: p.tip_ratio,
+                    },
+                }
+            })
+            .collect(),
+    )
+}
+
 /// Sweeps every planned piece through `stock`, `batch_steps` cells of path at a time
-/// (a single longer piece is one batch), and hands each batch's steps, in program order,
+/// (a single longer piece in parts of that), and hands each batch's steps, in program order,
 /// to `sink` with the rows; fills the rows' removed volume, engagement figures, checks and
 /// air fraction. Returns the dexel updates counted.
 #[allow(clippy::too_many_arguments)]
@@ -251,80 +287,106 @@ pub(super) fn remove_material(
                 cells += n;
                 end += 1;
             }
-            let batch = &pieces[start..end];
+            // A single piece longer than a default batch is swept in parts of about a
+            // batch each, so that a long move's steps are handed on as they come, not
+            // held whole (not cut for smaller batches: those give the same results as
+            // the whole program at once).
+            let first = &pieces[start];
+            let part_cells = batch_steps.max(DEFAULT_BATCH_STEPS) as f64;
+            let parts = (((first.tip_length / cell).ceil() + 1.0) / part_cells).ceil();
+            let batches: Vec<Vec<PlannedPiece>> =
+                match (end == start + 1 && parts > 1.0 && parts.is_finite())
+                    .then(|| split_piece(first, parts.min(MAX_PARTS) as usize))
+                    .flatten()
+                {
+                    Some(parts) => parts.into_iter().map(|p| vec![p]).collect(),
+                    None => vec![pieces[start..end].to_vec()],
+                };
             start = end;
-            // One pass per batch (the X/Y removal threads and the ray summaries are set up
-            // once for it); progress every few hundred segments, the last tenth being the
-            // stages after the removal.
-            let only: Vec<Segment> = batch.iter().map(|p| p.piece.segment.clone()).collect();
-            let base = done;
-            let mut on_segment = |k: usize| {
-                if k.is_multiple_of(PROGRESS_CHUNK) || k == only.len() {
-                    progress.report(
-                        (base + k as u64) * 9 * total / (10 * segments_total as u64).max(1),
-                        total,
-                    );
-                }
-            };
-            let report = geometry::simulate_removal_with_progress(
-                stock,
-                tool,
-                &only,
-                &sim_options,
-                cancel,
-                &mut on_segment,
-            )
-            .map_err(|e| match e {
-                geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
-                other => SimulateError::Geometry(other),
-            })?;
-            done += only.len() as u64;
-            rays_tested += report.rays_tested;
-            let mut steps: Vec<MoveStep> = Vec::new();
-            for (planned, b) in batch.iter().zip(report.blocks) {
-                let (move_index, piece) = (planned.move_index, &planned.piece);
-                let row = &mut rows[move_index];
-                swept[move_index] = true;
-                row.removed_volume += b.removed_volume;
-                row.max_axial_depth = row.max_axial_depth.max(b.max_axial_depth);
-                row.max_radial_width = row.max_radial_width.max(b.max_radial_width);
-                // The first piece of the move that engages gives the angles.
-                if row.entry_angle_deg.is_none() && row.exit_angle_deg.is_none() {
-                    row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
-                    row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
-                }
-                // A step that removes nothing is air, even where the edge grazes a wall
-                // that an earlier move cut to exactly the tool's radius.
-                let lengths = &mut step_lengths[move_index];
-                for s in &b.steps {
-                    if !s.air && s.removed_volume > 0.0 {
-                        lengths.0 += s.length;
+            let n_batches = batches.len();
+            for (part, batch) in batches.iter().enumerate() {
+                // One pass per batch (the X/Y removal threads and the ray summaries are set up
+                // once for it); progress every few hundred segments, the last tenth being the
+                // stages after the removal (a part of a split piece counts as its share).
+                let only: Vec<Segment> = batch.iter().map(|p| p.piece.segment.clone()).collect();
+                let base = done as f64 + part as f64 / n_batches as f64;
+                let per_segment = if n_batches > 1 {
+                    1.0 / n_batches as f64
+                } else {
+                    1.0
+                };
+                let mut on_segment = |k: usize| {
+                    if k.is_multiple_of(PROGRESS_CHUNK) || k == only.len() {
+                        let segments = base + k as f64 * per_segment;
+                        progress.report(
+                            (segments * 9.0 * total as f64 / (10 * segments_total).max(1) as f64)
+                                as u64,
+                            total,
+                        );
                     }
-                    lengths.1 += s.length;
+                };
+                let report = geometry::simulate_removal_with_progress(
+                    stock,
+                    tool,
+                    &only,
+                    &sim_options,
+                    cancel,
+                    &mut on_segment,
+                )
+                .map_err(|e| match e {
+                    geometry::GeometryError::Cancelled { .. } => SimulateError::Cancelled,
+                    other => SimulateError::Geometry(other),
+                })?;
+                if part + 1 == n_batches {
+                    done += if n_batches > 1 { 1 } else { only.len() as u64 };
                 }
-                row.rapid_in_material |= b.checks.rapid_in_material;
-                row.flute_length_exceeded |= b.checks.flute_length_exceeded;
-                row.shank_contact |= b.checks.shank_contact;
-                row.holder_contact |= b.checks.holder_contact;
-                row.steps += b.steps.len();
-                row.max_mrr = row.max_mrr.max(b.max_mrr / 60.0);
-                steps.extend(b.steps.into_iter().map(|mut s| {
-                    let machine_at = if piece.tip_ratio > 0.0 {
-                        piece.machine_at + s.distance / piece.tip_ratio
-                    } else {
-                        piece.machine_at
-                    };
-                    s.distance += piece.tip_at;
-                    MoveStep {
-                        move_index,
-                        tool: *tool_number,
-                        tip_ratio: piece.tip_ratio,
-                        machine_at,
-                        geometry: s,
+                rays_tested += report.rays_tested;
+                let mut steps: Vec<MoveStep> = Vec::new();
+                for (planned, b) in batch.iter().zip(report.blocks) {
+                    let (move_index, piece) = (planned.move_index, &planned.piece);
+                    let row = &mut rows[move_index];
+                    swept[move_index] = true;
+                    row.removed_volume += b.removed_volume;
+                    row.max_axial_depth = row.max_axial_depth.max(b.max_axial_depth);
+                    row.max_radial_width = row.max_radial_width.max(b.max_radial_width);
+                    // The first piece of the move that engages gives the angles.
+                    if row.entry_angle_deg.is_none() && row.exit_angle_deg.is_none() {
+                        row.entry_angle_deg = b.entry_angle.map(f64::to_degrees);
+                        row.exit_angle_deg = b.exit_angle.map(f64::to_degrees);
                     }
-                }));
+                    // A step that removes nothing is air, even where the edge grazes a wall
+                    // that an earlier move cut to exactly the tool's radius.
+                    let lengths = &mut step_lengths[move_index];
+                    for s in &b.steps {
+                        if !s.air && s.removed_volume > 0.0 {
+                            lengths.0 += s.length;
+                        }
+                        lengths.1 += s.length;
+                    }
+                    row.rapid_in_material |= b.checks.rapid_in_material;
+                    row.flute_length_exceeded |= b.checks.flute_length_exceeded;
+                    row.shank_contact |= b.checks.shank_contact;
+                    row.holder_contact |= b.checks.holder_contact;
+                    row.steps += b.steps.len();
+                    row.max_mrr = row.max_mrr.max(b.max_mrr / 60.0);
+                    steps.extend(b.steps.into_iter().map(|mut s| {
+                        let machine_at = if piece.tip_ratio > 0.0 {
+                            piece.machine_at + s.distance / piece.tip_ratio
+                        } else {
+                            piece.machine_at
+                        };
+                        s.distance += piece.tip_at;
+                        MoveStep {
+                            move_index,
+                            tool: *tool_number,
+                            tip_ratio: piece.tip_ratio,
+                            machine_at,
+                            geometry: s,
+                        }
+                    }));
+                }
+                sink(rows, steps)?;
             }
-            sink(rows, steps)?;
         }
     }
     for (i, row) in rows.iter_mut().enumerate() {
