@@ -328,6 +328,12 @@ pub fn spawn(
     let address_space = address_space_limit(&limits);
     let mut cmd = std::process::Command::new(exe);
     cmd.arg("job-exec")
+        // glibc keeps a heap arena per thread and returns little of it: with two the
+        // adaptive example peaked at 146-159 MB instead of 170 MB, as fast.
+        .env(
+            "MALLOC_ARENA_MAX",
+            std::env::var_os("MALLOC_ARENA_MAX").unwrap_or_else(|| "2".into()),
+        )
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
