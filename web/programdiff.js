@@ -21,44 +21,65 @@ function markF(line) {
   frag.append(line);
   return frag;
 }
+// Height of one line of the listing, px (dashboard.css sets it): the listing draws only the
+// lines in view, so that a program of 10^5 lines costs no more than one of 100.
+const LINE_PX = 17;
+const OVERSCAN = 20;
+
 export function programDiff(view, orig, opt) {
   // Pairs lines that are equal but for their F word; a line of the optimized program that
   // pairs with none (a split part of a move) stands alone on the right.
-  const pairs = [];
+  const left = []; const right = []; const kind = [];
   let i = 0; let j = 0;
-  while (i < orig.length || j < opt.length) {
-    if (i < orig.length && j < opt.length && stripF(orig[i]) === stripF(opt[j])) { pairs.push([i, j]); i++; j++; }
-    else if (j < opt.length && (i >= orig.length || opt.length - j > orig.length - i)) { pairs.push([null, j]); j++; }
-    else { pairs.push([i, null]); i++; }
-  }
+  const byLine = new Map(); // source line -> pair index
   let changed = 0;
-  const table = el('table', { class: 'diff' });
-  const tbody = el('tbody');
-  const byLine = new Map();
-  for (const [a, b] of pairs) {
+  const add = (a, b) => {
     const la = a === null ? null : orig[a];
     const lb = b === null ? null : opt[b];
-    const differs = la !== null && lb !== null && fOf(la) !== fOf(lb);
-    const added = la === null;
-    if (differs || added) changed++;
-    const tr = el('tr', { class: differs ? 'changed' : added ? 'added' : '' },
-      el('td', { class: 'ln' }, a === null ? '' : String(a + 1)),
-      el('td', { class: 'code' }, la === null ? '' : differs ? markF(la) : la),
-      el('td', { class: 'ln' }, b === null ? '' : String(b + 1)),
-      el('td', { class: 'code' }, lb === null ? '' : differs || added ? markF(lb) : lb));
-    if (a !== null) byLine.set(a + 1, tr);
-    tbody.append(tr);
+    const k = la !== null && lb !== null && fOf(la) !== fOf(lb) ? 'changed' : la === null ? 'added' : '';
+    if (k) changed++;
+    if (a !== null) byLine.set(a + 1, left.length);
+    left.push(a); right.push(b); kind.push(k);
+  };
+  while (i < orig.length || j < opt.length) {
+    if (i < orig.length && j < opt.length && stripF(orig[i]) === stripF(opt[j])) { add(i, j); i++; j++; }
+    else if (j < opt.length && (i >= orig.length || opt.length - j > orig.length - i)) { add(null, j); j++; }
+    else { add(i, null); i++; }
   }
-  table.append(el('thead', {}, el('tr', {}, el('th', {}, ''), el('th', {}, 'program'), el('th', {}, ''), el('th', {}, 'optimized'))), tbody);
-  const scroller = el('div', { class: 'diffscroll' }, table);
+  const n = left.length;
+  const cols = () => el('colgroup', {}, el('col', { class: 'ln' }), el('col', {}), el('col', { class: 'ln' }), el('col', {}));
+  const head = el('table', { class: 'diff head' }, cols(), el('thead', {}, el('tr', {}, el('th', {}, ''), el('th', {}, 'program'), el('th', {}, ''), el('th', {}, 'optimized'))));
+  const tbody = el('tbody');
+  const table = el('table', { class: 'diff', 'data-changed': changed }, cols(), tbody);
+  const spacer = el('div', { style: 'position:relative;height:' + n * LINE_PX + 'px' }, table);
+  const scroller = el('div', { class: 'diffscroll' }, head, spacer);
+  let focus = -1;
+  function draw() {
+    const first = Math.max(0, Math.floor(scroller.scrollTop / LINE_PX) - OVERSCAN);
+    const last = Math.min(n, Math.ceil((scroller.scrollTop + scroller.clientHeight) / LINE_PX) + OVERSCAN);
+    table.style.top = first * LINE_PX + 'px';
+    const rows = [];
+    for (let k = first; k < last; k++) {
+      const a = left[k]; const b = right[k]; const mark = kind[k];
+      rows.push(el('tr', { class: (mark || '') + (k === focus ? ' focus' : '') },
+        el('td', { class: 'ln' }, a === null ? '' : String(a + 1)),
+        el('td', { class: 'code' }, a === null ? '' : mark === 'changed' ? markF(orig[a]) : orig[a]),
+        el('td', { class: 'ln' }, b === null ? '' : String(b + 1)),
+        el('td', { class: 'code' }, b === null ? '' : mark ? markF(opt[b]) : opt[b])));
+    }
+    tbody.replaceChildren(...rows);
+  }
+  let queued = false;
+  scroller.addEventListener('scroll', () => { if (!queued) { queued = true; requestAnimationFrame(() => { queued = false; draw(); }); } });
   view.append(el('p', { class: 'muted', id: 'diffinfo' }, changed + ' line(s) with a changed or new F word · click a plot point to scroll here'), scroller);
+  draw();
   return {
     show(line) {
-      const tr = byLine.get(line);
-      if (!tr) return;
-      for (const t of tbody.querySelectorAll('tr.focus')) t.classList.remove('focus');
-      tr.classList.add('focus');
-      scroller.scrollTop = tr.offsetTop - scroller.clientHeight / 2;
+      const k = byLine.get(line);
+      if (k === undefined) return;
+      focus = k;
+      scroller.scrollTop = k * LINE_PX - scroller.clientHeight / 2;
+      draw();
     },
   };
 }

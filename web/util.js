@@ -18,7 +18,9 @@ export function el(tag, attrs, ...children) {
 export function fmt(x, digits) {
   if (x === null || x === undefined || Number.isNaN(x)) return '–';
   const d = digits === undefined ? (Math.abs(x) >= 100 ? 0 : Math.abs(x) >= 10 ? 1 : 2) : digits;
-  return Number(x).toLocaleString('en-US', { minimumFractionDigits: d, maximumFractionDigits: d });
+  // A value that rounds to zero is shown as 0, not -0.00.
+  const v = Number(Number(x).toFixed(d)) === 0 ? 0 : Number(x);
+  return v.toLocaleString('en-US', { minimumFractionDigits: d, maximumFractionDigits: d });
 }
 
 export function fmtTime(s) {

@@ -121,14 +121,15 @@ async function main() {
   // A rapid through the stock: the collision's move is drawn in red over the 3-D stock.
   const stock = await api(base, '/v1/stocks', { kind: 'block', min: [0, 0, -10], max: [60, 40, 0] });
   const tool = await api(base, '/v1/tools', { type: 'flat', diameter_mm: 8, flutes: 3, helix_deg: 35, flute_length_mm: 20 });
-  const crash = await submitJob({ kind: 'simulate', inputs: { program: { name: 'crash.nc', content: 'G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z-3\nG0 X70\nG0 Z10\nM30\n' }, stock: stock.id, tool: tool.id },
+  const crash = await submitJob({ kind: 'simulate', inputs: { program: { name: 'crash.nc', content: 'G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z10\nG0 Z-3\nG0 X70\nG0 Z10\nM30\n' }, stock: stock.id, tool: tool.id },
     options: { material: 'Al7075-T6' } });
   const cj = await waitJob(base, crash.id, 120);
   assert.equal(cj.status, 'succeeded', JSON.stringify(cj.error));
   const coll = cj.summary.collisions;
   log('collisions:', JSON.stringify(coll));
-  assert.ok(coll.length >= 1 && Array.isArray(coll[0].from) && Array.isArray(coll[0].to), 'the collision has no place');
-  assert.deepEqual(coll[0].to, [70, 20, -3]);
+  assert.equal(coll.length, 1, 'one rapid through the stock (line 6)');
+  assert.equal(coll[0].line, 6);
+  assert.deepEqual([coll[0].from, coll[0].to], [[-10, 20, -3], [70, 20, -3]]);
   await page.goto(base + '/jobs/' + crash.id);
   await page.waitForSelector('#collisions');
   assert.match(await page.textContent('#collisions tbody tr'), /rapid_in_material.*-10\.00, 20\.00, -3\.00 → 70\.00, 20\.00, -3\.00/);

@@ -53,6 +53,9 @@ async function main() {
   await page.waitForFunction(() => performance.getEntriesByName('plots-drawn').length > 0, null, { timeout: 120000 });
   const at = (name) => page.evaluate((n) => Math.round((performance.getEntriesByName(n)[0] || {}).startTime || -1), name);
   const paint = { fcp: await at('first-contentful-paint'), cards: await at('cards-shown'), rows: await at('rows-loaded'), plots: await at('plots-drawn') };
+  const requests = await page.evaluate(() => performance.getEntriesByType('resource').filter((r) => r.name.includes('/v1/'))
+    .map((r) => r.name.replace(/^.*\/v1\//, '').slice(0, 50) + ': ' + Math.round(r.responseStart - r.startTime) + ' ms to the first byte, ' + Math.round(r.duration) + ' ms in all, ' + Math.round(r.transferSize / 1024) + ' KiB'));
+  log('API requests:', requests.join('; '));
   log('page of 10^5 blocks, ms since navigation: first contentful paint', paint.fcp, '; cards', paint.cards, '; rows loaded (one CSV request)', paint.rows, '; plots drawn', paint.plots);
   assert.ok(paint.fcp > 0 && paint.fcp < 1000, 'first paint ' + paint.fcp + ' ms');
 
