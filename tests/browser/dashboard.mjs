@@ -129,6 +129,7 @@ async function main() {
   await page.mouse.click(bb.x + bb.width / 2, bb.y + bb.height / 2);
   await page.waitForSelector('#programs tr.focus');
   assert.equal(await page.textContent('#programs tr.focus td.ln'), String(hoverLine));
+  await page.locator('#programs').screenshot({ path: join(ARTIFACTS, 'program-diff.png') });
 
   // Zoom with the wheel on the force plot: every plot follows to the same range; shift-drag
   // pans them all; a double click shows everything again.
