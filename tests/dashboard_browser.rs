@@ -62,3 +62,10 @@ fn dashboard_in_chromium() {
 fn every_job_kind_in_chromium() {
     run_script("kinds.mjs");
 }
+
+/// A job of 10^5 blocks: first paint, and zooming and panning its plots without a stall
+/// (prints the redraw and frame times).
+#[test]
+fn large_job_zooms_and_pans_in_chromium() {
+    run_script("large.mjs");
+}
