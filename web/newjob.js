@@ -11,9 +11,14 @@ async function stored(collection) {
   try { return (await getJson('/v1/' + collection + '?limit=100')).items; } catch (_) { return []; }
 }
 const short = (id) => id.slice(0, 8);
+// What the upload's validation found (shape, diameter, flutes; a machine's name and axes).
 function toolLabel(r) {
-  const d = r.definition || {};
-  return (r.name ? r.name + ' · ' : '') + (d.type || 'tool') + (d.diameter_mm ? ' Ø' + d.diameter_mm : '') + (d.flutes ? ' z' + d.flutes : '') + ' · ' + short(r.id);
+  const d = r.summary || {};
+  return (r.name ? r.name + ' · ' : '') + (d.shape || 'tool') + (d.diameter ? ' Ø' + d.diameter : '') + (d.flutes ? ' ' + d.flutes + ' flutes' : '') + ' · ' + short(r.id);
+}
+function machineLabel(r) {
+  const d = r.summary || {};
+  return (r.name || d.name || 'machine') + (d.kinematics ? ' (' + d.kinematics + ')' : '') + ' · ' + short(r.id);
 }
 
 export async function renderNewJob(route) {
@@ -45,9 +50,9 @@ export async function renderNewJob(route) {
         field('or upload a tool library', el('input', { name: 'library_file', type: 'file' })))),
     el('fieldset', {}, el('legend', {}, 'Material and machine'),
       field('Material', el('select', { name: 'material' }, BUILT_IN_MATERIALS.map((m) => el('option', { value: 'builtin:' + m }, m)),
-        materials.map((m) => el('option', { value: m.id }, 'stored: ' + (m.name || 'material') + ' · ' + short(m.id))))),
+        materials.map((m) => el('option', { value: m.id }, 'stored: ' + (m.name || (m.summary && m.summary.name) || 'material') + ' · ' + short(m.id))))),
       field('Machine', el('select', { name: 'machine_choice' }, el('option', { value: '' }, 'generic 3-axis (or the file beside)'),
-        machines.map((m) => el('option', { value: m.id }, 'stored: ' + (m.name || (m.definition && m.definition.name) || 'machine') + ' · ' + short(m.id))))),
+        machines.map((m) => el('option', { value: m.id }, 'stored: ' + machineLabel(m))))),
       field('Machine JSON (optional)', el('input', { name: 'machine', type: 'file', accept: '.json' }))),
     el('fieldset', {}, el('legend', {}, 'Limits (optimize)'),
       field('Max force N', num('max_force', 400)), field('Air feed mm/min', num('air_feed', 5000)), field('Max feed mm/min (optional)', num('max_feed', ''))),
