@@ -3,9 +3,15 @@
 //! `millsim`. Each skips, saying why, when node, playwright-core (`npm ci` in tests/browser)
 //! or chromium is absent; `.ci/run` installs all three, so CI runs them.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 use std::sync::Mutex;
+use std::time::Duration;
+
+use common::*;
+use serde_json::json;
 
 /// One browser at a time: the scripts measure frame and paint times, which a second
 /// chromium on the same cores would distort.
@@ -68,4 +74,27 @@ fn every_job_kind_in_chromium() {
 #[test]
 fn large_job_zooms_and_pans_in_chromium() {
     run_script("large.mjs");
+}
+
+/// What the 3-D view marks, without a browser: a rapid through the stock is listed with the
+/// tool tip's path (`from`, `to`) on a 3-axis machine.
+#[tokio::test]
+async fn collisions_carry_the_tool_tip_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let (_, stock) = post_json(&c, &s, "/v1/stocks", &json!({"kind": "block", "min": [0, 0, -10], "max": [60, 40, 0]})).await;
+    let (_, tool) = post_json(&c, &s, "/v1/tools", &json!({"type": "flat", "diameter_mm": 8, "flutes": 3, "helix_deg": 35, "flute_length_mm": 20})).await;
+    let program = "G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z10\nG0 Z-3\nG0 X70\nG1 Y30 F500\nG0 Z10\nM30\n";
+    let body = json!({"kind": "simulate", "inputs": {"program": {"name": "crash.nc", "content": program},
+        "stock": stock["id"], "tool": tool["id"]}, "options": {"material": "Al7075-T6"}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let done = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    // Only the rapid on line 6 meets material it must not; the G1 after it cuts.
+    assert_eq!(
+        done["summary"]["collisions"],
+        json!([{"block": 5, "line": 6, "kind": "rapid_in_material", "from": [-10.0, 20.0, -3.0], "to": [70.0, 20.0, -3.0]}])
+    );
 }
