@@ -26,7 +26,7 @@ function markF(line) {
 const LINE_PX = 17;
 const OVERSCAN = 20;
 
-export function programDiff(view, orig, opt) {
+export function programDiff(view, orig, opt, rightTitle) {
   // Pairs lines that are equal but for their F word; a line of the optimized program that
   // pairs with none (a split part of a move) stands alone on the right.
   const left = []; const right = []; const kind = [];
@@ -48,7 +48,7 @@ export function programDiff(view, orig, opt) {
   }
   const n = left.length;
   const cols = () => el('colgroup', {}, el('col', { class: 'ln' }), el('col', {}), el('col', { class: 'ln' }), el('col', {}));
-  const head = el('table', { class: 'diff head' }, cols(), el('thead', {}, el('tr', {}, el('th', {}, ''), el('th', {}, 'program'), el('th', {}, ''), el('th', {}, 'optimized'))));
+  const head = el('table', { class: 'diff head' }, cols(), el('thead', {}, el('tr', {}, el('th', {}, ''), el('th', {}, 'program'), el('th', {}, ''), el('th', {}, rightTitle || 'optimized'))));
   const tbody = el('tbody');
   const table = el('table', { class: 'diff', 'data-changed': changed }, cols(), tbody);
   const spacer = el('div', { style: 'position:relative;height:' + n * LINE_PX + 'px' }, table);

@@ -24,20 +24,34 @@ export async function renderRotaryFeed(job, s, summarySlot) {
   }
   const plots = el('div', { id: 'plots' });
   app.append(el('h2', {}, 'Feed per block'), plots);
-  let rows;
-  try { rows = await loadRows(job.id); } catch (e) { handleError(e, plots); return; }
+  let rows; let source = null; let corrected = null;
+  try {
+    [rows, source, corrected] = await Promise.all([loadRows(job.id), programSource(job).catch(() => null), ops ? null : api(base + '/program').then((r) => r.text())]);
+  } catch (e) { handleError(e, plots); return; }
+  // The rows hold the written F (in `output`'s unit) per block; the F programmed for the
+  // block is the one in force on its source line.
   const n = rows.length;
-  const feed = rows.col('feed'); const out = rows.col('output'); const lim = rows.col('limited'); const lines = rows.col('line');
+  const written = rows.col('feed'); const unit = rows.col('output'); const lim = rows.col('limited'); const lines = rows.col('line');
+  const modal = source ? modalF(source) : null;
+  const programmed = lines.map((l) => (modal ? modal[l - 1] ?? null : null));
+  const few = n < 200;
   xyPlot(plots, 'Programmed and written F', 'row', 'F', Float64Array.from({ length: n }, (_, i) => i), [
-    { label: 'programmed F', values: feed, color: '#7a5c00' },
-    { label: 'written F', values: out, color: '#18794e' },
-    { label: 'limited by the machine', values: out.map((v, i) => (lim[i] === 'true' ? v : null)), color: '#c62828', pointsOnly: true },
-  ], (i) => 'line ' + lines[i] + ' · programmed F ' + fmt(feed[i], 1) + ' · written F ' + fmt(out[i], 1) + (lim[i] === 'true' ? ' · limited by the machine' : ''));
-  if (ops) return;
+    { label: 'programmed F', values: programmed, color: '#7a5c00', points: few },
+    { label: 'written F', values: written, color: '#18794e', points: few },
+    { label: 'limited by the machine', values: written.map((v, i) => (lim[i] === 'true' ? v : null)), color: '#c62828', pointsOnly: true },
+  ], (i) => 'line ' + lines[i] + ' · programmed F ' + fmt(programmed[i], 1) + ' · written F ' + fmt(written[i], 1) + ' (' + unit[i] + ')' + (lim[i] === 'true' ? ' · limited by the machine' : ''));
+  if (ops || !source) return;
   const view = el('div', { id: 'programs' });
   app.append(el('h2', {}, 'Program and corrected program'), view);
-  try {
-    const [source, corrected] = await Promise.all([programSource(job), api(base + '/program').then((r) => r.text())]);
-    if (source) programDiff(view, source, corrected.split(/\r?\n/));
-  } catch (e) { handleError(e, view); }
+  programDiff(view, source, corrected.split(/\r?\n/), 'corrected');
+}
+
+// The F word in force on each source line (modal: a line without F keeps the last one).
+function modalF(lines) {
+  let f = null;
+  return lines.map((line) => {
+    const m = line.replace(/\([^)]*\)/g, '').replace(/;.*$/, '').match(/F\s*([-+]?(\d+\.?\d*|\.\d+))/i);
+    if (m) f = Number(m[1]);
+    return f;
+  });
 }

@@ -13,7 +13,7 @@ export function xyPlot(container, title, xLabel, yLabel, x, series, describe) {
     scales: { x: { time: false } },
     axes: [{ label: xLabel }, { label: yLabel, size: 70 }],
     series: [{ label: xLabel }, ...series.map((s) => ({ label: s.label, stroke: s.color, width: s.width || 1.5, spanGaps: !!s.spanGaps,
-      points: s.pointsOnly ? { show: true, size: 10, fill: s.color } : { show: false }, paths: s.pointsOnly ? () => null : undefined }))],
+      points: s.pointsOnly || s.points ? { show: true, size: s.pointsOnly ? 10 : 7, fill: s.color } : { show: false }, paths: s.pointsOnly ? () => null : undefined }))],
     hooks: { setCursor: [(u) => { const i = u.cursor.idx; if (i !== null && i !== undefined) hover.textContent = describe(i); }] },
   }, [x, ...series.map((s) => s.values)], box);
   box.append(hover);

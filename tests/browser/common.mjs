@@ -98,6 +98,18 @@ export async function canvasInk(page, selector) {
   }));
 }
 
+// Pixels of a series' colour (hex, within 40 per channel) on each 2-D canvas matching
+// selector: a plot whose grid and axes are drawn but whose line is not has none.
+export async function colourInk(page, selector, hex) {
+  const rgb = [1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16));
+  return page.$$eval(selector, (canvases, rgb) => canvases.map((c) => {
+    const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    let n = 0;
+    for (let i = 0; i < d.length; i += 4) if (d[i + 3] > 200 && Math.abs(d[i] - rgb[0]) < 40 && Math.abs(d[i + 1] - rgb[1]) < 40 && Math.abs(d[i + 2] - rgb[2]) < 40) n++;
+    return n;
+  }), rgb);
+}
+
 // A WebGL canvas (drawn with preserveDrawingBuffer): pixels off the clear colour, pixels
 // of a given colour (within 40 per channel), and a checksum to see the picture change.
 export async function glPixels(page, selector, rgb) {

@@ -9,7 +9,7 @@ import { execFileSync } from 'node:child_process';
 import { writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { ARTIFACTS, BIN, api, canvasInk, dbUrl, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, spawnMillsim, startServer, waitJob, work } from './common.mjs';
+import { ARTIFACTS, BIN, api, canvasInk, colourInk, dbUrl, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, spawnMillsim, startServer, waitJob, work } from './common.mjs';
 
 const log = logger('dashboard');
 
@@ -29,6 +29,15 @@ async function submit(base, headers, kind, programName, program, options) {
   const tool = await api(base, '/v1/tools', { type: 'flat', diameter_mm: 8, flutes: 3, helix_deg: 35, flute_length_mm: 20 }, headers);
   return api(base, '/v1/jobs', { kind, inputs: { program: { name: programName, content: program }, stock: stock.id, tool: tool.id }, options }, headers);
 }
+
+// The colours of each plot's series, before and after (web/blockplots.js).
+const SERIES = {
+  'Cutting force': ['#c62828', '#2463eb'],
+  Feed: ['#7a5c00', '#18794e'],
+  'Material removal rate': ['#6a1b9a', '#ba68c8'],
+  'Spindle power': ['#ef6c00'],
+  Torque: ['#00838f'],
+};
 
 const plotX = (page, title) => page.getAttribute(`[data-plot="${title}"]`, 'data-x');
 
@@ -105,6 +114,18 @@ async function main() {
   log('plots against block, ink (pixels drawn):', ink.join(', '));
   assert.equal(ink.length, titles.length);
   for (const n of ink) assert.ok(n > 2000, 'a plot canvas is (nearly) empty: ' + n);
+  // Each plot's lines, by their colours (the grid and axes alone have none of them).
+  const lines = async () => {
+    const out = {};
+    for (const [title, colours] of Object.entries(SERIES)) {
+      out[title] = [];
+      for (const c of colours) out[title].push((await colourInk(page, `[data-plot="${title}"] canvas`, c))[0]);
+    }
+    return out;
+  };
+  const drawn = await lines();
+  log('pixels of each series colour, against block:', JSON.stringify(drawn));
+  for (const [title, counts] of Object.entries(drawn)) for (const n of counts) assert.ok(n > 300, `${title}: a series is not drawn (${counts})`);
 
   // Hover the middle of the force plot: block, line, N and the source line.
   const over = async (title) => (await page.$(`[data-plot="${title}"] .u-over`)).boundingBox();
@@ -172,6 +193,7 @@ async function main() {
   const sink = await canvasInk(page, '[data-plot="Samples"] canvas');
   log('samples:', await page.textContent('[data-plot="Samples"] .title'), '; ink', sink.join(','));
   assert.ok(sink[0] > 1000, 'the samples plot is (nearly) empty');
+  assert.ok((await colourInk(page, '[data-plot="Samples"] canvas', '#c62828'))[0] > 300, 'the samples\' peak force is not drawn');
   await page.screenshot({ path: join(ARTIFACTS, 'job.png'), fullPage: true });
 
   // Against cycle time: the after series end at the optimized cycle time.
@@ -180,6 +202,9 @@ async function main() {
   const tink = await canvasInk(page, '#plots .plot:not([data-plot="Samples"]) canvas');
   log('plots against cycle time, ink:', tink.join(', '), ';', await page.textContent('[data-plot="Cutting force"] .title'));
   for (const n of tink) assert.ok(n > 2000, 'a time plot is (nearly) empty: ' + n);
+  const tdrawn = await lines();
+  log('pixels of each series colour, against cycle time:', JSON.stringify(tdrawn));
+  for (const [title, counts] of Object.entries(tdrawn)) for (const n of counts) assert.ok(n > 300, `${title} against time: a series is not drawn (${counts})`);
   const [t0x, t1x] = (await plotX(page, 'Feed')).split(',').map(Number);
   assert.ok(Math.abs(t1x - o.cycle_time_before_s) < 0.01 * o.cycle_time_before_s && t0x < 0.05 * o.cycle_time_before_s, 'time axis ' + t0x + '..' + t1x + ' against ' + o.cycle_time_before_s);
   await page.$eval('[data-plot="Feed"]', (e) => e.scrollIntoView());

@@ -5,7 +5,7 @@
 //   MILLSIM_BIN=$CARGO_TARGET_DIR/debug/millsim node tests/browser/kinds.mjs
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { ARTIFACTS, api, canvasInk, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, startServer, waitJob } from './common.mjs';
+import { ARTIFACTS, api, canvasInk, colourInk, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, startServer, waitJob } from './common.mjs';
 
 const log = logger('kinds');
 
@@ -48,6 +48,7 @@ async function main() {
   const sink = await canvasInk(page, '#plots canvas');
   log('stability lobes ink', sink.join(','));
   assert.ok(sink[0] > 2000);
+  assert.ok((await colourInk(page, '#plots canvas', '#2463eb'))[0] > 300, 'the lobe line is not drawn');
   await page.screenshot({ path: join(ARTIFACTS, 'stability.png'), fullPage: true });
 
   // The 3-D lobe surface over the allowance: six lobe curves, and the surface drawn.
@@ -72,6 +73,8 @@ async function main() {
   const eink = await canvasInk(page, '#plots canvas');
   log('energy Pareto ink', eink.join(','), '; front of', es.pareto.length, 'points');
   assert.ok(eink[0] > 1000);
+  assert.ok((await colourInk(page, '#plots canvas', '#2463eb'))[0] > 300, 'the Pareto front is not drawn');
+  assert.ok((await colourInk(page, '#plots canvas', '#c62828'))[0] > 30, 'the chosen point is not drawn');
   await page.screenshot({ path: join(ARTIFACTS, 'energy.png'), fullPage: true });
 
   // Interpret: the example program's tool path in 3-D, rapids and feed moves coloured.
@@ -101,7 +104,9 @@ async function main() {
   assert.equal(marked[0][0], 'F500');
   const expected = 90 / ((Math.PI / 2) * 50 / 500);
   assert.ok(Math.abs(Number(marked[0][1].slice(1)) - expected) < 0.01 * expected, marked[0][1] + ' against F' + expected.toFixed(1));
-  assert.ok((await canvasInk(page, '[data-plot="Programmed and written F"] canvas'))[0] > 1000);
+  const fink = await Promise.all(['#7a5c00', '#18794e'].map(async (c) => (await colourInk(page, '[data-plot="Programmed and written F"] canvas', c))[0]));
+  log('rotary feed plot: programmed and written F pixels', fink.join(', '));
+  for (const n of fink) assert.ok(n > 30, 'a feed series is not drawn: ' + fink);
   await page.screenshot({ path: join(ARTIFACTS, 'rotary-feed.png'), fullPage: true });
 
   // Identify: coefficients from mean slotting forces (straight lines in the feed per tooth).
@@ -116,6 +121,7 @@ async function main() {
   const iink = await canvasInk(page, '#plots canvas');
   log('identify: Ktc', fmt(done.summary.coefficients.ktc, 1), '; fit ink', iink.join(','));
   assert.ok(iink[0] > 1000);
+  for (const c of ['#c62828', '#2463eb', '#18794e']) assert.ok((await colourInk(page, '#plots canvas', c))[0] > 300, 'a force fit is not drawn: ' + c);
   await page.screenshot({ path: join(ARTIFACTS, 'identify.png'), fullPage: true });
 
   // A rapid through the stock: the collision's move is drawn in red over the 3-D stock.
