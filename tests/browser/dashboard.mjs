@@ -125,7 +125,7 @@ async function main() {
   };
   const drawn = await lines();
   log('pixels of each series colour, against block:', JSON.stringify(drawn));
-  for (const [title, counts] of Object.entries(drawn)) for (const n of counts) assert.ok(n > 300, `${title}: a series is not drawn (${counts})`);
+  for (const [title, counts] of Object.entries(drawn)) for (const n of counts) assert.ok(n > 100, `${title}: a series is not drawn (${counts})`);
 
   // Hover the middle of the force plot: block, line, N and the source line.
   const over = async (title) => (await page.$(`[data-plot="${title}"] .u-over`)).boundingBox();
@@ -204,7 +204,7 @@ async function main() {
   for (const n of tink) assert.ok(n > 2000, 'a time plot is (nearly) empty: ' + n);
   const tdrawn = await lines();
   log('pixels of each series colour, against cycle time:', JSON.stringify(tdrawn));
-  for (const [title, counts] of Object.entries(tdrawn)) for (const n of counts) assert.ok(n > 300, `${title} against time: a series is not drawn (${counts})`);
+  for (const [title, counts] of Object.entries(tdrawn)) for (const n of counts) assert.ok(n > 100, `${title} against time: a series is not drawn (${counts})`);
   const [t0x, t1x] = (await plotX(page, 'Feed')).split(',').map(Number);
   assert.ok(Math.abs(t1x - o.cycle_time_before_s) < 0.01 * o.cycle_time_before_s && t0x < 0.05 * o.cycle_time_before_s, 'time axis ' + t0x + '..' + t1x + ' against ' + o.cycle_time_before_s);
   await page.$eval('[data-plot="Feed"]', (e) => e.scrollIntoView());
