@@ -53,7 +53,12 @@ async function main() {
 
   const { browser, page, consoleErrors, foreign } = await openBrowser(base);
   await page.goto(base + '/jobs/' + job.id);
-  await page.waitForFunction(() => performance.getEntriesByName('plots-drawn').length > 0, null, { timeout: 120000 });
+  try {
+    await page.waitForFunction(() => performance.getEntriesByName('plots-drawn').length > 0, null, { timeout: 300000 });
+  } catch (e) {
+    log('the plots were not drawn; the page says:', await page.textContent('#rowstatus').catch(() => '?'), '; console errors:', consoleErrors.join(' | '));
+    throw e;
+  }
   const at = (name) => page.evaluate((n) => Math.round((performance.getEntriesByName(n)[0] || {}).startTime || -1), name);
   const paint = { fcp: await at('first-contentful-paint'), cards: await at('cards-shown'), rows: await at('rows-loaded'), plots: await at('plots-drawn') };
   const requests = await page.evaluate(() => performance.getEntriesByType('resource').filter((r) => r.name.includes('/v1/'))
