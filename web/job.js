@@ -1,7 +1,7 @@
 // One job (/jobs/{id}): its header, live progress with a cancel button while it runs, its
 // problem when it failed, and the view of its kind once it succeeded.
 import { el, fmt, fmtDate, statusPill, progressBar, problemView } from './util.js';
-import { app, getJson, follow, handleError, programName, cancelJob, downloadLink } from './api.js';
+import { app, getJson, follow, handleError, programName, programSource, cancelJob, downloadLink } from './api.js';
 
 let following = null; // the running job's event stream, closed when the page changes
 
@@ -45,6 +45,14 @@ export async function renderJob(id) {
   }
   if (job.status === 'failed' && job.error) {
     app.append(el('h2', {}, 'Problem'), problemView(job.error));
+    // The program's line the problem names, with a caret under its column.
+    const line = job.error.line;
+    const source = Number.isInteger(line) ? await programSource(job).catch(() => null) : null;
+    if (source && source[line - 1] !== undefined) {
+      const col = job.error.column;
+      app.append(el('pre', { class: 'problem-source', id: 'problem-source' }, line + ': ' + source[line - 1] +
+        (Number.isInteger(col) && col > 0 ? '\n' + ' '.repeat(String(line).length + 2 + col - 1) + '^' : '')));
+    }
     return;
   }
   if (job.status !== 'succeeded') { app.append(el('p', { class: 'muted', id: 'ended' }, 'The job was ' + job.status + '.')); return; }

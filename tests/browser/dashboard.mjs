@@ -244,6 +244,8 @@ async function main() {
   assert.equal(await page.textContent('#problem dd[data-field="file"]'), 'bad.nc');
   assert.equal(await page.textContent('#problem dd[data-field="line"]'), '3');
   assert.match(await page.textContent('#problem dd[data-field="detail"]'), /outside the machine's travel/);
+  await page.waitForSelector('#problem-source');
+  assert.equal(await page.textContent('#problem-source'), '3: G1 X1000000000000');
   await page.screenshot({ path: join(ARTIFACTS, 'failed.png'), fullPage: true });
 
   // 4. The new-job form with a stored tool picked: the page then follows the job.
