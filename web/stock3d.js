@@ -1,10 +1,11 @@
 // The machined stock in 3-D (three.js, vendored): the job's exported STL, and the design
-// part as a translucent overlay where the job has one. Orbit, zoom and pan with the mouse.
+// part as a translucent overlay where the job has one, and collisions marked where the
+// summary places them. Orbit, zoom and pan with the mouse.
 import * as THREE from 'three';
 import { STLLoader } from '/ui/STLLoader.js';
 import { OrbitControls } from '/ui/OrbitControls.js';
 
-export function showStock(container, stockStl, partStl) {
+export function showStock(container, stockStl, partStl, marks) {
   const width = Math.max(320, container.clientWidth);
   const height = 480;
   const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
@@ -26,6 +27,22 @@ export function showStock(container, stockStl, partStl) {
     g.computeVertexNormals();
     part = new THREE.Mesh(g, new THREE.MeshStandardMaterial({ color: 0x2e7d32, transparent: true, opacity: 0.35, depthWrite: false }));
     scene.add(part);
+  }
+  // Collisions: the move's tip path in red with a ball at its middle, drawn over the stock
+  // (no depth test: a rapid through material is inside it) and sized to the stock.
+  const box0 = stock.boundingBox;
+  const radius = Math.max(0.5, box0.getSize(new THREE.Vector3()).length() / 120);
+  const ball = new THREE.SphereGeometry(radius, 16, 12);
+  const red = new THREE.MeshBasicMaterial({ color: 0xd50000, depthTest: false, transparent: true, opacity: 0.85 });
+  const redLine = new THREE.LineBasicMaterial({ color: 0xd50000, depthTest: false });
+  for (const m of marks || []) {
+    const a = new THREE.Vector3(...m.from); const b = new THREE.Vector3(...m.to);
+    const s = new THREE.Mesh(ball, red);
+    s.position.copy(a).lerp(b, 0.5);
+    s.renderOrder = 2;
+    const l = new THREE.Line(new THREE.BufferGeometry().setFromPoints([a, b]), redLine);
+    l.renderOrder = 2;
+    scene.add(s, l);
   }
   scene.add(new THREE.HemisphereLight(0xffffff, 0x445566, 1.6));
   const sun = new THREE.DirectionalLight(0xffffff, 1.8);

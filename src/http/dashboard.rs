@@ -17,62 +17,53 @@ use super::AppState;
 pub const ROUTES: [&str; 2] = ["/jobs/{id}", "/ui/{file}"];
 
 /// Every embedded file as (name under /ui/, content type, bytes).
-const FILES: [(&str, &str, &[u8]); 11] = [
-    (
-        "dashboard.js",
-        "text/javascript; charset=utf-8",
-        include_bytes!("../../web/dashboard.js"),
-    ),
-    (
-        "dashboard.css",
-        "text/css; charset=utf-8",
-        include_bytes!("../../web/dashboard.css"),
-    ),
-    (
-        "uPlot.iife.min.js",
-        "text/javascript; charset=utf-8",
-        include_bytes!("../../web/vendor/uplot/uPlot.iife.min.js"),
-    ),
-    (
-        "uPlot.min.css",
-        "text/css; charset=utf-8",
-        include_bytes!("../../web/vendor/uplot/uPlot.min.css"),
-    ),
-    (
-        "uPlot.LICENSE.txt",
-        "text/plain; charset=utf-8",
-        include_bytes!("../../web/vendor/uplot/LICENSE"),
-    ),
-    (
-        "stock3d.js",
-        "text/javascript; charset=utf-8",
-        include_bytes!("../../web/stock3d.js"),
-    ),
-    (
-        "three.module.js",
-        "text/javascript; charset=utf-8",
-        include_bytes!("../../web/vendor/three/three.module.js"),
-    ),
-    (
-        "three.core.js",
-        "text/javascript; charset=utf-8",
-        include_bytes!("../../web/vendor/three/three.core.js"),
-    ),
-    (
-        "STLLoader.js",
-        "text/javascript; charset=utf-8",
-        include_bytes!("../../web/vendor/three/STLLoader.js"),
-    ),
-    (
-        "OrbitControls.js",
-        "text/javascript; charset=utf-8",
-        include_bytes!("../../web/vendor/three/OrbitControls.js"),
-    ),
-    (
-        "three.LICENSE.txt",
-        "text/plain; charset=utf-8",
-        include_bytes!("../../web/vendor/three/LICENSE"),
-    ),
+macro_rules! embed {
+    ($($name:literal => $path:literal),* $(,)?) => {
+        [$(($name, content_type($name), include_bytes!(concat!("../../web/", $path)) as &[u8])),*]
+    };
+}
+
+const fn content_type(name: &str) -> &'static str {
+    let b = name.as_bytes();
+    match b[b.len() - 1] {
+        b's' if b[b.len() - 2] == b'j' => "text/javascript; charset=utf-8",
+        b's' => "text/css; charset=utf-8",
+        _ => "text/plain; charset=utf-8",
+    }
+}
+
+// The dashboard's own modules, one view or concern each, then the vendored libraries.
+const FILES: [(&str, &str, &[u8]); 30] = embed![
+    "app.js" => "app.js",
+    "util.js" => "util.js",
+    "api.js" => "api.js",
+    "list.js" => "list.js",
+    "job.js" => "job.js",
+    "newjob.js" => "newjob.js",
+    "cutting.js" => "cutting.js",
+    "rows.js" => "rows.js",
+    "blockplots.js" => "blockplots.js",
+    "panzoom.js" => "panzoom.js",
+    "samples.js" => "samples.js",
+    "programdiff.js" => "programdiff.js",
+    "xyplot.js" => "xyplot.js",
+    "stability.js" => "stability.js",
+    "lobes3d.js" => "lobes3d.js",
+    "energy.js" => "energy.js",
+    "interpret.js" => "interpret.js",
+    "toolpath3d.js" => "toolpath3d.js",
+    "rotaryfeed.js" => "rotaryfeed.js",
+    "identify.js" => "identify.js",
+    "stock3d.js" => "stock3d.js",
+    "dashboard.css" => "dashboard.css",
+    "uPlot.iife.min.js" => "vendor/uplot/uPlot.iife.min.js",
+    "uPlot.min.css" => "vendor/uplot/uPlot.min.css",
+    "uPlot.LICENSE.txt" => "vendor/uplot/LICENSE",
+    "three.module.js" => "vendor/three/three.module.js",
+    "three.core.js" => "vendor/three/three.core.js",
+    "STLLoader.js" => "vendor/three/STLLoader.js",
+    "OrbitControls.js" => "vendor/three/OrbitControls.js",
+    "three.LICENSE.txt" => "vendor/three/LICENSE",
 ];
 
 pub fn routes() -> Router<AppState> {
@@ -110,5 +101,20 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), super::FILES.len());
+    }
+
+    #[test]
+    fn every_module_of_web_is_embedded() {
+        // A module added to web/ but not to FILES would 404 in the browser only.
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("web");
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let name = entry.unwrap().file_name().into_string().unwrap();
+            if name.ends_with(".js") || name.ends_with(".css") {
+                assert!(super::FILES.iter().any(|f| f.0 == name), "web/{name} is not embedded");
+            }
+        }
+        assert_eq!(super::content_type("a.js"), "text/javascript; charset=utf-8");
+        assert_eq!(super::content_type("a.css"), "text/css; charset=utf-8");
+        assert_eq!(super::content_type("LICENSE.txt"), "text/plain; charset=utf-8");
     }
 }

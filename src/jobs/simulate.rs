@@ -386,8 +386,7 @@ pub fn run(
             content: text.into_bytes(),
         });
     }
-    Ok(JobOutput {
-        summary: serde_json::to_value(SimulateSummary {
+    let mut summary = serde_json::to_value(SimulateSummary {
             file: &file,
             simulation: &out.summary,
             timings: &out.timings,
@@ -406,10 +405,42 @@ pub fn run(
             tool_library,
             row_columns,
         })
-        .expect("summary serializes"),
+        .expect("summary serializes");
+    place_collisions(&spec, &mut summary);
+    Ok(JobOutput {
+        summary,
         rows,
         samples,
         files,
         resources: Vec::new(),
     })
+}
+
+/// Where each listed collision happened, for the dashboard's 3-D view: `from` and `to`, the
+/// tool tip at its move's start and end, mm. Only on a 3-axis machine (the tip is then the
+/// programmed X, Y, Z); the program is read again, which costs an interpretation, only when
+/// there are collisions.
+fn place_collisions(spec: &SimulateSpec, summary: &mut Value) {
+    let Some(list) = summary.get_mut("collisions").and_then(Value::as_array_mut) else {
+        return;
+    };
+    if list.is_empty() || spec.machine.kinematics != millsim_engine::machine::Kinematics::Xyz {
+        return;
+    }
+    let Ok(program) = nc::interpret(&spec.program, &spec.interpret) else {
+        return;
+    };
+    for c in list.iter_mut() {
+        let (Some(block), Some(line)) = (c["block"].as_u64(), c["line"].as_u64()) else {
+            continue;
+        };
+        if let Some(m) = program
+            .moves
+            .iter()
+            .find(|m| m.block as u64 == block && u64::from(m.line) == line)
+        {
+            c["from"] = json!([m.start[0], m.start[1], m.start[2]]);
+            c["to"] = json!([m.end[0], m.end[1], m.end[2]]);
+        }
+    }
 }

@@ -1,0 +1,113 @@
+// Simulate and optimize jobs: summary cards, collisions, the machined stock in 3-D, the
+// per-block plots with their samples, and the program beside the optimized one.
+import { el, fmt, fmtTime, card } from './util.js';
+import { app, api, handleError, NeedKey, programSource } from './api.js';
+import { loadRows } from './rows.js';
+import { blockPlots } from './blockplots.js';
+import { samplesPanel } from './samples.js';
+import { programDiff } from './programdiff.js';
+
+function summaryCards(s, opt) {
+  const cards = el('div', { class: 'cards', id: 'cards' });
+  if (opt) {
+    cards.append(card('Cycle time before', fmtTime(opt.cycle_time_before_s)));
+    cards.append(card('Cycle time after', fmtTime(opt.cycle_time_after_s), opt.cycle_time_before_s > 0 ? fmt(100 * (1 - opt.cycle_time_after_s / opt.cycle_time_before_s), 1) + ' % shorter' : null));
+    cards.append(card('At best constant feed', fmtTime(opt.cycle_time_constant_feed_s), 'F ' + fmt(opt.best_constant_feed_mm_min, 0) + ' mm/min'));
+    cards.append(card('Ideal bound', fmtTime(opt.cycle_time_ideal_s)));
+  } else {
+    cards.append(card('Cycle time', fmtTime(s.cycle_time_s)));
+  }
+  cards.append(card(opt ? 'Peak force before' : 'Peak force', fmt(s.force_peak_n, 1) + ' N', s.force_peak_line != null ? 'line ' + s.force_peak_line : null));
+  if (opt) cards.append(card('Peak force after', fmt(opt.peak_force_after, 1) + ' N', opt.limits && opt.limits.max_force != null ? 'limit ' + fmt(opt.limits.max_force, 0) + ' N' : null));
+  cards.append(card('Removed volume', fmt(s.removed_volume_mm3, 0) + ' mm³'));
+  cards.append(card('Air time', fmtTime(s.air_time_s), s.air_moves != null ? s.air_moves + ' air moves' : null));
+  const ncoll = Array.isArray(s.collisions) ? s.collisions.length : 0;
+  cards.append(card('Collisions', String(ncoll), null, ncoll ? 'bad' : ''));
+  const warn = [];
+  if (s.rapid_in_material_moves) warn.push(s.rapid_in_material_moves + ' rapid in material');
+  if (s.holder_or_shank_contact_moves) warn.push(s.holder_or_shank_contact_moves + ' shank/holder contact');
+  if (s.flute_length_exceeded_moves) warn.push(s.flute_length_exceeded_moves + ' flute length exceeded');
+  if (Array.isArray(s.tool_warnings) && s.tool_warnings.length) warn.push(s.tool_warnings.length + ' tool warning(s)');
+  if (opt && opt.force_limit_unreachable_moves) warn.push(opt.force_limit_unreachable_moves + ' moves cannot reach the force limit');
+  cards.append(card('Warnings', String(warn.length), warn.join('; ') || 'none', warn.length ? 'bad' : ''));
+  if (s.cutting_energy_j != null) cards.append(card('Cutting energy', fmt(s.cutting_energy_j / 1000, 2) + ' kJ'));
+  if (s.part) cards.append(card('Gouge', fmt(s.part.gouge_volume, 2) + ' mm³', 'deepest ' + fmt(s.part.max_gouge_depth, 3) + ' mm · allowance ' + fmt(s.part.allowance_min, 2) + '–' + fmt(s.part.allowance_max, 2) + ' mm', s.part.gouge_volume > 0 ? 'bad' : ''));
+  return cards;
+}
+
+function stockView(job, base, s) {
+  // Loaded on request: the STL can be tens of MB.
+  const view = el('div', { id: 'stock3d' });
+  const partId = job.inputs && typeof job.inputs.part === 'string' ? job.inputs.part : null;
+  const button = el('button', { id: 'load-stock', onclick: async () => {
+    button.disabled = true;
+    view.replaceChildren(el('p', { class: 'muted' }, 'loading the stock…'));
+    try {
+      const [mod, stl, part] = await Promise.all([
+        import('/ui/stock3d.js'),
+        api(base + '/stock.stl').then((r) => r.arrayBuffer()),
+        partId ? api('/v1/stocks/' + encodeURIComponent(partId) + '/content').then((r) => r.arrayBuffer()) : Promise.resolve(null),
+      ]);
+      view.replaceChildren();
+      const marks = (s.collisions || []).filter((c) => Array.isArray(c.from) && Array.isArray(c.to));
+      const v = mod.showStock(view, stl, part, marks);
+      view.append(el('p', { class: 'muted', id: 'stockinfo' }, v.triangles.toLocaleString('en-US') + ' triangles · ' + v.size.map((x) => fmt(x, 1)).join(' × ') + ' mm · drag to orbit, wheel to zoom, right-drag to pan',
+        marks.length ? ' · ' + marks.length + ' collision(s) marked in red' : '',
+        part ? el('label', {}, ' · ', el('input', { type: 'checkbox', checked: true, onchange: (e) => v.setPartVisible(e.target.checked) }), ' design part (green)') : ''));
+    } catch (e) { view.replaceChildren(); handleError(e, view); }
+  } }, 'Show the machined stock in 3-D');
+  return [el('h2', {}, 'Stock after machining'), button, view];
+}
+
+export async function renderCutting(job, s, summarySlot) {
+  const base = '/v1/jobs/' + encodeURIComponent(job.id);
+  const opt = s.optimization || null;
+  summarySlot.append(el('h2', {}, 'Summary'), summaryCards(s, opt));
+  performance.mark('cards-shown');
+  if (s.collisions && s.collisions.length) {
+    app.append(el('h2', {}, 'Collisions'), el('table', { class: 'jobs', id: 'collisions' },
+      el('thead', {}, el('tr', {}, ['Block', 'Line', 'Kind', 'Tool tip from → to (mm)'].map((h) => el('th', {}, h)))),
+      el('tbody', {}, s.collisions.map((c) => el('tr', {}, el('td', {}, c.block), el('td', {}, c.line), el('td', {}, c.kind),
+        el('td', {}, Array.isArray(c.from) ? c.from.map((x) => fmt(x, 2)).join(', ') + ' → ' + c.to.map((x) => fmt(x, 2)).join(', ') : '–'))))));
+  }
+  app.append(...stockView(job, base, s));
+  const plots = el('div', { id: 'plots' });
+  const status = el('p', { class: 'muted', id: 'rowstatus' }, 'loading rows…');
+  app.append(el('h2', {}, 'Per block'), status, plots);
+  // The program's source (for the hover and the program view) loads while the rows do.
+  const sourceP = programSource(job);
+  sourceP.catch(() => {});
+  let rows;
+  const total = s.moves;
+  try { rows = await loadRows(job.id, (n) => { status.textContent = 'loading rows… ' + n + (total ? ' of ' + total : ''); }); } catch (e) { handleError(e, plots); return; }
+  status.textContent = rows.length + ' rows';
+  performance.mark('rows-loaded');
+  const limit = opt && opt.limits ? opt.limits.max_force : null;
+  if (opt && rows.length) {
+    // The summary names the line of the peak before; the line of the peak after is read from the rows.
+    const after = rows.col('force_peak_opt_n'); const lines = rows.col('line');
+    let best = 0;
+    for (let i = 1; i < rows.length; i++) if ((after[i] || 0) > (after[best] || 0)) best = i;
+    const n = document.querySelector('[data-card="Peak force after"] .n');
+    if (n) n.textContent = 'line ' + lines[best] + (limit != null ? ' · limit ' + fmt(limit, 0) + ' N' : '');
+  }
+  let source = null;
+  try { source = await sourceP; } catch (e) { if (e instanceof NeedKey) { handleError(e); return; } }
+  let programView = null;
+  const samplesBox = el('div', { id: 'samples' });
+  let setRange = null;
+  const plotsCtl = blockPlots(plots, rows, { opt, limit, source,
+    goToLine: (line) => { if (programView) programView.show(line); },
+    onRange: (a, b) => { if (setRange) setRange(a, b); } });
+  plots.append(samplesBox);
+  setRange = samplesPanel(samplesBox, base, rows);
+  performance.mark('plots-drawn');
+  if (source && job.kind === 'optimize') {
+    const view = el('div', { id: 'programs' });
+    app.append(el('h2', {}, 'Program and optimized program'), view);
+    try {
+      const optimized = (await (await api(base + '/program')).text()).split(/\r?\n/);
+      programView = programDiff(view, source, optimized);
+    } catch (e) { handleError(e, view); }
+  }
+}
