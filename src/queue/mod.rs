@@ -106,8 +106,12 @@ impl Worker {
             match self.db.claim_job(&self.id, self.config.lease_ms).await {
                 Ok(Some(job)) => self.run_job(job).await,
                 Ok(None) => {
+                    // Woken by a submission in this process, by the database's
+                    // notification of one from any process (PostgreSQL), or by the poll
+                    // that finds jobs whose lease expired (nothing announces those).
                     tokio::select! {
                         _ = self.wake.notified() => {}
+                        _ = self.db.job_queued() => {}
                         _ = tokio::time::sleep(Duration::from_millis(self.config.poll_ms)) => {}
                         _ = self.shutdown.changed() => {}
                     }
