@@ -2,24 +2,20 @@
 //! takes multi-row INSERTs, PostgreSQL a COPY (one stream instead of a statement per
 //! chunk, so a 100k-row result commits in a fraction of a second).
 
-use super::backend::{on_tx, Tx};
+use super::backend::Tx;
 use super::StoreError;
 
 /// How much COPY text is buffered before it is sent.
 const COPY_CHUNK_BYTES: usize = 1 << 20;
 
-/// Replaces a job's rows in `table` (job_id, seq, data) with `items`.
-pub async fn replace_rows(
+/// Writes a job's rows in `table` (job_id, seq, data). Rows are written once, with the
+/// job's success (only the lease holder commits it), so there are none to replace.
+pub async fn insert_rows(
     tx: &mut Tx,
     table: &str,
     job_id: &str,
     items: &[(usize, String)],
 ) -> Result<(), StoreError> {
-    on_tx!(tx, c => sqlx::query(&format!("DELETE FROM {table} WHERE job_id = $1"))
-        .bind(job_id)
-        .execute(&mut *c)
-        .await?
-        .rows_affected());
     match tx {
         Tx::Sqlite(t) => {
             // One statement per 400 rows instead of one per row.

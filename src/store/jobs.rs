@@ -2,10 +2,12 @@
 //! transaction, so a worker that dies at any point leaves a job that is either
 //! finished or claimable again once its lease expires.
 
+use std::sync::atomic::Ordering;
+
 use serde::Serialize;
 
 use super::backend::{on_pool, on_tx, RowGet, Tx};
-use super::bulk::replace_rows;
+use super::bulk::insert_rows;
 use super::resources::{insert as insert_resource, insert_with_id, NewResource};
 use super::webhooks::enqueue_job_event;
 use super::{new_id, now_ms, rfc3339, Db, StoreError};
@@ -205,6 +207,9 @@ pub enum LeaseState {
 
 /// In a worker's id: it runs jobs inside the server process (job isolation `thread`).
 pub const IN_PROCESS_MARK: &str = "-inproc-";
+
+/// How often, at least, a claiming process settles dead workers' jobs, ms.
+const SETTLE_EVERY_MS: i64 = 1000;
 
 /// Ends a dead worker's attempt (still open) as lost.
 async fn close_lost_attempt(
@@ -462,16 +467,10 @@ impl Db {
         Ok(ids.len() as u64)
     }
 
-    /// Claims the oldest claimable job: a queued job, or a running one whose lease
-    /// expired (its worker died). One UPDATE … RETURNING whose subquery picks the job; on
-    /// PostgreSQL it locks it `FOR UPDATE SKIP LOCKED`, so concurrent claimers on any host
-    /// take different jobs without waiting on each other. Cancelled-while-dead jobs are
-    /// settled first.
-    pub async fn claim_job(
-        &self,
-        worker: &str,
-        lease_ms: i64,
-    ) -> Result<Option<ClaimedJob>, StoreError> {
+    /// Settles the jobs of dead workers (leases expired): failed when their attempts are
+    /// used up or they ran inside a server that died with them, cancelled when a cancel
+    /// was asked for. Claims skip such jobs, so this need not run before every claim.
+    pub async fn settle_lost_jobs(&self) -> Result<(), StoreError> {
         let now = now_ms();
         self.fail_exhausted().await?;
         let mut tx = self.begin().await?;
@@ -514,18 +513,51 @@ impl Db {
             enqueue_job_event(&mut tx, id, "job.failed").await?;
         }
         tx.commit().await?;
+        self.last_settled.store(now, Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Claims the oldest claimable job: a queued job, or a running one whose lease
+    /// expired (its worker died) and that may run again. One UPDATE … RETURNING whose
+    /// subquery picks the job; on PostgreSQL it locks it `FOR UPDATE SKIP LOCKED`, so
+    /// concurrent claimers on any host take different jobs without waiting on each other.
+    /// Dead workers' jobs are settled first: at least every `SETTLE_EVERY_MS` in this
+    /// process, and whenever nothing is claimable.
+    pub async fn claim_job(
+        &self,
+        worker: &str,
+        lease_ms: i64,
+    ) -> Result<Option<ClaimedJob>, StoreError> {
+        if now_ms() - self.last_settled.load(Ordering::Relaxed) >= SETTLE_EVERY_MS {
+            self.settle_lost_jobs().await?;
+        } else if let Some(job) = self.try_claim(worker, lease_ms).await? {
+            return Ok(Some(job));
+        } else {
+            self.settle_lost_jobs().await?;
+        }
+        self.try_claim(worker, lease_ms).await
+    }
+
+    async fn try_claim(&self, worker: &str, lease_ms: i64) -> Result<Option<ClaimedJob>, StoreError> {
+        let now = now_ms();
         let mut tx = self.begin().await?;
+        let skip_locked = tx.backend().skip_locked();
+        // An expired job that settling would end (attempts used up, cancel asked, lost
+        // with its server) is not claimed: settle_lost_jobs ends it.
         let row: Option<(String, String, String, String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
             "UPDATE jobs SET status = 'running', lease_owner = $1, lease_expires_at = $2,
                 attempts = attempts + 1, started_at = $3, finished_at = NULL, updated_at = $3
              WHERE id = (SELECT id FROM jobs
-                         WHERE status = 'queued' OR (status = 'running' AND lease_expires_at < $3)
+                         WHERE status = 'queued'
+                            OR (status = 'running' AND lease_expires_at < $3 AND attempts < max_attempts
+                                AND cancel_requested = 0 AND lease_owner NOT LIKE $4)
                          ORDER BY id LIMIT 1{skip_locked})
              RETURNING id, owner, kind, spec, attempts",
         ))
         .bind(worker)
         .bind(now + lease_ms)
         .bind(now)
+        .bind(format!("%{IN_PROCESS_MARK}%"))
         .fetch_optional(&mut *c)
         .await?);
         let Some((id, owner, kind, spec, attempt)) = row else {
@@ -540,12 +572,14 @@ impl Db {
             attempt,
         };
         on_tx!(&mut tx, c => {
-            // The previous attempt, if its worker died, ends here as lost.
-            sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = $1 WHERE job_id = $2 AND outcome IS NULL")
-                .bind(now)
-                .bind(&job.id)
-                .execute(&mut *c)
-                .await?;
+            if job.attempt > 1 {
+                // The previous attempt, if its worker died, ends here as lost.
+                sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = $1 WHERE job_id = $2 AND outcome IS NULL")
+                    .bind(now)
+                    .bind(&job.id)
+                    .execute(&mut *c)
+                    .await?;
+            }
             sqlx::query(
                 "INSERT INTO job_attempts (job_id, attempt, worker, started_at) VALUES ($1, $2, $3, $4)",
             )
@@ -649,10 +683,14 @@ impl Db {
             ..
         } = finish
         {
-            let owner: String = on_tx!(&mut tx, c => sqlx::query_scalar("SELECT owner FROM jobs WHERE id = $1")
-                .bind(&job.id)
-                .fetch_one(&mut *c)
-                .await?);
+            let owner: String = if resources.is_empty() {
+                String::new()
+            } else {
+                on_tx!(&mut tx, c => sqlx::query_scalar("SELECT owner FROM jobs WHERE id = $1")
+                    .bind(&job.id)
+                    .fetch_one(&mut *c)
+                    .await?)
+            };
             for r in &resources {
                 let new = NewResource {
                     kind: r.kind,
@@ -664,8 +702,8 @@ impl Db {
                 insert_with_id(&mut tx, &r.id, &owner, &new).await?;
             }
             let numbered: Vec<(usize, String)> = rows.into_iter().enumerate().collect();
-            replace_rows(&mut tx, "job_rows", &job.id, &numbered).await?;
-            replace_rows(&mut tx, "job_samples", &job.id, &samples).await?;
+            insert_rows(&mut tx, "job_rows", &job.id, &numbered).await?;
+            insert_rows(&mut tx, "job_samples", &job.id, &samples).await?;
             for a in artifacts {
                 on_tx!(&mut tx, c => sqlx::query("INSERT INTO job_artifacts (job_id, name, media_type, file_name, content) VALUES ($1, $2, $3, $4, $5)")
                     .bind(&job.id)

@@ -10,6 +10,7 @@ pub mod resources;
 pub mod webhooks;
 
 use std::str::FromStr;
+use std::sync::atomic::AtomicI64;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -44,6 +45,8 @@ pub struct Db {
     pool: Pool,
     /// PostgreSQL's notifications, fanned out in this process (None on SQLite).
     changes: Option<Arc<notify::Changes>>,
+    /// When this process last settled dead workers' jobs (unix ms).
+    last_settled: Arc<AtomicI64>,
 }
 
 impl Db {
@@ -77,6 +80,7 @@ impl Db {
         Ok(Db {
             pool: Pool::Sqlite(pool),
             changes: None,
+            last_settled: Arc::default(),
         })
     }
 
@@ -96,6 +100,7 @@ impl Db {
         Ok(Db {
             pool: Pool::Postgres(pool),
             changes: Some(changes),
+            last_settled: Arc::default(),
         })
     }
 

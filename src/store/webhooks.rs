@@ -101,6 +101,16 @@ pub struct AttemptOutcome {
 /// the transaction that changes the job's state: the event exists exactly when the change
 /// does.
 pub async fn enqueue_job_event(tx: &mut Tx, job_id: &str, event: &str) -> Result<(), StoreError> {
+    // The owner's webhooks first: most owners have none, and then the job is not read.
+    let hooks: Vec<(String, String)> = on_tx!(tx, c => sqlx::query_as(
+        "SELECT id, events FROM webhooks WHERE owner = (SELECT owner FROM jobs WHERE id = $1) ORDER BY id",
+    )
+    .bind(job_id)
+    .fetch_all(&mut *c)
+    .await?);
+    if hooks.is_empty() {
+        return Ok(());
+    }
     type JobRow = (String, String, String, i64, Option<String>, i64, Option<i64>, i64, i64);
     let job: Option<JobRow> = on_tx!(tx, c => sqlx::query_as(
         "SELECT owner, kind, status, attempts, error, created_at, finished_at, progress_done, progress_total FROM jobs WHERE id = $1",
@@ -112,11 +122,6 @@ pub async fn enqueue_job_event(tx: &mut Tx, job_id: &str, event: &str) -> Result
     else {
         return Ok(());
     };
-    let hooks: Vec<(String, String)> = on_tx!(tx, c =>
-        sqlx::query_as("SELECT id, events FROM webhooks WHERE owner = $1 ORDER BY id")
-            .bind(&owner)
-            .fetch_all(&mut *c)
-            .await?);
     let now = now_ms();
     for (webhook_id, events) in hooks {
         let events: Vec<String> = serde_json::from_str(&events)?;
