@@ -73,6 +73,17 @@ impl Pool {
 }
 
 impl Tx {
+    /// Makes the transaction read one snapshot (PostgreSQL reads a new one per statement
+    /// otherwise; a SQLite read transaction already does). Call before the first read.
+    pub async fn read_one_snapshot(&mut self) -> Result<(), StoreError> {
+        if let Tx::Postgres(t) = self {
+            sqlx::query("SET TRANSACTION ISOLATION LEVEL REPEATABLE READ")
+                .execute(&mut **t)
+                .await?;
+        }
+        Ok(())
+    }
+
     pub async fn commit(self) -> Result<(), StoreError> {
         match self {
             Tx::Sqlite(t) => t.commit().await?,

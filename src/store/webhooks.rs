@@ -228,6 +228,29 @@ fn delivery_record(row: &impl RowGet) -> Result<DeliveryRecord, StoreError> {
     })
 }
 
+/// A delivery with its attempts, read in the same transaction.
+async fn with_attempts(tx: &mut Tx, mut d: DeliveryRecord) -> Result<DeliveryRecord, StoreError> {
+    let attempts: Vec<AttemptRow> = on_tx!(tx, c => sqlx::query_as(
+        "SELECT attempt, started_at, duration_ms, status_code, error FROM webhook_attempts WHERE delivery_id = $1 ORDER BY attempt",
+    )
+    .bind(&d.id)
+    .fetch_all(&mut *c)
+    .await?);
+    d.attempts = attempts
+        .into_iter()
+        .map(
+            |(attempt, started, duration_ms, status_code, error)| AttemptRecord {
+                attempt,
+                started_at: rfc3339(started),
+                duration_ms,
+                status_code,
+                error,
+            },
+        )
+        .collect();
+    Ok(d)
+}
+
 impl Db {
     /// Webhooks an owner has (each one fans every job event out once more).
     pub async fn count_webhooks(&self, owner: &str) -> Result<i64, StoreError> {
@@ -328,7 +351,11 @@ impl Db {
         cursor: Option<&str>,
         limit: u32,
     ) -> Result<(Vec<DeliveryRecord>, Option<String>), StoreError> {
-        let rows = on_pool!(&self.pool, p => {
+        // One snapshot for the deliveries and their attempts: an attempt recorded between
+        // two reads would otherwise show beside a delivery still pending.
+        let mut tx = self.begin().await?;
+        tx.read_one_snapshot().await?;
+        let rows = on_tx!(&mut tx, c => {
             let rows = sqlx::query(
                 "SELECT * FROM webhook_deliveries WHERE owner = $1 AND webhook_id = $2 AND id > $3 ORDER BY id LIMIT $4",
             )
@@ -336,7 +363,7 @@ impl Db {
             .bind(webhook_id)
             .bind(cursor.unwrap_or(""))
             .bind(i64::from(limit) + 1)
-            .fetch_all(p)
+            .fetch_all(&mut *c)
             .await?;
             rows.iter()
                 .map(delivery_record)
@@ -344,8 +371,9 @@ impl Db {
         });
         let mut items = Vec::with_capacity(rows.len());
         for d in rows.iter().take(limit as usize) {
-            items.push(self.with_attempts(d.clone()).await?);
+            items.push(with_attempts(&mut tx, d.clone()).await?);
         }
+        tx.commit().await?;
         let next = if rows.len() > limit as usize {
             items.last().map(|d| d.id.clone())
         } else {
@@ -360,43 +388,25 @@ impl Db {
         webhook_id: &str,
         id: &str,
     ) -> Result<Option<DeliveryRecord>, StoreError> {
-        let found = on_pool!(&self.pool, p => {
+        let mut tx = self.begin().await?;
+        tx.read_one_snapshot().await?;
+        let found = on_tx!(&mut tx, c => {
             let row = sqlx::query(
                 "SELECT * FROM webhook_deliveries WHERE owner = $1 AND webhook_id = $2 AND id = $3",
             )
             .bind(owner)
             .bind(webhook_id)
             .bind(id)
-            .fetch_optional(p)
+            .fetch_optional(&mut *c)
             .await?;
             row.as_ref().map(delivery_record).transpose()?
         });
-        match found {
-            Some(d) => Ok(Some(self.with_attempts(d).await?)),
-            None => Ok(None),
-        }
-    }
-
-    async fn with_attempts(&self, mut d: DeliveryRecord) -> Result<DeliveryRecord, StoreError> {
-        let attempts: Vec<AttemptRow> = on_pool!(&self.pool, p => sqlx::query_as(
-            "SELECT attempt, started_at, duration_ms, status_code, error FROM webhook_attempts WHERE delivery_id = $1 ORDER BY attempt",
-        )
-        .bind(&d.id)
-        .fetch_all(p)
-        .await?);
-        d.attempts = attempts
-            .into_iter()
-            .map(
-                |(attempt, started, duration_ms, status_code, error)| AttemptRecord {
-                    attempt,
-                    started_at: rfc3339(started),
-                    duration_ms,
-                    status_code,
-                    error,
-                },
-            )
-            .collect();
-        Ok(d)
+        let found = match found {
+            Some(d) => Some(with_attempts(&mut tx, d).await?),
+            None => None,
+        };
+        tx.commit().await?;
+        Ok(found)
     }
 
     /// Asks for a delivery to be sent again now, whatever its state; it gets a fresh
