@@ -87,7 +87,8 @@ enum Command {
 
 #[derive(clap::Args)]
 struct QueueArgs {
-    /// SQLite database URL; created and migrated if missing.
+    /// Database URL: sqlite://FILE (created if missing) or postgres://USER:PASSWORD@HOST/DB
+    /// (shared by every `serve` and `worker` on any host); migrated on start.
     #[arg(long, env = "MILLSIM_DATABASE", default_value = "sqlite://millsim.db")]
     database: String,
     /// Worker count (engine threads); default: the number of cores.
@@ -417,7 +418,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     }
     let db = store::Db::open(&args.queue.database)
         .await
-        .map_err(|e| format!("{}: {e}", args.queue.database))?;
+        .map_err(|e| format!("{}: {e}", store::redact_url(&args.queue.database)))?;
     let metrics = Arc::new(metrics::Metrics::default());
     let wake = Arc::new(Notify::new());
     let limits = Limits {
@@ -480,7 +481,7 @@ async fn worker(args: WorkerArgs) -> Result<(), String> {
     }
     let db = store::Db::open(&args.queue.database)
         .await
-        .map_err(|e| format!("{}: {e}", args.queue.database))?;
+        .map_err(|e| format!("{}: {e}", store::redact_url(&args.queue.database)))?;
     let shutdown = shutdown_signal();
     let dispatcher = tokio::spawn(webhooks::run_dispatcher(
         db.clone(),

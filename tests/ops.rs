@@ -42,7 +42,7 @@ async fn health_readiness_and_metrics() {
 #[tokio::test]
 async fn json_logs_carry_the_request_id() {
     let dir = tempfile::tempdir().unwrap();
-    let db = format!("sqlite://{}", dir.path().join("t.db").display());
+    let db = db_url(&dir.path().join("t.db"));
     let mut child = Command::new(BIN)
         .args([
             "serve",

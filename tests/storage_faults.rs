@@ -11,9 +11,15 @@ use serde_json::json;
 use sqlx::Connection;
 
 async fn sql(db_url: &str, statement: &str) {
-    let mut conn = sqlx::SqliteConnection::connect(db_url).await.unwrap();
-    sqlx::query(statement).execute(&mut conn).await.unwrap();
-    conn.close().await.unwrap();
+    if db_url.starts_with("sqlite:") {
+        let mut conn = sqlx::SqliteConnection::connect(db_url).await.unwrap();
+        sqlx::query(statement).execute(&mut conn).await.unwrap();
+        conn.close().await.unwrap();
+    } else {
+        let mut conn = sqlx::PgConnection::connect(db_url).await.unwrap();
+        sqlx::query(statement).execute(&mut conn).await.unwrap();
+        conn.close().await.unwrap();
+    }
 }
 
 fn inline_job() -> serde_json::Value {

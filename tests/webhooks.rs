@@ -247,8 +247,17 @@ async fn a_signed_delivery_per_event_soon_after_the_state_change() {
     );
     println!("webhook latency after the state change: {latencies:?} ms");
 
-    // The deliveries are listed with their one attempt each.
-    let list = deliveries(&c, &s, None, hook["id"].as_str().unwrap()).await;
+    // The deliveries are listed with their one attempt each (once the dispatcher has
+    // recorded the answers the receiver gave).
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let list = loop {
+        let list = deliveries(&c, &s, None, hook["id"].as_str().unwrap()).await;
+        let recorded = list["items"].as_array().unwrap().iter().all(|d| d["status"] != "pending");
+        if recorded || Instant::now() > deadline {
+            break list;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
     let items = list["items"].as_array().unwrap();
     assert_eq!(items.len(), 2, "{list}");
     for d in items {

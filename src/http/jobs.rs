@@ -673,15 +673,19 @@ fn error_event(e: &ApiError) -> Event {
 /// Server-sent events: `progress` whenever it changes, then one `status` event with the
 /// final job (or an `error` event with a problem if the job cannot be read), then the
 /// stream ends. Reads the database, so progress from workers in other
-/// processes arrives too.
+/// processes arrives too: pushed by the database's notifications on PostgreSQL, polled
+/// on SQLite.
 pub async fn events(
     State(state): State<AppState>,
     Owner(owner): Owner,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
+    // Watch before the first read, so a change between the two is not missed.
+    let watch = state.db.watch_job(&id);
     let job = find(&state.db, &owner, &id).await?;
     struct S {
         db: Db,
+        watch: crate::store::JobWatch,
         owner: String,
         id: String,
         last: Option<(String, i64, i64)>,
@@ -691,6 +695,7 @@ pub async fn events(
     }
     let start = S {
         db: state.db.clone(),
+        watch,
         owner,
         id,
         last: None,
@@ -709,7 +714,7 @@ pub async fn events(
                     // The server is stopping: end the stream (the client reconnects to
                     // another instance or after the restart; the job itself is safe).
                     tokio::select! {
-                        _ = tokio::time::sleep(Duration::from_millis(200)) => {}
+                        _ = s.watch.changed() => {}
                         _ = s.shutdown.wait_for(|v| *v) => return None,
                     }
                     match s.db.get_job(&s.owner, &s.id).await {

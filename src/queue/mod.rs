@@ -106,8 +106,12 @@ impl Worker {
             match self.db.claim_job(&self.id, self.config.lease_ms).await {
                 Ok(Some(job)) => self.run_job(job).await,
                 Ok(None) => {
+                    // Woken by a submission in this process, by the database's
+                    // notification of one from any process (PostgreSQL), or by the poll
+                    // that finds jobs whose lease expired (nothing announces those).
                     tokio::select! {
                         _ = self.wake.notified() => {}
+                        _ = self.db.job_queued() => {}
                         _ = tokio::time::sleep(Duration::from_millis(self.config.poll_ms)) => {}
                         _ = self.shutdown.changed() => {}
                     }
@@ -249,7 +253,8 @@ impl Worker {
         // The heartbeat is also how a cancel reaches the engine (from any process): often
         // enough that a cancelled job stops within a second.
         let beat = Duration::from_millis((self.config.lease_ms as u64 / 3).clamp(100, 250));
-        let mut ticker = tokio::time::interval(beat);
+        // The claim set the lease: the first beat is due one period later, not at once.
+        let mut ticker = tokio::time::interval_at(tokio::time::Instant::now() + beat, beat);
         let mut grace_deadline: Option<tokio::time::Instant> = None;
         let mut give_back = false;
         let mut lost = false;

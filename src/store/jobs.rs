@@ -2,9 +2,12 @@
 //! transaction, so a worker that dies at any point leaves a job that is either
 //! finished or claimable again once its lease expires.
 
-use serde::Serialize;
-use sqlx::Row;
+use std::sync::atomic::Ordering;
 
+use serde::Serialize;
+
+use super::backend::{on_pool, on_tx, RowGet, Tx};
+use super::bulk::insert_rows;
 use super::resources::{insert as insert_resource, insert_with_id, NewResource};
 use super::webhooks::enqueue_job_event;
 use super::{new_id, now_ms, rfc3339, Db, StoreError};
@@ -76,20 +79,20 @@ pub struct JobRecord {
     pub summary: Option<serde_json::Value>,
 }
 
-fn job_record(row: &sqlx::sqlite::SqliteRow) -> Result<JobRecord, StoreError> {
-    let spec: serde_json::Value = serde_json::from_str(&row.try_get::<String, _>("spec")?)?;
-    let status: String = row.try_get("status")?;
-    let started: Option<i64> = row.try_get("started_at")?;
-    let finished: Option<i64> = row.try_get("finished_at")?;
+fn job_record(row: &impl RowGet) -> Result<JobRecord, StoreError> {
+    let spec: serde_json::Value = serde_json::from_str(&row.col::<String>("spec")?)?;
+    let status: String = row.col("status")?;
+    let started: Option<i64> = row.col("started_at")?;
+    let finished: Option<i64> = row.col("finished_at")?;
     let json_col = |name: &str| -> Result<Option<serde_json::Value>, StoreError> {
-        Ok(match row.try_get::<Option<String>, _>(name)? {
+        Ok(match row.col::<Option<String>>(name)? {
             Some(s) => Some(serde_json::from_str(&s)?),
             None => None,
         })
     };
     Ok(JobRecord {
-        id: row.try_get("id")?,
-        kind: row.try_get("kind")?,
+        id: row.col("id")?,
+        kind: row.col("kind")?,
         status: JobStatus::parse(&status).unwrap_or(JobStatus::Failed),
         inputs: spec
             .get("inputs")
@@ -100,13 +103,13 @@ fn job_record(row: &sqlx::sqlite::SqliteRow) -> Result<JobRecord, StoreError> {
             .cloned()
             .unwrap_or(serde_json::Value::Null),
         progress: Progress {
-            done: row.try_get("progress_done")?,
-            total: row.try_get("progress_total")?,
+            done: row.col("progress_done")?,
+            total: row.col("progress_total")?,
         },
-        attempts: row.try_get("attempts")?,
-        max_attempts: row.try_get("max_attempts")?,
-        cancel_requested: row.try_get::<i64, _>("cancel_requested")? != 0,
-        created_at: rfc3339(row.try_get("created_at")?),
+        attempts: row.col("attempts")?,
+        max_attempts: row.col("max_attempts")?,
+        cancel_requested: row.col::<i64>("cancel_requested")? != 0,
+        created_at: rfc3339(row.col("created_at")?),
         started_at: started.map(rfc3339),
         finished_at: finished.map(rfc3339),
         duration_seconds: match (started, finished) {
@@ -205,19 +208,23 @@ pub enum LeaseState {
 /// In a worker's id: it runs jobs inside the server process (job isolation `thread`).
 pub const IN_PROCESS_MARK: &str = "-inproc-";
 
+/// How often, at least, a claiming process settles dead workers' jobs, ms.
+const SETTLE_EVERY_MS: i64 = 1000;
+
 /// Ends a dead worker's attempt (still open) as lost.
 async fn close_lost_attempt(
-    tx: &mut sqlx::Transaction<'_, sqlx::Sqlite>,
+    tx: &mut Tx,
     job_id: &str,
     attempt: i64,
     now: i64,
 ) -> Result<(), StoreError> {
-    sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = ? WHERE job_id = ? AND attempt = ? AND outcome IS NULL")
+    on_tx!(tx, c => sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = $1 WHERE job_id = $2 AND attempt = $3 AND outcome IS NULL")
         .bind(now)
         .bind(job_id)
         .bind(attempt)
-        .execute(&mut **tx)
-        .await?;
+        .execute(&mut *c)
+        .await?
+        .rows_affected());
     Ok(())
 }
 
@@ -245,7 +252,7 @@ impl Db {
         }
         let now = now_ms();
         let id = new_id();
-        let mut tx = self.pool.begin().await?;
+        let mut tx = self.begin().await?;
         for inline in &new.inline {
             let resource = NewResource {
                 kind: inline.kind,
@@ -254,17 +261,21 @@ impl Db {
                 summary: inline.summary.clone(),
                 content: &inline.content,
             };
-            let rid = insert_resource(&mut *tx, owner, &resource).await?;
+            let rid = insert_resource(&mut tx, owner, &resource).await?;
             new.inputs
                 .insert(inline.input.clone(), serde_json::Value::String(rid));
         }
         let spec = serde_json::json!({ "inputs": new.inputs, "options": new.options });
+        tx.lock_owner_queue(owner).await?;
         // The queue limit is checked in the INSERT itself, so concurrent submissions
-        // cannot both pass a count taken before either was stored.
-        let inserted = sqlx::query(
+        // cannot both pass a count taken before either was stored. A key used by a
+        // concurrent first submission inserts nothing (ON CONFLICT, which on PostgreSQL
+        // waits for that submission to commit or roll back) and is answered below.
+        let inserted = on_tx!(&mut tx, c => sqlx::query(
             "INSERT INTO jobs (id, owner, kind, status, spec, idempotency_key, request_hash, max_attempts, created_at, updated_at)
-             SELECT ?, ?, ?, 'queued', ?, ?, ?, ?, ?, ?
-             WHERE (SELECT COUNT(*) FROM jobs WHERE owner = ? AND status = 'queued') < ?",
+             SELECT $1, $2, $3, 'queued', $4, $5, $6, $7, $8, $8
+             WHERE (SELECT COUNT(*) FROM jobs WHERE owner = $2 AND status = 'queued') < $9
+             ON CONFLICT (owner, idempotency_key) WHERE idempotency_key IS NOT NULL DO NOTHING",
         )
         .bind(&id)
         .bind(owner)
@@ -274,13 +285,12 @@ impl Db {
         .bind(&new.request_hash)
         .bind(new.max_attempts)
         .bind(now)
-        .bind(now)
-        .bind(owner)
         .bind(new.max_queued)
-        .execute(&mut *tx)
-        .await;
+        .execute(&mut *c)
+        .await
+        .map(|done| done.rows_affected()));
         match inserted {
-            Ok(done) if done.rows_affected() == 0 => {
+            Ok(0) => {
                 tx.rollback().await?;
                 // A replay that raced its first submission is answered as a replay.
                 if let Some(key) = &new.idempotency_key {
@@ -295,12 +305,14 @@ impl Db {
             Ok(_) => {
                 // Read back inside the transaction: after the commit a worker may already
                 // have claimed it, and the answer to the submission is the job as created.
-                let row = sqlx::query("SELECT * FROM jobs WHERE owner = ? AND id = ?")
-                    .bind(owner)
-                    .bind(&id)
-                    .fetch_one(&mut *tx)
-                    .await?;
-                let job = job_record(&row)?;
+                let job = on_tx!(&mut tx, c => {
+                    let row = sqlx::query("SELECT * FROM jobs WHERE owner = $1 AND id = $2")
+                        .bind(owner)
+                        .bind(&id)
+                        .fetch_one(&mut *c)
+                        .await?;
+                    job_record(&row)?
+                });
                 tx.commit().await?;
                 Ok(CreateOutcome::Created(job))
             }
@@ -324,21 +336,14 @@ impl Db {
         owner: &str,
         key: &str,
     ) -> Result<Option<(String, String)>, StoreError> {
-        let row = sqlx::query(
-            "SELECT id, request_hash FROM jobs WHERE owner = ? AND idempotency_key = ?",
+        let row: Option<(String, Option<String>)> = on_pool!(&self.pool, p => sqlx::query_as(
+            "SELECT id, request_hash FROM jobs WHERE owner = $1 AND idempotency_key = $2",
         )
         .bind(owner)
         .bind(key)
-        .fetch_optional(&self.pool)
-        .await?;
-        Ok(match row {
-            Some(r) => Some((
-                r.try_get("id")?,
-                r.try_get::<Option<String>, _>("request_hash")?
-                    .unwrap_or_default(),
-            )),
-            None => None,
-        })
+        .fetch_optional(p)
+        .await?);
+        Ok(row.map(|(id, hash)| (id, hash.unwrap_or_default())))
     }
 
     async fn replay_or_conflict(
@@ -360,12 +365,14 @@ impl Db {
     }
 
     pub async fn get_job(&self, owner: &str, id: &str) -> Result<Option<JobRecord>, StoreError> {
-        let row = sqlx::query("SELECT * FROM jobs WHERE owner = ? AND id = ?")
-            .bind(owner)
-            .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        row.as_ref().map(job_record).transpose()
+        on_pool!(&self.pool, p => {
+            let row = sqlx::query("SELECT * FROM jobs WHERE owner = $1 AND id = $2")
+                .bind(owner)
+                .bind(id)
+                .fetch_optional(p)
+                .await?;
+            row.as_ref().map(job_record).transpose()
+        })
     }
 
     pub async fn list_jobs(
@@ -376,21 +383,21 @@ impl Db {
         cursor: Option<&str>,
         limit: u32,
     ) -> Result<(Vec<JobRecord>, Option<String>), StoreError> {
-        let rows = sqlx::query(
-            "SELECT * FROM jobs WHERE owner = ? AND id > ?
-               AND (? IS NULL OR status = ?) AND (? IS NULL OR kind = ?)
-             ORDER BY id LIMIT ?",
-        )
-        .bind(owner)
-        .bind(cursor.unwrap_or(""))
-        .bind(status.map(JobStatus::as_str))
-        .bind(status.map(JobStatus::as_str))
-        .bind(kind)
-        .bind(kind)
-        .bind(i64::from(limit) + 1)
-        .fetch_all(&self.pool)
-        .await?;
-        let mut items = rows.iter().map(job_record).collect::<Result<Vec<_>, _>>()?;
+        let mut items = on_pool!(&self.pool, p => {
+            let rows = sqlx::query(
+                "SELECT * FROM jobs WHERE owner = $1 AND id > $2
+                   AND ($3 IS NULL OR status = $3) AND ($4 IS NULL OR kind = $4)
+                 ORDER BY id LIMIT $5",
+            )
+            .bind(owner)
+            .bind(cursor.unwrap_or(""))
+            .bind(status.map(JobStatus::as_str))
+            .bind(kind)
+            .bind(i64::from(limit) + 1)
+            .fetch_all(p)
+            .await?;
+            rows.iter().map(job_record).collect::<Result<Vec<_>, _>>()?
+        });
         let next = if items.len() > limit as usize {
             items.truncate(limit as usize);
             items.last().map(|j| j.id.clone())
@@ -406,21 +413,21 @@ impl Db {
     /// and its open attempt closed as lost.
     pub async fn cancel_job(&self, owner: &str, id: &str) -> Result<Option<JobRecord>, StoreError> {
         let now = now_ms();
-        let mut tx = self.pool.begin().await?;
-        let settled: Option<(String, i64)> = sqlx::query_as(
+        let mut tx = self.begin().await?;
+        let settled: Option<(String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(
             "UPDATE jobs SET
-                status = CASE WHEN status = 'queued' OR lease_expires_at < ?1 THEN 'cancelled' ELSE status END,
-                finished_at = CASE WHEN status = 'queued' OR lease_expires_at < ?1 THEN ?1 ELSE finished_at END,
-                lease_owner = CASE WHEN status = 'queued' OR lease_expires_at < ?1 THEN NULL ELSE lease_owner END,
-                cancel_requested = 1, updated_at = ?1
-             WHERE owner = ?2 AND id = ?3 AND status IN ('queued', 'running')
+                status = CASE WHEN status = 'queued' OR lease_expires_at < $1 THEN 'cancelled' ELSE status END,
+                finished_at = CASE WHEN status = 'queued' OR lease_expires_at < $1 THEN $1 ELSE finished_at END,
+                lease_owner = CASE WHEN status = 'queued' OR lease_expires_at < $1 THEN NULL ELSE lease_owner END,
+                cancel_requested = 1, updated_at = $1
+             WHERE owner = $2 AND id = $3 AND status IN ('queued', 'running')
              RETURNING status, attempts",
         )
         .bind(now)
         .bind(owner)
         .bind(id)
-        .fetch_optional(&mut *tx)
-        .await?;
+        .fetch_optional(&mut *c)
+        .await?);
         if let Some((status, attempt)) = settled {
             if status == "cancelled" {
                 close_lost_attempt(&mut tx, id, attempt, now).await?;
@@ -435,53 +442,48 @@ impl Db {
     /// killing its worker must stop being retried.
     pub async fn fail_exhausted(&self) -> Result<u64, StoreError> {
         let now = now_ms();
-        let mut tx = self.pool.begin().await?;
-        let ids: Vec<(String, i64)> = sqlx::query_as(
-            "UPDATE jobs SET status = 'failed', finished_at = ?, updated_at = ?, lease_owner = NULL,
-                error = json_object('type', 'https://millsim.dev/problems/worker-lost', 'title', 'Job failed',
-                    'status', 500, 'detail', 'the worker running this job stopped without finishing it ' || attempts || ' times (max attempts ' || max_attempts || ')')
-             WHERE status = 'running' AND lease_expires_at < ? AND attempts >= max_attempts
+        let mut tx = self.begin().await?;
+        let backend = tx.backend();
+        let error = backend.json_object(
+            "'type', 'https://millsim.dev/problems/worker-lost', 'title', 'Job failed',
+                    'status', 500, 'detail', 'the worker running this job stopped without finishing it ' || attempts || ' times (max attempts ' || max_attempts || ')'",
+        );
+        let ids: Vec<(String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
+            "UPDATE jobs SET status = 'failed', finished_at = $1, updated_at = $1, lease_owner = NULL,
+                error = {error}
+             WHERE id IN (SELECT id FROM jobs
+                          WHERE status = 'running' AND lease_expires_at < $1 AND attempts >= max_attempts{})
              RETURNING id, attempts",
-        )
+            backend.skip_locked()
+        ))
         .bind(now)
-        .bind(now)
-        .bind(now)
-        .fetch_all(&mut *tx)
-        .await?;
+        .fetch_all(&mut *c)
+        .await?);
         for (id, attempt) in &ids {
-            sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = ? WHERE job_id = ? AND attempt = ? AND outcome IS NULL")
-                .bind(now)
-                .bind(id)
-                .bind(attempt)
-                .execute(&mut *tx)
-                .await?;
+            close_lost_attempt(&mut tx, id, *attempt, now).await?;
             enqueue_job_event(&mut tx, id, "job.failed").await?;
         }
         tx.commit().await?;
         Ok(ids.len() as u64)
     }
 
-    /// Claims the oldest claimable job in one atomic UPDATE … RETURNING: a queued job,
-    /// or a running one whose lease expired (its worker died). Cancelled-while-dead jobs
-    /// are settled first.
-    pub async fn claim_job(
-        &self,
-        worker: &str,
-        lease_ms: i64,
-    ) -> Result<Option<ClaimedJob>, StoreError> {
+    /// Settles the jobs of dead workers (leases expired): failed when their attempts are
+    /// used up or they ran inside a server that died with them, cancelled when a cancel
+    /// was asked for. Claims skip such jobs, so this need not run before every claim.
+    pub async fn settle_lost_jobs(&self) -> Result<(), StoreError> {
         let now = now_ms();
         self.fail_exhausted().await?;
-        let mut tx = self.pool.begin().await?;
-        let cancelled: Vec<(String, i64)> = sqlx::query_as(
-            "UPDATE jobs SET status = 'cancelled', finished_at = ?, updated_at = ?, lease_owner = NULL
-             WHERE status = 'running' AND lease_expires_at < ? AND cancel_requested = 1
+        let mut tx = self.begin().await?;
+        let skip_locked = tx.backend().skip_locked();
+        let cancelled: Vec<(String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
+            "UPDATE jobs SET status = 'cancelled', finished_at = $1, updated_at = $1, lease_owner = NULL
+             WHERE id IN (SELECT id FROM jobs
+                          WHERE status = 'running' AND lease_expires_at < $1 AND cancel_requested = 1{skip_locked})
              RETURNING id, attempts",
-        )
+        ))
         .bind(now)
-        .bind(now)
-        .bind(now)
-        .fetch_all(&mut *tx)
-        .await?;
+        .fetch_all(&mut *c)
+        .await?);
         // Their workers died: the attempts end here, or they would stay open for ever.
         for (id, attempt) in &cancelled {
             close_lost_attempt(&mut tx, id, *attempt, now).await?;
@@ -489,66 +491,105 @@ impl Db {
         }
         // A job whose worker ran it inside the server process (thread isolation) and was
         // lost with it may have brought the server down: failed, not run again.
-        let crashed: Vec<(String, i64)> = sqlx::query_as(
-            "UPDATE jobs SET status = 'failed', finished_at = ?1, updated_at = ?1, lease_owner = NULL,
-                error = json_object('type', 'https://millsim.dev/problems/resource-limit',
+        let error = tx.backend().json_object(
+            "'type', 'https://millsim.dev/problems/resource-limit',
                     'title', 'Job lost with its server', 'status', 422,
                     'detail', 'the server running this job inside its own process (job isolation `thread`) stopped while the job ran; the job may have brought it down (out of memory, a crash), so it is not retried',
-                    'limit_name', 'job_isolation')
-             WHERE status = 'running' AND lease_expires_at < ?1 AND lease_owner LIKE ?2
+                    'limit_name', 'job_isolation'",
+        );
+        let crashed: Vec<(String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
+            "UPDATE jobs SET status = 'failed', finished_at = $1, updated_at = $1, lease_owner = NULL,
+                error = {error}
+             WHERE id IN (SELECT id FROM jobs
+                          WHERE status = 'running' AND lease_expires_at < $1 AND lease_owner LIKE $2{skip_locked})
              RETURNING id, attempts",
-        )
+        ))
         .bind(now)
         .bind(format!("%{IN_PROCESS_MARK}%"))
-        .fetch_all(&mut *tx)
-        .await?;
+        .fetch_all(&mut *c)
+        .await?);
         for (id, attempt) in &crashed {
             close_lost_attempt(&mut tx, id, *attempt, now).await?;
             enqueue_job_event(&mut tx, id, "job.failed").await?;
         }
         tx.commit().await?;
-        let mut tx = self.pool.begin().await?;
-        let row = sqlx::query(
-            "UPDATE jobs SET status = 'running', lease_owner = ?, lease_expires_at = ?,
-                attempts = attempts + 1, started_at = ?, finished_at = NULL, updated_at = ?
+        self.last_settled.store(now, Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Claims the oldest claimable job: a queued job, or a running one whose lease
+    /// expired (its worker died) and that may run again. One UPDATE … RETURNING whose
+    /// subquery picks the job; on PostgreSQL it locks it `FOR UPDATE SKIP LOCKED`, so
+    /// concurrent claimers on any host take different jobs without waiting on each other.
+    /// Dead workers' jobs are settled first: at least every `SETTLE_EVERY_MS` in this
+    /// process, and whenever nothing is claimable.
+    pub async fn claim_job(
+        &self,
+        worker: &str,
+        lease_ms: i64,
+    ) -> Result<Option<ClaimedJob>, StoreError> {
+        if now_ms() - self.last_settled.load(Ordering::Relaxed) >= SETTLE_EVERY_MS {
+            self.settle_lost_jobs().await?;
+        } else if let Some(job) = self.try_claim(worker, lease_ms).await? {
+            return Ok(Some(job));
+        } else {
+            self.settle_lost_jobs().await?;
+        }
+        self.try_claim(worker, lease_ms).await
+    }
+
+    async fn try_claim(&self, worker: &str, lease_ms: i64) -> Result<Option<ClaimedJob>, StoreError> {
+        let now = now_ms();
+        let mut tx = self.begin().await?;
+        let skip_locked = tx.backend().skip_locked();
+        // An expired job that settling would end (attempts used up, cancel asked, lost
+        // with its server) is not claimed: settle_lost_jobs ends it.
+        let row: Option<(String, String, String, String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
+            "UPDATE jobs SET status = 'running', lease_owner = $1, lease_expires_at = $2,
+                attempts = attempts + 1, started_at = $3, finished_at = NULL, updated_at = $3
              WHERE id = (SELECT id FROM jobs
-                         WHERE status = 'queued' OR (status = 'running' AND lease_expires_at < ?)
-                         ORDER BY id LIMIT 1)
+                         WHERE status = 'queued'
+                            OR (status = 'running' AND lease_expires_at < $3 AND attempts < max_attempts
+                                AND cancel_requested = 0 AND lease_owner NOT LIKE $4)
+                         ORDER BY id LIMIT 1{skip_locked})
              RETURNING id, owner, kind, spec, attempts",
-        )
+        ))
         .bind(worker)
         .bind(now + lease_ms)
         .bind(now)
-        .bind(now)
-        .bind(now)
-        .fetch_optional(&mut *tx)
-        .await?;
-        let Some(row) = row else {
+        .bind(format!("%{IN_PROCESS_MARK}%"))
+        .fetch_optional(&mut *c)
+        .await?);
+        let Some((id, owner, kind, spec, attempt)) = row else {
             tx.rollback().await?;
             return Ok(None);
         };
         let job = ClaimedJob {
-            id: row.try_get("id")?,
-            owner: row.try_get("owner")?,
-            kind: row.try_get("kind")?,
-            spec: serde_json::from_str(&row.try_get::<String, _>("spec")?)?,
-            attempt: row.try_get("attempts")?,
+            id,
+            owner,
+            kind,
+            spec: serde_json::from_str(&spec)?,
+            attempt,
         };
-        // The previous attempt, if its worker died, ends here as lost.
-        sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = ? WHERE job_id = ? AND outcome IS NULL")
-            .bind(now)
+        on_tx!(&mut tx, c => {
+            if job.attempt > 1 {
+                // The previous attempt, if its worker died, ends here as lost.
+                sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = $1 WHERE job_id = $2 AND outcome IS NULL")
+                    .bind(now)
+                    .bind(&job.id)
+                    .execute(&mut *c)
+                    .await?;
+            }
+            sqlx::query(
+                "INSERT INTO job_attempts (job_id, attempt, worker, started_at) VALUES ($1, $2, $3, $4)",
+            )
             .bind(&job.id)
-            .execute(&mut *tx)
+            .bind(job.attempt)
+            .bind(worker)
+            .bind(now)
+            .execute(&mut *c)
             .await?;
-        sqlx::query(
-            "INSERT INTO job_attempts (job_id, attempt, worker, started_at) VALUES (?, ?, ?, ?)",
-        )
-        .bind(&job.id)
-        .bind(job.attempt)
-        .bind(worker)
-        .bind(now)
-        .execute(&mut *tx)
-        .await?;
+        });
         tx.commit().await?;
         Ok(Some(job))
     }
@@ -564,9 +605,9 @@ impl Db {
         total: u64,
     ) -> Result<LeaseState, StoreError> {
         let now = now_ms();
-        let row: Option<(i64,)> = sqlx::query_as(
-            "UPDATE jobs SET lease_expires_at = ?, progress_done = ?, progress_total = ?, updated_at = ?
-             WHERE id = ? AND lease_owner = ? AND status = 'running' AND attempts = ?
+        let row: Option<(i64,)> = on_pool!(&self.pool, p => sqlx::query_as(
+            "UPDATE jobs SET lease_expires_at = $1, progress_done = $2, progress_total = $3, updated_at = $4
+             WHERE id = $5 AND lease_owner = $6 AND status = 'running' AND attempts = $7
              RETURNING cancel_requested",
         )
         .bind(now + lease_ms)
@@ -576,8 +617,8 @@ impl Db {
         .bind(&job.id)
         .bind(worker)
         .bind(job.attempt)
-        .fetch_optional(&self.pool)
-        .await?;
+        .fetch_optional(p)
+        .await?);
         Ok(match row {
             Some((c,)) => {
                 super::webhooks::enqueue_progress(self, &job.id).await?;
@@ -605,28 +646,32 @@ impl Db {
             Finish::Failed { error } => ("failed", None, Some(error.to_string()), "failed"),
             Finish::Cancelled => ("cancelled", None, None, "cancelled"),
         };
-        let mut tx = self.pool.begin().await?;
+        let progress = match &finish {
+            Finish::Succeeded { progress, .. } => Some((progress.0 as i64, progress.1 as i64)),
+            _ => None,
+        };
+        let mut tx = self.begin().await?;
         // The state change comes first so the transaction takes the write lock before it
         // reads anything (no lock upgrade, no SQLITE_BUSY deadlock between processes).
-        let done = sqlx::query(
-            "UPDATE jobs SET status = ?, summary = ?, error = ?, finished_at = ?, updated_at = ?,
+        let done = on_tx!(&mut tx, c => sqlx::query(
+            "UPDATE jobs SET status = $1, summary = $2, error = $3, finished_at = $4, updated_at = $4,
                 lease_owner = NULL, lease_expires_at = NULL,
-                progress_done = COALESCE(?, progress_done), progress_total = COALESCE(?, progress_total)
-             WHERE id = ? AND lease_owner = ? AND status = 'running' AND attempts = ?",
+                progress_done = COALESCE($5, progress_done), progress_total = COALESCE($6, progress_total)
+             WHERE id = $7 AND lease_owner = $8 AND status = 'running' AND attempts = $9",
         )
         .bind(status)
         .bind(summary)
         .bind(error)
         .bind(now)
-        .bind(now)
-        .bind(match &finish { Finish::Succeeded { progress, .. } => Some(progress.0 as i64), _ => None })
-        .bind(match &finish { Finish::Succeeded { progress, .. } => Some(progress.1 as i64), _ => None })
+        .bind(progress.map(|p| p.0))
+        .bind(progress.map(|p| p.1))
         .bind(&job.id)
         .bind(worker)
         .bind(job.attempt)
-        .execute(&mut *tx)
-        .await?;
-        if done.rows_affected() == 0 {
+        .execute(&mut *c)
+        .await?
+        .rows_affected());
+        if done == 0 {
             tx.rollback().await?;
             return Ok(false);
         }
@@ -638,10 +683,14 @@ impl Db {
             ..
         } = finish
         {
-            let owner: String = sqlx::query_scalar("SELECT owner FROM jobs WHERE id = ?")
-                .bind(&job.id)
-                .fetch_one(&mut *tx)
-                .await?;
+            let owner: String = if resources.is_empty() {
+                String::new()
+            } else {
+                on_tx!(&mut tx, c => sqlx::query_scalar("SELECT owner FROM jobs WHERE id = $1")
+                    .bind(&job.id)
+                    .fetch_one(&mut *c)
+                    .await?)
+            };
             for r in &resources {
                 let new = NewResource {
                     kind: r.kind,
@@ -650,45 +699,33 @@ impl Db {
                     summary: r.summary.clone(),
                     content: &r.content,
                 };
-                insert_with_id(&mut *tx, &r.id, &owner, &new).await?;
+                insert_with_id(&mut tx, &r.id, &owner, &new).await?;
             }
             let numbered: Vec<(usize, String)> = rows.into_iter().enumerate().collect();
-            for (table, items) in [("job_rows", numbered), ("job_samples", samples)] {
-                sqlx::query(&format!("DELETE FROM {table} WHERE job_id = ?"))
-                    .bind(&job.id)
-                    .execute(&mut *tx)
-                    .await?;
-                // Multi-row inserts: one statement per 400 rows instead of one per row.
-                for chunk in items.chunks(400) {
-                    let mut q = sqlx::QueryBuilder::new(format!(
-                        "INSERT INTO {table} (job_id, seq, data) "
-                    ));
-                    q.push_values(chunk, |mut b, (seq, data)| {
-                        b.push_bind(&job.id).push_bind(*seq as i64).push_bind(data);
-                    });
-                    q.build().execute(&mut *tx).await?;
-                }
-            }
+            insert_rows(&mut tx, "job_rows", &job.id, &numbered).await?;
+            insert_rows(&mut tx, "job_samples", &job.id, &samples).await?;
             for a in artifacts {
-                sqlx::query("INSERT INTO job_artifacts (job_id, name, media_type, file_name, content) VALUES (?, ?, ?, ?, ?)")
+                on_tx!(&mut tx, c => sqlx::query("INSERT INTO job_artifacts (job_id, name, media_type, file_name, content) VALUES ($1, $2, $3, $4, $5)")
                     .bind(&job.id)
                     .bind(&a.name)
                     .bind(&a.media_type)
                     .bind(&a.file_name)
                     .bind(&a.content)
-                    .execute(&mut *tx)
-                    .await?;
+                    .execute(&mut *c)
+                    .await?
+                    .rows_affected());
             }
         }
-        sqlx::query(
-            "UPDATE job_attempts SET outcome = ?, finished_at = ? WHERE job_id = ? AND attempt = ?",
+        on_tx!(&mut tx, c => sqlx::query(
+            "UPDATE job_attempts SET outcome = $1, finished_at = $2 WHERE job_id = $3 AND attempt = $4",
         )
         .bind(outcome)
         .bind(now)
         .bind(&job.id)
         .bind(job.attempt)
-        .execute(&mut *tx)
-        .await?;
+        .execute(&mut *c)
+        .await?
+        .rows_affected());
         // The webhooks' outbox, with the state change: both commit or neither.
         enqueue_job_event(&mut tx, &job.id, &format!("job.{outcome}")).await?;
         tx.commit().await?;
@@ -698,28 +735,30 @@ impl Db {
     /// Gives a job back to the queue on graceful shutdown; the attempt does not count.
     pub async fn release_job(&self, job: &ClaimedJob, worker: &str) -> Result<bool, StoreError> {
         let now = now_ms();
-        let mut tx = self.pool.begin().await?;
-        let done = sqlx::query(
+        let mut tx = self.begin().await?;
+        let done = on_tx!(&mut tx, c => sqlx::query(
             "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL,
-                attempts = attempts - 1, updated_at = ?
-             WHERE id = ? AND lease_owner = ? AND status = 'running' AND attempts = ?",
+                attempts = attempts - 1, updated_at = $1
+             WHERE id = $2 AND lease_owner = $3 AND status = 'running' AND attempts = $4",
         )
         .bind(now)
         .bind(&job.id)
         .bind(worker)
         .bind(job.attempt)
-        .execute(&mut *tx)
-        .await?;
-        if done.rows_affected() == 0 {
+        .execute(&mut *c)
+        .await?
+        .rows_affected());
+        if done == 0 {
             tx.rollback().await?;
             return Ok(false);
         }
         // The attempt does not count: its number is reused by the next claim.
-        sqlx::query("DELETE FROM job_attempts WHERE job_id = ? AND attempt = ?")
+        on_tx!(&mut tx, c => sqlx::query("DELETE FROM job_attempts WHERE job_id = $1 AND attempt = $2")
             .bind(&job.id)
             .bind(job.attempt)
-            .execute(&mut *tx)
-            .await?;
+            .execute(&mut *c)
+            .await?
+            .rows_affected());
         tx.commit().await?;
         Ok(true)
     }
@@ -731,14 +770,14 @@ impl Db {
         from: i64,
         limit: i64,
     ) -> Result<Vec<(i64, String)>, StoreError> {
-        Ok(sqlx::query_as(
-            "SELECT seq, data FROM job_rows WHERE job_id = ? AND seq >= ? ORDER BY seq LIMIT ?",
+        Ok(on_pool!(&self.pool, p => sqlx::query_as(
+            "SELECT seq, data FROM job_rows WHERE job_id = $1 AND seq >= $2 ORDER BY seq LIMIT $3",
         )
         .bind(job_id)
         .bind(from)
         .bind(limit)
-        .fetch_all(&self.pool)
-        .await?)
+        .fetch_all(p)
+        .await?))
     }
 
     /// Per-step samples of the rows with seq in [from, to], in seq order.
@@ -748,12 +787,12 @@ impl Db {
         from: i64,
         to: i64,
     ) -> Result<Vec<(i64, String)>, StoreError> {
-        Ok(sqlx::query_as("SELECT seq, data FROM job_samples WHERE job_id = ? AND seq >= ? AND seq <= ? ORDER BY seq")
+        Ok(on_pool!(&self.pool, p => sqlx::query_as("SELECT seq, data FROM job_samples WHERE job_id = $1 AND seq >= $2 AND seq <= $3 ORDER BY seq")
             .bind(job_id)
             .bind(from)
             .bind(to)
-            .fetch_all(&self.pool)
-            .await?)
+            .fetch_all(p)
+            .await?))
     }
 
     pub async fn job_artifact(
@@ -761,40 +800,37 @@ impl Db {
         job_id: &str,
         name: &str,
     ) -> Result<Option<Artifact>, StoreError> {
-        let row = sqlx::query("SELECT name, media_type, file_name, content FROM job_artifacts WHERE job_id = ? AND name = ?")
+        let row: Option<(String, String, String, Vec<u8>)> = on_pool!(&self.pool, p => sqlx::query_as("SELECT name, media_type, file_name, content FROM job_artifacts WHERE job_id = $1 AND name = $2")
             .bind(job_id)
             .bind(name)
-            .fetch_optional(&self.pool)
-            .await?;
-        Ok(match row {
-            Some(r) => Some(Artifact {
-                name: r.try_get("name")?,
-                media_type: r.try_get("media_type")?,
-                file_name: r.try_get("file_name")?,
-                content: r.try_get("content")?,
-            }),
-            None => None,
-        })
+            .fetch_optional(p)
+            .await?);
+        Ok(row.map(|(name, media_type, file_name, content)| Artifact {
+            name,
+            media_type,
+            file_name,
+            content,
+        }))
     }
 
     pub async fn delete_job(&self, owner: &str, id: &str) -> Result<bool, StoreError> {
-        let done = sqlx::query(
-            "DELETE FROM jobs WHERE owner = ? AND id = ? AND status NOT IN ('queued', 'running')",
+        let done = on_pool!(&self.pool, p => sqlx::query(
+            "DELETE FROM jobs WHERE owner = $1 AND id = $2 AND status NOT IN ('queued', 'running')",
         )
         .bind(owner)
         .bind(id)
-        .execute(&self.pool)
-        .await?;
-        Ok(done.rows_affected() > 0)
+        .execute(p)
+        .await?
+        .rows_affected());
+        Ok(done > 0)
     }
 
     /// Job counts by status, over all owners, for /metrics.
     pub async fn job_counts(&self) -> Result<Vec<(String, i64)>, StoreError> {
-        Ok(
+        Ok(on_pool!(&self.pool, p =>
             sqlx::query_as("SELECT status, COUNT(*) FROM jobs GROUP BY status")
-                .fetch_all(&self.pool)
-                .await?,
-        )
+                .fetch_all(p)
+                .await?))
     }
 
     /// The attempts log of a job: (attempt, worker, started, finished, outcome).
@@ -802,10 +838,10 @@ impl Db {
         &self,
         job_id: &str,
     ) -> Result<Vec<(i64, String, i64, Option<i64>, Option<String>)>, StoreError> {
-        Ok(sqlx::query_as("SELECT attempt, worker, started_at, finished_at, outcome FROM job_attempts WHERE job_id = ? ORDER BY attempt")
+        Ok(on_pool!(&self.pool, p => sqlx::query_as("SELECT attempt, worker, started_at, finished_at, outcome FROM job_attempts WHERE job_id = $1 ORDER BY attempt")
             .bind(job_id)
-            .fetch_all(&self.pool)
-            .await?)
+            .fetch_all(p)
+            .await?))
     }
 }
 

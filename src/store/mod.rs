@@ -1,21 +1,29 @@
-//! SQLite storage: opening and migrating the database, resources, jobs and results.
-//! SQL is kept portable to PostgreSQL where that costs nothing (no SQLite-only types).
+//! Storage on SQLite (the embedded default) or PostgreSQL (many hosts, one database):
+//! opening and migrating the database, resources, jobs and results. One store for both:
+//! see [`backend`] for how, and for the few statements that differ.
 
+pub mod backend;
+pub mod bulk;
 pub mod jobs;
+pub mod notify;
 pub mod resources;
 pub mod webhooks;
 
 use std::str::FromStr;
+use std::sync::atomic::AtomicI64;
+use std::sync::Arc;
 use std::time::Duration;
 
-use sqlx::sqlite::{
-    SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteSynchronous,
-};
+use sqlx::postgres::{PgConnectOptions, PgPoolOptions};
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 
+use backend::{on_pool, Backend, Pool, Tx};
 pub use jobs::{JobRecord, JobStatus};
+pub use notify::JobWatch;
 pub use resources::ResourceKind;
 
-static MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("./migrations");
+static SQLITE_MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("./migrations/sqlite");
+static POSTGRES_MIGRATOR: sqlx::migrate::Migrator = sqlx::migrate!("./migrations/postgres");
 
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
@@ -28,16 +36,33 @@ pub enum StoreError {
     /// A row this request had just found or written was deleted by another one.
     #[error("{0} was deleted while this request ran")]
     Vanished(String),
+    #[error("unsupported database URL `{0}`: use sqlite://FILE or postgres://USER:PASSWORD@HOST/DB")]
+    UnsupportedUrl(String),
 }
 
 #[derive(Clone)]
 pub struct Db {
-    pub pool: SqlitePool,
+    pool: Pool,
+    /// PostgreSQL's notifications, fanned out in this process (None on SQLite).
+    changes: Option<Arc<notify::Changes>>,
+    /// When this process last settled dead workers' jobs (unix ms).
+    last_settled: Arc<AtomicI64>,
 }
 
 impl Db {
-    /// Opens (creating the file if needed) and migrates the database at `url`.
+    /// Opens and migrates the database at `url`: `sqlite://FILE` (created if missing) or
+    /// `postgres://USER:PASSWORD@HOST/DB` (the database must exist).
     pub async fn open(url: &str) -> Result<Db, StoreError> {
+        if url.starts_with("sqlite:") {
+            Self::open_sqlite(url).await
+        } else if url.starts_with("postgres://") || url.starts_with("postgresql://") {
+            Self::open_postgres(url).await
+        } else {
+            Err(StoreError::UnsupportedUrl(redact_url(url)))
+        }
+    }
+
+    async fn open_sqlite(url: &str) -> Result<Db, StoreError> {
         let options = SqliteConnectOptions::from_str(url)?
             .create_if_missing(true)
             // WAL lets readers (the API) work while a worker commits results.
@@ -51,18 +76,58 @@ impl Db {
             .acquire_timeout(Duration::from_secs(30))
             .connect_with(options)
             .await?;
-        MIGRATOR.run(&pool).await?;
-        Ok(Db { pool })
+        SQLITE_MIGRATOR.run(&pool).await?;
+        Ok(Db {
+            pool: Pool::Sqlite(pool),
+            changes: None,
+            last_settled: Arc::default(),
+        })
+    }
+
+    async fn open_postgres(url: &str) -> Result<Db, StoreError> {
+        let options = PgConnectOptions::from_str(url)?.application_name("millsim");
+        let pool = PgPoolOptions::new()
+            .max_connections(16)
+            .acquire_timeout(Duration::from_secs(30))
+            .connect_with(options)
+            .await?;
+        // Whichever process starts first migrates; sqlx's migrator holds a PostgreSQL
+        // advisory lock (pg_advisory_lock, keyed by the database name) from before it
+        // reads the applied versions until it is done, so processes starting together
+        // wait for each other instead of applying a migration twice.
+        POSTGRES_MIGRATOR.run(&pool).await?;
+        let changes = notify::listen(&pool).await?;
+        Ok(Db {
+            pool: Pool::Postgres(pool),
+            changes: Some(changes),
+            last_settled: Arc::default(),
+        })
+    }
+
+    pub fn backend(&self) -> Backend {
+        self.pool.backend()
+    }
+
+    pub(crate) async fn begin(&self) -> Result<Tx, StoreError> {
+        self.pool.begin().await
+    }
+
+    fn migrator(&self) -> &'static sqlx::migrate::Migrator {
+        match self.backend() {
+            Backend::Sqlite => &SQLITE_MIGRATOR,
+            Backend::Postgres => &POSTGRES_MIGRATOR,
+        }
     }
 
     /// True when the database answers and every embedded migration is applied.
     pub async fn ready(&self) -> Result<(), String> {
-        let applied: Vec<i64> =
-            sqlx::query_scalar("SELECT version FROM _sqlx_migrations WHERE success = 1")
-                .fetch_all(&self.pool)
-                .await
-                .map_err(|e| format!("database unreachable: {e}"))?;
-        for m in MIGRATOR.iter() {
+        let applied: Vec<i64> = on_pool!(&self.pool, p => sqlx::query_scalar(
+            "SELECT version FROM _sqlx_migrations WHERE success"
+        )
+        .fetch_all(p)
+        .await)
+        .map_err(|e| format!("database unreachable: {e}"))?;
+        for m in self.migrator().iter() {
             if !applied.contains(&m.version) {
                 return Err(format!(
                     "migration {} ({}) not applied",
@@ -71,6 +136,33 @@ impl Db {
             }
         }
         Ok(())
+    }
+
+    /// Resolves when a job may have been queued by any process (PostgreSQL); never on
+    /// SQLite, where idle workers poll.
+    pub async fn job_queued(&self) {
+        match &self.changes {
+            Some(c) => c.queued.notified().await,
+            None => std::future::pending().await,
+        }
+    }
+
+    /// Follows one job's changes (for an event stream). Take it before reading the job,
+    /// so no change between the read and the wait is missed.
+    pub fn watch_job(&self, id: &str) -> JobWatch {
+        JobWatch::new(id, self.changes.as_deref())
+    }
+}
+
+/// A database URL without its password, for messages.
+pub fn redact_url(url: &str) -> String {
+    match (url.find("://"), url.rfind('@')) {
+        (Some(scheme), Some(at)) if at > scheme => {
+            let userinfo = &url[scheme + 3..at];
+            let user = userinfo.split(':').next().unwrap_or("");
+            format!("{}{user}:***{}", &url[..scheme + 3], &url[at..])
+        }
+        _ => url.to_string(),
     }
 }
 
@@ -113,7 +205,13 @@ pub fn rfc3339(ms: i64) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::rfc3339;
+    use super::{redact_url as redact, rfc3339};
+
+    #[test]
+    fn redact_hides_the_password_only() {
+        assert_eq!(redact("postgres://u:secret@h:5432/db"), "postgres://u:***@h:5432/db");
+        assert_eq!(redact("mysql://h/db"), "mysql://h/db");
+    }
 
     #[test]
     fn rfc3339_matches_known_instants() {

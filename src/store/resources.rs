@@ -1,8 +1,8 @@
 //! Uploaded inputs: stocks, tools, materials, machines, programs, tool libraries.
 
 use serde::{Deserialize, Serialize};
-use sqlx::Row;
 
+use super::backend::{on_pool, on_tx, RowGet, Tx};
 use super::{now_ms, rfc3339, Db, StoreError};
 
 /// Serialized as [`as_str`](Self::as_str) names it (a job's process sends the kind of a
@@ -78,60 +78,50 @@ pub struct NewResource<'a> {
 
 fn record(
     kind: ResourceKind,
-    row: &sqlx::sqlite::SqliteRow,
+    row: &impl RowGet,
     with_definition: bool,
 ) -> Result<ResourceRecord, StoreError> {
-    let media_type: String = row.try_get("media_type")?;
+    let media_type: String = row.col("media_type")?;
     // A tool library's JSON is Fusion's file, not a definition in the API's terms: its
     // tools are served read, by T number, instead.
     let definition =
         if with_definition && media_type == "application/json" && kind != ResourceKind::ToolLibrary
         {
-            let content: Vec<u8> = row.try_get("content")?;
+            let content: Vec<u8> = row.col("content")?;
             Some(serde_json::from_slice(&content)?)
         } else {
             None
         };
     Ok(ResourceRecord {
-        id: row.try_get("id")?,
+        id: row.col("id")?,
         kind: kind.as_str(),
-        name: row.try_get("name")?,
+        name: row.col("name")?,
         media_type,
-        size: row.try_get("size")?,
-        created_at: rfc3339(row.try_get("created_at")?),
-        summary: serde_json::from_str(&row.try_get::<String, _>("summary")?)?,
+        size: row.col("size")?,
+        created_at: rfc3339(row.col("created_at")?),
+        summary: serde_json::from_str(&row.col::<String>("summary")?)?,
         definition,
     })
 }
 
-/// Inserts a resource inside an open transaction or on the pool.
-pub async fn insert<'e, E>(
-    exec: E,
-    owner: &str,
-    new: &NewResource<'_>,
-) -> Result<String, StoreError>
-where
-    E: sqlx::Executor<'e, Database = sqlx::Sqlite>,
-{
+/// Inserts a resource inside an open transaction.
+pub async fn insert(tx: &mut Tx, owner: &str, new: &NewResource<'_>) -> Result<String, StoreError> {
     let id = super::new_id();
-    insert_with_id(exec, &id, owner, new).await?;
+    insert_with_id(tx, &id, owner, new).await?;
     Ok(id)
 }
 
 /// [`insert`] with an id chosen beforehand (a job names the resource it makes in its
 /// summary before the resource is stored).
-pub async fn insert_with_id<'e, E>(
-    exec: E,
+pub async fn insert_with_id(
+    tx: &mut Tx,
     id: &str,
     owner: &str,
     new: &NewResource<'_>,
-) -> Result<(), StoreError>
-where
-    E: sqlx::Executor<'e, Database = sqlx::Sqlite>,
-{
-    sqlx::query(
+) -> Result<(), StoreError> {
+    on_tx!(tx, c => sqlx::query(
         "INSERT INTO resources (id, owner, kind, name, media_type, size, summary, content, created_at)
-         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
     )
     .bind(id)
     .bind(owner)
@@ -142,8 +132,9 @@ where
     .bind(new.summary.to_string())
     .bind(new.content)
     .bind(now_ms())
-    .execute(exec)
-    .await?;
+    .execute(&mut *c)
+    .await?
+    .rows_affected());
     Ok(())
 }
 
@@ -154,16 +145,18 @@ impl Db {
         new: &NewResource<'_>,
     ) -> Result<ResourceRecord, StoreError> {
         // Read back in the insert's transaction: once committed, a DELETE may come first.
-        let mut tx = self.pool.begin().await?;
-        let id = insert(&mut *tx, owner, new).await?;
-        let row = sqlx::query("SELECT * FROM resources WHERE owner = ? AND kind = ? AND id = ?")
-            .bind(owner)
-            .bind(new.kind.as_str())
-            .bind(&id)
-            .fetch_optional(&mut *tx)
-            .await?
-            .ok_or_else(|| StoreError::Vanished(format!("{} {id}", new.kind.as_str())))?;
-        let created = record(new.kind, &row, true)?;
+        let mut tx = self.begin().await?;
+        let id = insert(&mut tx, owner, new).await?;
+        let created = on_tx!(&mut tx, c => {
+            let row = sqlx::query("SELECT * FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
+                .bind(owner)
+                .bind(new.kind.as_str())
+                .bind(&id)
+                .fetch_optional(&mut *c)
+                .await?
+                .ok_or_else(|| StoreError::Vanished(format!("{} {id}", new.kind.as_str())))?;
+            record(new.kind, &row, true)?
+        });
         tx.commit().await?;
         Ok(created)
     }
@@ -174,13 +167,15 @@ impl Db {
         kind: ResourceKind,
         id: &str,
     ) -> Result<Option<ResourceRecord>, StoreError> {
-        let row = sqlx::query("SELECT * FROM resources WHERE owner = ? AND kind = ? AND id = ?")
-            .bind(owner)
-            .bind(kind.as_str())
-            .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        row.map(|r| record(kind, &r, true)).transpose()
+        on_pool!(&self.pool, p => {
+            let row = sqlx::query("SELECT * FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
+                .bind(owner)
+                .bind(kind.as_str())
+                .bind(id)
+                .fetch_optional(p)
+                .await?;
+            row.map(|r| record(kind, &r, true)).transpose()
+        })
     }
 
     /// The stored bytes and media type of a resource, unchanged.
@@ -190,20 +185,12 @@ impl Db {
         kind: ResourceKind,
         id: &str,
     ) -> Result<Option<(Option<String>, String, Vec<u8>)>, StoreError> {
-        let row = sqlx::query("SELECT name, media_type, content FROM resources WHERE owner = ? AND kind = ? AND id = ?")
+        Ok(on_pool!(&self.pool, p => sqlx::query_as("SELECT name, media_type, content FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
             .bind(owner)
             .bind(kind.as_str())
             .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        Ok(match row {
-            Some(r) => Some((
-                r.try_get("name")?,
-                r.try_get("media_type")?,
-                r.try_get("content")?,
-            )),
-            None => None,
-        })
+            .fetch_optional(p)
+            .await?))
     }
 
     /// One page of resources of a kind, oldest first, after `cursor` (an id).
@@ -214,20 +201,21 @@ impl Db {
         cursor: Option<&str>,
         limit: u32,
     ) -> Result<(Vec<ResourceRecord>, Option<String>), StoreError> {
-        let rows = sqlx::query(
-            "SELECT id, name, media_type, size, summary, created_at FROM resources
-             WHERE owner = ? AND kind = ? AND id > ? ORDER BY id LIMIT ?",
-        )
-        .bind(owner)
-        .bind(kind.as_str())
-        .bind(cursor.unwrap_or(""))
-        .bind(i64::from(limit) + 1)
-        .fetch_all(&self.pool)
-        .await?;
-        let mut items = rows
-            .iter()
-            .map(|r| record(kind, r, false))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut items = on_pool!(&self.pool, p => {
+            let rows = sqlx::query(
+                "SELECT id, name, media_type, size, summary, created_at FROM resources
+                 WHERE owner = $1 AND kind = $2 AND id > $3 ORDER BY id LIMIT $4",
+            )
+            .bind(owner)
+            .bind(kind.as_str())
+            .bind(cursor.unwrap_or(""))
+            .bind(i64::from(limit) + 1)
+            .fetch_all(p)
+            .await?;
+            rows.iter()
+                .map(|r| record(kind, r, false))
+                .collect::<Result<Vec<_>, _>>()?
+        });
         let next = if items.len() > limit as usize {
             items.truncate(limit as usize);
             items.last().map(|r| r.id.clone())
@@ -244,12 +232,13 @@ impl Db {
         kind: ResourceKind,
         id: &str,
     ) -> Result<bool, StoreError> {
-        let done = sqlx::query("DELETE FROM resources WHERE owner = ? AND kind = ? AND id = ?")
+        let done = on_pool!(&self.pool, p => sqlx::query("DELETE FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
             .bind(owner)
             .bind(kind.as_str())
             .bind(id)
-            .execute(&self.pool)
-            .await?;
-        Ok(done.rows_affected() > 0)
+            .execute(p)
+            .await?
+            .rows_affected());
+        Ok(done > 0)
     }
 }

@@ -4,8 +4,8 @@
 
 use serde::Serialize;
 use serde_json::{json, Value};
-use sqlx::Row;
 
+use super::backend::{on_pool, on_tx, RowGet, Tx};
 use super::{new_id, now_ms, rfc3339, Db, StoreError};
 
 /// The events a webhook may subscribe to.
@@ -35,12 +35,12 @@ pub struct WebhookRecord {
     pub created_at: String,
 }
 
-fn webhook_record(row: &sqlx::sqlite::SqliteRow) -> Result<WebhookRecord, StoreError> {
+fn webhook_record(row: &impl RowGet) -> Result<WebhookRecord, StoreError> {
     Ok(WebhookRecord {
-        id: row.try_get("id")?,
-        url: row.try_get("url")?,
-        events: serde_json::from_str(&row.try_get::<String, _>("events")?)?,
-        created_at: rfc3339(row.try_get("created_at")?),
+        id: row.col("id")?,
+        url: row.col("url")?,
+        events: serde_json::from_str(&row.col::<String>("events")?)?,
+        created_at: rfc3339(row.col("created_at")?),
     })
 }
 
@@ -100,26 +100,28 @@ pub struct AttemptOutcome {
 /// Writes one delivery per webhook of the job's owner that subscribes to `event`, inside
 /// the transaction that changes the job's state: the event exists exactly when the change
 /// does.
-pub async fn enqueue_job_event(
-    tx: &mut sqlx::Transaction<'_, sqlx::Sqlite>,
-    job_id: &str,
-    event: &str,
-) -> Result<(), StoreError> {
-    let Some(job) = sqlx::query(
-        "SELECT id, owner, kind, status, attempts, error, created_at, finished_at, progress_done, progress_total FROM jobs WHERE id = ?",
+pub async fn enqueue_job_event(tx: &mut Tx, job_id: &str, event: &str) -> Result<(), StoreError> {
+    // The owner's webhooks first: most owners have none, and then the job is not read.
+    let hooks: Vec<(String, String)> = on_tx!(tx, c => sqlx::query_as(
+        "SELECT id, events FROM webhooks WHERE owner = (SELECT owner FROM jobs WHERE id = $1) ORDER BY id",
     )
     .bind(job_id)
-    .fetch_optional(&mut **tx)
-    .await?
+    .fetch_all(&mut *c)
+    .await?);
+    if hooks.is_empty() {
+        return Ok(());
+    }
+    type JobRow = (String, String, String, i64, Option<String>, i64, Option<i64>, i64, i64);
+    let job: Option<JobRow> = on_tx!(tx, c => sqlx::query_as(
+        "SELECT owner, kind, status, attempts, error, created_at, finished_at, progress_done, progress_total FROM jobs WHERE id = $1",
+    )
+    .bind(job_id)
+    .fetch_optional(&mut *c)
+    .await?);
+    let Some((owner, kind, status, attempts, error, created_at, finished_at, done, total)) = job
     else {
         return Ok(());
     };
-    let owner: String = job.try_get("owner")?;
-    let hooks: Vec<(String, String)> =
-        sqlx::query_as("SELECT id, events FROM webhooks WHERE owner = ? ORDER BY id")
-            .bind(&owner)
-            .fetch_all(&mut **tx)
-            .await?;
     let now = now_ms();
     for (webhook_id, events) in hooks {
         let events: Vec<String> = serde_json::from_str(&events)?;
@@ -127,21 +129,20 @@ pub async fn enqueue_job_event(
             continue;
         }
         let id = new_id();
-        let status: String = job.try_get("status")?;
         let mut job_doc = json!({
             "id": job_id,
-            "kind": job.try_get::<String, _>("kind")?,
+            "kind": kind,
             "status": status,
-            "attempts": job.try_get::<i64, _>("attempts")?,
-            "created_at": rfc3339(job.try_get("created_at")?),
-            "finished_at": job.try_get::<Option<i64>, _>("finished_at")?.map(rfc3339),
+            "attempts": attempts,
+            "created_at": rfc3339(created_at),
+            "finished_at": finished_at.map(rfc3339),
             "progress": {
-                "done": job.try_get::<i64, _>("progress_done")?,
-                "total": job.try_get::<i64, _>("progress_total")?,
+                "done": done,
+                "total": total,
             },
         });
-        if let Some(error) = job.try_get::<Option<String>, _>("error")? {
-            job_doc["error"] = serde_json::from_str::<Value>(&error)?;
+        if let Some(error) = &error {
+            job_doc["error"] = serde_json::from_str::<Value>(error)?;
         }
         let base = format!("/v1/jobs/{job_id}");
         let mut links = json!({ "job": base, "attempts": format!("{base}/attempts") });
@@ -157,9 +158,9 @@ pub async fn enqueue_job_event(
             "job": job_doc,
             "links": links,
         });
-        sqlx::query(
+        on_tx!(tx, c => sqlx::query(
             "INSERT INTO webhook_deliveries (id, webhook_id, owner, event, job_id, body, status, attempts, attempt_limit, next_attempt_at, created_at, updated_at)
-             VALUES (?, ?, ?, ?, ?, ?, 'pending', 0, ?, ?, ?, ?)",
+             VALUES ($1, $2, $3, $4, $5, $6, 'pending', 0, $7, $8, $8, $8)",
         )
         .bind(&id)
         .bind(&webhook_id)
@@ -169,10 +170,9 @@ pub async fn enqueue_job_event(
         .bind(body.to_string())
         .bind(ATTEMPT_LIMIT)
         .bind(now)
-        .bind(now)
-        .bind(now)
-        .execute(&mut **tx)
-        .await?;
+        .execute(&mut *c)
+        .await?
+        .rows_affected());
     }
     Ok(())
 }
@@ -181,23 +181,23 @@ pub async fn enqueue_job_event(
 /// the job's last one is younger than `PROGRESS_INTERVAL_MS` or the job has not counted its
 /// work yet (called with each heartbeat).
 pub async fn enqueue_progress(db: &Db, job_id: &str) -> Result<(), StoreError> {
-    let (wanted,): (i64,) = sqlx::query_as(
+    let (wanted,): (i64,) = on_pool!(&db.pool, p => sqlx::query_as(
         "SELECT COUNT(*) FROM webhooks w JOIN jobs j ON w.owner = j.owner
-         WHERE j.id = ? AND j.progress_total > 0 AND w.events LIKE '%\"job.progress\"%'",
+         WHERE j.id = $1 AND j.progress_total > 0 AND w.events LIKE '%\"job.progress\"%'",
     )
     .bind(job_id)
-    .fetch_one(&db.pool)
-    .await?;
+    .fetch_one(p)
+    .await?);
     if wanted == 0 {
         return Ok(());
     }
-    let mut tx = db.pool.begin().await?;
-    let (last,): (Option<i64>,) = sqlx::query_as(
-        "SELECT MAX(created_at) FROM webhook_deliveries WHERE job_id = ? AND event = 'job.progress'",
+    let mut tx = db.begin().await?;
+    let (last,): (Option<i64>,) = on_tx!(&mut tx, c => sqlx::query_as(
+        "SELECT MAX(created_at) FROM webhook_deliveries WHERE job_id = $1 AND event = 'job.progress'",
     )
     .bind(job_id)
-    .fetch_one(&mut *tx)
-    .await?;
+    .fetch_one(&mut *c)
+    .await?);
     if last.is_some_and(|t| now_ms() - t < PROGRESS_INTERVAL_MS) {
         return Ok(());
     }
@@ -206,15 +206,59 @@ pub async fn enqueue_progress(db: &Db, job_id: &str) -> Result<(), StoreError> {
     Ok(())
 }
 
+/// A delivery row as read, before its attempts are added.
+fn delivery_record(row: &impl RowGet) -> Result<DeliveryRecord, StoreError> {
+    let status: String = row.col("status")?;
+    Ok(DeliveryRecord {
+        id: row.col("id")?,
+        webhook_id: row.col("webhook_id")?,
+        event: row.col("event")?,
+        job_id: row.col("job_id")?,
+        attempt_count: row.col("attempts")?,
+        created_at: rfc3339(row.col("created_at")?),
+        delivered_at: row.col::<Option<i64>>("delivered_at")?.map(rfc3339),
+        next_attempt_at: if status == "pending" {
+            row.col::<Option<i64>>("next_attempt_at")?.map(rfc3339)
+        } else {
+            None
+        },
+        last_error: row.col("last_error")?,
+        status,
+        attempts: Vec::new(),
+    })
+}
+
+/// A delivery with its attempts, read in the same transaction.
+async fn with_attempts(tx: &mut Tx, mut d: DeliveryRecord) -> Result<DeliveryRecord, StoreError> {
+    let attempts: Vec<AttemptRow> = on_tx!(tx, c => sqlx::query_as(
+        "SELECT attempt, started_at, duration_ms, status_code, error FROM webhook_attempts WHERE delivery_id = $1 ORDER BY attempt",
+    )
+    .bind(&d.id)
+    .fetch_all(&mut *c)
+    .await?);
+    d.attempts = attempts
+        .into_iter()
+        .map(
+            |(attempt, started, duration_ms, status_code, error)| AttemptRecord {
+                attempt,
+                started_at: rfc3339(started),
+                duration_ms,
+                status_code,
+                error,
+            },
+        )
+        .collect();
+    Ok(d)
+}
+
 impl Db {
     /// Webhooks an owner has (each one fans every job event out once more).
     pub async fn count_webhooks(&self, owner: &str) -> Result<i64, StoreError> {
-        Ok(
-            sqlx::query_scalar("SELECT COUNT(*) FROM webhooks WHERE owner = ?")
+        Ok(on_pool!(&self.pool, p =>
+            sqlx::query_scalar("SELECT COUNT(*) FROM webhooks WHERE owner = $1")
                 .bind(owner)
-                .fetch_one(&self.pool)
-                .await?,
-        )
+                .fetch_one(p)
+                .await?))
     }
 
     pub async fn create_webhook(
@@ -225,19 +269,22 @@ impl Db {
         secret: &str,
     ) -> Result<WebhookRecord, StoreError> {
         let id = new_id();
-        let row = sqlx::query(
-            "INSERT INTO webhooks (id, owner, url, events, secret, created_at) VALUES (?, ?, ?, ?, ?, ?)
-             RETURNING id, url, events, created_at",
-        )
-        .bind(&id)
-        .bind(owner)
-        .bind(url)
-        .bind(serde_json::to_string(events)?)
-        .bind(secret)
-        .bind(now_ms())
-        .fetch_one(&self.pool)
-        .await?;
-        webhook_record(&row)
+        let events = serde_json::to_string(events)?;
+        on_pool!(&self.pool, p => {
+            let row = sqlx::query(
+                "INSERT INTO webhooks (id, owner, url, events, secret, created_at) VALUES ($1, $2, $3, $4, $5, $6)
+                 RETURNING id, url, events, created_at",
+            )
+            .bind(&id)
+            .bind(owner)
+            .bind(url)
+            .bind(&events)
+            .bind(secret)
+            .bind(now_ms())
+            .fetch_one(p)
+            .await?;
+            webhook_record(&row)
+        })
     }
 
     pub async fn get_webhook(
@@ -245,14 +292,16 @@ impl Db {
         owner: &str,
         id: &str,
     ) -> Result<Option<WebhookRecord>, StoreError> {
-        let row = sqlx::query(
-            "SELECT id, url, events, created_at FROM webhooks WHERE owner = ? AND id = ?",
-        )
-        .bind(owner)
-        .bind(id)
-        .fetch_optional(&self.pool)
-        .await?;
-        row.as_ref().map(webhook_record).transpose()
+        on_pool!(&self.pool, p => {
+            let row = sqlx::query(
+                "SELECT id, url, events, created_at FROM webhooks WHERE owner = $1 AND id = $2",
+            )
+            .bind(owner)
+            .bind(id)
+            .fetch_optional(p)
+            .await?;
+            row.as_ref().map(webhook_record).transpose()
+        })
     }
 
     pub async fn list_webhooks(
@@ -261,18 +310,19 @@ impl Db {
         cursor: Option<&str>,
         limit: u32,
     ) -> Result<(Vec<WebhookRecord>, Option<String>), StoreError> {
-        let rows = sqlx::query(
-            "SELECT id, url, events, created_at FROM webhooks WHERE owner = ? AND id > ? ORDER BY id LIMIT ?",
-        )
-        .bind(owner)
-        .bind(cursor.unwrap_or(""))
-        .bind(i64::from(limit) + 1)
-        .fetch_all(&self.pool)
-        .await?;
-        let mut items = rows
-            .iter()
-            .map(webhook_record)
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut items = on_pool!(&self.pool, p => {
+            let rows = sqlx::query(
+                "SELECT id, url, events, created_at FROM webhooks WHERE owner = $1 AND id > $2 ORDER BY id LIMIT $3",
+            )
+            .bind(owner)
+            .bind(cursor.unwrap_or(""))
+            .bind(i64::from(limit) + 1)
+            .fetch_all(p)
+            .await?;
+            rows.iter()
+                .map(webhook_record)
+                .collect::<Result<Vec<_>, _>>()?
+        });
         let next = if items.len() > limit as usize {
             items.truncate(limit as usize);
             items.last().map(|w| w.id.clone())
@@ -284,12 +334,13 @@ impl Db {
 
     /// Deletes a webhook and its deliveries (pending ones are not sent).
     pub async fn delete_webhook(&self, owner: &str, id: &str) -> Result<bool, StoreError> {
-        let done = sqlx::query("DELETE FROM webhooks WHERE owner = ? AND id = ?")
+        let done = on_pool!(&self.pool, p => sqlx::query("DELETE FROM webhooks WHERE owner = $1 AND id = $2")
             .bind(owner)
             .bind(id)
-            .execute(&self.pool)
-            .await?;
-        Ok(done.rows_affected() > 0)
+            .execute(p)
+            .await?
+            .rows_affected());
+        Ok(done > 0)
     }
 
     /// One page of a webhook's deliveries, newest last, each with its attempts.
@@ -300,19 +351,29 @@ impl Db {
         cursor: Option<&str>,
         limit: u32,
     ) -> Result<(Vec<DeliveryRecord>, Option<String>), StoreError> {
-        let rows = sqlx::query(
-            "SELECT * FROM webhook_deliveries WHERE owner = ? AND webhook_id = ? AND id > ? ORDER BY id LIMIT ?",
-        )
-        .bind(owner)
-        .bind(webhook_id)
-        .bind(cursor.unwrap_or(""))
-        .bind(i64::from(limit) + 1)
-        .fetch_all(&self.pool)
-        .await?;
+        // One snapshot for the deliveries and their attempts: an attempt recorded between
+        // two reads would otherwise show beside a delivery still pending.
+        let mut tx = self.begin().await?;
+        tx.read_one_snapshot().await?;
+        let rows = on_tx!(&mut tx, c => {
+            let rows = sqlx::query(
+                "SELECT * FROM webhook_deliveries WHERE owner = $1 AND webhook_id = $2 AND id > $3 ORDER BY id LIMIT $4",
+            )
+            .bind(owner)
+            .bind(webhook_id)
+            .bind(cursor.unwrap_or(""))
+            .bind(i64::from(limit) + 1)
+            .fetch_all(&mut *c)
+            .await?;
+            rows.iter()
+                .map(delivery_record)
+                .collect::<Result<Vec<_>, _>>()?
+        });
         let mut items = Vec::with_capacity(rows.len());
-        for row in rows.iter().take(limit as usize) {
-            items.push(self.delivery_record(row).await?);
+        for d in rows.iter().take(limit as usize) {
+            items.push(with_attempts(&mut tx, d.clone()).await?);
         }
+        tx.commit().await?;
         let next = if rows.len() > limit as usize {
             items.last().map(|d| d.id.clone())
         } else {
@@ -327,61 +388,25 @@ impl Db {
         webhook_id: &str,
         id: &str,
     ) -> Result<Option<DeliveryRecord>, StoreError> {
-        let row = sqlx::query(
-            "SELECT * FROM webhook_deliveries WHERE owner = ? AND webhook_id = ? AND id = ?",
-        )
-        .bind(owner)
-        .bind(webhook_id)
-        .bind(id)
-        .fetch_optional(&self.pool)
-        .await?;
-        match row {
-            Some(r) => Ok(Some(self.delivery_record(&r).await?)),
-            None => Ok(None),
-        }
-    }
-
-    async fn delivery_record(
-        &self,
-        row: &sqlx::sqlite::SqliteRow,
-    ) -> Result<DeliveryRecord, StoreError> {
-        let id: String = row.try_get("id")?;
-        let attempts: Vec<AttemptRow> = sqlx::query_as(
-            "SELECT attempt, started_at, duration_ms, status_code, error FROM webhook_attempts WHERE delivery_id = ? ORDER BY attempt",
-        )
-        .bind(&id)
-        .fetch_all(&self.pool)
-        .await?;
-        let status: String = row.try_get("status")?;
-        Ok(DeliveryRecord {
-            webhook_id: row.try_get("webhook_id")?,
-            event: row.try_get("event")?,
-            job_id: row.try_get("job_id")?,
-            attempt_count: row.try_get("attempts")?,
-            created_at: rfc3339(row.try_get("created_at")?),
-            delivered_at: row.try_get::<Option<i64>, _>("delivered_at")?.map(rfc3339),
-            next_attempt_at: if status == "pending" {
-                row.try_get::<Option<i64>, _>("next_attempt_at")?
-                    .map(rfc3339)
-            } else {
-                None
-            },
-            last_error: row.try_get("last_error")?,
-            status,
-            attempts: attempts
-                .into_iter()
-                .map(
-                    |(attempt, started, duration_ms, status_code, error)| AttemptRecord {
-                        attempt,
-                        started_at: rfc3339(started),
-                        duration_ms,
-                        status_code,
-                        error,
-                    },
-                )
-                .collect(),
-            id,
-        })
+        let mut tx = self.begin().await?;
+        tx.read_one_snapshot().await?;
+        let found = on_tx!(&mut tx, c => {
+            let row = sqlx::query(
+                "SELECT * FROM webhook_deliveries WHERE owner = $1 AND webhook_id = $2 AND id = $3",
+            )
+            .bind(owner)
+            .bind(webhook_id)
+            .bind(id)
+            .fetch_optional(&mut *c)
+            .await?;
+            row.as_ref().map(delivery_record).transpose()?
+        });
+        let found = match found {
+            Some(d) => Some(with_attempts(&mut tx, d).await?),
+            None => None,
+        };
+        tx.commit().await?;
+        Ok(found)
     }
 
     /// Asks for a delivery to be sent again now, whatever its state; it gets a fresh
@@ -395,38 +420,40 @@ impl Db {
         let now = now_ms();
         // An attempt in flight (leased) will record its outcome after this: `redeliver`
         // tells it to leave the delivery pending for one more attempt.
-        let done = sqlx::query(
-            "UPDATE webhook_deliveries SET status = 'pending', next_attempt_at = ?1, attempt_limit = attempts + ?2,
-                redeliver = CASE WHEN lease_expires_at >= ?1 THEN 1 ELSE 0 END, updated_at = ?1
-             WHERE owner = ?3 AND webhook_id = ?4 AND id = ?5",
+        let done = on_pool!(&self.pool, p => sqlx::query(
+            "UPDATE webhook_deliveries SET status = 'pending', next_attempt_at = $1, attempt_limit = attempts + $2,
+                redeliver = CASE WHEN lease_expires_at >= $1 THEN 1 ELSE 0 END, updated_at = $1
+             WHERE owner = $3 AND webhook_id = $4 AND id = $5",
         )
         .bind(now)
         .bind(ATTEMPT_LIMIT)
         .bind(owner)
         .bind(webhook_id)
         .bind(id)
-        .execute(&self.pool)
-        .await?;
-        Ok(done.rows_affected() > 0)
+        .execute(p)
+        .await?
+        .rows_affected());
+        Ok(done > 0)
     }
 
     /// Whether a delivery is due (a read, so idle dispatchers do not take the write lock).
     pub async fn delivery_due(&self) -> Result<bool, StoreError> {
         let now = now_ms();
-        let row: Option<(String,)> = sqlx::query_as(
-            "SELECT id FROM webhook_deliveries WHERE status = 'pending' AND next_attempt_at <= ?
-               AND (lease_expires_at IS NULL OR lease_expires_at < ?) LIMIT 1",
+        let row: Option<(String,)> = on_pool!(&self.pool, p => sqlx::query_as(
+            "SELECT id FROM webhook_deliveries WHERE status = 'pending' AND next_attempt_at <= $1
+               AND (lease_expires_at IS NULL OR lease_expires_at < $1) LIMIT 1",
         )
         .bind(now)
-        .bind(now)
-        .fetch_optional(&self.pool)
-        .await?;
+        .fetch_optional(p)
+        .await?);
         Ok(row.is_some())
     }
 
     /// Claims up to `limit` due deliveries for `dispatcher` with a lease of `lease_ms`
     /// (a dispatcher that dies mid-delivery leaves them to another once it expires). The
-    /// attempt counter moves here, so an attempt cut short by a crash still counts.
+    /// attempt counter moves here, so an attempt cut short by a crash still counts. On
+    /// PostgreSQL the due rows are locked `FOR UPDATE SKIP LOCKED`: dispatchers on other
+    /// hosts take other deliveries.
     pub async fn claim_deliveries(
         &self,
         dispatcher: &str,
@@ -434,40 +461,39 @@ impl Db {
         limit: i64,
     ) -> Result<Vec<DueDelivery>, StoreError> {
         let now = now_ms();
-        let rows = sqlx::query(
-            "UPDATE webhook_deliveries SET lease_owner = ?, lease_expires_at = ?, attempts = attempts + 1, updated_at = ?
+        let skip_locked = self.backend().skip_locked();
+        type Claimed = (String, String, String, String, i64, i64);
+        let rows: Vec<Claimed> = on_pool!(&self.pool, p => sqlx::query_as(&format!(
+            "UPDATE webhook_deliveries SET lease_owner = $1, lease_expires_at = $2, attempts = attempts + 1, updated_at = $3
              WHERE id IN (SELECT id FROM webhook_deliveries
-                          WHERE status = 'pending' AND next_attempt_at <= ?
-                            AND (lease_expires_at IS NULL OR lease_expires_at < ?)
-                          ORDER BY next_attempt_at LIMIT ?)
+                          WHERE status = 'pending' AND next_attempt_at <= $3
+                            AND (lease_expires_at IS NULL OR lease_expires_at < $3)
+                          ORDER BY next_attempt_at LIMIT $4{skip_locked})
              RETURNING id, webhook_id, event, body, attempts, attempt_limit",
-        )
+        ))
         .bind(dispatcher)
         .bind(now + lease_ms)
         .bind(now)
-        .bind(now)
-        .bind(now)
         .bind(limit)
-        .fetch_all(&self.pool)
-        .await?;
+        .fetch_all(p)
+        .await?);
         let mut due = Vec::with_capacity(rows.len());
-        for r in rows {
-            let webhook_id: String = r.try_get("webhook_id")?;
-            let hook: Option<(String, String)> =
-                sqlx::query_as("SELECT url, secret FROM webhooks WHERE id = ?")
+        for (id, webhook_id, event, body, attempt, attempt_limit) in rows {
+            let hook: Option<(String, String)> = on_pool!(&self.pool, p =>
+                sqlx::query_as("SELECT url, secret FROM webhooks WHERE id = $1")
                     .bind(&webhook_id)
-                    .fetch_optional(&self.pool)
-                    .await?;
+                    .fetch_optional(p)
+                    .await?);
             // Deleted since (its deliveries go with it): nothing to send.
             let Some((url, secret)) = hook else { continue };
             due.push(DueDelivery {
-                id: r.try_get("id")?,
+                id,
                 url,
                 secret,
-                event: r.try_get("event")?,
-                body: r.try_get("body")?,
-                attempt: r.try_get("attempts")?,
-                attempt_limit: r.try_get("attempt_limit")?,
+                event,
+                body,
+                attempt,
+                attempt_limit,
             });
         }
         Ok(due)
@@ -482,7 +508,7 @@ impl Db {
         outcome: &AttemptOutcome,
     ) -> Result<bool, StoreError> {
         let now = now_ms();
-        let mut tx = self.pool.begin().await?;
+        let mut tx = self.begin().await?;
         let (status, next, delivered_at) = match (outcome.delivered, outcome.retry_at) {
             (true, _) => ("delivered", None, Some(now)),
             (false, Some(at)) => ("pending", Some(at), None),
@@ -495,13 +521,13 @@ impl Db {
                 .map(|c| format!("the receiver answered {c}"))
         });
         // A redelivery asked for during this attempt keeps the delivery pending, due now.
-        let done = sqlx::query(
+        let done = on_tx!(&mut tx, c => sqlx::query(
             "UPDATE webhook_deliveries SET
-                status = CASE WHEN redeliver = 1 THEN 'pending' ELSE ?1 END,
-                next_attempt_at = CASE WHEN redeliver = 1 THEN ?5 ELSE ?2 END,
-                delivered_at = COALESCE(?3, delivered_at), last_error = ?4,
-                lease_owner = NULL, lease_expires_at = NULL, redeliver = 0, updated_at = ?5
-             WHERE id = ?6 AND lease_owner = ?7 AND attempts = ?8",
+                status = CASE WHEN redeliver = 1 THEN 'pending' ELSE $1 END,
+                next_attempt_at = CASE WHEN redeliver = 1 THEN $5 ELSE $2 END,
+                delivered_at = COALESCE($3, delivered_at), last_error = $4,
+                lease_owner = NULL, lease_expires_at = NULL, redeliver = 0, updated_at = $5
+             WHERE id = $6 AND lease_owner = $7 AND attempts = $8",
         )
         .bind(status)
         .bind(next)
@@ -515,15 +541,16 @@ impl Db {
         .bind(&delivery.id)
         .bind(dispatcher)
         .bind(delivery.attempt)
-        .execute(&mut *tx)
-        .await?;
-        if done.rows_affected() == 0 {
+        .execute(&mut *c)
+        .await?
+        .rows_affected());
+        if done == 0 {
             tx.rollback().await?;
             return Ok(false);
         }
-        sqlx::query(
+        on_tx!(&mut tx, c => sqlx::query(
             "INSERT INTO webhook_attempts (delivery_id, attempt, started_at, duration_ms, status_code, error)
-             VALUES (?, ?, ?, ?, ?, ?)",
+             VALUES ($1, $2, $3, $4, $5, $6)",
         )
         .bind(&delivery.id)
         .bind(delivery.attempt)
@@ -531,8 +558,9 @@ impl Db {
         .bind(outcome.duration_ms)
         .bind(outcome.status_code.map(i64::from))
         .bind(error)
-        .execute(&mut *tx)
-        .await?;
+        .execute(&mut *c)
+        .await?
+        .rows_affected());
         tx.commit().await?;
         Ok(true)
     }

@@ -1,5 +1,6 @@
 //! Test harness: runs the real `millsim` binary on 127.0.0.1:0 with a temporary SQLite
-//! file and talks to it over HTTP.
+//! file (or, with MILLSIM_TEST_DATABASE=postgres://..., a fresh PostgreSQL database) and
+//! talks to it over HTTP.
 #![allow(dead_code)]
 
 use std::io::{BufRead, BufReader};
@@ -47,6 +48,81 @@ pub fn adaptive_program() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/adaptive/1055_utab_265bit.nc")
 }
 
+/// The PostgreSQL server the suite runs against (MILLSIM_TEST_DATABASE, a URL whose
+/// database the tests may create others from); None: SQLite files.
+pub fn test_postgres() -> Option<String> {
+    std::env::var("MILLSIM_TEST_DATABASE")
+        .ok()
+        .filter(|u| u.starts_with("postgres://") || u.starts_with("postgresql://"))
+}
+
+/// The PostgreSQL server for a test that needs one; None (after saying why) without it.
+pub fn require_postgres() -> Option<String> {
+    let url = test_postgres();
+    if url.is_none() {
+        println!("skipped: MILLSIM_TEST_DATABASE does not name a PostgreSQL server (.ci/run sets it)");
+    }
+    url
+}
+
+/// The database URL of a test server whose database is `path`: that SQLite file, or on
+/// PostgreSQL a database of its own named after the path (so a server restarted on the
+/// same path finds its jobs again), created on first use.
+pub fn db_url(path: &Path) -> String {
+    match test_postgres() {
+        Some(base) => postgres::database_for(&base, &path.display().to_string()),
+        None => format!("sqlite://{}", path.display()),
+    }
+}
+
+mod postgres {
+    use sqlx::Connection;
+
+    pub fn database_for(base: &str, key: &str) -> String {
+        // FNV-1a: a stable, short name for the path.
+        let hash = key
+            .bytes()
+            .fold(0xcbf29ce484222325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100000001b3));
+        let name = format!("millsim_t_{hash:016x}");
+        let (base, query) = base.split_once('?').map_or((base, ""), |(b, q)| (b, q));
+        let server = base.rsplit_once('/').map_or(base, |(s, _)| s);
+        let url = if query.is_empty() {
+            format!("{server}/{name}")
+        } else {
+            format!("{server}/{name}?{query}")
+        };
+        let admin = base.to_string();
+        let created = name.clone();
+        // Tests call this from inside their own runtime: connect from a thread of its own.
+        std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .unwrap();
+            rt.block_on(async {
+                let mut c = sqlx::PgConnection::connect(&admin)
+                    .await
+                    .unwrap_or_else(|e| panic!("MILLSIM_TEST_DATABASE: {e}"));
+                let exists: Option<i32> =
+                    sqlx::query_scalar("SELECT 1 FROM pg_database WHERE datname = $1")
+                        .bind(&created)
+                        .fetch_optional(&mut c)
+                        .await
+                        .unwrap();
+                if exists.is_none() {
+                    sqlx::query(&format!("CREATE DATABASE {created}"))
+                        .execute(&mut c)
+                        .await
+                        .unwrap();
+                }
+            })
+        })
+        .join()
+        .unwrap();
+        url
+    }
+}
+
 pub struct Server {
     pub child: Child,
     pub base: String,
@@ -61,7 +137,7 @@ impl Server {
 
     /// `start` with extra environment variables for the server process.
     pub fn start_with_env(db: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
-        let db_url = format!("sqlite://{}", db.display());
+        let db_url = db_url(db);
         let mut child = Command::new(BIN)
             .args(["serve", "--bind", "127.0.0.1:0", "--database", &db_url])
             .args(extra)
