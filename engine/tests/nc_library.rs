@@ -168,3 +168,84 @@ fn a_program_in_the_file_wins_over_the_library() {
     assert_eq!(xyz(&out), [[0.0, 0.0, 1.0], [42.0, 0.0, 1.0]]);
     assert!(out.moves.iter().all(|m| m.source.is_none()));
 }
+
+mod property {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// One block of a subprogram body: a move, or a call to a program numbered below it.
+    #[derive(Clone, Debug)]
+    enum Line {
+        Move { rapid: bool, incremental: bool, x: i32, y: i32 },
+        Call { to: usize, times: u32, macro_call: bool },
+    }
+
+    fn line() -> impl Strategy<Value = Line> {
+        prop_oneof![
+            3 => (any::<bool>(), any::<bool>(), -50i32..50, -50i32..50)
+                .prop_map(|(rapid, incremental, x, y)| Line::Move { rapid, incremental, x, y }),
+            1 => (0usize..4, 1u32..3, any::<bool>())
+                .prop_map(|(to, times, macro_call)| Line::Call { to, times, macro_call }),
+        ]
+    }
+
+    fn text(number: usize, body: &[Line]) -> String {
+        let mut s = format!("O{}\n", 1000 + number);
+        for l in body {
+            match l {
+                Line::Move { rapid, incremental, x, y } => s += &format!(
+                    "{} {} X{x} Y{y} F300\n",
+                    if *incremental { "G91" } else { "G90" },
+                    if *rapid { "G0" } else { "G1" }
+                ),
+                // Only programs numbered below this one: calls cannot recurse.
+                Line::Call { to, times, macro_call } if *to < number => {
+                    s += &if *macro_call {
+                        format!("G65 P{} L{times}\n", 1000 + to)
+                    } else {
+                        format!("M98 P{} L{times}\n", 1000 + to)
+                    }
+                }
+                Line::Call { .. } => {}
+            }
+        }
+        s + "M99\n"
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Programs in library files run exactly as the same programs in the file do.
+        #[test]
+        fn library_programs_run_as_programs_in_the_file(
+            bodies in prop::collection::vec(prop::collection::vec(line(), 0..6), 1..5),
+            main_calls in prop::collection::vec((0usize..5, 1u32..3), 1..4),
+        ) {
+            let n = bodies.len();
+            let mut main = "O0001\nG21 G90 G0 X0 Y0 Z1\n".to_string();
+            for (to, times) in &main_calls {
+                main += &format!("M98 P{} L{times}\n", 1000 + to % n);
+            }
+            main += "M30\n";
+            let subs: Vec<String> = bodies.iter().enumerate().map(|(i, b)| text(i, b)).collect();
+            let one_file = format!("{main}{}", subs.concat());
+            let together = interpret(&one_file, &InterpretOptions::default()).unwrap();
+            let library = ProgramLibrary::new(
+                subs.iter()
+                    .enumerate()
+                    .map(|(i, t)| LibraryFile { name: format!("O{}.nc", 1000 + i), text: t.clone() })
+                    .collect(),
+            );
+            let opts = InterpretOptions { library: Some(Arc::new(library)), ..Default::default() };
+            let apart = interpret(&main, &opts).unwrap();
+            prop_assert_eq!(xyz(&together), xyz(&apart));
+            let main_lines = main.lines().count() as u32;
+            for (a, b) in together.moves.iter().zip(&apart.moves) {
+                prop_assert_eq!(a.kind, b.kind);
+                // In one file, a subprogram's move is on its own line (after the main
+                // program); from the library, on the main program's call line.
+                prop_assert_eq!(a.line > main_lines, b.source.is_some());
+                prop_assert!(b.line <= main_lines);
+            }
+        }
+    }
+}
