@@ -249,3 +249,26 @@ mod property {
         }
     }
 }
+
+#[test]
+fn the_optimizer_refuses_moves_of_library_programs_naming_the_call() {
+    use millsim_engine::nc::Program;
+    use millsim_engine::optimize::{rewrite_program, FeedSchedule, RewriteOptions};
+    let main = "O0001\nG0 X0 Y0 Z1\nM98 P1000\nM30\n";
+    let out = interpret(main, &opts()).unwrap();
+    let schedule = FeedSchedule {
+        moves: Vec::new(),
+        blocks: Vec::new(),
+        best_constant_feed: 0.0,
+        evaluations: 0,
+    };
+    let e = rewrite_program(
+        &Program::parse(main).unwrap(),
+        &out.moves,
+        &schedule,
+        &RewriteOptions::default(),
+    )
+    .unwrap_err();
+    assert_eq!(e.0[0].line, 3);
+    assert!(e.0[0].message.contains("program library"), "{}", e.0[0].message);
+}
