@@ -366,7 +366,7 @@ impl Interp<'_> {
     }
 
     fn base_move(&self, kind: MoveKind, start: [f64; 6], end: [f64; 6]) -> Move {
-        let m = Move {
+        let mut m = Move {
             block: self.cur_block,
             line: self.cur_line,
             kind,
@@ -386,11 +386,11 @@ impl Interp<'_> {
             arc: None,
             source: None,
         };
-        if self.unit == 0 {
-            m
-        } else {
-            self.attribute(m)
+        // One return path, so the move is built in place (it is large).
+        if self.unit != 0 {
+            self.attribute(&mut m);
         }
+        m
     }
 
     /// Adds a move; with cutter compensation waiting on a move, after it (in order).

@@ -185,7 +185,7 @@ impl<'p> Interp<'p> {
 
     /// A move made in a library file: on the call's block, with its own file and line.
     #[cold]
-    pub(super) fn attribute(&self, mut m: Move) -> Move {
+    pub(super) fn attribute(&self, m: &mut Move) {
         let (block, line) = self.site.expect("a library file runs from a call");
         m.source = Some(MoveSource {
             file: self.unit - 1,
@@ -193,7 +193,6 @@ impl<'p> Interp<'p> {
         });
         m.block = block;
         m.line = line;
-        m
     }
 
     /// The program's line of the running block (the call's line in a library file).
