@@ -260,8 +260,8 @@ struct InterpretArgs {
     #[arg(long)]
     strict_m_codes: bool,
     /// Folder of the programs that calls to programs not in the file run (`M98 P1000`:
-    /// `O1000.nc`; `o<name> call`: `name.ngc`). A library move's row has `source`, its
-    /// file (the index into the list printed on stderr) and line.
+    /// `O1000.nc`; `o<name> call`: `name.ngc`). A library move's row has `source_file`
+    /// (the index into the list printed on stderr) and `source_line`.
     #[arg(long, value_name = "DIR")]
     library: Option<std::path::PathBuf>,
 }

@@ -226,11 +226,11 @@ fn library_folder_runs_called_programs() {
         ends,
         [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (20.0, 10.0), (20.0, 20.0)]
     );
-    assert!(moves[0].get("source").is_none());
+    assert!(moves[0].get("source_file").is_none());
     for (m, line) in moves[1..].iter().zip([3, 4, 3, 4]) {
         assert_eq!(m["line"], 3);
-        assert_eq!(m["source"]["file"], 0);
-        assert_eq!(m["source"]["line"], line);
+        assert_eq!(m["source_file"], 0);
+        assert_eq!(m["source_line"], line);
     }
     let out = Command::new(BIN)
         .arg("interpret")

@@ -117,7 +117,7 @@ pub fn run(
         }
     }
     progress.report(total, total);
-    // Rows of library moves carry `source.file`, an index into `library_files`.
+    // Rows of library moves carry `source_file`, an index into `library_files`.
     let warnings: Vec<Value> = result
         .warnings
         .iter()

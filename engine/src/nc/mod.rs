@@ -54,8 +54,13 @@
 //! * Fanuc `H` without G43 (`G53 Z0 H0`): the active length compensation takes offset H (H0:
 //!   zero).
 //!
+//! * A program library ([`ProgramLibrary`], `InterpretOptions::library`): calls to programs
+//!   not in the file (Fanuc M98/G65/G66, LinuxCNC `o<name> call` to `name.ngc`) run the
+//!   library's files; see `library.rs` and `interp/units.rs`. Checked against LinuxCNC run in
+//!   the library folder.
+//!
 //! Refused with an error: cutter radius compensation in G19, G33, G76, G7/G8, U V W
-//! axes, external subroutine files and calls to programs not in the file, G66.1, M60,
+//! axes, calls to programs neither in the file nor in the library, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
 
@@ -274,8 +279,9 @@ pub struct Move {
     pub arc: Option<Box<ArcGeometry>>,
     /// Set when the move's block is in a library program: that file and line. `block` and
     /// `line` are then those of the call in the program itself (the outermost call), so
-    /// per-block figures stay on the program's own blocks.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    /// per-block figures stay on the program's own blocks. Serialized flat, as
+    /// `source_file` and `source_line` (a CSV row has a column for each).
+    #[serde(flatten)]
     pub source: Option<MoveSource>,
 }
 
@@ -283,8 +289,10 @@ pub struct Move {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct MoveSource {
     /// Index into [`Interpretation::library_files`].
+    #[serde(rename = "source_file")]
     pub file: u32,
     /// 1-based line in that file.
+    #[serde(rename = "source_line")]
     pub line: u32,
 }
 
