@@ -224,7 +224,13 @@ fn library_folder_runs_called_programs() {
         .collect();
     assert_eq!(
         ends,
-        [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (20.0, 10.0), (20.0, 20.0)]
+        [
+            (0.0, 0.0),
+            (10.0, 0.0),
+            (10.0, 10.0),
+            (20.0, 10.0),
+            (20.0, 20.0)
+        ]
     );
     assert!(moves[0].get("source_file").is_none());
     for (m, line) in moves[1..].iter().zip([3, 4, 3, 4]) {
@@ -240,7 +246,9 @@ fn library_folder_runs_called_programs() {
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
-        stderr.contains("main.nc:3:1: M98 P1000: program O1000 is not in this file nor in its program library"),
+        stderr.contains(
+            "main.nc:3:1: M98 P1000: program O1000 is not in this file nor in its program library"
+        ),
         "{stderr}"
     );
 }

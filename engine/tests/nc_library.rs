@@ -107,7 +107,10 @@ fn fanuc_calls_run_programs_of_the_library() {
     // Every serialized row of a library move says where it comes from.
     let row = serde_json::to_value(&out.moves[1]).unwrap();
     let file = row["source_file"].as_u64().unwrap() as usize;
-    assert_eq!((files[file].as_str(), &row["source_line"]), ("O1000.nc", &3.into()));
+    assert_eq!(
+        (files[file].as_str(), &row["source_line"]),
+        ("O1000.nc", &3.into())
+    );
     let plain = serde_json::to_value(&out.moves[0]).unwrap();
     assert!(plain.get("source_file").is_none() && plain.get("source_line").is_none());
 }
@@ -178,8 +181,17 @@ mod property {
     /// One block of a subprogram body: a move, or a call to a program numbered below it.
     #[derive(Clone, Debug)]
     enum Line {
-        Move { rapid: bool, incremental: bool, x: i32, y: i32 },
-        Call { to: usize, times: u32, macro_call: bool },
+        Move {
+            rapid: bool,
+            incremental: bool,
+            x: i32,
+            y: i32,
+        },
+        Call {
+            to: usize,
+            times: u32,
+            macro_call: bool,
+        },
     }
 
     fn line() -> impl Strategy<Value = Line> {
@@ -195,13 +207,24 @@ mod property {
         let mut s = format!("O{}\n", 1000 + number);
         for l in body {
             match l {
-                Line::Move { rapid, incremental, x, y } => s += &format!(
-                    "{} {} X{x} Y{y} F300\n",
-                    if *incremental { "G91" } else { "G90" },
-                    if *rapid { "G0" } else { "G1" }
-                ),
+                Line::Move {
+                    rapid,
+                    incremental,
+                    x,
+                    y,
+                } => {
+                    s += &format!(
+                        "{} {} X{x} Y{y} F300\n",
+                        if *incremental { "G91" } else { "G90" },
+                        if *rapid { "G0" } else { "G1" }
+                    )
+                }
                 // Only programs numbered below this one: calls cannot recurse.
-                Line::Call { to, times, macro_call } if *to < number => {
+                Line::Call {
+                    to,
+                    times,
+                    macro_call,
+                } if *to < number => {
                     s += &if *macro_call {
                         format!("G65 P{} L{times}\n", 1000 + to)
                     } else {
@@ -272,5 +295,9 @@ fn the_optimizer_refuses_moves_of_library_programs_naming_the_call() {
     )
     .unwrap_err();
     assert_eq!(e.0[0].line, 3);
-    assert!(e.0[0].message.contains("program library"), "{}", e.0[0].message);
+    assert!(
+        e.0[0].message.contains("program library"),
+        "{}",
+        e.0[0].message
+    );
 }

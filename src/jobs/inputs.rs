@@ -75,9 +75,9 @@ pub fn check_material(name: Option<&str>, has_material_input: bool) -> Result<()
 
 /// The file name of a program library input (`library/O1000.nc`).
 pub fn library_file_name(input: &str) -> Option<&str> {
-    input.strip_prefix("library/").filter(|n| {
-        !n.is_empty() && !n.contains('/') && n.len() <= 255
-    })
+    input
+        .strip_prefix("library/")
+        .filter(|n| !n.is_empty() && !n.contains('/') && n.len() <= 255)
 }
 
 /// The program library the job's `library/<file name>` inputs make (None without any).

@@ -146,9 +146,7 @@ impl JobKind {
         }
         let mut wanted: Vec<(&str, ResourceKind, bool)> =
             specs.iter().map(|s| (s.name, s.kind, s.required)).collect();
-        wanted.extend(
-            given.filter_map(|n| self.named_input(n).map(|k| (n.as_str(), k, true))),
-        );
+        wanted.extend(given.filter_map(|n| self.named_input(n).map(|k| (n.as_str(), k, true))));
         Ok(wanted)
     }
 

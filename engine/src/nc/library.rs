@@ -29,8 +29,21 @@ pub struct ProgramLibrary {
 
 /// LinuxCNC o-word keywords: a line `o100 sub` is not a Fanuc program number.
 const O_KEYWORDS: [&str; 15] = [
-    "sub", "endsub", "call", "do", "while", "endwhile", "if", "elseif", "else", "endif", "repeat",
-    "endrepeat", "return", "break", "continue",
+    "sub",
+    "endsub",
+    "call",
+    "do",
+    "while",
+    "endwhile",
+    "if",
+    "elseif",
+    "else",
+    "endif",
+    "repeat",
+    "endrepeat",
+    "return",
+    "break",
+    "continue",
 ];
 
 impl ProgramLibrary {
@@ -139,7 +152,10 @@ mod tests {
     #[test]
     fn programs_are_found_by_file_name_then_by_their_o_line() {
         let l = lib(&[
-            ("pocket.nc", "%\nO2000 (POCKET)\nG1 X1\nM99\nO2001\nM99\n%\n"),
+            (
+                "pocket.nc",
+                "%\nO2000 (POCKET)\nG1 X1\nM99\nO2001\nM99\n%\n",
+            ),
             ("O1000.NC", "G1 X1\nM99\n"),
             ("o00300", "M99\n"),
             ("drill.ngc", "o100 sub\no100 endsub\n"),

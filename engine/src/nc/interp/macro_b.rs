@@ -278,7 +278,14 @@ impl<'p> Interp<'p> {
             return Ok(());
         }
         let saved = self.params.numbered[1..=LOCALS].to_vec();
-        self.call_fanuc_program(call.number, call.unit, call.body, call.repeats, Some(saved), at)?;
+        self.call_fanuc_program(
+            call.number,
+            call.unit,
+            call.body,
+            call.repeats,
+            Some(saved),
+            at,
+        )?;
         for (k, arg) in call.args.iter().enumerate().skip(1) {
             self.params.numbered[k] = arg.unwrap_or_else(vacant);
         }

@@ -34,7 +34,12 @@ impl Interp<'_> {
 
     /// The file (unit) and first block of program `number`'s body: in the running file, else
     /// in the program itself or its library.
-    pub(super) fn resolve_program(&mut self, number: u32, at: usize, what: &str) -> R<(u32, usize)> {
+    pub(super) fn resolve_program(
+        &mut self,
+        number: u32,
+        at: usize,
+        what: &str,
+    ) -> R<(u32, usize)> {
         if let Some(&start) = self.control.programs.get(&number) {
             return Ok((self.unit, start + 1));
         }
@@ -218,12 +223,13 @@ impl Interp<'_> {
             None => frame.return_pc + 1,
             Some(p) => {
                 let n = self.program_number(p, at, "M99")?;
-                self.find_sequence(frame.return_unit, frame.return_pc, n).ok_or_else(|| {
-                    self.err_at(
-                        at,
-                        format!("M99 P{n}: no block N{n} in the calling program"),
-                    )
-                })?
+                self.find_sequence(frame.return_unit, frame.return_pc, n)
+                    .ok_or_else(|| {
+                        self.err_at(
+                            at,
+                            format!("M99 P{n}: no block N{n} in the calling program"),
+                        )
+                    })?
             }
         });
         Ok(())

@@ -24,7 +24,11 @@ pub(super) struct LibUnit<'p> {
 
 /// The library files named by `prog`'s calls with a written program number or subroutine
 /// name, and by theirs in turn.
-pub(super) fn called_files(prog: &ProgramView, library: &ProgramLibrary, fanuc: bool) -> Vec<usize> {
+pub(super) fn called_files(
+    prog: &ProgramView,
+    library: &ProgramLibrary,
+    fanuc: bool,
+) -> Vec<usize> {
     let mut wanted = Vec::new();
     let mut todo = calls_of(prog, library, fanuc);
     while let Some(f) = todo.pop() {
@@ -223,7 +227,11 @@ impl<'p> Interp<'p> {
                 }
             }
         }
-        let Some(file) = self.opts.library.as_deref().and_then(|l| l.find_program(number))
+        let Some(file) = self
+            .opts
+            .library
+            .as_deref()
+            .and_then(|l| l.find_program(number))
         else {
             return Ok(None);
         };
@@ -267,7 +275,11 @@ impl<'p> Interp<'p> {
 
     /// The unit of library file `file`, which must read.
     fn library_unit(&mut self, file: usize, at: usize, what: &str) -> R<u32> {
-        let library = self.opts.library.as_deref().expect("a library file was found");
+        let library = self
+            .opts
+            .library
+            .as_deref()
+            .expect("a library file was found");
         let name = &library.files()[file].name;
         let Some(k) = self.lib.iter().position(|u| u.file == file) else {
             self.missing = Some(file);
