@@ -260,6 +260,11 @@ struct InterpretArgs {
     /// with a warning.
     #[arg(long)]
     strict_m_codes: bool,
+    /// Folder of the programs that calls to programs not in the file run (`M98 P1000`:
+    /// `O1000.nc`; `o<name> call`: `name.ngc`). A library move's row has `source_file`
+    /// (the index into the list printed on stderr) and `source_line`.
+    #[arg(long, value_name = "DIR")]
+    library: Option<std::path::PathBuf>,
 }
 
 fn init_logs(format: LogFormat) {
@@ -542,7 +547,7 @@ fn interpret(args: InterpretArgs) -> ExitCode {
         tool_table,
     };
     // The same options a job gets; only the tool table's errors name its own file.
-    let options = match job_options.engine_options() {
+    let mut options = match job_options.engine_options() {
         Ok(o) => o,
         Err(diags) => {
             let table = args
@@ -556,6 +561,15 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    if let Some(dir) = &args.library {
+        match nc::ProgramLibrary::from_dir(dir) {
+            Ok(l) => options.library = Some(std::sync::Arc::new(l)),
+            Err(e) => {
+                eprintln!("--library {e}");
+                return ExitCode::from(2);
+            }
+        }
+    }
     let result = if validate::looks_like_cls(&text) {
         millsim_engine::cl::read_cls(&text)
     } else {
@@ -563,6 +577,9 @@ fn interpret(args: InterpretArgs) -> ExitCode {
     };
     match result {
         Ok(out) => {
+            for (i, f) in out.library_files.iter().enumerate() {
+                eprintln!("{file}: library file {i}: {f}");
+            }
             for w in &out.warnings {
                 eprintln!("{file}:{w} (warning)");
             }

@@ -35,6 +35,10 @@ pub struct RunArgs {
     /// (`(T1 D=6 CR=0 - flat end mill)`) describe the tools, with a warning per assumption.
     #[arg(long, value_name = "FILE")]
     tool_library: Option<PathBuf>,
+    /// Folder of the programs that calls to programs not in the file run (`M98 P1000`:
+    /// `O1000.nc`; `o<name> call`: `name.ngc`).
+    #[arg(long, value_name = "DIR")]
+    library: Option<PathBuf>,
     /// A built-in material name (TC6, Al7075-T6, Al6082-T6) or a material JSON file.
     #[arg(long)]
     material: String,
@@ -171,6 +175,20 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
     };
     inputs.insert("stock".into(), stock);
+    if let Some(dir) = &args.library {
+        let library = millsim_engine::nc::ProgramLibrary::from_dir(dir)
+            .map_err(|e| format!("--library {e}"))?;
+        for f in library.files() {
+            inputs.insert(
+                format!("library/{}", f.name),
+                LoadedInput {
+                    file_name: Some(f.name.clone()),
+                    media_type: "text/plain".into(),
+                    content: f.text.clone().into_bytes(),
+                },
+            );
+        }
+    }
     for spec in &args.tool {
         // `T3=file.json` is the tool of T3; a bare file serves every tool number.
         let (name, path) = match spec.split_once('=') {

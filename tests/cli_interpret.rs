@@ -200,3 +200,55 @@ fn post_writes_one_program_per_operation_that_re_interprets_to_the_cls_points() 
     }
     assert!(!out_dir.join("part.op3.nc").exists());
 }
+
+/// `--library DIR`: `M98 P1000` runs `DIR/O1000.nc`; its moves are on the call's line with
+/// their own file and line; without the folder the call is an error naming the program.
+#[test]
+fn library_folder_runs_called_programs() {
+    let dir = std::env::temp_dir().join(format!("millsim-cli-lib-{}", std::process::id()));
+    let lib = dir.join("lib");
+    std::fs::create_dir_all(&lib).unwrap();
+    std::fs::write(
+        lib.join("O1000.nc"),
+        "%\nO1000\nG91 G1 X10 F500\nY10\nG90\nM99\n%\n",
+    )
+    .unwrap();
+    // Not a program: left out of the library.
+    std::fs::write(lib.join("part.stl"), [0u8, 159, 146, 150]).unwrap();
+    let main = dir.join("main.nc");
+    std::fs::write(&main, "O0001\nG0 X0 Y0 Z1\nM98 P1000 L2\nM30\n").unwrap();
+    let moves = interpret_moves(&main, &["--library", lib.to_str().unwrap()]);
+    let ends: Vec<(f64, f64)> = moves
+        .iter()
+        .map(|m| (m["end"][0].as_f64().unwrap(), m["end"][1].as_f64().unwrap()))
+        .collect();
+    assert_eq!(
+        ends,
+        [
+            (0.0, 0.0),
+            (10.0, 0.0),
+            (10.0, 10.0),
+            (20.0, 10.0),
+            (20.0, 20.0)
+        ]
+    );
+    assert!(moves[0].get("source_file").is_none());
+    for (m, line) in moves[1..].iter().zip([3, 4, 3, 4]) {
+        assert_eq!(m["line"], 3);
+        assert_eq!(m["source_file"], 0);
+        assert_eq!(m["source_line"], line);
+    }
+    let out = Command::new(BIN)
+        .arg("interpret")
+        .arg(&main)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(
+            "main.nc:3:1: M98 P1000: program O1000 is not in this file nor in its program library"
+        ),
+        "{stderr}"
+    );
+}

@@ -8,7 +8,7 @@
 mod common;
 
 use millsim_engine::nc::{
-    interpret, parse_tool_table, Expr, InterpretOptions, Move, MoveKind, Program,
+    interpret, parse_tool_table, Expr, InterpretOptions, Move, MoveKind, Program, ProgramLibrary,
 };
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -86,6 +86,15 @@ struct Canon {
 
 /// LinuxCNC's motions, in the machine frame (mm, deg), or its error (line).
 fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, String> {
+    linuxcnc_in(program, tool_table, None)
+}
+
+/// [`linuxcnc`] run in folder `cwd`, where LinuxCNC looks for subroutine files (`name.ngc`).
+fn linuxcnc_in(
+    program: &Path,
+    tool_table: Option<&Path>,
+    cwd: Option<&Path>,
+) -> Result<Vec<Canon>, String> {
     let dir = std::env::temp_dir().join(format!("millsim-lcnc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
@@ -96,6 +105,9 @@ fn linuxcnc(program: &Path, tool_table: Option<&Path>) -> Result<Vec<Canon>, Str
     std::fs::write(&var, "").unwrap();
     let mut cmd = Command::new(PYTHON);
     cmd.arg(&script).arg(program).arg(&var);
+    if let Some(cwd) = cwd {
+        cmd.current_dir(cwd);
+    }
     if let Some(t) = tool_table {
         cmd.arg(t);
     }
@@ -1259,4 +1271,74 @@ fn o_word_keywords_written_with_blanks_match_linuxcnc() {
     compare(&ours.moves, &theirs, 1e-6).unwrap();
     assert_eq!(theirs.len(), 4);
     assert_eq!(Program::parse(src).unwrap().to_string(), src);
+}
+
+/// Subroutines in files of their own (LinuxCNC reads `o<name> call` from `name.ngc` and
+/// `o100 call` from `100.ngc` on its subroutine path; here the library folder): nested calls
+/// between files, arguments, a loop and a return inside a library file, an arc. Identical to
+/// LinuxCNC run in that folder, each move at its own file's line. (A tool change before
+/// a call to a subroutine file, and so compensation there, crashes LinuxCNC 2.9's `gcode`
+/// module: neither is compared here.)
+#[test]
+fn library_subroutines_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("millsim-lcnc-lib-{}", std::process::id()));
+    let lib = dir.join("lib");
+    std::fs::create_dir_all(&lib).unwrap();
+    let files = [
+        (
+            "face.ngc",
+            "o<face> sub\n(#1 width, #2 passes)\n#3 = 0\no1 while [#3 LT #2]\n  G1 Y[#3 * 2] F300\n  o<pass> call [#1]\n  #3 = [#3 + 1]\no1 endwhile\no<face> endsub\nM2\n",
+        ),
+        (
+            "pass.ngc",
+            "o<pass> sub\no2 if [#1 LE 0]\n  o<pass> return\no2 endif\nG91 G1 X#1\nG90\no<pass> endsub\nM2\n",
+        ),
+        (
+            "100.ngc",
+            "o100 sub\nG1 X20 Y20 F200\nG1 X40\nG3 X50 Y30 R10\nG1 Y50\no100 endsub\nM2\n",
+        ),
+    ];
+    for (name, text) in files {
+        std::fs::write(lib.join(name), text).unwrap();
+    }
+    let main = "G21 G90 G17\nG0 X0 Y0 Z1\no<face> call [15] [3]\nG0 Z5\no<pass> call [-1]\no100 call\nG0 X0 Y0\nM2\n";
+    let path = dir.join("main.ngc");
+    std::fs::write(&path, main).unwrap();
+    let theirs = linuxcnc_in(&path, None, Some(&lib)).unwrap();
+    let opts = InterpretOptions {
+        library: Some(std::sync::Arc::new(ProgramLibrary::from_dir(&lib).unwrap())),
+        ..Default::default()
+    };
+    let ours = interpret(main, &opts).unwrap();
+    // LinuxCNC numbers a library move by its own file's line.
+    let at_own_line: Vec<Move> = ours
+        .moves
+        .iter()
+        .map(|m| {
+            let mut m = m.clone();
+            m.line = m.source.map_or(m.line, |s| s.line);
+            m
+        })
+        .collect();
+    compare(&at_own_line, &theirs, 1e-6).unwrap();
+    // G0, 3 passes of 2 moves, G0 Z5, 4 moves of o100, G0.
+    assert_eq!(theirs.len(), 13, "{theirs:?}");
+    // Each library move is attributed to its call in the program.
+    let names = &ours.library_files;
+    for m in ours.moves.iter().filter(|m| m.source.is_some()) {
+        let s = m.source.unwrap();
+        let expected_call = match names[s.file as usize].as_str() {
+            "100.ngc" => 6,
+            _ => 3,
+        };
+        assert_eq!(m.line, expected_call, "{m:?}");
+        assert_eq!(m.block, expected_call as usize - 1);
+    }
+    let mut used = names.clone();
+    used.sort();
+    assert_eq!(used, ["100.ngc", "face.ngc", "pass.ngc"]);
 }

@@ -249,7 +249,7 @@ pub async fn create(
     job_kind.check(request.inputs.keys(), &options)?;
     let inline_program = inline
         .iter()
-        .find(|i| i.kind == ResourceKind::Program)
+        .find(|i| i.input == "program")
         .map(|i| i.content.len() as u64);
     check_memory_budget(
         &state,

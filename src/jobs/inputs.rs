@@ -73,6 +73,36 @@ pub fn check_material(name: Option<&str>, has_material_input: bool) -> Result<()
     }
 }
 
+/// The file name of a program library input (`library/O1000.nc`).
+pub fn library_file_name(input: &str) -> Option<&str> {
+    input
+        .strip_prefix("library/")
+        .filter(|n| !n.is_empty() && !n.contains('/') && n.len() <= 255)
+}
+
+/// The program library the job's `library/<file name>` inputs make (None without any).
+pub fn program_library(
+    inputs: &mut LoadedInputs,
+) -> Result<Option<std::sync::Arc<nc::ProgramLibrary>>, JobFailure> {
+    let names: Vec<String> = inputs
+        .keys()
+        .filter(|k| library_file_name(k).is_some())
+        .cloned()
+        .collect();
+    if names.is_empty() {
+        return Ok(None);
+    }
+    let mut files = Vec::with_capacity(names.len());
+    for name in names {
+        let input = inputs.remove(&name).expect("listed above");
+        let file = library_file_name(&name).expect("filtered").to_string();
+        let text = String::from_utf8(input.content)
+            .map_err(|_| invalid("Program is not text", format!("{name} is not UTF-8")))?;
+        files.push(nc::LibraryFile { name: file, text });
+    }
+    Ok(Some(std::sync::Arc::new(nc::ProgramLibrary::new(files))))
+}
+
 /// The program input as (file name, text).
 pub fn program_text(inputs: &mut LoadedInputs) -> Result<(String, String), JobFailure> {
     let p = inputs

@@ -85,6 +85,7 @@ pub fn run(
         .engine_options()
         .map_err(|d| JobFailure::Invalid(Problem::program_failed("tool_table", &d)))?;
     engine_opts.cancel = Some(cancel.clone());
+    engine_opts.library = super::inputs::program_library(&mut inputs)?;
     let result = if crate::validate::looks_like_cls(&text) {
         millsim_engine::cl::read_cls(&text)
     } else {
@@ -116,13 +117,14 @@ pub fn run(
         }
     }
     progress.report(total, total);
+    // Rows of library moves carry `source_file`, an index into `library_files`.
     let warnings: Vec<Value> = result
         .warnings
         .iter()
         .map(|w| json!({"line": w.line, "column": w.col, "message": w.message}))
         .collect();
     Ok(JobOutput::rows(
-        json!({ "file": file, "moves": result.moves.len(), "blocks": result.block_count, "warnings": warnings, "row_columns": columns }),
+        json!({ "file": file, "moves": result.moves.len(), "blocks": result.block_count, "warnings": warnings, "row_columns": columns, "library_files": result.library_files }),
         rows,
     ))
 }

@@ -106,6 +106,28 @@ impl JobKind {
         }
     }
 
+    /// For `interpret`, `simulate` and `optimize`: an input named `library/<file name>` is a
+    /// program of the program library, which calls to programs not in the job's program
+    /// run (`M98 P1000` runs `library/O1000.nc`; see `nc::ProgramLibrary`).
+    pub fn library_input(self, name: &str) -> bool {
+        matches!(
+            self,
+            JobKind::Interpret | JobKind::Simulate | JobKind::Optimize
+        ) && inputs::library_file_name(name).is_some()
+    }
+
+    /// An input a request names beyond the kind's fixed ones: a per-number tool or a
+    /// library program, with its resource kind.
+    pub fn named_input(self, name: &str) -> Option<ResourceKind> {
+        if self.tool_number_input(name).is_some() {
+            Some(ResourceKind::Tool)
+        } else if self.library_input(name) {
+            Some(ResourceKind::Program)
+        } else {
+            None
+        }
+    }
+
     /// The inputs a request names, each with its resource kind and whether it must be
     /// given: the kind's fixed inputs, then any per-number tools. An input the kind does
     /// not take is refused, naming it.
@@ -115,7 +137,7 @@ impl JobKind {
     ) -> Result<Vec<(&'a str, ResourceKind, bool)>, Problem> {
         let specs = self.inputs();
         for name in given.clone() {
-            if !specs.iter().any(|s| s.name == name) && self.tool_number_input(name).is_none() {
+            if !specs.iter().any(|s| s.name == name) && self.named_input(name).is_none() {
                 return Err(Problem::invalid_field(
                     format!("inputs.{name}"),
                     format!("a `{}` job takes no input `{name}`", self.as_str()),
@@ -124,11 +146,7 @@ impl JobKind {
         }
         let mut wanted: Vec<(&str, ResourceKind, bool)> =
             specs.iter().map(|s| (s.name, s.kind, s.required)).collect();
-        wanted.extend(
-            given
-                .filter(|n| self.tool_number_input(n).is_some())
-                .map(|n| (n.as_str(), ResourceKind::Tool, true)),
-        );
+        wanted.extend(given.filter_map(|n| self.named_input(n).map(|k| (n.as_str(), k, true))));
         Ok(wanted)
     }
 

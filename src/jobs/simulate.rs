@@ -281,6 +281,7 @@ pub fn run(
         passthrough_m_codes: opts.passthrough_m_codes.clone(),
         strict_m_codes: opts.strict_m_codes,
         cancel: Some(cancel.clone()),
+        library: super::inputs::program_library(&mut inputs)?,
         ..Default::default()
     };
     // Travel and memory budget, before the pipeline allocates anything.

@@ -139,8 +139,7 @@ impl Worker {
             wanted.extend(
                 given
                     .keys()
-                    .filter(|n| kind.tool_number_input(n).is_some())
-                    .map(|n| (n.clone(), ResourceKind::Tool)),
+                    .filter_map(|n| kind.named_input(n).map(|k| (n.clone(), k))),
             );
         }
         for (name, kind) in wanted {

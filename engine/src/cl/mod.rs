@@ -120,6 +120,7 @@ pub fn read_cls(source: &str) -> Result<Interpretation, Diagnostics> {
             warnings: r.warnings,
             block_count: lines.len(),
             selected_tools: Vec::new(),
+            library_files: Vec::new(),
         })
     } else {
         Err(Diagnostics(errors))
@@ -175,6 +176,7 @@ impl Reader {
             start: p6(self.pos),
             spindle_dir: self.spindle_dir,
             arc: None,
+            source: None,
         }
     }
 

@@ -54,8 +54,13 @@
 //! * Fanuc `H` without G43 (`G53 Z0 H0`): the active length compensation takes offset H (H0:
 //!   zero).
 //!
+//! * A program library ([`ProgramLibrary`], `InterpretOptions::library`): calls to programs
+//!   not in the file (Fanuc M98/G65/G66, LinuxCNC `o<name> call` to `name.ngc`) run the
+//!   library's files; see `library.rs` and `interp/units.rs`. Checked against LinuxCNC run in
+//!   the library folder.
+//!
 //! Refused with an error: cutter radius compensation in G19, G33, G76, G7/G8, U V W
-//! axes, external subroutine files and calls to programs not in the file, G66.1, M60,
+//! axes, calls to programs neither in the file nor in the library, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
 
@@ -63,6 +68,7 @@ mod arc;
 mod expr;
 mod interp;
 mod lexer;
+mod library;
 mod parser;
 mod program;
 mod tooltable;
@@ -70,6 +76,7 @@ mod view;
 
 pub use arc::{sample_arc, ArcGeometry};
 pub use interp::interpret_program;
+pub use library::{LibraryFile, ProgramLibrary};
 pub(crate) use program::format_feed;
 pub use program::{
     Assignment, Block, Comment, Expr, MacroLine, MacroStatement, OKeyword, OName, OWord, ParamRef,
@@ -130,6 +137,9 @@ pub struct InterpretOptions {
     /// error (the caller, who set it, knows it was a cancel). A runaway loop is thus
     /// stopped at once, not at the move cap.
     pub cancel: Option<crate::job::CancelFlag>,
+    /// Programs that calls to programs not in the file run (`M98`, `G65`, `G66`, LinuxCNC
+    /// `o<name> call`); see [`ProgramLibrary`]. Shared, as options are cloned per job stage.
+    pub library: Option<std::sync::Arc<ProgramLibrary>>,
 }
 
 impl Default for InterpretOptions {
@@ -147,6 +157,7 @@ impl Default for InterpretOptions {
             spline_tolerance: 1e-3,
             block_delete: false,
             cancel: None,
+            library: None,
         }
     }
 }
@@ -266,6 +277,23 @@ pub struct Move {
     /// Full arc geometry (arcs only).
     #[serde(skip)]
     pub arc: Option<Box<ArcGeometry>>,
+    /// Set when the move's block is in a library program: that file and line. `block` and
+    /// `line` are then those of the call in the program itself (the outermost call), so
+    /// per-block figures stay on the program's own blocks. Serialized flat, as
+    /// `source_file` and `source_line` (a CSV row has a column for each).
+    #[serde(flatten)]
+    pub source: Option<MoveSource>,
+}
+
+/// Where a move from a library program comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct MoveSource {
+    /// Index into [`Interpretation::library_files`].
+    #[serde(rename = "source_file")]
+    pub file: u32,
+    /// 1-based line in that file.
+    #[serde(rename = "source_line")]
+    pub line: u32,
 }
 
 impl Move {
@@ -292,6 +320,8 @@ pub struct Interpretation {
     /// Every T number a T word selects, with the line of its first selection, in program
     /// order: a program that selects a tool but never loads it (no M6) is cut with it.
     pub selected_tools: Vec<(u32, u32)>,
+    /// The library files the program called, as [`MoveSource::file`] indexes them.
+    pub library_files: Vec<String>,
 }
 
 /// Parse and interpret a program. Same result as [`Program::parse`] then

@@ -110,6 +110,15 @@ pub fn rewrite_program(
     schedule: &FeedSchedule,
     options: &RewriteOptions,
 ) -> Result<Rewrite, Diagnostics> {
+    // Moves of a library program are set by F words in another file, which is not rewritten.
+    if let Some(m) = moves.iter().find(|m| m.source.is_some()) {
+        return Err(crate::nc::Diagnostic::new(
+            m.line,
+            1,
+            "this block runs a program of the program library (another file): the optimizer rewrites the F words of this program only, so a program whose calls run library programs is simulated but not optimized",
+        )
+        .into());
+    }
     let blocks = program.blocks();
     let nb = blocks.len();
     let (factor, _) = units_and_distance_mode(blocks);

@@ -123,7 +123,7 @@ impl<'p> Interp<'p> {
             }
             self.selected_tool = Some(t as u32);
             if !self.selected_tools.iter().any(|&(n, _)| n == t as u32) {
-                self.selected_tools.push((t as u32, self.cur_line));
+                self.selected_tools.push((t as u32, self.program_line()));
             }
         }
         // 8-10 act on M codes only; most CAM blocks have none.

@@ -10,6 +10,8 @@ use std::collections::HashMap;
 
 pub(super) struct Frame {
     pub(super) return_pc: usize,
+    /// The file of `return_pc` (see `units.rs`).
+    pub(super) return_unit: u32,
     pub(super) saved: Vec<f64>,
     pub(super) sub: OName,
     /// M73: modal state to restore when the call returns.
@@ -466,14 +468,20 @@ impl Interp<'_> {
                         self.params.globals.insert("_value_returned".into(), 0.0);
                     }
                 }
+                if frame.return_unit != self.unit {
+                    self.next_unit = Some(frame.return_unit);
+                }
                 frame.return_pc + 1
             }
             Link::Call => {
-                let Some(&start) = control.subs.get(&o.name) else {
-                    return Err(self.err_at(
-                        o.span.start,
-                        format!("subroutine {} is not defined in this program (external subroutine files are not supported)", o.name),
-                    ));
+                let (unit, start) = match control.subs.get(&o.name) {
+                    Some(&start) => (self.unit, start),
+                    None => self.sub_elsewhere(&o.name, o.span.start)?.ok_or_else(|| {
+                        self.err_at(
+                            o.span.start,
+                            format!("subroutine {} is not defined in this program nor in its library (a file {}.ngc)", o.name, match &o.name { OName::Number(n) => n.to_string(), OName::Named(s) => s.clone() }),
+                        )
+                    })?,
                 };
                 if self.frames.len() >= MAX_CALL_DEPTH {
                     return Err(self.err_at(
@@ -495,12 +503,16 @@ impl Interp<'_> {
                 self.params.locals.push(HashMap::new());
                 self.frames.push(Frame {
                     return_pc: pc,
+                    return_unit: self.unit,
                     saved,
                     sub: o.name.clone(),
                     auto_restore: None,
                     fanuc: None,
                 });
                 self.params.globals.insert("_value_returned".into(), 0.0);
+                if unit != self.unit {
+                    self.next_unit = Some(unit);
+                }
                 start + 1
             }
             Link::While { end } => {

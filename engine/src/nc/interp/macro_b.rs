@@ -134,7 +134,7 @@ impl<'p> Interp<'p> {
             ));
         }
         let n = v as u32;
-        let to = self.find_sequence(pc, n).ok_or_else(|| {
+        let to = self.find_sequence(self.unit, pc, n).ok_or_else(|| {
             self.err_at(
                 at,
                 format!("GOTO {n}: no block N{n} in this program (sequence search failed)"),
@@ -262,9 +262,10 @@ impl<'p> Interp<'p> {
             ));
         }
         let number = self.program_number(p, at, what)?;
-        let body = self.resolve_program(number, at, what)?;
+        let (unit, body) = self.resolve_program(number, at, what)?;
         Ok(MacroCall {
             number,
+            unit,
             body,
             repeats: repeats as u32,
             args,
@@ -277,7 +278,14 @@ impl<'p> Interp<'p> {
             return Ok(());
         }
         let saved = self.params.numbered[1..=LOCALS].to_vec();
-        self.call_fanuc_program(call.number, call.body, call.repeats, Some(saved), at)?;
+        self.call_fanuc_program(
+            call.number,
+            call.unit,
+            call.body,
+            call.repeats,
+            Some(saved),
+            at,
+        )?;
         for (k, arg) in call.args.iter().enumerate().skip(1) {
             self.params.numbered[k] = arg.unwrap_or_else(vacant);
         }
@@ -289,6 +297,8 @@ impl<'p> Interp<'p> {
 #[derive(Clone, Debug)]
 pub(super) struct MacroCall {
     number: u32,
+    /// The file of `body` (see `units.rs`).
+    unit: u32,
     body: usize,
     repeats: u32,
     args: [Option<f64>; LOCALS + 1],

@@ -26,6 +26,7 @@ mod polar;
 mod splines;
 mod subprograms;
 mod transforms;
+mod units;
 mod words;
 
 use control::{prescan, ControlMap, Frame};
@@ -45,9 +46,25 @@ const MAX_CALL_DEPTH: usize = 64;
 const MAX_ARC_TURNS: f64 = 10_000.0;
 
 struct Interp<'p> {
+    /// The file being run: the program itself or a library file (`unit`).
     prog: &'p ProgramView<'p>,
     /// Control structure links, subroutines and Fanuc programs of `prog`.
     control: &'p ControlMap,
+    /// The program itself and its links (unit 0).
+    main: &'p ProgramView<'p>,
+    main_control: &'p ControlMap,
+    /// Library files loaded for this run: unit k is `lib[k - 1]`.
+    lib: &'p [units::LibUnit<'p>],
+    /// Which file runs (0: the program itself), and the one to run from the next block on
+    /// (a call into or a return from another file).
+    unit: u32,
+    next_unit: Option<u32>,
+    /// While a library file runs: the block and line of the outermost call in the program,
+    /// to which its moves are attributed.
+    site: Option<(usize, u32)>,
+    /// A library file that a call needs and this run did not load (the run is made again
+    /// with it).
+    missing: Option<usize>,
     opts: &'p InterpretOptions,
     fanuc: bool,
     corners_without_comma: bool,
@@ -135,7 +152,7 @@ struct Interp<'p> {
     main_program: Option<usize>,
     /// Sequence numbers (N) of each Fanuc program searched so far, by the program's first
     /// block: number -> block.
-    sequences: HashMap<usize, HashMap<u32, usize>>,
+    sequences: HashMap<(u32, usize), HashMap<u32, usize>>,
     /// The last jump backwards (line, what), named when a runaway loop is stopped.
     last_jump: Option<(u32, &'static str)>,
     /// Storage for the next block's G and M lists.
@@ -163,9 +180,49 @@ pub(crate) fn interpret_view(
         Dialect::LinuxCnc => false,
         Dialect::Auto => detect_fanuc(prog),
     };
+    let Some(library) = options.library.as_deref().filter(|l| !l.is_empty()) else {
+        return run_units(prog, &control, &[], fanuc, options).map_err(|(d, _)| d);
+    };
+    // The library files the program's calls name, loaded before the run; a call computed
+    // at run time to a file not loaded makes the run start again with it (rare, and
+    // interpretation is fast).
+    let mut wanted = units::called_files(prog, library, fanuc);
+    loop {
+        let parsed = units::parse_files(library, &wanted);
+        let lib = units::load(library, &wanted, &parsed);
+        match run_units(prog, &control, &lib, fanuc, options) {
+            Err((_, Some(file))) if !wanted.contains(&file) => {
+                wanted.push(file);
+                for f in units::called_files_of(library, file, fanuc) {
+                    if !wanted.contains(&f) {
+                        wanted.push(f);
+                    }
+                }
+            }
+            r => return r.map_err(|(d, _)| d),
+        }
+    }
+}
+
+/// One run over the program, with `lib` the library files loaded. On error, also the
+/// library file a call needed that `lib` does not hold.
+fn run_units(
+    prog: &ProgramView,
+    control: &ControlMap,
+    lib: &[units::LibUnit],
+    fanuc: bool,
+    options: &InterpretOptions,
+) -> Result<Interpretation, (Diagnostics, Option<usize>)> {
     let mut it = Interp {
         prog,
-        control: &control,
+        control,
+        main: prog,
+        main_control: control,
+        lib,
+        unit: 0,
+        next_unit: None,
+        site: None,
+        missing: None,
         opts: options,
         fanuc,
         corners_without_comma: options.fanuc_corners_without_comma,
@@ -249,8 +306,9 @@ pub(crate) fn interpret_view(
             warnings: it.warnings,
             block_count: prog.len(),
             selected_tools: it.selected_tools,
+            library_files: lib.iter().map(|u| u.name.to_string()).collect(),
         }),
-        Err(d) => Err(Diagnostics(vec![d])),
+        Err(d) => Err((Diagnostics(vec![d]), it.missing)),
     }
 }
 
@@ -270,14 +328,21 @@ impl Interp<'_> {
         }
     }
 
+    /// A diagnostic at a byte of the running file. In a library file it is placed at the call
+    /// in the program, naming the file, line and column.
     fn err_at(&self, byte: usize, msg: impl Into<String>) -> Diagnostic {
-        self.prog.diag(byte, msg)
+        let d = self.prog.diag(byte, msg);
+        if self.unit == 0 {
+            d
+        } else {
+            self.in_library(d)
+        }
     }
 
     /// Error at the start of the current block.
     fn err_block(&self, msg: impl Into<String>) -> Diagnostic {
         let b = self.prog.block(self.cur_block);
-        self.prog.diag(b.span.start, msg)
+        self.err_at(b.span.start, msg)
     }
 
     fn word_pos(&self, idx: usize) -> usize {
@@ -301,7 +366,7 @@ impl Interp<'_> {
     }
 
     fn base_move(&self, kind: MoveKind, start: [f64; 6], end: [f64; 6]) -> Move {
-        Move {
+        let mut m = Move {
             block: self.cur_block,
             line: self.cur_line,
             kind,
@@ -319,7 +384,13 @@ impl Interp<'_> {
             start,
             spindle_dir: self.modal.spindle,
             arc: None,
+            source: None,
+        };
+        // One return path, so the move is built in place (it is large).
+        if self.unit != 0 {
+            self.attribute(&mut m);
         }
+        m
     }
 
     /// Adds a move; with cutter compensation waiting on a move, after it (in order).
@@ -401,13 +472,11 @@ impl Interp<'_> {
     // ----- main loop -----
 
     fn run(&mut self) -> R<()> {
-        let prog = self.prog;
-        let control = self.control;
         let mut pc = 0usize;
         let mut steps = 0usize;
-        while pc < prog.len() && !self.ended {
+        while pc < self.prog.len() && !self.ended {
             steps += 1;
-            let b = prog.block(pc);
+            let b = self.prog.block(pc);
             self.cur_block = pc;
             self.cur_line = b.line;
             if steps.is_multiple_of(CANCEL_CHECK_BLOCKS)
@@ -433,20 +502,26 @@ impl Interp<'_> {
                 continue;
             }
             if let Some(o) = &b.o_word {
-                pc = self.exec_oword(control, pc, o)?;
-                continue;
-            }
-            if let Some(m) = b.macro_line {
+                pc = self.exec_oword(self.control, pc, o)?;
+            } else if let Some(m) = b.macro_line {
                 pc = self.exec_macro(pc, &b, m)?;
-                continue;
+            } else {
+                if !b.is_empty() {
+                    self.exec_block(pc, &b)?;
+                }
+                pc = match self.jump.take() {
+                    Some(to) => to,
+                    None => pc + 1,
+                };
             }
-            if !b.is_empty() {
-                self.exec_block(pc, &b)?;
+            if let Some(u) = self.next_unit.take() {
+                self.enter_unit(u)?;
             }
-            pc = match self.jump.take() {
-                Some(to) => to,
-                None => pc + 1,
-            };
+        }
+        if self.unit != 0 && !self.ended {
+            return Err(self.err_block(
+                "the library program ends without M99 (or endsub) returning to its caller",
+            ));
         }
         self.comp_finish()?;
         if let Some(pc) = &self.pending_corner {

@@ -10,7 +10,8 @@
 //!   operator or a counter); here it ends the program, with a warning.
 //! * The main program is the first one run; reaching the `O` line of another program ends it
 //!   (with a warning); a subprogram that runs into another program's `O` line has no M99.
-//! * A call to a program that is not in the file is an error naming it.
+//! * A program not in the file is looked for in the program library (`units.rs`); a call to a
+//!   program in neither is an error naming it.
 
 use super::control::{FanucCall, Frame};
 use super::words::Words;
@@ -31,33 +32,43 @@ impl Interp<'_> {
         Ok(p as u32)
     }
 
-    /// The first block of program `number`'s body. The one place a program library (other
-    /// uploaded programs, a folder) would be searched; today only this file is.
-    pub(super) fn resolve_program(&self, number: u32, at: usize, what: &str) -> R<usize> {
-        match self.control.programs.get(&number) {
-            Some(&start) => Ok(start + 1),
+    /// The file (unit) and first block of program `number`'s body: in the running file, else
+    /// in the program itself or its library.
+    pub(super) fn resolve_program(
+        &mut self,
+        number: u32,
+        at: usize,
+        what: &str,
+    ) -> R<(u32, usize)> {
+        if let Some(&start) = self.control.programs.get(&number) {
+            return Ok((self.unit, start + 1));
+        }
+        match self.program_elsewhere(number, at, what)? {
+            Some(found) => Ok(found),
             None => Err(self.err_at(
                 at,
-                format!("{what}: program O{number} is not in this file (calls to other files are not supported yet)"),
+                format!("{what}: program O{number} is not in this file nor in its program library"),
             )),
         }
     }
 
-    /// The blocks of the Fanuc program containing block `pc`: from its `O` line (or the start
-    /// of the file) to the next `O` line.
-    fn program_range(&self, pc: usize) -> (usize, usize) {
-        let starts = &self.control.program_starts;
+    /// The blocks of the Fanuc program containing block `pc` of unit `unit`: from its `O`
+    /// line (or the start of the file) to the next `O` line.
+    fn program_range(&self, unit: u32, pc: usize) -> (usize, usize) {
+        let (prog, control) = self.unit_files(unit);
+        let starts = &control.program_starts;
         let k = starts.partition_point(|&s| s <= pc);
         let start = if k == 0 { 0 } else { starts[k - 1] };
-        let end = starts.get(k).copied().unwrap_or(self.prog.len());
+        let end = starts.get(k).copied().unwrap_or(prog.len());
         (start, end)
     }
 
-    /// The block numbered `Nn` in the program containing `pc` (the first such block).
-    pub(super) fn find_sequence(&mut self, pc: usize, n: u32) -> Option<usize> {
-        let (start, end) = self.program_range(pc);
-        let prog = self.prog;
-        let map = self.sequences.entry(start).or_insert_with(|| {
+    /// The block numbered `Nn` in the program containing block `pc` of unit `unit` (the
+    /// first such block).
+    pub(super) fn find_sequence(&mut self, unit: u32, pc: usize, n: u32) -> Option<usize> {
+        let (start, end) = self.program_range(unit, pc);
+        let prog = self.unit_files(unit).0;
+        let map = self.sequences.entry((unit, start)).or_insert_with(|| {
             let mut m = HashMap::new();
             for i in start..end {
                 if let Some(n) = prog.sequence_number(i) {
@@ -81,7 +92,7 @@ impl Interp<'_> {
                 format!(
                     "program O{} (called on line {}) runs into {} without M99",
                     f.sub.number(),
-                    self.prog.block(f.return_pc).line,
+                    self.unit_files(f.return_unit).0.block(f.return_pc).line,
                     o.name.to_string().to_uppercase()
                 ),
             ));
@@ -118,20 +129,33 @@ impl Interp<'_> {
             Some(l) => l as u32,
             None => 1,
         };
-        if l.is_none() && number > 9999 && !self.control.programs.contains_key(&number) {
+        if l.is_none() && number > 9999 && !self.program_exists(number) {
             repeats = number / 10_000;
             number %= 10_000;
         }
-        let body = self.resolve_program(number, at, &format!("M98 P{p}"))?;
-        self.call_fanuc_program(number, body, repeats, None, at)
+        let (unit, body) = self.resolve_program(number, at, &format!("M98 P{p}"))?;
+        self.call_fanuc_program(number, unit, body, repeats, None, at)
     }
 
-    /// Runs program `number` (first block `body`) `repeats` times from the next block on,
+    /// Whether program `number` is in the running file, the program or its library.
+    fn program_exists(&self, number: u32) -> bool {
+        self.control.programs.contains_key(&number)
+            || self.main_control.programs.contains_key(&number)
+            || self
+                .opts
+                .library
+                .as_deref()
+                .is_some_and(|l| l.find_program(number).is_some())
+    }
+
+    /// Runs program `number` (first block `body` of unit `unit`) `repeats` times from the
+    /// next block on,
     /// then returns after the current block (M98, G65, G66). `locals`: the caller's local
     /// variables to restore on return (a macro call's new level).
     pub(super) fn call_fanuc_program(
         &mut self,
         number: u32,
+        unit: u32,
         body: usize,
         repeats: u32,
         locals: Option<Vec<f64>>,
@@ -145,6 +169,7 @@ impl Interp<'_> {
         }
         self.frames.push(Frame {
             return_pc: self.cur_block,
+            return_unit: self.unit,
             saved: Vec::new(),
             sub: OName::Number(number),
             auto_restore: None,
@@ -155,6 +180,9 @@ impl Interp<'_> {
             }),
         });
         self.jump = Some(body);
+        if unit != self.unit {
+            self.next_unit = Some(unit);
+        }
         Ok(())
     }
 
@@ -188,16 +216,20 @@ impl Interp<'_> {
         if let Some(locals) = frame.fanuc.and_then(|c| c.locals) {
             self.params.numbered[1..=locals.len()].copy_from_slice(&locals);
         }
+        if frame.return_unit != self.unit {
+            self.next_unit = Some(frame.return_unit);
+        }
         self.jump = Some(match p {
             None => frame.return_pc + 1,
             Some(p) => {
                 let n = self.program_number(p, at, "M99")?;
-                self.find_sequence(frame.return_pc, n).ok_or_else(|| {
-                    self.err_at(
-                        at,
-                        format!("M99 P{n}: no block N{n} in the calling program"),
-                    )
-                })?
+                self.find_sequence(frame.return_unit, frame.return_pc, n)
+                    .ok_or_else(|| {
+                        self.err_at(
+                            at,
+                            format!("M99 P{n}: no block N{n} in the calling program"),
+                        )
+                    })?
             }
         });
         Ok(())
