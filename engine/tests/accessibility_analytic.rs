@@ -50,17 +50,32 @@ fn a_hole_drilled_25_degrees_off_z_gives_its_axis_and_diameter() {
         r.tool_diameter_mm
     );
     // In fact far better than 0.5 %: the exact fit is refined.
-    assert!((r.tool_diameter_mm - expected).abs() < 0.02, "{}", r.tool_diameter_mm);
+    assert!(
+        (r.tool_diameter_mm - expected).abs() < 0.02,
+        "{}",
+        r.tool_diameter_mm
+    );
     let c = r.center.unwrap();
     let on_axis = down(top, d, 40.0);
-    let miss = (0..3).map(|k| (c[k] - on_axis[k]).powi(2)).sum::<f64>().sqrt();
+    let miss = (0..3)
+        .map(|k| (c[k] - on_axis[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
     assert!(miss < 0.1, "centre {c:?}");
     // The free region is the hole's disk: π·(R − 0)² to the raster.
     let disk = std::f64::consts::PI * 100.0;
-    assert!((r.free_area_mm2 - disk).abs() / disk < 0.02, "{}", r.free_area_mm2);
+    assert!(
+        (r.free_area_mm2 - disk).abs() / disk < 0.02,
+        "{}",
+        r.free_area_mm2
+    );
     // Depth along the axis below the entry (3 mm off the hole's axis on the tilted top).
     let reach: f64 = (0..3).map(|k| (entry[k] - target[k]) * d[k]).sum();
-    assert!((r.reach_mm - reach).abs() < 0.01, "{} vs {reach}", r.reach_mm);
+    assert!(
+        (r.reach_mm - reach).abs() < 0.01,
+        "{} vs {reach}",
+        r.reach_mm
+    );
     assert!(!r.open);
 }
 
@@ -104,17 +119,37 @@ fn a_stepped_hole_reached_past_its_step_gives_the_small_diameter_and_the_holder_
     let mut request = AccessRequest::new(top, target);
     request.stickout = Some(12.0);
     request.holder = holder(24.0);
-    let r = analyze(&mesh, &request, &CancelFlag::new()).unwrap().target().clone();
-    assert!((r.tool_diameter_mm - expected).abs() / 16.0 < 0.005, "{}", r.tool_diameter_mm);
+    let r = analyze(&mesh, &request, &CancelFlag::new())
+        .unwrap()
+        .target()
+        .clone();
+    assert!(
+        (r.tool_diameter_mm - expected).abs() / 16.0 < 0.005,
+        "{}",
+        r.tool_diameter_mm
+    );
     // A Ø32 holder there does not: no tool reaches (a clear answer, not an error).
     request.holder = holder(32.0);
-    let r = analyze(&mesh, &request, &CancelFlag::new()).unwrap().target().clone();
+    let r = analyze(&mesh, &request, &CancelFlag::new())
+        .unwrap()
+        .target()
+        .clone();
     assert_eq!(r.tool_diameter_mm, 0.0);
     assert!(r.center.is_none());
-    // With 30 mm out of the holder it stays above the block (the top is 28 mm up).
-    request.stickout = Some(30.0);
-    let r = analyze(&mesh, &request, &CancelFlag::new()).unwrap().target().clone();
-    assert!((r.tool_diameter_mm - expected).abs() / 16.0 < 0.005, "{}", r.tool_diameter_mm);
+    // With 35 mm out of the holder it stays above the block: the top face, tilted 10° to
+    // the axis, rises from 28 mm above the section at the axis to 35 mm only 39.7 mm to the
+    // side (7/tan 10°), far outside the holder's 12 mm. (At 30 mm it would meet the face
+    // 11.3 mm to the side, inside the holder's radius: less than 16 would fit.)
+    request.stickout = Some(35.0);
+    let r = analyze(&mesh, &request, &CancelFlag::new())
+        .unwrap()
+        .target()
+        .clone();
+    assert!(
+        (r.tool_diameter_mm - expected).abs() / 16.0 < 0.005,
+        "{}",
+        r.tool_diameter_mm
+    );
 }
 
 #[test]
@@ -221,12 +256,26 @@ fn segments_and_the_tool_list_pick_the_largest_tool_that_fits_each_depth() {
         t.name = Some(format!("D{dia}"));
         t
     };
-    request.tools = vec![tool(10.0, 40.0), tool(25.0, 40.0), tool(29.8, 40.0), tool(14.0, 40.0), tool(15.0, 40.0)];
+    request.tools = vec![
+        tool(10.0, 40.0),
+        tool(25.0, 40.0),
+        tool(29.8, 40.0),
+        tool(14.0, 40.0),
+        tool(15.0, 40.0),
+    ];
     let report = analyze(&mesh, &request, &CancelFlag::new()).unwrap();
     let (s1, s2) = (&report.segments[0], &report.segments[1]);
     assert!((s1.reach_mm - 16.0).abs() < 1e-6 && (s2.reach_mm - 32.0).abs() < 1e-6);
-    assert!((s1.tool_diameter_mm - (2.0 * apothem(15.0) - 0.4)).abs() < 0.05, "{}", s1.tool_diameter_mm);
-    assert!((s2.tool_diameter_mm - (2.0 * apothem(8.0) - 0.4)).abs() < 0.05, "{}", s2.tool_diameter_mm);
+    assert!(
+        (s1.tool_diameter_mm - (2.0 * apothem(15.0) - 0.4)).abs() < 0.05,
+        "{}",
+        s1.tool_diameter_mm
+    );
+    assert!(
+        (s2.tool_diameter_mm - (2.0 * apothem(8.0) - 0.4)).abs() < 0.05,
+        "{}",
+        s2.tool_diameter_mm
+    );
     // Ø29.8 needs 30.2 with the allowance: Ø25 is the largest for the bore; Ø15 past the step.
     assert_eq!(s1.tool.as_ref().unwrap().diameter_mm, 25.0);
     assert_eq!(s2.tool.as_ref().unwrap().diameter_mm, 15.0);

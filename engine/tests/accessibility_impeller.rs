@@ -37,7 +37,11 @@ fn cross(a: V3, b: V3) -> V3 {
 }
 /// Two unit vectors across `u` (the brute force's own frame).
 fn across(u: V3) -> (V3, V3) {
-    let r = if u[2].abs() < 0.9 { [0.0, 0.0, 1.0] } else { [0.0, 1.0, 0.0] };
+    let r = if u[2].abs() < 0.9 {
+        [0.0, 0.0, 1.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
     let a = unit(cross(r, u));
     (a, cross(u, a))
 }
@@ -47,8 +51,12 @@ fn surface_points(mesh: &Mesh, spacing: f64) -> Vec<V3> {
     let mut out = Vec::new();
     for t in &mesh.triangles {
         let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
-        let len = |p: V3, q: V3| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
-        let n = ((len(a, b).max(len(b, c)).max(len(c, a))) / spacing).ceil().max(1.0) as usize;
+        let len = |p: V3, q: V3| {
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        };
+        let n = ((len(a, b).max(len(b, c)).max(len(c, a))) / spacing)
+            .ceil()
+            .max(1.0) as usize;
         for i in 0..=n {
             for j in 0..=n - i {
                 let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
@@ -77,7 +85,10 @@ fn brute_force_axis(points: &[V3], target: V3, u: V3, step: f64, free_above: f64
             continue;
         }
         let q = [dot(d, a), dot(d, b)];
-        let (i, j) = (((q[0] + half) / bucket).floor(), ((q[1] + half) / bucket).floor());
+        let (i, j) = (
+            ((q[0] + half) / bucket).floor(),
+            ((q[1] + half) / bucket).floor(),
+        );
         if i >= 0.0 && j >= 0.0 && (i as usize) < nb && (j as usize) < nb {
             grid[j as usize * nb + i as usize].push(q);
         } else {
@@ -89,7 +100,10 @@ fn brute_force_axis(points: &[V3], target: V3, u: V3, step: f64, free_above: f64
             .iter()
             .map(|q| (q[0] - c[0]).hypot(q[1] - c[1]))
             .fold(f64::INFINITY, f64::min);
-        let (ci, cj) = (((c[0] + half) / bucket).floor() as isize, ((c[1] + half) / bucket).floor() as isize);
+        let (ci, cj) = (
+            ((c[0] + half) / bucket).floor() as isize,
+            ((c[1] + half) / bucket).floor() as isize,
+        );
         for ring in 0..nb as isize {
             if ring > 0 && (ring - 1) as f64 * bucket >= best {
                 break;
@@ -127,7 +141,10 @@ fn brute_force_axis(points: &[V3], target: V3, u: V3, step: f64, free_above: f64
             continue;
         }
         if r > best.0 {
-            best = (r, std::array::from_fn(|k| target[k] + c[0] * a[k] + c[1] * b[k]));
+            best = (
+                r,
+                std::array::from_fn(|k| target[k] + c[0] * a[k] + c[1] * b[k]),
+            );
         }
         for (di, dj) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
             let (p, q) = (i + di, j + dj);
@@ -188,7 +205,11 @@ fn impeller_axis_and_diameter_match_a_dense_brute_force_search() {
         r.tool_diameter_mm / 2.0
     );
     // Dense axes: every 2° over the cone, then every 0.25° within 2° of the best.
-    let d0 = unit([entry[0] - target[0], entry[1] - target[1], entry[2] - target[2]]);
+    let d0 = unit([
+        entry[0] - target[0],
+        entry[1] - target[1],
+        entry[2] - target[2],
+    ]);
     let (b1, b2) = across(d0);
     let axis_at = |x: f64, y: f64| -> V3 {
         let (tx, ty) = (x.to_radians().tan(), y.to_radians().tan());
@@ -218,7 +239,10 @@ fn impeller_axis_and_diameter_match_a_dense_brute_force_search() {
                     })
                 })
                 .collect();
-            handles.into_iter().flat_map(|h| h.join().unwrap()).collect()
+            handles
+                .into_iter()
+                .flat_map(|h| h.join().unwrap())
+                .collect()
         });
         for res in results {
             if res.0 > best.0 {
@@ -249,7 +273,12 @@ fn impeller_axis_and_diameter_match_a_dense_brute_force_search() {
     );
     // And the brute force's best lattice position cannot beat ours by more than that either
     // at the brute force's own axis (ours is the exact optimum of the projected walls).
-    assert!(r.tool_diameter_mm / 2.0 <= bf.0 + slack, "ours Ø{} above the brute force Ø{}", r.tool_diameter_mm, 2.0 * bf.0);
+    assert!(
+        r.tool_diameter_mm / 2.0 <= bf.0 + slack,
+        "ours Ø{} above the brute force Ø{}",
+        r.tool_diameter_mm,
+        2.0 * bf.0
+    );
     assert!(off < 2.0, "axis {off:.2}° from the brute force's");
 
     // A picture of the free region for the note.
@@ -296,9 +325,24 @@ fn impeller_roughing_program_simulates_without_gouge_or_holder_contact() {
         kinematics: Kinematics::XyzAc,
         ..Machine::generic()
     };
-    let program = roughing_program(&part, &request, &report, &machine, &RoughingOptions::default()).unwrap();
-    assert!(program.text.contains("T1 M6") && program.text.contains("T2 M6"), "{}", program.text);
-    let tools: BTreeMap<u32, _> = program.tools.iter().map(|t| (t.number, t.tool.clone())).collect();
+    let program = roughing_program(
+        &part,
+        &request,
+        &report,
+        &machine,
+        &RoughingOptions::default(),
+    )
+    .unwrap();
+    assert!(
+        program.text.contains("T1 M6") && program.text.contains("T2 M6"),
+        "{}",
+        program.text
+    );
+    let tools: BTreeMap<u32, _> = program
+        .tools
+        .iter()
+        .map(|t| (t.number, t.tool.clone()))
+        .collect();
     let spec = SimulateSpec {
         program: program.text.clone(),
         interpret: InterpretOptions::default(),
@@ -332,6 +376,43 @@ fn impeller_roughing_program_simulates_without_gouge_or_holder_contact() {
     assert!(cmp.gouge_volume < 1e-6, "gouge {:?}", cmp);
     // It removed material from the passage, and no more than the passage holds.
     let passage = stock.volume() - part.volume();
-    assert!(s.removed_volume > 0.02 * passage / imp.blades as f64, "{} of {passage}", s.removed_volume);
+    assert!(
+        s.removed_volume > 0.02 * passage / imp.blades as f64,
+        "{} of {passage}",
+        s.removed_volume
+    );
     assert!(s.removed_volume < passage / imp.blades as f64);
+}
+
+/// The speed figure of the note: a 200k-triangle impeller, a 20° cone. Run with
+/// `cargo test --release -p millsim-engine --test accessibility_impeller -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn impeller_of_200k_triangles_is_answered_in_seconds() {
+    let imp = Impeller {
+        along: 84,
+        across: 12,
+        per_pitch: 40,
+        blade_cells: 10,
+        ..Impeller::test_part()
+    };
+    let clock = std::time::Instant::now();
+    let mesh = imp.mesh();
+    let built = clock.elapsed().as_secs_f64();
+    let mut request = AccessRequest::new(imp.passage_point(0.0), imp.passage_point(0.5));
+    request.max_tilt_deg = 20.0;
+    let clock = std::time::Instant::now();
+    let report = analyze(&mesh, &request, &CancelFlag::new()).unwrap();
+    let took = clock.elapsed().as_secs_f64();
+    let r = report.target();
+    eprintln!(
+        "{} triangles (built in {built:.1} s): Ø{:.3}, tilt {:.2}°, {} axes evaluated in {took:.2} s on {} threads",
+        mesh.triangles.len(),
+        r.tool_diameter_mm,
+        r.tilt_deg,
+        report.evaluations,
+        rayon::current_num_threads()
+    );
+    assert!(mesh.triangles.len() >= 190_000);
+    assert!(r.tool_diameter_mm > 2.0);
 }

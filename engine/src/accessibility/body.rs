@@ -83,12 +83,10 @@ impl LevelWalls {
 
     /// Whether every level clears at `c` with `allowance`.
     pub fn fits(&self, levels: &[Level], allowance: f64, c: [f64; 2]) -> bool {
-        levels
-            .iter()
-            .all(|l| {
-                let need = l.radius + allowance;
-                self.walls_at(l.height).clearance_below(c, need) >= need
-            })
+        levels.iter().all(|l| {
+            let need = l.radius + allowance;
+            self.walls_at(l.height).clearance_below(c, need) >= need
+        })
     }
 }
 
@@ -112,8 +110,26 @@ mod tests {
         ];
         let l = holder_levels(35.0, &holder);
         assert_eq!(l.len(), 5);
-        assert_eq!(l[0], Level { height: 35.0, radius: 12.5 });
-        assert_eq!(l[3], Level { height: 50.0, radius: 20.0 });
-        assert_eq!(l[4], Level { height: 55.0, radius: 25.0 });
+        assert_eq!(
+            l[0],
+            Level {
+                height: 35.0,
+                radius: 12.5
+            }
+        );
+        assert_eq!(
+            l[3],
+            Level {
+                height: 50.0,
+                radius: 20.0
+            }
+        );
+        assert_eq!(
+            l[4],
+            Level {
+                height: 55.0,
+                radius: 25.0
+            }
+        );
     }
 }

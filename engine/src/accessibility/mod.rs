@@ -187,22 +187,11 @@ fn invalid(field: impl Into<String>, message: impl Into<String>) -> AccessError 
     }
 }
 
-fn check(mesh: &Mesh, r: &AccessRequest) -> Result<(), AccessError> {
-    if mesh.triangles.len() > MAX_TRIANGLES {
-        return Err(invalid(
-            "part",
-            format!(
-                "{} triangles, over the limit of {MAX_TRIANGLES}",
-                mesh.triangles.len()
-            ),
-        ));
-    }
-    let (lo, hi) = mesh.bounds();
+/// Entry and target inside the part's bounds `(lo, hi)` (a point on the inlet is on the
+/// part's surface, a section point inside it).
+pub fn check_points(r: &AccessRequest, lo: [f64; 3], hi: [f64; 3]) -> Result<(), AccessError> {
     let tol = 1e-6 * (0..3).map(|a| hi[a] - lo[a]).fold(1.0, f64::max);
     for (field, p) in [("entry", r.entry), ("target", r.target)] {
-        if p.iter().any(|c| !c.is_finite()) {
-            return Err(invalid(field, "must be three finite numbers (mm)"));
-        }
         if (0..3).any(|a| p[a] < lo[a] - tol || p[a] > hi[a] + tol) {
             return Err(invalid(
                 field,
@@ -213,66 +202,102 @@ fn check(mesh: &Mesh, r: &AccessRequest) -> Result<(), AccessError> {
             ));
         }
     }
-    if norm(sub(r.entry, r.target)) < 1e-6 {
-        return Err(invalid("target", "must differ from entry"));
-    }
-    if !(r.max_tilt_deg.is_finite() && (0.0..=MAX_TILT_DEG).contains(&r.max_tilt_deg)) {
+    Ok(())
+}
+
+fn check(mesh: &Mesh, r: &AccessRequest) -> Result<(), AccessError> {
+    if mesh.triangles.len() > MAX_TRIANGLES {
         return Err(invalid(
-            "max_tilt_deg",
-            format!("must be 0 to {MAX_TILT_DEG} degrees, got {}", r.max_tilt_deg),
+            "part",
+            format!(
+                "{} triangles, over the limit of {MAX_TRIANGLES}",
+                mesh.triangles.len()
+            ),
         ));
     }
-    if !(r.allowance.is_finite() && r.allowance >= 0.0 && r.allowance < 1000.0) {
-        return Err(invalid(
-            "allowance_mm",
-            format!("must be 0 to 1000 mm, got {}", r.allowance),
-        ));
+    r.validate()?;
+    let (lo, hi) = mesh.bounds();
+    check_points(r, lo, hi)
+}
+
+impl AccessRequest {
+    /// Every value in range (what can be checked without the part); names the field.
+    pub fn validate(&self) -> Result<(), AccessError> {
+        let r = self;
+        for (field, p) in [("entry", r.entry), ("target", r.target)] {
+            if p.iter().any(|c| !c.is_finite()) {
+                return Err(invalid(field, "must be three finite numbers (mm)"));
+            }
+        }
+        self.validate_rest()
     }
-    if !(1..=MAX_SEGMENTS).contains(&r.segments) {
-        return Err(invalid(
-            "segments",
-            format!("must be 1 to {MAX_SEGMENTS}, got {}", r.segments),
-        ));
-    }
-    if let Some(s) = r.stickout {
-        if !(s.is_finite() && s > 0.0 && s < 10_000.0) {
+
+    fn validate_rest(&self) -> Result<(), AccessError> {
+        let r = self;
+        if norm(sub(r.entry, r.target)) < 1e-6 {
+            return Err(invalid("target", "must differ from entry"));
+        }
+        if !(r.max_tilt_deg.is_finite() && (0.0..=MAX_TILT_DEG).contains(&r.max_tilt_deg)) {
+            return Err(invalid(
+                "max_tilt_deg",
+                format!(
+                    "must be 0 to {MAX_TILT_DEG} degrees, got {}",
+                    r.max_tilt_deg
+                ),
+            ));
+        }
+        if !(r.allowance.is_finite() && r.allowance >= 0.0 && r.allowance < 1000.0) {
+            return Err(invalid(
+                "allowance_mm",
+                format!("must be 0 to 1000 mm, got {}", r.allowance),
+            ));
+        }
+        if !(1..=MAX_SEGMENTS).contains(&r.segments) {
+            return Err(invalid(
+                "segments",
+                format!("must be 1 to {MAX_SEGMENTS}, got {}", r.segments),
+            ));
+        }
+        if let Some(s) = r.stickout {
+            if !(s.is_finite() && s > 0.0 && s < 10_000.0) {
+                return Err(invalid(
+                    "stickout_mm",
+                    format!("must be a positive length under 10 m, got {s}"),
+                ));
+            }
+        }
+        for (i, h) in r.holder.iter().enumerate() {
+            if !(h.length.is_finite()
+                && h.length > 0.0
+                && h.bottom_diameter.is_finite()
+                && h.bottom_diameter > 0.0
+                && h.top_diameter.is_finite()
+                && h.top_diameter > 0.0)
+            {
+                return Err(invalid(
+                    format!("holder[{i}]"),
+                    "length and diameters must be positive numbers (mm)",
+                ));
+            }
+        }
+        if !r.holder.is_empty() && r.stickout.is_none() {
             return Err(invalid(
                 "stickout_mm",
-                format!("must be a positive length under 10 m, got {s}"),
+                "a holder needs the stick-out: where it starts above the tool's tip",
             ));
         }
-    }
-    for (i, h) in r.holder.iter().enumerate() {
-        if !(h.length.is_finite()
-            && h.length > 0.0
-            && h.bottom_diameter.is_finite()
-            && h.bottom_diameter > 0.0
-            && h.top_diameter.is_finite()
-            && h.top_diameter > 0.0)
-        {
+        if r.tools.len() > MAX_TOOLS {
             return Err(invalid(
-                format!("holder[{i}]"),
-                "length and diameters must be positive numbers (mm)",
+                "tools",
+                format!("at most {MAX_TOOLS} tools, got {}", r.tools.len()),
             ));
         }
+        for (i, t) in r.tools.iter().enumerate() {
+            t.validate()
+                .map_err(|e| invalid(format!("tools[{i}].{}", e.field), e.message))?;
+        }
+        Ok(())
     }
-    if !r.holder.is_empty() && r.stickout.is_none() {
-        return Err(invalid(
-            "stickout_mm",
-            "a holder needs the stick-out: where it starts above the tool's tip",
-        ));
-    }
-    if r.tools.len() > MAX_TOOLS {
-        return Err(invalid(
-            "tools",
-            format!("at most {MAX_TOOLS} tools, got {}", r.tools.len()),
-        ));
-    }
-    for (i, t) in r.tools.iter().enumerate() {
-        t.validate()
-            .map_err(|e| invalid(format!("tools[{i}].{}", e.field), e.message))?;
-    }
-    Ok(())
 }
 
 /// Finds the axis and largest tool for every segment of the passage from `entry` to
@@ -312,13 +337,8 @@ pub fn analyze(
             std::array::from_fn(|k| request.entry[k] + f * (request.target[k] - request.entry[k]));
         let d = sub(request.entry, point);
         let d0 = scale(d, 1.0 / norm(d));
-        let found = search::search_axis(
-            &setup,
-            point,
-            d0,
-            request.max_tilt_deg.to_radians(),
-            cancel,
-        )?;
+        let found =
+            search::search_axis(&setup, point, d0, request.max_tilt_deg.to_radians(), cancel)?;
         evaluations += found.evaluations + 2;
         let axis = found.best.section.axis;
         // A finer look around the chosen component; the whole box again if it leaks out.

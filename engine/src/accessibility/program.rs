@@ -122,7 +122,11 @@ pub fn roughing_program(
             continue;
         }
         let (number, list_index, tool) = match &seg.tool {
-            Some(t) => (t.index as u32 + 1, Some(t.index), request.tools[t.index].clone()),
+            Some(t) => (
+                t.index as u32 + 1,
+                Some(t.index),
+                request.tools[t.index].clone(),
+            ),
             None => match computed_tool(seg, request) {
                 Some(t) => (seg.segment as u32, None, t),
                 None => continue,

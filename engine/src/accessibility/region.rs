@@ -24,10 +24,7 @@ pub struct Raster {
 impl Raster {
     /// At most `cells` cells along the window's longer side.
     pub fn over(window: Window, cells: usize) -> Raster {
-        let size = [
-            window.hi[0] - window.lo[0],
-            window.hi[1] - window.lo[1],
-        ];
+        let size = [window.hi[0] - window.lo[0], window.hi[1] - window.lo[1]];
         let cell = (size[0].max(size[1]) / cells as f64).max(1e-9);
         let nx = ((size[0] / cell).ceil() as usize).clamp(1, cells);
         let ny = ((size[1] / cell).ceil() as usize).clamp(1, cells);
@@ -71,7 +68,9 @@ impl Raster {
 
 /// Cells whose centre lies in (or on) a polygon, as a bit set.
 pub fn coverage(r: &Raster, polygons: &[Polygon]) -> Vec<bool> {
-    let bits: Vec<AtomicU64> = (0..r.len().div_ceil(64)).map(|_| AtomicU64::new(0)).collect();
+    let bits: Vec<AtomicU64> = (0..r.len().div_ceil(64))
+        .map(|_| AtomicU64::new(0))
+        .collect();
     let (ox, oy, h) = (r.window.lo[0], r.window.lo[1], r.cell);
     polygons.par_iter().for_each(|p| {
         let j0 = ((p.lo[1] - oy) / h - 0.5).ceil().max(0.0) as usize;

@@ -38,7 +38,8 @@ struct Cone {
 
 impl Cone {
     fn axis(&self, x: [f64; 2]) -> [f64; 3] {
-        let v: [f64; 3] = std::array::from_fn(|k| self.d0[k] + x[0] * self.b1[k] + x[1] * self.b2[k]);
+        let v: [f64; 3] =
+            std::array::from_fn(|k| self.d0[k] + x[0] * self.b1[k] + x[1] * self.b2[k]);
         let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         v.map(|c| c / n)
     }
@@ -71,7 +72,16 @@ pub fn search_axis(
         radius: half_angle.tan(),
     };
     let eval = |x: [f64; 2]| {
-        evaluate(setup, target, cone.axis(x), None, SEARCH_CELLS, &[], SEARCHING).0
+        evaluate(
+            setup,
+            target,
+            cone.axis(x),
+            None,
+            SEARCH_CELLS,
+            &[],
+            SEARCHING,
+        )
+        .0
     };
     let mut evaluations = 0;
     let mut samples: Vec<[f64; 2]> = vec![[0.0, 0.0]];
@@ -129,7 +139,11 @@ pub fn search_axis(
         (0..4)
             .map(|k| {
                 let a = std::f64::consts::FRAC_PI_2 * k as f64
-                    + if turn { std::f64::consts::FRAC_PI_4 } else { 0.0 };
+                    + if turn {
+                        std::f64::consts::FRAC_PI_4
+                    } else {
+                        0.0
+                    };
                 [a.cos(), a.sin()]
             })
             .collect()

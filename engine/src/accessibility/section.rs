@@ -57,7 +57,12 @@ mod tests {
 
     #[test]
     fn local_and_point_are_inverse_and_the_frame_is_right_handed() {
-        for axis in [[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [1.0, 0.0, 0.0], [0.0, -0.6, -0.8]] {
+        for axis in [
+            [0.0, 0.0, 1.0],
+            [0.6, 0.0, 0.8],
+            [1.0, 0.0, 0.0],
+            [0.0, -0.6, -0.8],
+        ] {
             let s = Section::new([1.0, 2.0, 3.0], axis);
             let c = cross(s.e1, s.e2);
             assert!((0..3).all(|k| (c[k] - axis[k]).abs() < 1e-12), "{axis:?}");

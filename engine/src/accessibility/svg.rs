@@ -88,7 +88,10 @@ impl RegionPicture {
             out,
             r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0}" height="{height:.0}" viewBox="0 0 {width:.1} {height:.1}">"#
         );
-        let _ = writeln!(out, r##"<rect width="100%" height="100%" fill="#ffffff"/>"##);
+        let _ = writeln!(
+            out,
+            r##"<rect width="100%" height="100%" fill="#ffffff"/>"##
+        );
         for (set, color) in [(&self.walls, "#9a9a9a"), (&self.free, "#8ec5ff")] {
             let _ = writeln!(out, r#"<g fill="{color}">"#);
             for &(y, x0, x1) in set {

@@ -187,10 +187,7 @@ impl Walls {
     }
 
     fn index(polygons: Vec<Polygon>, window: Window) -> Walls {
-        let size = [
-            window.hi[0] - window.lo[0],
-            window.hi[1] - window.lo[1],
-        ];
+        let size = [window.hi[0] - window.lo[0], window.hi[1] - window.lo[1]];
         // About four polygons a bucket on average, within the cap.
         let per_side = ((polygons.len() as f64 / 4.0).sqrt().ceil() as usize).clamp(1, MAX_BUCKETS);
         let bucket = (size[0].max(size[1]) / per_side as f64).max(1e-9);
@@ -254,7 +251,8 @@ impl Walls {
             return 0.0;
         }
         let cell = |a: usize| {
-            (((c[a] - self.window.lo[a]) / self.bucket).floor().max(0.0) as usize).min(self.nb[a] - 1)
+            (((c[a] - self.window.lo[a]) / self.bucket).floor().max(0.0) as usize)
+                .min(self.nb[a] - 1)
         };
         let (cx, cy) = (cell(0) as isize, cell(1) as isize);
         let max_ring = self.nb[0].max(self.nb[1]) as isize;
@@ -339,7 +337,10 @@ mod tests {
         let walls = Walls::build(&tris, 0.0, window);
         let apothem = 10.0 * (0.5f64.to_radians()).cos();
         assert!((walls.clearance([0.0, 0.0]) - apothem).abs() < 1e-9);
-        assert!((walls.clearance([3.0, 0.0]) - (10.0 * (0.5f64.to_radians()).cos() - 3.0 * 1.0)).abs() < 0.01);
+        assert!(
+            (walls.clearance([3.0, 0.0]) - (10.0 * (0.5f64.to_radians()).cos() - 3.0 * 1.0)).abs()
+                < 0.01
+        );
         assert_eq!(walls.clearance([10.5, 0.1]), 0.0);
         assert!((walls.clearance([45.0, 0.0]) - 5.0).abs() < 1e-12);
         // Above the level of every triangle nothing is a wall.

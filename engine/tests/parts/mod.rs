@@ -67,7 +67,15 @@ pub fn hole_frame(d: V3) -> (V3, V3) {
 /// A block `[-hx, hx] × [-hy, hy] × [0, height]` with a hole along unit `d` (tilted in
 /// the xz plane, pointing up) through `top` (a point of the top face), drilled as `pieces`,
 /// each a polygon of `n` sides (a multiple of 8) inscribed in its circle.
-pub fn drilled_block(hx: f64, hy: f64, height: f64, d: V3, top: V3, pieces: &[HolePiece], n: usize) -> Mesh {
+pub fn drilled_block(
+    hx: f64,
+    hy: f64,
+    height: f64,
+    d: V3,
+    top: V3,
+    pieces: &[HolePiece],
+    n: usize,
+) -> Mesh {
     let (e1, e2) = hole_frame(d);
     let down = scale(d, -1.0);
     let mut v: Vec<V3> = Vec::new();
@@ -105,19 +113,36 @@ pub fn drilled_block(hx: f64, hy: f64, height: f64, d: V3, top: V3, pieces: &[Ho
     let bottom_rect = ring(&mut v, rect(0.0));
     let first = pieces[0];
     let last = pieces[pieces.len() - 1];
-    let mut rings: Vec<usize> = vec![ring(&mut v, (0..n).map(|k| on_plane(&first, k, height)).collect())];
+    let mut rings: Vec<usize> = vec![ring(
+        &mut v,
+        (0..n).map(|k| on_plane(&first, k, height)).collect(),
+    )];
     for w in pieces.windows(2) {
-        rings.push(ring(&mut v, (0..n).map(|k| circle(&w[0], k, w[0].until)).collect()));
-        rings.push(ring(&mut v, (0..n).map(|k| circle(&w[1], k, w[0].until)).collect()));
+        rings.push(ring(
+            &mut v,
+            (0..n).map(|k| circle(&w[0], k, w[0].until)).collect(),
+        ));
+        rings.push(ring(
+            &mut v,
+            (0..n).map(|k| circle(&w[1], k, w[0].until)).collect(),
+        ));
     }
-    rings.push(ring(&mut v, (0..n).map(|k| on_plane(&last, k, 0.0)).collect()));
+    rings.push(ring(
+        &mut v,
+        (0..n).map(|k| on_plane(&last, k, 0.0)).collect(),
+    ));
     let mut t: Vec<[u32; 3]> = Vec::new();
     let id = |start: usize, k: usize| (start + k % n) as u32;
     // Annulus between an outer and an inner loop (both counter-clockwise about `up`),
     // facing +up when `up_facing`.
     let annulus = |t: &mut Vec<[u32; 3]>, outer: usize, inner: usize, up_facing: bool| {
         for k in 0..n {
-            let (o0, o1, i0, i1) = (id(outer, k), id(outer, k + 1), id(inner, k), id(inner, k + 1));
+            let (o0, o1, i0, i1) = (
+                id(outer, k),
+                id(outer, k + 1),
+                id(inner, k),
+                id(inner, k + 1),
+            );
             if up_facing {
                 t.push([o0, o1, i1]);
                 t.push([o0, i1, i0]);
@@ -131,7 +156,12 @@ pub fn drilled_block(hx: f64, hy: f64, height: f64, d: V3, top: V3, pieces: &[Ho
     annulus(&mut t, bottom_rect, rings[rings.len() - 1], false);
     // Outer sides: normal away from the block's centre.
     for k in 0..n {
-        let (b0, b1, o0, o1) = (id(bottom_rect, k), id(bottom_rect, k + 1), id(top_rect, k), id(top_rect, k + 1));
+        let (b0, b1, o0, o1) = (
+            id(bottom_rect, k),
+            id(bottom_rect, k + 1),
+            id(top_rect, k),
+            id(top_rect, k + 1),
+        );
         t.push([b0, b1, o1]);
         t.push([b0, o1, o0]);
     }
@@ -139,7 +169,12 @@ pub fn drilled_block(hx: f64, hy: f64, height: f64, d: V3, top: V3, pieces: &[Ho
     for (j, p) in pieces.iter().enumerate() {
         let (upper, lower) = (rings[2 * j], rings[2 * j + 1]);
         for k in 0..n {
-            let (l0, l1, u0, u1) = (id(lower, k), id(lower, k + 1), id(upper, k), id(upper, k + 1));
+            let (l0, l1, u0, u1) = (
+                id(lower, k),
+                id(lower, k + 1),
+                id(upper, k),
+                id(upper, k + 1),
+            );
             t.push([l0, u1, l1]);
             t.push([l0, u0, u1]);
         }
@@ -246,7 +281,11 @@ impl Impeller {
         for i in 0..=ni {
             for j in 0..=nj {
                 for k in 0..nw {
-                    v.push(self.point(i as f64 / ni as f64, s_of(j), k as f64 / self.per_pitch as f64));
+                    v.push(self.point(
+                        i as f64 / ni as f64,
+                        s_of(j),
+                        k as f64 / self.per_pitch as f64,
+                    ));
                 }
             }
         }
@@ -255,7 +294,10 @@ impl Impeller {
                 return false;
             }
             let j = j as usize;
-            self.filled || j < layer || j >= layer + self.across || k % self.per_pitch < self.blade_cells
+            self.filled
+                || j < layer
+                || j >= layer + self.across
+                || k % self.per_pitch < self.blade_cells
         };
         let mut t: Vec<[u32; 3]> = Vec::new();
         let mut quad = |q: [u32; 4]| {
@@ -272,22 +314,52 @@ impl Impeller {
                     let k1 = k + 1;
                     let km = (k + nw - 1) % nw;
                     if !solid(ii + 1, jj, k) {
-                        quad([vid(i + 1, j, k), vid(i + 1, j + 1, k), vid(i + 1, j + 1, k1), vid(i + 1, j, k1)]);
+                        quad([
+                            vid(i + 1, j, k),
+                            vid(i + 1, j + 1, k),
+                            vid(i + 1, j + 1, k1),
+                            vid(i + 1, j, k1),
+                        ]);
                     }
                     if !solid(ii - 1, jj, k) {
-                        quad([vid(i, j, k1), vid(i, j + 1, k1), vid(i, j + 1, k), vid(i, j, k)]);
+                        quad([
+                            vid(i, j, k1),
+                            vid(i, j + 1, k1),
+                            vid(i, j + 1, k),
+                            vid(i, j, k),
+                        ]);
                     }
                     if !solid(ii, jj + 1, k) {
-                        quad([vid(i, j + 1, k), vid(i, j + 1, k1), vid(i + 1, j + 1, k1), vid(i + 1, j + 1, k)]);
+                        quad([
+                            vid(i, j + 1, k),
+                            vid(i, j + 1, k1),
+                            vid(i + 1, j + 1, k1),
+                            vid(i + 1, j + 1, k),
+                        ]);
                     }
                     if !solid(ii, jj - 1, k) {
-                        quad([vid(i + 1, j, k), vid(i + 1, j, k1), vid(i, j, k1), vid(i, j, k)]);
+                        quad([
+                            vid(i + 1, j, k),
+                            vid(i + 1, j, k1),
+                            vid(i, j, k1),
+                            vid(i, j, k),
+                        ]);
                     }
                     if !solid(ii, jj, k1 % nw) {
-                        quad([vid(i, j, k1), vid(i + 1, j, k1), vid(i + 1, j + 1, k1), vid(i, j + 1, k1)]);
+                        quad([
+                            vid(i, j, k1),
+                            vid(i + 1, j, k1),
+                            vid(i + 1, j + 1, k1),
+                            vid(i, j + 1, k1),
+                        ]);
                     }
                     if !solid(ii, jj, km) {
-                        quad([vid(i, j + 1, k), vid(i + 1, j + 1, k), vid(i + 1, j, k), vid(i, j, k)]);
+                        quad([
+                            vid(i, j + 1, k),
+                            vid(i + 1, j + 1, k),
+                            vid(i + 1, j, k),
+                            vid(i, j, k),
+                        ]);
                     }
                 }
             }
