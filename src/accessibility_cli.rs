@@ -41,7 +41,11 @@ pub fn run(args: &AccessibilityArgs) -> Result<String, String> {
     };
     let part = match obj.remove("part") {
         Some(Value::String(p)) => dir.join(p),
-        _ => return Err(format!("{file}: field `part`: give the part's STL file path")),
+        _ => {
+            return Err(format!(
+                "{file}: field `part`: give the part's STL file path"
+            ))
+        }
     };
     let machine: Option<Machine> = match obj.remove("machine") {
         None | Some(Value::Null) => None,
@@ -64,12 +68,12 @@ pub fn run(args: &AccessibilityArgs) -> Result<String, String> {
     let mesh = Mesh::from_stl_bytes(&read(&part)?)
         .map_err(|e| format!("{file}: field `part`: {}: {e}", part.display()))?;
     let out = accessibility_analyze(&mesh, &options, machine.as_ref(), "", &CancelFlag::new())
-        .map_err(|p| {
-            match p.extensions.get("field").and_then(Value::as_str) {
+        .map_err(
+            |p| match p.extensions.get("field").and_then(Value::as_str) {
                 Some(field) => format!("{file}: field `{field}`: {}", p.detail),
                 None => format!("{file}: {}", p.detail),
-            }
-        })?;
+            },
+        )?;
     if let Some(path) = &args.program {
         let text = out
             .program

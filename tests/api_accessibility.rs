@@ -30,8 +30,16 @@ fn hole_block() -> (Vec<u8>, [f64; 3], [f64; 3], [f64; 3]) {
 }
 
 fn angle(a: &Value, b: [f64; 3]) -> f64 {
-    let a: Vec<f64> = a.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
-    (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).clamp(-1.0, 1.0).acos().to_degrees()
+    let a: Vec<f64> = a
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
 }
 
 fn machine() -> Value {
@@ -79,9 +87,15 @@ async fn accessibility_job_finds_the_drilled_holes_axis_and_diameter() {
     assert_eq!(sum["tool"]["diameter_mm"], 16.0, "{sum}");
     assert!(sum["program"]["plunges"].as_u64().unwrap() >= 1, "{sum}");
     let program = get_text(&c, &s, &format!("/v1/jobs/{id}/program")).await;
-    assert!(program.contains("T1 M6") && program.contains(" A") && program.contains("G1 "), "{program}");
+    assert!(
+        program.contains("T1 M6") && program.contains(" A") && program.contains("G1 "),
+        "{program}"
+    );
     let svg = get_text(&c, &s, &format!("/v1/jobs/{id}/free_region.svg")).await;
-    assert!(svg.starts_with("<svg") && svg.contains("largest tool"), "{svg}");
+    assert!(
+        svg.starts_with("<svg") && svg.contains("largest tool"),
+        "{svg}"
+    );
     let rows = get_json(&c, &s, &format!("/v1/jobs/{id}/blocks")).await;
     assert_eq!(rows["items"].as_array().map(Vec::len), Some(1), "{rows}");
 
@@ -90,24 +104,51 @@ async fn accessibility_job_finds_the_drilled_holes_axis_and_diameter() {
         "options": {"entry": top, "target": [40.0, 20.0, 30.0]}});
     let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");
-    let done = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(300)).await;
+    let done = wait_job(
+        &c,
+        &s,
+        job["id"].as_str().unwrap(),
+        Duration::from_secs(300),
+    )
+    .await;
     assert_eq!(done["status"], "succeeded", "{done}");
     assert_eq!(done["summary"]["tool_diameter_mm"], 0.0, "{done}");
 
     // Refusals name the field.
     for (options, field) in [
-        (json!({"entry": top, "target": [0.0, 0.0, 90.0]}), "options.target"),
-        (json!({"entry": [500.0, 0.0, 60.0], "target": target}), "options.entry"),
-        (json!({"entry": top, "target": target, "segments": 0}), "options.segments"),
-        (json!({"entry": top, "target": target, "max_tilt_deg": 95}), "options.max_tilt_deg"),
-        (json!({"entry": top, "target": target, "tools": [{"type": "flat", "diameter_mm": -2, "flutes": 2}]}), "options.tools[0].diameter_mm"),
+        (
+            json!({"entry": top, "target": [0.0, 0.0, 90.0]}),
+            "options.target",
+        ),
+        (
+            json!({"entry": [500.0, 0.0, 60.0], "target": target}),
+            "options.entry",
+        ),
+        (
+            json!({"entry": top, "target": target, "segments": 0}),
+            "options.segments",
+        ),
+        (
+            json!({"entry": top, "target": target, "max_tilt_deg": 95}),
+            "options.max_tilt_deg",
+        ),
+        (
+            json!({"entry": top, "target": target, "tools": [{"type": "flat", "diameter_mm": -2, "flutes": 2}]}),
+            "options.tools[0].diameter_mm",
+        ),
     ] {
         let body = json!({"kind": "accessibility", "inputs": {"part": part}, "options": options});
         let (st, p) = post_json(&c, &s, "/v1/jobs", &body).await;
         assert_eq!(st, 422, "{p}");
         assert_eq!(p["field"], field, "{p}");
     }
-    let (st, block) = post_json(&c, &s, "/v1/stocks", &json!({"kind": "block", "min": [0, 0, 0], "max": [10, 10, 10]})).await;
+    let (st, block) = post_json(
+        &c,
+        &s,
+        "/v1/stocks",
+        &json!({"kind": "block", "min": [0, 0, 0], "max": [10, 10, 10]}),
+    )
+    .await;
     assert_eq!(st, 201);
     let body = json!({"kind": "accessibility", "inputs": {"part": block["id"]},
         "options": {"entry": [5, 5, 10], "target": [5, 5, 5]}});
@@ -149,10 +190,19 @@ fn accessibility_cli_prints_the_result_as_json() {
     .unwrap();
     let nc = dir.path().join("rough.nc");
     let out = std::process::Command::new(BIN)
-        .args(["accessibility", input.to_str().unwrap(), "--program", nc.to_str().unwrap()])
+        .args([
+            "accessibility",
+            input.to_str().unwrap(),
+            "--program",
+            nc.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(angle(&v["axis"], d) < 0.5, "{v}");
     let expected = 20.0 * (std::f64::consts::PI / 128.0).cos() - 1.0;
@@ -161,12 +211,19 @@ fn accessibility_cli_prints_the_result_as_json() {
     assert!(std::fs::read_to_string(&nc).unwrap().contains("M30"));
 
     // A bad field is named with the file.
-    std::fs::write(&input, json!({"part": "hole.stl", "entry": top, "target": [0, 0, 99]}).to_string()).unwrap();
+    std::fs::write(
+        &input,
+        json!({"part": "hole.stl", "entry": top, "target": [0, 0, 99]}).to_string(),
+    )
+    .unwrap();
     let out = std::process::Command::new(BIN)
         .args(["accessibility", input.to_str().unwrap()])
         .output()
         .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("input.json") && err.contains("`target`"), "{err}");
+    assert!(
+        err.contains("input.json") && err.contains("`target`"),
+        "{err}"
+    );
 }

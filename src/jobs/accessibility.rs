@@ -77,10 +77,19 @@ fn default_rpm() -> f64 {
 /// `prefix` (`options.` for a job, nothing for the CLI's file).
 pub fn request(o: &AccessibilityOptions, prefix: &str) -> Result<AccessRequest, Problem> {
     let mut tools = Vec::with_capacity(o.tools.len().min(accessibility::MAX_TOOLS + 1));
-    for (i, t) in o.tools.iter().enumerate().take(accessibility::MAX_TOOLS + 1) {
+    for (i, t) in o
+        .tools
+        .iter()
+        .enumerate()
+        .take(accessibility::MAX_TOOLS + 1)
+    {
         let tool: Tool = serde_path_to_error::deserialize(t).map_err(|e| {
             let path = e.path().to_string();
-            let at = if path == "." { String::new() } else { format!(".{path}") };
+            let at = if path == "." {
+                String::new()
+            } else {
+                format!(".{path}")
+            };
             Problem::invalid_field(format!("{prefix}tools[{i}]{at}"), e.inner().to_string())
         })?;
         tools.push(tool);
@@ -88,10 +97,17 @@ pub fn request(o: &AccessibilityOptions, prefix: &str) -> Result<AccessRequest, 
     if o.tools.len() > accessibility::MAX_TOOLS {
         return Err(Problem::invalid_field(
             format!("{prefix}tools"),
-            format!("at most {} tools, got {}", accessibility::MAX_TOOLS, o.tools.len()),
+            format!(
+                "at most {} tools, got {}",
+                accessibility::MAX_TOOLS,
+                o.tools.len()
+            ),
         ));
     }
-    for (field, v) in [("feed_mm_min", o.feed_mm_min), ("spindle_rpm", o.spindle_rpm)] {
+    for (field, v) in [
+        ("feed_mm_min", o.feed_mm_min),
+        ("spindle_rpm", o.spindle_rpm),
+    ] {
         if !(v.is_finite() && v > 0.0 && v < 1e6) {
             return Err(Problem::invalid_field(
                 format!("{prefix}{field}"),
@@ -147,7 +163,11 @@ fn round(v: f64, decimals: i32) -> f64 {
 }
 
 /// The summary both the job and the CLI give.
-pub fn summary(report: &AccessReport, program: Result<&RoughingProgram, &str>, seconds: f64) -> Value {
+pub fn summary(
+    report: &AccessReport,
+    program: Result<&RoughingProgram, &str>,
+    seconds: f64,
+) -> Value {
     let t = report.target();
     let segments: Vec<Value> = report.segments.iter().map(segment_json).collect();
     let program = match program {
@@ -211,24 +231,34 @@ pub fn analyze(
 ) -> Result<Outcome, Problem> {
     let request = request(o, prefix)?;
     let clock = std::time::Instant::now();
-    let report = accessibility::analyze(mesh, &request, cancel).map_err(|e| engine_problem(e, prefix))?;
+    let report =
+        accessibility::analyze(mesh, &request, cancel).map_err(|e| engine_problem(e, prefix))?;
     let program = match machine {
         Some(m) => {
             let opts = RoughingOptions {
                 feed: o.feed_mm_min,
                 spindle_rpm: o.spindle_rpm,
             };
-            Some(roughing_program(mesh, &request, &report, m, &opts).map_err(|e| engine_problem(e, prefix))?)
+            Some(
+                roughing_program(mesh, &request, &report, m, &opts)
+                    .map_err(|e| engine_problem(e, prefix))?,
+            )
         }
         None => None,
     };
     let seconds = clock.elapsed().as_secs_f64();
     let summary = summary(
         &report,
-        program.as_ref().ok_or("no machine given: the roughing program needs its kinematics"),
+        program
+            .as_ref()
+            .ok_or("no machine given: the roughing program needs its kinematics"),
         seconds,
     );
-    let rows = report.segments.iter().map(|s| segment_json(s).to_string()).collect();
+    let rows = report
+        .segments
+        .iter()
+        .map(|s| segment_json(s).to_string())
+        .collect();
     let svg = report
         .regions
         .last()
@@ -242,7 +272,11 @@ pub fn analyze(
     })
 }
 
-pub fn run(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag) -> Result<JobOutput, JobFailure> {
+pub fn run(
+    options: &Value,
+    mut inputs: LoadedInputs,
+    cancel: &CancelFlag,
+) -> Result<JobOutput, JobFailure> {
     let o: AccessibilityOptions = serde_json::from_value(options.clone())
         .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let part = inputs
@@ -256,7 +290,10 @@ pub fn run(options: &Value, mut inputs: LoadedInputs, cancel: &CancelFlag) -> Re
     }
     let file = part.file_name.clone().unwrap_or_else(|| "part.stl".into());
     let mesh = Mesh::from_stl_bytes(&part.content).map_err(|e| {
-        JobFailure::Invalid(Problem::invalid_field("inputs.part", format!("{file}: {e}")))
+        JobFailure::Invalid(Problem::invalid_field(
+            "inputs.part",
+            format!("{file}: {e}"),
+        ))
     })?;
     drop(part);
     let machine: Option<Machine> = json_input(&mut inputs, "machine", "Invalid machine")?;
