@@ -30,7 +30,7 @@ pub const ROTARY_FEED_BYTES_PER_PROGRAM_BYTE: u64 = INTERPRET_BYTES_PER_PROGRAM_
 pub const LOBE_MATRICES_PER_WORKER: u64 = 4;
 
 /// Bytes an accessibility job holds per byte of its part's STL (50 bytes a triangle in
-/// binary): the mesh read and its copy (about 72 B a triangle), and the evaluations of
+/// binary): the mesh read (about 36 B a triangle), and the evaluations of
 /// axes running at once (about 4 with two threads nesting), each with the triangles seen
 /// along its axis and their clipped polygons (about 160 B a triangle). ASCII STL is larger
 /// per triangle, so the same factor overestimates it.

@@ -11,16 +11,16 @@ use super::region::{self, Raster};
 use super::section::Section;
 use super::walls::{Walls, Window};
 
-/// The part as triangles of corner points (read once, projected per axis).
-pub struct Part {
-    pub vertices: Vec<[f64; 3]>,
-    pub triangles: Vec<[u32; 3]>,
+/// The part's vertices and triangles (borrowed from the mesh, projected per axis).
+pub struct Part<'m> {
+    pub vertices: &'m [[f64; 3]],
+    pub triangles: &'m [[u32; 3]],
 }
 
 /// What every evaluation shares: the part, the allowance and the holder's levels (the
 /// cutter's level, at height 0, is the unknown radius).
 pub struct Setup<'a> {
-    pub part: &'a Part,
+    pub part: &'a Part<'a>,
     pub allowance: f64,
     pub holder: &'a [Level],
 }
@@ -35,10 +35,21 @@ pub struct Evaluation {
     pub area: f64,
     /// The component reaches the window's edge: the passage is not closed around it there.
     pub open: bool,
+    /// Farthest reach of the component from the section point, mm.
+    pub reach: f64,
     pub raster: Raster,
 }
 
 impl Evaluation {
+    /// How far the free piece reaches from the section point (to its farthest cell's
+    /// corner); `None` when it is empty or reaches the window's edge.
+    pub fn extent(&self) -> Option<f64> {
+        if self.open || self.area == 0.0 {
+            return None;
+        }
+        Some(self.reach)
+    }
+
     pub fn radius(&self) -> f64 {
         self.circle.map_or(0.0, |c| c.radius)
     }
@@ -102,12 +113,6 @@ pub fn evaluate(
         .collect();
     let window = window.unwrap_or_else(|| part_window(&local));
     let raster = Raster::over(window, cells);
-    let tris: Vec<[[f64; 3]; 3]> = setup
-        .part
-        .triangles
-        .par_iter()
-        .map(|t| t.map(|i| local[i as usize]))
-        .collect();
     // Each level's walls over the window grown by the level's widest body (the window's
     // edge stands for the part's bounds only for the cutter): every wall that can come
     // within a body's reach of a point of the raster is in.
@@ -129,11 +134,18 @@ pub fn evaluate(
                     lo: [w.lo[0] - m, w.lo[1] - m],
                     hi: [w.hi[0] + m, w.hi[1] + m],
                 };
-                (h, Walls::build(&tris, h, if h == 0.0 { w } else { grown }))
+                (
+                    h,
+                    Walls::build_from(
+                        &local,
+                        setup.part.triangles,
+                        h,
+                        if h == 0.0 { w } else { grown },
+                    ),
+                )
             })
             .collect(),
     };
-    drop(tris);
     let covered = region::coverage(&raster, &walls.walls_at(0.0).polygons);
     let component = match raster.cell_of([0.0, 0.0]) {
         Some(start) => region::component(&raster, &covered, start),
@@ -158,12 +170,21 @@ pub fn evaluate(
             x == 0 || y == 0 || x + 1 == nx || y + 1 == ny
         }
     });
+    let reach = (0..raster.len())
+        .filter(|&k| component[k])
+        .map(|k| {
+            let c = raster.center(k);
+            c[0].hypot(c[1])
+        })
+        .fold(0.0, f64::max)
+        + raster.cell;
     (
         Evaluation {
             section,
             circle,
             area: count as f64 * raster.cell * raster.cell,
             open,
+            reach,
             raster,
         },
         Detail {

@@ -309,8 +309,8 @@ pub fn analyze(
 ) -> Result<AccessReport, AccessError> {
     check(mesh, request)?;
     let part = evaluate::Part {
-        vertices: mesh.vertices.clone(),
-        triangles: mesh.triangles.clone(),
+        vertices: &mesh.vertices,
+        triangles: &mesh.triangles,
     };
     let holder = match request.stickout {
         Some(s) => body::holder_levels(s, &request.holder),

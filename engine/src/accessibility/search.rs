@@ -6,8 +6,9 @@
 
 use rayon::prelude::*;
 
-use super::evaluate::{evaluate, Evaluation, Setup, SEARCHING};
+use super::evaluate::{evaluate, Evaluation, Part, Setup, SEARCHING};
 use super::section::Section;
+use super::walls::Window;
 use super::AccessError;
 use crate::job::CancelFlag;
 
@@ -71,17 +72,53 @@ pub fn search_axis(
         b2: frame.e2,
         radius: half_angle.tan(),
     };
-    let eval = |x: [f64; 2]| {
-        evaluate(
-            setup,
+    // The walls that can matter: the free region's piece at the cone's axis sets a window
+    // around the target; only triangles that some axis of the cone can show inside it (or
+    // within a holder's reach of it) are projected while searching. An axis whose piece
+    // reaches the window's edge is looked at again with the whole part, so the culling
+    // changes the time, never the answer.
+    let (first, _) = evaluate(setup, target, d0, None, SEARCH_CELLS, &[], SEARCHING);
+    let margin = setup.holder.iter().map(|l| l.radius).fold(0.0, f64::max) + setup.allowance + 1.0;
+    let culled = first.extent().and_then(|reach| {
+        let w = 2.0 * reach + 5.0;
+        cull(
+            setup.part,
             target,
-            cone.axis(x),
-            None,
-            SEARCH_CELLS,
-            &[],
-            SEARCHING,
+            d0,
+            half_angle,
+            w * std::f64::consts::SQRT_2 + margin,
         )
-        .0
+        .map(|(vertices, triangles)| (vertices, triangles, w))
+    });
+    let small_part = culled.as_ref().map(|(v, t, _)| Part {
+        vertices: v,
+        triangles: t,
+    });
+    let small = small_part
+        .as_ref()
+        .zip(culled.as_ref())
+        .map(|(part, (_, _, w))| {
+            (
+                Setup {
+                    part,
+                    allowance: setup.allowance,
+                    holder: setup.holder,
+                },
+                Window {
+                    lo: [-w, -w],
+                    hi: [*w, *w],
+                },
+            )
+        });
+    let eval = |x: [f64; 2]| {
+        let axis = cone.axis(x);
+        if let Some((s, window)) = &small {
+            let e = evaluate(s, target, axis, Some(*window), SEARCH_CELLS, &[], SEARCHING).0;
+            if !e.open {
+                return e;
+            }
+        }
+        evaluate(setup, target, axis, None, SEARCH_CELLS, &[], SEARCHING).0
     };
     let mut evaluations = 0;
     let mut samples: Vec<[f64; 2]> = vec![[0.0, 0.0]];
@@ -189,4 +226,69 @@ pub fn search_axis(
         best: best.expect("at least one start"),
         evaluations,
     })
+}
+
+/// The part's triangles that an axis within `half_angle` of `d0` can show at or above the
+/// section through `target` and within `reach` of the target across the axis, with the
+/// vertices they use; `None` when that is most of the part (nothing to gain).
+#[allow(clippy::type_complexity)]
+fn cull(
+    part: &Part,
+    target: [f64; 3],
+    d0: [f64; 3],
+    half_angle: f64,
+    reach: f64,
+) -> Option<(Vec<[f64; 3]>, Vec<[u32; 3]>)> {
+    // Lines at most `half_angle` apart: projections onto them differ by at most its sine
+    // times the length; unit vectors by the chord.
+    let sin = half_angle.sin();
+    let chord = 2.0 * (half_angle / 2.0).sin();
+    let rel = |q: [f64; 3]| [q[0] - target[0], q[1] - target[1], q[2] - target[2]];
+    let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let keep: Vec<bool> = part
+        .triangles
+        .par_iter()
+        .map(|t| {
+            let p = t.map(|i| part.vertices[i as usize]);
+            // Above the section for some axis of the cone: the height along an axis within
+            // the cone differs from the height along d0 by at most |q|·|u − d0|, and
+            // |u − d0| = 2·sin(angle/2).
+            if !p.iter().any(|&q| {
+                let v = rel(q);
+                dot(v, d0) + len(v) * chord >= 0.0
+            }) {
+                return false;
+            }
+            // Near the target across some axis: the bounding sphere's centre is across any
+            // axis of the cone at least its distance across d0 less |c|·sin(half-angle).
+            let c: [f64; 3] = std::array::from_fn(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
+            let radius = p
+                .iter()
+                .map(|&q| len([q[0] - c[0], q[1] - c[1], q[2] - c[2]]))
+                .fold(0.0, f64::max);
+            let v = rel(c);
+            let h = dot(v, d0);
+            let across = (dot(v, v) - h * h).max(0.0).sqrt();
+            across - len(v) * sin - radius <= reach
+        })
+        .collect();
+    let kept = keep.iter().filter(|&&k| k).count();
+    if kept * 4 > part.triangles.len() * 3 {
+        return None;
+    }
+    let mut index = vec![u32::MAX; part.vertices.len()];
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::with_capacity(kept);
+    for (t, _) in part.triangles.iter().zip(&keep).filter(|(_, &k)| k) {
+        triangles.push(t.map(|i| {
+            let slot = &mut index[i as usize];
+            if *slot == u32::MAX {
+                *slot = vertices.len() as u32;
+                vertices.push(part.vertices[i as usize]);
+            }
+            *slot
+        }));
+    }
+    Some((vertices, triangles))
 }

@@ -173,9 +173,24 @@ impl Walls {
     /// The triangles of `local` (plane x, y, height) clipped at heights ≥ `level`, those
     /// meeting `window` (the others are farther than its edge from any point inside).
     pub fn build(local: &[[[f64; 3]; 3]], level: f64, window: Window) -> Walls {
-        let polygons: Vec<Polygon> = local
+        let vertices: Vec<[f64; 3]> = local.iter().flatten().copied().collect();
+        let triangles: Vec<[u32; 3]> = (0..local.len() as u32)
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect();
+        Walls::build_from(&vertices, &triangles, level, window)
+    }
+
+    /// [`Walls::build`] from the part's vertices in plane coordinates and its triangles
+    /// (no copy of the triangles per axis).
+    pub fn build_from(
+        vertices: &[[f64; 3]],
+        triangles: &[[u32; 3]],
+        level: f64,
+        window: Window,
+    ) -> Walls {
+        let polygons: Vec<Polygon> = triangles
             .par_iter()
-            .filter_map(|t| Polygon::clip(t, level))
+            .filter_map(|t| Polygon::clip(&t.map(|i| vertices[i as usize]), level))
             .filter(|p| {
                 p.hi[0] >= window.lo[0]
                     && p.lo[0] <= window.hi[0]
