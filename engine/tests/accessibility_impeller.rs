@@ -74,11 +74,13 @@ fn surface_points(mesh: &Mesh, spacing: f64) -> Vec<V3> {
 /// best of them. Returns (radius, centre in 3-D).
 fn brute_force_axis(points: &[V3], target: V3, u: V3, step: f64, free_above: f64) -> (f64, V3) {
     let (a, b) = across(u);
+    // Points are bucketed over ±2·half; positions stay within ±half, so a point outside the
+    // buckets is farther from any of them than the buckets' edge.
     let half = 40.0;
+    let outer = 2.0 * half;
     let bucket = 1.0;
-    let nb = (2.0 * half / bucket) as usize + 1;
+    let nb = (2.0 * outer / bucket) as usize + 1;
     let mut grid: Vec<Vec<[f64; 2]>> = vec![Vec::new(); nb * nb];
-    let mut far = Vec::new();
     for p in points {
         let d = [p[0] - target[0], p[1] - target[1], p[2] - target[2]];
         if dot(d, u) < 0.0 {
@@ -86,23 +88,18 @@ fn brute_force_axis(points: &[V3], target: V3, u: V3, step: f64, free_above: f64
         }
         let q = [dot(d, a), dot(d, b)];
         let (i, j) = (
-            ((q[0] + half) / bucket).floor(),
-            ((q[1] + half) / bucket).floor(),
+            ((q[0] + outer) / bucket).floor(),
+            ((q[1] + outer) / bucket).floor(),
         );
         if i >= 0.0 && j >= 0.0 && (i as usize) < nb && (j as usize) < nb {
             grid[j as usize * nb + i as usize].push(q);
-        } else {
-            far.push(q);
         }
     }
     let clearance = |c: [f64; 2]| -> f64 {
-        let mut best = far
-            .iter()
-            .map(|q| (q[0] - c[0]).hypot(q[1] - c[1]))
-            .fold(f64::INFINITY, f64::min);
+        let mut best = (outer - c[0].abs()).min(outer - c[1].abs());
         let (ci, cj) = (
-            ((c[0] + half) / bucket).floor() as isize,
-            ((c[1] + half) / bucket).floor() as isize,
+            ((c[0] + outer) / bucket).floor() as isize,
+            ((c[1] + outer) / bucket).floor() as isize,
         );
         for ring in 0..nb as isize {
             if ring > 0 && (ring - 1) as f64 * bucket >= best {
