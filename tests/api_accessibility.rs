@@ -133,7 +133,7 @@ async fn accessibility_job_finds_the_drilled_holes_axis_and_diameter() {
             "options.max_tilt_deg",
         ),
         (
-            json!({"entry": top, "target": target, "tools": [{"type": "flat", "diameter_mm": -2, "flutes": 2}]}),
+            json!({"entry": top, "target": target, "tools": [{"type": "flat", "diameter_mm": -2, "flutes": 2, "flute_length_mm": 10}]}),
             "options.tools[0].diameter_mm",
         ),
     ] {
