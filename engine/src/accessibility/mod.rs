@@ -36,7 +36,7 @@
 //! let request = AccessRequest::new([0.0, 0.0, h], [0.0, 0.0, 0.0]);
 //! let report = analyze(&mesh, &request, &CancelFlag::new()).unwrap();
 //! let reach = &report.segments[0];
-//! assert!((reach.tool_diameter - 10.0).abs() < 1e-4); // the square's inscribed circle
+//! assert!((reach.tool_diameter_mm - 10.0).abs() < 1e-4); // the square's inscribed circle
 //! assert!(reach.axis[2] > 1.0 - 1e-9);
 //! ```
 
