@@ -29,6 +29,16 @@ pub const ROTARY_FEED_BYTES_PER_PROGRAM_BYTE: u64 = INTERPRET_BYTES_PER_PROGRAM_
 /// MB more, 6.4 matrices.
 pub const LOBE_MATRICES_PER_WORKER: u64 = 4;
 
+/// Bytes an accessibility job holds per byte of its part's STL (50 bytes a triangle in
+/// binary): the mesh read (about 36 B a triangle), and the evaluations of
+/// axes running at once (about 4 with two threads nesting), each with the triangles seen
+/// along its axis and their clipped polygons (about 160 B a triangle). ASCII STL is larger
+/// per triangle, so the same factor overestimates it.
+pub const ACCESSIBILITY_BYTES_PER_PART_BYTE: u64 = 16;
+
+/// The rasters of the evaluations at once (512² cells, about 20 B a cell, four of them).
+pub const ACCESSIBILITY_RASTER_BYTES: u64 = 4 * 512 * 512 * 20;
+
 /// Bytes of one row of lobes (rpm, depth, allowance) as stored JSON.
 const LOBE_ROW_BYTES: u64 = 100;
 
@@ -58,6 +68,12 @@ pub fn estimate(
     match kind {
         "interpret" => {
             e.program_bytes = program_bytes.saturating_mul(INTERPRET_BYTES_PER_PROGRAM_BYTE)
+        }
+        "accessibility" => {
+            // `program_bytes` is the part's size for this kind.
+            e.program_bytes = program_bytes
+                .saturating_mul(ACCESSIBILITY_BYTES_PER_PART_BYTE)
+                .saturating_add(ACCESSIBILITY_RASTER_BYTES)
         }
         "rotary-feed" => {
             e.program_bytes = program_bytes.saturating_mul(ROTARY_FEED_BYTES_PER_PROGRAM_BYTE)
@@ -163,6 +179,7 @@ pub fn check(
             limits.memory_mb(),
             match kind {
                 "interpret" | "rotary-feed" => "split the program",
+                "accessibility" => "decimate the part's mesh",
                 _ => "use fewer modes or steps_per_period, or the zoa method",
             },
         ),
@@ -219,5 +236,8 @@ mod tests {
         assert!(check("rotary-feed", &json!({}), 10 << 20, &limits).is_err());
         assert!(check("interpret", &json!({}), 1 << 20, &limits).is_ok());
         assert!(check("simulate", &json!({}), 1 << 30, &limits).is_ok());
+        // A 200k-triangle binary part (10 MB) fits; a 5M-triangle one (250 MB) does not.
+        assert!(check("accessibility", &json!({}), 10 << 20, &limits).is_ok());
+        assert!(check("accessibility", &json!({}), 250 << 20, &limits).is_err());
     }
 }

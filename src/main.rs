@@ -1,5 +1,6 @@
 //! millsim: the virtual-machining service and its command line.
 
+mod accessibility_cli;
 mod config;
 mod csv;
 mod http;
@@ -70,6 +71,10 @@ enum Command {
         /// The lobe input: method (zoa|sdm|fdm), teeth, coefficients, immersion, modes, speeds.
         input: std::path::PathBuf,
     },
+    /// Largest tool and fixed (3+2) tool axis into a closed impeller's passage: prints the
+    /// result as JSON for INPUT.json (the `accessibility` job's options, `part`: an STL path,
+    /// optionally `machine`: a machine file or definition for the roughing program).
+    Accessibility(accessibility_cli::AccessibilityArgs),
     /// Post an APT/CLS file for a machine: one G-code file per operation, rotary feeds corrected.
     Post(PostArgs),
     /// Print every HTTP route as `METHOD PATH`, one per line (checked against openapi.yaml).
@@ -290,6 +295,16 @@ fn main() -> ExitCode {
             }
             Err(e) => {
                 eprintln!("{e}");
+                ExitCode::FAILURE
+            }
+        },
+        Command::Accessibility(args) => match accessibility_cli::run(&args) {
+            Ok(json) => {
+                println!("{json}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("millsim accessibility: {e}");
                 ExitCode::FAILURE
             }
         },

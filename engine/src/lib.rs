@@ -4,6 +4,7 @@
 //! in-memory results, so it can be tested with plain `#[test]`s.
 //! Units inside: mm, mm/min, rev/min, s, N, N·m, W, J.
 
+pub mod accessibility;
 pub mod budget;
 pub mod cl;
 pub mod engagement;

@@ -66,13 +66,14 @@ async fn check_memory_budget(
 ) -> Result<(), ApiError> {
     if !matches!(kind, JobKind::Simulate | JobKind::Optimize) {
         // The other kinds by their options and the program's size.
-        let stored = match inputs.get("program").and_then(Value::as_str) {
-            Some(id) => {
-                state
-                    .db
-                    .get_resource(owner, ResourceKind::Program, id)
-                    .await?
-            }
+        // An accessibility job scales with its part (an STL), the others with the program.
+        let (input, resource) = if kind == JobKind::Accessibility {
+            ("part", ResourceKind::Stock)
+        } else {
+            ("program", ResourceKind::Program)
+        };
+        let stored = match inputs.get(input).and_then(Value::as_str) {
+            Some(id) => state.db.get_resource(owner, resource, id).await?,
             None => None,
         };
         let program = inline_program.or(stored.map(|r| r.size.max(0) as u64));
@@ -117,6 +118,36 @@ async fn check_memory_budget(
             None, &estimate, limits,
         ))),
     }
+}
+
+/// An accessibility job's part is an STL, and its entry and target lie inside its bounds
+/// (422 naming the field otherwise).
+async fn check_accessibility_part(
+    state: &AppState,
+    owner: &str,
+    inputs: &Map<String, Value>,
+    options: &Value,
+) -> Result<(), ApiError> {
+    let Some(id) = inputs.get("part").and_then(Value::as_str) else {
+        return Ok(());
+    };
+    let Some(part) = state
+        .db
+        .get_resource(owner, ResourceKind::Stock, id)
+        .await?
+    else {
+        return Ok(());
+    };
+    if part.summary["format"] != "stl" {
+        return Err(ApiError::invalid_field(
+            "inputs.part",
+            "the part must be an STL mesh, not a parametric stock",
+        ));
+    }
+    if let Some((lo, hi)) = job_limits::summary_bounds(&part.summary) {
+        crate::jobs::accessibility_check_points(options, lo, hi)?;
+    }
+    Ok(())
 }
 
 /// The `Idempotency-Key` header, if given: 1 to 255 visible ASCII characters.
@@ -247,6 +278,9 @@ pub async fn create(
 
     let (inputs, inline) = resolve_inputs(&state, &owner, job_kind, &request.inputs).await?;
     job_kind.check(request.inputs.keys(), &options)?;
+    if job_kind == JobKind::Accessibility {
+        check_accessibility_part(&state, &owner, &inputs, &options).await?;
+    }
     let inline_program = inline
         .iter()
         .find(|i| i.input == "program")
@@ -660,6 +694,21 @@ pub async fn stock_stl(
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
     artifact(&state, &owner, &id, "stock.stl", "final stock").await
+}
+
+pub async fn free_region_svg(
+    State(state): State<AppState>,
+    Owner(owner): Owner,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    artifact(
+        &state,
+        &owner,
+        &id,
+        "free_region.svg",
+        "free-region picture",
+    )
+    .await
 }
 
 /// The last event of a stream that cannot follow the job any more: a problem document.

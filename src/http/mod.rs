@@ -85,6 +85,7 @@ pub fn route_table() -> Vec<(Method, String)> {
         (Method::GET, "/v1/jobs/{id}/blocks/{range}/samples"),
         (Method::GET, "/v1/jobs/{id}/program"),
         (Method::GET, "/v1/jobs/{id}/stock.stl"),
+        (Method::GET, "/v1/jobs/{id}/free_region.svg"),
         (Method::POST, "/v1/webhooks"),
         (Method::GET, "/v1/webhooks"),
         (Method::GET, "/v1/webhooks/{id}"),
@@ -136,6 +137,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs/{id}/blocks/{range}/samples", get(jobs::samples))
         .route("/v1/jobs/{id}/program", get(jobs::program))
         .route("/v1/jobs/{id}/stock.stl", get(jobs::stock_stl))
+        .route("/v1/jobs/{id}/free_region.svg", get(jobs::free_region_svg))
         .route("/v1/webhooks", post(webhooks::create).get(webhooks::list))
         .route(
             "/v1/webhooks/{id}",

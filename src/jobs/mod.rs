@@ -4,6 +4,7 @@
 //! a kind's name is matched; the HTTP edge, the queue, the job process and the command
 //! line all go through it.
 
+mod accessibility;
 mod energy;
 mod identify;
 mod inputs;
@@ -23,6 +24,10 @@ use crate::job_limits::JobLimits;
 use crate::problem::Problem;
 use crate::store::ResourceKind;
 
+pub use accessibility::{
+    analyze as accessibility_analyze, check_points as accessibility_check_points,
+    AccessibilityOptions,
+};
 pub use interpret::InterpretOptions;
 pub use simulate::{check_tool_inputs, SimulateOptions};
 
@@ -38,11 +43,12 @@ pub enum JobKind {
     Energy,
     RotaryFeed,
     Identify,
+    Accessibility,
 }
 
 impl JobKind {
     /// Every kind, in the order error messages list them.
-    pub const ALL: [JobKind; 7] = [
+    pub const ALL: [JobKind; 8] = [
         JobKind::Interpret,
         JobKind::Simulate,
         JobKind::Optimize,
@@ -50,6 +56,7 @@ impl JobKind {
         JobKind::Energy,
         JobKind::RotaryFeed,
         JobKind::Identify,
+        JobKind::Accessibility,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -61,6 +68,7 @@ impl JobKind {
             JobKind::Energy => "energy",
             JobKind::RotaryFeed => "rotary-feed",
             JobKind::Identify => "identify",
+            JobKind::Accessibility => "accessibility",
         }
     }
 
@@ -93,6 +101,7 @@ impl JobKind {
             JobKind::RotaryFeed => &rotary_feed::INPUTS,
             JobKind::Simulate | JobKind::Optimize => &simulate::INPUTS,
             JobKind::Identify => &identify::INPUTS,
+            JobKind::Accessibility => &accessibility::INPUTS,
             JobKind::Stability => &[],
         }
     }
@@ -174,6 +183,7 @@ impl JobKind {
                     .map_err(FieldError::into_problem)
             }
             JobKind::Identify => identify::check(options),
+            JobKind::Accessibility => accessibility::check(options),
         }
     }
 
@@ -204,6 +214,7 @@ impl JobKind {
             JobKind::RotaryFeed => rotary_feed::run(options, inputs),
             JobKind::Energy => energy::run(options, inputs, cancel),
             JobKind::Identify => identify::run(options, inputs),
+            JobKind::Accessibility => accessibility::run(options, inputs, cancel),
         }
     }
 }
