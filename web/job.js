@@ -65,6 +65,7 @@ export async function renderJob(id) {
   app.append(summarySlot, el('h2', {}, 'Downloads'), downloads);
   const cutting = (job.kind === 'simulate' || job.kind === 'optimize') && Array.isArray(s.row_columns) && s.row_columns.includes('force_peak_n');
   if (job.kind === 'optimize' || (job.kind === 'rotary-feed' && !Array.isArray(s.operations))) downloads.append(dl(job.kind === 'optimize' ? 'Optimized program' : 'Corrected program', base + '/program'));
+  if (job.kind === 'accessibility' && typeof s.program === 'object' && s.program && !s.program.none) downloads.append(dl('Roughing program (G-code)', base + '/program'));
   if (Array.isArray(s.operations)) for (const o of s.operations) downloads.append(dl('Operation ' + o.operation + ' (G-code)', base + '/program?operation=' + o.operation, o.file_name));
   downloads.append(dl('Rows (CSV)', base + '/blocks?format=csv', 'job-' + job.id + '.csv'));
   if (job.kind === 'simulate' || job.kind === 'optimize') downloads.append(dl('Stock after machining (STL)', base + '/stock.stl', 'stock-' + job.id + '.stl'));
@@ -77,5 +78,6 @@ export async function renderJob(id) {
   else if (job.kind === 'interpret') (await import('/ui/interpret.js')).renderInterpret(job, s, summarySlot);
   else if (job.kind === 'rotary-feed') (await import('/ui/rotaryfeed.js')).renderRotaryFeed(job, s, summarySlot);
   else if (job.kind === 'identify') (await import('/ui/identify.js')).renderIdentify(job, s, summarySlot);
+  else if (job.kind === 'accessibility') (await import('/ui/accessibility.js')).renderAccessibility(job, s, summarySlot);
   else app.append(el('h2', {}, 'Summary (JSON)'), el('pre', {}, JSON.stringify(s, null, 2)));
 }

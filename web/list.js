@@ -3,7 +3,7 @@
 import { el, fmt, fmtDate, statusPill, progressBar } from './util.js';
 import { app, getJson, follow, handleError, programName, cancelJob } from './api.js';
 
-const KINDS = ['interpret', 'simulate', 'optimize', 'stability', 'energy', 'rotary-feed', 'identify'];
+const KINDS = ['interpret', 'simulate', 'optimize', 'stability', 'energy', 'rotary-feed', 'identify', 'accessibility'];
 const STATUSES = ['queued', 'running', 'succeeded', 'failed', 'cancelled'];
 const PAGE = 25;
 // A browser keeps about 6 connections per host: at most this many event streams at once,

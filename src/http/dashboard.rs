@@ -54,6 +54,7 @@ const FILES: [(&str, &str, &[u8]); 30] = embed![
     "toolpath3d.js" => "toolpath3d.js",
     "rotaryfeed.js" => "rotaryfeed.js",
     "identify.js" => "identify.js",
+    "accessibility.js" => "accessibility.js",
     "stock3d.js" => "stock3d.js",
     "dashboard.css" => "dashboard.css",
     "uPlot.iife.min.js" => "vendor/uplot/uPlot.iife.min.js",
