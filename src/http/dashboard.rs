@@ -33,7 +33,7 @@ const fn content_type(name: &str) -> &'static str {
 }
 
 // The dashboard's own modules, one view or concern each, then the vendored libraries.
-const FILES: [(&str, &str, &[u8]); 30] = embed![
+const FILES: [(&str, &str, &[u8]); 31] = embed![
     "app.js" => "app.js",
     "util.js" => "util.js",
     "api.js" => "api.js",
