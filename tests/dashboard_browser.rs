@@ -51,10 +51,7 @@ fn run_script(script: &str) {
     let stderr = String::from_utf8_lossy(&out.stderr);
     println!("{stdout}");
     eprintln!("{stderr}");
-    assert!(
-        out.status.success(),
-        "{script} failed:\n{stdout}\n{stderr}"
-    );
+    assert!(out.status.success(), "{script} failed:\n{stdout}\n{stderr}");
 }
 
 /// The list live, the example optimize job's page, a failed job, the form, API keys.
@@ -83,9 +80,16 @@ async fn collisions_carry_the_tool_tip_path() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let (_, stock) = post_json(&c, &s, "/v1/stocks", &json!({"kind": "block", "min": [0, 0, -10], "max": [60, 40, 0]})).await;
+    let (_, stock) = post_json(
+        &c,
+        &s,
+        "/v1/stocks",
+        &json!({"kind": "block", "min": [0, 0, -10], "max": [60, 40, 0]}),
+    )
+    .await;
     let (_, tool) = post_json(&c, &s, "/v1/tools", &json!({"type": "flat", "diameter_mm": 8, "flutes": 3, "helix_deg": 35, "flute_length_mm": 20})).await;
-    let program = "G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z10\nG0 Z-3\nG0 X70\nG1 Y30 F500\nG0 Z10\nM30\n";
+    let program =
+        "G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z10\nG0 Z-3\nG0 X70\nG1 Y30 F500\nG0 Z10\nM30\n";
     let body = json!({"kind": "simulate", "inputs": {"program": {"name": "crash.nc", "content": program},
         "stock": stock["id"], "tool": tool["id"]}, "options": {"material": "Al7075-T6"}});
     let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;

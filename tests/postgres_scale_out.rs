@@ -234,16 +234,18 @@ async fn four_workers_two_apis_two_killed_every_job_once() {
         }
     }
     // Every result row written once: the loop's 802 moves for every job.
-    let rows: Vec<(i64,)> =
-        sqlx::query_as("SELECT COUNT(*) FROM job_rows GROUP BY job_id")
-            .fetch_all(&mut conn)
-            .await
-            .unwrap();
+    let rows: Vec<(i64,)> = sqlx::query_as("SELECT COUNT(*) FROM job_rows GROUP BY job_id")
+        .fetch_all(&mut conn)
+        .await
+        .unwrap();
     assert_eq!(rows.len(), 400);
     let first = rows[0].0;
     assert!(first > 800, "{first} rows");
     assert!(rows.iter().all(|r| r.0 == first));
-    assert!(by_worker.len() >= 5, "the restarted worker took no work: {by_worker:?}");
+    assert!(
+        by_worker.len() >= 5,
+        "the restarted worker took no work: {by_worker:?}"
+    );
     for mut w in workers {
         common::unsafe_kill(w.id() as i32, 15);
         assert!(w.wait().unwrap().success());
@@ -262,7 +264,8 @@ async fn a_submission_is_announced_and_wakes_an_idle_worker_on_another_process()
         .listen_all(["millsim_job_queued", "millsim_job_changed"])
         .await
         .unwrap();
-    let body = json!({"kind": "interpret", "inputs": {"program": {"name": "a.nc", "content": "G0 X1\n"}}});
+    let body =
+        json!({"kind": "interpret", "inputs": {"program": {"name": "a.nc", "content": "G0 X1\n"}}});
     let (st, job) = post_json(&c, &api, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");
     // The trigger announces the new job on both channels, at its commit.
@@ -274,13 +277,28 @@ async fn a_submission_is_announced_and_wakes_an_idle_worker_on_another_process()
             .unwrap();
         seen.push((n.channel().to_string(), n.payload().to_string()));
     }
-    assert!(seen.contains(&("millsim_job_queued".into(), String::new())), "{seen:?}");
-    assert!(seen.contains(&("millsim_job_changed".into(), job["id"].as_str().unwrap().into())), "{seen:?}");
+    assert!(
+        seen.contains(&("millsim_job_queued".into(), String::new())),
+        "{seen:?}"
+    );
+    assert!(
+        seen.contains(&(
+            "millsim_job_changed".into(),
+            job["id"].as_str().unwrap().into()
+        )),
+        "{seen:?}"
+    );
 
     // An idle worker in another process starts each job at once: idle workers poll
     // every 250 ms, so polling alone would put the median near 125 ms.
     let mut worker = start_worker(&url);
-    wait_job(&c, &api, job["id"].as_str().unwrap(), Duration::from_secs(30)).await;
+    wait_job(
+        &c,
+        &api,
+        job["id"].as_str().unwrap(),
+        Duration::from_secs(30),
+    )
+    .await;
     let mut waits = Vec::new();
     for _ in 0..15 {
         tokio::time::sleep(Duration::from_millis(100)).await;
@@ -296,7 +314,11 @@ async fn a_submission_is_announced_and_wakes_an_idle_worker_on_another_process()
     }
     waits.sort();
     println!("submit -> running, ms: {waits:?}");
-    assert!(waits[waits.len() / 2] < 60, "median {} ms: {waits:?}", waits[waits.len() / 2]);
+    assert!(
+        waits[waits.len() / 2] < 60,
+        "median {} ms: {waits:?}",
+        waits[waits.len() / 2]
+    );
     worker.kill().unwrap();
     worker.wait().unwrap();
 }

@@ -46,7 +46,8 @@ fn tiny_job() -> serde_json::Value {
 
 /// (first claim, last finish, succeeded) from the jobs table, ms.
 async fn span(db_url: &str) -> (i64, i64, i64) {
-    let q = "SELECT MIN(started_at), MAX(finished_at), COUNT(*) FROM jobs WHERE status = 'succeeded'";
+    let q =
+        "SELECT MIN(started_at), MAX(finished_at), COUNT(*) FROM jobs WHERE status = 'succeeded'";
     if db_url.starts_with("sqlite:") {
         let mut c = sqlx::SqliteConnection::connect(db_url).await.unwrap();
         let r: (Option<i64>, Option<i64>, i64) = sqlx::query_as(q).fetch_one(&mut c).await.unwrap();
@@ -114,7 +115,11 @@ async fn run(label: &str, path: &std::path::Path, workers: usize) {
 async fn queue_throughput_and_latency() {
     for workers in [1, 2, 4] {
         let dir = tempfile::tempdir().unwrap();
-        let label = if test_postgres().is_some() { "postgres" } else { "sqlite" };
+        let label = if test_postgres().is_some() {
+            "postgres"
+        } else {
+            "sqlite"
+        };
         run(label, &dir.path().join("bench.db"), workers).await;
     }
 }

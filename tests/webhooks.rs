@@ -252,7 +252,11 @@ async fn a_signed_delivery_per_event_soon_after_the_state_change() {
     let deadline = Instant::now() + Duration::from_secs(10);
     let list = loop {
         let list = deliveries(&c, &s, None, hook["id"].as_str().unwrap()).await;
-        let recorded = list["items"].as_array().unwrap().iter().all(|d| d["status"] != "pending");
+        let recorded = list["items"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|d| d["status"] != "pending");
         if recorded || Instant::now() > deadline {
             break list;
         }

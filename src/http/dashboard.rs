@@ -111,11 +111,20 @@ mod tests {
         for entry in std::fs::read_dir(dir).unwrap() {
             let name = entry.unwrap().file_name().into_string().unwrap();
             if name.ends_with(".js") || name.ends_with(".css") {
-                assert!(super::FILES.iter().any(|f| f.0 == name), "web/{name} is not embedded");
+                assert!(
+                    super::FILES.iter().any(|f| f.0 == name),
+                    "web/{name} is not embedded"
+                );
             }
         }
-        assert_eq!(super::content_type("a.js"), "text/javascript; charset=utf-8");
+        assert_eq!(
+            super::content_type("a.js"),
+            "text/javascript; charset=utf-8"
+        );
         assert_eq!(super::content_type("a.css"), "text/css; charset=utf-8");
-        assert_eq!(super::content_type("LICENSE.txt"), "text/plain; charset=utf-8");
+        assert_eq!(
+            super::content_type("LICENSE.txt"),
+            "text/plain; charset=utf-8"
+        );
     }
 }

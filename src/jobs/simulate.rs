@@ -388,25 +388,25 @@ pub fn run(
         });
     }
     let mut summary = serde_json::to_value(SimulateSummary {
-            file: &file,
-            simulation: &out.summary,
-            timings: &out.timings,
-            stock_export_s: export_s,
-            dexel_updates: out.rays_tested,
-            cycle_time_opt_s: out.optimization.as_ref().map(|o| o.cycle_time_after_s),
-            force_peak_opt_n: out.optimization.as_ref().map(|o| o.peak_force_after),
-            optimization: out.optimization.as_ref(),
-            memory: estimate.map(|e| {
-                json!({
-                    "budget_mb": limits.memory_mb(),
-                    "estimate_mb": e.peak_bytes.div_ceil(1 << 20),
-                    "estimate": e,
-                })
-            }),
-            tool_library,
-            row_columns,
-        })
-        .expect("summary serializes");
+        file: &file,
+        simulation: &out.summary,
+        timings: &out.timings,
+        stock_export_s: export_s,
+        dexel_updates: out.rays_tested,
+        cycle_time_opt_s: out.optimization.as_ref().map(|o| o.cycle_time_after_s),
+        force_peak_opt_n: out.optimization.as_ref().map(|o| o.peak_force_after),
+        optimization: out.optimization.as_ref(),
+        memory: estimate.map(|e| {
+            json!({
+                "budget_mb": limits.memory_mb(),
+                "estimate_mb": e.peak_bytes.div_ceil(1 << 20),
+                "estimate": e,
+            })
+        }),
+        tool_library,
+        row_columns,
+    })
+    .expect("summary serializes");
     place_collisions(&spec, &mut summary);
     Ok(JobOutput {
         summary,

@@ -112,10 +112,12 @@ impl Tx {
     /// writer at a time; PostgreSQL takes a transaction-scoped advisory lock.
     pub async fn lock_owner_queue(&mut self, owner: &str) -> Result<(), StoreError> {
         if let Tx::Postgres(t) = self {
-            sqlx::query("SELECT pg_advisory_xact_lock(hashtextextended('millsim-queue:' || $1, 0))")
-                .bind(owner)
-                .execute(&mut **t)
-                .await?;
+            sqlx::query(
+                "SELECT pg_advisory_xact_lock(hashtextextended('millsim-queue:' || $1, 0))",
+            )
+            .bind(owner)
+            .execute(&mut **t)
+            .await?;
         }
         Ok(())
     }

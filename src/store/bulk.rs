@@ -89,9 +89,15 @@ mod tests {
         let mut o = serde_json::Map::new();
         o.insert("block".into(), i.into());
         o.insert("line".into(), (i + 15).into());
-        o.insert("flags".into(), serde_json::json!(["air", "a \"quoted\"\tnote"]));
+        o.insert(
+            "flags".into(),
+            serde_json::json!(["air", "a \"quoted\"\tnote"]),
+        );
         for k in 0..30 {
-            o.insert(format!("field_{k:02}_mm"), (i as f64 * 1.000_123 + f64::from(k)).into());
+            o.insert(
+                format!("field_{k:02}_mm"),
+                (i as f64 * 1.000_123 + f64::from(k)).into(),
+            );
         }
         serde_json::Value::Object(o).to_string()
     }
@@ -147,7 +153,7 @@ mod tests {
             .unwrap();
         let took = commit_100k_rows(&sqlite).await;
         println!("sqlite: 100k rows committed in {took:?}");
-                let sqlite_took = took;
+        let sqlite_took = took;
         let Some(base) = std::env::var("MILLSIM_TEST_DATABASE")
             .ok()
             .filter(|u| u.starts_with("postgres"))

@@ -538,7 +538,11 @@ impl Db {
         self.try_claim(worker, lease_ms).await
     }
 
-    async fn try_claim(&self, worker: &str, lease_ms: i64) -> Result<Option<ClaimedJob>, StoreError> {
+    async fn try_claim(
+        &self,
+        worker: &str,
+        lease_ms: i64,
+    ) -> Result<Option<ClaimedJob>, StoreError> {
         let now = now_ms();
         let mut tx = self.begin().await?;
         let skip_locked = tx.backend().skip_locked();
@@ -787,12 +791,14 @@ impl Db {
         from: i64,
         to: i64,
     ) -> Result<Vec<(i64, String)>, StoreError> {
-        Ok(on_pool!(&self.pool, p => sqlx::query_as("SELECT seq, data FROM job_samples WHERE job_id = $1 AND seq >= $2 AND seq <= $3 ORDER BY seq")
+        Ok(
+            on_pool!(&self.pool, p => sqlx::query_as("SELECT seq, data FROM job_samples WHERE job_id = $1 AND seq >= $2 AND seq <= $3 ORDER BY seq")
             .bind(job_id)
             .bind(from)
             .bind(to)
             .fetch_all(p)
-            .await?))
+            .await?),
+        )
     }
 
     pub async fn job_artifact(
@@ -838,10 +844,12 @@ impl Db {
         &self,
         job_id: &str,
     ) -> Result<Vec<(i64, String, i64, Option<i64>, Option<String>)>, StoreError> {
-        Ok(on_pool!(&self.pool, p => sqlx::query_as("SELECT attempt, worker, started_at, finished_at, outcome FROM job_attempts WHERE job_id = $1 ORDER BY attempt")
+        Ok(
+            on_pool!(&self.pool, p => sqlx::query_as("SELECT attempt, worker, started_at, finished_at, outcome FROM job_attempts WHERE job_id = $1 ORDER BY attempt")
             .bind(job_id)
             .fetch_all(p)
-            .await?))
+            .await?),
+        )
     }
 }
 

@@ -36,7 +36,9 @@ pub enum StoreError {
     /// A row this request had just found or written was deleted by another one.
     #[error("{0} was deleted while this request ran")]
     Vanished(String),
-    #[error("unsupported database URL `{0}`: use sqlite://FILE or postgres://USER:PASSWORD@HOST/DB")]
+    #[error(
+        "unsupported database URL `{0}`: use sqlite://FILE or postgres://USER:PASSWORD@HOST/DB"
+    )]
     UnsupportedUrl(String),
 }
 
@@ -209,7 +211,10 @@ mod tests {
 
     #[test]
     fn redact_hides_the_password_only() {
-        assert_eq!(redact("postgres://u:secret@h:5432/db"), "postgres://u:***@h:5432/db");
+        assert_eq!(
+            redact("postgres://u:secret@h:5432/db"),
+            "postgres://u:***@h:5432/db"
+        );
         assert_eq!(redact("mysql://h/db"), "mysql://h/db");
     }
 

@@ -92,9 +92,7 @@ impl JobWatch {
                     Ok(_) => {}
                     // Fell behind the bus: this job's change may be among the dropped ones.
                     Err(broadcast::error::RecvError::Lagged(_)) => return,
-                    Err(broadcast::error::RecvError::Closed) => {
-                        std::future::pending::<()>().await
-                    }
+                    Err(broadcast::error::RecvError::Closed) => std::future::pending::<()>().await,
                 }
             }
         };

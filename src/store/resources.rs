@@ -185,12 +185,14 @@ impl Db {
         kind: ResourceKind,
         id: &str,
     ) -> Result<Option<(Option<String>, String, Vec<u8>)>, StoreError> {
-        Ok(on_pool!(&self.pool, p => sqlx::query_as("SELECT name, media_type, content FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
+        Ok(
+            on_pool!(&self.pool, p => sqlx::query_as("SELECT name, media_type, content FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
             .bind(owner)
             .bind(kind.as_str())
             .bind(id)
             .fetch_optional(p)
-            .await?))
+            .await?),
+        )
     }
 
     /// One page of resources of a kind, oldest first, after `cursor` (an id).

@@ -111,7 +111,17 @@ pub async fn enqueue_job_event(tx: &mut Tx, job_id: &str, event: &str) -> Result
     if hooks.is_empty() {
         return Ok(());
     }
-    type JobRow = (String, String, String, i64, Option<String>, i64, Option<i64>, i64, i64);
+    type JobRow = (
+        String,
+        String,
+        String,
+        i64,
+        Option<String>,
+        i64,
+        Option<i64>,
+        i64,
+        i64,
+    );
     let job: Option<JobRow> = on_tx!(tx, c => sqlx::query_as(
         "SELECT owner, kind, status, attempts, error, created_at, finished_at, progress_done, progress_total FROM jobs WHERE id = $1",
     )

@@ -60,7 +60,9 @@ pub fn test_postgres() -> Option<String> {
 pub fn require_postgres() -> Option<String> {
     let url = test_postgres();
     if url.is_none() {
-        println!("skipped: MILLSIM_TEST_DATABASE does not name a PostgreSQL server (.ci/run sets it)");
+        println!(
+            "skipped: MILLSIM_TEST_DATABASE does not name a PostgreSQL server (.ci/run sets it)"
+        );
     }
     url
 }
@@ -80,9 +82,9 @@ mod postgres {
 
     pub fn database_for(base: &str, key: &str) -> String {
         // FNV-1a: a stable, short name for the path.
-        let hash = key
-            .bytes()
-            .fold(0xcbf29ce484222325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100000001b3));
+        let hash = key.bytes().fold(0xcbf29ce484222325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x100000001b3)
+        });
         let name = format!("millsim_t_{hash:016x}");
         let (base, query) = base.split_once('?').map_or((base, ""), |(b, q)| (b, q));
         let server = base.rsplit_once('/').map_or(base, |(s, _)| s);
