@@ -350,6 +350,14 @@ mod tests {
         }
     }
 
+    /// A unit axis tilted from z by an angle uniform in [lo, lo + span] radians, in a
+    /// uniform direction.
+    fn random_axis(rnd: &mut impl FnMut() -> f64, lo: f64, span: f64) -> [f64; 3] {
+        let th = rnd() * span + lo;
+        let ph = rnd() * std::f64::consts::TAU;
+        [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()]
+    }
+
     /// A 30° chamfer mill of `diameter` with a tip of `tip` mm.
     fn chamfer_30(diameter: f64, tip: f64) -> Tool {
         let mut t = Tool::flat(diameter, 2);
@@ -468,9 +476,7 @@ mod tests {
             let full = Intervals::from_slice(&[[-100.0, 100.0]]);
             let mut checked = 0;
             for _ in 0..300 {
-                let th = rnd() * 0.8;
-                let ph = rnd() * std::f64::consts::TAU;
-                let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                let axis = random_axis(&mut rnd, 0.0, 0.8);
                 let p1 = [rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0, rnd() * 2.0 - 1.0];
                 let mv = SubMove {
                     p0: [0.0; 3],
@@ -518,9 +524,7 @@ mod tests {
             t.flute_length = 10.0;
             let body = ToolBody::cutting_part(&t);
             for _ in 0..400 {
-                let th = rnd() * 1.2 + 0.01;
-                let ph = rnd() * std::f64::consts::TAU;
-                let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                let axis = random_axis(&mut rnd, 0.01, 1.2);
                 let p1 = [rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0, rnd() * 2.0 - 1.0];
                 let sw = Sweep::new(
                     &body,
@@ -622,9 +626,7 @@ mod tests {
             t.flute_length = 10.0;
             let body = ToolBody::cutting_part(&t);
             for _ in 0..3000 {
-                let th = rnd() * 0.8 + 0.05;
-                let ph = rnd() * std::f64::consts::TAU;
-                let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                let axis = random_axis(&mut rnd, 0.05, 0.8);
                 let p1 = [rnd() * 0.4 - 0.2, rnd() * 0.4 - 0.2, rnd() * 0.2 - 0.1];
                 let sw = Sweep::new(
                     &body,
@@ -678,9 +680,7 @@ mod tests {
             t.flute_length = 12.0;
             let body = ToolBody::cutting_part(&t);
             for _ in 0..4000 {
-                let th = rnd() * 1.3;
-                let ph = rnd() * std::f64::consts::TAU;
-                let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                let axis = random_axis(&mut rnd, 0.0, 1.3);
                 let p1 = [rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0, rnd() * 2.0 - 1.0];
                 let sw = Sweep::new(
                     &body,
