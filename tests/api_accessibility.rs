@@ -54,15 +54,7 @@ async fn accessibility_job_finds_the_drilled_holes_axis_and_diameter() {
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
     let (stl, d, top, target) = hole_block();
-    let (st, part) = json(
-        c.post(s.url("/v1/stocks?name=hole.stl"))
-            .header("content-type", "model/stl")
-            .body(stl)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, part) = post_stl(&c, &s, "/v1/stocks?name=hole.stl", stl).await;
     assert_eq!(st, 201, "{part}");
     let part = part["id"].as_str().unwrap().to_string();
     let (st, m) = post_json(&c, &s, "/v1/machines", &machine()).await;
@@ -160,15 +152,7 @@ async fn accessibility_job_finds_the_drilled_holes_axis_and_diameter() {
     let n = u32::from_le_bytes([open[80], open[81], open[82], open[83]]) - 1;
     open.truncate(open.len() - 50);
     open[80..84].copy_from_slice(&n.to_le_bytes());
-    let (st, p) = json(
-        c.post(s.url("/v1/stocks?name=open.stl"))
-            .header("content-type", "model/stl")
-            .body(open)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, p) = post_stl(&c, &s, "/v1/stocks?name=open.stl", open).await;
     assert_eq!(st, 422, "{p}");
     assert!(p["detail"].as_str().unwrap().contains("not closed"), "{p}");
     assert!(s.terminate());

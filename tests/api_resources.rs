@@ -191,13 +191,11 @@ async fn files_are_stored_unchanged_with_their_names() {
         "stl/numpystl_HalfDonut_ascii.stl",
         "stl/numpystl_rear_case_binary_18808tri.stl",
     ] {
-        let (status, v) = json(
-            c.post(s.url("/v1/stocks?name=x.stl"))
-                .header("content-type", "model/stl")
-                .body(std::fs::read(corpus(f)).unwrap())
-                .send()
-                .await
-                .unwrap(),
+        let (status, v) = post_stl(
+            &c,
+            &s,
+            "/v1/stocks?name=x.stl",
+            std::fs::read(corpus(f)).unwrap(),
         )
         .await;
         assert_eq!(status, 201, "{f}: {v}");

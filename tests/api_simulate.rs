@@ -54,15 +54,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
         millsim_engine::geometry::Stock::block([0.0, -20.0, -10.0], [100.0, 20.0, -3.0], 0.25)
             .unwrap();
     let (stl, _) = millsim_engine::geometry::export_stl_vec(&part).unwrap();
-    let (st, part) = json(
-        c.post(s.url("/v1/stocks"))
-            .header("content-type", "model/stl")
-            .body(stl)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, part) = post_stl(&c, &s, "/v1/stocks", stl).await;
     assert_eq!(st, 201, "{part}");
     let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": stock, "tool": tool, "part": id(part)},
                       "options": {"material": "Al7075-T6", "cell_mm": 0.25}});

@@ -304,6 +304,19 @@ pub async fn post_json(c: &reqwest::Client, s: &Server, path: &str, body: &Value
     json(c.post(s.url(path)).json(body).send().await.unwrap()).await
 }
 
+/// POST an STL file (a stock upload); the status and the response's JSON.
+pub async fn post_stl(c: &reqwest::Client, s: &Server, path: &str, stl: Vec<u8>) -> (u16, Value) {
+    json(
+        c.post(s.url(path))
+            .header("content-type", "model/stl")
+            .body(stl)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await
+}
+
 /// GET a path's body as text (CSV results, programs).
 pub async fn get_text(c: &reqwest::Client, s: &Server, path: &str) -> String {
     c.get(s.url(path))
