@@ -5,6 +5,7 @@
 mod parts;
 
 use millsim_engine::accessibility::{analyze, angle_deg, AccessError, AccessRequest};
+use millsim_engine::geometry::Mesh;
 use millsim_engine::job::CancelFlag;
 use millsim_engine::tool::{HolderSegment, Tool};
 use parts::{drilled_block, hole_frame, HolePiece};
@@ -22,6 +23,23 @@ fn down(top: [f64; 3], d: [f64; 3], lambda: f64) -> [f64; 3] {
 
 fn apothem(r: f64) -> f64 {
     r * (std::f64::consts::PI / SIDES as f64).cos()
+}
+
+/// A 60 × 40 × 60 block with a hole along `d` from `top`: Ø30 for 20 mm, then Ø16 through.
+fn stepped_hole(d: [f64; 3], top: [f64; 3]) -> Mesh {
+    let pieces = [
+        HolePiece {
+            radius: 15.0,
+            offset: [0.0, 0.0],
+            until: 20.0,
+        },
+        HolePiece {
+            radius: 8.0,
+            offset: [0.0, 0.0],
+            until: 0.0,
+        },
+    ];
+    drilled_block(60.0, 40.0, 60.0, d, top, &pieces, SIDES)
 }
 
 #[test]
@@ -83,19 +101,7 @@ fn a_hole_drilled_25_degrees_off_z_gives_its_axis_and_diameter() {
 fn a_stepped_hole_reached_past_its_step_gives_the_small_diameter_and_the_holder_counts() {
     let d = tilted(10.0);
     let top = [0.0, 0.0, 60.0];
-    let pieces = [
-        HolePiece {
-            radius: 15.0,
-            offset: [0.0, 0.0],
-            until: 20.0,
-        },
-        HolePiece {
-            radius: 8.0,
-            offset: [0.0, 0.0],
-            until: 0.0,
-        },
-    ];
-    let mesh = drilled_block(60.0, 40.0, 60.0, d, top, &pieces, SIDES);
+    let mesh = stepped_hole(d, top);
     let target = down(top, d, 28.0);
     let request = AccessRequest::new(top, target);
     let report = analyze(&mesh, &request, &CancelFlag::new()).unwrap();
@@ -234,19 +240,7 @@ fn segments_and_the_tool_list_pick_the_largest_tool_that_fits_each_depth() {
     // the step in the Ø16 one.
     let d = tilted(0.0);
     let top = [0.0, 0.0, 60.0];
-    let pieces = [
-        HolePiece {
-            radius: 15.0,
-            offset: [0.0, 0.0],
-            until: 20.0,
-        },
-        HolePiece {
-            radius: 8.0,
-            offset: [0.0, 0.0],
-            until: 0.0,
-        },
-    ];
-    let mesh = drilled_block(60.0, 40.0, 60.0, d, top, &pieces, SIDES);
+    let mesh = stepped_hole(d, top);
     let mut request = AccessRequest::new(top, down(top, d, 32.0));
     request.segments = 2;
     request.allowance = 0.2;
