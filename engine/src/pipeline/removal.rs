@@ -3,6 +3,7 @@
 //! steps go to the later stages in batches of a bounded size, so the step records of a
 //! program are never held at once.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 
 use super::forces::turning_rpm;
@@ -294,13 +295,13 @@ pub(super) fn remove_material(
             let first = &pieces[start];
             let part_cells = batch_steps.max(DEFAULT_BATCH_STEPS) as f64;
             let parts = (((first.tip_length / cell).ceil() + 1.0) / part_cells).ceil();
-            let batches: Vec<Vec<PlannedPiece>> =
+            let batches: Vec<Cow<[PlannedPiece]>> =
                 match (end == start + 1 && parts > 1.0 && parts.is_finite())
                     .then(|| split_piece(first, parts.min(MAX_PARTS) as usize))
                     .flatten()
                 {
-                    Some(parts) => parts.into_iter().map(|p| vec![p]).collect(),
-                    None => vec![pieces[start..end].to_vec()],
+                    Some(parts) => parts.into_iter().map(|p| Cow::Owned(vec![p])).collect(),
+                    None => vec![Cow::Borrowed(&pieces[start..end])],
                 };
             start = end;
             let n_batches = batches.len();
