@@ -65,8 +65,10 @@ impl Engagement {
 /// geometry engine's slices lie on a grid (slice j centred at (j + ½)·dz, one dz high) and
 /// its arcs run between multiples of dφ, and neighbouring slices of a flank share their
 /// arcs: so it keeps runs of slice indices with the arcs' bin indices. A buried tool's two
-/// hundred 64-byte slices become a few runs of a few bytes. Exact: [`unpack`](Self::unpack)
-/// gives back the same numbers bit for bit; an engagement off the grid is kept as it is.
+/// hundred 64-byte slices become a few runs of a few bytes. The slices that the depth of
+/// cut covers in part (thinner than dz, at the ends of the cut) are kept with their own
+/// height and thickness. Exact: [`unpack`](Self::unpack) gives back the same numbers bit
+/// for bit; an engagement with arcs off the grid is kept as it is.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(from = "Engagement", into = "Engagement")]
 pub struct PackedEngagement(Packing);
@@ -82,11 +84,15 @@ enum Packing {
         /// Each arc as the bin indices of its ends; a run's arcs from its `arcs_start` to
         /// the next run's.
         bins: Box<[[u32; 2]]>,
+        /// (z, dz) of each slice covered in part, in order: a run of count 0 stands for
+        /// the next of them.
+        parts: Box<[[f64; 2]]>,
     },
     Full(Engagement),
 }
 
-/// Slices `first..first + count` with the same arcs.
+/// Slices `first..first + count` with the same arcs; with count 0, one slice covered in
+/// part (its height and thickness in `parts`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct SliceRun {
     first: u32,
@@ -153,18 +159,35 @@ impl PackedEngagement {
         };
         let mut runs: Vec<SliceRun> = Vec::new();
         let mut bins: Vec<[u32; 2]> = Vec::new();
+        let mut parts: Vec<[f64; 2]> = Vec::new();
         for s in &e.slices {
-            if s.dz != dz {
-                return None;
-            }
-            let j = index(s.z, dz, 0.5)?;
             let start = bins.len();
             for &(a, b) in &s.arcs {
                 bins.push([index(a, dphi, 0.0)?, index(b, dphi, 0.0)?]);
             }
+            let whole = if s.dz == dz {
+                index(s.z, dz, 0.5)
+            } else {
+                None
+            };
+            let Some(j) = whole else {
+                if !(s.dz > 0.0 && s.dz < dz && s.z.is_finite()) {
+                    return None;
+                }
+                parts.push([s.z, s.dz]);
+                runs.push(SliceRun {
+                    first: 0,
+                    count: 0,
+                    arcs_start: u32::try_from(start).ok()?,
+                });
+                continue;
+            };
             if let Some(r) = runs.last_mut() {
                 let prev = r.arcs_start as usize..start;
-                if r.first as u64 + r.count as u64 == j as u64 && bins[prev] == bins[start..] {
+                if r.count > 0
+                    && r.first as u64 + r.count as u64 == j as u64
+                    && bins[prev] == bins[start..]
+                {
                     r.count += 1;
                     bins.truncate(start);
                     continue;
@@ -183,6 +206,7 @@ impl PackedEngagement {
             tool_axis: e.tool_axis,
             runs: runs.into_boxed_slice(),
             bins: bins.into_boxed_slice(),
+            parts: parts.into_boxed_slice(),
         })
     }
 
@@ -204,10 +228,12 @@ impl PackedEngagement {
                 tool_axis,
                 runs,
                 bins,
+                parts,
             } => {
                 out.feed_dir = *feed_dir;
                 out.tool_axis = *tool_axis;
                 out.slices.clear();
+                let mut parts = parts.iter();
                 for (k, r) in runs.iter().enumerate() {
                     let end = runs
                         .get(k + 1)
@@ -216,6 +242,12 @@ impl PackedEngagement {
                         .iter()
                         .map(|&[a, b]| (a as f64 * dphi, b as f64 * dphi))
                         .collect();
+                    if r.count == 0 {
+                        if let Some(&[z, h]) = parts.next() {
+                            out.slices.push(EngagedSlice { z, dz: h, arcs });
+                        }
+                        continue;
+                    }
                     for j in r.first..r.first + r.count {
                         out.slices.push(EngagedSlice {
                             z: (j as f64 + 0.5) * dz,
@@ -258,9 +290,9 @@ impl PackedEngagement {
                         .map(|s| s.arcs.capacity() * 16)
                         .sum::<usize>()
             }
-            Packing::Grid { runs, bins, .. } => {
-                runs.len() * std::mem::size_of::<SliceRun>() + bins.len() * 8
-            }
+            Packing::Grid {
+                runs, bins, parts, ..
+            } => runs.len() * std::mem::size_of::<SliceRun>() + bins.len() * 8 + parts.len() * 16,
         }
     }
 }
@@ -340,5 +372,39 @@ mod tests {
             other
         );
         assert!(PackedEngagement::pack(Engagement::default(), dz, dphi).is_air());
+    }
+
+    #[test]
+    fn slices_covered_in_part_are_packed_with_their_own_height() {
+        let (dz, dphi) = (0.25, 2.0 * PI / 180.0);
+        // A cut 1.37 deep from 0.05: a part at the bottom, whole slices, a part at the top
+        // with other arcs, and a part alone in slice 0 of the next run's height.
+        let part = |z0: f64, z1: f64, arcs: &[(usize, usize)]| EngagedSlice {
+            z: 0.5 * (z0 + z1),
+            dz: z1 - z0,
+            ..slice(0, dz, arcs, dphi)
+        };
+        let mut slices = vec![part(0.05, 0.25, &[(0, 90)])];
+        slices.extend((1..5).map(|j| slice(j, dz, &[(0, 90)], dphi)));
+        slices.push(part(1.25, 1.37, &[(2, 88)]));
+        slices.push(part(1.37, 1.5, &[(2, 40)]));
+        let e = Engagement {
+            slices,
+            feed_dir: [1.0, 0.0, 0.0],
+            tool_axis: [0.0, 0.0, 1.0],
+        };
+        let p = PackedEngagement::pack(e.clone(), dz, dphi);
+        assert!(matches!(p.0, Packing::Grid { .. }), "{p:?}");
+        assert_eq!(p.unpack(), e, "bit for bit");
+        assert!(p.heap_bytes() * 4 < PackedEngagement::from(e).heap_bytes());
+        // A part no thinner than the slice is not a part.
+        let thick = Engagement {
+            slices: vec![part(0.0, 0.3, &[(0, 90)])],
+            ..Default::default()
+        };
+        assert_eq!(
+            PackedEngagement::pack(thick.clone(), dz, dphi),
+            PackedEngagement::from(thick)
+        );
     }
 }
