@@ -45,6 +45,7 @@ function specs(rows, opt, limit) {
     { label: 'mean |F| before', values: c('force_mean_n'), color: '#f39c9c' },
   ];
   if (opt) force.push({ label: 'peak |F| after', values: c('force_peak_opt_n'), color: '#2463eb', after: true });
+  if (opt && rows.has('force_mean_opt_n')) force.push({ label: 'mean |F| after', values: c('force_mean_opt_n'), color: '#8fb3f5', after: true });
   if (limit != null) force.push({ label: 'limit', color: '#444', dash: [6, 4], constant: limit });
   list.push({ title: 'Cutting force', unit: 'N', series: force });
   const feed = [{ label: 'feed before', values: c('feed_mm_min'), color: '#7a5c00' }];
@@ -57,11 +58,20 @@ function specs(rows, opt, limit) {
     mrr.push({ label: 'MRR after', values: v.map((x, i) => (t[i] > 0 ? x / t[i] : 0)), color: '#ba68c8', after: true });
   }
   list.push({ title: 'Material removal rate', unit: 'mm³/s', series: mrr });
-  list.push({ title: 'Spindle power', unit: 'W', series: [
-    { label: 'peak power', values: c('power_peak_w'), color: '#ef6c00' },
-    { label: 'mean power', values: c('power_mean_w'), color: '#ffb74d' },
-  ] });
-  list.push({ title: 'Torque', unit: 'N·m', series: [{ label: 'peak torque', values: c('torque_peak_nm'), color: '#00838f' }] });
+  // After optimization: the same figures at the new feeds (each step evaluated again).
+  const after = opt && rows.has('power_mean_opt_w');
+  const power = [
+    { label: 'peak power' + (after ? ' before' : ''), values: c('power_peak_w'), color: '#ef6c00' },
+    { label: 'mean power' + (after ? ' before' : ''), values: c('power_mean_w'), color: '#ffb74d' },
+  ];
+  if (after) {
+    power.push({ label: 'peak power after', values: c('power_peak_opt_w'), color: '#1565c0', after: true });
+    power.push({ label: 'mean power after', values: c('power_mean_opt_w'), color: '#64b5f6', after: true });
+  }
+  list.push({ title: 'Spindle power', unit: 'W', series: power });
+  const torque = [{ label: 'peak torque' + (after ? ' before' : ''), values: c('torque_peak_nm'), color: '#00838f' }];
+  if (after) torque.push({ label: 'peak torque after', values: c('torque_peak_opt_nm'), color: '#5e35b1', after: true });
+  list.push({ title: 'Torque', unit: 'N·m', series: torque });
   const chatter = c('chatter_margin');
   if (chatter.some((x) => x !== null)) {
     list.push({ title: 'Chatter margin', unit: '', series: [

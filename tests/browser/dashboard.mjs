@@ -32,11 +32,11 @@ async function submit(base, headers, kind, programName, program, options) {
 
 // The colours of each plot's series, before and after (web/blockplots.js).
 const SERIES = {
-  'Cutting force': ['#c62828', '#2463eb'],
+  'Cutting force': ['#c62828', '#2463eb', '#8fb3f5'],
   Feed: ['#7a5c00', '#18794e'],
   'Material removal rate': ['#6a1b9a', '#ba68c8'],
-  'Spindle power': ['#ef6c00'],
-  Torque: ['#00838f'],
+  'Spindle power': ['#ef6c00', '#1565c0', '#64b5f6'],
+  Torque: ['#00838f', '#5e35b1'],
 };
 
 const plotX = (page, title) => page.getAttribute(`[data-plot="${title}"]`, 'data-x');
