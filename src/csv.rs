@@ -134,17 +134,18 @@ fn push_field(out: &mut String, v: Option<&RawValue>) {
         return;
     };
     let raw = v.get();
-    let text: Cow<str> = if raw.starts_with('"') {
-        match serde_json::from_str::<&str>(raw) {
+    let text: Cow<str> = match raw.as_bytes()[0] {
+        b'"' => match serde_json::from_str::<&str>(raw) {
             Ok(s) => s.into(),
             Err(_) => serde_json::from_str::<String>(raw)
                 .unwrap_or_default()
                 .into(),
-        }
-    } else {
-        raw.into()
+        },
+        b'[' | b'{' => raw.into(),
+        // A number or a boolean: nothing to quote.
+        _ => return out.push_str(raw),
     };
-    if text.contains([',', '"', '\n']) {
+    if text.bytes().any(|b| matches!(b, b',' | b'"' | b'\n')) {
         out.push('"');
         out.push_str(&text.replace('"', "\"\""));
         out.push('"');

@@ -9,7 +9,7 @@ use serde_json::json;
 
 /// The blocks.csv columns outside checks read; optimize jobs add OPT_COLUMNS.
 const INTERFACE_COLUMNS: &str = "block,line,tool,kind,length_mm,feed_mm_min,spindle_rpm,time_s,removed_mm3,mrr_mm3_s,axial_depth_mm,radial_width_mm,entry_deg,exit_deg,chip_max_mm,force_peak_n,force_mean_n,fx_mean_n,fy_mean_n,fz_mean_n,torque_peak_nm,power_peak_w,energy_j,air_fraction,flags";
-const OPT_COLUMNS: &str = "feed_opt_mm_min,time_opt_s,force_peak_opt_n";
+const OPT_COLUMNS: &str = "feed_opt_mm_min,time_opt_s,force_peak_opt_n,force_mean_opt_n,torque_peak_opt_nm,power_mean_opt_w,power_peak_opt_w,governing";
 
 /// The block stock (100 × 40 × 10 mm, top at z = 0) and flat D10 4-flute zero-helix tool both
 /// tests cut their slot with; returns their ids.

@@ -6,6 +6,7 @@ import { el, fmt, fmtTime, lowerBound } from './util.js';
 import { XGroup, mergeHooks } from './panzoom.js';
 
 const uPlot = window.uPlot;
+const BLOCK_TICKS = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1e3, 2e3, 5e3, 1e4, 2e4, 5e4, 1e5, 2e5, 5e5, 1e6, 2e6, 5e6];
 
 // The end time of each row, s (rows are in program order).
 function cumulative(values) {
@@ -150,7 +151,8 @@ export function blockPlots(container, rows, ctx) {
       width: Math.max(320, box.clientWidth - 20), height: 240,
       cursor: g.cursor,
       scales: { x: { time: false } },
-      axes: [{ label: mode === 'block' ? 'block' : 'cycle time (s)' }, { label: spec.unit, size: 70 }],
+      // Blocks are whole numbers: no ticks between them.
+      axes: [mode === 'block' ? { label: 'block', incrs: BLOCK_TICKS } : { label: 'cycle time (s)' }, { label: spec.unit, size: 70 }],
       series: [{ label: mode === 'block' ? 'block' : 's' }, ...ordered.map((s) => ({ label: s.label, stroke: s.color, width: 1, dash: s.dash, points: { show: false }, spanGaps: mode === 'time' }))],
       hooks: mergeHooks(g.hooks, { setScale: [(u, key) => {
         // The range in view, on the element: what the tests (and a reader of the DOM) see.

@@ -5,24 +5,12 @@
 //   MILLSIM_BIN=$CARGO_TARGET_DIR/debug/millsim node tests/browser/kinds.mjs
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { ARTIFACTS, api, canvasInk, colourInk, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, startServer, waitJob } from './common.mjs';
+import { ARTIFACTS, api, boxStl, canvasInk, colourInk, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, startServer, waitJob } from './common.mjs';
 
 const log = logger('kinds');
 
 const STABILITY = { method: 'sdm', teeth: 2, ktc_n_mm2: 600, krc_n_mm2: 200, radial_immersion: 0.05, milling: 'down',
   modes_x: [{ freq_hz: 922, damping: 0.011, stiffness_n_m: 1.34005e6 }], modes_y: [], rpm: { from: 5000, to: 25000, step: 250 }, steps_per_period: 40 };
-
-// A box from a to b as an ASCII STL (faces wound outwards).
-function boxStl(a, b) {
-  const p = (i, j, k) => [i ? b[0] : a[0], j ? b[1] : a[1], k ? b[2] : a[2]];
-  const faces = [
-    [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]], [[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
-    [[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], [[0, 1, 0], [0, 1, 1], [1, 1, 1], [1, 1, 0]],
-    [[0, 0, 0], [0, 0, 1], [0, 1, 1], [0, 1, 0]], [[1, 0, 0], [1, 1, 0], [1, 1, 1], [1, 0, 1]],
-  ];
-  const tri = (q) => ' facet normal 0 0 0\n  outer loop\n' + q.map((v) => '   vertex ' + p(...v).join(' ') + '\n').join('') + '  endloop\n endfacet\n';
-  return 'solid part\n' + faces.map((f) => tri([f[0], f[1], f[2]]) + tri([f[0], f[2], f[3]])).join('') + 'endsolid part\n';
-}
 
 async function main() {
   const base = await startServer('kinds', ['--workers', '1']);
