@@ -127,9 +127,38 @@ pub fn select(cols: Vec<Column>, wanted: &[&str]) -> Result<Vec<Column>, String>
         .collect())
 }
 
+/// How numbers are written: as stored, or (`digits`) the fractional ones rounded to that
+/// many significant digits (integers stay whole): a plot needs six, not seventeen.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Numbers {
+    pub digits: Option<usize>,
+}
+
+/// `raw` (a JSON number with a fraction or an exponent) to `digits` significant digits, in
+/// the shortest text that reads back as the rounded value.
+fn push_rounded(out: &mut String, raw: &str, digits: usize) {
+    use std::fmt::Write;
+    let Ok(x) = raw.parse::<f64>() else {
+        return out.push_str(raw);
+    };
+    // Rounded in decimal (exact), then printed shortest.
+    let mut buf = String::with_capacity(32);
+    let _ = write!(buf, "{:.*e}", digits.saturating_sub(1), x);
+    let r: f64 = buf.parse().unwrap_or(x);
+    let a = r.abs();
+    if a != 0.0 && !(1e-4..1e15).contains(&a) {
+        let _ = write!(out, "{r:e}");
+    } else if r.fract() == 0.0 {
+        // A whole number keeps its point, as the stored float did.
+        let _ = write!(out, "{r:.1}");
+    } else {
+        let _ = write!(out, "{r}");
+    }
+}
+
 /// A raw value as CSV text: null empty, a string unescaped, anything else as written
 /// (numbers, booleans, compact JSON); quoted where it holds a comma, quote or line break.
-fn push_field(out: &mut String, v: Option<&RawValue>) {
+fn push_field(out: &mut String, v: Option<&RawValue>, numbers: Numbers) {
     let Some(v) = v.filter(|v| !is_null(v)) else {
         return;
     };
@@ -143,7 +172,14 @@ fn push_field(out: &mut String, v: Option<&RawValue>) {
         },
         b'[' | b'{' => raw.into(),
         // A number or a boolean: nothing to quote.
-        _ => return out.push_str(raw),
+        _ => {
+            return match numbers.digits {
+                Some(d) if raw.bytes().any(|b| matches!(b, b'.' | b'e' | b'E')) => {
+                    push_rounded(out, raw, d)
+                }
+                _ => out.push_str(raw),
+            }
+        }
     };
     if text.bytes().any(|b| matches!(b, b',' | b'"' | b'\n')) {
         out.push('"');
@@ -164,7 +200,7 @@ pub fn write_header(out: &mut String, cols: &[Column]) {
     out.push('\n');
 }
 
-pub fn write_row(out: &mut String, cols: &[Column], row: &Pairs) {
+pub fn write_row(out: &mut String, cols: &[Column], row: &Pairs, numbers: Numbers) {
     let mut from = 0;
     // The array of the last array key, parsed once for its several columns.
     let mut spread: Option<(&str, Vec<&RawValue>)> = None;
@@ -173,7 +209,7 @@ pub fn write_row(out: &mut String, cols: &[Column], row: &Pairs) {
             out.push(',');
         }
         match c.index {
-            None => push_field(out, lookup(row, &c.key, &mut from)),
+            None => push_field(out, lookup(row, &c.key, &mut from), numbers),
             Some(j) => {
                 if spread.as_ref().map(|(k, _)| *k) != Some(c.key.as_str()) {
                     let a = lookup(row, &c.key, &mut from)
@@ -182,7 +218,7 @@ pub fn write_row(out: &mut String, cols: &[Column], row: &Pairs) {
                     spread = Some((&c.key, a));
                 }
                 let a = &spread.as_ref().expect("set above").1;
-                push_field(out, a.get(j).copied());
+                push_field(out, a.get(j).copied(), numbers);
             }
         }
     }
@@ -208,7 +244,7 @@ mod tests {
         let mut out = String::new();
         write_header(&mut out, &cols);
         for p in &parsed {
-            write_row(&mut out, &cols, p);
+            write_row(&mut out, &cols, p, Numbers::default());
         }
         out
     }
@@ -280,10 +316,40 @@ mod tests {
         let picked = select(cols.clone(), &["force", "end_y", "line"]).unwrap();
         let mut out = String::new();
         write_header(&mut out, &picked);
-        write_row(&mut out, &picked, &p);
+        write_row(&mut out, &picked, &p, Numbers::default());
         assert_eq!(out, "line,end_y,force\n3,2.0,2.5\n");
         let all_end = select(cols.clone(), &["end"]).unwrap();
         assert_eq!(all_end.len(), 3);
         assert_eq!(select(cols, &["line", "forse"]).unwrap_err(), "forse");
+    }
+
+    #[test]
+    fn fewer_digits_round_fractions_and_keep_integers_whole() {
+        let row = json!({"block": 123456789, "t": 0.11399388365868235, "f": 2515.00883, "z": 0.0,
+            "big": 1234567.0, "tiny": 1.234567e-7, "neg": -400.00004, "word": "a"})
+        .to_string();
+        let keys = ["block", "t", "f", "z", "big", "tiny", "neg", "word"];
+        let mut p = Vec::new();
+        assert!(read_pairs(&row, &mut p));
+        let keys: Vec<String> = keys.map(String::from).to_vec();
+        let cols = columns(&keys, std::slice::from_ref(&p));
+        let mut out = String::new();
+        write_row(&mut out, &cols, &p, Numbers { digits: Some(6) });
+        assert_eq!(
+            out,
+            "123456789,0.113994,2515.01,0.0,1234570.0,1.23457e-7,-400.0,a\n"
+        );
+        // Each within half a unit of the sixth digit of the stored value.
+        for (got, was) in out.split(',').skip(1).take(6).zip([
+            0.11399388365868235,
+            2515.00883,
+            0.0,
+            1234567.0,
+            1.234567e-7,
+            -400.00004,
+        ]) {
+            let g: f64 = got.parse().unwrap();
+            assert!((g - was).abs() <= 5e-6 * was.abs(), "{got} vs {was}");
+        }
     }
 }

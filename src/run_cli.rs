@@ -365,7 +365,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     let mut text = String::new();
     csv::write_header(&mut text, &cols);
     for r in &rows {
-        csv::write_row(&mut text, &cols, r);
+        csv::write_row(&mut text, &cols, r, csv::Numbers::default());
     }
     write("blocks.csv", text.as_bytes())?;
     for f in &out.files {

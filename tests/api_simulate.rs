@@ -149,9 +149,28 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
         }))
         .collect();
     assert_eq!(picked.lines().collect::<Vec<_>>(), want);
+    // Six significant digits: each number within half a unit of its sixth digit.
+    let short = get_text(
+        &c,
+        &s,
+        &format!("/v1/jobs/{job_id}/blocks?format=csv&digits=6"),
+    )
+    .await;
+    assert!(short.len() < csv.len(), "{} vs {}", short.len(), csv.len());
+    for (a, b) in short.lines().zip(csv.lines()).skip(1) {
+        for (x, y) in a.split(',').zip(b.split(',')) {
+            match (x.parse::<f64>(), y.parse::<f64>()) {
+                (Ok(x), Ok(y)) => assert!((x - y).abs() <= 5e-6 * y.abs(), "{x} vs {y}"),
+                _ => assert_eq!(x, y),
+            }
+        }
+    }
     for (query, field) in [
         ("format=csv&columns=line,forse", "columns"),
         ("columns=line", "columns"),
+        ("format=csv&digits=0", "digits"),
+        ("format=csv&digits=x", "digits"),
+        ("digits=6", "digits"),
     ] {
         let (st, p) = json(
             c.get(s.url(&format!("/v1/jobs/{job_id}/blocks?{query}")))

@@ -96,7 +96,7 @@ export async function renderCutting(job, s, summarySlot) {
   const total = s.moves;
   // Only the columns the plots, hovers and samples read (the CSV download has them all).
   const wanted = ROW_COLUMNS.filter((c) => !Array.isArray(s.row_columns) || s.row_columns.includes(c));
-  try { rows = await loadRows(job.id, (n) => { status.textContent = 'loading rows… ' + n + (total ? ' of ' + total : ''); }, wanted); } catch (e) { handleError(e, plots); return; }
+  try { rows = await loadRows(job.id, (n) => { status.textContent = 'loading rows… ' + n + (total ? ' of ' + total : ''); }, wanted, total); } catch (e) { handleError(e, plots); return; }
   status.textContent = rows.length + ' rows';
   performance.mark('rows-loaded');
   const limit = opt && opt.limits ? opt.limits.max_force : null;

@@ -471,6 +471,8 @@ struct BlocksQuery {
     format: Option<String>,
     /// CSV only: the columns to send (comma-separated), in the rows' order.
     columns: Option<String>,
+    /// CSV only: fractional numbers to this many significant digits (as stored without).
+    digits: Option<String>,
     cursor: Option<String>,
     limit: Option<String>,
 }
@@ -485,10 +487,14 @@ pub async fn blocks(
     let job = succeeded(&state.db, &owner, &id).await?;
     match q.format.as_deref().unwrap_or("json") {
         "json" => {
-            if q.columns.is_some() {
+            if q.columns.is_some() || q.digits.is_some() {
                 return Err(ApiError::invalid_field(
-                    "columns",
-                    "columns selects the columns of format=csv; JSON rows are whole",
+                    if q.columns.is_some() {
+                        "columns"
+                    } else {
+                        "digits"
+                    },
+                    "columns and digits shape format=csv; JSON rows are whole",
                 ));
             }
             let from = match &q.cursor {
@@ -530,7 +536,28 @@ pub async fn blocks(
                     .filter(|w| !w.is_empty())
                     .collect()
             });
-            super::rows_csv::csv_response(state.db.clone(), id, declared, wanted).await
+            let digits = match q.digits.as_deref() {
+                None => None,
+                Some(d) => Some(
+                    d.parse::<usize>()
+                        .ok()
+                        .filter(|d| (1..=17).contains(d))
+                        .ok_or_else(|| {
+                            ApiError::invalid_field(
+                                "digits",
+                                format!("`{d}` is not a number of significant digits from 1 to 17"),
+                            )
+                        })?,
+                ),
+            };
+            super::rows_csv::csv_response(
+                state.db.clone(),
+                id,
+                declared,
+                wanted,
+                crate::csv::Numbers { digits },
+            )
+            .await
         }
         other => Err(ApiError::invalid_field(
             "format",

@@ -17,13 +17,14 @@ use crate::store::Db;
 const PAGE: i64 = 5000;
 
 /// The CSV of job `id`'s rows with the `declared` keys as columns (else the first row's),
-/// or only the `wanted` ones. The first page is read before answering, so an unknown
+/// or only the `wanted` ones, numbers written as `numbers` says. The first page is read before answering, so an unknown
 /// column is a 400 naming it, not a broken stream.
 pub async fn csv_response(
     db: Db,
     id: String,
     declared: Option<Vec<String>>,
     wanted: Option<Vec<String>>,
+    numbers: csv::Numbers,
 ) -> Result<Response, ApiError> {
     let first = db.job_rows(&id, 0, PAGE).await?;
     let cols = {
@@ -76,7 +77,7 @@ pub async fn csv_response(
             header: true,
             failed: None,
         },
-        |mut s| async move {
+        move |mut s| async move {
             if let Some(e) = s.failed.take() {
                 return Some((Err(std::io::Error::other(e)), s));
             }
@@ -95,7 +96,7 @@ pub async fn csv_response(
                 let mut pairs = Vec::new();
                 for (_, d) in &rows {
                     if csv::read_pairs(d, &mut pairs) {
-                        csv::write_row(&mut out, &cols, &pairs);
+                        csv::write_row(&mut out, &cols, &pairs, numbers);
                     }
                 }
                 out
