@@ -59,63 +59,42 @@ pub async fn csv_response(
             })?
         }
     };
-    struct S {
-        db: Db,
-        id: String,
-        cols: Arc<Vec<csv::Column>>,
-        page: Option<Vec<(i64, String)>>,
-        header: bool,
-        /// A failed read, told after the rows before it have gone out.
-        failed: Option<String>,
-    }
-    let stream = stream::unfold(
-        S {
-            db,
-            id,
-            cols: Arc::new(cols),
-            page: Some(first),
-            header: true,
-            failed: None,
-        },
-        move |mut s| async move {
-            if let Some(e) = s.failed.take() {
-                return Some((Err(std::io::Error::other(e)), s));
-            }
-            let rows = s.page.take()?;
-            let Some(&(last, _)) = rows.last() else {
-                return None;
+    // A producer reads and converts the pages while the one before is on the wire (the
+    // next page's read and conversion overlap the client's reading); the channel holds
+    // two pages, so memory stays at a few pages whatever the number of rows. A client
+    // that goes away closes the channel and stops the producer.
+    let (tx, mut rx) = tokio::sync::mpsc::channel::<std::io::Result<bytes::Bytes>>(2);
+    let cols = Arc::new(cols);
+    tokio::spawn(async move {
+        let mut page = first;
+        let mut header = true;
+        loop {
+            let Some(&(last, _)) = page.last() else {
+                break;
             };
-            let full = rows.len() as i64 == PAGE;
-            let (cols, header) = (s.cols.clone(), s.header);
-            s.header = false;
-            let text = tokio::task::spawn_blocking(move || {
-                let mut out = String::with_capacity(rows.len() * 64 * cols.len() / 4);
-                if header {
-                    csv::write_header(&mut out, &cols);
-                }
-                let mut pairs = Vec::new();
-                for (_, d) in &rows {
-                    if csv::read_pairs(d, &mut pairs) {
-                        csv::write_row(&mut out, &cols, &pairs, numbers);
-                    }
-                }
-                out
-            })
-            .await
-            .map_err(std::io::Error::other);
-            let text = match text {
-                Ok(t) => t,
-                Err(e) => return Some((Err(e), s)),
+            let full = page.len() as i64 == PAGE;
+            let c = cols.clone();
+            let text = tokio::task::spawn_blocking(move || convert(&page, &c, header, numbers));
+            let next = if full {
+                Some(db.job_rows(&id, last + 1, PAGE).await)
+            } else {
+                None
             };
-            if full {
-                match s.db.job_rows(&s.id, last + 1, PAGE).await {
-                    Ok(next) => s.page = Some(next),
-                    Err(e) => s.failed = Some(e.to_string()),
+            header = false;
+            let text = text.await.map_err(std::io::Error::other);
+            let sent = tx.send(text.map(bytes::Bytes::from)).await;
+            match (sent, next) {
+                (Ok(()), Some(Ok(p))) => page = p,
+                (Ok(()), Some(Err(e))) => {
+                    // The rows so far have gone out; the broken stream tells the client.
+                    let _ = tx.send(Err(std::io::Error::other(e.to_string()))).await;
+                    break;
                 }
+                _ => break,
             }
-            Some((Ok::<_, std::io::Error>(bytes::Bytes::from(text)), s))
-        },
-    );
+        }
+    });
+    let stream = stream::poll_fn(move |cx| rx.poll_recv(cx));
     Ok((
         [
             (header::CONTENT_TYPE, "text/csv; charset=utf-8"),
@@ -127,4 +106,24 @@ pub async fn csv_response(
         Body::from_stream(stream),
     )
         .into_response())
+}
+
+/// One page of rows as CSV text (the header first where asked).
+fn convert(
+    rows: &[(i64, String)],
+    cols: &[csv::Column],
+    header: bool,
+    numbers: csv::Numbers,
+) -> String {
+    let mut out = String::with_capacity(rows.len() * 16 * cols.len());
+    if header {
+        csv::write_header(&mut out, cols);
+    }
+    let mut pairs = Vec::new();
+    for (_, d) in rows {
+        if csv::read_pairs(d, &mut pairs) {
+            csv::write_row(&mut out, cols, &pairs, numbers);
+        }
+    }
+    out
 }
