@@ -8,9 +8,9 @@ import { samplesPanel } from './samples.js';
 import { programDiff } from './programdiff.js';
 
 // The row columns this view reads.
-const ROW_COLUMNS = ['block', 'line', 'n', 'kind', 'time_s', 'time_opt_s', 'feed_mm_min', 'feed_opt_mm_min', 'governing',
+const ROW_COLUMNS = ['block', 'line', 'n', 'kind', 'time_s', 'time_opt_s', 'feed_mm_min', 'feed_opt_mm_min',
   'force_peak_n', 'force_mean_n', 'force_peak_opt_n', 'force_mean_opt_n', 'removed_mm3', 'mrr_mm3_s',
-  'power_peak_w', 'power_mean_w', 'power_peak_opt_w', 'power_mean_opt_w', 'torque_peak_nm', 'torque_peak_opt_nm', 'chatter_margin', 'flags'];
+  'power_peak_w', 'power_mean_w', 'power_peak_opt_w', 'power_mean_opt_w', 'torque_peak_nm', 'torque_peak_opt_nm', 'chatter_margin'];
 
 function summaryCards(s, opt) {
   const cards = el('div', { class: 'cards', id: 'cards' });
