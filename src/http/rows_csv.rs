@@ -1,6 +1,7 @@
 //! A job's rows as one streamed CSV (`/v1/jobs/{id}/blocks?format=csv`): read from the
 //! table page by page (memory stays flat whatever the number of blocks), each page turned
-//! into CSV on a blocking thread straight from the rows' JSON text (see `crate::csv`).
+//! into CSV on a blocking thread straight from the rows' JSON text (see `crate::csv`), the
+//! next page read and converted while the one before is sent.
 
 use std::sync::Arc;
 
