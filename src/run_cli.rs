@@ -353,16 +353,19 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     )?;
     let keys: Vec<String> =
         serde_json::from_value(summary["row_columns"].clone()).unwrap_or_default();
-    let rows: Vec<Map<String, Value>> = out
+    let rows: Vec<csv::Pairs> = out
         .rows
         .iter()
-        .filter_map(|r| serde_json::from_str(r).ok())
+        .filter_map(|r| {
+            let mut p = Vec::new();
+            csv::read_pairs(r, &mut p).then_some(p)
+        })
         .collect();
     let cols = csv::columns(&keys, &rows);
     let mut text = String::new();
     csv::write_header(&mut text, &cols);
     for r in &rows {
-        csv::write_row(&mut text, &cols, r);
+        csv::write_row(&mut text, &cols, r, csv::Numbers::default());
     }
     write("blocks.csv", text.as_bytes())?;
     for f in &out.files {

@@ -9,7 +9,7 @@ use serde_json::json;
 
 /// The blocks.csv columns outside checks read; optimize jobs add OPT_COLUMNS.
 const INTERFACE_COLUMNS: &str = "block,line,tool,kind,length_mm,feed_mm_min,spindle_rpm,time_s,removed_mm3,mrr_mm3_s,axial_depth_mm,radial_width_mm,entry_deg,exit_deg,chip_max_mm,force_peak_n,force_mean_n,fx_mean_n,fy_mean_n,fz_mean_n,torque_peak_nm,power_peak_w,energy_j,air_fraction,flags";
-const OPT_COLUMNS: &str = "feed_opt_mm_min,time_opt_s,force_peak_opt_n";
+const OPT_COLUMNS: &str = "feed_opt_mm_min,time_opt_s,force_peak_opt_n,force_mean_opt_n,torque_peak_opt_nm,power_mean_opt_w,power_peak_opt_w,governing";
 
 /// The block stock (100 × 40 × 10 mm, top at z = 0) and flat D10 4-flute zero-helix tool both
 /// tests cut their slot with; returns their ids.
@@ -69,6 +69,28 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let gouge = 2.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
     let got = summary["part"]["gouge_volume"].as_f64().unwrap();
     assert!((got - gouge).abs() / gouge < 0.01, "{got} vs {gouge}");
+    // Where: one region, the slot's footprint in the stock (x 0..65 with the D10's round
+    // end, y −5..5, to within a cell) from the part's top (−3) to the slot's floor (−5).
+    let part = &summary["part"];
+    assert_eq!(part["gouge_regions"], 1, "{part}");
+    let g = &part["gouges"][0];
+    let v = |k: &str, i: usize| g[k][i].as_f64().unwrap();
+    for (got, want) in [
+        (v("min", 0), 0.0),
+        (v("max", 0), 65.0),
+        (v("min", 1), -5.0),
+        (v("max", 1), 5.0),
+        (v("min", 2), -5.0),
+        (v("max", 2), -3.0),
+        (v("at", 2), -4.0),
+        (g["depth"].as_f64().unwrap(), 2.0),
+    ] {
+        assert!((got - want).abs() <= 0.25 + 1e-9, "{got} vs {want}: {g}");
+    }
+    assert!(
+        (g["volume"].as_f64().unwrap() - gouge).abs() / gouge < 0.01,
+        "{g}"
+    );
     assert!((removed - analytic).abs() / analytic < 0.005, "{summary}");
     assert_eq!(summary["force_peak_line"], 6);
     assert_eq!(summary["rapid_in_material_moves"], 0);
@@ -93,6 +115,76 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
         .find(|r| r["line"] == 6)
         .unwrap();
     assert!(cut["force_peak_n"].as_f64().unwrap() > 600.0, "{cut}");
+    // Every CSV field is the JSON row's value: words as they are, numbers with the digits
+    // they were stored with (a JSON reader may round the last bit), null empty.
+    let items = page["items"].as_array().unwrap();
+    let body: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(body.len(), items.len());
+    for (line, item) in body.iter().zip(items) {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!(fields.len(), header.len(), "{line}");
+        for (h, f) in header.iter().zip(&fields) {
+            match &item[*h] {
+                serde_json::Value::Null => assert_eq!(*f, "", "{h}"),
+                serde_json::Value::String(w) => assert_eq!(f, w, "{h}"),
+                v => {
+                    let (a, b) = (f.parse::<f64>().unwrap(), v.as_f64().unwrap());
+                    assert!((a - b).abs() <= 4e-16 * a.abs(), "{h}: {f} vs {v}");
+                }
+            }
+        }
+    }
+    // Some columns only, in the rows' order; a column the rows lack is named.
+    let picked = get_text(
+        &c,
+        &s,
+        &format!("/v1/jobs/{job_id}/blocks?format=csv&columns=force_peak_n,line,kind"),
+    )
+    .await;
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let want: Vec<String> = std::iter::once("line,kind,force_peak_n".to_string())
+        .chain(body.iter().map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            [f[col("line")], f[col("kind")], f[col("force_peak_n")]].join(",")
+        }))
+        .collect();
+    assert_eq!(picked.lines().collect::<Vec<_>>(), want);
+    // Six significant digits: each number within half a unit of its sixth digit.
+    let short = get_text(
+        &c,
+        &s,
+        &format!("/v1/jobs/{job_id}/blocks?format=csv&digits=6"),
+    )
+    .await;
+    assert!(short.len() < csv.len(), "{} vs {}", short.len(), csv.len());
+    for (a, b) in short.lines().zip(csv.lines()).skip(1) {
+        for (x, y) in a.split(',').zip(b.split(',')) {
+            match (x.parse::<f64>(), y.parse::<f64>()) {
+                (Ok(x), Ok(y)) => assert!((x - y).abs() <= 5e-6 * y.abs(), "{x} vs {y}"),
+                _ => assert_eq!(x, y),
+            }
+        }
+    }
+    for (query, field) in [
+        ("format=csv&columns=line,forse", "columns"),
+        ("columns=line", "columns"),
+        ("format=csv&digits=0", "digits"),
+        ("format=csv&digits=x", "digits"),
+        ("digits=6", "digits"),
+    ] {
+        let (st, p) = json(
+            c.get(s.url(&format!("/v1/jobs/{job_id}/blocks?{query}")))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
+        assert_eq!(
+            (st, p["field"].as_str()),
+            (422, Some(field)),
+            "{query}: {p}"
+        );
+    }
 
     // Per-step samples of a row range; their largest peak is the row's peak.
     let (st, samples) = json(

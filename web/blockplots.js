@@ -6,6 +6,7 @@ import { el, fmt, fmtTime, lowerBound } from './util.js';
 import { XGroup, mergeHooks } from './panzoom.js';
 
 const uPlot = window.uPlot;
+const BLOCK_TICKS = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1e3, 2e3, 5e3, 1e4, 2e4, 5e4, 1e5, 2e5, 5e5, 1e6, 2e6, 5e6];
 
 // The end time of each row, s (rows are in program order).
 function cumulative(values) {
@@ -45,6 +46,7 @@ function specs(rows, opt, limit) {
     { label: 'mean |F| before', values: c('force_mean_n'), color: '#f39c9c' },
   ];
   if (opt) force.push({ label: 'peak |F| after', values: c('force_peak_opt_n'), color: '#2463eb', after: true });
+  if (opt && rows.has('force_mean_opt_n')) force.push({ label: 'mean |F| after', values: c('force_mean_opt_n'), color: '#8fb3f5', after: true });
   if (limit != null) force.push({ label: 'limit', color: '#444', dash: [6, 4], constant: limit });
   list.push({ title: 'Cutting force', unit: 'N', series: force });
   const feed = [{ label: 'feed before', values: c('feed_mm_min'), color: '#7a5c00' }];
@@ -57,11 +59,20 @@ function specs(rows, opt, limit) {
     mrr.push({ label: 'MRR after', values: v.map((x, i) => (t[i] > 0 ? x / t[i] : 0)), color: '#ba68c8', after: true });
   }
   list.push({ title: 'Material removal rate', unit: 'mm³/s', series: mrr });
-  list.push({ title: 'Spindle power', unit: 'W', series: [
-    { label: 'peak power', values: c('power_peak_w'), color: '#ef6c00' },
-    { label: 'mean power', values: c('power_mean_w'), color: '#ffb74d' },
-  ] });
-  list.push({ title: 'Torque', unit: 'N·m', series: [{ label: 'peak torque', values: c('torque_peak_nm'), color: '#00838f' }] });
+  // After optimization: the same figures at the new feeds (each step evaluated again).
+  const after = opt && rows.has('power_mean_opt_w');
+  const power = [
+    { label: 'peak power' + (after ? ' before' : ''), values: c('power_peak_w'), color: '#ef6c00' },
+    { label: 'mean power' + (after ? ' before' : ''), values: c('power_mean_w'), color: '#ffb74d' },
+  ];
+  if (after) {
+    power.push({ label: 'peak power after', values: c('power_peak_opt_w'), color: '#1565c0', after: true });
+    power.push({ label: 'mean power after', values: c('power_mean_opt_w'), color: '#64b5f6', after: true });
+  }
+  list.push({ title: 'Spindle power', unit: 'W', series: power });
+  const torque = [{ label: 'peak torque' + (after ? ' before' : ''), values: c('torque_peak_nm'), color: '#00838f' }];
+  if (after) torque.push({ label: 'peak torque after', values: c('torque_peak_opt_nm'), color: '#5e35b1', after: true });
+  list.push({ title: 'Torque', unit: 'N·m', series: torque });
   const chatter = c('chatter_margin');
   if (chatter.some((x) => x !== null)) {
     list.push({ title: 'Chatter margin', unit: '', series: [
@@ -140,7 +151,8 @@ export function blockPlots(container, rows, ctx) {
       width: Math.max(320, box.clientWidth - 20), height: 240,
       cursor: g.cursor,
       scales: { x: { time: false } },
-      axes: [{ label: mode === 'block' ? 'block' : 'cycle time (s)' }, { label: spec.unit, size: 70 }],
+      // Blocks are whole numbers: no ticks between them.
+      axes: [mode === 'block' ? { label: 'block', incrs: BLOCK_TICKS } : { label: 'cycle time (s)' }, { label: spec.unit, size: 70 }],
       series: [{ label: mode === 'block' ? 'block' : 's' }, ...ordered.map((s) => ({ label: s.label, stroke: s.color, width: 1, dash: s.dash, points: { show: false }, spanGaps: mode === 'time' }))],
       hooks: mergeHooks(g.hooks, { setScale: [(u, key) => {
         // The range in view, on the element: what the tests (and a reader of the DOM) see.

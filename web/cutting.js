@@ -7,6 +7,11 @@ import { blockPlots } from './blockplots.js';
 import { samplesPanel } from './samples.js';
 import { programDiff } from './programdiff.js';
 
+// The row columns this view reads.
+const ROW_COLUMNS = ['block', 'line', 'n', 'kind', 'time_s', 'time_opt_s', 'feed_mm_min', 'feed_opt_mm_min',
+  'force_peak_n', 'force_mean_n', 'force_peak_opt_n', 'force_mean_opt_n', 'removed_mm3', 'mrr_mm3_s',
+  'power_peak_w', 'power_mean_w', 'power_peak_opt_w', 'power_mean_opt_w', 'torque_peak_nm', 'torque_peak_opt_nm', 'chatter_margin'];
+
 function summaryCards(s, opt) {
   const cards = el('div', { class: 'cards', id: 'cards' });
   if (opt) {
@@ -50,9 +55,11 @@ function stockView(job, base, s) {
       ]);
       view.replaceChildren();
       const marks = (s.collisions || []).filter((c) => Array.isArray(c.from) && Array.isArray(c.to));
-      const v = mod.showStock(view, stl, part, marks);
+      const gouges = (s.part && Array.isArray(s.part.gouges)) ? s.part.gouges : [];
+      const v = mod.showStock(view, stl, part, marks, gouges);
       view.append(el('p', { class: 'muted', id: 'stockinfo' }, v.triangles.toLocaleString('en-US') + ' triangles · ' + v.size.map((x) => fmt(x, 1)).join(' × ') + ' mm · drag to orbit, wheel to zoom, right-drag to pan',
         marks.length ? ' · ' + marks.length + ' collision(s) marked in red' : '',
+        gouges.length ? ' · ' + gouges.length + ' gouge(s) marked in magenta' : '',
         part ? el('label', {}, ' · ', el('input', { type: 'checkbox', checked: true, onchange: (e) => v.setPartVisible(e.target.checked) }), ' design part (green)') : ''));
     } catch (e) { view.replaceChildren(); handleError(e, view); }
   } }, 'Show the machined stock in 3-D');
@@ -70,6 +77,14 @@ export async function renderCutting(job, s, summarySlot) {
       el('tbody', {}, s.collisions.map((c) => el('tr', {}, el('td', {}, c.block), el('td', {}, c.line), el('td', {}, c.kind),
         el('td', {}, Array.isArray(c.from) ? c.from.map((x) => fmt(x, 2)).join(', ') + ' → ' + c.to.map((x) => fmt(x, 2)).join(', ') : '–'))))));
   }
+  const gouges = s.part && Array.isArray(s.part.gouges) ? s.part.gouges : [];
+  if (gouges.length) {
+    const xyz = (p) => p.map((x) => fmt(x, 2)).join(', ');
+    app.append(el('h2', {}, 'Gouges'), el('p', { class: 'muted' }, s.part.gouge_regions + ' region(s) cut below the design part' + (s.part.gouge_regions > gouges.length ? ', the ' + gouges.length + ' largest listed' : '') + '; marked in magenta on the 3-D stock.'),
+      el('table', { class: 'jobs', id: 'gouges' },
+        el('thead', {}, el('tr', {}, ['Deepest at X, Y, Z (mm)', 'Depth (mm)', 'Volume (mm³)', 'From X, Y, Z', 'To X, Y, Z'].map((h) => el('th', {}, h)))),
+        el('tbody', {}, gouges.map((g) => el('tr', {}, el('td', {}, xyz(g.at)), el('td', {}, fmt(g.depth, 3)), el('td', {}, fmt(g.volume, 2)), el('td', {}, xyz(g.min)), el('td', {}, xyz(g.max)))))));
+  }
   app.append(...stockView(job, base, s));
   const plots = el('div', { id: 'plots' });
   const status = el('p', { class: 'muted', id: 'rowstatus' }, 'loading rows…');
@@ -79,7 +94,9 @@ export async function renderCutting(job, s, summarySlot) {
   sourceP.catch(() => {});
   let rows;
   const total = s.moves;
-  try { rows = await loadRows(job.id, (n) => { status.textContent = 'loading rows… ' + n + (total ? ' of ' + total : ''); }); } catch (e) { handleError(e, plots); return; }
+  // Only the columns the plots, hovers and samples read (the CSV download has them all).
+  const wanted = ROW_COLUMNS.filter((c) => !Array.isArray(s.row_columns) || s.row_columns.includes(c));
+  try { rows = await loadRows(job.id, (n) => { status.textContent = 'loading rows… ' + n + (total ? ' of ' + total : ''); }, wanted, total); } catch (e) { handleError(e, plots); return; }
   status.textContent = rows.length + ' rows';
   performance.mark('rows-loaded');
   const limit = opt && opt.limits ? opt.limits.max_force : null;

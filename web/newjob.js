@@ -1,4 +1,4 @@
-// The new-job form (/?new=1): a program, a stock (STL or block), tools (a new one, a stored
+// The new-job form (/?new=1): a program, a stock (STL or block) and a design part, tools (a new one, a stored
 // one, or a tool library, stored or uploaded), material and machine (built-in, stored or
 // uploaded), limits; submits simulate or optimize and then follows the job's page.
 import { el, problemView } from './util.js';
@@ -41,7 +41,8 @@ export async function renderNewJob(route) {
     el('fieldset', {}, el('legend', {}, 'Stock'),
       field('STL file (optional)', el('input', { name: 'stock_stl', type: 'file', accept: '.stl' })),
       el('div', { class: 'muted' }, 'or a block, min and max corners in mm:'),
-      el('div', { class: 'row' }, 'min', num('min_x', 0), num('min_y', 0), num('min_z', -20), 'max', num('max_x', 100), num('max_y', 80), num('max_z', 0))),
+      el('div', { class: 'row' }, 'min', num('min_x', 0), num('min_y', 0), num('min_z', -20), 'max', num('max_x', 100), num('max_y', 80), num('max_z', 0)),
+      field('Design part STL (optional: gouges and the allowance left, in the stock\'s frame)', el('input', { name: 'part_stl', type: 'file', accept: '.stl' }))),
     el('fieldset', {}, el('legend', {}, 'Tools'),
       field('Tool for every T number', toolSelect), newTool,
       el('div', { class: 'row' },
@@ -68,6 +69,8 @@ export async function renderNewJob(route) {
       const stl = f.stock_stl.files[0];
       inputs.stock = (stl ? await upload('stocks', stl, 'application/octet-stream')
         : await postJson('/v1/stocks', { kind: 'block', min: [+f.min_x.value, +f.min_y.value, +f.min_z.value], max: [+f.max_x.value, +f.max_y.value, +f.max_z.value] })).id;
+      const part = f.part_stl.files[0];
+      if (part) inputs.part = (await upload('stocks', part, 'application/octet-stream')).id;
       if (f.tool_choice.value === 'new') {
         const t = { type: f.tool_type.value, diameter_mm: +f.diameter_mm.value, flutes: +f.flutes.value, helix_deg: +f.helix_deg.value, flute_length_mm: +f.flute_length_mm.value };
         if (t.type === 'bull') t.corner_radius_mm = +f.corner_radius_mm.value;

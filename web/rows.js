@@ -35,34 +35,50 @@ function fields(line) {
   return out;
 }
 
+// A column of numbers stays a Float64Array (unboxed, grown by doubling) until it meets an
+// empty field or a word; it then becomes a plain array (null for empty). 10^5 rows of
+// numbers read several times faster so.
 export class Rows {
-  constructor(names) {
+  constructor(names, capacity) {
     this.names = names;
-    this.cols = names.map(() => []);
+    this.cap = Math.max(16, capacity || 0);
+    this.cols = names.map((n) => (WORDS.has(n) ? [] : new Float64Array(this.cap)));
     this.words = names.map((n) => WORDS.has(n));
     this.index = new Map(names.map((n, i) => [n, i]));
     this.length = 0;
   }
 
   push(f) {
+    const i = this.length;
+    if (i === this.cap) {
+      this.cap *= 2;
+      for (let j = 0; j < this.cols.length; j++) {
+        const c = this.cols[j];
+        if (c instanceof Float64Array) { const g = new Float64Array(this.cap); g.set(c); this.cols[j] = g; }
+      }
+    }
     for (let j = 0; j < this.cols.length; j++) {
       const v = f[j];
-      if (this.words[j]) this.cols[j].push(v === undefined ? '' : v);
-      else if (v === undefined || v === '') this.cols[j].push(null);
-      else {
-        // A word in a column of numbers (true/false, a name) stays a word.
-        const x = +v;
-        this.cols[j].push(Number.isNaN(x) ? v : x);
-      }
+      const c = this.cols[j];
+      if (this.words[j]) { c.push(v === undefined ? '' : v); continue; }
+      const x = v === undefined || v === '' ? NaN : +v;
+      if (c instanceof Float64Array && x === x) { c[i] = x; continue; }
+      // Empty, or a word in a column of numbers (true/false, a name): a plain array.
+      const a = c instanceof Float64Array ? Array.from(c.subarray(0, i)) : c;
+      a.push(v === undefined || v === '' ? null : Number.isNaN(x) ? v : x);
+      this.cols[j] = a;
     }
     this.length++;
   }
 
   has(name) { return this.index.has(name); }
-  // The column as an array (numbers or null; words for the word columns); absent: all null.
+  // The column (numbers, or null where empty; words for the word columns); absent: all null.
   col(name) {
     const j = this.index.get(name);
-    return j === undefined ? new Array(this.length).fill(null) : this.cols[j];
+    if (j === undefined) return new Array(this.length).fill(null);
+    const c = this.cols[j];
+    if (c instanceof Float64Array && c.length !== this.length) this.cols[j] = c.slice(0, this.length);
+    return this.cols[j];
   }
   // Row i as an object, for hovers and the samples (the columns stay the storage).
   row(i) {
@@ -72,15 +88,18 @@ export class Rows {
   }
 }
 
-// Reads /v1/jobs/{id}/blocks?format=csv; onProgress(rowsSoFar) after each chunk.
-export async function loadRows(jobId, onProgress) {
-  const res = await api('/v1/jobs/' + encodeURIComponent(jobId) + '/blocks?format=csv');
+// Reads /v1/jobs/{id}/blocks?format=csv (only `columns` where given: a view that plots a
+// third of the columns reads a third of the text; numbers to six significant digits); onProgress(rowsSoFar) after each chunk.
+// `expected`: the number of rows, where known (the columns are sized for them).
+export async function loadRows(jobId, onProgress, columns, expected) {
+  // Six significant digits: what a plot or a hover shows, in half the text.
+  const res = await api('/v1/jobs/' + encodeURIComponent(jobId) + '/blocks?format=csv&digits=6' + (columns ? '&columns=' + encodeURIComponent(columns.join(',')) : ''));
   const reader = res.body.pipeThrough(new TextDecoderStream()).getReader();
   let rows = null;
   let rest = '';
   const take = (line) => {
     if (line === '') return;
-    if (!rows) rows = new Rows(fields(line));
+    if (!rows) rows = new Rows(fields(line), expected);
     else rows.push(fields(line));
   };
   for (;;) {

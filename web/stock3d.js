@@ -1,11 +1,12 @@
 // The machined stock in 3-D (three.js, vendored): the job's exported STL, and the design
-// part as a translucent overlay where the job has one, and collisions marked where the
-// summary places them. Orbit, zoom and pan with the mouse.
+// part as a translucent overlay where the job has one, and collisions and gouges marked
+// where the summary places them. Orbit, zoom and pan with the mouse.
 import * as THREE from 'three';
 import { STLLoader } from '/ui/STLLoader.js';
 import { OrbitControls } from '/ui/OrbitControls.js';
 
-export function showStock(container, stockStl, partStl, marks) {
+// gouges: the summary's part.gouges (at, min, max in the part frame, mm).
+export function showStock(container, stockStl, partStl, marks, gouges) {
   const width = Math.max(320, container.clientWidth);
   const height = 480;
   const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
@@ -43,6 +44,20 @@ export function showStock(container, stockStl, partStl, marks) {
     const l = new THREE.Line(new THREE.BufferGeometry().setFromPoints([a, b]), redLine);
     l.renderOrder = 2;
     scene.add(s, l);
+  }
+  // Gouges: the region's box in magenta with a ball at its deepest point, drawn over the
+  // stock and the part (a gouge lies under the part's surface).
+  const magenta = new THREE.MeshBasicMaterial({ color: 0xd500f9, depthTest: false, transparent: true, opacity: 0.9 });
+  const magentaLine = new THREE.LineBasicMaterial({ color: 0xd500f9, depthTest: false });
+  for (const g of gouges || []) {
+    const s = new THREE.Mesh(ball, magenta);
+    s.position.set(...g.at);
+    s.renderOrder = 3;
+    const box = new THREE.Box3(new THREE.Vector3(...g.min), new THREE.Vector3(...g.max));
+    const h = new THREE.Box3Helper(box, 0xd500f9);
+    h.material = magentaLine;
+    h.renderOrder = 3;
+    scene.add(s, h);
   }
   scene.add(new THREE.HemisphereLight(0xffffff, 0x445566, 1.6));
   const sun = new THREE.DirectionalLight(0xffffff, 1.8);

@@ -365,7 +365,7 @@ fn impeller_roughing_program_simulates_without_gouge_or_holder_contact() {
     };
     let out = simulate(&spec, &CancelFlag::new(), &NoProgress).unwrap();
     let s = &out.summary;
-    let cmp = s.part.unwrap();
+    let cmp = s.part.clone().unwrap();
     eprintln!(
         "simulated: removed {:.0} mm³ in {:.0} s of cycle time; gouge {:.4} mm³; holder/shank contacts {}; rapids in material {}; flutes exceeded {}; allowance min {:.3} mm",
         s.removed_volume,

@@ -289,4 +289,52 @@ fn gouge_and_allowance_against_the_design_part() {
     );
     assert!((c.max_gouge_depth - 1.0).abs() < 1e-9);
     assert!((c.allowance_min + 1.0).abs() < 1e-9 && (c.allowance_max - 0.5).abs() < 1e-9);
+    // Where: one region, the slot's footprint (x 2..38, y −3..3 to within a cell) from the
+    // part's top down to the slot's floor.
+    assert_eq!(c.gouge_regions, 1);
+    let g = &c.gouges[0];
+    let near = |a: f64, b: f64| (a - b).abs() <= h + 1e-9;
+    assert!(near(g.min[0], 2.0) && near(g.max[0], 38.0), "{g:?}");
+    assert!(near(g.min[1], -3.0) && near(g.max[1], 3.0), "{g:?}");
+    assert!(
+        (g.min[2] + 4.0).abs() < 1e-9 && (g.max[2] + 3.0).abs() < 1e-9,
+        "{g:?}"
+    );
+    assert!(
+        (g.depth - 1.0).abs() < 1e-9 && (g.at[2] + 3.5).abs() < 1e-9,
+        "{g:?}"
+    );
+    assert!(near(g.at[0], 20.0) && near(g.at[1], 0.0), "{g:?}");
+    assert!(((g.volume - want) / want).abs() < 0.01, "{g:?}");
+    // A D4 plunge 0.4 mm into the part at (20, 7), apart from the slot: a second region,
+    // smaller (π·2²·0.4), listed after it.
+    let plunge = [Segment::linear(
+        10,
+        [20.0, 7.0, -2.5],
+        [20.0, 7.0, -3.4],
+        300.0,
+        8000.0,
+    )];
+    simulate_removal(
+        &mut stock,
+        &Tool::flat(4.0, 2),
+        &plunge,
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap();
+    let c = compare_with_part(&stock, &part).unwrap();
+    assert_eq!(c.gouge_regions, 2, "{:?}", c.gouges);
+    let p = &c.gouges[1];
+    let want = std::f64::consts::PI * 4.0 * 0.4;
+    assert!(((p.volume - want) / want).abs() < 0.03, "{p:?} vs {want}");
+    assert!(
+        near(p.at[0], 20.0) && near(p.at[1], 7.0) && (p.at[2] + 3.2).abs() < 1e-9,
+        "{p:?}"
+    );
+    assert!((p.depth - 0.4).abs() < 1e-9, "{p:?}");
+    assert!(
+        near(p.min[0], 18.0) && near(p.max[0], 22.0) && near(p.min[1], 5.0) && near(p.max[1], 9.0),
+        "{p:?}"
+    );
 }

@@ -598,3 +598,71 @@ fn cutter_compensation_takes_the_radius_of_the_jobs_tool() {
     };
     assert!(err.to_string().contains("no radius for tool 1"), "{err}");
 }
+
+#[test]
+fn after_optimizing_the_mean_force_power_and_torque_are_those_at_the_new_feeds() {
+    use millsim_engine::optimize::FeedLimits;
+    // A steady slot (line 8) that must slow down for the limit, and a side cut beside it
+    // (line 12) programmed slow enough to speed up.
+    let program = "G21 G90 G17\nT1 M6\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X20 F4000\nG1 X60\nG0 Z5\nG0 X-10 Y8\nG1 Z-5 F800\nG1 X60 F1500\nG0 Z5\nM30\n";
+    let mut s = spec(program);
+    s.optimize = Some(FeedLimits {
+        max_force: Some(500.0),
+        air_feed: Some(6000.0),
+        max_feed: 8000.0,
+        ..FeedLimits::default()
+    });
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let slot = out.rows.iter().find(|r| r.line == 8).unwrap();
+    let feed = slot.feed_after_mm_min.unwrap();
+    assert!(feed < 3900.0, "the slot must slow down: {slot:?}");
+    // The slot's mean power at its new feed per tooth, closed form (zero helix, as in
+    // slot_volume_and_steady_power_match_closed_forms): P = R·N·a/(2π)·(2·Ktc·c + π·Kte)·ω.
+    let (ktc, kte, n, a, r) = (767.01, 27.7, 4.0, 5.0, 5.0);
+    let c = feed / (10_000.0 * n);
+    let power =
+        r * n * a / (2.0 * PI) * (2.0 * ktc * c + PI * kte) / 1000.0 * 10_000.0 * 2.0 * PI / 60.0;
+    let got = slot.mean_power_after.unwrap();
+    assert!(
+        (got - power).abs() / power < 0.02,
+        "mean power after {got} vs closed form {power} at fz {c}"
+    );
+    assert!(
+        slot.mean_force_after.unwrap() < slot.mean_force * 0.99,
+        "{slot:?}"
+    );
+    let side = out.rows.iter().find(|r| r.line == 12).unwrap();
+    assert!(side.feed_after_mm_min.unwrap() > 1600.0, "{side:?}");
+    assert!(
+        side.mean_force_after.unwrap() > side.mean_force * 1.01,
+        "{side:?}"
+    );
+
+    // The optimized program simulated again: each move's mean |F|, peak torque, mean and
+    // peak power are what the optimization reported at the new feeds.
+    let resim = simulate(
+        &spec(out.optimized_program.as_ref().unwrap()),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    assert_eq!(out.rows.len(), resim.rows.len());
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-9 * y.abs().max(1.0);
+    let mut cutting = 0;
+    for (a, b) in out.rows.iter().zip(&resim.rows) {
+        assert_eq!(a.line, b.line);
+        let after = [
+            a.mean_force_after,
+            a.peak_torque_after,
+            a.mean_power_after,
+            a.peak_power_after,
+        ]
+        .map(Option::unwrap);
+        let again = [b.mean_force, b.peak_torque, b.mean_power, b.peak_power];
+        for (x, y) in after.iter().zip(&again) {
+            assert!(close(*x, *y), "line {}: {after:?} vs {again:?}", a.line);
+        }
+        cutting += usize::from(b.mean_force > 0.0);
+    }
+    assert!(cutting >= 3, "{cutting}");
+}

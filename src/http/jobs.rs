@@ -3,7 +3,6 @@
 use std::convert::Infallible;
 use std::time::Duration;
 
-use axum::body::Body;
 use axum::extract::{Path, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::sse::{Event, KeepAlive, Sse};
@@ -18,11 +17,11 @@ use super::auth::hex;
 use super::body::read_limited;
 use super::problem::{parse_json, ApiError};
 use super::{parse_query, AppState, Owner, PageQuery};
+use crate::job_limits;
 use crate::jobs::{JobKind, SimulateOptions};
 use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
 use crate::validate;
-use crate::{csv, job_limits};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -470,6 +469,10 @@ pub async fn summary(
 #[serde(deny_unknown_fields)]
 struct BlocksQuery {
     format: Option<String>,
+    /// CSV only: the columns to send (comma-separated), in the rows' order.
+    columns: Option<String>,
+    /// CSV only: fractional numbers to this many significant digits (as stored without).
+    digits: Option<String>,
     cursor: Option<String>,
     limit: Option<String>,
 }
@@ -484,6 +487,16 @@ pub async fn blocks(
     let job = succeeded(&state.db, &owner, &id).await?;
     match q.format.as_deref().unwrap_or("json") {
         "json" => {
+            if q.columns.is_some() || q.digits.is_some() {
+                return Err(ApiError::invalid_field(
+                    if q.columns.is_some() {
+                        "columns"
+                    } else {
+                        "digits"
+                    },
+                    "columns and digits shape format=csv; JSON rows are whole",
+                ));
+            }
             let from = match &q.cursor {
                 None => 0,
                 Some(c) => c.parse::<i64>().ok().filter(|v| *v >= 0).ok_or_else(|| {
@@ -517,89 +530,40 @@ pub async fn blocks(
                 .as_ref()
                 .and_then(|s| s.get("row_columns"))
                 .and_then(|c| serde_json::from_value(c.clone()).ok());
-            Ok(csv_response(state.db.clone(), id, declared))
+            let wanted = q.columns.as_deref().map(|c| {
+                c.split(',')
+                    .map(|w| w.trim().to_string())
+                    .filter(|w| !w.is_empty())
+                    .collect()
+            });
+            let digits = match q.digits.as_deref() {
+                None => None,
+                Some(d) => Some(
+                    d.parse::<usize>()
+                        .ok()
+                        .filter(|d| (1..=17).contains(d))
+                        .ok_or_else(|| {
+                            ApiError::invalid_field(
+                                "digits",
+                                format!("`{d}` is not a number of significant digits from 1 to 17"),
+                            )
+                        })?,
+                ),
+            };
+            super::rows_csv::csv_response(
+                state.db.clone(),
+                id,
+                declared,
+                wanted,
+                crate::csv::Numbers { digits },
+            )
+            .await
         }
         other => Err(ApiError::invalid_field(
             "format",
             format!("unknown format `{other}`; one of: json, csv"),
         )),
     }
-}
-
-/// Streams every row as CSV, reading the table page by page: memory stays flat
-/// whatever the number of blocks.
-fn csv_response(db: Db, id: String, declared: Option<Vec<String>>) -> Response {
-    const PAGE: i64 = 5000;
-    struct S {
-        db: Db,
-        id: String,
-        next: i64,
-        declared: Option<Vec<String>>,
-        columns: Option<Vec<csv::Column>>,
-        done: bool,
-    }
-    let stream = stream::unfold(
-        S {
-            db,
-            id,
-            next: 0,
-            declared,
-            columns: None,
-            done: false,
-        },
-        |mut s| async move {
-            if s.done {
-                return None;
-            }
-            let rows = match s.db.job_rows(&s.id, s.next, PAGE).await {
-                Ok(r) => r,
-                Err(e) => {
-                    return Some((
-                        Err(std::io::Error::other(e.to_string())),
-                        S { done: true, ..s },
-                    ))
-                }
-            };
-            if (rows.len() as i64) < PAGE {
-                s.done = true;
-            }
-            let parsed: Vec<Map<String, Value>> = rows
-                .iter()
-                .filter_map(|(_, d)| match serde_json::from_str::<Value>(d) {
-                    Ok(Value::Object(o)) => Some(o),
-                    _ => None,
-                })
-                .collect();
-            if let Some((seq, _)) = rows.last() {
-                s.next = seq + 1;
-            }
-            let mut out = String::with_capacity(rows.len() * 160);
-            for row in &parsed {
-                if s.columns.is_none() {
-                    let keys = s
-                        .declared
-                        .clone()
-                        .unwrap_or_else(|| row.keys().cloned().collect());
-                    let cols = csv::columns(&keys, &parsed);
-                    csv::write_header(&mut out, &cols);
-                    s.columns = Some(cols);
-                }
-                csv::write_row(&mut out, s.columns.as_ref().expect("set above"), row);
-            }
-            Some((Ok::<_, std::io::Error>(bytes::Bytes::from(out)), s))
-        },
-    );
-    (
-        [
-            (header::CONTENT_TYPE, "text/csv; charset=utf-8"),
-            (
-                header::CONTENT_DISPOSITION,
-                "attachment; filename=\"blocks.csv\"",
-            ),
-        ],
-        Body::from_stream(stream),
-    )
-        .into_response()
 }
 
 /// Largest block range one samples request may ask for.

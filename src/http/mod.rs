@@ -8,6 +8,7 @@ pub mod jobs;
 pub mod ops;
 pub mod problem;
 pub mod resources;
+pub mod rows_csv;
 pub mod server;
 pub mod webhooks;
 

@@ -127,6 +127,18 @@ export async function glPixels(page, selector, rgb) {
   }, rgb || null);
 }
 
+// A box from a to b as an ASCII STL (faces wound outwards).
+export function boxStl(a, b) {
+  const p = (i, j, k) => [i ? b[0] : a[0], j ? b[1] : a[1], k ? b[2] : a[2]];
+  const faces = [
+    [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]], [[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
+    [[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], [[0, 1, 0], [0, 1, 1], [1, 1, 1], [1, 1, 0]],
+    [[0, 0, 0], [0, 0, 1], [0, 1, 1], [0, 1, 0]], [[1, 0, 0], [1, 1, 0], [1, 1, 1], [1, 0, 1]],
+  ];
+  const tri = (q) => ' facet normal 0 0 0\n  outer loop\n' + q.map((v) => '   vertex ' + p(...v).join(' ') + '\n').join('') + '  endloop\n endfacet\n';
+  return 'solid part\n' + faces.map((f) => tri([f[0], f[1], f[2]]) + tri([f[0], f[2], f[3]])).join('') + 'endsolid part\n';
+}
+
 export const fmt = (x, d) => Number(x).toLocaleString('en-US', { minimumFractionDigits: d, maximumFractionDigits: d });
 export const esc = (s) => s.replace(/[.,]/g, '\\$&');
 

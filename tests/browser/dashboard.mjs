@@ -9,7 +9,7 @@ import { execFileSync } from 'node:child_process';
 import { writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { ARTIFACTS, BIN, api, canvasInk, colourInk, dbUrl, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, spawnMillsim, startServer, waitJob, work } from './common.mjs';
+import { ARTIFACTS, BIN, api, boxStl, canvasInk, colourInk, dbUrl, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, spawnMillsim, startServer, waitJob, work } from './common.mjs';
 
 const log = logger('dashboard');
 
@@ -32,11 +32,11 @@ async function submit(base, headers, kind, programName, program, options) {
 
 // The colours of each plot's series, before and after (web/blockplots.js).
 const SERIES = {
-  'Cutting force': ['#c62828', '#2463eb'],
+  'Cutting force': ['#c62828', '#2463eb', '#8fb3f5'],
   Feed: ['#7a5c00', '#18794e'],
   'Material removal rate': ['#6a1b9a', '#ba68c8'],
-  'Spindle power': ['#ef6c00'],
-  Torque: ['#00838f'],
+  'Spindle power': ['#ef6c00', '#1565c0', '#64b5f6'],
+  Torque: ['#00838f', '#5e35b1'],
 };
 
 const plotX = (page, title) => page.getAttribute(`[data-plot="${title}"]`, 'data-x');
@@ -258,6 +258,8 @@ async function main() {
   assert.equal(await page.isVisible('#new-tool'), false, 'the new tool fields hide when a stored tool is picked');
   await page.selectOption('form#new-job select[name=machine_choice]', ex.machine.id);
   await page.fill('form#new-job input[name=max_force]', '300');
+  // A design part 1 mm under the stock's top: the zigzag at Z-1.5 gouges it.
+  await page.setInputFiles('form#new-job input[name=part_stl]', { name: 'part.stl', mimeType: 'model/stl', buffer: Buffer.from(boxStl([0, 0, -20], [100, 80, -1])) });
   await page.screenshot({ path: join(ARTIFACTS, 'new-job.png'), fullPage: true });
   await page.click('form#new-job button[type=submit]');
   await page.waitForURL(/\/jobs\/[0-9a-f-]+$/);
@@ -269,6 +271,9 @@ async function main() {
   assert.equal(fj.inputs.tool, ex.tool.id);
   assert.equal(fj.inputs.machine, ex.machine.id);
   assert.equal(fj.options.limits.max_force, 300);
+  assert.ok(fj.inputs.part, 'the design part is an input');
+  assert.ok(fj.summary.part.gouge_volume > 0 && fj.summary.part.gouges.length > 0, JSON.stringify(fj.summary.part));
+  await page.waitForSelector('#gouges tbody tr');
   assert.match(await page.textContent('#progname'), /^form\.nc$/);
   // A program that does not parse is refused with its line and column, shown on the form.
   await page.goto(base + '/?new=1');

@@ -1,11 +1,11 @@
 // Every job kind's view in a real browser, and the cancel button: stability lobes with the
 // 3-D lobe surface over the allowance, the energy Pareto front, interpret's tool path in
-// 3-D, rotary-feed's corrected F words, identify's fits, a simulate job's collision marked
-// in 3-D, and a long job cancelled from its page. Run by tests/dashboard_browser.rs, or:
+// 3-D, rotary-feed's corrected F words, identify's fits, a simulate job's collision and a
+// gouge marked in 3-D, and a long job cancelled from its page. Run by tests/dashboard_browser.rs, or:
 //   MILLSIM_BIN=$CARGO_TARGET_DIR/debug/millsim node tests/browser/kinds.mjs
 import { join } from 'node:path';
 import assert from 'node:assert/strict';
-import { ARTIFACTS, api, canvasInk, colourInk, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, startServer, waitJob } from './common.mjs';
+import { ARTIFACTS, api, boxStl, canvasInk, colourInk, esc, exampleInputs, fmt, glPixels, logger, openBrowser, run, startServer, waitJob } from './common.mjs';
 
 const log = logger('kinds');
 
@@ -145,6 +145,31 @@ async function main() {
   log('3-D stock with the collision:', await page.textContent('#stockinfo'), '; red pixels', red.coloured);
   assert.ok(red.coloured > 200, 'the collision is not marked');
   await page.screenshot({ path: join(ARTIFACTS, 'collision.png'), fullPage: true });
+
+  // A slot 1 mm into the design part: the gouge is listed where it is and marked in
+  // magenta over the 3-D stock.
+  const part = await api(base, '/v1/stocks', boxStl([0, 0, -10], [60, 40, -2]), { 'content-type': 'model/stl' });
+  const gouging = await submitJob({ kind: 'simulate', inputs: { program: { name: 'gouge.nc', content: 'G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z5\nG0 Z-3\nG1 X40 F800\nG0 Z5\nM30\n' },
+    stock: stock.id, tool: tool.id, part: part.id }, options: { material: 'Al7075-T6' } });
+  const gj = await waitJob(base, gouging.id, 120);
+  assert.equal(gj.status, 'succeeded', JSON.stringify(gj.error));
+  const gp = gj.summary.part;
+  log('gouges:', gp.gouge_regions, 'region(s):', JSON.stringify(gp.gouges));
+  assert.equal(gp.gouge_regions, 1);
+  await page.goto(base + '/jobs/' + gouging.id);
+  await page.waitForSelector('#gouges');
+  const grow = await page.$$eval('#gouges tbody tr', (trs) => trs.map((tr) => [...tr.children].map((td) => td.textContent)));
+  assert.equal(grow.length, 1);
+  assert.equal(grow[0][1], '1.000', 'the gouge is 1 mm deep: ' + grow[0]);
+  const [gx, gy, gz] = grow[0][0].split(', ').map(Number);
+  assert.ok(gx >= 0 && gx <= 44 && Math.abs(gy - 20) <= 0.5 && gz === -2.5, 'its deepest point is on the slot, halfway down the gouge: ' + grow[0]);
+  await page.click('#load-stock');
+  await page.waitForSelector('#stockinfo', { timeout: 60000 });
+  const magenta = await glPixels(page, '#stock3d canvas', [0xd5, 0x00, 0xf9]);
+  log('3-D stock with the gouge:', await page.textContent('#stockinfo'), '; magenta pixels', magenta.coloured);
+  assert.match(await page.textContent('#stockinfo'), /1 gouge\(s\) marked in magenta/);
+  assert.ok(magenta.coloured > 100, 'the gouge is not marked');
+  await page.screenshot({ path: join(ARTIFACTS, 'gouge.png'), fullPage: true });
 
   assert.deepEqual(consoleErrors, [], 'console errors');
   assert.deepEqual(foreign, [], 'requests that left the server origin');

@@ -46,7 +46,7 @@ pub mod stock;
 pub mod sweep;
 
 pub use checks::CheckFlags;
-pub use compare::{compare_with_part, PartComparison};
+pub use compare::{compare_with_part, GougeRegion, PartComparison, MAX_GOUGE_REGIONS};
 pub use dexel::{default_cell, DexelGrid, GridEstimate, GridOptions, DEFAULT_MEMORY_LIMIT};
 pub use engagement::{EngagementOptions, StepMetrics};
 pub use export::{export_stl, export_stl_vec, stl_bytes, ExportStats};

@@ -146,6 +146,84 @@ pub(super) fn peak_forces(
         .collect()
 }
 
+/// What a step gives at its new feed: peak |F| (N), and its mean |F| (N), peak torque
+/// (N·m), mean and peak power (W) over a revolution.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct AfterStep {
+    pub(super) peak_force: f64,
+    pub(super) mean_force: f64,
+    pub(super) peak_torque: f64,
+    pub(super) mean_power: f64,
+    pub(super) peak_power: f64,
+}
+
+/// Every step that removes material evaluated at its own new feed (mm/min), as the removal
+/// evaluated it at the programmed one: the peak |F| as [`peak_forces`] reads it, the means
+/// and the torque from the force model. A step with the move, feed and engagement of the
+/// step before it (steady cutting on the grid) takes that step's result.
+pub(super) fn forces_after(
+    steps: &[KeptStep],
+    moves: &[Move],
+    step_feeds: &[f64],
+    models: &BTreeMap<u32, ForceModel>,
+    k: &CuttingCoefficients,
+) -> Result<Vec<Option<AfterStep>>, crate::physics::PhysicsError> {
+    let peaks = peak_forces(steps, moves, step_feeds, models, k)?;
+    let same_as_previous: Vec<bool> = (0..steps.len())
+        .map(|i| {
+            i > 0 && {
+                let (p, q) = (&steps[i - 1], &steps[i]);
+                p.move_index == q.move_index
+                    && p.tool == q.tool
+                    && step_feeds[i - 1] == step_feeds[i]
+                    && p.cuts == q.cuts
+                    && p.engagement == q.engagement
+            }
+        })
+        .collect();
+    let evaluated: Vec<Option<ForceResult>> = steps
+        .par_iter()
+        .zip(step_feeds)
+        .zip(&same_as_previous)
+        .map_init(
+            || (models.clone(), Engagement::default()),
+            |(models, scratch), ((step, &feed), &same)| {
+                let (m, t) = (&moves[step.move_index], &step.tool);
+                let flutes = models[t].table().flutes() as f64;
+                let Some(conditions) =
+                    cutting_conditions(m, step.cuts, feed, flutes).filter(|_| !same)
+                else {
+                    return Ok(None);
+                };
+                let Some(engagement) = &step.engagement else {
+                    return Ok(None);
+                };
+                let model = models.get_mut(t).expect("model per tool");
+                Ok(Some(model.evaluate(
+                    engagement.view(scratch),
+                    k,
+                    &conditions,
+                )?))
+            },
+        )
+        .collect::<Result<_, crate::physics::PhysicsError>>()?;
+    let mut out: Vec<Option<AfterStep>> = Vec::with_capacity(steps.len());
+    for ((r, same), peak) in evaluated.into_iter().zip(same_as_previous).zip(peaks) {
+        let step = match (same, out.last()) {
+            (true, Some(prev)) => *prev,
+            _ => r.zip(peak).map(|(r, peak)| AfterStep {
+                peak_force: peak,
+                mean_force: r.force.mean,
+                peak_torque: r.torque.peak,
+                mean_power: r.power.mean,
+                peak_power: r.power.peak,
+            }),
+        };
+        out.push(step);
+    }
+    Ok(out)
+}
+
 /// Spindle speed and feed per tooth of a step on move `m` at `feed` (mm/min), when the step
 /// cuts: it meets and removes material (`cuts`), the spindle turns and the tool moves.
 pub(super) fn cutting_conditions(

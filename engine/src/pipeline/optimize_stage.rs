@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use super::forces::peak_forces;
+use super::forces::{forces_after, AfterStep};
 use super::rows::{MoveRow, OptimizationSummary, StageTimings};
 use super::spec::{SimulateError, SimulateSpec};
 use super::step_totals::KeptStep;
@@ -153,20 +153,22 @@ pub(super) fn optimize_stage(
         })
         .collect();
     // A step of a split move runs at the feed of the part it lies in; the tip at its share.
-    let step_feeds: Vec<f64> = steps
+    let machine_feeds: Vec<f64> = steps
         .iter()
-        .map(|s| {
-            let feed = match split_of.get(&s.move_index) {
-                Some(w) => {
-                    let part = w.points.iter().filter(|&&p| p <= s.machine_at).count();
-                    w.feeds[part.min(w.feeds.len() - 1)]
-                }
-                None => feeds_after[s.move_index],
-            };
-            s.tip_ratio * feed
+        .map(|s| match split_of.get(&s.move_index) {
+            Some(w) => {
+                let part = w.points.iter().filter(|&&p| p <= s.machine_at).count();
+                w.feeds[part.min(w.feeds.len() - 1)]
+            }
+            None => feeds_after[s.move_index],
         })
         .collect();
-    let forces_after = peak_forces(steps, moves, &step_feeds, models, &k)?;
+    let step_feeds: Vec<f64> = steps
+        .iter()
+        .zip(&machine_feeds)
+        .map(|(s, f)| s.tip_ratio * f)
+        .collect();
+    let forces_after = forces_after(steps, moves, &step_feeds, models, &k)?;
     timings.optimize_forces_after_s = clock.elapsed().as_secs_f64();
     let final_times = cycle_time(&final_moves, &spec.machine, None)?;
     // Time per original move: the sum over its parts.
@@ -227,12 +229,7 @@ pub(super) fn optimize_stage(
         row.peak_force_after = Some(0.0);
         row.governing = governing.get(&i).cloned();
     }
-    for (step, f) in steps.iter().zip(&forces_after) {
-        if let Some(f) = f {
-            let p = rows[step.move_index].peak_force_after.get_or_insert(0.0);
-            *p = p.max(*f);
-        }
-    }
+    add_forces_after(rows, steps, &machine_feeds, &forces_after);
     let peak = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
     // The optimizer accepts feeds within its tolerance below the limit; above that, the
     // limit was out of reach for the move.
@@ -263,4 +260,55 @@ pub(super) fn optimize_stage(
         limits,
     };
     Ok((text, summary))
+}
+
+/// The rows' figures at the new feeds from their steps', added up as the removal adds up
+/// the steps at the programmed feed (`StepTotals`): peaks are the largest step's, mean |F|
+/// is over the cutting time and mean power over the whole move's time. A step's time is
+/// its machine-axis length over its machine-axis feed (the feed of its part where the move
+/// was split; at one feed this is the removal's length weighting).
+fn add_forces_after(
+    rows: &mut [MoveRow],
+    steps: &[KeptStep],
+    machine_feeds: &[f64],
+    after: &[Option<AfterStep>],
+) {
+    // Per move: Σ mean |F|·t, Σ t over the engaged steps, Σ mean power·t.
+    let mut sums = vec![[0.0f64; 3]; rows.len()];
+    for row in rows.iter_mut() {
+        row.mean_force_after = Some(0.0);
+        row.peak_torque_after = Some(0.0);
+        row.mean_power_after = Some(0.0);
+        row.peak_power_after = Some(0.0);
+    }
+    for ((step, &feed), a) in steps.iter().zip(machine_feeds).zip(after) {
+        let Some(a) = a else { continue };
+        let row = &mut rows[step.move_index];
+        let max = |v: &mut Option<f64>, x: f64| *v = Some(v.unwrap_or(0.0).max(x));
+        max(&mut row.peak_force_after, a.peak_force);
+        max(&mut row.peak_torque_after, a.peak_torque);
+        max(&mut row.peak_power_after, a.peak_power);
+        let t = if feed > 0.0 {
+            step.machine_length / feed
+        } else {
+            0.0
+        };
+        let s = &mut sums[step.move_index];
+        s[0] += a.mean_force * t;
+        s[1] += t;
+        s[2] += a.mean_power * t;
+    }
+    for (row, s) in rows.iter_mut().zip(&sums) {
+        if s[1] > 0.0 {
+            row.mean_force_after = Some(s[0] / s[1]);
+        }
+        // The whole move's time at its (effective) new feed.
+        let whole = match row.feed_after_mm_min {
+            Some(f) if f > 0.0 && row.length > 0.0 => row.length / f,
+            _ => 0.0,
+        };
+        if whole > 0.0 {
+            row.mean_power_after = Some(s[2] / whole);
+        }
+    }
 }

@@ -122,6 +122,17 @@ pub struct MoveRow {
     pub time_after_s: Option<f64>,
     #[serde(rename = "force_peak_opt_n", skip_serializing_if = "Option::is_none")]
     pub peak_force_after: Option<f64>,
+    /// At the new feeds, as the removal reads them at the programmed one (each engaged step
+    /// evaluated at its new tip feed): mean |F| over the cutting time (N), peak torque
+    /// (N·m), mean power over the whole move and peak power (W).
+    #[serde(rename = "force_mean_opt_n", skip_serializing_if = "Option::is_none")]
+    pub mean_force_after: Option<f64>,
+    #[serde(rename = "torque_peak_opt_nm", skip_serializing_if = "Option::is_none")]
+    pub peak_torque_after: Option<f64>,
+    #[serde(rename = "power_mean_opt_w", skip_serializing_if = "Option::is_none")]
+    pub mean_power_after: Option<f64>,
+    #[serde(rename = "power_peak_opt_w", skip_serializing_if = "Option::is_none")]
+    pub peak_power_after: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub governing: Option<String>,
     /// The move was written as this many blocks, each at its own feed.

@@ -22,6 +22,9 @@ pub(super) struct KeptStep {
     pub(super) tool: u32,
     pub(super) tip_ratio: f64,
     pub(super) machine_at: f64,
+    /// The step's machine-axis length (its tip path over its tip ratio; 0 where the tip
+    /// ratio is): what stands for its time at a feed, mm.
+    pub(super) machine_length: f64,
     /// The step meets and removes material; otherwise it is air and keeps no engagement.
     pub(super) cuts: bool,
     /// Boxed: most steps of a long program are air, and an air step then holds 8 bytes
@@ -126,6 +129,11 @@ impl StepTotals {
                 self.diameters[mi] = self.diameters[mi].max(d);
                 open.push(super::stages::scallop_of(tool, &s.metrics)?);
             }
+            let machine_length = if step.tip_ratio > 0.0 {
+                s.length / step.tip_ratio
+            } else {
+                0.0
+            };
             if let Some(f) = &force {
                 self.evaluations += 1;
                 self.samples[mi].push(StepSample {
@@ -145,11 +153,7 @@ impl StepTotals {
                 row.peak_power = row.peak_power.max(f.power.peak);
                 row.max_chip_thickness = row.max_chip_thickness.max(f.max_chip_thickness);
                 let w = &mut self.weighted[mi];
-                let length = if step.tip_ratio > 0.0 {
-                    s.length / step.tip_ratio
-                } else {
-                    0.0
-                };
+                let length = machine_length;
                 w.force += f.force.mean * length;
                 for (c, part) in w.components.iter_mut().zip(&f.part) {
                     *c += part.mean * length;
@@ -163,6 +167,7 @@ impl StepTotals {
                     tool: step.tool,
                     tip_ratio: step.tip_ratio,
                     machine_at: step.machine_at,
+                    machine_length,
                     cuts,
                     engagement: cuts.then(|| Box::new(step.geometry.engagement)),
                     response: response.filter(|_| cuts),
