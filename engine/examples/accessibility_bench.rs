@@ -1,6 +1,7 @@
 //! The accessibility speed benchmark: a synthetic closed impeller (the tests' generator)
 //! at a chosen size, a 20° cone, timed. With `--write DIR` it also writes the part's STL
-//! and a `millsim accessibility` INPUT.json there, for measuring the CLI's peak memory.
+//! and a `millsim accessibility` INPUT.json there, for measuring the CLI's peak memory, and
+//! analyzes the part as read back from that STL.
 //!
 //! ```text
 //! cargo run --release -p millsim-engine --example accessibility_bench -- [small|test|200k|800k] [--write DIR] [--tool D] [--svg FILE]
@@ -63,7 +64,7 @@ fn main() {
         other => panic!("size {other}: small, test, 200k or 800k"),
     };
     let clock = std::time::Instant::now();
-    let mesh = imp.mesh();
+    let mut mesh = imp.mesh();
     let built = clock.elapsed().as_secs_f64();
     let entry = imp.passage_point(0.0);
     let target = imp.passage_point(0.5);
@@ -77,6 +78,10 @@ fn main() {
         );
         std::fs::write(dir.join(format!("impeller_{size}.json")), input).unwrap();
         println!("wrote {}", dir.join(&stl).display());
+        // From here on as the CLI runs: the part read back from its file.
+        drop(mesh);
+        let bytes = std::fs::read(dir.join(&stl)).unwrap();
+        mesh = millsim_engine::geometry::Mesh::from_stl_bytes(&bytes).unwrap();
     }
     let mut request = AccessRequest::new(entry, target);
     request.max_tilt_deg = 20.0;
