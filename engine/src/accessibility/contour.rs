@@ -35,9 +35,7 @@ pub fn loops(r: &Raster, field: &[f64], level: f64) -> Vec<Vec<[f64; 2]>> {
         let (p, q) = (centre(i, j), centre(i1, j1));
         // Outside the raster the field is −∞: the crossing sits on the inside sample's
         // side, half a cell out (the edge's middle).
-        let t = if a.is_infinite() {
-            0.5
-        } else if b.is_infinite() {
+        let t = if a.is_infinite() || b.is_infinite() {
             0.5
         } else {
             ((level - a) / (b - a)).clamp(0.0, 1.0)
