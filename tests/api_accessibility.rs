@@ -77,7 +77,13 @@ async fn accessibility_job_finds_the_drilled_holes_axis_and_diameter() {
     assert!((got - expected).abs() / 20.0 < 0.005, "{got} vs {expected}");
     // Ø20 needs 21 with the allowance: the Ø16 is the list's tool.
     assert_eq!(sum["tool"]["diameter_mm"], 16.0, "{sum}");
-    assert!(sum["program"]["plunges"].as_u64().unwrap() >= 1, "{sum}");
+    // The default strategy: a helical entry about the hole's centre, then the spiral.
+    assert_eq!(sum["program"]["strategy"], "spiral", "{sum}");
+    assert!(sum["program"]["helices"].as_u64().unwrap() >= 1, "{sum}");
+    assert!(
+        sum["segments"][0]["spiral"]["length_mm"].as_f64().unwrap() > 0.0,
+        "{sum}"
+    );
     let program = get_text(&c, &s, &format!("/v1/jobs/{id}/program")).await;
     assert!(
         program.contains("T1 M6") && program.contains(" A") && program.contains("G1 "),

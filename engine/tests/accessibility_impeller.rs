@@ -8,15 +8,19 @@ mod parts;
 
 use std::collections::BTreeMap;
 
-use millsim_engine::accessibility::program::{roughing_program, RoughingOptions};
+use millsim_engine::accessibility::program::{
+    roughing_program, RoughingOptions, RoughingProgram, Strategy,
+};
 use millsim_engine::accessibility::{analyze, angle_deg, AccessRequest};
 use millsim_engine::geometry::Mesh;
 use millsim_engine::job::{CancelFlag, NoProgress};
 use millsim_engine::machine::{Kinematics, Machine};
 use millsim_engine::nc::InterpretOptions;
 use millsim_engine::physics::Material;
-use millsim_engine::pipeline::{simulate, AxisReading, SimulateSpec, StockSource};
-use millsim_engine::tool::HolderSegment;
+use millsim_engine::pipeline::{
+    simulate, AxisReading, SimulateSpec, SimulationOutput, StockSource,
+};
+use millsim_engine::tool::{HolderSegment, Tool};
 use parts::{stl_bytes, Impeller};
 
 type V3 = [f64; 3];
@@ -293,6 +297,36 @@ fn impeller_axis_and_diameter_match_a_dense_brute_force_search() {
     eprintln!("free region picture: {}", path.display());
 }
 
+/// Runs `program` on the impeller's stock with the design part at 0.25 mm.
+fn simulate_program(
+    program: &RoughingProgram,
+    part: &Mesh,
+    stock: &Mesh,
+    machine: Machine,
+) -> SimulationOutput {
+    let tools: BTreeMap<u32, _> = program
+        .tools
+        .iter()
+        .map(|t| (t.number, t.tool.clone()))
+        .collect();
+    let spec = SimulateSpec {
+        program: program.text.clone(),
+        interpret: InterpretOptions::default(),
+        stock: StockSource::Stl(stl_bytes(stock)),
+        tools,
+        material: Material::builtin("Al7075-T6").unwrap(),
+        machine,
+        cell: Some(0.25),
+        memory_limit: 4 << 30,
+        force_positions: 36,
+        optimize: None,
+        axes: AxisReading::Machine,
+        chatter: None,
+        part: Some(stl_bytes(part)),
+    };
+    simulate(&spec, &CancelFlag::new(), &NoProgress).unwrap()
+}
+
 #[test]
 fn impeller_roughing_program_simulates_without_gouge_or_holder_contact() {
     let imp = Impeller::test_part();
@@ -343,27 +377,7 @@ fn impeller_roughing_program_simulates_without_gouge_or_holder_contact() {
         "{}",
         program.text
     );
-    let tools: BTreeMap<u32, _> = program
-        .tools
-        .iter()
-        .map(|t| (t.number, t.tool.clone()))
-        .collect();
-    let spec = SimulateSpec {
-        program: program.text.clone(),
-        interpret: InterpretOptions::default(),
-        stock: StockSource::Stl(stl_bytes(&stock)),
-        tools,
-        material: Material::builtin("Al7075-T6").unwrap(),
-        machine,
-        cell: Some(0.25),
-        memory_limit: 4 << 30,
-        force_positions: 36,
-        optimize: None,
-        axes: AxisReading::Machine,
-        chatter: None,
-        part: Some(stl_bytes(&part)),
-    };
-    let out = simulate(&spec, &CancelFlag::new(), &NoProgress).unwrap();
+    let out = simulate_program(&program, &part, &stock, machine);
     let s = &out.summary;
     let cmp = s.part.clone().unwrap();
     eprintln!(
@@ -387,6 +401,79 @@ fn impeller_roughing_program_simulates_without_gouge_or_holder_contact() {
         s.removed_volume
     );
     assert!(s.removed_volume < passage / imp.blades as f64);
+}
+
+/// With a listed tool smaller than the largest, the spiral strategy (helical entry, offset
+/// spiral, depth by depth) against the plunges of the same tool at the same points: both
+/// clean, the spiral removes more.
+#[test]
+fn impeller_spiral_clearing_removes_more_than_plunges_without_gouge() {
+    let imp = Impeller::test_part();
+    let part = imp.mesh();
+    let stock = Impeller {
+        filled: true,
+        ..imp
+    }
+    .mesh();
+    let mut request = AccessRequest::new(imp.passage_point(0.0), imp.passage_point(0.5));
+    request.segments = 2;
+    request.allowance = 0.6;
+    request.stickout = Some(45.0);
+    request.holder = vec![HolderSegment {
+        length: 60.0,
+        bottom_diameter: 32.0,
+        top_diameter: 32.0,
+    }];
+    let mut tool = Tool::flat(8.0, 3);
+    tool.flute_length = 35.0;
+    request.tools = vec![tool];
+    let report = analyze(&part, &request, &CancelFlag::new()).unwrap();
+    let machine = Machine {
+        kinematics: Kinematics::XyzAc,
+        ..Machine::generic()
+    };
+    let mut removed = Vec::new();
+    for strategy in [Strategy::Plunge, Strategy::Spiral] {
+        let options = RoughingOptions {
+            strategy,
+            ..RoughingOptions::default()
+        };
+        let program = roughing_program(&part, &request, &report, &machine, &options).unwrap();
+        let out = simulate_program(&program, &part, &stock, machine.clone());
+        let s = &out.summary;
+        let cmp = s.part.unwrap();
+        eprintln!(
+            "{strategy:?}: {} lines, tools {:?}; removed {:.0} mm³ in {:.0} s of cycle time; gouge {:.4} mm³; holder/shank contacts {}; rapids in material {}; allowance min {:.3} mm",
+            program.text.lines().count(),
+            program
+                .tools
+                .iter()
+                .map(|t| (t.segment, t.depths, t.passes, t.helices, t.plunges, t.feed_length_mm.round()))
+                .collect::<Vec<_>>(),
+            s.removed_volume,
+            s.cycle_time_s,
+            cmp.gouge_volume,
+            s.holder_or_shank_contact_moves,
+            s.rapid_in_material_moves,
+            cmp.allowance_min
+        );
+        assert_eq!(s.holder_or_shank_contact_moves, 0, "{:?}", s.collisions);
+        assert_eq!(s.rapid_in_material_moves, 0, "{:?}", s.collisions);
+        assert!(cmp.gouge_volume < 1e-6, "gouge {:?}", cmp);
+        if strategy == Strategy::Spiral {
+            assert!(program
+                .tools
+                .iter()
+                .all(|t| t.helices >= 1 && t.depths >= 2));
+        }
+        removed.push(s.removed_volume);
+    }
+    assert!(
+        removed[1] > 1.2 * removed[0],
+        "spiral {} mm³ against plunges {} mm³",
+        removed[1],
+        removed[0]
+    );
 }
 
 /// The speed figure of the note: a 200k-triangle impeller, a 20° cone. Run with

@@ -1,14 +1,16 @@
 //! The `accessibility` job: for a closed impeller's passage (an STL part, a point on the
 //! inlet, a point on the section to reach), the fixed tool axis and the largest tool that
 //! plunge from outside the part to the section, per depth segment, the tool of a list that
-//! fits each, and with a machine a 3+2 plunge roughing program that the `simulate` job can
-//! run against the part's stock. `millsim accessibility INPUT.json` runs the same and
+//! fits each, and with a machine a 3+2 roughing program (helical entry and offset spiral,
+//! or plunges) that the `simulate` job can run against the part's stock. `millsim accessibility INPUT.json` runs the same and
 //! prints the same summary.
 
 use serde::Deserialize;
 use serde_json::{json, Value};
 
-use millsim_engine::accessibility::program::{roughing_program, RoughingOptions, RoughingProgram};
+use millsim_engine::accessibility::program::{
+    roughing_program, RoughingOptions, RoughingProgram, Strategy,
+};
 use millsim_engine::accessibility::{self, AccessError, AccessReport, AccessRequest};
 use millsim_engine::geometry::Mesh;
 use millsim_engine::job::CancelFlag;
@@ -53,11 +55,32 @@ pub struct AccessibilityOptions {
     /// Tool definitions (as POST /v1/tools takes them) to choose from.
     #[serde(default)]
     pub tools: Vec<Value>,
-    /// Plunge feed of the roughing program, mm/min.
+    /// Plunge and helix feed of the roughing program, mm/min.
     #[serde(default = "default_feed")]
     pub feed_mm_min: f64,
+    /// Feed along the spiral, mm/min.
+    #[serde(default = "default_cutting_feed")]
+    pub cutting_feed_mm_min: f64,
     #[serde(default = "default_rpm")]
     pub spindle_rpm: f64,
+    /// `spiral` (helical entry and the offset spiral, depth by depth) or `plunge`.
+    #[serde(default = "default_strategy")]
+    pub strategy: StrategyName,
+}
+
+/// The roughing strategy as the options name it.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StrategyName {
+    Spiral,
+    Plunge,
+}
+
+fn default_strategy() -> StrategyName {
+    StrategyName::Spiral
+}
+fn default_cutting_feed() -> f64 {
+    1000.0
 }
 
 fn default_tilt() -> f64 {
@@ -106,6 +129,7 @@ pub fn request(o: &AccessibilityOptions, prefix: &str) -> Result<AccessRequest, 
     }
     for (field, v) in [
         ("feed_mm_min", o.feed_mm_min),
+        ("cutting_feed_mm_min", o.cutting_feed_mm_min),
         ("spindle_rpm", o.spindle_rpm),
     ] {
         if !(v.is_finite() && v > 0.0 && v < 1e6) {
@@ -172,8 +196,11 @@ pub fn summary(
     let segments: Vec<Value> = report.segments.iter().map(segment_json).collect();
     let program = match program {
         Ok(p) => json!({
+            "strategy": p.strategy,
             "tools": p.tools,
             "plunges": p.tools.iter().map(|t| t.plunges).sum::<usize>(),
+            "helices": p.tools.iter().map(|t| t.helices).sum::<usize>(),
+            "feed_length_mm": round(p.tools.iter().map(|t| t.feed_length_mm).sum::<f64>(), 1),
             "clear_z_mm": p.clear_z,
             "issues": p.issues,
         }),
@@ -209,6 +236,13 @@ fn segment_json(s: &accessibility::SegmentReach) -> Value {
         "open": s.open,
         "tool": s.tool,
         "plunges": s.plunges.len(),
+        "spiral": s.clearing.as_ref().map(|c| json!({
+            "rings": c.rings,
+            "passes": c.passes.len(),
+            "length_mm": round(c.length(), 1),
+            "stepover_mm": round(c.stepover, 3),
+            "margin_mm": round(c.margin, 3),
+        })),
         "cell_mm": s.cell_mm,
     })
 }
@@ -237,7 +271,13 @@ pub fn analyze(
         Some(m) => {
             let opts = RoughingOptions {
                 feed: o.feed_mm_min,
+                cutting_feed: o.cutting_feed_mm_min,
                 spindle_rpm: o.spindle_rpm,
+                strategy: match o.strategy {
+                    StrategyName::Spiral => Strategy::Spiral,
+                    StrategyName::Plunge => Strategy::Plunge,
+                },
+                ..RoughingOptions::default()
             };
             Some(
                 roughing_program(mesh, &request, &report, m, &opts)

@@ -85,7 +85,10 @@ impl LevelWalls {
     pub fn fits(&self, levels: &[Level], allowance: f64, c: [f64; 2]) -> bool {
         levels.iter().all(|l| {
             let need = l.radius + allowance;
-            self.walls_at(l.height).clearance_below(c, need) >= need
+            // Any wall nearer than `need` settles it.
+            self.walls_at(l.height)
+                .clearance_within(c, need * (1.0 - 1e-12), need)
+                >= need
         })
     }
 }

@@ -3,6 +3,7 @@
 //! points of the tool the roughing program uses, with the heights it moves at.
 
 use super::body::{Level, LevelWalls};
+use super::clearing;
 use super::evaluate::{Detail, Evaluation};
 use super::{angle_deg, AccessRequest, SegmentReach, ToolChoice};
 use crate::tool::Tool;
@@ -163,6 +164,7 @@ pub fn segment_reach(
         approach_height_mm: 0.0,
         safe_height_mm: 0.0,
         cell_mm: eval.raster.cell,
+        clearing: None,
     };
     // The program's tool: the chosen one, or with no list the computed one.
     let plunge = match (&tool, request.tools.is_empty()) {
@@ -177,11 +179,13 @@ pub fn segment_reach(
     reach_out.safe_height_mm = top + CLEARANCE;
     if let Some((levels, start)) = plunge {
         let points = plunge_points(eval, detail, &levels, a, start);
-        // The highest part point near the plunges: the rapid stops above it.
+        let clearing = clearing::plan(eval, detail, &levels, a, start);
+        // The highest part point near the plunges and passes: the rapid stops above it.
         let margin = levels[0].radius + 1.0;
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
-        for p in &points {
+        let passes = clearing.iter().flat_map(|c| c.passes.iter());
+        for p in points.iter().chain(passes.flat_map(|p| p.points.iter())) {
             for k in 0..2 {
                 lo[k] = lo[k].min(p[k] - margin);
                 hi[k] = hi[k].max(p[k] + margin);
@@ -195,6 +199,7 @@ pub fn segment_reach(
             .fold(0.0, f64::max);
         reach_out.approach_height_mm = (near + CLEARANCE).min(reach_out.safe_height_mm);
         reach_out.plunges = points.iter().map(|&p| s.point(p, 0.0)).collect();
+        reach_out.clearing = clearing;
     }
     reach_out
 }

@@ -49,8 +49,10 @@ pub const FINAL: Effort = Effort {
     min_step_cells: 1e-6,
 };
 
-/// The fit at a point, given an upper bound of the cutter's clearance there.
-pub type Fit<'a> = dyn Fn([f64; 2], f64) -> f64 + Sync + 'a;
+/// The fit at a point, given a fit at or below which the caller does not care (any value
+/// at or below it may come back: the search stops early) and an upper bound of the
+/// cutter's clearance there.
+pub type Fit<'a> = dyn Fn([f64; 2], f64, f64) -> f64 + Sync + 'a;
 
 /// An upper bound of the exact clearance at `p`: its cell's transform value plus the
 /// distance to the cell's centre (the clearance is 1-Lipschitz).
@@ -73,13 +75,22 @@ pub fn largest(
     cells.sort_unstable_by(|&a, &b| bound[b].total_cmp(&bound[a]).then(a.cmp(&b)));
     let mut best: Vec<(f64, usize)> = Vec::new();
     let mut best_value = 0.0f64;
-    for chunk in cells.chunks(256).take(MAX_CELL_EVALUATIONS / 256) {
+    // Chunks growing from 16 cells: the first few cells set a best that spares the exact
+    // look at most of the rest.
+    let (mut at, mut size) = (0, 16);
+    while at < cells.len().min(MAX_CELL_EVALUATIONS) {
+        let chunk = &cells[at..(at + size).min(cells.len())];
+        at += chunk.len();
+        size = (2 * size).min(256);
         if bound[chunk[0]] - allowance <= best_value {
             break;
         }
+        // Cells more than a cell below the best so far are neither the best nor useful
+        // starts: their exact fit is not needed.
+        let floor = best_value - r.cell;
         let values: Vec<(f64, usize)> = chunk
             .par_iter()
-            .map(|&k| (fit(r.center(k), bound[k] + 1e-9), k))
+            .map(|&k| (fit(r.center(k), floor, bound[k] + 1e-9), k))
             .collect();
         for v in values {
             if v.0 > 0.0 {
@@ -146,7 +157,7 @@ fn climb(
             let Some(k) = r.cell_of(p).filter(|&k| component[k]) else {
                 continue;
             };
-            let w = fit(p, cap(r, bound, k, p));
+            let w = fit(p, next.map_or(v, |n| n.1), cap(r, bound, k, p));
             if w > next.map_or(v, |n| n.1) {
                 next = Some((p, w));
             }

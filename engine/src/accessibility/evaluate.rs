@@ -11,7 +11,8 @@ use super::region::{self, Raster};
 use super::section::Section;
 use super::walls::{Walls, Window};
 
-/// The part's vertices and triangles (borrowed from the mesh, projected per axis).
+/// The part's vertices and triangles (borrowed from the mesh, projected per axis), its
+/// shells turned outward (`orient`): only the faces facing the axis are projected.
 pub struct Part<'m> {
     pub vertices: &'m [[f64; 3]],
     pub triangles: &'m [[u32; 3]],
@@ -141,6 +142,7 @@ pub fn evaluate(
                         setup.part.triangles,
                         h,
                         if h == 0.0 { w } else { grown },
+                        true,
                     ),
                 )
             })
@@ -154,8 +156,12 @@ pub fn evaluate(
     let bound = region::distance_to_walls(&raster, &covered);
     let cutter = walls.walls_at(0.0);
     let allowance = setup.allowance;
-    let fit = |c: [f64; 2], cap: f64| {
-        let r = cutter.clearance_below(c, cap) - allowance;
+    let fit = |c: [f64; 2], floor: f64, cap: f64| {
+        let r = cutter.clearance_within(c, floor + allowance, cap) - allowance;
+        if r <= floor {
+            // Not wanted: no holder check either.
+            return floor.min(-1.0);
+        }
         if r <= 0.0 || !walls.fits(setup.holder, allowance, c) {
             return -1.0;
         }

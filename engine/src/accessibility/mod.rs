@@ -43,7 +43,10 @@
 mod body;
 mod choice;
 mod circle;
+pub mod clearing;
+mod contour;
 mod evaluate;
+mod orient;
 pub mod program;
 mod region;
 mod search;
@@ -150,6 +153,9 @@ pub struct SegmentReach {
     pub safe_height_mm: f64,
     /// Raster cell of the final look, mm: the area's resolution.
     pub cell_mm: f64,
+    /// The program tool's clearing passes: helical entry, the offset spiral.
+    #[serde(skip)]
+    pub clearing: Option<clearing::Clearing>,
 }
 
 /// The answer.
@@ -308,9 +314,10 @@ pub fn analyze(
     cancel: &CancelFlag,
 ) -> Result<AccessReport, AccessError> {
     check(mesh, request)?;
+    let triangles = orient::outward(&mesh.vertices, &mesh.triangles);
     let part = evaluate::Part {
         vertices: &mesh.vertices,
-        triangles: &mesh.triangles,
+        triangles: &triangles,
     };
     let holder = match request.stickout {
         Some(s) => body::holder_levels(s, &request.holder),

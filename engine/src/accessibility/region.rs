@@ -252,7 +252,10 @@ mod tests {
             [[4.0, -1.0, 1.0], [6.0, -1.0, 1.0], [6.0, 11.0, 1.0]],
             [[4.0, -1.0, 1.0], [6.0, 11.0, 1.0], [4.0, 11.0, 1.0]],
         ];
-        let polys: Vec<_> = tris.iter().filter_map(|t| Polygon::clip(t, 0.0)).collect();
+        let polys: Vec<_> = tris
+            .iter()
+            .filter_map(|t| Polygon::clip(t, 0.0, false))
+            .collect();
         let covered = coverage(&r, &polys);
         // Centres 4.5 and 5.5 are covered in every row.
         assert_eq!(covered.iter().filter(|&&c| c).count(), 20);

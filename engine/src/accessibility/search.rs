@@ -251,6 +251,20 @@ fn cull(
         .par_iter()
         .map(|t| {
             let p = t.map(|i| part.vertices[i as usize]);
+            // Facing away from every axis of the cone: never projected (`orient`). The
+            // angle to an axis is at least the angle to d0 less the half-angle.
+            let (e1, e2) = (
+                [p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]],
+                [p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]],
+            );
+            let n = [
+                e1[1] * e2[2] - e1[2] * e2[1],
+                e1[2] * e2[0] - e1[0] * e2[2],
+                e1[0] * e2[1] - e1[1] * e2[0],
+            ];
+            if dot(n, d0) < -len(n) * sin * (1.0 + 1e-9) {
+                return false;
+            }
             // Above the section for some axis of the cone: the height along an axis within
             // the cone differs from the height along d0 by at most |q|·|u − d0|, and
             // |u − d0| = 2·sin(angle/2).

@@ -1,6 +1,7 @@
 //! A picture of a segment's free region on its section plane (SVG): walls seen along the
 //! axis in grey, the reachable piece in blue, the largest tool's circle in red, the section
-//! point as a cross and the plunge points as dots. Plane coordinates in mm, y up.
+//! point as a cross, the plunge points as dots and the spiral's tool-centre path as a line.
+//! Plane coordinates in mm, y up.
 
 use std::fmt::Write;
 
@@ -20,6 +21,8 @@ pub struct RegionPicture {
     pub free: Vec<(usize, usize, usize)>,
     pub circle: Option<([f64; 2], f64)>,
     pub plunges: Vec<[f64; 2]>,
+    /// The clearing passes' tool-centre paths (the spiral and any other loops).
+    pub passes: Vec<Vec<[f64; 2]>>,
     pub tool_radius: Option<f64>,
     pub caption: String,
 }
@@ -59,6 +62,11 @@ impl RegionPicture {
             free: runs(r.nx, r.ny, |k| d.component[k]),
             circle: e.circle.map(|c| (c.center, c.radius)),
             plunges: reach.plunges.iter().map(plane).collect(),
+            passes: reach
+                .clearing
+                .iter()
+                .flat_map(|c| c.passes.iter().map(|p| p.points.clone()))
+                .collect(),
             tool_radius: reach.tool.as_ref().map(|t| t.diameter_mm / 2.0),
             caption: format!(
                 "segment {}: axis ({:.4}, {:.4}, {:.4}), tilt {:.2}°, largest tool Ø{:.3} mm, free area {:.1} mm², reach {:.1} mm",
@@ -125,6 +133,22 @@ impl RegionPicture {
                 py(p[1])
             );
         }
+        for pass in &self.passes {
+            let mut d = String::new();
+            for (i, p) in pass.iter().enumerate() {
+                let _ = write!(
+                    d,
+                    "{}{:.1} {:.1}",
+                    if i == 0 { "M" } else { "L" },
+                    px(p[0]),
+                    py(p[1])
+                );
+            }
+            let _ = writeln!(
+                out,
+                r##"<path d="{d}" fill="none" stroke="#e07000" stroke-width="1"/>"##
+            );
+        }
         if let Some((c, r)) = self.circle {
             let _ = writeln!(
                 out,
@@ -151,7 +175,7 @@ impl RegionPicture {
         );
         let _ = writeln!(
             out,
-            r#"<text x="6" y="{:.0}" font-family="sans-serif" font-size="11">grey: walls between the inlet and the section seen along the axis; blue: reachable; red: largest tool; cross: section point; {:.1} mm wide</text>"#,
+            r#"<text x="6" y="{:.0}" font-family="sans-serif" font-size="11">grey: walls between the inlet and the section seen along the axis; blue: reachable; red: largest tool; green: plunges; orange: spiral (tool centre); cross: section point; {:.1} mm wide</text>"#,
             h * k + 32.0,
             w
         );

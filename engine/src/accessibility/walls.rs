@@ -24,8 +24,9 @@ const EDGE_ON_AREA: f64 = 1e-12;
 
 impl Polygon {
     /// The part of triangle `t` (plane x, y and height per corner) at heights ≥ `level`,
-    /// projected onto the plane; `None` when nothing of it is there or it is seen edge-on.
-    pub fn clip(t: &[[f64; 3]; 3], level: f64) -> Option<Polygon> {
+    /// projected onto the plane; `None` when nothing of it is there or it is seen edge-on
+    /// (or, with `facing_only`, from behind: clockwise on the plane).
+    pub fn clip(t: &[[f64; 3]; 3], level: f64, facing_only: bool) -> Option<Polygon> {
         let inside = |v: &[f64; 3]| v[2] >= level;
         if !t.iter().any(inside) {
             return None;
@@ -56,7 +57,7 @@ impl Polygon {
             let (a, b) = (p[k], p[(k + 1) % n]);
             area += a[0] * b[1] - a[1] * b[0];
         }
-        if area.abs() < EDGE_ON_AREA {
+        if area.abs() < EDGE_ON_AREA || (facing_only && area < 0.0) {
             return None;
         }
         if area < 0.0 {
@@ -173,24 +174,36 @@ impl Walls {
     /// The triangles of `local` (plane x, y, height) clipped at heights ≥ `level`, those
     /// meeting `window` (the others are farther than its edge from any point inside).
     pub fn build(local: &[[[f64; 3]; 3]], level: f64, window: Window) -> Walls {
+        Walls::build_faces(local, level, window, false)
+    }
+
+    /// [`Walls::build`], with only the triangles facing the axis when `facing_only`.
+    pub fn build_faces(
+        local: &[[[f64; 3]; 3]],
+        level: f64,
+        window: Window,
+        facing_only: bool,
+    ) -> Walls {
         let vertices: Vec<[f64; 3]> = local.iter().flatten().copied().collect();
         let triangles: Vec<[u32; 3]> = (0..local.len() as u32)
             .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
             .collect();
-        Walls::build_from(&vertices, &triangles, level, window)
+        Walls::build_from(&vertices, &triangles, level, window, facing_only)
     }
 
-    /// [`Walls::build`] from the part's vertices in plane coordinates and its triangles
-    /// (no copy of the triangles per axis).
+    /// [`Walls::build_faces`] from the part's vertices in plane coordinates and its
+    /// triangles (no copy of the triangles per axis). With `facing_only` the triangles must
+    /// be those of closed shells turned outward (`orient`).
     pub fn build_from(
         vertices: &[[f64; 3]],
         triangles: &[[u32; 3]],
         level: f64,
         window: Window,
+        facing_only: bool,
     ) -> Walls {
         let polygons: Vec<Polygon> = triangles
             .par_iter()
-            .filter_map(|t| Polygon::clip(&t.map(|i| vertices[i as usize]), level))
+            .filter_map(|t| Polygon::clip(&t.map(|i| vertices[i as usize]), level, facing_only))
             .filter(|p| {
                 p.hi[0] >= window.lo[0]
                     && p.lo[0] <= window.hi[0]
@@ -261,9 +274,16 @@ impl Walls {
     /// [`Walls::clearance`] when it is known to be at most `cap` (a raster bound): the
     /// search stops at `cap`, and a clearance at or above it comes back as `cap`.
     pub fn clearance_below(&self, c: [f64; 2], cap: f64) -> f64 {
+        self.clearance_within(c, 0.0, cap)
+    }
+
+    /// [`Walls::clearance_below`] when only a clearance above `floor` matters: the search
+    /// stops at the first wall nearer than `floor` and returns its distance (at least the
+    /// clearance, and below `floor`). Above `floor` the answer is exact (capped at `cap`).
+    pub fn clearance_within(&self, c: [f64; 2], floor: f64, cap: f64) -> f64 {
         let mut best = self.window.inner_distance(c).max(0.0).min(cap);
-        if best == 0.0 {
-            return 0.0;
+        if best <= floor {
+            return best;
         }
         let cell = |a: usize| {
             (((c[a] - self.window.lo[a]) / self.bucket).floor().max(0.0) as usize)
@@ -295,8 +315,8 @@ impl Walls {
                                 continue;
                             }
                             best = best.min(p.distance(c));
-                            if best == 0.0 {
-                                return 0.0;
+                            if best <= floor {
+                                return best;
                             }
                         }
                     }
@@ -318,7 +338,7 @@ mod tests {
         // Heights 0, 2, 2 at (0,0), (2,0), (0,2): above 1, the strip between x + y = 1 and
         // the hypotenuse: area 2 − 0.5 = 1.5.
         let t = [[0.0, 0.0, 0.0], [2.0, 0.0, 2.0], [0.0, 2.0, 2.0]];
-        let p = Polygon::clip(&t, 1.0).unwrap();
+        let p = Polygon::clip(&t, 1.0, false).unwrap();
         assert_eq!(p.n, 4);
         let n = p.n as usize;
         let area: f64 = (0..n)
@@ -331,7 +351,7 @@ mod tests {
         assert!((area - 1.5).abs() < 1e-12, "{area}");
         assert_eq!(p.distance([1.0, 0.5]), 0.0);
         assert!((p.distance([0.25, 0.25]) - (0.5f64).sqrt() / 2.0).abs() < 1e-12);
-        assert!(Polygon::clip(&t, 3.0).is_none());
+        assert!(Polygon::clip(&t, 3.0, false).is_none());
         assert_eq!(p.span_at(0.5), Some((0.5, 1.5)));
     }
 
