@@ -104,8 +104,14 @@ async fn report_workers(db: Db, workers: Vec<(String, Arc<WorkerCounts>)>, done:
     }
 }
 
+/// This host's name: $HOSTNAME, else the kernel's (a shell does not always export it).
 fn host_name() -> String {
-    std::env::var("HOSTNAME").unwrap_or_else(|_| "host".into())
+    std::env::var("HOSTNAME")
+        .ok()
+        .or_else(|| std::fs::read_to_string("/proc/sys/kernel/hostname").ok())
+        .map(|h| h.trim().to_string())
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "host".into())
 }
 
 /// A name for this process's workers, unique across processes and restarts.
