@@ -6,6 +6,8 @@ use std::fmt::Write;
 use std::sync::Mutex;
 use std::time::Duration;
 
+use crate::store::workers::WorkerReport;
+
 const REQUEST_BUCKETS: [f64; 10] = [0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.5, 1.0, 5.0];
 const JOB_BUCKETS: [f64; 10] = [0.01, 0.05, 0.1, 0.5, 1.0, 2.0, 5.0, 30.0, 120.0, 600.0];
 
@@ -76,8 +78,9 @@ impl Metrics {
             .observe(&JOB_BUCKETS, elapsed.as_secs_f64());
     }
 
-    /// Prometheus text format; `job_counts` are (status, count) from the database.
-    pub fn render(&self, job_counts: &[(String, i64)]) -> String {
+    /// Prometheus text format; `job_counts` are (status, count) and `workers` the live
+    /// workers of every process, both from the database.
+    pub fn render(&self, job_counts: &[(String, i64)], workers: &[WorkerReport]) -> String {
         let mut out = String::new();
         out.push_str(
             "# HELP millsim_http_requests_total HTTP requests by method, route and status.\n",
@@ -115,6 +118,7 @@ impl Metrics {
             .unwrap_or(0);
         out.push_str("# HELP millsim_queue_depth Jobs waiting for a worker.\n# TYPE millsim_queue_depth gauge\n");
         let _ = writeln!(out, "millsim_queue_depth {queued}");
+        render_workers(&mut out, workers);
         out.push_str(
             "# HELP millsim_job_duration_seconds Wall time of job attempts run by this process.\n",
         );
@@ -128,5 +132,63 @@ impl Metrics {
             );
         }
         out
+    }
+}
+
+/// A label value with `\`, `"` and newlines escaped (the exposition format's rule).
+fn label(v: &str) -> String {
+    v.replace('\\', "\\\\")
+        .replace('"', "\\\"")
+        .replace('\n', "\\n")
+}
+
+/// Every live worker of every process sharing the database, with its counts.
+fn render_workers(out: &mut String, workers: &[WorkerReport]) {
+    out.push_str("# HELP millsim_workers Live workers in all processes sharing the database.\n# TYPE millsim_workers gauge\n");
+    let _ = writeln!(out, "millsim_workers {}", workers.len());
+    out.push_str("# HELP millsim_worker_running Whether the worker runs a job now (1) or waits (0).\n# TYPE millsim_worker_running gauge\n");
+    for w in workers {
+        let _ = writeln!(
+            out,
+            "millsim_worker_running{{worker=\"{}\",host=\"{}\"}} {}",
+            label(&w.id),
+            label(&w.host),
+            w.running
+        );
+    }
+    out.push_str("# HELP millsim_worker_jobs_claimed_total Jobs the worker claimed since it started.\n# TYPE millsim_worker_jobs_claimed_total counter\n");
+    for w in workers {
+        let _ = writeln!(
+            out,
+            "millsim_worker_jobs_claimed_total{{worker=\"{}\"}} {}",
+            label(&w.id),
+            w.claimed
+        );
+    }
+    out.push_str("# HELP millsim_worker_jobs_finished_total Jobs the worker ended since it started, by outcome (abandoned: lease lost, given back or not committed).\n# TYPE millsim_worker_jobs_finished_total counter\n");
+    for w in workers {
+        for (outcome, n) in [
+            ("succeeded", w.succeeded),
+            ("failed", w.failed),
+            ("cancelled", w.cancelled),
+            ("abandoned", w.abandoned),
+        ] {
+            let _ = writeln!(
+                out,
+                "millsim_worker_jobs_finished_total{{worker=\"{}\",outcome=\"{outcome}\"}} {n}",
+                label(&w.id)
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn label_values_are_escaped() {
+        assert_eq!(label(r#"a"b\c"#), r#"a\"b\\c"#);
+        assert_eq!(label("x\ny"), "x\\ny");
     }
 }

@@ -100,7 +100,10 @@ async fn processes_starting_together_migrate_once() {
         .fetch_one(&mut conn)
         .await
         .unwrap();
-    assert_eq!(applied, 1);
+    let files = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/migrations/postgres"))
+        .unwrap()
+        .count();
+    assert_eq!(applied as usize, files);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -268,37 +271,66 @@ async fn a_submission_is_announced_and_wakes_an_idle_worker_on_another_process()
         json!({"kind": "interpret", "inputs": {"program": {"name": "a.nc", "content": "G0 X1\n"}}});
     let (st, job) = post_json(&c, &api, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");
-    // The trigger announces the new job on both channels, at its commit.
-    let mut seen = Vec::new();
-    while seen.len() < 2 {
-        let n = tokio::time::timeout(Duration::from_secs(5), listener.recv())
+    let id = job["id"].as_str().unwrap().to_string();
+    // The trigger announces the new job to idle workers, at its commit; its changes are
+    // announced only once an event stream follows it (a NOTIFY serializes commits).
+    let n = tokio::time::timeout(Duration::from_secs(5), listener.recv())
+        .await
+        .expect("no notification within 5 s")
+        .unwrap();
+    assert_eq!((n.channel(), n.payload()), ("millsim_job_queued", ""));
+    let quiet = tokio::time::timeout(Duration::from_millis(500), listener.recv()).await;
+    assert!(
+        quiet.is_err(),
+        "an unfollowed job's change was announced: {quiet:?}"
+    );
+    // A stream follows it: its cancel is announced, and pushed to the stream at once
+    // (the stream's fallback re-read is 5 s away).
+    let mut stream = c
+        .get(api.url(&format!("/v1/jobs/{id}/events")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(stream.status(), 200);
+    let first = stream.chunk().await.unwrap().unwrap();
+    assert!(
+        String::from_utf8_lossy(&first).contains("queued"),
+        "{first:?}"
+    );
+    let asked = Instant::now();
+    let res = c
+        .post(api.url(&format!("/v1/jobs/{id}/cancel")))
+        .send()
+        .await
+        .unwrap();
+    assert!(res.status().is_success(), "{}", res.status());
+    let n = tokio::time::timeout(Duration::from_secs(5), listener.recv())
+        .await
+        .expect("the followed job's change was not announced")
+        .unwrap();
+    assert_eq!(
+        (n.channel(), n.payload()),
+        ("millsim_job_changed", id.as_str())
+    );
+    let mut text = String::new();
+    while !text.contains("cancelled") {
+        let chunk = tokio::time::timeout(Duration::from_secs(10), stream.chunk())
             .await
-            .expect("no notification within 5 s")
-            .unwrap();
-        seen.push((n.channel().to_string(), n.payload().to_string()));
+            .expect("the stream did not report the cancel")
+            .unwrap()
+            .expect("the stream ended before the cancel");
+        text.push_str(&String::from_utf8_lossy(&chunk));
     }
     assert!(
-        seen.contains(&("millsim_job_queued".into(), String::new())),
-        "{seen:?}"
+        asked.elapsed() < Duration::from_secs(2),
+        "the cancel reached the stream after {:?} (not pushed)",
+        asked.elapsed()
     );
-    assert!(
-        seen.contains(&(
-            "millsim_job_changed".into(),
-            job["id"].as_str().unwrap().into()
-        )),
-        "{seen:?}"
-    );
+    drop(stream);
 
     // An idle worker in another process starts each job at once: idle workers poll
     // every 250 ms, so polling alone would put the median near 125 ms.
     let mut worker = start_worker(&url);
-    wait_job(
-        &c,
-        &api,
-        job["id"].as_str().unwrap(),
-        Duration::from_secs(30),
-    )
-    .await;
     let mut waits = Vec::new();
     for _ in 0..15 {
         tokio::time::sleep(Duration::from_millis(100)).await;

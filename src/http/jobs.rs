@@ -694,7 +694,7 @@ pub async fn events(
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
     // Watch before the first read, so a change between the two is not missed.
-    let watch = state.db.watch_job(&id);
+    let watch = state.db.watch_job(&id).await?;
     let job = find(&state.db, &owner, &id).await?;
     struct S {
         db: Db,

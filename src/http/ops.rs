@@ -46,6 +46,7 @@ pub async fn readyz(State(state): State<AppState>) -> Response {
 
 pub async fn metrics(State(state): State<AppState>) -> Response {
     let counts = state.db.job_counts().await.unwrap_or_default();
-    let text = state.metrics.render(&counts);
+    let workers = state.db.live_workers().await.unwrap_or_default();
+    let text = state.metrics.render(&counts, &workers);
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text).into_response()
 }

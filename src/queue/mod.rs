@@ -19,6 +19,7 @@ use crate::problem::Problem;
 use crate::store::jobs::{
     Artifact, ClaimedJob, CreatedResource, Finish, LeaseState, IN_PROCESS_MARK,
 };
+use crate::store::workers::WorkerReport;
 use crate::store::{Db, ResourceKind, StoreError};
 
 /// Why a job's inputs could not be loaded.
@@ -43,9 +44,79 @@ impl Progress for SharedProgress {
     }
 }
 
+/// One worker's counts since it started, reported to the database for /metrics.
+#[derive(Default)]
+pub struct WorkerCounts {
+    running: AtomicU64,
+    claimed: AtomicU64,
+    succeeded: AtomicU64,
+    failed: AtomicU64,
+    cancelled: AtomicU64,
+    abandoned: AtomicU64,
+}
+
+impl WorkerCounts {
+    fn report(&self, id: &str, host: &str, started_at: i64) -> WorkerReport {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed) as i64;
+        WorkerReport {
+            id: id.to_string(),
+            host: host.to_string(),
+            pid: i64::from(std::process::id()),
+            started_at,
+            running: get(&self.running),
+            claimed: get(&self.claimed),
+            succeeded: get(&self.succeeded),
+            failed: get(&self.failed),
+            cancelled: get(&self.cancelled),
+            abandoned: get(&self.abandoned),
+        }
+    }
+}
+
+/// How often a process reports its workers' counts.
+const REPORT_EVERY: Duration = Duration::from_secs(1);
+
+/// Reports `workers` every second until `done` (they have stopped, after any shutdown
+/// grace), then removes their rows.
+async fn report_workers(db: Db, workers: Vec<(String, Arc<WorkerCounts>)>, done: Arc<Notify>) {
+    let host = host_name();
+    let started_at = crate::store::now_ms();
+    let reports = || {
+        workers
+            .iter()
+            .map(|(id, c)| c.report(id, &host, started_at))
+            .collect::<Vec<_>>()
+    };
+    let mut tick = tokio::time::interval(REPORT_EVERY);
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {
+                if let Err(e) = db.report_workers(&reports()).await {
+                    tracing::warn!(error = %e, "could not report the workers' counts");
+                }
+            }
+            _ = done.notified() => break,
+        }
+    }
+    let ids: Vec<String> = workers.iter().map(|(id, _)| id.clone()).collect();
+    if let Err(e) = db.remove_workers(&ids).await {
+        tracing::warn!(error = %e, "could not remove the workers' rows; they expire");
+    }
+}
+
+/// This host's name: $HOSTNAME, else the kernel's (a shell does not always export it).
+fn host_name() -> String {
+    std::env::var("HOSTNAME")
+        .ok()
+        .or_else(|| std::fs::read_to_string("/proc/sys/kernel/hostname").ok())
+        .map(|h| h.trim().to_string())
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "host".into())
+}
+
 /// A name for this process's workers, unique across processes and restarts.
 pub fn process_worker_prefix() -> String {
-    let host = std::env::var("HOSTNAME").unwrap_or_else(|_| "host".into());
+    let host = host_name();
     format!(
         "{host}-{}-{}",
         std::process::id(),
@@ -64,12 +135,17 @@ pub async fn run_workers(
 ) {
     let prefix = process_worker_prefix();
     let mut handles = Vec::new();
+    let mut reported = Vec::new();
     for i in 0..config.workers {
+        let counts = Arc::new(WorkerCounts::default());
+        let id = match config.isolation {
+            Isolation::Process => format!("{prefix}-w{i}"),
+            Isolation::Thread => format!("{prefix}{IN_PROCESS_MARK}w{i}"),
+        };
+        reported.push((id.clone(), counts.clone()));
         let worker = Worker {
-            id: match config.isolation {
-                Isolation::Process => format!("{prefix}-w{i}"),
-                Isolation::Thread => format!("{prefix}{IN_PROCESS_MARK}w{i}"),
-            },
+            id,
+            counts,
             db: db.clone(),
             config: config.clone(),
             metrics: metrics.clone(),
@@ -78,10 +154,14 @@ pub async fn run_workers(
         };
         handles.push(tokio::spawn(worker.run()));
     }
+    let stopped = Arc::new(Notify::new());
+    let reporter = tokio::spawn(report_workers(db.clone(), reported, stopped.clone()));
     tracing::info!(workers = config.workers, prefix = %prefix, "workers started");
     for h in handles {
         let _ = h.await;
     }
+    stopped.notify_one();
+    let _ = reporter.await;
     tracing::info!("workers stopped");
 }
 
@@ -90,6 +170,7 @@ const STORAGE_BACKOFF_MS: u64 = 500;
 
 struct Worker {
     id: String,
+    counts: Arc<WorkerCounts>,
     db: Db,
     config: QueueConfig,
     metrics: Arc<Metrics>,
@@ -104,7 +185,18 @@ impl Worker {
                 return;
             }
             match self.db.claim_job(&self.id, self.config.lease_ms).await {
-                Ok(Some(job)) => self.run_job(job).await,
+                Ok(Some(job)) => {
+                    self.counts.claimed.fetch_add(1, Ordering::Relaxed);
+                    self.counts.running.store(1, Ordering::Relaxed);
+                    let ended = match self.run_job(job).await {
+                        Some("succeeded") => &self.counts.succeeded,
+                        Some("failed") => &self.counts.failed,
+                        Some(_) => &self.counts.cancelled,
+                        None => &self.counts.abandoned,
+                    };
+                    ended.fetch_add(1, Ordering::Relaxed);
+                    self.counts.running.store(0, Ordering::Relaxed);
+                }
                 Ok(None) => {
                     // Woken by a submission in this process, by the database's
                     // notification of one from any process (PostgreSQL), or by the poll
@@ -174,7 +266,9 @@ impl Worker {
         Ok(loaded)
     }
 
-    async fn run_job(&mut self, job: ClaimedJob) {
+    /// Runs a claimed job; the outcome it committed, or None when it did not end it
+    /// (given back, lease lost, commit failed).
+    async fn run_job(&mut self, job: ClaimedJob) -> Option<&'static str> {
         let started = Instant::now();
         tracing::info!(worker = %self.id, job = %job.id, kind = %job.kind, attempt = job.attempt, "job claimed");
         // A kind this build does not know (stored by a newer server sharing the database):
@@ -200,12 +294,12 @@ impl Worker {
                 }
                 // The database is struggling: do not claim the job straight back.
                 tokio::time::sleep(Duration::from_millis(STORAGE_BACKOFF_MS)).await;
-                return;
+                return None;
             }
             Ok((kind, inputs)) => match self.execute(&job, kind, inputs).await {
                 Some(finish) => finish,
                 // Lease lost or given back: whoever holds the job now writes its outcome.
-                None => return,
+                None => return None,
             },
         };
         let label = match &outcome {
@@ -218,12 +312,15 @@ impl Worker {
                 self.metrics
                     .observe_job(&job.kind, label, started.elapsed());
                 tracing::info!(worker = %self.id, job = %job.id, outcome = label, seconds = started.elapsed().as_secs_f64(), "job finished");
+                Some(label)
             }
             Ok(false) => {
-                tracing::warn!(worker = %self.id, job = %job.id, "lease lost before commit; result dropped")
+                tracing::warn!(worker = %self.id, job = %job.id, "lease lost before commit; result dropped");
+                None
             }
             Err(e) => {
-                tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not commit the job's outcome")
+                tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not commit the job's outcome");
+                None
             }
         }
     }

@@ -517,10 +517,12 @@ impl Db {
         Ok(())
     }
 
-    /// Claims the oldest claimable job: a queued job, or a running one whose lease
-    /// expired (its worker died) and that may run again. One UPDATE … RETURNING whose
-    /// subquery picks the job; on PostgreSQL it locks it `FOR UPDATE SKIP LOCKED`, so
-    /// concurrent claimers on any host take different jobs without waiting on each other.
+    /// Claims a job: the oldest running job whose lease expired (its worker died) and
+    /// that may run again, else the oldest queued job. Retries go first so a long queue
+    /// does not hold back a job that was already running. One UPDATE … RETURNING whose
+    /// subqueries pick the job, each from its own partial index; on PostgreSQL they lock
+    /// it `FOR UPDATE SKIP LOCKED`, so concurrent claimers on any host take different
+    /// jobs without waiting on each other.
     /// Dead workers' jobs are settled first: at least every `SETTLE_EVERY_MS` in this
     /// process, and whenever nothing is claimable.
     pub async fn claim_job(
@@ -544,58 +546,103 @@ impl Db {
         lease_ms: i64,
     ) -> Result<Option<ClaimedJob>, StoreError> {
         let now = now_ms();
-        let mut tx = self.begin().await?;
-        let skip_locked = tx.backend().skip_locked();
         // An expired job that settling would end (attempts used up, cancel asked, lost
         // with its server) is not claimed: settle_lost_jobs ends it.
-        let row: Option<(String, String, String, String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
-            "UPDATE jobs SET status = 'running', lease_owner = $1, lease_expires_at = $2,
-                attempts = attempts + 1, started_at = $3, finished_at = NULL, updated_at = $3
-             WHERE id = (SELECT id FROM jobs
-                         WHERE status = 'queued'
-                            OR (status = 'running' AND lease_expires_at < $3 AND attempts < max_attempts
-                                AND cancel_requested = 0 AND lease_owner NOT LIKE $4)
-                         ORDER BY id LIMIT 1{skip_locked})
-             RETURNING id, owner, kind, spec, attempts",
-        ))
-        .bind(worker)
-        .bind(now + lease_ms)
-        .bind(now)
-        .bind(format!("%{IN_PROCESS_MARK}%"))
-        .fetch_optional(&mut *c)
-        .await?);
+        let claim = |skip_locked: &str| {
+            format!(
+                "UPDATE jobs SET status = 'running', lease_owner = $1, lease_expires_at = $2,
+                    attempts = attempts + 1, started_at = $3, finished_at = NULL, updated_at = $3
+                 WHERE id = COALESCE(
+                    (SELECT id FROM jobs
+                     WHERE status = 'running' AND lease_expires_at < $3 AND attempts < max_attempts
+                       AND cancel_requested = 0 AND lease_owner NOT LIKE $4
+                     ORDER BY id LIMIT 1{skip_locked}),
+                    (SELECT id FROM jobs WHERE status = 'queued' ORDER BY id LIMIT 1{skip_locked}))
+                 RETURNING id, owner, kind, spec, attempts"
+            )
+        };
+        let in_process = format!("%{IN_PROCESS_MARK}%");
+        type Claimed = (String, String, String, String, i64);
+        let row: Option<Claimed> = match &self.lossy {
+            // PostgreSQL: the claim and its attempt row in one statement, on a connection
+            // whose commit does not wait for the disk. If the database crashes before the
+            // commit is flushed, the claim is lost: the job is as it was (queued, or
+            // running with an expired lease) and is claimed again, with the same attempt
+            // number, by another worker or this one. The worker that believed it held it
+            // learns otherwise at its next heartbeat (the lease is not its own: it stops),
+            // and its result cannot commit: finish_job writes only while `lease_owner` is
+            // this worker and `attempts` this attempt, in a durable commit. A durable
+            // commit also flushes every earlier one (the WAL is written in order), so a
+            // result is never on disk without the claim it depends on. What a lost claim
+            // can cost is a job run twice for at most one heartbeat period after a
+            // database crash, never a result written twice or lost.
+            Some(pg) => {
+                sqlx::query_as(&format!(
+                    "WITH claimed AS ({}),
+                 closed AS (
+                    -- The previous attempt, if its worker died, ends here as lost.
+                    UPDATE job_attempts SET outcome = 'lost', finished_at = $3
+                    WHERE job_id = (SELECT id FROM claimed) AND outcome IS NULL),
+                 opened AS (
+                    INSERT INTO job_attempts (job_id, attempt, worker, started_at)
+                    SELECT id, attempts, $1, $3 FROM claimed)
+                 SELECT id, owner, kind, spec, attempts FROM claimed",
+                    claim(" FOR UPDATE SKIP LOCKED")
+                ))
+                .bind(worker)
+                .bind(now + lease_ms)
+                .bind(now)
+                .bind(&in_process)
+                .fetch_optional(pg)
+                .await?
+            }
+            // SQLite (no writes in WITH): one transaction; its single writer needs no
+            // row locks.
+            None => {
+                let mut tx = self.begin().await?;
+                let row: Option<Claimed> = on_tx!(&mut tx, c => sqlx::query_as(&claim(""))
+                    .bind(worker)
+                    .bind(now + lease_ms)
+                    .bind(now)
+                    .bind(&in_process)
+                    .fetch_optional(&mut *c)
+                    .await?);
+                if let Some((id, _, _, _, attempt)) = &row {
+                    on_tx!(&mut tx, c => {
+                        if *attempt > 1 {
+                            sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = $1 WHERE job_id = $2 AND outcome IS NULL")
+                                .bind(now)
+                                .bind(id)
+                                .execute(&mut *c)
+                                .await?;
+                        }
+                        sqlx::query(
+                            "INSERT INTO job_attempts (job_id, attempt, worker, started_at) VALUES ($1, $2, $3, $4)",
+                        )
+                        .bind(id)
+                        .bind(*attempt)
+                        .bind(worker)
+                        .bind(now)
+                        .execute(&mut *c)
+                        .await?;
+                    });
+                    tx.commit().await?;
+                } else {
+                    tx.rollback().await?;
+                }
+                row
+            }
+        };
         let Some((id, owner, kind, spec, attempt)) = row else {
-            tx.rollback().await?;
             return Ok(None);
         };
-        let job = ClaimedJob {
+        Ok(Some(ClaimedJob {
             id,
             owner,
             kind,
             spec: serde_json::from_str(&spec)?,
             attempt,
-        };
-        on_tx!(&mut tx, c => {
-            if job.attempt > 1 {
-                // The previous attempt, if its worker died, ends here as lost.
-                sqlx::query("UPDATE job_attempts SET outcome = 'lost', finished_at = $1 WHERE job_id = $2 AND outcome IS NULL")
-                    .bind(now)
-                    .bind(&job.id)
-                    .execute(&mut *c)
-                    .await?;
-            }
-            sqlx::query(
-                "INSERT INTO job_attempts (job_id, attempt, worker, started_at) VALUES ($1, $2, $3, $4)",
-            )
-            .bind(&job.id)
-            .bind(job.attempt)
-            .bind(worker)
-            .bind(now)
-            .execute(&mut *c)
-            .await?;
-        });
-        tx.commit().await?;
-        Ok(Some(job))
+        }))
     }
 
     /// Extends the lease and records progress; tells the worker whether it still holds
@@ -609,7 +656,11 @@ impl Db {
         total: u64,
     ) -> Result<LeaseState, StoreError> {
         let now = now_ms();
-        let row: Option<(i64,)> = on_pool!(&self.pool, p => sqlx::query_as(
+        // On PostgreSQL not waited for on disk either (see try_claim): a renewal lost in
+        // a database crash shortens the lease, which at worst lets another worker take
+        // the job, and then this worker's result cannot commit. Lost progress is
+        // rewritten at the next beat.
+        let row: Option<(i64,)> = on_pool!(&self.queue_pool(), p => sqlx::query_as(
             "UPDATE jobs SET lease_expires_at = $1, progress_done = $2, progress_total = $3, updated_at = $4
              WHERE id = $5 AND lease_owner = $6 AND status = 'running' AND attempts = $7
              RETURNING cancel_requested",

@@ -8,6 +8,7 @@ pub mod jobs;
 pub mod notify;
 pub mod resources;
 pub mod webhooks;
+pub mod workers;
 
 use std::str::FromStr;
 use std::sync::atomic::AtomicI64;
@@ -45,6 +46,10 @@ pub enum StoreError {
 #[derive(Clone)]
 pub struct Db {
     pool: Pool,
+    /// PostgreSQL only: connections whose commits do not wait for the disk
+    /// (`synchronous_commit = off`), for the queue's writes whose loss in a database
+    /// crash is harmless: claims and heartbeats (see `Db::try_claim` for why).
+    lossy: Option<sqlx::PgPool>,
     /// PostgreSQL's notifications, fanned out in this process (None on SQLite).
     changes: Option<Arc<notify::Changes>>,
     /// When this process last settled dead workers' jobs (unix ms).
@@ -81,6 +86,7 @@ impl Db {
         SQLITE_MIGRATOR.run(&pool).await?;
         Ok(Db {
             pool: Pool::Sqlite(pool),
+            lossy: None,
             changes: None,
             last_settled: Arc::default(),
         })
@@ -91,8 +97,13 @@ impl Db {
         let pool = PgPoolOptions::new()
             .max_connections(16)
             .acquire_timeout(Duration::from_secs(30))
-            .connect_with(options)
+            .connect_with(options.clone())
             .await?;
+        // Opened on first use: an API process that runs no workers opens none.
+        let lossy = PgPoolOptions::new()
+            .max_connections(4)
+            .acquire_timeout(Duration::from_secs(30))
+            .connect_lazy_with(options.options([("synchronous_commit", "off")]));
         // Whichever process starts first migrates; sqlx's migrator holds a PostgreSQL
         // advisory lock (pg_advisory_lock, keyed by the database name) from before it
         // reads the applied versions until it is done, so processes starting together
@@ -101,6 +112,7 @@ impl Db {
         let changes = notify::listen(&pool).await?;
         Ok(Db {
             pool: Pool::Postgres(pool),
+            lossy: Some(lossy),
             changes: Some(changes),
             last_settled: Arc::default(),
         })
@@ -112,6 +124,15 @@ impl Db {
 
     pub(crate) async fn begin(&self) -> Result<Tx, StoreError> {
         self.pool.begin().await
+    }
+
+    /// Where claims and heartbeats write: the lossy pool on PostgreSQL, the one pool
+    /// on SQLite.
+    fn queue_pool(&self) -> Pool {
+        match &self.lossy {
+            Some(p) => Pool::Postgres(p.clone()),
+            None => self.pool.clone(),
+        }
     }
 
     fn migrator(&self) -> &'static sqlx::migrate::Migrator {
@@ -151,8 +172,12 @@ impl Db {
 
     /// Follows one job's changes (for an event stream). Take it before reading the job,
     /// so no change between the read and the wait is missed.
-    pub fn watch_job(&self, id: &str) -> JobWatch {
-        JobWatch::new(id, self.changes.as_deref())
+    pub async fn watch_job(&self, id: &str) -> Result<JobWatch, StoreError> {
+        let bus = match (&self.changes, &self.pool) {
+            (Some(c), Pool::Postgres(p)) => Some((c.as_ref(), p)),
+            _ => None,
+        };
+        JobWatch::new(id, bus).await
     }
 }
 
