@@ -200,3 +200,95 @@ fn fanuc_h_without_g43_changes_the_length_offset_number() {
     let (_, _, msg) = fail("G21\nG0 Z5 H1\nM2\n", &dialect(Dialect::LinuxCnc));
     assert!(msg.contains("H1 is not used"), "{msg}");
 }
+
+#[test]
+fn fanuc_d_on_a_tool_change_block_is_the_radius_offset_g41_takes() {
+    // `T4 D04 M06`: the offset number is chosen with the tool; G41 later takes it. Offset 4
+    // holds a D10 (radius 5): the pass along Y at X0 runs at X-5 (tool on the left).
+    let table = parse_tool_table("T4 P4 Z0 D10.0\n").unwrap();
+    let opts = InterpretOptions {
+        tool_table: table,
+        ..InterpretOptions::default()
+    };
+    let src = "O906\nG17 G40 G49 G80 G90\nT4 D04 M06\nG0 X0 Y-20. Z5.\nG1 Z-1. F500\n\
+               G41 G1 X0 Y0\nY30.\nG40 G1 X0 Y50.\nM30\n";
+    let i = run_with(src, &opts);
+    let along = i
+        .moves
+        .iter()
+        .find(|m| m.line == 7 && m.kind == MoveKind::Linear)
+        .expect("the pass along Y");
+    assert!((along.end[0] + 5.0).abs() < 1e-9, "{:?}", along.end);
+    assert!((along.end[1] - 30.0).abs() < 1e-9, "{:?}", along.end);
+    let explicit = run_with(&src.replace("G41 G1", "G41 D4 G1"), &opts);
+    assert_eq!(path(&i), path(&explicit));
+    // LinuxCNC has no such D: refused there, naming it.
+    let (line, _, msg) = fail("T4 D4 M6\nM2\n", &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 1);
+    assert!(msg.contains("D4"), "{msg}");
+}
+
+#[test]
+fn dialect_auto_applies_the_fanuc_g80_rule_with_a_warning() {
+    use MoveKind::{Linear, Rapid};
+    // A Fusion 360 "generic" post: no O number, `G80` then `Z5.533` meaning the G0 of before
+    // the cycle. LinuxCNC refuses the block; auto takes the Fanuc reading and says so.
+    let src = "G90 G94 G17\nG21\nG0 X0 Y14.249\nZ5.\nG98 G73 X0 Y14.249 Z-1. R5. Q0.5 F250.\n\
+               G80\nZ5.533\nG1 X2 F100\nM30\n";
+    let i = run(src);
+    let p = path(&i);
+    assert_eq!(p[p.len() - 2], (Rapid, [0.0, 14.249, 5.533]));
+    assert_eq!(p[p.len() - 1], (Linear, [2.0, 14.249, 5.533]));
+    assert!(
+        i.warnings
+            .iter()
+            .any(|w| w.line == 7 && w.message.contains("Fanuc rule")),
+        "{:?}",
+        i.warnings
+    );
+    let (line, _, msg) = fail(src, &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 7);
+    assert!(msg.contains("no motion mode"), "{msg}");
+}
+
+#[test]
+fn fanuc_rotary_axis_in_a_canned_cycle_indexes_with_the_hole_positioning() {
+    use MoveKind::{Linear, Rapid};
+    // A 4th-axis hole pattern: each cycle block turns A with the positioning rapid (operation
+    // 1), then R, the feed to the bottom and the G98 return to the initial level Z5.
+    let src = "O10\nG90 G0 X10. Y0 Z5. A0\nG98 G81 Z-2. R1. F100. A90.\nA180.\nG80\nM30\n";
+    let i = run(src);
+    let moves: Vec<(MoveKind, [f64; 4])> = i
+        .moves
+        .iter()
+        .map(|m| (m.kind, [m.end[0], m.end[1], m.end[2], m.end[3]]))
+        .collect();
+    assert_eq!(
+        moves,
+        vec![
+            (Rapid, [10.0, 0.0, 5.0, 0.0]),
+            (Rapid, [10.0, 0.0, 5.0, 90.0]),
+            (Rapid, [10.0, 0.0, 1.0, 90.0]),
+            (Linear, [10.0, 0.0, -2.0, 90.0]),
+            (Rapid, [10.0, 0.0, 5.0, 90.0]),
+            (Rapid, [10.0, 0.0, 5.0, 180.0]),
+            (Rapid, [10.0, 0.0, 1.0, 180.0]),
+            (Linear, [10.0, 0.0, -2.0, 180.0]),
+            (Rapid, [10.0, 0.0, 5.0, 180.0]),
+        ]
+    );
+    // With a repeat count the rotary words are refused (not modelled), naming the block.
+    let (line, _, msg) = fail(
+        "O10\nG0 X0 Y0 Z5\nG81 X1 Z-1 R1 F10 A30 K3\nM30\n",
+        &dialect(Dialect::Fanuc),
+    );
+    assert_eq!(line, 3);
+    assert!(msg.contains("repeat count"), "{msg}");
+    // LinuxCNC refuses rotary words in a cycle.
+    let (line, _, msg) = fail(
+        "G0 X0 Y0 Z5\nG81 X1 Z-1 R1 F10 A30\nM2\n",
+        &dialect(Dialect::LinuxCnc),
+    );
+    assert_eq!(line, 2);
+    assert!(msg.contains("rotary axis words in a canned cycle"), "{msg}");
+}
