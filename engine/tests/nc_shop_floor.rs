@@ -292,3 +292,75 @@ fn fanuc_rotary_axis_in_a_canned_cycle_indexes_with_the_hole_positioning() {
     assert_eq!(line, 2);
     assert!(msg.contains("rotary axis words in a canned cycle"), "{msg}");
 }
+
+#[test]
+fn look_ahead_and_smoothing_codes_warn_and_leave_the_path_as_programmed() {
+    // Fusion's Fanuc and Haas posts wrap cutting in these; none moves the machine.
+    let plain = run("O1\nG0 X1 Y2\nG1 X5 F100\nM30\n");
+    for (mode, off) in [
+        ("G05.1 Q1 R5", "G05.1 Q0"),
+        ("G05 P10000", "G05 P0"),
+        ("G08 P1", "G08 P0"),
+        ("G187 P1 E0.01", "G187"),
+        ("G103 P1", "G103"),
+    ] {
+        let i = run(&format!("O1\n{mode}\nG0 X1 Y2\nG1 X5 F100\n{off}\nM30\n"));
+        assert_eq!(path(&i), path(&plain), "{mode}");
+        let code = mode.split(' ').next().unwrap().replace("G0", "G");
+        assert!(
+            i.warnings
+                .iter()
+                .any(|w| w.line == 2 && w.message.contains("makes no motion")),
+            "{code}: {:?}",
+            i.warnings
+        );
+    }
+    // With dialect linuxcnc the numbers keep their LinuxCNC meaning or are refused.
+    let l = dialect(Dialect::LinuxCnc);
+    let (line, _, msg) = fail("G187 P1\nM2\n", &l);
+    assert_eq!(line, 1);
+    assert!(msg.contains("G187"), "{msg}");
+    let (_, _, msg) = fail("G8\nM2\n", &l);
+    assert!(msg.contains("lathe"), "{msg}");
+}
+
+#[test]
+fn fanuc_powers_up_in_g00() {
+    use MoveKind::Rapid;
+    // No G0 before `G43 H1 Z50.`: a Fanuc control is in G00 at power-up.
+    let i = run("O1\nT1 M6\nG90 G54\nG43 H1 Z50.\nX10. Y5.\nM30\n");
+    let p: Vec<_> = path(&i).into_iter().filter(|m| m.0 == Rapid).collect();
+    assert_eq!(
+        p,
+        vec![(Rapid, [0.0, 0.0, 50.0]), (Rapid, [10.0, 5.0, 50.0])]
+    );
+    // LinuxCNC starts with no motion mode.
+    let (line, _, msg) = fail("G43 H1 Z50.\nM2\n", &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 1);
+    assert!(msg.contains("no motion mode"), "{msg}");
+}
+
+#[test]
+fn features_of_other_controls_are_refused_naming_them() {
+    for (src, what) in [
+        (
+            "O1\nG12 I5. D1 K0.5 Q0.5 Z-1. F10.\nM30\n",
+            "circular pocket",
+        ),
+        (
+            "O1\nG47 P0 (TEXT) X0 Y0 I0 J.1 R.05 Z-.005 F15. E10.\nM30\n",
+            "engraving",
+        ),
+        ("O1\nG43.4 H1\nM30\n", "tool center point"),
+        (
+            "O1\nG68.2 X0 Y0 Z0 I0 J90 K0\nM30\n",
+            "tilted working plane",
+        ),
+        ("O1\nG154 P1\nM30\n", "extended work offsets"),
+        ("O1\nG54.1 P2\nM30\n", "extended work offsets"),
+    ] {
+        let (line, col, msg) = fail(src, &dialect(Dialect::Fanuc));
+        assert_eq!((line, col), (2, 1), "{src}");
+        assert!(msg.contains(what) && msg.contains("not supported"), "{msg}");
+    }
+}

@@ -26,6 +26,7 @@ impl<'p> Interp<'p> {
             polar_any: false,
             polar_open: false,
             transform: false,
+            machine_mode: false,
         };
         w.gs.clear();
         w.ms.clear();
@@ -537,6 +538,11 @@ impl<'p> Interp<'p> {
         // (M62 P1, M66 P0 L3 Q5: parameters we cannot interpret).
         if !w.ms.is_empty() && w.ms.iter().any(|m| m_group(m.0).is_none()) {
             for c in ['L', 'P', 'Q'] {
+                w.used[letter_index(c)] = true;
+            }
+        }
+        if w.machine_mode {
+            for c in ['P', 'Q', 'R', 'E'] {
                 w.used[letter_index(c)] = true;
             }
         }
