@@ -121,7 +121,7 @@ fn g10_tool_offset_writes() {
     let i = run_with("G10 L1 P1 Z25 R3\nG43 H1\nG0 Z0\n", &opts);
     assert_eq!(i.moves[0].tool_length, Some(25.0));
     // L10: the length that makes the current Z (spindle at 30 with no offset) read 5.
-    let i = run_with("T1 M6\nG0 Z30\nG10 L10 P1 Z5\nG43 H1\nG0 X#5423\n", &opts);
+    let i = run_with("T1 M6\nG0 Z30\nG10 L10 P1 Z5\nG43 H1\nG0 X#5422\n", &opts);
     let m = i.moves.last().unwrap();
     assert_eq!((m.tool_length, m.end[0], m.end[2]), (Some(25.0), 5.0, 5.0));
     // L11: relative to G59.3 (offset Z2 there), G54's offset not used.

@@ -442,22 +442,9 @@ impl<'p> Interp<'p> {
             .or(w.corner_c)
             .map(|(v, i)| (v, i, w.corner_c.is_some()));
         if w.has_axis() && !axis_users {
-            let motion = match (self.motion, self.motion_01) {
-                (Some(m), _) => m,
-                // A post for a Fanuc-type control writes `G80` then `Z5.` expecting the G0/G1
-                // of before the cycle (canned cycles are a group of their own there). LinuxCNC
-                // refuses the block; with the dialect left to `auto` the Fanuc rule applies.
-                (None, Some(m)) if self.opts.dialect == Dialect::Auto => {
-                    self.warnings.push(self.err_block(format!(
-                        "axis words after G80 with no motion mode: the Fanuc rule is applied (G80 keeps the {} of before the cycle); LinuxCNC refuses this block (set the dialect to choose)",
-                        motion_name(m)
-                    )));
-                    self.motion = Some(m);
-                    m
-                }
-                _ => return Err(self.err_block(
-                    "axis words but no motion mode (G80 is active); give G0/G1/G2/G3 or a cycle",
-                )),
+            let motion = match self.motion {
+                Some(m) => m,
+                None => self.motion_after_g80()?,
             };
             if let Some(i) = g53 {
                 if !matches!(motion, Motion::Rapid | Motion::Linear) {
@@ -692,6 +679,27 @@ impl<'p> Interp<'p> {
             Ok(())
         } else {
             self.exec_transform(w, code, self.word_pos(i))
+        }
+    }
+
+    /// Axis words with no motion mode. A post for a Fanuc-type control writes `G80` then
+    /// `Z5.` meaning the G0/G1 of before the cycle (canned cycles are a group of their own
+    /// there); LinuxCNC refuses the block. With the dialect left to `auto` the Fanuc rule
+    /// applies, with a warning.
+    #[cold]
+    fn motion_after_g80(&mut self) -> R<Motion> {
+        match self.motion_01 {
+            Some(m) if self.opts.dialect == Dialect::Auto => {
+                self.warnings.push(self.err_block(format!(
+                    "axis words after G80 with no motion mode: the Fanuc rule is applied (G80 keeps the {} of before the cycle); LinuxCNC refuses this block (set the dialect to choose)",
+                    motion_name(m)
+                )));
+                self.motion = Some(m);
+                Ok(m)
+            }
+            _ => Err(self.err_block(
+                "axis words but no motion mode (G80 is active); give G0/G1/G2/G3 or a cycle",
+            )),
         }
     }
 

@@ -140,7 +140,10 @@ impl<'p> Interp<'p> {
                         return Err(self.err_at(pos, format!("G{v} is not a G code")));
                     }
                     let code = code as u16;
-                    if let Some(what) = self.machine_mode_code(code) {
+                    if let Some(what) = matches!(code, 50 | 51 | 80 | 1030 | 1870)
+                        .then(|| self.machine_mode_code(code))
+                        .flatten()
+                    {
                         // Warned once per code: the path is as programmed, only the control's
                         // smoothing/look-ahead differs.
                         if self.warned_m_codes.insert(100_000 + u32::from(code)) {
