@@ -71,7 +71,7 @@
 //! G54.1/G154, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
 //! axes, calls to programs neither in the file nor in the library, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
-//! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
+//! (else a warning), writes to the parameters that hold machine state (#5161-#5425).
 
 mod arc;
 mod expr;
