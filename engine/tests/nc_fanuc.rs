@@ -141,6 +141,41 @@ M30
 }
 
 #[test]
+fn macro_statement_abbreviations_run_as_the_full_keywords() {
+    // The Fanuc macro manual's two-letter forms, as a 0i-MD shop macro writes them
+    // (`WH[[#1GE#2]AND[#3GE#7]]DO1`, `N49END1`): X 1, 2, 3 in the loop, then the GO jump
+    // skips X99, and TH sets #2 = 7.
+    let short = "O1\n#1=0\nWH[#1LT3]DO1\n#1=#1+1\nG0X#1\nN49EN1\nIF[#1EQ3]GO20\nG0X99\n\
+                 N20G0Y5\nIF[#1GE3]TH#2=7\nG0Z#2\nM30\n";
+    let i = run(short);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+            [3.0, 5.0, 0.0],
+            [3.0, 5.0, 7.0]
+        ]
+    );
+    assert_eq!(Program::parse(short).unwrap().to_string(), short);
+    // The same program with the keywords written out gives the same moves.
+    let long = short
+        .replace("WH[", "WHILE[")
+        .replace("EN1", "END1")
+        .replace("GO20", "GOTO20")
+        .replace("TH#", "THEN#");
+    assert_eq!(xyz(&run(&long)), xyz(&i));
+    // Macro statements stand alone in their block; a second one on the line is named.
+    let (line, col, msg) = fail(
+        "O1\n#1=0\nWHILE [#1 LT 2] DO1 #1=#1+1\nEND1\nM30\n",
+        &fanuc(),
+    );
+    assert_eq!((line, col), (3, 21));
+    assert!(msg.contains("macro statement stands alone"), "{msg}");
+}
+
+#[test]
 fn vacant_variables_and_system_variables() {
     // #0 and unset locals are vacant: EQ tells vacant from 0, arithmetic reads it as 0, and a
     // word whose value is vacant is left out.

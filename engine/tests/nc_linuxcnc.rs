@@ -1342,3 +1342,25 @@ fn library_subroutines_match_linuxcnc() {
     used.sort();
     assert_eq!(used, ["100.ngc", "face.ngc", "pass.ngc"]);
 }
+
+/// #5420-#5425 hold the current X Y Z A B C (program units, all offsets applied), X first:
+/// pcb2gcode steps a panel with `G92 X[#5420-[2.118960]]` between calls of one outline.
+/// Identical to LinuxCNC, in inches, with G92 and G55 offsets in play.
+#[test]
+fn current_position_parameters_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let src = "G20 G90\nG10 L2 P2 X1 Y-2 Z0.5\nG55\nG0 X4.63248 Y-3.41752 Z0.2 A30\n\
+               G92 X[#5420-[2.118960]]\nG0 X4.56752\nG92 Y[#5421-[1.218961]]\nG0 Y-3.45 Z[#5422+1]\n\
+               G0 X[#5420+#5421] A[#5423+15]\nG92.1\nG0 Y#5420 X#5421\nM2\n";
+    let path = tmp_copy("current_position.ngc", src);
+    let theirs = linuxcnc(&path, None).unwrap();
+    let ours = interpret(src, &InterpretOptions::default()).unwrap();
+    compare(&ours.moves, &theirs, 1e-6).unwrap();
+    assert_eq!(theirs.len(), 5);
+    // The position parameters are the machine's state: not assignable.
+    let e = interpret("#5420=1\nM2\n", &InterpretOptions::default()).unwrap_err();
+    assert!(e.0[0].message.contains("#5420 holds machine state"), "{e}");
+}

@@ -157,6 +157,13 @@ fn block() -> impl Strategy<Value = String> {
             "G65 P100 I1 J2 K3 I4 K5",
             "G53 G0 Z0 H0",
             "G43 H1 D2\nG0 Z1 H0",
+            "WH[#1LT3]DO1\n#1=#1+1\nEN1",
+            "IF[#1GT2]GO10",
+            "IF[#1LT5]TH#1=#1+1",
+            "T2 D2 M6",
+            "G81 X1 Y1 Z-1 R1 F20 A30",
+            "G91 A15",
+            "G80\nZ3",
         ])
         .prop_map(|s| s.to_string()),
     ]
@@ -167,9 +174,10 @@ fn macro_text() -> impl Strategy<Value = String> {
     prop::collection::vec(
         prop::sample::select(vec![
             "IF", "WHILE", "GOTO", "END", "DO", "THEN", "DPRNT", "POPEN", "[", "]", "#", "#1",
-            "#0", "#100", "#3000", "#5001", "=", "+", "-", "*", "/", "MOD", "AND", "OR", "XOR",
-            "EQ", "NE", "GT", "LT", "1", "2", "10", "2.5", " ", "\n", "\nN10 ", "N10", "M98",
-            "M99", "P", "P10", "L", "L3", "G65", "O10\n", "O1\n", "G0 X", "G1 Y", "F100", "(C)",
+            "WH", "GO", "EN", "TH", "#0", "#100", "#3000", "#5001", "=", "+", "-", "*", "/", "MOD",
+            "AND", "OR", "XOR", "EQ", "NE", "GT", "LT", "1", "2", "10", "2.5", " ", "\n", "\nN10 ",
+            "N10", "M98", "M99", "P", "P10", "L", "L3", "G65", "O10\n", "O1\n", "G0 X", "G1 Y",
+            "F100", "(C)",
         ]),
         0..60,
     )

@@ -121,7 +121,7 @@ fn g10_tool_offset_writes() {
     let i = run_with("G10 L1 P1 Z25 R3\nG43 H1\nG0 Z0\n", &opts);
     assert_eq!(i.moves[0].tool_length, Some(25.0));
     // L10: the length that makes the current Z (spindle at 30 with no offset) read 5.
-    let i = run_with("T1 M6\nG0 Z30\nG10 L10 P1 Z5\nG43 H1\nG0 X#5423\n", &opts);
+    let i = run_with("T1 M6\nG0 Z30\nG10 L10 P1 Z5\nG43 H1\nG0 X#5422\n", &opts);
     let m = i.moves.last().unwrap();
     assert_eq!((m.tool_length, m.end[0], m.end[2]), (Some(25.0), 5.0, 5.0));
     // L11: relative to G59.3 (offset Z2 there), G54's offset not used.
@@ -199,4 +199,168 @@ fn fanuc_h_without_g43_changes_the_length_offset_number() {
     // LinuxCNC keeps refusing a stray H.
     let (_, _, msg) = fail("G21\nG0 Z5 H1\nM2\n", &dialect(Dialect::LinuxCnc));
     assert!(msg.contains("H1 is not used"), "{msg}");
+}
+
+#[test]
+fn fanuc_d_on_a_tool_change_block_is_the_radius_offset_g41_takes() {
+    // `T4 D04 M06`: the offset number is chosen with the tool; G41 later takes it. Offset 4
+    // holds a D10 (radius 5): the pass along Y at X0 runs at X-5 (tool on the left).
+    let table = parse_tool_table("T4 P4 Z0 D10.0\n").unwrap();
+    let opts = InterpretOptions {
+        tool_table: table,
+        ..InterpretOptions::default()
+    };
+    let src = "O906\nG17 G40 G49 G80 G90\nT4 D04 M06\nG0 X0 Y-20. Z5.\nG1 Z-1. F500\n\
+               G41 G1 X0 Y0\nY30.\nG40 G1 X0 Y50.\nM30\n";
+    let i = run_with(src, &opts);
+    let along = i
+        .moves
+        .iter()
+        .find(|m| m.line == 7 && m.kind == MoveKind::Linear)
+        .expect("the pass along Y");
+    assert!((along.end[0] + 5.0).abs() < 1e-9, "{:?}", along.end);
+    assert!((along.end[1] - 30.0).abs() < 1e-9, "{:?}", along.end);
+    let explicit = run_with(&src.replace("G41 G1", "G41 D4 G1"), &opts);
+    assert_eq!(path(&i), path(&explicit));
+    // LinuxCNC has no such D: refused there, naming it.
+    let (line, _, msg) = fail("T4 D4 M6\nM2\n", &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 1);
+    assert!(msg.contains("D4"), "{msg}");
+}
+
+#[test]
+fn dialect_auto_applies_the_fanuc_g80_rule_with_a_warning() {
+    use MoveKind::{Linear, Rapid};
+    // A Fusion 360 "generic" post: no O number, `G80` then `Z5.533` meaning the G0 of before
+    // the cycle. LinuxCNC refuses the block; auto takes the Fanuc reading and says so.
+    let src = "G90 G94 G17\nG21\nG0 X0 Y14.249\nZ5.\nG98 G73 X0 Y14.249 Z-1. R5. Q0.5 F250.\n\
+               G80\nZ5.533\nG1 X2 F100\nM30\n";
+    let i = run(src);
+    let p = path(&i);
+    assert_eq!(p[p.len() - 2], (Rapid, [0.0, 14.249, 5.533]));
+    assert_eq!(p[p.len() - 1], (Linear, [2.0, 14.249, 5.533]));
+    assert!(
+        i.warnings
+            .iter()
+            .any(|w| w.line == 7 && w.message.contains("Fanuc rule")),
+        "{:?}",
+        i.warnings
+    );
+    let (line, _, msg) = fail(src, &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 7);
+    assert!(msg.contains("no motion mode"), "{msg}");
+}
+
+#[test]
+fn fanuc_rotary_axis_in_a_canned_cycle_indexes_with_the_hole_positioning() {
+    use MoveKind::{Linear, Rapid};
+    // A 4th-axis hole pattern: each cycle block turns A with the positioning rapid (operation
+    // 1), then R, the feed to the bottom and the G98 return to the initial level Z5.
+    let src = "O10\nG90 G0 X10. Y0 Z5. A0\nG98 G81 Z-2. R1. F100. A90.\nA180.\nG80\nM30\n";
+    let i = run(src);
+    let moves: Vec<(MoveKind, [f64; 4])> = i
+        .moves
+        .iter()
+        .map(|m| (m.kind, [m.end[0], m.end[1], m.end[2], m.end[3]]))
+        .collect();
+    assert_eq!(
+        moves,
+        vec![
+            (Rapid, [10.0, 0.0, 5.0, 0.0]),
+            (Rapid, [10.0, 0.0, 5.0, 90.0]),
+            (Rapid, [10.0, 0.0, 1.0, 90.0]),
+            (Linear, [10.0, 0.0, -2.0, 90.0]),
+            (Rapid, [10.0, 0.0, 5.0, 90.0]),
+            (Rapid, [10.0, 0.0, 5.0, 180.0]),
+            (Rapid, [10.0, 0.0, 1.0, 180.0]),
+            (Linear, [10.0, 0.0, -2.0, 180.0]),
+            (Rapid, [10.0, 0.0, 5.0, 180.0]),
+        ]
+    );
+    // With a repeat count the rotary words are refused (not modelled), naming the block.
+    let (line, _, msg) = fail(
+        "O10\nG0 X0 Y0 Z5\nG81 X1 Z-1 R1 F10 A30 K3\nM30\n",
+        &dialect(Dialect::Fanuc),
+    );
+    assert_eq!(line, 3);
+    assert!(msg.contains("repeat count"), "{msg}");
+    // LinuxCNC refuses rotary words in a cycle.
+    let (line, _, msg) = fail(
+        "G0 X0 Y0 Z5\nG81 X1 Z-1 R1 F10 A30\nM2\n",
+        &dialect(Dialect::LinuxCnc),
+    );
+    assert_eq!(line, 2);
+    assert!(msg.contains("rotary axis words in a canned cycle"), "{msg}");
+}
+
+#[test]
+fn look_ahead_and_smoothing_codes_warn_and_leave_the_path_as_programmed() {
+    // Fusion's Fanuc and Haas posts wrap cutting in these; none moves the machine.
+    let plain = run("O1\nG0 X1 Y2\nG1 X5 F100\nM30\n");
+    for (mode, off) in [
+        ("G05.1 Q1 R5", "G05.1 Q0"),
+        ("G05 P10000", "G05 P0"),
+        ("G08 P1", "G08 P0"),
+        ("G187 P1 E0.01", "G187"),
+        ("G103 P1", "G103"),
+    ] {
+        let i = run(&format!("O1\n{mode}\nG0 X1 Y2\nG1 X5 F100\n{off}\nM30\n"));
+        assert_eq!(path(&i), path(&plain), "{mode}");
+        let code = mode.split(' ').next().unwrap().replace("G0", "G");
+        assert!(
+            i.warnings
+                .iter()
+                .any(|w| w.line == 2 && w.message.contains("makes no motion")),
+            "{code}: {:?}",
+            i.warnings
+        );
+    }
+    // With dialect linuxcnc the numbers keep their LinuxCNC meaning or are refused.
+    let l = dialect(Dialect::LinuxCnc);
+    let (line, _, msg) = fail("G187 P1\nM2\n", &l);
+    assert_eq!(line, 1);
+    assert!(msg.contains("G187"), "{msg}");
+    let (_, _, msg) = fail("G8\nM2\n", &l);
+    assert!(msg.contains("lathe"), "{msg}");
+}
+
+#[test]
+fn fanuc_powers_up_in_g00() {
+    use MoveKind::Rapid;
+    // No G0 before `G43 H1 Z50.`: a Fanuc control is in G00 at power-up.
+    let i = run("O1\nT1 M6\nG90 G54\nG43 H1 Z50.\nX10. Y5.\nM30\n");
+    let p: Vec<_> = path(&i).into_iter().filter(|m| m.0 == Rapid).collect();
+    assert_eq!(
+        p,
+        vec![(Rapid, [0.0, 0.0, 50.0]), (Rapid, [10.0, 5.0, 50.0])]
+    );
+    // LinuxCNC starts with no motion mode.
+    let (line, _, msg) = fail("G43 H1 Z50.\nM2\n", &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 1);
+    assert!(msg.contains("no motion mode"), "{msg}");
+}
+
+#[test]
+fn features_of_other_controls_are_refused_naming_them() {
+    for (src, what) in [
+        (
+            "O1\nG12 I5. D1 K0.5 Q0.5 Z-1. F10.\nM30\n",
+            "circular pocket",
+        ),
+        (
+            "O1\nG47 P0 (TEXT) X0 Y0 I0 J.1 R.05 Z-.005 F15. E10.\nM30\n",
+            "engraving",
+        ),
+        ("O1\nG43.4 H1\nM30\n", "tool center point"),
+        (
+            "O1\nG68.2 X0 Y0 Z0 I0 J90 K0\nM30\n",
+            "tilted working plane",
+        ),
+        ("O1\nG154 P1\nM30\n", "extended work offsets"),
+        ("O1\nG54.1 P2\nM30\n", "extended work offsets"),
+    ] {
+        let (line, col, msg) = fail(src, &dialect(Dialect::Fanuc));
+        assert_eq!((line, col), (2, 1), "{src}");
+        assert!(msg.contains(what) && msg.contains("not supported"), "{msg}");
+    }
 }

@@ -25,13 +25,20 @@
 //!   calling level); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
 //!   Subprograms: several `O` programs in one file, `M98 P.. L..` (and `P31234`), `M99`
 //!   (`M99 Pn`), `M99` in the main program ends it (a warning; the control would loop).
+//!   The manual's two-letter keywords (`WH[..]DO1`, `GO10`, `EN1`, `IF[..]TH`) are taken.
+//!   A `D` on any block selects the radius offset G41/G42 take (`T1 D1 M6`); rotary axis
+//!   words in a canned cycle block index with the hole positioning (`G91 A45.` in G81 mode);
+//!   the control powers up in G00.
 //!   AND/OR/XOR work bit by bit on whole numbers and rank with `*` and `+` (LinuxCNC: logical,
 //!   ranked last); the dialect decides when an expression mixes them with arithmetic.
 //!
 //! * Both dialects: `:1234` program numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
 //!   offset memory), G38.2-G38.5 probing as a feed move to the end point (a warning), a Fanuc
-//!   G80 returns to the G0/G1/G2/G3 mode from before the cycle, non-standard M codes run as
-//!   no-ops with a warning (`strict_m_codes` refuses them).
+//!   G80 returns to the G0/G1/G2/G3 mode from before the cycle (with the dialect left to
+//!   auto, also in a program without Fanuc syntax, with a warning: LinuxCNC refuses it),
+//!   non-standard M codes run as no-ops with a warning (`strict_m_codes` refuses them).
+//!   Look-ahead and smoothing modes (Fanuc G5 P, G5.1 Q, G8 P; Haas G103, G187) make no
+//!   motion: a warning, the path as programmed.
 //!
 //! * Cutter radius compensation G41/G42 (radius from the tool table's diameter, a G10 radius
 //!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY and XZ planes, as
@@ -59,10 +66,12 @@
 //!   library's files; see `library.rs` and `interp/units.rs`. Checked against LinuxCNC run in
 //!   the library folder.
 //!
-//! Refused with an error: cutter radius compensation in G19, G33, G76, G7/G8, U V W
+//! Refused with an error naming the feature: Haas G12/G13/G47/G150, tool center point
+//! control G43.4/G43.5, tilted working planes G68.2/G53.1, extended work offsets
+//! G54.1/G154, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
 //! axes, calls to programs neither in the file nor in the library, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
-//! (else a warning), writes to the parameters that hold machine state (#5161-#5426).
+//! (else a warning), writes to the parameters that hold machine state (#5161-#5425).
 
 mod arc;
 mod expr;

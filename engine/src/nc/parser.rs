@@ -548,7 +548,11 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
     if p.lx.peek_byte() == Some(b'%') {
         p.lx.next(false)?;
         block.percent = true;
-        return rest_comments(&mut p, block);
+        return rest_comments(
+            &mut p,
+            block,
+            " ('%' marks the start or end of the program and stands alone on its line)",
+        );
     }
     // N word: only first in the block.
     if matches!(p.lx.peek_byte(), Some(b'n' | b'N')) {
@@ -590,7 +594,13 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
             let at = p.lx.pos;
             if p.lx.byte(at + 1).is_some_and(|b| b.is_ascii_alphabetic()) {
                 if let Some(kw) = MACRO_KEYWORDS.iter().find(|kw| p.lx.keyword_at(at, kw)) {
-                    return macro_line(&mut p, block, kw);
+                    return macro_line(&mut p, block, kw, kw.len());
+                }
+                if let Some((abbr, kw)) = MACRO_ABBREVIATIONS
+                    .iter()
+                    .find(|(abbr, _)| p.lx.keyword_at(at, abbr))
+                {
+                    return macro_line(&mut p, block, kw, abbr.len());
                 }
             }
         }
@@ -639,26 +649,33 @@ const MACRO_KEYWORDS: [&str; 9] = [
     "IF", "WHILE", "GOTO", "END", "DO", "DPRNT", "BPRNT", "POPEN", "PCLOS",
 ];
 
-/// A Fanuc macro B statement line starting with `kw` (upper case, not yet consumed).
-fn macro_line(p: &mut LineParser, block: &mut Block, kw: &str) -> PResult<()> {
+/// The two-letter forms a Fanuc control takes for its statement keywords (the custom macro
+/// manual's abbreviations: `WH[#1 GT 0]DO1`, `GO10`, `EN1`, `IF[..]TH #1=2`). Each is two
+/// letters no G-code word can start with.
+const MACRO_ABBREVIATIONS: [(&str, &str); 3] = [("WH", "WHILE"), ("GO", "GOTO"), ("EN", "END")];
+
+/// A Fanuc macro B statement line starting with `kw` (upper case), written in `len` bytes
+/// (the keyword or its abbreviation), not yet consumed.
+fn macro_line(p: &mut LineParser, block: &mut Block, kw: &str, len: usize) -> PResult<()> {
     p.lx.skip_ws();
     let start = p.lx.pos;
-    p.lx.pos += kw.len();
+    p.lx.pos += len;
     let statement = match kw {
         "GOTO" => MacroStatement::Goto(p.value()?),
         "IF" => {
             let cond = p.condition("IF")?;
             let at = p.lx.after_blanks(p.lx.pos);
-            match p.lx.peek_ident().as_str() {
-                "GOTO" => {
-                    p.lx.pos = at + 4;
+            let ident = p.lx.peek_ident();
+            match ident.as_str() {
+                "GOTO" | "GO" => {
+                    p.lx.pos = at + ident.len();
                     MacroStatement::IfGoto {
                         cond,
                         target: p.value()?,
                     }
                 }
-                "THEN" => {
-                    p.lx.pos = at + 4;
+                "THEN" | "TH" => {
+                    p.lx.pos = at + ident.len();
                     let (t, s) = p.lx.next(false)?;
                     if t != Tok::Hash {
                         return err(s.start, "IF [..] THEN needs an assignment: THEN #i = value");
@@ -724,10 +741,16 @@ fn macro_line(p: &mut LineParser, block: &mut Block, kw: &str) -> PResult<()> {
         statement,
         span: Span::new(start, p.lx.pos),
     }));
-    rest_comments(p, block)
+    rest_comments(
+        p,
+        block,
+        " (a macro statement stands alone in its block: one IF, WHILE, GOTO, DO or END per line)",
+    )
 }
 
-fn rest_comments(p: &mut LineParser, block: &mut Block) -> PResult<()> {
+/// Comments to the end of the line; anything else is an error, `why` saying what may not
+/// share the line.
+fn rest_comments(p: &mut LineParser, block: &mut Block, why: &str) -> PResult<()> {
     loop {
         let (tok, span) = p.lx.next(false)?;
         match tok {
@@ -736,7 +759,7 @@ fn rest_comments(p: &mut LineParser, block: &mut Block) -> PResult<()> {
             t => {
                 return err(
                     span.start,
-                    format!("unexpected {} on this line", tok_name(&t)),
+                    format!("unexpected {} on this line{why}", tok_name(&t)),
                 )
             }
         }
@@ -841,7 +864,11 @@ fn o_line(p: &mut LineParser, block: &mut Block) -> PResult<()> {
         args,
         span: Span::new(os.start, p.lx.pos),
     });
-    rest_comments(p, block)
+    rest_comments(
+        p,
+        block,
+        " (an O-word line holds only the O-word and comments)",
+    )
 }
 
 #[cfg(test)]

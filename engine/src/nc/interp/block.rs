@@ -6,7 +6,7 @@ use super::modal::{g_group, g_name, m_group, Motion, Plane};
 use super::words::{letter_index, Words, AXES};
 use super::{Interp, MM_PER_INCH, R};
 use crate::nc::view::BlockView;
-use crate::nc::{FeedMode, MoveKind, SpindleDir};
+use crate::nc::{Dialect, FeedMode, MoveKind, SpindleDir};
 
 impl<'p> Interp<'p> {
     pub(super) fn exec_block(&mut self, idx: usize, b: &BlockView<'p>) -> R<()> {
@@ -26,6 +26,7 @@ impl<'p> Interp<'p> {
             polar_any: false,
             polar_open: false,
             transform: false,
+            machine_mode: false,
         };
         w.gs.clear();
         w.ms.clear();
@@ -441,10 +442,9 @@ impl<'p> Interp<'p> {
             .or(w.corner_c)
             .map(|(v, i)| (v, i, w.corner_c.is_some()));
         if w.has_axis() && !axis_users {
-            let Some(motion) = self.motion else {
-                return Err(self.err_block(
-                    "axis words but no motion mode (G80 is active); give G0/G1/G2/G3 or a cycle",
-                ));
+            let motion = match self.motion {
+                Some(m) => m,
+                None => self.motion_after_g80()?,
             };
             if let Some(i) = g53 {
                 if !matches!(motion, Motion::Rapid | Motion::Linear) {
@@ -512,10 +512,24 @@ impl<'p> Interp<'p> {
         if w.polar_any {
             self.unused_polar(w)?;
         }
+        // Fanuc: a D anywhere (`T1 D1 M6`) selects the radius offset later G41/G42 take.
+        if self.fanuc && !w.used[letter_index('D')] {
+            if let Some(d) = w.take('D') {
+                if d < 0.0 || d.fract() != 0.0 || d > u32::MAX as f64 {
+                    return Err(self.err_word(w, 'D', format!("D{d} is not an offset number")));
+                }
+                self.radius_offset = Some(d as u32);
+            }
+        }
         // Every word must have been used by something; P and Q go with a machine's own M code
         // (M62 P1, M66 P0 L3 Q5: parameters we cannot interpret).
         if !w.ms.is_empty() && w.ms.iter().any(|m| m_group(m.0).is_none()) {
             for c in ['L', 'P', 'Q'] {
+                w.used[letter_index(c)] = true;
+            }
+        }
+        if w.machine_mode {
+            for c in ['P', 'Q', 'R', 'E'] {
                 w.used[letter_index(c)] = true;
             }
         }
@@ -668,6 +682,27 @@ impl<'p> Interp<'p> {
         }
     }
 
+    /// Axis words with no motion mode. A post for a Fanuc-type control writes `G80` then
+    /// `Z5.` meaning the G0/G1 of before the cycle (canned cycles are a group of their own
+    /// there); LinuxCNC refuses the block. With the dialect left to `auto` the Fanuc rule
+    /// applies, with a warning.
+    #[cold]
+    fn motion_after_g80(&mut self) -> R<Motion> {
+        match self.motion_01 {
+            Some(m) if self.opts.dialect == Dialect::Auto => {
+                self.warnings.push(self.err_block(format!(
+                    "axis words after G80 with no motion mode: the Fanuc rule is applied (G80 keeps the {} of before the cycle); LinuxCNC refuses this block (set the dialect to choose)",
+                    motion_name(m)
+                )));
+                self.motion = Some(m);
+                Ok(m)
+            }
+            _ => Err(self.err_block(
+                "axis words but no motion mode (G80 is active); give G0/G1/G2/G3 or a cycle",
+            )),
+        }
+    }
+
     /// The motion mode after G80: none (LinuxCNC), or the G0/G1/G2/G3 mode from before the
     /// cycle (Fanuc: canned cycles are a modal group of their own).
     fn after_g80(&self) -> Option<Motion> {
@@ -676,5 +711,16 @@ impl<'p> Interp<'p> {
         } else {
             None
         }
+    }
+}
+
+/// The G code of a group 01 motion mode, for messages.
+fn motion_name(m: Motion) -> &'static str {
+    match m {
+        Motion::Rapid => "G0",
+        Motion::Linear => "G1",
+        Motion::Arc { cw: true } => "G2",
+        Motion::Arc { cw: false } => "G3",
+        _ => "motion mode",
     }
 }

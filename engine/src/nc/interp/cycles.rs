@@ -50,8 +50,11 @@ impl Interp<'_> {
         let plane = self.modal.plane;
         let [ia, ib, ic] = plane.axes();
         let (la, lb, lc) = (AXES[ia], AXES[ib], AXES[ic]);
-        if AXES[3..].iter().any(|&c| w.has(c)) {
-            return Err(self.err_block("rotary axis words in a canned cycle"));
+        let rotary_words = AXES[3..].iter().any(|&c| w.has(c));
+        if rotary_words && !self.fanuc {
+            return Err(self.err_block(
+                "rotary axis words in a canned cycle (LinuxCNC refuses them; a Fanuc control indexes the rotary axis with the hole positioning)",
+            ));
         }
         let r_word = w.take('R');
         let r_num = match r_word {
@@ -78,6 +81,23 @@ impl Interp<'_> {
             Some(v) => v,
             None => 1.0,
         };
+        // Fanuc: an additional (rotary) axis moves with the positioning rapid of the hole
+        // (operation 1 of the cycle), as a 4th-axis bolt circle `G81 .. / G91 A45.` does.
+        let mut rotary = None;
+        if rotary_words {
+            if repeats > 1.0 {
+                return Err(self.err_block(
+                    "rotary axis words with a repeat count (K/L) in a canned cycle are not supported",
+                ));
+            }
+            let mut t = [self.cur[3], self.cur[4], self.cur[5]];
+            for (k, &c) in AXES[3..].iter().enumerate() {
+                if let Some(v) = w.take(c) {
+                    t[k] = if self.modal.absolute { v } else { t[k] + v };
+                }
+            }
+            rotary = Some(t);
+        }
         let cc_word = w.get(lc);
         if !same && cc_word.is_none() {
             return Err(self.err_block(format!(
@@ -207,7 +227,16 @@ impl Interp<'_> {
             aa += aa_inc;
             bb += bb_inc;
             self.polar_step(&mut aa, &mut bb, polar_inc)?;
-            self.cyc_move(true, plane, aa, bb, current_cc)?;
+            if let Some(t) = rotary.take() {
+                let mut to = self.cur;
+                to[3..].copy_from_slice(&t);
+                to[ia] = aa;
+                to[ib] = bb;
+                to[ic] = current_cc;
+                self.straight(true, to)?;
+            } else {
+                self.cyc_move(true, plane, aa, bb, current_cc)?;
+            }
             // rs274 (2.9) moves down to R whenever the positioning height is not R.
             if current_cc != r {
                 self.cyc_move(true, plane, aa, bb, r)?;

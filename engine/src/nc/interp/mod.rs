@@ -240,9 +240,11 @@ fn run_units(
             speed: 0.0,
             spindle: SpindleDir::Off,
         },
-        motion: None,
+        // A Fanuc (or Haas) control powers up in G00 (parameter 3402#0 clear): `G43 H1 Z50.`
+        // before any G0 moves at rapid. LinuxCNC starts with no motion mode.
+        motion: fanuc.then_some(Motion::Rapid),
         motion_prev: None,
-        motion_01: None,
+        motion_01: fanuc.then_some(Motion::Rapid),
         cur: [0.0; 6],
         g5x: [[0.0; 6]; 9],
         g92: [0.0; 6],

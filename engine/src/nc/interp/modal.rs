@@ -116,6 +116,12 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         650 => "macro call (G65) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
         660 => "modal macro call (G66) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
         661 => "modal macro call G66.1 (every block) is not supported",
+        120 | 130 => "(Haas circular pocket milling) is not supported",
+        470 => "(Haas text engraving) is not supported",
+        1500 => "(Haas general-purpose pocket milling) is not supported",
+        434 | 435 => "(tool center point control, 5-axis) is not supported",
+        531 | 682 | 683 | 684 => "(tilted working plane) is not supported",
+        541 | 1540 => "(extended work offsets) is not supported; use G54-G59.3",
         _ => "is not a supported G code",
     }
 }

@@ -93,7 +93,8 @@ impl Interp<'_> {
         if n == 5403 {
             return self.tlo.unwrap_or(0.0) / self.unit();
         }
-        if let Some(i) = axis(5420) {
+        // #5420-#5428: the current position, X first (#5420 is X, not an offset count).
+        if let Some(i) = axis(5419) {
             return self.cur[i];
         }
         self.params.numbered[n]
@@ -226,7 +227,7 @@ impl Interp<'_> {
                     || (5181..=5186).contains(&n)
                     || (5210..=5400).contains(&n)
                     || n == 5403
-                    || (5421..=5426).contains(&n)
+                    || (5420..=5425).contains(&n)
                 {
                     return Err(self.err_at(
                         a.span.start,

@@ -32,6 +32,9 @@ pub(super) struct Words {
     pub(super) polar_open: bool,
     /// A G code of Fanuc's transform groups or G67 is in the block.
     pub(super) transform: bool,
+    /// A machine accuracy/look-ahead mode code (G5.1 Q1, G187 P1 E..) is in the block: its
+    /// P, Q, R and E words are its settings.
+    pub(super) machine_mode: bool,
 }
 
 impl Words {
@@ -137,6 +140,21 @@ impl<'p> Interp<'p> {
                         return Err(self.err_at(pos, format!("G{v} is not a G code")));
                     }
                     let code = code as u16;
+                    if let Some(what) = matches!(code, 50 | 51 | 80 | 1030 | 1870)
+                        .then(|| self.machine_mode_code(code))
+                        .flatten()
+                    {
+                        // Warned once per code: the path is as programmed, only the control's
+                        // smoothing/look-ahead differs.
+                        if self.warned_m_codes.insert(100_000 + u32::from(code)) {
+                            self.warnings.push(self.err_at(
+                                pos,
+                                format!("{} ({what}) makes no motion: ignored; the path is simulated as programmed", g_name(code)),
+                            ));
+                        }
+                        w.machine_mode = true;
+                        continue;
+                    }
                     let Some(group) = g_group(code) else {
                         return Err(
                             self.err_at(pos, format!("{} {}", g_name(code), g_refusal(code)))
@@ -220,6 +238,11 @@ impl<'p> Interp<'p> {
                         format!("{c} axis is not supported (axes are X Y Z A B C)"),
                     ))
                 }
+                // Haas G187 E: the smoothing tolerance.
+                'E' if w.machine_mode => {
+                    w.vals[letter_index('E')] = Some((v, i));
+                    w.used[letter_index('E')] = true;
+                }
                 'E' => return Err(self.err_at(pos, "E word is not supported")),
                 '@' | '^' => {
                     let slot = if c == '@' {
@@ -257,5 +280,27 @@ pub(super) fn strip_neg(e: &Expr) -> &Expr {
     match e {
         Expr::Neg(x) => strip_neg(x),
         other => other,
+    }
+}
+
+impl Interp<'_> {
+    /// Codes that set how a control smooths or looks ahead, without motion of their own; what
+    /// each is, or None. Fanuc's G5 P.., G5.1 Q.., G8 P.. share their numbers with LinuxCNC's
+    /// splines and lathe mode, so only with the Fanuc dialect; Haas's G103 and G187 exist on
+    /// no LinuxCNC, so with any but an explicit linuxcnc dialect.
+    fn machine_mode_code(&self, code: u16) -> Option<&'static str> {
+        match code {
+            50 if self.fanuc => Some("Fanuc high-precision contour control"),
+            51 if self.fanuc => Some("Fanuc AI contour control"),
+            80 if self.fanuc => Some("Fanuc look-ahead control"),
+            1030 | 1870 if self.opts.dialect != crate::nc::Dialect::LinuxCnc => {
+                Some(if code == 1030 {
+                    "Haas block look-ahead limit"
+                } else {
+                    "Haas smoothness and corner tolerance"
+                })
+            }
+            _ => None,
+        }
     }
 }
