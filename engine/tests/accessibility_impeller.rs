@@ -441,7 +441,7 @@ fn impeller_spiral_clearing_removes_more_than_plunges_without_gouge() {
         let program = roughing_program(&part, &request, &report, &machine, &options).unwrap();
         let out = simulate_program(&program, &part, &stock, machine.clone());
         let s = &out.summary;
-        let cmp = s.part.unwrap();
+        let cmp = s.part.as_ref().unwrap();
         eprintln!(
             "{strategy:?}: {} lines, tools {:?}; removed {:.0} mm³ in {:.0} s of cycle time; gouge {:.4} mm³; holder/shank contacts {}; rapids in material {}; allowance min {:.3} mm",
             program.text.lines().count(),
