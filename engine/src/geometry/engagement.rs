@@ -24,7 +24,7 @@ use super::dexel::DexelGrid;
 use super::path::unit;
 use super::sweep::{frame_around, ToolBody};
 use crate::engagement::{Arcs, EngagedSlice, Engagement};
-use crate::tool::Tool;
+use crate::tool::{EdgePoint, Tool};
 use crate::vec3::{cross, dot};
 
 #[derive(Clone, Debug, PartialEq)]
@@ -188,8 +188,8 @@ pub(crate) fn compute(
     // height (moved along the normal instead, a point near the tip would read material a
     // third of a cell lower, and the depth of a shallow cut would come out that much too
     // deep).
-    let corner_in = |z: f64, m: usize| -> bool {
-        let Some(ep) = tool.edge_point(z) else {
+    let corner_at = |ep: Option<EdgePoint>, z: f64, m: usize| -> bool {
+        let Some(ep) = ep else {
             return false;
         };
         let (sk, ck) = ep.kappa.sin_cos();
@@ -208,6 +208,7 @@ pub(crate) fn compute(
             input.pos[2] + a[2] * z + radial[2] * (ep.radius + out),
         ])
     };
+    let corner_in = |z: f64, m: usize| corner_at(tool.edge_point(z), z, m);
     for j in j0..jf0 {
         let z = (j as f64 + 0.5) * dz;
         let Some(ep) = tool.edge_point(z) else {
@@ -243,7 +244,29 @@ pub(crate) fn compute(
     // slices.
     if j0 < jf0 {
         let centre = |j: usize| (j as f64 + 0.5) * dz;
+        // On a vertical tool the end is most often where the Z ray under the point in
+        // material ends (a level stock top or floor): tried first, and kept when the
+        // points just either side of it agree.
+        let from_ray = |z_in: f64, z_out: f64, m: usize| -> Option<f64> {
+            let ep = tool.edge_point(z_in)?;
+            let radial = radial_of(m);
+            let ray = grid.z_ray(
+                input.pos[0] + radial[0] * (ep.radius + out),
+                input.pos[1] + radial[1] * (ep.radius + out),
+            )?;
+            let zi = input.pos[2] + z_in;
+            let iv = ray.iter().find(|iv| iv[0] <= zi && zi <= iv[1])?;
+            let end = if z_out > z_in { iv[1] } else { iv[0] } - input.pos[2];
+            let eps = (z_out - z_in) / 256.0;
+            let inside = (end - z_in) * (z_out - end) > 0.0;
+            (inside && corner_in(end - eps, m) && !corner_in(end + eps, m)).then_some(end)
+        };
         let settle = |mut z_in: f64, mut z_out: f64, m: usize| {
+            if vertical {
+                if let Some(end) = from_ray(z_in, z_out, m) {
+                    return end;
+                }
+            }
             for _ in 0..SETTLE_STEPS {
                 let zm = 0.5 * (z_in + z_out);
                 if corner_in(zm, m) {
@@ -255,12 +278,13 @@ pub(crate) fn compute(
             0.5 * (z_in + z_out)
         };
         let top = (jf0 as f64 * dz).min(length);
+        let zp = (j0 as f64 + 1.0 / 16.0) * dz;
+        let probe = tool.edge_point(zp);
         for m in 0..nb {
             let bit = |j: usize| bits[(j - j0) * nb + m];
             // A layer thinner than half a slice, under the first centre.
             if !bit(j0) {
-                let zp = (j0 as f64 + 1.0 / 16.0) * dz;
-                if corner_in(zp, m) {
+                if corner_at(probe, zp, m) {
                     zranges.push((m, j0 as f64 * dz, settle(zp, centre(j0), m)));
                 }
             }
