@@ -165,3 +165,71 @@ fn slots_and_side_cuts_of_every_shape_match_their_exact_engagement_at_any_depth(
         }
     }
 }
+
+/// A ball's second pass beside its first at the same depth cuts only the cusp left
+/// between them: at height z the edge meets material where it reaches past the first
+/// groove, φ < acos(1 − ae/r(z)), or all of the front half where r(z) ≤ ae/2. The forces
+/// are those of that exact engagement (nothing from the floor the tip slides on).
+#[test]
+fn a_ball_beside_its_own_groove_cuts_only_the_cusp() {
+    let (_, ball) = tools().remove(2);
+    let (depth, ae, r) = (2.0, 1.0, 5.0);
+    for cell in [0.1, 0.25] {
+        let program = format!(
+            "G21 G90 G17\nT1 M6\nS{RPM} M3\nG0 Z5\nG0 X-10 Y0\nG0 Z{d}\nG1 X80 F{FEED}\nG0 Z5\nG0 X-10 Y{ae}\nG0 Z{d}\nG1 X20\nG1 X60\nG0 Z5\nM30\n",
+            d = -depth
+        );
+        let out = simulate(
+            &spec(&program, ball.clone(), cell),
+            &CancelFlag::new(),
+            &NoProgress,
+        )
+        .unwrap();
+        let row = out.rows.iter().find(|r| r.line == 12).unwrap();
+        let n = 800;
+        let dz = depth / n as f64;
+        let e = Engagement {
+            slices: (0..n)
+                .map(|i| {
+                    let z = (i as f64 + 0.5) * dz;
+                    let rz = (r * r - (r - z) * (r - z)).sqrt();
+                    let end = if rz <= ae / 2.0 {
+                        PI
+                    } else {
+                        (1.0 - ae / rz).acos()
+                    };
+                    EngagedSlice {
+                        z,
+                        dz,
+                        arcs: [(0.0, end)].as_slice().into(),
+                    }
+                })
+                .collect(),
+            feed_dir: [1.0, 0.0, 0.0],
+            tool_axis: [0.0, 0.0, 1.0],
+        };
+        let k = Material::builtin("Al7075-T6").unwrap().coefficients;
+        let c = CuttingConditions {
+            spindle_rpm: RPM,
+            feed_per_tooth: FEED / RPM / ball.flutes as f64,
+        };
+        let f = cutting_forces(&ball, &e, &k, &c, 360).unwrap();
+        let power = f.torque.mean * RPM * 2.0 * PI / 60.0;
+        println!(
+            "cell {cell}: power {:.2} / {:.2}, fy {:.2} / {:.2}, fx {:.2} / {:.2}",
+            row.mean_power, power, row.fy_mean_n, f.fy.mean, row.fx_mean_n, f.fx.mean
+        );
+        assert!(
+            rel(row.mean_power, power) < 0.03,
+            "cell {cell}: power {} vs {power}",
+            row.mean_power
+        );
+        let scale = f.fx.mean.abs().max(f.fy.mean.abs());
+        for (got, want) in [(row.fx_mean_n, f.fx.mean), (row.fy_mean_n, f.fy.mean)] {
+            assert!(
+                (got - want).abs() < 0.05 * scale,
+                "cell {cell}: {got} vs {want}"
+            );
+        }
+    }
+}
