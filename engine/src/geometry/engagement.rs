@@ -261,21 +261,13 @@ pub(crate) fn compute(
             let inside = (end - z_in) * (z_out - end) > 0.0;
             (inside && corner_in(end - eps, m) && !corner_in(end + eps, m)).then_some(end)
         };
-        let settle = |mut z_in: f64, mut z_out: f64, m: usize| {
+        let settle = |z_in: f64, z_out: f64, m: usize| {
             if vertical {
                 if let Some(end) = from_ray(z_in, z_out, m) {
                     return end;
                 }
             }
-            for _ in 0..SETTLE_STEPS {
-                let zm = 0.5 * (z_in + z_out);
-                if corner_in(zm, m) {
-                    z_in = zm;
-                } else {
-                    z_out = zm;
-                }
-            }
-            0.5 * (z_in + z_out)
+            bisect(z_in, z_out, |z| corner_in(z, m))
         };
         let top = (jf0 as f64 * dz).min(length);
         let zp = (j0 as f64 + 1.0 / 16.0) * dz;
@@ -332,17 +324,7 @@ pub(crate) fn compute(
                 input.pos[2] + radial[2] * (r + out) + a[2] * z,
             ])
         };
-        let settle = |mut z_in: f64, mut z_out: f64, m: usize| {
-            for _ in 0..SETTLE_STEPS {
-                let zm = 0.5 * (z_in + z_out);
-                if flank_in(zm, m) {
-                    z_in = zm;
-                } else {
-                    z_out = zm;
-                }
-            }
-            0.5 * (z_in + z_out)
-        };
+        let settle = |z_in: f64, z_out: f64, m: usize| bisect(z_in, z_out, |z| flank_in(z, m));
         let centre = |j: usize| (j as f64 + 0.5) * dz;
         for m in 0..nb {
             let radial = radial_of(m);
@@ -568,9 +550,22 @@ pub(crate) fn compute(
     (eng, met)
 }
 
-/// Bisection steps that settle where a corner's bin leaves material between two slice
-/// centres: the end is then within dz/128.
+/// Bisection steps that settle where a bin leaves material between two slice centres:
+/// the end is then within dz/128.
 const SETTLE_STEPS: usize = 6;
+
+/// Where `inside` turns false between `z_in` (inside) and `z_out` (not).
+fn bisect(mut z_in: f64, mut z_out: f64, inside: impl Fn(f64) -> bool) -> f64 {
+    for _ in 0..SETTLE_STEPS {
+        let zm = 0.5 * (z_in + z_out);
+        if inside(zm) {
+            z_in = zm;
+        } else {
+            z_out = zm;
+        }
+    }
+    0.5 * (z_in + z_out)
+}
 
 /// `z` on the nearest slice boundary when it is within rounding of one (a cut whose depth
 /// is a whole number of slices keeps whole slices).
