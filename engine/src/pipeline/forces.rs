@@ -107,45 +107,6 @@ pub(super) fn evaluate_forces(
 /// A step's forces at its feed (None: no cut), and its peak response when asked for.
 pub(super) type StepForces = (Option<ForceResult>, Option<Arc<PeakResponse>>);
 
-/// Peak |F| at every step that removes material, each at its own feed (mm/min): from the
-/// step's peak response when the feed lies in its range, else by evaluating the model.
-pub(super) fn peak_forces(
-    steps: &[KeptStep],
-    moves: &[Move],
-    step_feeds: &[f64],
-    models: &BTreeMap<u32, ForceModel>,
-    k: &CuttingCoefficients,
-) -> Result<Vec<Option<f64>>, crate::physics::PhysicsError> {
-    steps
-        .par_iter()
-        .zip(step_feeds)
-        .map_init(
-            || (models.clone(), Engagement::default()),
-            |(models, scratch), (step, &feed)| {
-                let (m, t) = (&moves[step.move_index], &step.tool);
-                let flutes = models[t].table().flutes() as f64;
-                let Some(conditions) = cutting_conditions(m, step.cuts, feed, flutes) else {
-                    return Ok(None);
-                };
-                let fz = conditions.feed_per_tooth;
-                if let Some(p) = step.response.as_ref().and_then(|r| r.at(fz)) {
-                    return Ok(Some(p.force));
-                }
-                let Some(engagement) = &step.engagement else {
-                    return Ok(None);
-                };
-                let model = models.get_mut(t).expect("model per tool");
-                Ok(Some(
-                    model
-                        .evaluate(engagement.view(scratch), k, &conditions)?
-                        .force
-                        .peak,
-                ))
-            },
-        )
-        .collect()
-}
-
 /// What a step gives at its new feed: peak |F| (N), and its mean |F| (N), peak torque
 /// (N·m), mean and peak power (W) over a revolution.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -158,9 +119,11 @@ pub(super) struct AfterStep {
 }
 
 /// Every step that removes material evaluated at its own new feed (mm/min), as the removal
-/// evaluated it at the programmed one: the peak |F| as [`peak_forces`] reads it, the means
-/// and the torque from the force model. A step with the move, feed and engagement of the
-/// step before it (steady cutting on the grid) takes that step's result.
+/// evaluated it at the programmed one, once: the means and the torque from the force model;
+/// the peak |F| from the step's peak response when the feed lies in its range (what the
+/// optimizer held under the limit), else from that same evaluation. A step with the move,
+/// feed and engagement of the step before it (steady cutting on the grid) takes that step's
+/// result.
 pub(super) fn forces_after(
     steps: &[KeptStep],
     moves: &[Move],
@@ -168,7 +131,6 @@ pub(super) fn forces_after(
     models: &BTreeMap<u32, ForceModel>,
     k: &CuttingCoefficients,
 ) -> Result<Vec<Option<AfterStep>>, crate::physics::PhysicsError> {
-    let peaks = peak_forces(steps, moves, step_feeds, models, k)?;
     let same_as_previous: Vec<bool> = (0..steps.len())
         .map(|i| {
             i > 0 && {
@@ -181,7 +143,7 @@ pub(super) fn forces_after(
             }
         })
         .collect();
-    let evaluated: Vec<Option<ForceResult>> = steps
+    let evaluated: Vec<Option<AfterStep>> = steps
         .par_iter()
         .zip(step_feeds)
         .zip(&same_as_previous)
@@ -199,25 +161,27 @@ pub(super) fn forces_after(
                     return Ok(None);
                 };
                 let model = models.get_mut(t).expect("model per tool");
-                Ok(Some(model.evaluate(
-                    engagement.view(scratch),
-                    k,
-                    &conditions,
-                )?))
+                let r = model.evaluate(engagement.view(scratch), k, &conditions)?;
+                let peak = step
+                    .response
+                    .as_ref()
+                    .and_then(|p| p.at(conditions.feed_per_tooth))
+                    .map_or(r.force.peak, |p| p.force);
+                Ok(Some(AfterStep {
+                    peak_force: peak,
+                    mean_force: r.force.mean,
+                    peak_torque: r.torque.peak,
+                    mean_power: r.power.mean,
+                    peak_power: r.power.peak,
+                }))
             },
         )
         .collect::<Result<_, crate::physics::PhysicsError>>()?;
     let mut out: Vec<Option<AfterStep>> = Vec::with_capacity(steps.len());
-    for ((r, same), peak) in evaluated.into_iter().zip(same_as_previous).zip(peaks) {
+    for (r, same) in evaluated.into_iter().zip(same_as_previous) {
         let step = match (same, out.last()) {
             (true, Some(prev)) => *prev,
-            _ => r.zip(peak).map(|(r, peak)| AfterStep {
-                peak_force: peak,
-                mean_force: r.force.mean,
-                peak_torque: r.torque.peak,
-                mean_power: r.power.mean,
-                peak_power: r.power.peak,
-            }),
+            _ => r,
         };
         out.push(step);
     }
