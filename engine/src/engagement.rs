@@ -30,7 +30,10 @@ pub struct EngagedSlice {
 /// The engagement of one step.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Engagement {
-    /// Slices with at least one engaged interval, from the tip up.
+    /// Slices with at least one engaged interval, from the tip up. A slice that the cut
+    /// covers in part comes as pieces, each with the bins that meet material over the same
+    /// heights: pieces of one slice may overlap in height, but no bin is in two pieces at
+    /// the same height.
     pub slices: Vec<EngagedSlice>,
     /// Feed direction, unit vector in the part frame.
     pub feed_dir: [f64; 3],

@@ -246,6 +246,15 @@ pub struct EdgePoint {
     pub kappa: f64,
 }
 
+/// The cutting edge at a height as a point test needs it: [`EdgePoint`]'s radius with the
+/// sine and cosine of κ (the components of the edge normal across and along the axis).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdgeNormal {
+    pub radius: f64,
+    pub sin_kappa: f64,
+    pub cos_kappa: f64,
+}
+
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 #[error("tool field `{field}`: {message}")]
 pub struct ToolError {
@@ -461,6 +470,43 @@ impl Tool {
         }
     }
 
+    /// [`edge_point`](Self::edge_point) with sin κ and cos κ instead of κ, taken from the
+    /// profile directly (the engagement tests millions of points: no inverse sine, no sine).
+    pub fn edge_normal(&self, z: f64) -> Option<EdgeNormal> {
+        if !(z > 0.0 && z <= self.flute_length) {
+            return None;
+        }
+        let (sin_kappa, cos_kappa) = match self.shape {
+            ToolShape::Flat => (1.0, 0.0),
+            ToolShape::Ball | ToolShape::BullNose => {
+                let rc = self.effective_corner_radius();
+                if z >= rc {
+                    (1.0, 0.0)
+                } else {
+                    let dz = rc - z;
+                    ((rc * rc - dz * dz).max(0.0).sqrt() / rc, dz / rc)
+                }
+            }
+            ToolShape::Chamfer => {
+                if z >= self.profile_top() {
+                    (1.0, 0.0)
+                } else {
+                    let (s, c) = self.taper_half_angle_deg.to_radians().sin_cos();
+                    (c, s)
+                }
+            }
+        };
+        let radius = self.profile_radius(z);
+        if radius <= 0.0 || sin_kappa <= 0.0 {
+            return None;
+        }
+        Some(EdgeNormal {
+            radius,
+            sin_kappa,
+            cos_kappa,
+        })
+    }
+
     /// The cutting edge at height z above the tip, or None outside the flutes or at
     /// the very tip where the edge has no radial extent.
     pub fn edge_point(&self, z: f64) -> Option<EdgePoint> {
@@ -514,6 +560,31 @@ mod tests {
         }
         assert_eq!(t.edge_point(6.0).unwrap().kappa, FRAC_PI_2);
         assert!(t.edge_point(0.0).is_none());
+    }
+
+    #[test]
+    fn edge_normal_is_edge_point_with_the_sine_and_cosine_of_kappa() {
+        let mut chamfer = Tool::flat(8.0, 2);
+        chamfer.shape = ToolShape::Chamfer;
+        chamfer.tip_diameter = 1.0;
+        chamfer.taper_half_angle_deg = 30.0;
+        for t in [
+            Tool::ball(10.0, 2),
+            Tool::bull_nose(8.0, 1.5, 4),
+            Tool::flat(6.0, 3),
+            chamfer,
+        ] {
+            for i in 0..=120 {
+                let z = i as f64 * 0.05;
+                let (p, n) = (t.edge_point(z), t.edge_normal(z));
+                assert_eq!(p.is_some(), n.is_some(), "{:?} z {z}", t.shape);
+                if let (Some(p), Some(n)) = (p, n) {
+                    assert_eq!(p.radius, n.radius);
+                    assert!((p.kappa.sin() - n.sin_kappa).abs() < 1e-12, "z {z}");
+                    assert!((p.kappa.cos() - n.cos_kappa).abs() < 1e-9, "z {z}");
+                }
+            }
+        }
     }
 
     #[test]

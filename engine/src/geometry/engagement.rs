@@ -24,7 +24,7 @@ use super::dexel::DexelGrid;
 use super::path::unit;
 use super::sweep::{frame_around, ToolBody};
 use crate::engagement::{Arcs, EngagedSlice, Engagement};
-use crate::tool::{EdgePoint, Tool};
+use crate::tool::{EdgeNormal, Tool};
 use crate::vec3::{cross, dot};
 
 #[derive(Clone, Debug, PartialEq)]
@@ -73,16 +73,69 @@ pub(crate) struct Scratch {
     /// (slice, bin, lo, hi).
     full: Vec<(usize, usize, usize)>,
     parts: Vec<(usize, usize, f64, f64)>,
-    /// Where runs of whole slices break; one row of bins, and one for a slice's parts.
+    /// Where runs of whole slices break; one row of bins.
     cuts: Vec<usize>,
     row: Vec<bool>,
-    part_row: Vec<bool>,
-    /// Heights where a slice covered in part is cut.
+    /// Heights where some bin's range ends in a slice covered in part.
     sub: Vec<f64>,
     /// Per slice: whether any of its bits is set (most slices of a step have none).
     slice_hit: Vec<bool>,
     /// sin and cos of the bin centres, kept while the bin count stays the same.
     trig: Vec<(f64, f64)>,
+    /// Each bin's own spread (kept with `trig`).
+    bin_spread: Vec<Spread>,
+}
+
+/// Where a set of engaged arcs reaches: the bounds of cos φ over them (for the radial
+/// width), the first entry and the last exit angle.
+#[derive(Clone, Copy, Debug)]
+struct Spread {
+    cmax: f64,
+    cmin: f64,
+    entry: f64,
+    exit: f64,
+}
+
+impl Spread {
+    const NONE: Spread = Spread {
+        cmax: f64::NEG_INFINITY,
+        cmin: f64::INFINITY,
+        entry: f64::INFINITY,
+        exit: f64::NEG_INFINITY,
+    };
+
+    /// The arc (s, e): cos φ is largest at φ = 0 and smallest at π, else at an end.
+    fn of_arc(s: f64, e: f64) -> Spread {
+        Spread {
+            cmax: if s <= 0.0 || e >= 2.0 * PI - 1e-12 {
+                1.0
+            } else {
+                s.cos().max(e.cos())
+            },
+            cmin: if s <= PI && PI <= e {
+                -1.0
+            } else {
+                s.cos().min(e.cos())
+            },
+            entry: s,
+            exit: e,
+        }
+    }
+
+    /// The union's spread (exactly that of the arcs the union forms, bins being arcs).
+    fn join(self, o: Spread) -> Spread {
+        Spread {
+            cmax: self.cmax.max(o.cmax),
+            cmin: self.cmin.min(o.cmin),
+            entry: self.entry.min(o.entry),
+            exit: self.exit.max(o.exit),
+        }
+    }
+
+    fn of_arcs(arcs: &Arcs) -> Spread {
+        arcs.iter()
+            .fold(Spread::NONE, |sp, &(s, e)| sp.join(Spread::of_arc(s, e)))
+    }
 }
 
 pub(crate) struct StepInput {
@@ -168,8 +221,12 @@ pub(crate) fn compute(
         scratch.trig = (0..nb)
             .map(|m| ((m as f64 + 0.5) * dphi).sin_cos())
             .collect();
+        scratch.bin_spread = (0..nb)
+            .map(|m| Spread::of_arc(m as f64 * dphi, (m + 1) as f64 * dphi))
+            .collect();
     }
     let trig = &scratch.trig;
+    let bin_spread = &scratch.bin_spread;
     let ptop = body.profile_top();
     let out = 0.5 * grid.cell;
     // Slices below the first flank slice sample the corner's edge point by point.
@@ -188,11 +245,11 @@ pub(crate) fn compute(
     // height (moved along the normal instead, a point near the tip would read material a
     // third of a cell lower, and the depth of a shallow cut would come out that much too
     // deep).
-    let corner_at = |ep: Option<EdgePoint>, z: f64, m: usize| -> bool {
+    let corner_at = |ep: Option<EdgeNormal>, z: f64, m: usize| -> bool {
         let Some(ep) = ep else {
             return false;
         };
-        let (sk, ck) = ep.kappa.sin_cos();
+        let (sk, ck) = (ep.sin_kappa, ep.cos_kappa);
         let radial = radial_of(m);
         let n = [
             sk * radial[0] - ck * a[0],
@@ -208,13 +265,13 @@ pub(crate) fn compute(
             input.pos[2] + a[2] * z + radial[2] * (ep.radius + out),
         ])
     };
-    let corner_in = |z: f64, m: usize| corner_at(tool.edge_point(z), z, m);
+    let corner_in = |z: f64, m: usize| corner_at(tool.edge_normal(z), z, m);
     for j in j0..jf0 {
         let z = (j as f64 + 0.5) * dz;
-        let Some(ep) = tool.edge_point(z) else {
+        let Some(ep) = tool.edge_normal(z) else {
             continue;
         };
-        let (sk, ck) = ep.kappa.sin_cos();
+        let (sk, ck) = (ep.sin_kappa, ep.cos_kappa);
         for m in 0..nb {
             let radial = radial_of(m);
             let n = [
@@ -248,7 +305,7 @@ pub(crate) fn compute(
         // material ends (a level stock top or floor): tried first, and kept when the
         // points just either side of it agree.
         let from_ray = |z_in: f64, z_out: f64, m: usize| -> Option<f64> {
-            let ep = tool.edge_point(z_in)?;
+            let ep = tool.edge_normal(z_in)?;
             let radial = radial_of(m);
             let ray = grid.z_ray(
                 input.pos[0] + radial[0] * (ep.radius + out),
@@ -271,14 +328,12 @@ pub(crate) fn compute(
         };
         let top = (jf0 as f64 * dz).min(length);
         let zp = (j0 as f64 + 1.0 / 16.0) * dz;
-        let probe = tool.edge_point(zp);
+        let probe = tool.edge_normal(zp);
         for m in 0..nb {
             let bit = |j: usize| bits[(j - j0) * nb + m];
             // A layer thinner than half a slice, under the first centre.
-            if !bit(j0) {
-                if corner_at(probe, zp, m) {
-                    zranges.push((m, j0 as f64 * dz, settle(zp, centre(j0), m)));
-                }
+            if !bit(j0) && corner_at(probe, zp, m) {
+                zranges.push((m, j0 as f64 * dz, settle(zp, centre(j0), m)));
             }
             let mut j = j0;
             while j < jf0 {
@@ -395,8 +450,8 @@ pub(crate) fn compute(
         exit_angle: f64::NEG_INFINITY,
         ..Default::default()
     };
-    // The arcs of a row of bins and the bounds of cos φ over them (for the radial width).
-    let arcs_of = |row: &[bool], met: &mut StepMetrics| {
+    // The arcs of a row of bins.
+    let arcs_in = |row: &[bool]| {
         let mut arcs = Arcs::new();
         let mut m = 0;
         while m < nb {
@@ -410,42 +465,27 @@ pub(crate) fn compute(
                 m += 1;
             }
         }
-        let (mut cmax, mut cmin) = (f64::NEG_INFINITY, f64::INFINITY);
-        for &(s, e) in &arcs {
-            met.entry_angle = met.entry_angle.min(s);
-            met.exit_angle = met.exit_angle.max(e);
-            let c_hi = if s <= 0.0 || e >= 2.0 * PI - 1e-12 {
-                1.0
-            } else {
-                s.cos().max(e.cos())
-            };
-            let c_lo = if s <= PI && PI <= e {
-                -1.0
-            } else {
-                s.cos().min(e.cos())
-            };
-            cmax = cmax.max(c_hi);
-            cmin = cmin.min(c_lo);
-        }
-        (arcs, cmax, cmin)
+        arcs
     };
-    let mut push =
-        |z: f64, h: f64, arcs: &Arcs, (cmax, cmin): (f64, f64), met: &mut StepMetrics| {
-            let Some(ep) = tool.edge_point(z) else {
-                return;
-            };
-            met.radial_width = met.radial_width.max(ep.radius * (cmax - cmin));
-            met.engaged_edge_length += body.profile_length(z - 0.5 * h, z + 0.5 * h);
-            eng.slices.push(EngagedSlice {
-                z,
-                dz: h,
-                arcs: arcs.clone(),
-            });
-        };
+    // A slice's metrics from the spread of all its engaged arcs: entry, exit, radial
+    // width at the edge's radius at height `z`, and the edge length over [z0, z1].
+    let measure = |sp: Spread, z: f64, z0: f64, z1: f64, met: &mut StepMetrics| {
+        met.entry_angle = met.entry_angle.min(sp.entry);
+        met.exit_angle = met.exit_angle.max(sp.exit);
+        if let Some(ep) = tool.edge_normal(z) {
+            met.radial_width = met.radial_width.max(ep.radius * (sp.cmax - sp.cmin));
+            met.engaged_edge_length += body.profile_length(z0, z1);
+        }
+    };
+    let mut push = |z: f64, h: f64, arcs: Arcs| {
+        if tool.edge_normal(z).is_some() {
+            eng.slices.push(EngagedSlice { z, dz: h, arcs });
+        }
+    };
     // Each height range as the whole slices it covers and the parts of at most two slices
     // it covers in part. Slices of a range share their arcs with their neighbours except
     // where some bin's range starts or ends, so runs of whole slices between those breaks
-    // share arcs found once per run; a slice covered in part is cut where ranges end in it.
+    // share arcs found once per run.
     let full = &mut scratch.full;
     let parts = &mut scratch.parts;
     full.clear();
@@ -467,18 +507,23 @@ pub(crate) fn compute(
         }
     }
     if !full.is_empty() || !parts.is_empty() {
-        parts.sort_unstable_by(|p, q| p.0.cmp(&q.0));
+        // By slice, and in a slice by the heights covered, so that bins covering the same
+        // heights are neighbours.
+        parts.sort_unstable_by(|p, q| {
+            (p.0.cmp(&q.0))
+                .then(p.2.total_cmp(&q.2))
+                .then(p.3.total_cmp(&q.3))
+                .then(p.1.cmp(&q.1))
+        });
         let cuts = &mut scratch.cuts;
         cuts.clear();
         cuts.extend(full.iter().flat_map(|&(_, lo, hi)| [lo, hi]));
         cuts.extend(parts.iter().flat_map(|p| [p.0, p.0 + 1]));
         cuts.sort_unstable();
         cuts.dedup();
-        let (row, part_row, sub) = (&mut scratch.row, &mut scratch.part_row, &mut scratch.sub);
+        let (row, sub) = (&mut scratch.row, &mut scratch.sub);
         row.clear();
         row.resize(nb, false);
-        part_row.clear();
-        part_row.resize(nb, false);
         let mut next_part = 0;
         for w in cuts.windows(2) {
             let (ja, jb) = (w[0], w[1]);
@@ -498,17 +543,28 @@ pub(crate) fn compute(
                 if !any {
                     continue;
                 }
-                let (arcs, cmax, cmin) = arcs_of(row, &mut met);
+                let arcs = arcs_in(row);
+                let spread = Spread::of_arcs(&arcs);
                 for j in ja..jb {
-                    push((j as f64 + 0.5) * dz, dz, &arcs, (cmax, cmin), &mut met);
+                    let z = (j as f64 + 0.5) * dz;
+                    measure(spread, z, z - 0.5 * dz, z + 0.5 * dz, &mut met);
+                    push(z, dz, arcs.clone());
                 }
                 continue;
             }
-            // A slice covered in part (the cuts hold its index and the next).
+            // A slice covered in part (the cuts hold its index and the next). Each bin is
+            // cut over its own heights, bins covering the same heights together: the force
+            // model then samples each bin once in the slice, as in a whole slice, rather
+            // than once per height where some other bin's range ends.
             let (z0, z1) = (ja as f64 * dz, (ja + 1) as f64 * dz);
+            let in_slice = &parts[first_part..next_part];
+            let row_arcs = any.then(|| arcs_in(row));
+            let row_spread = row_arcs.as_ref().map_or(Spread::NONE, Spread::of_arcs);
+            // The slice's metrics: at each height between the ends of its bins' ranges,
+            // from all the bins in material there.
             sub.clear();
             sub.extend([z0, z1]);
-            for p in &parts[first_part..next_part] {
+            for p in in_slice {
                 sub.extend([p.2, p.3]);
             }
             sub.sort_unstable_by(f64::total_cmp);
@@ -518,22 +574,35 @@ pub(crate) fn compute(
                 if c1 - c0 <= 1e-9 * dz {
                     continue;
                 }
-                part_row.copy_from_slice(row);
-                let mut hit = any;
-                for p in &parts[first_part..next_part] {
-                    if p.2 <= c0 && c1 <= p.3 {
-                        part_row[p.1] = true;
-                        hit = true;
+                let (spread, hit) = in_slice
+                    .iter()
+                    .filter(|p| p.2 <= c0 && c1 <= p.3)
+                    .fold((row_spread, any), |(sp, _), p| {
+                        (sp.join(bin_spread[p.1]), true)
+                    });
+                if hit {
+                    measure(spread, 0.5 * (c0 + c1), c0, c1, &mut met);
+                }
+            }
+            if let Some(arcs) = row_arcs {
+                push((ja as f64 + 0.5) * dz, dz, arcs);
+            }
+            // Bins covering the same heights are neighbours in `in_slice`, in bin order.
+            let mut g = 0;
+            while g < in_slice.len() {
+                let (lo, hi) = (in_slice[g].2, in_slice[g].3);
+                let mut arcs = Arcs::new();
+                while g < in_slice.len() && in_slice[g].2 == lo && in_slice[g].3 == hi {
+                    let m = in_slice[g].1;
+                    let (s, e) = (m as f64 * dphi, (m + 1) as f64 * dphi);
+                    match arcs.last_mut() {
+                        Some(last) if last.1 == s => last.1 = e,
+                        _ => arcs.push((s, e)),
                     }
+                    g += 1;
                 }
-                if !hit {
-                    continue;
-                }
-                let (arcs, cmax, cmin) = arcs_of(part_row, &mut met);
-                if c0 == z0 && c1 == z1 {
-                    push((ja as f64 + 0.5) * dz, dz, &arcs, (cmax, cmin), &mut met);
-                } else {
-                    push(0.5 * (c0 + c1), c1 - c0, &arcs, (cmax, cmin), &mut met);
+                if hi - lo > 1e-9 * dz {
+                    push(0.5 * (lo + hi), hi - lo, arcs);
                 }
             }
         }
@@ -898,10 +967,10 @@ mod tests {
             let out = 0.5 * stock.grid.cell;
             for j in 0..(tool.flute_length / dz) as usize {
                 let z = (j as f64 + 0.5) * dz;
-                let Some(ep) = tool.edge_point(z) else {
+                let Some(ep) = tool.edge_normal(z) else {
                     continue;
                 };
-                let (sk, ck) = ep.kappa.sin_cos();
+                let (sk, ck) = (ep.sin_kappa, ep.cos_kappa);
                 let bits: Vec<bool> = (0..nb)
                     .map(|m| {
                         let (s, c) = ((m as f64 + 0.5) * dphi).sin_cos();
@@ -913,14 +982,13 @@ mod tests {
                         dot(n, v) > 0.0 && stock.grid.material_at(p)
                     })
                     .collect();
-                // The slice, or the part of it, that holds the centre.
-                let found = eng
-                    .slices
-                    .iter()
-                    .find(|s| s.z - 0.5 * s.dz <= z && z <= s.z + 0.5 * s.dz);
+                // The slice, or the pieces of it, that hold the centre.
                 let in_arcs = |m: usize| {
                     let phi = (m as f64 + 0.5) * dphi;
-                    found.is_some_and(|s| s.arcs.iter().any(|&(a, b)| a <= phi && phi <= b))
+                    eng.slices
+                        .iter()
+                        .filter(|s| s.z - 0.5 * s.dz <= z && z <= s.z + 0.5 * s.dz)
+                        .any(|s| s.arcs.iter().any(|&(a, b)| a <= phi && phi <= b))
                 };
                 for (m, &bit) in bits.iter().enumerate() {
                     assert_eq!(bit, in_arcs(m), "tool {k} slice {j} bin {m}");
