@@ -5,40 +5,21 @@
 //! closed form (flat end mill, REFERENCE.md) and from the force model itself, which
 //! `physics_force` checks against independent integrations.
 
-use std::collections::BTreeMap;
+mod common;
+
 use std::f64::consts::{FRAC_PI_2, PI};
 
 use millsim_engine::engagement::{EngagedSlice, Engagement};
-use millsim_engine::geometry::StockShape;
 use millsim_engine::job::{CancelFlag, NoProgress};
-use millsim_engine::machine::Machine;
-use millsim_engine::nc::InterpretOptions;
 use millsim_engine::physics::{cutting_forces, CuttingConditions, Material};
-use millsim_engine::pipeline::{simulate, SimulateSpec, StockSource};
+use millsim_engine::pipeline::{simulate, SimulateSpec};
 use millsim_engine::tool::Tool;
 
 const RPM: f64 = 10_000.0;
 const FEED: f64 = 4000.0;
 
 fn spec(program: &str, tool: Tool, cell: f64) -> SimulateSpec {
-    SimulateSpec {
-        program: program.into(),
-        interpret: InterpretOptions::default(),
-        stock: StockSource::Shape(StockShape::Block {
-            min: [0.0, -20.0, -10.0],
-            max: [100.0, 20.0, 0.0],
-        }),
-        tools: BTreeMap::from([(0, tool)]),
-        material: Material::builtin("Al7075-T6").unwrap(),
-        machine: Machine::generic(),
-        cell: Some(cell),
-        memory_limit: 1 << 30,
-        force_positions: 360,
-        optimize: None,
-        axes: Default::default(),
-        chatter: None,
-        part: None,
-    }
+    common::simulate::block_spec(program, tool, cell)
 }
 
 /// Mean power, mean Fx and Fy of the steady block of a cut at depth `depth` with the tool

@@ -1,39 +1,20 @@
 //! The simulate pipeline end to end on a slot whose volume and power have closed forms,
 //! plus the checks users rely on: air cuts and rapids through material on the right line.
 
-use std::collections::BTreeMap;
+mod common;
+
 use std::f64::consts::PI;
 
-use millsim_engine::geometry::StockShape;
 use millsim_engine::job::{CancelFlag, NoProgress};
-use millsim_engine::machine::Machine;
 use millsim_engine::nc::InterpretOptions;
-use millsim_engine::physics::Material;
-use millsim_engine::pipeline::{simulate, SimulateSpec, StockSource};
+use millsim_engine::pipeline::{simulate, SimulateSpec};
 use millsim_engine::tool::Tool;
 
 fn spec(program: &str) -> SimulateSpec {
     let mut tool = Tool::flat(10.0, 4);
     tool.helix_deg = 0.0;
     tool.flute_length = 20.0;
-    SimulateSpec {
-        program: program.into(),
-        interpret: InterpretOptions::default(),
-        stock: StockSource::Shape(StockShape::Block {
-            min: [0.0, -20.0, -10.0],
-            max: [100.0, 20.0, 0.0],
-        }),
-        tools: BTreeMap::from([(0, tool)]),
-        material: Material::builtin("Al7075-T6").unwrap(),
-        machine: Machine::generic(),
-        cell: Some(0.25),
-        memory_limit: 1 << 30,
-        force_positions: 360,
-        optimize: None,
-        axes: Default::default(),
-        chatter: None,
-        part: None,
-    }
+    common::simulate::block_spec(program, tool, 0.25)
 }
 
 #[test]

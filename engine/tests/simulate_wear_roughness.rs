@@ -1,40 +1,25 @@
 //! Tool life used and roughness left, per move and per program, against hand computations:
 //! the extended Taylor equation for a slot, the scallop closed form for a ball end mill.
 
-use std::collections::BTreeMap;
+mod common;
+
 use std::f64::consts::PI;
 
-use millsim_engine::geometry::StockShape;
 use millsim_engine::job::{CancelFlag, NoProgress};
 use millsim_engine::machine::Machine;
-use millsim_engine::nc::InterpretOptions;
 use millsim_engine::physics::life::TaylorLife;
-use millsim_engine::physics::Material;
-use millsim_engine::pipeline::{simulate, MoveRow, SimulateSpec, StockSource};
+use millsim_engine::pipeline::{simulate, MoveRow, SimulateSpec};
 use millsim_engine::tool::Tool;
 
 fn spec(program: &str, tool: Tool, cell: f64) -> SimulateSpec {
     SimulateSpec {
-        program: program.into(),
-        interpret: InterpretOptions::default(),
-        stock: StockSource::Shape(StockShape::Block {
-            min: [0.0, -20.0, -10.0],
-            max: [100.0, 20.0, 0.0],
-        }),
-        tools: BTreeMap::from([(0, tool)]),
-        material: Material::builtin("Al7075-T6").unwrap(),
         // Accelerations high enough that every move runs at its feed: time = length / F.
         machine: Machine {
             acceleration: [1e9; 3],
             ..Machine::generic()
         },
-        cell: Some(cell),
-        memory_limit: 1 << 30,
         force_positions: 180,
-        optimize: None,
-        axes: Default::default(),
-        chatter: None,
-        part: None,
+        ..common::simulate::block_spec(program, tool, cell)
     }
 }
 

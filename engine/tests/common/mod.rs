@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod nc;
+pub mod simulate;
 
 use std::path::PathBuf;
 
