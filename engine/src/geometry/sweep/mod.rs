@@ -434,6 +434,87 @@ mod tests {
     }
 
     #[test]
+    fn a_vertical_ball_on_a_ramp_sweeps_its_capsule_exactly() {
+        // Ramps and plunges of a vertical Ø6 ball (the capsule's closed form) against the
+        // union of the tool's sections at 20,001 positions along the move.
+        let body = ToolBody::cutting_part(&Tool::ball(6.0, 2));
+        assert_eq!(body.ball_radius(), Some(3.0));
+        let mut rnd = uniform(7);
+        let n = 20_000;
+        let mut cases = 0;
+        for _ in 0..40 {
+            let p1 = [
+                (rnd() - 0.5) * 16.0,
+                (rnd() - 0.5) * 16.0,
+                -rnd() * 4.0 + if rnd() < 0.2 { 3.0 } else { 0.0 },
+            ];
+            let p1 = if rnd() < 0.15 {
+                [0.0, 0.0, p1[2] - 1.0]
+            } else {
+                p1
+            };
+            let mv = SubMove {
+                p0: [0.0, 0.0, 0.0],
+                p1,
+                axis: [0.0, 0.0, 1.0],
+            };
+            let s = Sweep::new(&body, mv);
+            let at = |t: f64| std::array::from_fn::<f64, 3, _>(|i| mv.p0[i] + t * p1[i]);
+            for _ in 0..40 {
+                let (al, cr) = if rnd() < 0.5 { (0, 1) } else { (1, 0) };
+                let (c0, z0) = ((rnd() - 0.5) * 18.0, (rnd() - 0.7) * 8.0);
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for k in 0..=n {
+                    let p = at(k as f64 / n as f64);
+                    let h = z0 - p[2];
+                    if !(0.0..=body.length).contains(&h) {
+                        continue;
+                    }
+                    let rho = body.radius_at(h);
+                    let e = c0 - p[cr];
+                    if e.abs() <= rho {
+                        let w = (rho * rho - e * e).sqrt();
+                        lo = lo.min(p[al] - w);
+                        hi = hi.max(p[al] + w);
+                    }
+                }
+                let got = s.h_ray(al, cr, c0, z0);
+                if lo <= hi {
+                    let (l, h) = got.expect("the ray meets the sweep");
+                    assert!(
+                        (l - lo).abs() < 1e-5 && (h - hi).abs() < 1e-5,
+                        "{got:?} vs {lo} {hi}"
+                    );
+                    cases += 1;
+                } else if let Some((l, h)) = got {
+                    // Grazing between two of the sampled positions only.
+                    assert!(h - l < 0.2, "{l} {h} where no position meets the ray");
+                }
+                // The Z ray: the lowest point of the tool over (x, y).
+                let (x, y) = ((rnd() - 0.5) * 24.0, (rnd() - 0.5) * 24.0);
+                let mut bottom = f64::INFINITY;
+                for k in 0..=n {
+                    let p = at(k as f64 / n as f64);
+                    let rho = ((x - p[0]).powi(2) + (y - p[1]).powi(2)).sqrt();
+                    if rho <= body.radius {
+                        bottom = bottom.min(p[2] + body.zlow(rho));
+                    }
+                }
+                if let Some((b, _)) = s.z_ray(x, y) {
+                    if bottom.is_finite() {
+                        assert!(
+                            (b - bottom).abs() < 1e-5,
+                            "z ray at {x} {y}: {b} vs {bottom}"
+                        );
+                        assert!(b <= bottom + 1e-9, "z ray at {x} {y}: {b} above {bottom}");
+                    }
+                }
+            }
+        }
+        assert!(cases > 200, "{cases}");
+    }
+
+    #[test]
     fn tilted_flat_and_ball_sweeps_bound_the_swept_points() {
         // Pseudo-random tilted sweeps; the interval's ends must separate points of the
         // swept volume (checked by sampling the sweep) from points outside it.

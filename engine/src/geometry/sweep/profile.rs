@@ -130,6 +130,19 @@ impl ToolBody {
         matches!(self.profile, Profile::Flat)
     }
 
+    /// The sphere's radius when the cutting part swept along a straight move is a capsule's
+    /// union with the swept cylinder above it: a ball whose flutes reach above its sphere.
+    pub(super) fn ball_radius(&self) -> Option<f64> {
+        match self.profile {
+            Profile::Corner { rc }
+                if (rc - self.radius).abs() <= 1e-12 * self.radius && self.length >= 2.0 * rc =>
+            {
+                Some(rc)
+            }
+            _ => None,
+        }
+    }
+
     /// Height above the tip where the profile reaches the full radius.
     pub fn profile_top(&self) -> f64 {
         match self.profile {

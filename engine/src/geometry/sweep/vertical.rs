@@ -1,7 +1,7 @@
 //! Vertical tool axis (3-axis work): the sweep's intervals on Z rays and on X and Y rays
 //! in closed form or by 1-D convex searches.
 
-use super::solvers::{bisect, golden_min, line_stadium};
+use super::solvers::{bisect, golden_min, line_capsule, line_stadium};
 use super::Sweep;
 
 impl Sweep<'_> {
@@ -67,6 +67,10 @@ impl Sweep<'_> {
                 tproj
             };
             p0[2] + t * dz + self.body.zlow(rho_at(t).min(rr))
+        } else if let Some((lo, _)) = self.ball_capsule(2, [x, y, 0.0]) {
+            // A ball: the lowest point of the capsule under (x, y), which the ray meets as
+            // it lies over the capsule's shadow, the stadium of t1..t2.
+            lo
         } else {
             golden_min(t1, t2, |t| {
                 p0[2] + t * dz + self.body.zlow(rho_at(t).min(rr))
@@ -74,6 +78,20 @@ impl Sweep<'_> {
             .1
         };
         Some((bottom, top))
+    }
+
+    /// For a ball, where the line through `q` along axis `ax` meets the capsule its sphere
+    /// sweeps; None for other shapes.
+    fn ball_capsule(&self, ax: usize, q: [f64; 3]) -> Option<(f64, f64)> {
+        let r = self.body.ball_radius()?;
+        let p0 = self.mv.p0;
+        let a = [p0[0], p0[1], p0[2] + r];
+        let d = self.delta;
+        let b = [a[0] + d[0], a[1] + d[1], a[2] + d[2]];
+        let (mut o, mut e) = (q, [0.0; 3]);
+        o[ax] = 0.0;
+        e[ax] = 1.0;
+        line_capsule(o, e, a, b, r)
     }
 
     /// Horizontal ray along axis `al` at cross coordinate `c0` (axis `cr`) and height `z0`.
@@ -119,8 +137,15 @@ impl Sweep<'_> {
                 c0,
             ));
         }
-        // Varying-radius part: union of disks of concave radius; convex searches in t.
-        if ptop > 0.0 {
+        // Varying-radius part: for a ball, the capsule (whose part above the corner lies
+        // in the stadium's cylinder), exact; else a union of disks of concave radius, by
+        // convex searches in t.
+        let mut q = [0.0; 3];
+        q[cr] = c0;
+        q[2] = z0;
+        if let Some(iv) = self.ball_capsule(al, q) {
+            merge(Some(iv));
+        } else if ptop > 0.0 {
             if let Some((ta, tb)) = range(0.0, ptop) {
                 let rho = |t: f64| body.radius_at((h0 - t * d[2]).clamp(0.0, ptop));
                 let e = |t: f64| c0 - (p0[cr] + t * d[cr]);
