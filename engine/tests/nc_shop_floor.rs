@@ -364,3 +364,71 @@ fn features_of_other_controls_are_refused_naming_them() {
         assert!(msg.contains(what) && msg.contains("not supported"), "{msg}");
     }
 }
+
+/// Fanuc cycle data: R and the hole bottom carry over from one cycle code to the next (G81
+/// then G82 without R or Z), and after G80 a cycle without R has its R point at the initial
+/// level (the manual: G80 clears R to 0 incremental), with a warning. A Haas program
+/// (CadeKiely/Hass-CNC-Programs o78244) spot-drills that way from Z0. LinuxCNC refuses both.
+#[test]
+fn fanuc_cycle_r_carries_over_and_is_the_initial_level_after_g80() {
+    use MoveKind::{Linear, Rapid};
+    let src = "O1\nG90 G0 X0 Y0 Z10\nG81 X5 Y5 Z-2 R2 F100\nG82 X10 P500\nG80\nG0 Z1\nG82 X20 Z-1 F50\nY10\nG80\nM30\n";
+    let i = run(src);
+    let moves: Vec<(MoveKind, [f64; 3])> = path(&i)
+        .into_iter()
+        .filter(|(k, _)| *k != MoveKind::Dwell)
+        .collect();
+    assert_eq!(
+        moves,
+        vec![
+            (Rapid, [0.0, 0.0, 10.0]),
+            (Rapid, [5.0, 5.0, 10.0]),
+            (Rapid, [5.0, 5.0, 2.0]),
+            (Linear, [5.0, 5.0, -2.0]),
+            (Rapid, [5.0, 5.0, 10.0]),
+            // G82 keeps G81's R2 and Z-2.
+            (Rapid, [10.0, 5.0, 10.0]),
+            (Rapid, [10.0, 5.0, 2.0]),
+            (Linear, [10.0, 5.0, -2.0]),
+            (Rapid, [10.0, 5.0, 10.0]),
+            (Rapid, [10.0, 5.0, 1.0]),
+            // After G80, no R: the R point is the initial level Z1 (G98 returns there too).
+            (Rapid, [20.0, 5.0, 1.0]),
+            (Linear, [20.0, 5.0, -1.0]),
+            (Rapid, [20.0, 5.0, 1.0]),
+            (Rapid, [20.0, 10.0, 1.0]),
+            (Linear, [20.0, 10.0, -1.0]),
+            (Rapid, [20.0, 10.0, 1.0]),
+        ]
+    );
+    let dwells: Vec<f64> = i.moves.iter().filter_map(|m| m.seconds).collect();
+    // P500 (ms) kept by the G82 after G81's block; cleared by G80: no dwell (0 s) after it.
+    assert_eq!(dwells, vec![0.5, 0.0, 0.0]);
+    let w: Vec<u32> = i
+        .warnings
+        .iter()
+        .filter(|w| w.message.contains("without R"))
+        .map(|w| w.line)
+        .collect();
+    assert_eq!(w, vec![7], "one warning, on the cycle that starts without R");
+    // Incremental: R0 relative to the initial level as well.
+    let i = run("O1\nG90 G0 X0 Y0 Z4\nG91 G82 X5 Z-6 F50\nG90 G80\nM30\n");
+    assert_eq!(
+        path(&i)
+            .into_iter()
+            .filter(|(k, _)| *k != MoveKind::Dwell)
+            .collect::<Vec<_>>(),
+        vec![
+            (Rapid, [0.0, 0.0, 4.0]),
+            (Rapid, [5.0, 0.0, 4.0]),
+            (Linear, [5.0, 0.0, -2.0]),
+            (Rapid, [5.0, 0.0, 4.0]),
+        ]
+    );
+    let (line, _, msg) = fail(
+        "G90 G0 X0 Y0 Z10\nG81 X5 Y5 Z-2 R2 F100\nG82 X10 P0.5\n",
+        &dialect(Dialect::LinuxCnc),
+    );
+    assert_eq!(line, 3);
+    assert!(msg.contains("needs an R word"), "{msg}");
+}

@@ -28,7 +28,10 @@
 //!   The manual's two-letter keywords (`WH[..]DO1`, `GO10`, `EN1`, `IF[..]TH`) are taken.
 //!   A `D` on any block selects the radius offset G41/G42 take (`T1 D1 M6`); rotary axis
 //!   words in a canned cycle block index with the hole positioning (`G91 A45.` in G81 mode);
-//!   the control powers up in G00.
+//!   the control powers up in G00. Canned cycle data (R, hole bottom, P, Q) carries over
+//!   from one cycle code to the next until G80; after G80 a cycle without R has its R point
+//!   at the initial level (the manual's R = 0 incremental; a warning) and no P no dwell. A
+//!   cycle's P dwell is in ms, as G04 P.
 //!   AND/OR/XOR work bit by bit on whole numbers and rank with `*` and `+` (LinuxCNC: logical,
 //!   ranked last); the dialect decides when an expression mixes them with arithmetic.
 //!
