@@ -488,3 +488,23 @@ fn g66_calls_its_macro_after_every_move_until_g67() {
     assert_eq!(line, 2);
     assert!(msg.contains("G66 needs P"), "{msg}");
 }
+
+/// A syntax error on a line the program never executes (jumped over by GOTO, or in a
+/// subprogram never called) does not stop the program: a warning names it. Executed, it
+/// is the program's error at its line and column.
+#[test]
+fn a_syntax_error_jumped_over_is_a_warning() {
+    let src = "O1\nG0 X1\nGOTO 10\nG1 X1 $ Y2\nN10 G0 X2\nM30\nO2\nGG1 X5\nM99\n";
+    let i = run(src);
+    assert_eq!(xyz(&i), vec![[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]);
+    let w: Vec<(u32, u32)> = i
+        .warnings
+        .iter()
+        .filter(|w| w.message.contains("never executed"))
+        .map(|w| (w.line, w.col))
+        .collect();
+    assert_eq!(w, vec![(4, 7), (8, 2)]);
+    let src = "O1\nG0 X1\nM98 P2\nM30\nO2\nGG1 X5\nM99\n";
+    let (line, col, msg) = fail(src, &InterpretOptions::default());
+    assert_eq!((line, col), (6, 2), "{msg}");
+}

@@ -410,7 +410,11 @@ fn fanuc_cycle_r_carries_over_and_is_the_initial_level_after_g80() {
         .filter(|w| w.message.contains("without R"))
         .map(|w| w.line)
         .collect();
-    assert_eq!(w, vec![7], "one warning, on the cycle that starts without R");
+    assert_eq!(
+        w,
+        vec![7],
+        "one warning, on the cycle that starts without R"
+    );
     // Incremental: R0 relative to the initial level as well.
     let i = run("O1\nG90 G0 X0 Y0 Z4\nG91 G82 X5 Z-6 F50\nG90 G80\nM30\n");
     assert_eq!(

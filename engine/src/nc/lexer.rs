@@ -31,6 +31,9 @@ pub(crate) enum Tok {
     End,
 }
 
+/// Start of the message of a `(` without its `)`.
+pub(crate) const UNCLOSED_COMMENT: &str = "comment is not closed";
+
 pub(crate) struct LexError {
     pub pos: usize,
     pub message: String,
@@ -174,7 +177,7 @@ impl<'a> Lexer<'a> {
                             i += 1;
                         }
                         Some(_) => i += 1,
-                        None => return self.err(start, "comment is not closed: missing ')'"),
+                        None => return self.err(start, format!("{UNCLOSED_COMMENT}: missing ')'")),
                     }
                 }
                 self.pos = i + 1;

@@ -35,7 +35,10 @@
 //!   AND/OR/XOR work bit by bit on whole numbers and rank with `*` and `+` (LinuxCNC: logical,
 //!   ranked last); the dialect decides when an expression mixes them with arithmetic.
 //!
-//! * Both dialects: `:1234` program numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
+//! * Both dialects: a syntax error on a plain line (not an O-word or macro statement line,
+//!   not an unclosed comment) stops the program only when the line is executed, as rs274
+//!   reads a line only when it runs it; lines never reached are warnings. `:1234` program
+//!   numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
 //!   offset memory), G38.2-G38.5 probing as a feed move to the end point (a warning), a Fanuc
 //!   G80 returns to the G0/G1/G2/G3 mode from before the cycle (with the dialect left to
 //!   auto, also in a program without Fanuc syntax, with a warning: LinuxCNC refuses it),

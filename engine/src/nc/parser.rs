@@ -1,7 +1,7 @@
 //! Lines into blocks: words, parameter assignments, O-word control lines and comments, with
 //! spans. A syntax error ends the parse of its line only, so every line's errors are reported.
 
-use super::lexer::{LexError, Lexer, Tok};
+use super::lexer::{LexError, Lexer, Tok, UNCLOSED_COMMENT};
 use super::program::*;
 use super::program::{fanuc_precedence, reduce};
 use super::Diagnostic;
@@ -475,7 +475,11 @@ pub(crate) fn line_count(source: &str) -> usize {
 }
 
 /// Split the source into lines, parse each one and hand it to `sink`. Returns the summary and
-/// the syntax errors of all lines.
+/// the syntax errors that fail the whole program: those of O-word and macro statement lines
+/// (the control flow is laid out before the program runs) and unclosed comments (LinuxCNC
+/// checks those on every line it reads, skipped or not). Any other line's error goes to
+/// [`Summary::deferred`], raised only if the line is executed: rs274 parses a line when it
+/// runs it, so a typo in a branch never taken does not stop the program.
 pub(crate) fn parse_blocks(source: &str, sink: &mut impl BlockSink) -> (Summary, Vec<Diagnostic>) {
     let mut errors = Vec::new();
     let mut summary = Summary::default();
@@ -509,12 +513,20 @@ pub(crate) fn parse_blocks(source: &str, sink: &mut impl BlockSink) -> (Summary,
         let first_word = words.len();
         if percents >= 2 {
             block.after_end = true;
-        } else if let Err(e) = parse_line(source, &mut block, words) {
-            let col = source[start..e.pos.min(content_end).max(start)]
-                .chars()
-                .count() as u32
-                + 1;
-            errors.push(Diagnostic::new(line, col, e.message));
+        } else {
+            let mut control = false;
+            if let Err(e) = parse_line(source, &mut block, words, &mut control) {
+                let col = source[start..e.pos.min(content_end).max(start)]
+                    .chars()
+                    .count() as u32
+                    + 1;
+                let d = Diagnostic::new(line, col, e.message);
+                if control || d.message.starts_with(UNCLOSED_COMMENT) {
+                    errors.push(d);
+                } else {
+                    summary.deferred.push((index, d));
+                }
+            }
         }
         if block.percent {
             percents += 1;
@@ -535,7 +547,13 @@ fn count_newlines(bytes: &[u8]) -> usize {
         .sum::<usize>()
 }
 
-fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult<()> {
+/// `control` is set when the line is an O-word or macro statement line.
+fn parse_line(
+    source: &str,
+    block: &mut Block,
+    words: &mut Vec<Word>,
+    control: &mut bool,
+) -> PResult<()> {
     let mut p = LineParser {
         lx: Lexer::new(source, block.span.start, block.span.end),
         depth: 0,
@@ -577,6 +595,7 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
         });
     }
     if matches!(p.lx.peek_byte(), Some(b'o' | b'O' | b':')) {
+        *control = true;
         return o_line(&mut p, block);
     }
     let first_word = words.len();
@@ -594,12 +613,14 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
             let at = p.lx.pos;
             if p.lx.byte(at + 1).is_some_and(|b| b.is_ascii_alphabetic()) {
                 if let Some(kw) = MACRO_KEYWORDS.iter().find(|kw| p.lx.keyword_at(at, kw)) {
+                    *control = true;
                     return macro_line(&mut p, block, kw, kw.len());
                 }
                 if let Some((abbr, kw)) = MACRO_ABBREVIATIONS
                     .iter()
                     .find(|(abbr, _)| p.lx.keyword_at(at, abbr))
                 {
+                    *control = true;
                     return macro_line(&mut p, block, kw, abbr.len());
                 }
             }

@@ -303,13 +303,27 @@ fn run_units(
         it.params.init_fanuc();
     }
     match it.run() {
-        Ok(()) => Ok(Interpretation {
-            moves: it.moves,
-            warnings: it.warnings,
-            block_count: prog.len(),
-            selected_tools: it.selected_tools,
-            library_files: lib.iter().map(|u| u.name.to_string()).collect(),
-        }),
+        Ok(()) => {
+            // The lines with a syntax error the run never reached: the user should know.
+            it.warnings
+                .extend(prog.summary().deferred.iter().map(|(_, d)| {
+                    Diagnostic::new(
+                        d.line,
+                        d.col,
+                        format!(
+                            "{} (this line is never executed, so it does not stop the program)",
+                            d.message
+                        ),
+                    )
+                }));
+            Ok(Interpretation {
+                moves: it.moves,
+                warnings: it.warnings,
+                block_count: prog.len(),
+                selected_tools: it.selected_tools,
+                library_files: lib.iter().map(|u| u.name.to_string()).collect(),
+            })
+        }
         Err(d) => Err((Diagnostics(vec![d]), it.missing)),
     }
 }
@@ -502,6 +516,13 @@ impl Interp<'_> {
             if b.block_delete && self.opts.block_delete {
                 pc += 1;
                 continue;
+            }
+            if let Some(d) = self.prog.summary().deferred_error(pc) {
+                return Err(if self.unit == 0 {
+                    d.clone()
+                } else {
+                    self.in_library(d.clone())
+                });
             }
             if let Some(o) = &b.o_word {
                 pc = self.exec_oword(self.control, pc, o)?;
