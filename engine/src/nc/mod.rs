@@ -28,7 +28,10 @@
 //!   The manual's two-letter keywords (`WH[..]DO1`, `GO10`, `EN1`, `IF[..]TH`) are taken.
 //!   A `D` on any block selects the radius offset G41/G42 take (`T1 D1 M6`); rotary axis
 //!   words in a canned cycle block index with the hole positioning (`G91 A45.` in G81 mode);
-//!   the control powers up in G00. Canned cycle data (R, hole bottom, P, Q) carries over
+//!   the control powers up in G00. Extended work offsets Fanuc `G54.1 P1..P48` and Haas
+//!   `G154 P1..P99` (zero until `G10 L20 Pn` sets them, absolute in G90, added in G91;
+//!   `#4014` reads 54.1 and `#4130` the P number; the #7001/#14001 offset variables are not
+//!   readable). Canned cycle data (R, hole bottom, P, Q) carries over
 //!   from one cycle code to the next until G80; after G80 a cycle without R has its R point
 //!   at the initial level (the manual's R = 0 incremental; a warning) and no P no dwell. A
 //!   cycle's P dwell is in ms, as G04 P.
@@ -73,8 +76,7 @@
 //!   the library folder.
 //!
 //! Refused with an error naming the feature: Haas G12/G13/G47/G150, tool center point
-//! control G43.4/G43.5, tilted working planes G68.2/G53.1, extended work offsets
-//! G54.1/G154, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
+//! control G43.4/G43.5, tilted working planes G68.2/G53.1, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
 //! axes, calls to programs neither in the file nor in the library, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5425).

@@ -316,13 +316,14 @@ impl<'p> Interp<'p> {
                 .enumerate()
             {
                 if let Some(i) = w.g(*code) {
-                    if self.comp.is_some() && self.modal.cs != k {
-                        return Err(self.err_at(
-                            self.word_pos(i),
-                            "coordinate system change with cutter radius compensation on (G40 first)",
-                        ));
-                    }
-                    self.change_offsets(|s| s.modal.cs = k);
+                    self.select_cs(k, i)?;
+                }
+            }
+            // Extended work offsets: Fanuc G54.1 P1..P48, Haas G154 P1..P99.
+            for code in [541u16, 1540] {
+                if let Some(i) = w.g(code) {
+                    let k = self.extended_cs(w, code, i)?;
+                    self.select_cs(k, i)?;
                 }
             }
             // 20. path control: blending changes no end point.

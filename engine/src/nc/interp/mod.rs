@@ -42,6 +42,10 @@ const MM_PER_INCH: f64 = 25.4;
 /// LinuxCNC's retract between pecks in G73/G83, inches.
 const G83_RAPID_DELTA_INCH: f64 = 0.010;
 const MAX_CALL_DEPTH: usize = 64;
+/// Extended work offset sets (Haas G154 P1..P99; Fanuc G54.1 P1..P48).
+const EXTENDED_CS: usize = 99;
+/// Work coordinate systems: G54..G59.3 then the extended sets.
+const CS_COUNT: usize = 9 + EXTENDED_CS;
 /// Most full turns accepted in one arc (P word).
 const MAX_ARC_TURNS: f64 = 10_000.0;
 
@@ -79,13 +83,15 @@ struct Interp<'p> {
     /// Current position, program coordinates in program units (as LinuxCNC keeps it).
     cur: [f64; 6],
     /// Work offsets, mm/deg.
-    g5x: [[f64; 6]; 9],
+    /// Work offsets: G54..G59.3 (0..8), then the extended sets P1..P99 (Fanuc G54.1 Pn,
+    /// Haas G154 Pn) at 8 + n.
+    g5x: [[f64; 6]; CS_COUNT],
     g92: [f64; 6],
     g92_applied: bool,
     /// Fanuc G52 local offset, mm/deg (LinuxCNC's G52 writes the G92 offset instead).
     g52: [f64; 6],
     /// LinuxCNC G10 L2 R: rotation of each coordinate system in XY, degrees.
-    rot_xy: [f64; 9],
+    rot_xy: [f64; CS_COUNT],
     /// Fanuc mirror image, scaling and rotation.
     prog_xf: transforms::ProgramTransforms,
     /// G66: the macro called after each moving block, until G67.
@@ -246,11 +252,11 @@ fn run_units(
         motion_prev: None,
         motion_01: fanuc.then_some(Motion::Rapid),
         cur: [0.0; 6],
-        g5x: [[0.0; 6]; 9],
+        g5x: [[0.0; 6]; CS_COUNT],
         g92: [0.0; 6],
         g92_applied: true,
         g52: [0.0; 6],
-        rot_xy: [0.0; 9],
+        rot_xy: [0.0; CS_COUNT],
         prog_xf: Default::default(),
         modal_call: None,
         nurbs: None,
