@@ -508,3 +508,33 @@ fn a_syntax_error_jumped_over_is_a_warning() {
     let (line, col, msg) = fail(src, &InterpretOptions::default());
     assert_eq!((line, col), (6, 2), "{msg}");
 }
+
+/// Nested G66 (the custom macro manual's G66 P9100 .. G66 P9200): a move of the main
+/// program calls the last G66's macro, a move in that macro calls the earlier G66's macro,
+/// whose own moves call none; G67 ends the last one first. Hand-computed.
+#[test]
+fn nested_g66_calls_the_earlier_macro_from_the_later_one() {
+    let src = "O1\nG90 G0 X0 Y0 Z20\nG66 P9100\nX10\nG66 P9200\nX20\nG67\nX30\nG67\nX40\nM30\nO9100\nG91 G0 Z-1.\nZ1.\nG90\nM99\nO9200\nG91 G0 Y5.\nG90\nM99\n";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, 0.0, 20.0],
+            [10.0, 0.0, 20.0],
+            [10.0, 0.0, 19.0],
+            [10.0, 0.0, 20.0],
+            [20.0, 0.0, 20.0],
+            [20.0, 5.0, 20.0],
+            [20.0, 5.0, 19.0],
+            [20.0, 5.0, 20.0],
+            [30.0, 5.0, 20.0],
+            [30.0, 5.0, 19.0],
+            [30.0, 5.0, 20.0],
+            [40.0, 5.0, 20.0],
+        ]
+    );
+    let deep = "O1\nG66 P9\nG66 P9\nG66 P9\nG66 P9\nG66 P9\nM30\nO9\nM99\n";
+    let (line, _, msg) = fail(deep, &InterpretOptions::default());
+    assert_eq!(line, 6);
+    assert!(msg.contains("nested more than 4"), "{msg}");
+}

@@ -22,7 +22,8 @@
 //!   expressions without brackets (Fanuc precedence), vacant variables (#0), the modal and
 //!   position system variables (#4001-#4120, #5001-#5046), #3000 alarms, G65 calls with
 //!   arguments (specifications I and II), G66/G67 modal calls (after each moving block of the
-//!   calling level); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
+//!   calling level; nested up to four: a move in the last G66's macro calls the earlier G66's
+//!   macro, G67 ends the last first); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
 //!   Subprograms: several `O` programs in one file, `M98 P.. L..` (and `P31234`), `M99`
 //!   (`M99 Pn`), `M99` in the main program ends it (a warning; the control would loop).
 //!   The manual's two-letter keywords (`WH[..]DO1`, `GO10`, `EN1`, `IF[..]TH`) are taken.
@@ -61,7 +62,8 @@
 //!   its own) and `@`/`^` polar words, checked against LinuxCNC; Fanuc G68/G69 rotation,
 //!   G51/G50 scaling (P or I/J/K, thousandths without a decimal point), G51.1/G50.1 mirror
 //!   image (applied mirror, scaling, rotation, as the manual orders them) and G16/G15 polar
-//!   mode. Arcs stay arcs where the transform is a similarity in their plane (a mirror
+//!   mode (in a G91 canned cycle the angle advances per repeat about the work origin, as
+//!   the manual's bolt hole circle `G91 Y120.`; a G91 radius word there is refused). Arcs stay arcs where the transform is a similarity in their plane (a mirror
 //!   reverses them); per-axis scaling of an arc or a rotation out of its plane is refused.
 //!
 //! * Splines (`interp/splines.rs`): G5, G5.1 and G5.2/G5.3 NURBS in G17 as LinuxCNC builds

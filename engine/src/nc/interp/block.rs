@@ -503,8 +503,9 @@ impl<'p> Interp<'p> {
                     "G67 cancels a Fanuc G66 modal macro call; not valid with dialect linuxcnc",
                 ));
             }
-            self.modal_call = None;
-        } else if moved && self.modal_call.is_some() {
+            // The last G66 first (nested modal calls end in reverse order).
+            self.modal_calls.pop();
+        } else if moved && !self.modal_calls.is_empty() {
             self.modal_macro_after_move()?;
         }
         if w.m(60).is_some() {

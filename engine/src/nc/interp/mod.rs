@@ -95,7 +95,9 @@ struct Interp<'p> {
     /// Fanuc mirror image, scaling and rotation.
     prog_xf: transforms::ProgramTransforms,
     /// G66: the macro called after each moving block, until G67.
-    modal_call: Option<macro_b::ModalCall>,
+    /// Nested G66: the last one is called after the setting level's moves, each earlier one
+    /// after the moves of the macro of the one after it.
+    modal_calls: Vec<macro_b::ModalCall>,
     /// A G5.2 NURBS being defined.
     nurbs: Option<splines::NurbsInProgress>,
     /// Fanuc G16 polar mode, and the last polar radius and angle (degrees) it went to.
@@ -258,7 +260,7 @@ fn run_units(
         g52: [0.0; 6],
         rot_xy: [0.0; CS_COUNT],
         prog_xf: Default::default(),
-        modal_call: None,
+        modal_calls: Vec::new(),
         nurbs: None,
         polar_mode: false,
         polar_last: Default::default(),
