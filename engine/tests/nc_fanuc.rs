@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::nc::{dialect, fail, run, run_with, xyz};
+use common::nc::{dialect, fail, motions, run, run_with, xyz};
 use millsim_engine::nc::{Dialect, InterpretOptions, MoveKind, Program};
 
 fn fanuc() -> InterpretOptions {
@@ -537,4 +537,57 @@ fn nested_g66_calls_the_earlier_macro_from_the_later_one() {
     let (line, _, msg) = fail(deep, &InterpretOptions::default());
     assert_eq!(line, 6);
     assert!(msg.contains("nested more than 4"), "{msg}");
+}
+
+/// Fanuc cutter compensation start-up type A (the control's default): the G41/G42 block
+/// ends where the tool stands perpendicular to the next move's start, so the next move
+/// starts without a corner. The helical hole macro (dennisselyaev/gcode O3003: `G91 G41
+/// X-r`, `G3 X0 Y0 I r Z-step`) needs it: LinuxCNC ends the entry perpendicular to itself
+/// and refuses the inside corner to the small arc. Hand-computed.
+#[test]
+fn cutter_compensation_start_up_type_a() {
+    let opts = |d: f64| InterpretOptions {
+        tool_diameters: [(1, d)].into_iter().collect(),
+        ..dialect(Dialect::Fanuc)
+    };
+    // Hole of radius 5 with a Ø6 tool: entry to (-2, 0), the circle of radius 2.
+    let src = "O1\nG90 G0 X0 Y0 Z5\nG1 Z0 F100\nG91 G41 D1 X-5. F600\nG3 X0 Y0 I5. J0 Z-1.\nG90 G40 G1 X0 Y0\nM30\n";
+    let i = run_with(src, &opts(6.0));
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, 0.0, 5.0],
+            [0.0, 0.0, 0.0],
+            [-2.0, 0.0, 0.0],
+            [-2.0, 0.0, -1.0],
+            [0.0, 0.0, -1.0],
+        ]
+    );
+    let arc = motions(&i)[3].arc.clone().expect("an arc");
+    assert!(
+        arc.center[0].abs() < 1e-9 && arc.center[1].abs() < 1e-9,
+        "{arc:?}"
+    );
+    // Outside corner at start-up: the entry ends at the next line's offset start, no arc.
+    let src = "O1\nG90 G0 X0 Y-20 Z0\nG41 D1 G1 Y0 F100\nG1 X50.\nG40 G0 Z10.\nM30\n";
+    let i = run_with(src, &opts(10.0));
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, -20.0, 0.0],
+            [0.0, 5.0, 0.0],
+            [50.0, 5.0, 0.0],
+            // G40: the next move goes to its programmed point.
+            [50.0, 0.0, 10.0],
+        ]
+    );
+    // LinuxCNC's rule refuses the helical hole's inside corner.
+    let lsrc = "G21 G90 G0 X0 Y0 Z5\nG1 Z0 F100\nG91 G41 D1 G1 X-5 F600\nG3 X0 Y0 I5 J0 Z-1\nG90 G40 G1 X0 Y0\nM2\n";
+    let lopts = InterpretOptions {
+        tool_diameters: [(1, 6.0)].into_iter().collect(),
+        ..dialect(Dialect::LinuxCnc)
+    };
+    let (line, _, msg) = fail(lsrc, &lopts);
+    assert_eq!(line, 4);
+    assert!(msg.contains("gouging"), "{msg}");
 }

@@ -54,8 +54,11 @@
 //!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY and XZ planes, as
 //!   LinuxCNC 2.9 does it in both dialects (entry line or arc, arcs around outside corners,
 //!   inside corners trimmed, gouges refused naming the line); checked against LinuxCNC.
-//!   A Fanuc control's start-up and cancel blocks (types A/B/C) differ in the entry and exit
-//!   moves only.
+//!   In the Fanuc dialect the start-up is the control's default type A: the entry line ends
+//!   where the tool stands perpendicular to the next move's start (LinuxCNC: to the entry
+//!   line itself, with a corner to the next move), so `G41 X-r` into a `G3 I r` helical hole
+//!   works. Types B and C (parameters SUP/SUV) and Fanuc's cancel types are not modelled:
+//!   the exit is LinuxCNC's (a line from the compensated point to the programmed end).
 //!
 //! * Coordinate transforms (`interp/transforms.rs`, `interp/polar.rs`): LinuxCNC's G10 L2 R
 //!   rotation of a coordinate system, G52 (LinuxCNC: the G92 offsets; Fanuc: a local offset of
