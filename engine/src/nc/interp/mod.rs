@@ -52,6 +52,8 @@ const MAX_ARC_TURNS: f64 = 10_000.0;
 struct Interp<'p> {
     /// The file being run: the program itself or a library file (`unit`).
     prog: &'p ProgramView<'p>,
+    /// `prog` has lines with a syntax error raised when executed (one flag read per block).
+    deferred_here: bool,
     /// Control structure links, subroutines and Fanuc programs of `prog`.
     control: &'p ControlMap,
     /// The program itself and its links (unit 0).
@@ -223,6 +225,7 @@ fn run_units(
 ) -> Result<Interpretation, (Diagnostics, Option<usize>)> {
     let mut it = Interp {
         prog,
+        deferred_here: !prog.summary().deferred.is_empty(),
         control,
         main: prog,
         main_control: control,
@@ -525,12 +528,14 @@ impl Interp<'_> {
                 pc += 1;
                 continue;
             }
-            if let Some(d) = self.prog.summary().deferred_error(pc) {
-                return Err(if self.unit == 0 {
-                    d.clone()
-                } else {
-                    self.in_library(d.clone())
-                });
+            if self.deferred_here {
+                if let Some(d) = self.prog.summary().deferred_error(pc) {
+                    return Err(if self.unit == 0 {
+                        d.clone()
+                    } else {
+                        self.in_library(d.clone())
+                    });
+                }
             }
             if let Some(o) = &b.o_word {
                 pc = self.exec_oword(self.control, pc, o)?;
