@@ -474,3 +474,14 @@ fn extended_work_offsets_g54_1_and_g154() {
     let (_, _, msg) = fail("G54.1 P1\nM2\n", &dialect(Dialect::LinuxCnc));
     assert!(msg.contains("LinuxCNC has G54-G59.3"), "{msg}");
 }
+
+/// M50-M53 with P (LinuxCNC's override and adaptive feed switches, as plasma configurations
+/// write `M52 P1`) make no motion and are accepted, as rs274 accepts them.
+#[test]
+fn override_switches_take_their_p_word() {
+    let i = run_with(
+        "G21\nM52 P1\nM50 P0\nM51 P1\nM53 P0\nG0 X1\nM2\n",
+        &dialect(Dialect::LinuxCnc),
+    );
+    assert_eq!(path(&i), vec![(MoveKind::Rapid, [1.0, 0.0, 0.0])]);
+}

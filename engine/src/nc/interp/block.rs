@@ -183,7 +183,12 @@ impl<'p> Interp<'p> {
                 f.auto_restore = Some(m);
             }
         }
-        // 11-13. coolant, overrides, passthrough M codes: no effect on motion.
+        // 11-13. coolant, overrides, passthrough M codes: no effect on motion. M50-M53
+        // (feed and spindle override, adaptive feed, feed stop) take P0/P1: read, no effect
+        // (a block with G codes leaves its P to them).
+        if !w.ms.is_empty() && w.gs.is_empty() && w.ms.iter().any(|m| (50..=53).contains(&m.0)) {
+            w.take('P');
+        }
         // 14-22 act on G codes only; most CAM blocks have none.
         if !w.gs.is_empty() {
             // 14. dwell
