@@ -257,3 +257,24 @@ fn dialect_serde_names() {
         assert_eq!(serde_json::from_str::<Dialect>(s).unwrap(), d);
     }
 }
+
+/// A ':' or '/' inside a block says what it could have meant.
+#[test]
+fn stray_colon_and_slash_name_their_use() {
+    let p = Program::parse("O1\n#1=#1-#11:\n//comment\nN10 /G1 X1\n").unwrap();
+    let e: Vec<(u32, u32, String)> = p
+        .deferred_errors()
+        .map(|d| (d.line, d.col, d.message.clone()))
+        .collect();
+    assert_eq!(
+        e.iter().map(|e| (e.0, e.1)).collect::<Vec<_>>(),
+        vec![(2, 10), (3, 2), (4, 5)]
+    );
+    assert!(e[0].2.contains("program number :1234"), "{}", e[0].2);
+    assert!(
+        e[1].2.contains("block delete '/' only starts a block"),
+        "{}",
+        e[1].2
+    );
+    assert!(e[2].2.contains("block delete"), "{}", e[2].2);
+}

@@ -273,6 +273,13 @@ impl<'a> Lexer<'a> {
                 self.pos += 1;
                 Tok::Letter(b as char)
             }
+            // A Fanuc program number `:1234` only starts a line (often a typo for ';').
+            b':' => {
+                return self.err(
+                    start,
+                    "unexpected ':' (a program number :1234 stands at the start of its line; a block ends with ';' or the line end)",
+                );
+            }
             _ => {
                 let ch = self.src[start..].chars().next().unwrap_or('?');
                 return self.err(start, format!("unexpected character '{ch}'"));

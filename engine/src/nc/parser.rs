@@ -659,6 +659,12 @@ fn parse_line(
                 let a = p.assignment(span.start)?;
                 block.assignments.push(a);
             }
+            Tok::Slash => {
+                return err(
+                    span.start,
+                    "unexpected '/': block delete '/' only starts a block (before its N word); '//' comments are not G-code",
+                )
+            }
             t => return err(span.start, format!("unexpected {}", tok_name(&t))),
         }
     }
