@@ -31,12 +31,23 @@ pub(crate) enum Tok {
     End,
 }
 
+impl LexError {
+    /// The same error, marked as one of an O-word or macro statement line.
+    #[cold]
+    pub(crate) fn in_control_line(mut self) -> Self {
+        self.control = true;
+        self
+    }
+}
+
 /// Start of the message of a `(` without its `)`.
 pub(crate) const UNCLOSED_COMMENT: &str = "comment is not closed";
 
 pub(crate) struct LexError {
     pub pos: usize,
     pub message: String,
+    /// The error is in an O-word or macro statement line (set on the error path only).
+    pub control: bool,
 }
 
 #[derive(Clone)]
@@ -125,6 +136,7 @@ impl<'a> Lexer<'a> {
         Err(LexError {
             pos,
             message: message.into(),
+            control: false,
         })
     }
 

@@ -25,6 +25,7 @@ fn err<T>(pos: usize, message: impl Into<String>) -> PResult<T> {
     Err(LexError {
         pos,
         message: message.into(),
+        control: false,
     })
 }
 
@@ -514,14 +515,13 @@ pub(crate) fn parse_blocks(source: &str, sink: &mut impl BlockSink) -> (Summary,
         if percents >= 2 {
             block.after_end = true;
         } else {
-            let mut control = false;
-            if let Err(e) = parse_line(source, &mut block, words, &mut control) {
+            if let Err(e) = parse_line(source, &mut block, words) {
                 let col = source[start..e.pos.min(content_end).max(start)]
                     .chars()
                     .count() as u32
                     + 1;
                 let d = Diagnostic::new(line, col, e.message);
-                if control || d.message.starts_with(UNCLOSED_COMMENT) {
+                if e.control || d.message.starts_with(UNCLOSED_COMMENT) {
                     errors.push(d);
                 } else {
                     summary.deferred.push((index, d));
@@ -547,13 +547,7 @@ fn count_newlines(bytes: &[u8]) -> usize {
         .sum::<usize>()
 }
 
-/// `control` is set when the line is an O-word or macro statement line.
-fn parse_line(
-    source: &str,
-    block: &mut Block,
-    words: &mut Vec<Word>,
-    control: &mut bool,
-) -> PResult<()> {
+fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult<()> {
     let mut p = LineParser {
         lx: Lexer::new(source, block.span.start, block.span.end),
         depth: 0,
@@ -595,8 +589,7 @@ fn parse_line(
         });
     }
     if matches!(p.lx.peek_byte(), Some(b'o' | b'O' | b':')) {
-        *control = true;
-        return o_line(&mut p, block);
+        return o_line(&mut p, block).map_err(LexError::in_control_line);
     }
     let first_word = words.len();
     loop {
@@ -613,15 +606,15 @@ fn parse_line(
             let at = p.lx.pos;
             if p.lx.byte(at + 1).is_some_and(|b| b.is_ascii_alphabetic()) {
                 if let Some(kw) = MACRO_KEYWORDS.iter().find(|kw| p.lx.keyword_at(at, kw)) {
-                    *control = true;
-                    return macro_line(&mut p, block, kw, kw.len());
+                    return macro_line(&mut p, block, kw, kw.len())
+                        .map_err(LexError::in_control_line);
                 }
                 if let Some((abbr, kw)) = MACRO_ABBREVIATIONS
                     .iter()
                     .find(|(abbr, _)| p.lx.keyword_at(at, abbr))
                 {
-                    *control = true;
-                    return macro_line(&mut p, block, kw, abbr.len());
+                    return macro_line(&mut p, block, kw, abbr.len())
+                        .map_err(LexError::in_control_line);
                 }
             }
         }
