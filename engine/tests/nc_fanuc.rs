@@ -591,3 +591,19 @@ fn cutter_compensation_start_up_type_a() {
     assert_eq!(line, 4);
     assert!(msg.contains("gouging"), "{msg}");
 }
+
+/// A macro run on its own divides by its vacant arguments: the error names the variable.
+#[test]
+fn division_by_a_vacant_argument_names_it() {
+    let (line, _, msg) = fail(
+        "O3001\n#1=10.\n#3=[#1-#2]/#17\nM99\n",
+        &InterpretOptions::default(),
+    );
+    assert_eq!(line, 3);
+    assert!(msg.contains("#17 is vacant"), "{msg}");
+    let (_, _, msg) = fail("O1\n#3=5/0\nM30\n", &InterpretOptions::default());
+    assert!(
+        msg.contains("division by zero") && !msg.contains("vacant"),
+        "{msg}"
+    );
+}
