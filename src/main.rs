@@ -270,6 +270,11 @@ struct InterpretArgs {
     /// (the index into the list printed on stderr) and `source_line`.
     #[arg(long, value_name = "DIR")]
     library: Option<std::path::PathBuf>,
+    /// The tool of a tool number, as `T1=tool.json` (JSON as POST /v1/tools takes it);
+    /// repeat per number. Cutter compensation (G41 D1) takes its radius where the program's
+    /// tool table and G10 give none, as `millsim run` does.
+    #[arg(long, value_name = "Tn=FILE")]
+    tool: Vec<String>,
 }
 
 fn init_logs(format: LogFormat) {
@@ -520,6 +525,21 @@ async fn worker(args: WorkerArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// `T3=tool.json`: tool number 3 and the diameter of the tool the file describes.
+fn tool_diameter(spec: &str) -> Result<(u32, f64), String> {
+    let (name, path) = spec
+        .split_once('=')
+        .ok_or_else(|| format!("{spec}: give the tool number, as T1=tool.json"))?;
+    let number = jobs::JobKind::Interpret
+        .tool_number_input(name.trim())
+        .ok_or_else(|| format!("{spec}: `{name}` is not a tool number like T1"))?;
+    let bytes = std::fs::read(path).map_err(|e| format!("{spec}: {path}: {e}"))?;
+    validate::tool(&bytes).map_err(|e| format!("{spec}: {path}: {}", e.detail))?;
+    let tool: millsim_engine::tool::Tool =
+        serde_json::from_slice(&bytes).map_err(|e| format!("{spec}: {path}: {e}"))?;
+    Ok((number, tool.diameter))
+}
+
 fn interpret(args: InterpretArgs) -> ExitCode {
     let file = args.file.display().to_string();
     let text = match std::fs::read(&args.file) {
@@ -576,6 +596,20 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    for spec in &args.tool {
+        match tool_diameter(spec) {
+            Ok((number, diameter)) => {
+                if options.tool_diameters.insert(number, diameter).is_some() {
+                    eprintln!("--tool {spec}: T{number} is given twice");
+                    return ExitCode::from(2);
+                }
+            }
+            Err(e) => {
+                eprintln!("--tool {e}");
+                return ExitCode::from(2);
+            }
+        }
+    }
     if let Some(dir) = &args.library {
         match nc::ProgramLibrary::from_dir(dir) {
             Ok(l) => options.library = Some(std::sync::Arc::new(l)),

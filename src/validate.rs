@@ -85,9 +85,29 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
     }
     let parsed = nc::Program::parse(text)
         .map_err(|d| Problem::program_unreadable(file, "G-code does not parse", &d))?;
+    // A line's syntax error stops the program only if the line runs (as in LinuxCNC). Without
+    // control flow every line runs, so the upload is refused; with it, the errors are listed
+    // and the interpretation decides.
+    let deferred: Vec<nc::Diagnostic> = parsed.deferred_errors().cloned().collect();
+    if !deferred.is_empty() && !parsed.has_control_flow() {
+        return Err(Problem::program_unreadable(
+            file,
+            "G-code does not parse",
+            &nc::Diagnostics(deferred),
+        ));
+    }
+    let if_executed: Vec<Value> = deferred
+        .iter()
+        .map(|d| json!({ "line": d.line, "column": d.col, "message": d.message }))
+        .collect();
     Ok(Validated {
         media_type: "text/plain",
-        summary: json!({ "format": "gcode", "lines": lines, "blocks": parsed.blocks().len() }),
+        summary: json!({
+            "format": "gcode",
+            "lines": lines,
+            "blocks": parsed.blocks().len(),
+            "syntax_errors_if_executed": if_executed,
+        }),
     })
 }
 

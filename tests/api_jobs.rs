@@ -265,6 +265,38 @@ async fn a_program_that_does_not_interpret_fails_with_its_line_and_is_not_retrie
     assert_eq!(done["attempts"], 1);
     assert_eq!(done["error"]["errors"][0]["line"], 3, "{done}");
     assert_eq!(done["error"]["file"], "comp.nc");
+    // With the job's tool for number 1 (input T1, a Ø10 tool), G41 D1 takes its radius:
+    // the X10 entry line ends 5 mm to its left, at Y5.
+    let (st, t1) = post_json(
+        &c,
+        &s,
+        "/v1/tools",
+        &json!({"type": "flat", "diameter_mm": 10.0, "flutes": 3, "flute_length_mm": 20.0}),
+    )
+    .await;
+    assert_eq!(st, 201, "{t1}");
+    let (st, job) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "interpret", "inputs": {"program": {"name": "comp.nc", "content": "G21 G90\nG0 X0 Y0\nG41 D1 G1 X10 F100\nM30\n"}, "T1": t1["id"]}}),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let done = wait_job(&c, &s, id, Duration::from_secs(30)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let (_, page) = json(
+        c.get(s.url(&format!("/v1/jobs/{id}/blocks?limit=10")))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    let last = page["items"].as_array().unwrap().last().unwrap().clone();
+    let end = last["end"].as_array().unwrap();
+    let (x, y) = (end[0].as_f64().unwrap(), end[1].as_f64().unwrap());
+    assert!((x - 10.0).abs() < 1e-9 && (y - 5.0).abs() < 1e-9, "{page}");
 }
 
 #[tokio::test]

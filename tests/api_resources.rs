@@ -326,6 +326,22 @@ async fn bad_input_is_a_problem_document_naming_what_and_where() {
     assert_eq!(st, 422, "{v}");
     assert_eq!(v["file"], "bad.nc");
     assert_eq!(v["errors"][0]["line"], 2);
+    // With control flow, a plain line's error stops the program only if the line runs
+    // (LinuxCNC): the upload is stored and lists it.
+    let res = c
+        .post(s.url("/v1/programs?name=branch.ngc"))
+        .body("o1 if [0]\nGG1 X1\no1 endif\nG0 X1\nM2\n")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 201);
+    let v: serde_json::Value = res.json().await.unwrap();
+    let errs = &v["summary"]["syntax_errors_if_executed"];
+    assert_eq!(
+        (&errs[0]["line"], &errs[0]["column"]),
+        (&2.into(), &2.into()),
+        "{v}"
+    );
     // Bad query values.
     let (st, v) = problem(c.get(s.url("/v1/jobs?status=done")).send().await.unwrap()).await;
     assert_eq!((st, v["field"].as_str()), (422, Some("status")));

@@ -252,3 +252,58 @@ fn library_folder_runs_called_programs() {
         "{stderr}"
     );
 }
+
+/// `--tool T1=tool.json`: cutter compensation G41 D1 takes tool 1's radius when the program
+/// has no tool table; without it the program is refused naming the tool.
+#[test]
+fn tool_option_gives_the_compensation_radius() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("comp.nc");
+    std::fs::write(
+        &file,
+        "G21 G90 G17 G40\nG0 X0 Y-20 Z0\nG41 D1 G1 Y0 F100\nG1 X50\nG40 G0 Z10\nM2\n",
+    )
+    .unwrap();
+    let tool = dir.path().join("d10.json");
+    std::fs::write(
+        &tool,
+        r#"{"name":"10 mm flat","type":"flat","diameter_mm":10,"flutes":3,"helix_deg":30,"flute_length_mm":20,"stickout_mm":30}"#,
+    )
+    .unwrap();
+    let moves = interpret_moves(&file, &["--tool", &format!("T1={}", tool.display())]);
+    let ends: Vec<(String, f64, f64)> = moves
+        .iter()
+        .map(|m| {
+            let e = m["end"].as_array().unwrap();
+            let r = |v: &serde_json::Value| (v.as_f64().unwrap() * 1e6).round() / 1e6 + 0.0;
+            (m["kind"].as_str().unwrap().to_string(), r(&e[0]), r(&e[1]))
+        })
+        .collect();
+    // Entry along +Y ends 5 mm left of (0, 0); the outside corner to +X is an arc to (0, 5);
+    // the X50 line runs 5 mm to its left.
+    let want = [
+        ("rapid", 0.0, -20.0),
+        ("linear", -5.0, 0.0),
+        ("arc", 0.0, 5.0),
+        ("linear", 50.0, 5.0),
+    ];
+    for (k, (kind, x, y)) in want.iter().enumerate() {
+        assert_eq!(ends[k], (kind.to_string(), *x, *y), "{ends:?}");
+    }
+    let out = Command::new(BIN)
+        .arg("interpret")
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no radius for tool 1"), "{err}");
+    let out = Command::new(BIN)
+        .arg("interpret")
+        .arg(&file)
+        .args(["--tool", "X1=d10.json"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a tool number like T1"));
+}

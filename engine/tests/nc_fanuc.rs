@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::nc::{dialect, fail, run, run_with, xyz};
+use common::nc::{dialect, fail, motions, run, run_with, xyz};
 use millsim_engine::nc::{Dialect, InterpretOptions, MoveKind, Program};
 
 fn fanuc() -> InterpretOptions {
@@ -487,4 +487,123 @@ fn g66_calls_its_macro_after_every_move_until_g67() {
     let (line, _, msg) = fail("O1\nG66 R2\nM30\n", &fanuc());
     assert_eq!(line, 2);
     assert!(msg.contains("G66 needs P"), "{msg}");
+}
+
+/// A syntax error on a line the program never executes (jumped over by GOTO, or in a
+/// subprogram never called) does not stop the program: a warning names it. Executed, it
+/// is the program's error at its line and column.
+#[test]
+fn a_syntax_error_jumped_over_is_a_warning() {
+    let src = "O1\nG0 X1\nGOTO 10\nG1 X1 $ Y2\nN10 G0 X2\nM30\nO2\nGG1 X5\nM99\n";
+    let i = run(src);
+    assert_eq!(xyz(&i), vec![[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]);
+    let w: Vec<(u32, u32)> = i
+        .warnings
+        .iter()
+        .filter(|w| w.message.contains("never executed"))
+        .map(|w| (w.line, w.col))
+        .collect();
+    assert_eq!(w, vec![(4, 7), (8, 2)]);
+    let src = "O1\nG0 X1\nM98 P2\nM30\nO2\nGG1 X5\nM99\n";
+    let (line, col, msg) = fail(src, &InterpretOptions::default());
+    assert_eq!((line, col), (6, 2), "{msg}");
+}
+
+/// Nested G66 (the custom macro manual's G66 P9100 .. G66 P9200): a move of the main
+/// program calls the last G66's macro, a move in that macro calls the earlier G66's macro,
+/// whose own moves call none; G67 ends the last one first. Hand-computed.
+#[test]
+fn nested_g66_calls_the_earlier_macro_from_the_later_one() {
+    let src = "O1\nG90 G0 X0 Y0 Z20\nG66 P9100\nX10\nG66 P9200\nX20\nG67\nX30\nG67\nX40\nM30\nO9100\nG91 G0 Z-1.\nZ1.\nG90\nM99\nO9200\nG91 G0 Y5.\nG90\nM99\n";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, 0.0, 20.0],
+            [10.0, 0.0, 20.0],
+            [10.0, 0.0, 19.0],
+            [10.0, 0.0, 20.0],
+            [20.0, 0.0, 20.0],
+            [20.0, 5.0, 20.0],
+            [20.0, 5.0, 19.0],
+            [20.0, 5.0, 20.0],
+            [30.0, 5.0, 20.0],
+            [30.0, 5.0, 19.0],
+            [30.0, 5.0, 20.0],
+            [40.0, 5.0, 20.0],
+        ]
+    );
+    let deep = "O1\nG66 P9\nG66 P9\nG66 P9\nG66 P9\nG66 P9\nM30\nO9\nM99\n";
+    let (line, _, msg) = fail(deep, &InterpretOptions::default());
+    assert_eq!(line, 6);
+    assert!(msg.contains("nested more than 4"), "{msg}");
+}
+
+/// Fanuc cutter compensation start-up type A (the control's default): the G41/G42 block
+/// ends where the tool stands perpendicular to the next move's start, so the next move
+/// starts without a corner. The helical hole macro (dennisselyaev/gcode O3003: `G91 G41
+/// X-r`, `G3 X0 Y0 I r Z-step`) needs it: LinuxCNC ends the entry perpendicular to itself
+/// and refuses the inside corner to the small arc. Hand-computed.
+#[test]
+fn cutter_compensation_start_up_type_a() {
+    let opts = |d: f64| InterpretOptions {
+        tool_diameters: [(1, d)].into_iter().collect(),
+        ..dialect(Dialect::Fanuc)
+    };
+    // Hole of radius 5 with a Ø6 tool: entry to (-2, 0), the circle of radius 2.
+    let src = "O1\nG90 G0 X0 Y0 Z5\nG1 Z0 F100\nG91 G41 D1 X-5. F600\nG3 X0 Y0 I5. J0 Z-1.\nG90 G40 G1 X0 Y0\nM30\n";
+    let i = run_with(src, &opts(6.0));
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, 0.0, 5.0],
+            [0.0, 0.0, 0.0],
+            [-2.0, 0.0, 0.0],
+            [-2.0, 0.0, -1.0],
+            [0.0, 0.0, -1.0],
+        ]
+    );
+    let arc = motions(&i)[3].arc.clone().expect("an arc");
+    assert!(
+        arc.center[0].abs() < 1e-9 && arc.center[1].abs() < 1e-9,
+        "{arc:?}"
+    );
+    // Outside corner at start-up: the entry ends at the next line's offset start, no arc.
+    let src = "O1\nG90 G0 X0 Y-20 Z0\nG41 D1 G1 Y0 F100\nG1 X50.\nG40 G0 Z10.\nM30\n";
+    let i = run_with(src, &opts(10.0));
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, -20.0, 0.0],
+            [0.0, 5.0, 0.0],
+            [50.0, 5.0, 0.0],
+            // G40: the next move goes to its programmed point.
+            [50.0, 0.0, 10.0],
+        ]
+    );
+    // LinuxCNC's rule refuses the helical hole's inside corner.
+    let lsrc = "G21 G90 G0 X0 Y0 Z5\nG1 Z0 F100\nG91 G41 D1 G1 X-5 F600\nG3 X0 Y0 I5 J0 Z-1\nG90 G40 G1 X0 Y0\nM2\n";
+    let lopts = InterpretOptions {
+        tool_diameters: [(1, 6.0)].into_iter().collect(),
+        ..dialect(Dialect::LinuxCnc)
+    };
+    let (line, _, msg) = fail(lsrc, &lopts);
+    assert_eq!(line, 4);
+    assert!(msg.contains("gouging"), "{msg}");
+}
+
+/// A macro run on its own divides by its vacant arguments: the error names the variable.
+#[test]
+fn division_by_a_vacant_argument_names_it() {
+    let (line, _, msg) = fail(
+        "O3001\n#1=10.\n#3=[#1-#2]/#17\nM99\n",
+        &InterpretOptions::default(),
+    );
+    assert_eq!(line, 3);
+    assert!(msg.contains("#17 is vacant"), "{msg}");
+    let (_, _, msg) = fail("O1\n#3=5/0\nM30\n", &InterpretOptions::default());
+    assert!(
+        msg.contains("division by zero") && !msg.contains("vacant"),
+        "{msg}"
+    );
 }

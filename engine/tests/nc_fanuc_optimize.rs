@@ -232,3 +232,16 @@ GOTO 40
         _ => None,
     });
 }
+
+/// A line with a syntax error that the program jumps over (it runs on the control) is left
+/// byte for byte by the rewrite, even with an F word of its own; only executed F words change.
+#[test]
+fn a_syntax_error_jumped_over_is_kept_by_the_rewrite() {
+    let src = "O3\nG21 G90 G94\nG0 X0 Y0 Z0\nG1 X10 F1000\nGOTO 10\nG1 X20 $ F5\nN10 G1 Y10\nM30\n";
+    let text = check(src, |line, _| match line {
+        4 | 7 => Some(slot()),
+        _ => None,
+    });
+    assert!(text.contains("\nG1 X20 $ F5\n"), "{text}");
+    assert!(!text.contains("F1000"), "the executed F is lowered: {text}");
+}

@@ -178,3 +178,28 @@ fn transforms_refused_where_they_do_not_apply() {
     assert_eq!(line, 4);
     assert!(msg.contains("leave its plane"), "{msg}");
 }
+
+/// G16 in an incremental canned cycle: the manual's bolt hole circle with angle increments
+/// (`G91 Y45.` advances the angle from the last hole's about the work origin, radius kept),
+/// once per repeat K; R and Z incremental as in any G91 cycle. Hand-computed.
+#[test]
+fn g16_polar_angle_increments_in_a_g91_cycle() {
+    let src = "O1\nG17 G90 G16 G0 X50 Y0 Z10\nG91 G81 Y45 R-8 Z-7 K3 F100\nY90\nG90 G80 G15\nM30\n";
+    let i = run_with(src, &fanuc());
+    let c = 50.0 * std::f64::consts::FRAC_1_SQRT_2;
+    let mut want = vec![[50.0, 0.0, 10.0]];
+    for [x, y] in [[c, c], [0.0, 50.0], [-c, c], [-c, -c]] {
+        want.extend([[x, y, 10.0], [x, y, 2.0], [x, y, -5.0], [x, y, 10.0]]);
+    }
+    let got = xyz(&i);
+    assert_eq!(got.len(), want.len(), "{got:?}");
+    for (g, w) in got.iter().zip(&want) {
+        assert!((0..3).all(|k| (g[k] - w[k]).abs() < 1e-9), "{g:?} vs {w:?}");
+    }
+    let (line, _, msg) = fail(
+        "O1\nG17 G90 G16 G0 X50 Y0 Z10\nG91 G81 X10 Y45 R-8 Z-7 F100\nM30\n",
+        &fanuc(),
+    );
+    assert_eq!(line, 3);
+    assert!(msg.contains("radius word"), "{msg}");
+}

@@ -23,6 +23,7 @@ fn library() -> Arc<ProgramLibrary> {
         ("O2000", "O2000\nG0 X100 Y100\nM98 P1000\nM99\n"),
         ("O6000.nc", "O6000\nG0 X-5 Y-5\nM123\nM99\n"),
         ("broken.nc", "O3000\nG1 X[1+\nM99\n"),
+        ("broken2.nc", "O3100\nWHILE[#1 GT]DO1\nEND1\nM99\n"),
         ("O4000.nc", "G0 X5\nG1 X6 F100\n"),
         ("O5000.nc", "O5000\nG1 X1 Y1 Z1 F100\nG2 X0 Y0 R0.1\nM99\n"),
     ];
@@ -139,10 +140,18 @@ fn errors_in_library_files_are_placed_at_the_call_and_name_the_file() {
     );
     assert!(msg.contains("radius"), "{msg}");
 
+    // A syntax error on a plain line fails when the line runs, placed at the call.
     let (line, msg) = error("O0001\nG0 X0\nG0 Y0\nM98 P3000\nM30\n");
     assert_eq!(line, 4);
     assert!(
-        msg.contains("program O3000: library file \"broken.nc\" does not read: 2:"),
+        msg.starts_with("in library file \"broken.nc\", line 2, column 8: expected a value"),
+        "{msg}"
+    );
+    // One on a macro statement line: the file does not read at all.
+    let (line, msg) = error("O0001\nG0 X0\nM98 P3100\nM30\n");
+    assert_eq!(line, 3);
+    assert!(
+        msg.contains("program O3100: library file \"broken2.nc\" does not read: 2:"),
         "{msg}"
     );
 

@@ -1364,3 +1364,75 @@ fn current_position_parameters_match_linuxcnc() {
     let e = interpret("#5420=1\nM2\n", &InterpretOptions::default()).unwrap_err();
     assert!(e.0[0].message.contains("#5420 holds machine state"), "{e}");
 }
+
+/// LinuxCNC parses a line when it runs it: a syntax error in a branch never taken (here a
+/// doubled letter, an unknown character, an unfinished expression, a stray word, a `%` with
+/// text) does not stop the program, while the same error in a branch taken does, at its
+/// line. Only an unclosed comment fails wherever it is (LinuxCNC checks comments on every
+/// line it reads). Ours: the same moves or the same refusal line; the lines never executed
+/// are warnings; the round trip is byte for byte.
+#[test]
+fn syntax_errors_only_in_lines_executed_match_linuxcnc() {
+    if let Err(why) = linuxcnc_available() {
+        println!("SKIPPED: {why}");
+        return;
+    }
+    let cases: [(&str, &str, Option<u32>); 4] = [
+        (
+            "skipped_if",
+            "G21 G90\no100 if [0]\nGG1 X1\nG1 X[1/0]\nG1 X1 $ Y2\n#1=[1+\n% text\no100 endif\nG1 X2 F100\nM2\n",
+            None,
+        ),
+        (
+            "else_not_taken",
+            "G21 G90\nG1 X2 F100\no100 if [1]\nG1 X3\no100 else\nGG1 X1\no100 endif\nM2\n",
+            None,
+        ),
+        (
+            "else_taken",
+            "G21 G90\nG1 X2 F100\no100 if [0]\nG1 X3\no100 else\nGG1 X1\no100 endif\nM2\n",
+            Some(6),
+        ),
+        (
+            "unclosed_comment_skipped",
+            "G21 G90\no100 if [0]\nG1 X1 (a) (b\no100 endif\nG1 X2 F100\nM2\n",
+            Some(3),
+        ),
+    ];
+    for (name, src, refused_at) in cases {
+        let path = tmp_copy(&format!("{name}.ngc"), src);
+        let theirs = linuxcnc(&path, None);
+        let ours = interpret(src, &InterpretOptions::default());
+        match (refused_at, theirs, ours) {
+            (None, Ok(theirs), Ok(ours)) => {
+                compare(&ours.moves, &theirs, 1e-6).unwrap_or_else(|e| panic!("{name}: {e}"));
+                assert!(!theirs.is_empty(), "{name}");
+                let p = Program::parse(src).unwrap();
+                assert_eq!(p.to_string(), src, "{name}");
+                let never: Vec<u32> = p.deferred_errors().map(|d| d.line).collect();
+                let warned: Vec<u32> = ours
+                    .warnings
+                    .iter()
+                    .filter(|w| w.message.contains("never executed"))
+                    .map(|w| w.line)
+                    .collect();
+                assert_eq!(warned, never, "{name}");
+                assert!(!warned.is_empty(), "{name}");
+            }
+            (Some(line), Err(theirs), Err(ours)) => {
+                // The gcode module reports the sequence number it has moved on to: the
+                // failing line's plus one (rs274 -g prints the failing line's text).
+                assert!(
+                    theirs.contains(&format!("at line {}:", line + 1)),
+                    "{name}: LinuxCNC {theirs}"
+                );
+                assert_eq!(ours.0[0].line, line, "{name}: ours {}", ours.0[0]);
+            }
+            (_, theirs, ours) => panic!(
+                "{name}: LinuxCNC {:?}, ours {:?}",
+                theirs.map(|m| m.len()),
+                ours.map(|i| i.moves.len())
+            ),
+        }
+    }
+}

@@ -118,22 +118,33 @@ fn o_words() {
 
 #[test]
 fn all_errors_reported_at_once_with_positions() {
-    let src = "G1 X1\nG1 X(unclosed\nG1 Y[1+\nG1 Z1\nG1 X1 $\n";
+    // An unclosed comment and an O-word line's error fail the parse, all of them at once.
+    let src = "G1 X1\nG1 X(unclosed\nG1 Y[1+\no1 if [1+\nG1 X1 $\no2 while\n";
     let e = Program::parse(src).unwrap_err();
     let pos: Vec<(u32, u32)> = e.0.iter().map(|d| (d.line, d.col)).collect();
-    assert_eq!(pos, vec![(2, 5), (3, 8), (5, 7)], "{e}");
+    assert_eq!(pos, vec![(2, 5), (4, 10), (6, 9)], "{e}");
     assert!(e.0[0].message.contains("comment is not closed"));
-    assert!(e.0[2].message.contains("unexpected character '$'"));
     // Display: one "LINE:COL: message" per line.
     let text = e.to_string();
     assert_eq!(text.lines().count(), 3);
     assert!(text.starts_with("2:5: "));
+    // Any other line's error is kept for when the line runs, with its position.
+    let p = Program::parse("G1 X1\nG1 Y[1+\nG1 Z1\nG1 X1 $\n").unwrap();
+    let deferred: Vec<(u32, u32)> = p.deferred_errors().map(|d| (d.line, d.col)).collect();
+    assert_eq!(deferred, vec![(2, 8), (4, 7)]);
+    assert!(p
+        .deferred_errors()
+        .nth(1)
+        .unwrap()
+        .message
+        .contains("unexpected character '$'"));
 }
 
 #[test]
 fn columns_count_characters_not_bytes() {
-    let e = Program::parse("(é) G1 X$\n").unwrap_err();
-    assert_eq!((e.0[0].line, e.0[0].col), (1, 9));
+    let p = Program::parse("(é) G1 X$\n").unwrap();
+    let e = p.deferred_errors().next().unwrap();
+    assert_eq!((e.line, e.col), (1, 9));
 }
 
 #[test]
@@ -245,4 +256,25 @@ fn dialect_serde_names() {
         assert_eq!(serde_json::to_string(&d).unwrap(), s);
         assert_eq!(serde_json::from_str::<Dialect>(s).unwrap(), d);
     }
+}
+
+/// A ':' or '/' inside a block says what it could have meant.
+#[test]
+fn stray_colon_and_slash_name_their_use() {
+    let p = Program::parse("O1\n#1=#1-#11:\n//comment\nN10 /G1 X1\n").unwrap();
+    let e: Vec<(u32, u32, String)> = p
+        .deferred_errors()
+        .map(|d| (d.line, d.col, d.message.clone()))
+        .collect();
+    assert_eq!(
+        e.iter().map(|e| (e.0, e.1)).collect::<Vec<_>>(),
+        vec![(2, 10), (3, 2), (4, 5)]
+    );
+    assert!(e[0].2.contains("program number :1234"), "{}", e[0].2);
+    assert!(
+        e[1].2.contains("block delete '/' only starts a block"),
+        "{}",
+        e[1].2
+    );
+    assert!(e[2].2.contains("block delete"), "{}", e[2].2);
 }

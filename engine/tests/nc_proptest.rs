@@ -164,6 +164,20 @@ fn block() -> impl Strategy<Value = String> {
             "G81 X1 Y1 Z-1 R1 F20 A30",
             "G91 A15",
             "G80\nZ3",
+            // Issue 14, interp5: cycle data kept across codes, extended offsets, nested G66,
+            // G16 in G91 cycles, Fanuc start-up, lines with errors in branches not taken.
+            "G82 X2 Y2 Z-1 F20",
+            "G83 X3 Z-2 Q0.5",
+            "G54.1 P3",
+            "G154 P12",
+            "G10 L20 P3 X5 Y-5",
+            "G91 G10 L20 P12 Z1",
+            "G66 P200\nG66 P100",
+            "G91 G81 Y30 R-1 Z-2 K3 F20",
+            "G91 G41 D1 X-5 F50\nG3 X0 Y0 I5 J0 Z-1\nG90 G40 G1 X0 Y0",
+            "GOTO 10\nGG1 X$\nN10",
+            "o7 if [0]\nG1 X[1+\no7 endif",
+            "M52 P1",
         ])
         .prop_map(|s| s.to_string()),
     ]

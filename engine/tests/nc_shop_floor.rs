@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::nc::{dialect, fail, run, run_with};
+use common::nc::{dialect, fail, run, run_with, xyz};
 use millsim_engine::nc::{
     parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
 };
@@ -356,11 +356,132 @@ fn features_of_other_controls_are_refused_naming_them() {
             "O1\nG68.2 X0 Y0 Z0 I0 J90 K0\nM30\n",
             "tilted working plane",
         ),
-        ("O1\nG154 P1\nM30\n", "extended work offsets"),
-        ("O1\nG54.1 P2\nM30\n", "extended work offsets"),
     ] {
         let (line, col, msg) = fail(src, &dialect(Dialect::Fanuc));
         assert_eq!((line, col), (2, 1), "{src}");
         assert!(msg.contains(what) && msg.contains("not supported"), "{msg}");
     }
+}
+
+/// Fanuc cycle data: R and the hole bottom carry over from one cycle code to the next (G81
+/// then G82 without R or Z), and after G80 a cycle without R has its R point at the initial
+/// level (the manual: G80 clears R to 0 incremental), with a warning. A Haas program
+/// (CadeKiely/Hass-CNC-Programs o78244) spot-drills that way from Z0. LinuxCNC refuses both.
+#[test]
+fn fanuc_cycle_r_carries_over_and_is_the_initial_level_after_g80() {
+    use MoveKind::{Linear, Rapid};
+    let src = "O1\nG90 G0 X0 Y0 Z10\nG81 X5 Y5 Z-2 R2 F100\nG82 X10 P500\nG80\nG0 Z1\nG82 X20 Z-1 F50\nY10\nG80\nM30\n";
+    let i = run(src);
+    let moves: Vec<(MoveKind, [f64; 3])> = path(&i)
+        .into_iter()
+        .filter(|(k, _)| *k != MoveKind::Dwell)
+        .collect();
+    assert_eq!(
+        moves,
+        vec![
+            (Rapid, [0.0, 0.0, 10.0]),
+            (Rapid, [5.0, 5.0, 10.0]),
+            (Rapid, [5.0, 5.0, 2.0]),
+            (Linear, [5.0, 5.0, -2.0]),
+            (Rapid, [5.0, 5.0, 10.0]),
+            // G82 keeps G81's R2 and Z-2.
+            (Rapid, [10.0, 5.0, 10.0]),
+            (Rapid, [10.0, 5.0, 2.0]),
+            (Linear, [10.0, 5.0, -2.0]),
+            (Rapid, [10.0, 5.0, 10.0]),
+            (Rapid, [10.0, 5.0, 1.0]),
+            // After G80, no R: the R point is the initial level Z1 (G98 returns there too).
+            (Rapid, [20.0, 5.0, 1.0]),
+            (Linear, [20.0, 5.0, -1.0]),
+            (Rapid, [20.0, 5.0, 1.0]),
+            (Rapid, [20.0, 10.0, 1.0]),
+            (Linear, [20.0, 10.0, -1.0]),
+            (Rapid, [20.0, 10.0, 1.0]),
+        ]
+    );
+    let dwells: Vec<f64> = i.moves.iter().filter_map(|m| m.seconds).collect();
+    // P500 (ms) kept by the G82 after G81's block; cleared by G80: no dwell (0 s) after it.
+    assert_eq!(dwells, vec![0.5, 0.0, 0.0]);
+    let w: Vec<u32> = i
+        .warnings
+        .iter()
+        .filter(|w| w.message.contains("without R"))
+        .map(|w| w.line)
+        .collect();
+    assert_eq!(
+        w,
+        vec![7],
+        "one warning, on the cycle that starts without R"
+    );
+    // Incremental: R0 relative to the initial level as well.
+    let i = run("O1\nG90 G0 X0 Y0 Z4\nG91 G82 X5 Z-6 F50\nG90 G80\nM30\n");
+    assert_eq!(
+        path(&i)
+            .into_iter()
+            .filter(|(k, _)| *k != MoveKind::Dwell)
+            .collect::<Vec<_>>(),
+        vec![
+            (Rapid, [0.0, 0.0, 4.0]),
+            (Rapid, [5.0, 0.0, 4.0]),
+            (Linear, [5.0, 0.0, -2.0]),
+            (Rapid, [5.0, 0.0, 4.0]),
+        ]
+    );
+    let (line, _, msg) = fail(
+        "G90 G0 X0 Y0 Z10\nG81 X5 Y5 Z-2 R2 F100\nG82 X10 P0.5\n",
+        &dialect(Dialect::LinuxCnc),
+    );
+    assert_eq!(line, 3);
+    assert!(msg.contains("needs an R word"), "{msg}");
+}
+
+/// Extended work offsets: Fanuc G54.1 Pn and Haas G154 Pn select sets of their own, which
+/// G10 L20 Pn writes (absolute in G90, added in G91); G54 is untouched. Hand-computed.
+#[test]
+fn extended_work_offsets_g54_1_and_g154() {
+    let src = "O1\nG21 G90 G0 X0 Y0 Z10\nG10 L20 P1 X100. Y50.\nG10 L20 P7 X-20. Z-5.\nG54.1 P1 X1 Y1\nG154 P7 X1 Y1\nG91 G10 L20 P7 X5.\nG90 X2\nG54 X3\n#100=#4014\n#101=#4130\nG54.1 P1\n#102=#4014\n#103=#4130\nG0 X#100 Y#101 Z#102\nX#103\nM30\n";
+    let i = run_with(src, &dialect(Dialect::Fanuc));
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, 0.0, 10.0],
+            // P1: X100 Y50.
+            [101.0, 51.0, 10.0],
+            // P7: X-20 (Z-5 changes the program Z, not where the tool is).
+            [-19.0, 1.0, 10.0],
+            // P7 X moved by +5 in G91: X-15; the tool stays put until X2.
+            [-13.0, 1.0, 10.0],
+            // G54 (zero): the program position is the machine position.
+            [3.0, 1.0, 10.0],
+            // #4014 = 54 and #4130 = 0 in G54; 54.1 and 1 in G54.1 P1.
+            [154.0, 50.0, 54.1 + 0.0],
+            [101.0, 50.0, 54.1],
+        ]
+        .into_iter()
+        .map(|p: [f64; 3]| p.map(|v| (v * 1e9).round() / 1e9 + 0.0))
+        .collect::<Vec<_>>()
+    );
+    for (src, what) in [
+        ("O1\nG54.1 X1\nM30\n", "G54.1 needs P1..P48"),
+        ("O1\nG54.1 P49\nM30\n", "must be a whole number 1..48"),
+        ("O1\nG154 P100\nM30\n", "must be a whole number 1..99"),
+        ("O1\nG10 L20 P0 X1\nM30\n", "G10 L20 P0"),
+    ] {
+        let (line, col, msg) = fail(src, &dialect(Dialect::Fanuc));
+        assert_eq!((line, col), (2, 1), "{src}");
+        assert!(msg.contains(what), "{msg}");
+    }
+    let (_, _, msg) = fail("G54.1 P1\nM2\n", &dialect(Dialect::LinuxCnc));
+    assert!(msg.contains("LinuxCNC has G54-G59.3"), "{msg}");
+}
+
+/// M50-M53 with P (LinuxCNC's override and adaptive feed switches, as plasma configurations
+/// write `M52 P1`) make no motion and are accepted, as rs274 accepts them.
+#[test]
+fn override_switches_take_their_p_word() {
+    let i = run_with(
+        "G21\nM52 P1\nM50 P0\nM51 P1\nM53 P0\nG0 X1\nM2\n",
+        &dialect(Dialect::LinuxCnc),
+    );
+    assert_eq!(path(&i), vec![(MoveKind::Rapid, [1.0, 0.0, 0.0])]);
 }

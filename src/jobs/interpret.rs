@@ -6,7 +6,7 @@ use serde_json::{json, Value};
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::nc;
 
-use super::inputs::{invalid, program_failure, program_text};
+use super::inputs::{invalid, json_input, program_failure, program_text};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs};
 use crate::problem::{parse_options, Problem};
 use crate::store::ResourceKind;
@@ -85,6 +85,17 @@ pub fn run(
         .engine_options()
         .map_err(|d| JobFailure::Invalid(Problem::program_failed("tool_table", &d)))?;
     engine_opts.cancel = Some(cancel.clone());
+    // The job's tools by number: the radius cutter compensation takes where the program's
+    // tool table and G10 give none, as a simulate job's.
+    let numbered: Vec<(String, u32)> = inputs
+        .keys()
+        .filter_map(|k| Some((k.clone(), super::JobKind::Interpret.tool_number_input(k)?)))
+        .collect();
+    for (name, number) in numbered {
+        let tool: millsim_engine::tool::Tool =
+            super::inputs::required(json_input(&mut inputs, &name, "Invalid tool")?, &name)?;
+        engine_opts.tool_diameters.insert(number, tool.diameter);
+    }
     engine_opts.library = super::inputs::program_library(&mut inputs)?;
     let result = if crate::validate::looks_like_cls(&text) {
         millsim_engine::cl::read_cls(&text)

@@ -106,11 +106,14 @@ impl JobKind {
         }
     }
 
-    /// For `simulate` and `optimize`: an input named `T<n>` (n in 1..=9999) is the tool for
-    /// tool number n of the program.
+    /// For `simulate`, `optimize` and `interpret`: an input named `T<n>` (n in 1..=9999) is
+    /// the tool for tool number n of the program (for `interpret`, the radius cutter
+    /// compensation takes for D or T number n when the program's tool table gives none).
     pub fn tool_number_input(self, name: &str) -> Option<u32> {
         match self {
-            JobKind::Simulate | JobKind::Optimize => simulate::tool_number(name),
+            JobKind::Simulate | JobKind::Optimize | JobKind::Interpret => {
+                simulate::tool_number(name)
+            }
             _ => None,
         }
     }

@@ -172,7 +172,23 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
                 BinOp::Mul => a * b,
                 BinOp::Div => {
                     if b == 0.0 {
-                        return Err("division by zero".to_string());
+                        // Fanuc: a vacant divisor counts as 0; in a macro run on its own
+                        // (not called with G65 and its arguments) that is the usual cause.
+                        let vacant_divisor = match r.as_ref() {
+                            Expr::Param(p) => match p.as_ref() {
+                                ParamRef::Numbered(ix) if is_vacant(eval(r, env)?) => {
+                                    Some(resolve_index(ix, env)?)
+                                }
+                                _ => None,
+                            },
+                            _ => None,
+                        };
+                        return Err(match vacant_divisor {
+                            Some(n) => format!(
+                                "division by zero: the divisor #{n} is vacant (a macro argument not given? run the macro through its G65 call)"
+                            ),
+                            None => "division by zero".to_string(),
+                        });
                     }
                     a / b
                 }

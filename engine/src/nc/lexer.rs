@@ -31,9 +31,23 @@ pub(crate) enum Tok {
     End,
 }
 
+impl LexError {
+    /// The same error, marked as one of an O-word or macro statement line.
+    #[cold]
+    pub(crate) fn in_control_line(mut self) -> Self {
+        self.control = true;
+        self
+    }
+}
+
+/// Start of the message of a `(` without its `)`.
+pub(crate) const UNCLOSED_COMMENT: &str = "comment is not closed";
+
 pub(crate) struct LexError {
     pub pos: usize,
     pub message: String,
+    /// The error is in an O-word or macro statement line (set on the error path only).
+    pub control: bool,
 }
 
 #[derive(Clone)]
@@ -122,6 +136,7 @@ impl<'a> Lexer<'a> {
         Err(LexError {
             pos,
             message: message.into(),
+            control: false,
         })
     }
 
@@ -174,7 +189,7 @@ impl<'a> Lexer<'a> {
                             i += 1;
                         }
                         Some(_) => i += 1,
-                        None => return self.err(start, "comment is not closed: missing ')'"),
+                        None => return self.err(start, format!("{UNCLOSED_COMMENT}: missing ')'")),
                     }
                 }
                 self.pos = i + 1;
@@ -269,6 +284,13 @@ impl<'a> Lexer<'a> {
             b'@' | b'^' if !names => {
                 self.pos += 1;
                 Tok::Letter(b as char)
+            }
+            // A Fanuc program number `:1234` only starts a line (often a typo for ';').
+            b':' => {
+                return self.err(
+                    start,
+                    "unexpected ':' (a program number :1234 stands at the start of its line; a block ends with ';' or the line end)",
+                );
             }
             _ => {
                 let ch = self.src[start..].chars().next().unwrap_or('?');

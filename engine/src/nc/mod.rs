@@ -22,17 +22,27 @@
 //!   expressions without brackets (Fanuc precedence), vacant variables (#0), the modal and
 //!   position system variables (#4001-#4120, #5001-#5046), #3000 alarms, G65 calls with
 //!   arguments (specifications I and II), G66/G67 modal calls (after each moving block of the
-//!   calling level); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
+//!   calling level; nested up to four: a move in the last G66's macro calls the earlier G66's
+//!   macro, G67 ends the last first); `DPRNT`/`BPRNT`/`POPEN`/`PCLOS` make no motion (a warning).
 //!   Subprograms: several `O` programs in one file, `M98 P.. L..` (and `P31234`), `M99`
 //!   (`M99 Pn`), `M99` in the main program ends it (a warning; the control would loop).
 //!   The manual's two-letter keywords (`WH[..]DO1`, `GO10`, `EN1`, `IF[..]TH`) are taken.
 //!   A `D` on any block selects the radius offset G41/G42 take (`T1 D1 M6`); rotary axis
 //!   words in a canned cycle block index with the hole positioning (`G91 A45.` in G81 mode);
-//!   the control powers up in G00.
+//!   the control powers up in G00. Extended work offsets Fanuc `G54.1 P1..P48` and Haas
+//!   `G154 P1..P99` (zero until `G10 L20 Pn` sets them, absolute in G90, added in G91;
+//!   `#4014` reads 54.1 and `#4130` the P number; the #7001/#14001 offset variables are not
+//!   readable). Canned cycle data (R, hole bottom, P, Q) carries over
+//!   from one cycle code to the next until G80; after G80 a cycle without R has its R point
+//!   at the initial level (the manual's R = 0 incremental; a warning) and no P no dwell. A
+//!   cycle's P dwell is in ms, as G04 P.
 //!   AND/OR/XOR work bit by bit on whole numbers and rank with `*` and `+` (LinuxCNC: logical,
 //!   ranked last); the dialect decides when an expression mixes them with arithmetic.
 //!
-//! * Both dialects: `:1234` program numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
+//! * Both dialects: a syntax error on a plain line (not an O-word or macro statement line,
+//!   not an unclosed comment) stops the program only when the line is executed, as rs274
+//!   reads a line only when it runs it; lines never reached are warnings. `:1234` program
+//!   numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
 //!   offset memory), G38.2-G38.5 probing as a feed move to the end point (a warning), a Fanuc
 //!   G80 returns to the G0/G1/G2/G3 mode from before the cycle (with the dialect left to
 //!   auto, also in a program without Fanuc syntax, with a warning: LinuxCNC refuses it),
@@ -44,15 +54,19 @@
 //!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY and XZ planes, as
 //!   LinuxCNC 2.9 does it in both dialects (entry line or arc, arcs around outside corners,
 //!   inside corners trimmed, gouges refused naming the line); checked against LinuxCNC.
-//!   A Fanuc control's start-up and cancel blocks (types A/B/C) differ in the entry and exit
-//!   moves only.
+//!   In the Fanuc dialect the start-up is the control's default type A: the entry line ends
+//!   where the tool stands perpendicular to the next move's start (LinuxCNC: to the entry
+//!   line itself, with a corner to the next move), so `G41 X-r` into a `G3 I r` helical hole
+//!   works. Types B and C (parameters SUP/SUV) and Fanuc's cancel types are not modelled:
+//!   the exit is LinuxCNC's (a line from the compensated point to the programmed end).
 //!
 //! * Coordinate transforms (`interp/transforms.rs`, `interp/polar.rs`): LinuxCNC's G10 L2 R
 //!   rotation of a coordinate system, G52 (LinuxCNC: the G92 offsets; Fanuc: a local offset of
 //!   its own) and `@`/`^` polar words, checked against LinuxCNC; Fanuc G68/G69 rotation,
 //!   G51/G50 scaling (P or I/J/K, thousandths without a decimal point), G51.1/G50.1 mirror
 //!   image (applied mirror, scaling, rotation, as the manual orders them) and G16/G15 polar
-//!   mode. Arcs stay arcs where the transform is a similarity in their plane (a mirror
+//!   mode (in a G91 canned cycle the angle advances per repeat about the work origin, as
+//!   the manual's bolt hole circle `G91 Y120.`; a G91 radius word there is refused). Arcs stay arcs where the transform is a similarity in their plane (a mirror
 //!   reverses them); per-axis scaling of an arc or a rotation out of its plane is refused.
 //!
 //! * Splines (`interp/splines.rs`): G5, G5.1 and G5.2/G5.3 NURBS in G17 as LinuxCNC builds
@@ -67,8 +81,7 @@
 //!   the library folder.
 //!
 //! Refused with an error naming the feature: Haas G12/G13/G47/G150, tool center point
-//! control G43.4/G43.5, tilted working planes G68.2/G53.1, extended work offsets
-//! G54.1/G154, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
+//! control G43.4/G43.5, tilted working planes G68.2/G53.1, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
 //! axes, calls to programs neither in the file nor in the library, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5425).

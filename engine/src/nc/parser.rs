@@ -1,7 +1,7 @@
 //! Lines into blocks: words, parameter assignments, O-word control lines and comments, with
 //! spans. A syntax error ends the parse of its line only, so every line's errors are reported.
 
-use super::lexer::{LexError, Lexer, Tok};
+use super::lexer::{LexError, Lexer, Tok, UNCLOSED_COMMENT};
 use super::program::*;
 use super::program::{fanuc_precedence, reduce};
 use super::Diagnostic;
@@ -25,6 +25,7 @@ fn err<T>(pos: usize, message: impl Into<String>) -> PResult<T> {
     Err(LexError {
         pos,
         message: message.into(),
+        control: false,
     })
 }
 
@@ -475,7 +476,11 @@ pub(crate) fn line_count(source: &str) -> usize {
 }
 
 /// Split the source into lines, parse each one and hand it to `sink`. Returns the summary and
-/// the syntax errors of all lines.
+/// the syntax errors that fail the whole program: those of O-word and macro statement lines
+/// (the control flow is laid out before the program runs) and unclosed comments (LinuxCNC
+/// checks those on every line it reads, skipped or not). Any other line's error goes to
+/// [`Summary::deferred`], raised only if the line is executed: rs274 parses a line when it
+/// runs it, so a typo in a branch never taken does not stop the program.
 pub(crate) fn parse_blocks(source: &str, sink: &mut impl BlockSink) -> (Summary, Vec<Diagnostic>) {
     let mut errors = Vec::new();
     let mut summary = Summary::default();
@@ -509,12 +514,19 @@ pub(crate) fn parse_blocks(source: &str, sink: &mut impl BlockSink) -> (Summary,
         let first_word = words.len();
         if percents >= 2 {
             block.after_end = true;
-        } else if let Err(e) = parse_line(source, &mut block, words) {
-            let col = source[start..e.pos.min(content_end).max(start)]
-                .chars()
-                .count() as u32
-                + 1;
-            errors.push(Diagnostic::new(line, col, e.message));
+        } else {
+            if let Err(e) = parse_line(source, &mut block, words) {
+                let col = source[start..e.pos.min(content_end).max(start)]
+                    .chars()
+                    .count() as u32
+                    + 1;
+                let d = Diagnostic::new(line, col, e.message);
+                if e.control || d.message.starts_with(UNCLOSED_COMMENT) {
+                    errors.push(d);
+                } else {
+                    summary.deferred.push((index, d));
+                }
+            }
         }
         if block.percent {
             percents += 1;
@@ -577,7 +589,7 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
         });
     }
     if matches!(p.lx.peek_byte(), Some(b'o' | b'O' | b':')) {
-        return o_line(&mut p, block);
+        return o_line(&mut p, block).map_err(LexError::in_control_line);
     }
     let first_word = words.len();
     loop {
@@ -594,13 +606,15 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
             let at = p.lx.pos;
             if p.lx.byte(at + 1).is_some_and(|b| b.is_ascii_alphabetic()) {
                 if let Some(kw) = MACRO_KEYWORDS.iter().find(|kw| p.lx.keyword_at(at, kw)) {
-                    return macro_line(&mut p, block, kw, kw.len());
+                    return macro_line(&mut p, block, kw, kw.len())
+                        .map_err(LexError::in_control_line);
                 }
                 if let Some((abbr, kw)) = MACRO_ABBREVIATIONS
                     .iter()
                     .find(|(abbr, _)| p.lx.keyword_at(at, abbr))
                 {
-                    return macro_line(&mut p, block, kw, abbr.len());
+                    return macro_line(&mut p, block, kw, abbr.len())
+                        .map_err(LexError::in_control_line);
                 }
             }
         }
@@ -637,6 +651,12 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
             Tok::Hash => {
                 let a = p.assignment(span.start)?;
                 block.assignments.push(a);
+            }
+            Tok::Slash => {
+                return err(
+                    span.start,
+                    "unexpected '/': block delete '/' only starts a block (before its N word); '//' comments are not G-code",
+                )
             }
             t => return err(span.start, format!("unexpected {}", tok_name(&t))),
         }

@@ -403,9 +403,24 @@ pub(crate) struct Summary {
     pub macro_blocks: Vec<usize>,
     /// What the blocks say about the dialect (see [`dialect_syntax`]), or-ed.
     pub dialect: DialectEvidence,
+    /// Syntax errors of lines raised only when the line is executed (block index, error),
+    /// in block order; see `parser::parse_blocks`.
+    pub deferred: Vec<(usize, Diagnostic)>,
 }
 
 impl Summary {
+    /// The syntax error of block `index`, raised when it is executed.
+    #[inline]
+    pub fn deferred_error(&self, index: usize) -> Option<&Diagnostic> {
+        if self.deferred.is_empty() {
+            return None;
+        }
+        self.deferred
+            .binary_search_by_key(&index, |(i, _)| *i)
+            .ok()
+            .map(|k| &self.deferred[k].1)
+    }
+
     /// Adds block `index`, whose words are `words` (they may not be in `block.words` yet).
     #[inline]
     pub fn add(&mut self, index: usize, block: &Block, words: &[Word]) {
@@ -433,7 +448,10 @@ pub struct Program {
 }
 
 impl Program {
-    /// Parse a program. All syntax errors are reported at once.
+    /// Parse a program. The syntax errors of O-word and macro statement lines and unclosed
+    /// comments are reported at once; any other line's error is kept with its block
+    /// ([`Program::deferred_errors`]) and raised by the interpreter only if it executes the
+    /// line, as LinuxCNC reads a line only when it runs it.
     pub fn parse(source: &str) -> Result<Program, Diagnostics> {
         let mut list = super::parser::BlockList::with_capacity(super::parser::line_count(source));
         let (summary, errors) = super::parser::parse_blocks(source, &mut list);
@@ -450,6 +468,18 @@ impl Program {
 
     pub fn source(&self) -> &str {
         &self.source
+    }
+
+    /// True when the program has O-word or macro statement lines: which of its lines run
+    /// depends on the run.
+    pub fn has_control_flow(&self) -> bool {
+        !self.summary.o_word_blocks.is_empty() || !self.summary.macro_blocks.is_empty()
+    }
+
+    /// Syntax errors of lines that fail only if executed (see [`Program::parse`]), in line
+    /// order.
+    pub fn deferred_errors(&self) -> impl Iterator<Item = &Diagnostic> {
+        self.summary.deferred.iter().map(|(_, d)| d)
     }
 
     pub fn blocks(&self) -> &[Block] {

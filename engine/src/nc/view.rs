@@ -209,7 +209,7 @@ pub(crate) struct CompactProgram {
 }
 
 impl CompactProgram {
-    /// Parse a program; the same syntax errors as [`Program::parse`].
+    /// Parse a program; the same syntax errors (and deferred ones) as [`Program::parse`].
     pub fn parse(source: &str) -> Result<CompactProgram, Diagnostics> {
         let lines = parser::line_count(source);
         let mut program = CompactProgram {

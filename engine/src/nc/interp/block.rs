@@ -183,7 +183,12 @@ impl<'p> Interp<'p> {
                 f.auto_restore = Some(m);
             }
         }
-        // 11-13. coolant, overrides, passthrough M codes: no effect on motion.
+        // 11-13. coolant, overrides, passthrough M codes: no effect on motion. M50-M53
+        // (feed and spindle override, adaptive feed, feed stop) take P0/P1: read, no effect
+        // (a block with G codes leaves its P to them).
+        if !w.ms.is_empty() && w.gs.is_empty() && w.ms.iter().any(|m| (50..=53).contains(&m.0)) {
+            w.take('P');
+        }
         // 14-22 act on G codes only; most CAM blocks have none.
         if !w.gs.is_empty() {
             // 14. dwell
@@ -316,13 +321,14 @@ impl<'p> Interp<'p> {
                 .enumerate()
             {
                 if let Some(i) = w.g(*code) {
-                    if self.comp.is_some() && self.modal.cs != k {
-                        return Err(self.err_at(
-                            self.word_pos(i),
-                            "coordinate system change with cutter radius compensation on (G40 first)",
-                        ));
-                    }
-                    self.change_offsets(|s| s.modal.cs = k);
+                    self.select_cs(k, i)?;
+                }
+            }
+            // Extended work offsets: Fanuc G54.1 P1..P48, Haas G154 P1..P99.
+            for code in [541u16, 1540] {
+                if let Some(i) = w.g(code) {
+                    let k = self.extended_cs(w, code, i)?;
+                    self.select_cs(k, i)?;
                 }
             }
             // 20. path control: blending changes no end point.
@@ -502,8 +508,9 @@ impl<'p> Interp<'p> {
                     "G67 cancels a Fanuc G66 modal macro call; not valid with dialect linuxcnc",
                 ));
             }
-            self.modal_call = None;
-        } else if moved && self.modal_call.is_some() {
+            // The last G66 first (nested modal calls end in reverse order).
+            self.modal_calls.pop();
+        } else if moved && !self.modal_calls.is_empty() {
             self.modal_macro_after_move()?;
         }
         if w.m(60).is_some() {

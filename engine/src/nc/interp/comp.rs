@@ -4,7 +4,9 @@
 //! `interp_queue.cc`), checked against its interpreter:
 //!
 //! * The entry move (the first after G41/G42) is a line that ends tangent to a circle of the
-//!   tool radius around its programmed end. An arc as the entry move is refused here.
+//!   tool radius around its programmed end. An arc as the entry move is refused here. In the
+//!   Fanuc dialect it waits for the next move in the plane and ends perpendicular to that
+//!   move's start instead (Fanuc start-up type A): no corner there.
 //! * Each compensated move waits in a queue until the next one gives the corner: an outside
 //!   (convex) corner gets an arc around the programmed corner (a rapid gets a straight), an
 //!   inside (concave) corner moves the waiting move's end back to where the tool touches both
@@ -57,6 +59,9 @@ pub(super) struct Comp {
     pub(super) queue: Vec<Queued>,
     /// Start of the queued moves (LinuxCNC `endpoint`), when known.
     pub(super) endpoint: Option<[f64; 2]>,
+    /// Fanuc: the entry (start-up) move waits for the next move in the plane, whose start
+    /// direction decides where it ends (start-up type A).
+    pub(super) startup: bool,
 }
 
 /// Sweep of an arc from (x1, y1) to (x2, y2) about (cx, cy), `turn` turns (+ CCW, - CW), as
@@ -184,6 +189,7 @@ impl Interp<'_> {
             prog: self.cur,
             queue: Vec::new(),
             endpoint: None,
+            startup: false,
         });
         Ok(())
     }
@@ -320,6 +326,45 @@ impl Interp<'_> {
         Ok(())
     }
 
+    /// Fanuc start-up type A (the control's default, parameter SUP clear): the entry move
+    /// ends where the tool stands perpendicular to the next move's start direction `dir` at
+    /// the programmed point, whatever the corner there, so the next move starts without a
+    /// corner of its own (`G41 X-5.` then `G3 I5.`, a helical hole, works with any tool
+    /// smaller than the hole). LinuxCNC ends it perpendicular to the entry move itself.
+    fn fanuc_startup(&mut self, dir: [f64; 2]) {
+        let c = self.comp_mut();
+        c.startup = false;
+        let (side, radius, op) = (c.side, c.radius, c.prog);
+        let len = dir[0].hypot(dir[1]);
+        if len == 0.0 {
+            return;
+        }
+        let (dx, dy) = (dir[0] / len, dir[1] / len);
+        let (nx, ny) = if side == Side::Left {
+            (-dy, dx)
+        } else {
+            (dy, -dx)
+        };
+        let [ox, oy] = self.xy(&op);
+        let p = [ox + radius * nx, oy + radius * ny];
+        // The entry line and anything queued after it (a Z move, a dwell) end there.
+        let mut queue = std::mem::take(&mut self.comp_mut().queue);
+        for q in &mut queue {
+            let end_prog = self.from_machine(q.mv.end);
+            let new_end = self.to_machine(self.with_xy(&end_prog, p[0], p[1]));
+            match q.kind {
+                QueuedKind::Straight { .. } => q.mv.end = new_end,
+                QueuedKind::Other => {
+                    q.mv.start = new_end;
+                    q.mv.end = new_end;
+                }
+                QueuedKind::Arc { .. } => {}
+            }
+        }
+        self.comp_mut().queue = queue;
+        self.cur = self.with_xy(&self.cur, p[0], p[1]);
+    }
+
     /// On the inside of an arc the tool must be smaller than the arc.
     fn check_tool_fits(&self, radius: f64, arc_radius: f64) -> R<()> {
         if arc_radius <= radius {
@@ -373,6 +418,12 @@ impl Interp<'_> {
         if !rapid {
             self.check_feed()?;
         }
+        if let Some(op) = self.comp.as_ref().filter(|c| c.startup).map(|c| c.prog) {
+            let ([px, py], [ox, oy]) = (self.xy(&to), self.xy(&op));
+            if px != ox || py != oy {
+                self.fanuc_startup([px - ox, py - oy]);
+            }
+        }
         let c = self.comp.as_ref().expect("compensation on");
         let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
         let cur = self.cur;
@@ -400,9 +451,11 @@ impl Interp<'_> {
                     dir: [alpha.cos(), alpha.sin()],
                 },
             )?;
+            let fanuc = self.fanuc;
             let c = self.comp_mut();
             c.first = false;
             c.prog = to;
+            c.startup = fanuc;
             self.cur = end;
             return Ok(());
         }
@@ -556,6 +609,12 @@ impl Interp<'_> {
         }
         let (ccx, ccy) = self.arc_center(w, cw, &op, &target)?;
         let center = [ccx, ccy];
+        if self.comp.as_ref().is_some_and(|c| c.startup) {
+            // The arc's start tangent.
+            let [ox, oy] = self.xy(&op);
+            let (rx, ry) = (ox - ccx, oy - ccy);
+            self.fanuc_startup(if cw { [ry, -rx] } else { [-ry, rx] });
+        }
         let cur = self.cur;
         let [cx, cy] = self.xy(&cur);
         let [opx, opy] = self.xy(&op);

@@ -28,6 +28,8 @@ pub(super) struct FanucCall {
     pub(super) repeats_left: u32,
     /// G65: the caller's local variables #1-#33, restored on return (M98 shares them).
     pub(super) locals: Option<Vec<f64>>,
+    /// A G66 modal call's macro: its index in `Interp::modal_calls`.
+    pub(super) modal_level: Option<usize>,
 }
 
 /// Control structure links found by the pre-scan, by block index.

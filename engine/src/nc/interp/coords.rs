@@ -23,6 +23,81 @@ impl Interp<'_> {
         self.cur = self.from_machine(phys);
     }
 
+    /// Fanuc/Haas `G10 L20 Pn`: the values of extended work offset n (G54.1 Pn / G154 Pn),
+    /// as given (G90) or added to it (G91).
+    fn g10_extended_offset(&mut self, w: &mut Words, p: f64, i: usize) -> R<()> {
+        if p.fract() != 0.0 || !(1.0..=super::EXTENDED_CS as f64).contains(&p) {
+            return Err(self.err_at(
+                self.word_pos(i),
+                format!(
+                    "G10 L20 P{p}: the extended work offset number must be a whole number 1..{}",
+                    super::EXTENDED_CS
+                ),
+            ));
+        }
+        if self.program_transform_on() {
+            return Err(self.err_at(
+                self.word_pos(i),
+                "G10 work offsets with scaling, mirror image or rotation on (G50/G50.1/G69 first)",
+            ));
+        }
+        let k = 8 + p as usize;
+        let u = self.unit();
+        let mut new = self.g5x[k];
+        for (ai, &c) in AXES.iter().enumerate() {
+            if let Some(v) = w.take(c) {
+                let v = if ai < 3 { v * u } else { v };
+                new[ai] = if self.modal.absolute { v } else { new[ai] + v };
+            }
+        }
+        self.change_offsets(|st| st.g5x[k] = new);
+        Ok(())
+    }
+
+    /// Selects work coordinate system `k` (the G code is word `i`).
+    pub(super) fn select_cs(&mut self, k: usize, i: usize) -> R<()> {
+        if self.comp.is_some() && self.modal.cs != k {
+            return Err(self.err_at(
+                self.word_pos(i),
+                "coordinate system change with cutter radius compensation on (G40 first)",
+            ));
+        }
+        self.change_offsets(|s| s.modal.cs = k);
+        Ok(())
+    }
+
+    /// The coordinate system index of Fanuc `G54.1 Pn` (n 1..48) or Haas `G154 Pn` (n 1..99):
+    /// the extended sets after G59.3. A control reads their values from its offset page; here
+    /// they are zero until G10 L20 Pn sets them.
+    pub(super) fn extended_cs(&mut self, w: &mut Words, code: u16, i: usize) -> R<usize> {
+        let (name, max) = if code == 541 {
+            ("G54.1", 48.0)
+        } else {
+            ("G154", super::EXTENDED_CS as f64)
+        };
+        if !self.fanuc {
+            return Err(self.err_at(
+                self.word_pos(i),
+                format!("{name} (extended work offsets) is Fanuc/Haas: with dialect fanuc (or auto on a Fanuc program); LinuxCNC has G54-G59.3"),
+            ));
+        }
+        let p = w.take('P').ok_or_else(|| {
+            self.err_at(
+                self.word_pos(i),
+                format!("{name} needs P1..P{max} (the extended work offset number)"),
+            )
+        })?;
+        if p.fract() != 0.0 || !(1.0..=max).contains(&p) {
+            return Err(self.err_at(
+                self.word_pos(i),
+                format!(
+                    "{name} P{p}: the extended work offset number must be a whole number 1..{max}"
+                ),
+            ));
+        }
+        Ok(8 + p as usize)
+    }
+
     pub(super) fn set_tlo(&mut self, tlo: Option<f64>) {
         // The spindle does not move; the controlled point (tool tip) is now elsewhere.
         let old = self.tlo.unwrap_or(0.0);
@@ -56,6 +131,9 @@ impl Interp<'_> {
                         'R',
                         "R (coordinate system rotation) is only taken by G10 L2 (LinuxCNC)",
                     ));
+                }
+                if self.fanuc && l == 20.0 {
+                    return self.g10_extended_offset(w, p, i);
                 }
                 if p.fract() != 0.0 || !(0.0..=9.0).contains(&p) {
                     return Err(self.err_word(

@@ -47,6 +47,9 @@ impl Interp<'_> {
         }
         self.check_feed()?;
         let same = self.motion_was_cycle(g);
+        // Fanuc keeps the cycle data (R, hole bottom, P, Q) from one cycle code to the next
+        // until G80 or G00-G03 clears it; LinuxCNC only while the same cycle repeats.
+        let kept = same || (self.fanuc && matches!(self.motion_prev, Some(Motion::Cycle(_))));
         let plane = self.modal.plane;
         let [ia, ib, ic] = plane.axes();
         let (la, lb, lc) = (AXES[ia], AXES[ib], AXES[ic]);
@@ -59,7 +62,19 @@ impl Interp<'_> {
         let r_word = w.take('R');
         let r_num = match r_word {
             Some(r) => r,
-            None if same => self.cycle_r,
+            None if kept => self.cycle_r,
+            // Fanuc: G80 clears R, which the manual defines as R = 0 incremental: the R point
+            // is then the initial level.
+            None if self.fanuc => {
+                self.warnings.push(self.err_block(format!(
+                    "G{g} without R and no R since the last G80: the R point is the initial level, as a Fanuc control clears R to 0 incremental at G80"
+                )));
+                if self.modal.absolute {
+                    self.cycle_il.unwrap_or(self.cur[ic])
+                } else {
+                    0.0
+                }
+            }
             None => return Err(self.err_block(format!("G{g} needs an R word (retract plane)"))),
         };
         // Repeats: L (LinuxCNC); Fanuc uses K except in G87 where K is the bore top.
@@ -99,7 +114,7 @@ impl Interp<'_> {
             rotary = Some(t);
         }
         let cc_word = w.get(lc);
-        if !same && cc_word.is_none() {
+        if !kept && cc_word.is_none() {
             return Err(self.err_block(format!(
                 "G{g} needs a {lc} word (hole bottom) in {}",
                 plane.name()
@@ -147,14 +162,22 @@ impl Interp<'_> {
         match g {
             82 | 86 | 88 | 89 => {
                 p = match w.take('P') {
+                    // Fanuc: the dwell in ms, as G04 P.
+                    Some(v) if self.fanuc => v / 1000.0,
                     Some(v) => v,
-                    None if same => self.cycle_p,
+                    None if kept => self.cycle_p,
+                    // Fanuc: G80 clears P, so no dwell.
+                    None if self.fanuc => 0.0,
                     None => return Err(self.err_block(format!("G{g} needs a P word (dwell)"))),
                 };
                 self.cycle_p = p;
             }
             74 | 84 => {
-                p = w.take('P').unwrap_or(self.cycle_p);
+                p = match w.take('P') {
+                    Some(v) if self.fanuc => v / 1000.0,
+                    Some(v) => v,
+                    None => self.cycle_p,
+                };
                 self.cycle_p = p;
                 let (need, m) = if g == 84 {
                     (SpindleDir::Cw, "clockwise (M3)")
@@ -168,7 +191,7 @@ impl Interp<'_> {
             73 | 83 => {
                 q = match w.take('Q') {
                     Some(v) => v,
-                    None if same => self.cycle_q,
+                    None if kept => self.cycle_q,
                     None => return Err(self.err_block(format!("G{g} needs a Q word (peck depth)"))),
                 };
                 if q <= 0.0 {

@@ -1,7 +1,8 @@
 //! Fanuc custom macro B: `IF [..] GOTO n`, `IF [..] THEN #i = ..`, `WHILE [..] DOm` ..
 //! `ENDm`, `GOTO n`, external output (`DPRNT`, `POPEN`, `PCLOS`: no motion, a warning), and the
 //! G65 macro call with its arguments as local variables (argument specifications I and II),
-//! and the G66/G67 modal call.
+//! and the G66/G67 modal call (nested: a move in one G66's macro calls the macro of the G66
+//! before it).
 
 use super::control::Link;
 use super::{Interp, R};
@@ -11,6 +12,9 @@ use crate::nc::view::BlockView;
 
 /// Local variables of a G65 call: #1-#33.
 const LOCALS: usize = 33;
+
+/// Nested G66 modal calls a Fanuc control takes (its macro call nesting: four levels).
+const MAX_MODAL_CALLS: usize = 4;
 
 /// Argument specification I: the local variable each address sets (0: not an argument).
 fn argument_variable(letter: char) -> usize {
@@ -170,33 +174,53 @@ impl<'p> Interp<'p> {
         }
         let call = self.call_arguments(b, what)?;
         if modal {
-            if self.modal_call.is_some() {
+            if self.modal_calls.len() >= MAX_MODAL_CALLS {
                 return Err(self.err_at(
                     at,
-                    "G66 while a modal macro call is on (G67 first; nested G66 is not supported)",
+                    format!("G66 nested more than {MAX_MODAL_CALLS} deep (the control's limit; G67 first)"),
                 ));
             }
-            self.modal_call = Some(ModalCall {
+            self.modal_calls.push(ModalCall {
                 call,
                 depth: self.frames.len(),
                 at,
             });
             return Ok(());
         }
-        self.enter_macro(&call, at)
+        self.enter_macro(&call, at, None)
     }
 
-    /// A G66 call after a block that moved an axis (Fanuc: the move first, then the macro),
-    /// from the program level that set it only (the macro's own moves do not call it again).
+    /// A G66 call after a block that moved an axis (Fanuc: the move first, then the macro).
+    /// A move of the level that set the last G66 calls its macro; with nested G66 (the
+    /// manual's G66 P9100 .. G66 P9200), a move in a modal macro calls the macro of the G66
+    /// before its own; the first G66's macro calls none (its moves do not call it again).
     pub(super) fn modal_macro_after_move(&mut self) -> R<()> {
-        let Some(mc) = self.modal_call.as_ref() else {
-            return Ok(());
-        };
-        if mc.depth != self.frames.len() || self.jump.is_some() {
+        if self.jump.is_some() {
             return Ok(());
         }
+        let in_modal = self
+            .frames
+            .last()
+            .and_then(|f| f.fanuc.as_ref())
+            .and_then(|c| c.modal_level);
+        let level = match in_modal {
+            Some(k) => match k.checked_sub(1) {
+                Some(k) => k,
+                None => return Ok(()),
+            },
+            None => {
+                let top = self.modal_calls.len() - 1;
+                if self.modal_calls[top].depth != self.frames.len() {
+                    return Ok(());
+                }
+                top
+            }
+        };
+        let Some(mc) = self.modal_calls.get(level) else {
+            return Ok(());
+        };
         let (call, at) = (mc.call.clone(), mc.at);
-        self.enter_macro(&call, at)
+        self.enter_macro(&call, at, Some(level))
     }
 
     /// The program, repeat count and arguments of a G65/G66 block. I, J and K may repeat
@@ -273,7 +297,8 @@ impl<'p> Interp<'p> {
     }
 
     /// Calls the macro program: a new level of local variables from the arguments.
-    fn enter_macro(&mut self, call: &MacroCall, at: usize) -> R<()> {
+    /// `modal_level`: the G66 (index in `modal_calls`) whose macro this is.
+    fn enter_macro(&mut self, call: &MacroCall, at: usize, modal_level: Option<usize>) -> R<()> {
         if call.repeats == 0 {
             return Ok(());
         }
@@ -288,6 +313,9 @@ impl<'p> Interp<'p> {
         )?;
         for (k, arg) in call.args.iter().enumerate().skip(1) {
             self.params.numbered[k] = arg.unwrap_or_else(vacant);
+        }
+        if let Some(c) = self.frames.last_mut().and_then(|f| f.fanuc.as_mut()) {
+            c.modal_level = modal_level;
         }
         Ok(())
     }

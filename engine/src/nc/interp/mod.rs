@@ -42,12 +42,18 @@ const MM_PER_INCH: f64 = 25.4;
 /// LinuxCNC's retract between pecks in G73/G83, inches.
 const G83_RAPID_DELTA_INCH: f64 = 0.010;
 const MAX_CALL_DEPTH: usize = 64;
+/// Extended work offset sets (Haas G154 P1..P99; Fanuc G54.1 P1..P48).
+const EXTENDED_CS: usize = 99;
+/// Work coordinate systems: G54..G59.3 then the extended sets.
+const CS_COUNT: usize = 9 + EXTENDED_CS;
 /// Most full turns accepted in one arc (P word).
 const MAX_ARC_TURNS: f64 = 10_000.0;
 
 struct Interp<'p> {
     /// The file being run: the program itself or a library file (`unit`).
     prog: &'p ProgramView<'p>,
+    /// `prog` has lines with a syntax error raised when executed (one flag read per block).
+    deferred_here: bool,
     /// Control structure links, subroutines and Fanuc programs of `prog`.
     control: &'p ControlMap,
     /// The program itself and its links (unit 0).
@@ -79,17 +85,21 @@ struct Interp<'p> {
     /// Current position, program coordinates in program units (as LinuxCNC keeps it).
     cur: [f64; 6],
     /// Work offsets, mm/deg.
-    g5x: [[f64; 6]; 9],
+    /// Work offsets: G54..G59.3 (0..8), then the extended sets P1..P99 (Fanuc G54.1 Pn,
+    /// Haas G154 Pn) at 8 + n.
+    g5x: [[f64; 6]; CS_COUNT],
     g92: [f64; 6],
     g92_applied: bool,
     /// Fanuc G52 local offset, mm/deg (LinuxCNC's G52 writes the G92 offset instead).
     g52: [f64; 6],
     /// LinuxCNC G10 L2 R: rotation of each coordinate system in XY, degrees.
-    rot_xy: [f64; 9],
+    rot_xy: [f64; CS_COUNT],
     /// Fanuc mirror image, scaling and rotation.
     prog_xf: transforms::ProgramTransforms,
     /// G66: the macro called after each moving block, until G67.
-    modal_call: Option<macro_b::ModalCall>,
+    /// Nested G66: the last one is called after the setting level's moves, each earlier one
+    /// after the moves of the macro of the one after it.
+    modal_calls: Vec<macro_b::ModalCall>,
     /// A G5.2 NURBS being defined.
     nurbs: Option<splines::NurbsInProgress>,
     /// Fanuc G16 polar mode, and the last polar radius and angle (degrees) it went to.
@@ -215,6 +225,7 @@ fn run_units(
 ) -> Result<Interpretation, (Diagnostics, Option<usize>)> {
     let mut it = Interp {
         prog,
+        deferred_here: !prog.summary().deferred.is_empty(),
         control,
         main: prog,
         main_control: control,
@@ -246,13 +257,13 @@ fn run_units(
         motion_prev: None,
         motion_01: fanuc.then_some(Motion::Rapid),
         cur: [0.0; 6],
-        g5x: [[0.0; 6]; 9],
+        g5x: [[0.0; 6]; CS_COUNT],
         g92: [0.0; 6],
         g92_applied: true,
         g52: [0.0; 6],
-        rot_xy: [0.0; 9],
+        rot_xy: [0.0; CS_COUNT],
         prog_xf: Default::default(),
-        modal_call: None,
+        modal_calls: Vec::new(),
         nurbs: None,
         polar_mode: false,
         polar_last: Default::default(),
@@ -303,13 +314,27 @@ fn run_units(
         it.params.init_fanuc();
     }
     match it.run() {
-        Ok(()) => Ok(Interpretation {
-            moves: it.moves,
-            warnings: it.warnings,
-            block_count: prog.len(),
-            selected_tools: it.selected_tools,
-            library_files: lib.iter().map(|u| u.name.to_string()).collect(),
-        }),
+        Ok(()) => {
+            // The lines with a syntax error the run never reached: the user should know.
+            it.warnings
+                .extend(prog.summary().deferred.iter().map(|(_, d)| {
+                    Diagnostic::new(
+                        d.line,
+                        d.col,
+                        format!(
+                            "{} (this line is never executed, so it does not stop the program)",
+                            d.message
+                        ),
+                    )
+                }));
+            Ok(Interpretation {
+                moves: it.moves,
+                warnings: it.warnings,
+                block_count: prog.len(),
+                selected_tools: it.selected_tools,
+                library_files: lib.iter().map(|u| u.name.to_string()).collect(),
+            })
+        }
         Err(d) => Err((Diagnostics(vec![d]), it.missing)),
     }
 }
@@ -502,6 +527,15 @@ impl Interp<'_> {
             if b.block_delete && self.opts.block_delete {
                 pc += 1;
                 continue;
+            }
+            if self.deferred_here {
+                if let Some(d) = self.prog.summary().deferred_error(pc) {
+                    return Err(if self.unit == 0 {
+                        d.clone()
+                    } else {
+                        self.in_library(d.clone())
+                    });
+                }
             }
             if let Some(o) = &b.o_word {
                 pc = self.exec_oword(self.control, pc, o)?;

@@ -86,7 +86,7 @@ pub(super) fn g_group(code: u16) -> Option<u8> {
         400 | 410 | 420 | 411 | 421 => 7,
         430 | 431 | 490 => 8,
         980 | 990 => 10,
-        540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 => 12,
+        540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 | 541 | 1540 => 12,
         610 | 611 | 640 => 13,
         // Fanuc's own groups: scaling, rotation, polar coordinates, mirror image.
         500 | 510 => 11,
@@ -121,7 +121,6 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         1500 => "(Haas general-purpose pocket milling) is not supported",
         434 | 435 => "(tool center point control, 5-axis) is not supported",
         531 | 682 | 683 | 684 => "(tilted working plane) is not supported",
-        541 | 1540 => "(extended work offsets) is not supported; use G54-G59.3",
         _ => "is not a supported G code",
     }
 }

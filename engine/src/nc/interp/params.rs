@@ -134,7 +134,12 @@ impl Interp<'_> {
             4006 => b(m.metric, 21.0, 20.0),
             4008 => b(self.tlo.is_some(), 43.0, 49.0),
             4010 => b(m.retract_r_plane, 99.0, 98.0),
-            4014 => [54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3][m.cs],
+            4014 => [54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3]
+                .get(m.cs)
+                .copied()
+                .unwrap_or(54.1),
+            // The P number of G54.1 / G154 (0 in G54..G59).
+            4130 => m.cs.saturating_sub(8) as f64,
             4109 => m.feed_word,
             4119 => m.speed,
             4120 => f64::from(self.tool),

@@ -153,12 +153,20 @@ impl Interp<'_> {
         if w.polar_r.is_none() && w.polar_a.is_none() {
             return Ok([0.0; 2]);
         }
-        if self.modal.absolute || self.fanuc {
-            if self.fanuc && !self.modal.absolute {
-                return Err(self.err_block(
-                    "G16 polar coordinates in an incremental (G91) canned cycle are not supported",
+        if self.fanuc && !self.modal.absolute {
+            // Fanuc G16 G91 (the manual's bolt hole circle `G91 Y120.`): the angle advances
+            // from the last hole's about the work origin, the radius kept, once per repeat
+            // (K). A radius word in G91 would put the polar origin at the current position.
+            if let Some((_, i)) = w.polar_r {
+                return Err(self.err_at(
+                    self.word_pos(i),
+                    "G16 radius word in an incremental (G91) canned cycle (polar origin at the current position) is not supported; give the angle only, or the radius in G90",
                 ));
             }
+            w.polar_open = false;
+            return Ok([0.0, w.polar_a.map_or(0.0, |p| p.0.to_radians())]);
+        }
+        if self.modal.absolute || self.fanuc {
             let mut t = self.cur;
             self.apply_polar(w, &mut t)?;
             let [a, b, _] = if self.fanuc {
@@ -196,6 +204,10 @@ impl Interp<'_> {
             let (th, r) = (bb.atan2(*aa) + inc[1], aa.hypot(*bb));
             *aa = r * th.cos();
             *bb = r * th.sin();
+            if self.fanuc {
+                // The next G16 block counts from this hole.
+                self.polar_last.set(Some((r, th.to_degrees())));
+            }
         }
         Ok(())
     }

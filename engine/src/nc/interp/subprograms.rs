@@ -177,6 +177,7 @@ impl Interp<'_> {
                 body,
                 repeats_left: repeats - 1,
                 locals,
+                modal_level: None,
             }),
         });
         self.jump = Some(body);

@@ -169,6 +169,7 @@ impl<'p> Interp<'p> {
         }
         self.unit = u;
         (self.prog, self.control) = self.unit_files(u);
+        self.deferred_here = !self.prog.summary().deferred.is_empty();
         Ok(())
     }
 
