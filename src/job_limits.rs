@@ -129,9 +129,7 @@ fn cell_and_tools(
 fn stock_bounds(stock: &StockSource) -> Option<([f64; 3], [f64; 3])> {
     match stock {
         StockSource::Shape(shape) => shape.bounds().ok(),
-        StockSource::Stl(bytes) => geometry::Mesh::from_stl_bytes(bytes)
-            .ok()
-            .map(|m| m.bounds()),
+        StockSource::Stl(source) => source.mesh().ok().map(|m| m.bounds()),
     }
 }
 

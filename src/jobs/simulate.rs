@@ -273,7 +273,15 @@ pub fn run(
                 .map_err(|e| invalid("Invalid stock", e.to_string()))?,
         )
     } else {
-        StockSource::Stl(stock.content)
+        let file = stock
+            .file_name
+            .clone()
+            .unwrap_or_else(|| "stock.stl".into());
+        StockSource::Stl(
+            stock
+                .stl()
+                .map_err(|e| invalid("Invalid stock", format!("{file}: {e}")))?,
+        )
     };
     let interpret = nc::InterpretOptions {
         dialect: opts.dialect,
@@ -320,7 +328,13 @@ pub fn run(
                     "the design part must be an STL mesh, not a parametric stock",
                 ))
             }
-            Some(p) => Some(p.content),
+            Some(p) => {
+                let file = p.file_name.clone().unwrap_or_else(|| "part.stl".into());
+                Some(
+                    p.stl()
+                        .map_err(|e| invalid("Invalid part", format!("{file}: {e}")))?,
+                )
+            }
             None => None,
         },
     };

@@ -13,9 +13,10 @@ use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::config::{Isolation, QueueConfig};
 use crate::isolate::{self, Ended};
-use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs};
+use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs, StoredChunks};
 use crate::metrics::Metrics;
 use crate::problem::Problem;
+use crate::store::chunks::ResourceBody;
 use crate::store::jobs::{
     Artifact, ClaimedJob, CreatedResource, Finish, LeaseState, IN_PROCESS_MARK,
 };
@@ -240,10 +241,10 @@ impl Worker {
             };
             let found = self
                 .db
-                .resource_content(&job.owner, kind, id)
+                .resource_body(&job.owner, kind, id)
                 .await
                 .map_err(InputsError::Storage)?;
-            let Some((file_name, media_type, content)) = found else {
+            let Some((file_name, media_type, size, body)) = found else {
                 return Err(InputsError::Invalid(Problem::new(
                     StatusCode::UNPROCESSABLE_ENTITY,
                     "input-gone",
@@ -254,14 +255,50 @@ impl Worker {
                     ),
                 )));
             };
-            loaded.insert(
-                name,
-                LoadedInput {
+            let input = match body {
+                ResourceBody::Inline(content) => LoadedInput {
                     file_name,
                     media_type,
                     content,
+                    ..Default::default()
                 },
-            );
+                // A job's process is sent the chunks as it reads them; a job on a thread
+                // of this process takes the content whole.
+                ResourceBody::Chunked { id, chunks }
+                    if self.config.isolation == Isolation::Process =>
+                {
+                    LoadedInput {
+                        file_name,
+                        media_type,
+                        stored_chunks: Some(StoredChunks {
+                            resource_id: id,
+                            chunks,
+                            size: size as u64,
+                        }),
+                        ..Default::default()
+                    }
+                }
+                ResourceBody::Chunked { .. } => {
+                    let (file_name, media_type, content) = self
+                        .db
+                        .resource_content(&job.owner, kind, id)
+                        .await
+                        .map_err(InputsError::Storage)?
+                        .ok_or_else(|| {
+                            InputsError::Storage(StoreError::Vanished(format!(
+                                "{} {id}",
+                                kind.as_str()
+                            )))
+                        })?;
+                    LoadedInput {
+                        file_name,
+                        media_type,
+                        content,
+                        ..Default::default()
+                    }
+                }
+            };
+            loaded.insert(name, input);
         }
         Ok(loaded)
     }
@@ -463,7 +500,12 @@ impl Worker {
         let limits = self.config.limits;
         match self.config.isolation {
             Isolation::Process => Ok(Engine::Process(isolate::spawn(
-                kind, &options, inputs, limits, progress,
+                kind,
+                &options,
+                inputs,
+                limits,
+                progress,
+                Some(self.db.clone()),
             )?)),
             Isolation::Thread => {
                 let cancel = CancelFlag::new();
