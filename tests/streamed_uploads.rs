@@ -76,7 +76,14 @@ async fn bad_streamed_uploads_are_problems_and_leave_no_rows() {
     let limit = LIMIT.to_string();
     let s = Server::start(
         &dir.path().join("t.db"),
-        &["--workers", "0", "--max-upload-bytes", &limit],
+        &[
+            "--workers",
+            "0",
+            "--max-upload-bytes",
+            &limit,
+            "--job-memory-mb",
+            "110",
+        ],
     );
     let c = client();
     let good = subdivided_box([0.0, -20.0, -10.0], [100.0, 20.0, 0.0], 80);
@@ -156,6 +163,39 @@ async fn bad_streamed_uploads_are_problems_and_leave_no_rows() {
     assert!(p["detail"].as_str().unwrap().contains("line 5"), "{p}");
 
     assert_eq!(row_counts(&s).await, before, "a refused upload left rows");
+
+    // The job's memory estimate counts reading the mesh: 76,800 triangles at about
+    // 400 B each (31 MB) put a slot in this box over a 110 MB budget that its grid
+    // (a few MB at 0.5 mm) and the fixed 96 MB fit in.
+    let (st, v) = post_stl(&c, &s, "/v1/stocks?name=box.stl", good).await;
+    assert_eq!(st, 201, "{v}");
+    let (st, tool) = post_json(
+        &c,
+        &s,
+        "/v1/tools",
+        &json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length_mm": 20.0}),
+    )
+    .await;
+    assert_eq!(st, 201, "{tool}");
+    let (st, prog) = json(
+        c.post(s.url("/v1/programs?name=slot.nc"))
+            .body("G0 X-10 Y0 Z-5\nG1 X60 F4000 S10000 M3\nM30\n")
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 201, "{prog}");
+    let body = json!({"kind": "simulate", "inputs": {"program": prog["id"], "stock": v["id"], "tool": tool["id"]},
+                      "options": {"material": "Al7075-T6", "cell_mm": 0.5}});
+    let (st, p) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 422, "{p}");
+    let mesh_mb = p["estimate"]["mesh_bytes"].as_u64().unwrap() >> 20;
+    assert_eq!(mesh_mb, 12 * 80 * 80 * 400 >> 20, "{p}");
+    assert!(
+        p["detail"].as_str().unwrap().contains("STL mesh read"),
+        "{p}"
+    );
 }
 
 #[tokio::test]
