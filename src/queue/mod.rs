@@ -189,6 +189,8 @@ struct JobEnded {
     job: ClaimedJob,
     finish: Finish,
     started: Instant,
+    /// When the run ended (unix ms): the end of the attempt in its log.
+    ran_until: i64,
 }
 
 impl JobEnded {
@@ -219,13 +221,14 @@ impl JobEnded {
             job,
             finish,
             started,
+            ran_until,
         } = self;
         let label = match &finish {
             Finish::Succeeded { .. } => "succeeded",
             Finish::Failed { .. } => "failed",
             Finish::Cancelled => "cancelled",
         };
-        match db.finish_job(&job, worker, finish).await {
+        match db.finish_job(&job, worker, finish, ran_until).await {
             Ok(true) => {
                 metrics.observe_job(&job.kind, label, started.elapsed());
                 tracing::info!(worker = %worker, job = %job.id, outcome = label, seconds = started.elapsed().as_secs_f64(), "job finished");
@@ -447,6 +450,7 @@ impl Worker {
             job,
             finish: outcome,
             started,
+            ran_until: crate::store::now_ms(),
         })
     }
 

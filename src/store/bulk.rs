@@ -127,7 +127,10 @@ mod tests {
             resources: Vec::new(),
             progress: (100_000, 100_000),
         };
-        assert!(db.finish_job(&job, "w", finish).await.unwrap());
+        assert!(db
+            .finish_job(&job, "w", finish, crate::store::now_ms())
+            .await
+            .unwrap());
         let took = started.elapsed();
         let page = db.job_rows(&job.id, 99_998, 10).await.unwrap();
         assert_eq!(page.len(), 2);
