@@ -191,7 +191,7 @@ async fn bad_streamed_uploads_are_problems_and_leave_no_rows() {
     let (st, p) = post_json(&c, &s, "/v1/jobs", &body).await;
     assert_eq!(st, 422, "{p}");
     let mesh_mb = p["estimate"]["mesh_bytes"].as_u64().unwrap() >> 20;
-    assert_eq!(mesh_mb, 12 * 80 * 80 * 400 >> 20, "{p}");
+    assert_eq!(mesh_mb, (12 * 80 * 80 * 400) >> 20, "{p}");
     assert!(
         p["detail"].as_str().unwrap().contains("STL mesh read"),
         "{p}"

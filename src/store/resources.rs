@@ -242,7 +242,8 @@ impl Db {
         kind: ResourceKind,
         id: &str,
     ) -> Result<Option<(Option<String>, String, i64, ResourceBody)>, StoreError> {
-        let row: Option<(Option<String>, String, i64, Vec<u8>, i64)> = on_pool!(&self.pool, p => sqlx::query_as(
+        type Row = (Option<String>, String, i64, Vec<u8>, i64);
+        let row: Option<Row> = on_pool!(&self.pool, p => sqlx::query_as(
             "SELECT name, media_type, size, content, chunks FROM resources WHERE owner = $1 AND kind = $2 AND id = $3",
         )
         .bind(owner)
