@@ -202,10 +202,7 @@ fn ascii_triangles(
                 // Some exporters write several solids in one file.
                 match next(&mut line)? {
                     None => return Ok(count),
-                    Some((n, w)) if w[0] == "solid" => {
-                        let _ = n;
-                        continue;
-                    }
+                    Some((_, w)) if w[0] == "solid" => continue,
                     Some((n, w)) => {
                         return Err(StlError::Parse(format!(
                             "line {n}: expected `solid` or the end of the file, found `{}`",
