@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 
+use millsim_engine::geometry::Mesh;
 use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::job_limits::JobLimits;
@@ -38,6 +39,7 @@ use crate::jobs::{
 };
 use crate::problem::Problem;
 use crate::queue::SharedProgress;
+use crate::store::Db;
 
 const JOB: u8 = b'J';
 const BYTES: u8 = b'B';
@@ -151,6 +153,29 @@ pub fn job_exec_main() -> ExitCode {
         let header: JobHeader = serde_json::from_slice(&payload)?;
         let mut inputs = LoadedInputs::new();
         for i in &header.inputs {
+            if i.media_type == "model/stl" {
+                // Read into a mesh as it streams in: the file is never whole in memory.
+                let mut head = [0u8; 9];
+                stdin.read_exact(&mut head)?;
+                if head[0] != BYTES {
+                    return Err(std::io::Error::other("an input frame is not bytes"));
+                }
+                let len = u64::from_le_bytes(head[1..9].try_into().expect("8 bytes"));
+                let mut frame = (&mut stdin).take(len);
+                let mesh = Mesh::from_stl_reader(&mut frame, len).map(Arc::new);
+                // What a refused file left unread belongs to this frame.
+                std::io::copy(&mut frame, &mut std::io::sink())?;
+                inputs.insert(
+                    i.name.clone(),
+                    LoadedInput {
+                        file_name: i.file_name.clone(),
+                        media_type: i.media_type.clone(),
+                        mesh: Some(mesh),
+                        ..Default::default()
+                    },
+                );
+                continue;
+            }
             let (tag, content) = read_frame(&mut stdin)?;
             if tag != BYTES {
                 return Err(std::io::Error::other("an input frame is not bytes"));
@@ -161,6 +186,7 @@ pub fn job_exec_main() -> ExitCode {
                     file_name: i.file_name.clone(),
                     media_type: i.media_type.clone(),
                     content,
+                    ..Default::default()
                 },
             );
         }
@@ -316,12 +342,14 @@ impl ChildJob {
 
 /// Starts `millsim job-exec` for a job, with its address space limited, dying with the
 /// server (PR_SET_PDEATHSIG), and feeds it the job.
+/// `db` is where inputs left in the database in chunks are read from as they are sent.
 pub fn spawn(
     kind: JobKind,
     options: &Value,
     inputs: LoadedInputs,
     limits: JobLimits,
     progress: Arc<SharedProgress>,
+    db: Option<Db>,
 ) -> std::io::Result<ChildJob> {
     let exe = std::env::current_exe()?;
     let parent = std::process::id() as libc::pid_t;
@@ -390,7 +418,7 @@ pub fn spawn(
     // The inputs go in on their own task: a child that dies early must not block them.
     tokio::spawn(async move {
         // A child that died early closed its end: its exit status says why.
-        let _ = send_job(&mut stdin, &header, &inputs).await;
+        let _ = send_job(&mut stdin, &header, &inputs, db.as_ref()).await;
     });
     // The last few KiB of the child's stderr: what a dying process said.
     let stderr_tail = tokio::spawn(async move {
@@ -448,6 +476,7 @@ async fn send_job(
     stdin: &mut tokio::process::ChildStdin,
     header: &[u8],
     inputs: &LoadedInputs,
+    db: Option<&Db>,
 ) -> std::io::Result<()> {
     let frame = |tag: u8, len: usize| {
         let mut h = vec![tag];
@@ -457,8 +486,39 @@ async fn send_job(
     stdin.write_all(&frame(JOB, header.len())).await?;
     stdin.write_all(header).await?;
     for i in inputs.values() {
-        stdin.write_all(&frame(BYTES, i.content.len())).await?;
-        stdin.write_all(&i.content).await?;
+        let Some(stored) = &i.stored_chunks else {
+            stdin.write_all(&frame(BYTES, i.content.len())).await?;
+            stdin.write_all(&i.content).await?;
+            continue;
+        };
+        // A large input goes from the database to the child a chunk at a time.
+        let db = db.ok_or_else(|| std::io::Error::other("a chunked input without its database"))?;
+        stdin.write_all(&frame(BYTES, stored.size as usize)).await?;
+        let mut sent = 0u64;
+        for seq in 0..stored.chunks {
+            let chunk = db
+                .resource_chunk(&stored.resource_id, seq)
+                .await
+                .map_err(std::io::Error::other)?
+                .ok_or_else(|| {
+                    std::io::Error::other(format!(
+                        "{} was deleted while it was sent",
+                        stored.resource_id
+                    ))
+                })?;
+            sent += chunk.len() as u64;
+            if sent > stored.size {
+                return Err(std::io::Error::other(
+                    "stored chunks longer than the resource",
+                ));
+            }
+            stdin.write_all(&chunk).await?;
+        }
+        if sent != stored.size {
+            return Err(std::io::Error::other(
+                "stored chunks shorter than the resource",
+            ));
+        }
     }
     stdin.flush().await
 }

@@ -57,7 +57,7 @@ pub fn over_budget_problem(
         "title": "Over the job's memory budget",
         "status": 422,
         "detail": format!(
-            "{}the simulation needs about {} MiB (grid {} MiB, step records held at once {} MiB, what the steps keep {} MiB, rows {} MiB, stock export {} MiB), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, a smaller stock or shorter moves",
+            "{}the simulation needs about {} MiB (grid {} MiB, step records held at once {} MiB, what the steps keep {} MiB, rows {} MiB, stock export {} MiB, STL mesh read {} MiB), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, a smaller stock or shorter moves",
             file.map(|f| format!("{f}: ")).unwrap_or_default(),
             mib(estimate.peak_bytes),
             mib(estimate.grid_bytes),
@@ -65,6 +65,7 @@ pub fn over_budget_problem(
             mib(estimate.kept_bytes),
             mib(estimate.rows_bytes),
             mib(estimate.export_bytes),
+            mib(estimate.mesh_bytes),
             limits.memory_mb(),
         ),
         "limit_name": "job_memory_mb",
@@ -126,12 +127,14 @@ fn cell_and_tools(
     )
 }
 
-fn stock_bounds(stock: &StockSource) -> Option<([f64; 3], [f64; 3])> {
+/// The stock's bounds and, for an STL stock, its triangle count.
+fn stock_bounds(stock: &StockSource) -> Option<([f64; 3], [f64; 3], u64)> {
     match stock {
-        StockSource::Shape(shape) => shape.bounds().ok(),
-        StockSource::Stl(bytes) => geometry::Mesh::from_stl_bytes(bytes)
-            .ok()
-            .map(|m| m.bounds()),
+        StockSource::Shape(shape) => shape.bounds().ok().map(|(lo, hi)| (lo, hi, 0)),
+        StockSource::Stl(source) => source.mesh().ok().map(|m| {
+            let (lo, hi) = m.bounds();
+            (lo, hi, m.triangles.len() as u64)
+        }),
     }
 }
 
@@ -147,6 +150,8 @@ pub struct SimulationCheck<'a> {
     pub cell: Option<f64>,
     /// An optimize job (the optimizer keeps a record of every step).
     pub optimize: bool,
+    /// Triangles of the design part's mesh (0 without one).
+    pub part_triangles: u64,
 }
 
 /// Why a simulation may not start.
@@ -172,7 +177,7 @@ pub fn check_simulation(
     };
     budget::check_travel(moves, travel)
         .map_err(|e| Refusal::Problem(travel_problem(c.file, &e, travel)))?;
-    let Some((stock_min, stock_max)) = stock_bounds(c.stock) else {
+    let Some((stock_min, stock_max, stock_triangles)) = stock_bounds(c.stock) else {
         // The pipeline reports an unreadable stock.
         return Ok(None);
     };
@@ -184,6 +189,7 @@ pub fn check_simulation(
         moves,
         tool_radius: tools.iter().map(Tool::radius).fold(0.0, f64::max),
         optimize: c.optimize,
+        mesh_triangles: stock_triangles + c.part_triangles,
     };
     let Ok(estimate) = budget::estimate_simulation(&size) else {
         // An absurd grid: the pipeline's own grid check names it.
@@ -204,6 +210,7 @@ pub fn check_simulation(
 /// Some(estimate) when it is over the budget.
 pub fn submission_estimate(
     stock_bounds: ([f64; 3], [f64; 3]),
+    stock_triangles: u64,
     cell: Option<f64>,
     tool_diameters: &[f64],
     limits: &JobLimits,
@@ -223,6 +230,7 @@ pub fn submission_estimate(
         moves: &[],
         tool_radius: 0.0,
         optimize: false,
+        mesh_triangles: stock_triangles,
     };
     let estimate = budget::estimate_simulation(&size).ok()?;
     (estimate.peak_bytes > limits.memory_bytes).then_some(estimate)
@@ -261,11 +269,11 @@ mod tests {
             memory_bytes: 2 << 30,
         };
         let cube = ([0.0; 3], [27.0; 3]);
-        let e = submission_estimate(cube, Some(0.005), &[], &limits).unwrap();
+        let e = submission_estimate(cube, 0, Some(0.005), &[], &limits).unwrap();
         let p = over_budget_problem(None, &e, &limits);
         assert_eq!(p["limit"], 2048);
         assert!(p["estimate_mb"].as_u64().unwrap() > 8_000, "{p}");
-        assert!(submission_estimate(cube, Some(0.1), &[], &limits).is_none());
-        assert!(submission_estimate(cube, None, &[], &limits).is_none());
+        assert!(submission_estimate(cube, 0, Some(0.1), &[], &limits).is_none());
+        assert!(submission_estimate(cube, 0, None, &[], &limits).is_none());
     }
 }

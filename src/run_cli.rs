@@ -77,6 +77,7 @@ fn file_input(path: &Path, media_type: &str) -> Result<LoadedInput, String> {
         file_name: path.file_name().map(|n| n.to_string_lossy().to_string()),
         media_type: media_type.into(),
         content: read(path)?,
+        ..Default::default()
     })
 }
 
@@ -170,6 +171,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                 file_name: None,
                 media_type: "application/json".into(),
                 content: shape.to_string().into_bytes(),
+                ..Default::default()
             }
         }
         (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
@@ -185,6 +187,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                     file_name: Some(f.name.clone()),
                     media_type: "text/plain".into(),
                     content: f.text.clone().into_bytes(),
+                    ..Default::default()
                 },
             );
         }
@@ -242,6 +245,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                 file_name: path.file_name().map(|n| n.to_string_lossy().to_string()),
                 media_type: "text/plain".into(),
                 content: text.into_bytes(),
+                ..Default::default()
             },
         );
     }

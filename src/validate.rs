@@ -129,6 +129,26 @@ pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
     })
 }
 
+/// [`stl`] on a stream of `len` bytes, in memory that does not grow with the file: the
+/// format, the count against the length, finite vertices, closedness (see
+/// `stl_read::EdgeSum`); no mesh is built.
+pub fn stl_stream(r: impl std::io::Read, len: u64, file: &str) -> Result<Validated, Problem> {
+    let scan = geometry::stl_read::scan(r, len).map_err(|e| {
+        Problem::new(
+            axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid-stl",
+            "STL is not usable",
+            format!("{file}: {e}"),
+        )
+        .with("file", file.to_string())
+    })?;
+    let (min, max) = scan.bounds;
+    Ok(Validated {
+        media_type: "model/stl",
+        summary: json!({ "format": "stl", "triangles": scan.triangles, "bounds": { "min": min, "max": max }, "volume_mm3": scan.volume }),
+    })
+}
+
 /// A parametric stock (block or cylinder) as JSON.
 pub fn stock_json(bytes: &[u8]) -> Result<Validated, Problem> {
     let shape: geometry::StockShape = parse_json(bytes)?;

@@ -312,7 +312,7 @@ fn simulate_program(
     let spec = SimulateSpec {
         program: program.text.clone(),
         interpret: InterpretOptions::default(),
-        stock: StockSource::Stl(stl_bytes(stock)),
+        stock: StockSource::Stl(stl_bytes(stock).into()),
         tools,
         material: Material::builtin("Al7075-T6").unwrap(),
         machine,
@@ -322,7 +322,7 @@ fn simulate_program(
         optimize: None,
         axes: AxisReading::Machine,
         chatter: None,
-        part: Some(stl_bytes(part)),
+        part: Some(stl_bytes(part).into()),
     };
     simulate(&spec, &CancelFlag::new(), &NoProgress).unwrap()
 }

@@ -67,7 +67,7 @@ fn spec_at(program: &str, cell: f64) -> SimulateSpec {
     SimulateSpec {
         program: program.into(),
         interpret: InterpretOptions::default(),
-        stock: StockSource::Stl(cylinder_along_x()),
+        stock: StockSource::Stl(cylinder_along_x().into()),
         tools: BTreeMap::from([(0, tool)]),
         material: Material::builtin("Al7075-T6").unwrap(),
         machine: machine(),

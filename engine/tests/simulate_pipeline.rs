@@ -441,7 +441,7 @@ fn a_design_part_reports_the_gouge_and_the_allowance_left() {
     let program =
         "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X20 F4000\nG1 X60\nG0 Z5\nM30\n";
     let mut s = spec(program);
-    s.part = Some(stl);
+    s.part = Some(stl.into());
     let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
     let p = out.summary.part.as_ref().unwrap();
     let gouge = 2.0 * (60.0 * 10.0 + PI * 25.0 / 2.0);

@@ -84,20 +84,88 @@ pub async fn read_limited(
     let mut out = Vec::new();
     let mut stream = body.into_data_stream();
     while let Some(chunk) = stream.next().await {
-        let chunk = chunk.map_err(|e| {
-            let e = e.into_inner();
-            if is_body_timeout(e.as_ref()) {
-                ApiError::body_timeout()
-            } else {
-                ApiError::bad_request(format!("could not read the request body: {e}"))
-            }
-        })?;
+        let chunk = chunk.map_err(body_error)?;
         if out.len() as u64 + chunk.len() as u64 > limit {
             return Err(ApiError::too_large(limit));
         }
         out.extend_from_slice(&chunk);
     }
     Ok(out)
+}
+
+/// A request body written to an unnamed temporary file as it arrives (the file is gone
+/// when the handle closes, whatever happens to the request).
+pub struct Spooled {
+    pub file: std::fs::File,
+    pub len: u64,
+}
+
+impl Spooled {
+    pub fn new() -> Result<Spooled, ApiError> {
+        let file = tempfile::tempfile()
+            .map_err(|e| ApiError::internal(format!("temporary file for the upload: {e}")))?;
+        Ok(Spooled { file, len: 0 })
+    }
+
+    /// Appends a chunk, refusing the upload as soon as it crosses `limit` bytes.
+    pub fn append(&mut self, chunk: &[u8], limit: u64) -> Result<(), ApiError> {
+        use std::io::Write;
+        if self.len + chunk.len() as u64 > limit {
+            return Err(ApiError::too_large(limit));
+        }
+        // A write to a local file: short, and the page cache takes it; not worth a
+        // blocking thread per chunk.
+        self.file
+            .write_all(chunk)
+            .map_err(|e| ApiError::internal(format!("writing the upload's temporary file: {e}")))?;
+        self.len += chunk.len() as u64;
+        Ok(())
+    }
+
+    /// A reader from the start of the file (sharing its handle).
+    pub fn reader(&self) -> Result<std::fs::File, ApiError> {
+        use std::io::{Seek, SeekFrom};
+        let mut f = self
+            .file
+            .try_clone()
+            .map_err(|e| ApiError::internal(format!("reading the upload's temporary file: {e}")))?;
+        f.seek(SeekFrom::Start(0))
+            .map_err(|e| ApiError::internal(format!("reading the upload's temporary file: {e}")))?;
+        Ok(f)
+    }
+}
+
+/// [`read_limited`] into a temporary file instead of memory.
+pub async fn spool_limited(
+    headers: &HeaderMap,
+    body: Body,
+    limit: u64,
+) -> Result<Spooled, ApiError> {
+    if let Some(len) = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok())
+    {
+        if len > limit {
+            return Err(ApiError::too_large(limit));
+        }
+    }
+    let mut out = Spooled::new()?;
+    let mut stream = body.into_data_stream();
+    while let Some(chunk) = stream.next().await {
+        let chunk = chunk.map_err(body_error)?;
+        out.append(&chunk, limit)?;
+    }
+    Ok(out)
+}
+
+fn body_error(e: axum::Error) -> ApiError {
+    let e = e.into_inner();
+    if is_body_timeout(e.as_ref()) {
+        ApiError::body_timeout()
+    } else {
+        ApiError::bad_request(format!("could not read the request body: {e}"))
+    }
 }
 
 /// The media type of a request without parameters, lower case.

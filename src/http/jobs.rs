@@ -111,7 +111,13 @@ async fn check_memory_budget(
         }
     }
     let limits = &state.job_limits;
-    match job_limits::submission_estimate(bounds, o.cell_mm, &diameters, limits) {
+    match job_limits::submission_estimate(
+        bounds,
+        stock.summary["triangles"].as_u64().unwrap_or(0),
+        o.cell_mm,
+        &diameters,
+        limits,
+    ) {
         None => Ok(()),
         Some(estimate) => Err(ApiError::over_budget(job_limits::over_budget_problem(
             None, &estimate, limits,

@@ -13,9 +13,10 @@ use serde_json::json;
 use millsim_engine::tool::Tool;
 use millsim_engine::tool_library::ImportReport;
 
-use super::body::{media_type, read_limited};
+use super::body::{media_type, read_limited, spool_limited, Spooled};
 use super::problem::ApiError;
 use super::{parse_query, AppState, Owner, PageQuery};
+use crate::store::chunks::ResourceBody;
 use crate::store::resources::{NewResource, ResourceRecord};
 use crate::store::ResourceKind;
 use crate::validate::{self, Validated};
@@ -78,6 +79,40 @@ async fn upload_bytes(req: Request, limit: u64) -> Result<(Vec<u8>, Option<Strin
     Ok((bytes, name))
 }
 
+/// [`upload_bytes`] into a temporary file: the body is written out as it arrives, so a
+/// stock of hundreds of megabytes never sits in memory; the limit holds as it streams.
+async fn upload_spooled(req: Request, limit: u64) -> Result<(Spooled, Option<String>), ApiError> {
+    let headers = req.headers().clone();
+    if media_type(&headers) == "multipart/form-data" {
+        let mut form = Multipart::from_request(req, &())
+            .await
+            .map_err(|e| ApiError::bad_request(format!("multipart form: {}", e.body_text())))?;
+        while let Some(mut field) = form
+            .next_field()
+            .await
+            .map_err(|e| multipart_error(e, limit))?
+        {
+            let is_file = field.name() == Some("file") || field.file_name().is_some();
+            if !is_file {
+                continue;
+            }
+            let name = field.file_name().map(str::to_string);
+            let mut out = Spooled::new()?;
+            while let Some(chunk) = field.chunk().await.map_err(|e| multipart_error(e, limit))? {
+                out.append(&chunk, limit)?;
+            }
+            return Ok((out, name));
+        }
+        return Err(ApiError::invalid_field(
+            "file",
+            "the multipart form has no `file` part",
+        ));
+    }
+    let name = disposition_name(&headers);
+    let spooled = spool_limited(&headers, req.into_body(), limit).await?;
+    Ok((spooled, name))
+}
+
 fn multipart_error(e: axum::extract::multipart::MultipartError, limit: u64) -> ApiError {
     if super::body::is_body_timeout(&e) {
         ApiError::body_timeout()
@@ -109,19 +144,37 @@ pub async fn create(
             (bytes, None, v)
         }
         ResourceKind::Stock => {
-            let (bytes, name) = upload_bytes(req, limits.max_stl_bytes).await?;
+            let (spooled, name) = upload_spooled(req, limits.max_stl_bytes).await?;
             let file = query
                 .name
                 .clone()
                 .or(name.clone())
                 .unwrap_or_else(|| "stock.stl".into());
-            // STL parsing and the closedness check are CPU work: keep them off the runtime.
-            let v = tokio::task::spawn_blocking(move || {
-                validate::stl(&bytes, &file).map(|v| (bytes, v))
-            })
-            .await
-            .map_err(|e| ApiError::blocking_failed(e, "the STL reader"))??;
-            (v.0, name, v.1)
+            // Read back from the file a block at a time; the check is CPU work: keep it
+            // off the runtime.
+            let reader = spooled.reader()?;
+            let len = spooled.len;
+            let checked =
+                tokio::task::spawn_blocking(move || validate::stl_stream(reader, len, &file))
+                    .await
+                    .map_err(|e| ApiError::blocking_failed(e, "the STL reader"))??;
+            let name = query.name.or(name);
+            let record = state
+                .db
+                .create_resource_chunked(
+                    &owner,
+                    &NewResource {
+                        kind,
+                        name: name.as_deref(),
+                        media_type: checked.media_type,
+                        summary: checked.summary,
+                        content: &[],
+                    },
+                    spooled.reader()?,
+                    len,
+                )
+                .await?;
+            return Ok(created(kind, record));
         }
         ResourceKind::Program => {
             let (bytes, name) = upload_bytes(req, limits.max_program_bytes).await?;
@@ -192,13 +245,18 @@ pub async fn create(
             },
         )
         .await?;
+    Ok(created(kind, record))
+}
+
+/// 201 with the new resource's record and location.
+fn created(kind: ResourceKind, record: ResourceRecord) -> Response {
     let location = format!("/v1/{}/{}", kind.collection(), record.id);
-    Ok((
+    (
         StatusCode::CREATED,
         [(header::LOCATION, location)],
         Json(record),
     )
-        .into_response())
+        .into_response()
 }
 
 pub async fn list(
@@ -284,12 +342,45 @@ pub async fn content(
     Owner(owner): Owner,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    let (name, mt, bytes) = state
+    let (name, mt, size, body) = state
         .db
-        .resource_content(&owner, kind, &id)
+        .resource_body(&owner, kind, &id)
         .await?
         .ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
-    let mut res = ([(header::CONTENT_TYPE, mt)], bytes).into_response();
+    let mut res = match body {
+        ResourceBody::Inline(bytes) => ([(header::CONTENT_TYPE, mt)], bytes).into_response(),
+        ResourceBody::Chunked { id, chunks } => {
+            // One chunk read from the database per chunk sent. A resource deleted
+            // while it is sent ends the body early (the client sees a short body against
+            // its Content-Length).
+            let db = state.db.clone();
+            let stream = futures_util::stream::unfold(0i64, move |seq| {
+                let db = db.clone();
+                let id = id.clone();
+                async move {
+                    if seq >= chunks {
+                        return None;
+                    }
+                    let next = match db.resource_chunk(&id, seq).await {
+                        Ok(Some(chunk)) => Ok(bytes::Bytes::from(chunk)),
+                        Ok(None) => Err(std::io::Error::other(format!(
+                            "{id} was deleted while it was sent"
+                        ))),
+                        Err(e) => Err(std::io::Error::other(e.to_string())),
+                    };
+                    Some((next, seq + 1))
+                }
+            });
+            (
+                [
+                    (header::CONTENT_TYPE, mt),
+                    (header::CONTENT_LENGTH, size.to_string()),
+                ],
+                axum::body::Body::from_stream(stream),
+            )
+                .into_response()
+        }
+    };
     if let Some(name) = name {
         res.headers_mut().insert(
             header::CONTENT_DISPOSITION,

@@ -329,13 +329,14 @@ pub fn run(
         )));
     }
     let file = part.file_name.clone().unwrap_or_else(|| "part.stl".into());
-    let mesh = Mesh::from_stl_bytes(&part.content).map_err(|e| {
+    let unusable = |e: millsim_engine::geometry::StlError| {
         JobFailure::Invalid(Problem::invalid_field(
             "inputs.part",
             format!("{file}: {e}"),
         ))
-    })?;
-    drop(part);
+    };
+    let source = part.stl().map_err(unusable)?;
+    let mesh = source.mesh().map_err(unusable)?;
     let machine: Option<Machine> = json_input(&mut inputs, "machine", "Invalid machine")?;
     let out = match analyze(&mesh, &o, machine.as_ref(), "options.", cancel) {
         Ok(out) => out,

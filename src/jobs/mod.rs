@@ -14,11 +14,14 @@ mod simulate;
 mod stability;
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
+use millsim_engine::geometry::{Mesh, StlError};
 use millsim_engine::job::{CancelFlag, Progress};
+use millsim_engine::pipeline::StlSource;
 
 use crate::job_limits::JobLimits;
 use crate::problem::Problem;
@@ -266,10 +269,37 @@ impl std::fmt::Display for FieldError {
 }
 
 /// A stored input as a worker loaded it.
+#[derive(Default)]
 pub struct LoadedInput {
     pub file_name: Option<String>,
     pub media_type: String,
+    /// The bytes, unless one of the two below says where they are instead (then empty).
     pub content: Vec<u8>,
+    /// In the worker: a large input left in the database, sent to the job's process a
+    /// chunk at a time.
+    pub stored_chunks: Option<StoredChunks>,
+    /// In the job's process: an STL input read into a mesh as it streamed in (or why it
+    /// could not be), so its bytes were never whole in memory.
+    pub mesh: Option<Result<Arc<Mesh>, StlError>>,
+}
+
+/// Where a chunked resource's content is (`store::chunks`).
+#[derive(Clone, Debug)]
+pub struct StoredChunks {
+    pub resource_id: String,
+    pub chunks: i64,
+    pub size: u64,
+}
+
+impl LoadedInput {
+    /// An STL input as the pipeline takes it: the mesh read as it streamed in, or the
+    /// bytes to read.
+    pub fn stl(self) -> Result<StlSource, StlError> {
+        match self.mesh {
+            Some(mesh) => mesh.map(StlSource::Mesh),
+            None => Ok(StlSource::Bytes(self.content)),
+        }
+    }
 }
 
 /// Inputs a worker loaded from the database for one job, by input name.

@@ -10,7 +10,7 @@ use serde_json::{json, Value};
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::machine::Machine;
 use millsim_engine::optimize::FeedLimits;
-use millsim_engine::pipeline::{self, SimulateError, SimulateSpec, StockSource};
+use millsim_engine::pipeline::{self, SimulateError, SimulateSpec, StlSource, StockSource};
 use millsim_engine::tool::Tool;
 use millsim_engine::{geometry, nc};
 
@@ -273,7 +273,15 @@ pub fn run(
                 .map_err(|e| invalid("Invalid stock", e.to_string()))?,
         )
     } else {
-        StockSource::Stl(stock.content)
+        let file = stock
+            .file_name
+            .clone()
+            .unwrap_or_else(|| "stock.stl".into());
+        StockSource::Stl(
+            stock
+                .stl()
+                .map_err(|e| invalid("Invalid stock", format!("{file}: {e}")))?,
+        )
     };
     let interpret = nc::InterpretOptions {
         dialect: opts.dialect,
@@ -283,6 +291,22 @@ pub fn run(
         cancel: Some(cancel.clone()),
         library: super::inputs::program_library(&mut inputs)?,
         ..Default::default()
+    };
+    let part = match inputs.remove("part") {
+        Some(p) if p.media_type == "application/json" => {
+            return Err(invalid(
+                "Invalid part",
+                "the design part must be an STL mesh, not a parametric stock",
+            ))
+        }
+        Some(p) => {
+            let file = p.file_name.clone().unwrap_or_else(|| "part.stl".into());
+            Some(
+                p.stl()
+                    .map_err(|e| invalid("Invalid part", format!("{file}: {e}")))?,
+            )
+        }
+        None => None,
     };
     // Travel and memory budget, before the pipeline allocates anything.
     let check = SimulationCheck {
@@ -295,6 +319,12 @@ pub fn run(
         tools: &tools,
         cell: opts.cell_mm,
         optimize,
+        part_triangles: match &part {
+            Some(StlSource::Mesh(mesh)) => mesh.triangles.len() as u64,
+            // Not read yet: the binary size's count (an ASCII file's is lower).
+            Some(StlSource::Bytes(bytes)) => bytes.len() as u64 / 50,
+            None => 0,
+        },
     };
     let estimate = check_simulation(&check, limits).map_err(|r| match r {
         Refusal::Program(d) => program_failure(cancel, &file, &d),
@@ -313,16 +343,7 @@ pub fn run(
         optimize: opts.limits.clone(),
         axes: opts.axes,
         chatter: opts.chatter.clone(),
-        part: match inputs.remove("part") {
-            Some(p) if p.media_type == "application/json" => {
-                return Err(invalid(
-                    "Invalid part",
-                    "the design part must be an STL mesh, not a parametric stock",
-                ))
-            }
-            Some(p) => Some(p.content),
-            None => None,
-        },
+        part,
     };
     let mut out = pipeline::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,

@@ -13,9 +13,11 @@ use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::config::{Isolation, QueueConfig};
 use crate::isolate::{self, Ended};
-use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs};
+use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs, StoredChunks};
 use crate::metrics::Metrics;
 use crate::problem::Problem;
+use crate::store::backend::Backend;
+use crate::store::chunks::ResourceBody;
 use crate::store::jobs::{
     Artifact, ClaimedJob, CreatedResource, Finish, LeaseState, IN_PROCESS_MARK,
 };
@@ -56,6 +58,17 @@ pub struct WorkerCounts {
 }
 
 impl WorkerCounts {
+    /// Counts a job this worker ended as `outcome` (None: not ended by it).
+    fn record(&self, outcome: Option<&'static str>) {
+        let ended = match outcome {
+            Some("succeeded") => &self.succeeded,
+            Some("failed") => &self.failed,
+            Some(_) => &self.cancelled,
+            None => &self.abandoned,
+        };
+        ended.fetch_add(1, Ordering::Relaxed);
+    }
+
     fn report(&self, id: &str, host: &str, started_at: i64) -> WorkerReport {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed) as i64;
         WorkerReport {
@@ -165,6 +178,74 @@ pub async fn run_workers(
     tracing::info!("workers stopped");
 }
 
+/// Results up to this size (rows, samples, files) are committed while the worker goes on
+/// to the next job; larger ones before it does.
+const PIPELINED_COMMIT_BYTES: usize = 1 << 20;
+/// Commits a worker may have in flight.
+const MAX_COMMITS_IN_FLIGHT: usize = 4;
+
+/// A job this worker ran to its end, with the outcome to commit.
+struct JobEnded {
+    job: ClaimedJob,
+    finish: Finish,
+    started: Instant,
+    /// When the run ended (unix ms): the end of the attempt in its log.
+    ran_until: i64,
+}
+
+impl JobEnded {
+    /// Bytes of the result held until it is committed.
+    fn bytes(&self) -> usize {
+        match &self.finish {
+            Finish::Succeeded {
+                rows,
+                samples,
+                artifacts,
+                resources,
+                summary: _,
+                progress: _,
+            } => {
+                rows.iter().map(String::len).sum::<usize>()
+                    + samples.iter().map(|(_, s)| s.len()).sum::<usize>()
+                    + artifacts.iter().map(|a| a.content.len()).sum::<usize>()
+                    + resources.iter().map(|r| r.content.len()).sum::<usize>()
+            }
+            Finish::Failed { .. } | Finish::Cancelled => 0,
+        }
+    }
+
+    /// Commits the outcome; the outcome committed, or None when it was not (lease lost,
+    /// commit failed: the job is then claimed again when its lease expires).
+    async fn commit(self, db: &Db, metrics: &Metrics, worker: &str) -> Option<&'static str> {
+        let JobEnded {
+            job,
+            finish,
+            started,
+            ran_until,
+        } = self;
+        let label = match &finish {
+            Finish::Succeeded { .. } => "succeeded",
+            Finish::Failed { .. } => "failed",
+            Finish::Cancelled => "cancelled",
+        };
+        match db.finish_job(&job, worker, finish, ran_until).await {
+            Ok(true) => {
+                metrics.observe_job(&job.kind, label, started.elapsed());
+                tracing::info!(worker = %worker, job = %job.id, outcome = label, seconds = started.elapsed().as_secs_f64(), "job finished");
+                Some(label)
+            }
+            Ok(false) => {
+                tracing::warn!(worker = %worker, job = %job.id, "lease lost before commit; result dropped");
+                None
+            }
+            Err(e) => {
+                tracing::error!(worker = %worker, job = %job.id, error = %e, "could not commit the job's outcome");
+                None
+            }
+        }
+    }
+}
+
 /// How long a worker waits after giving a job back for a storage error.
 const STORAGE_BACKOFF_MS: u64 = 500;
 
@@ -180,22 +261,49 @@ struct Worker {
 
 impl Worker {
     async fn run(mut self) {
+        let mut commits = tokio::task::JoinSet::new();
         loop {
+            while commits.try_join_next().is_some() {}
             if *self.shutdown.borrow() {
+                // Results already computed are committed before the worker stops.
+                while commits.join_next().await.is_some() {}
                 return;
             }
             match self.db.claim_job(&self.id, self.config.lease_ms).await {
                 Ok(Some(job)) => {
                     self.counts.claimed.fetch_add(1, Ordering::Relaxed);
                     self.counts.running.store(1, Ordering::Relaxed);
-                    let ended = match self.run_job(job).await {
-                        Some("succeeded") => &self.counts.succeeded,
-                        Some("failed") => &self.counts.failed,
-                        Some(_) => &self.counts.cancelled,
-                        None => &self.counts.abandoned,
-                    };
-                    ended.fetch_add(1, Ordering::Relaxed);
+                    let ended = self.run_job(job).await;
                     self.counts.running.store(0, Ordering::Relaxed);
+                    let Some(ended) = ended else {
+                        self.counts.record(None);
+                        continue;
+                    };
+                    // SQLite runs one writer at a time: a commit in flight would only
+                    // make the next claim wait for it (measured: 989 -> 649 jobs/s).
+                    if self.db.backend() == Backend::Sqlite
+                        || ended.bytes() > PIPELINED_COMMIT_BYTES
+                    {
+                        let done = ended.commit(&self.db, &self.metrics, &self.id).await;
+                        self.counts.record(done);
+                        continue;
+                    }
+                    // On PostgreSQL a small result commits while this worker claims and
+                    // runs the next job: its commit's wait for the disk (one fsync, ~3 ms here) no longer
+                    // paces the worker, and commits in flight share fsyncs. Bounded in
+                    // count and size, so what waits in memory stays small.
+                    while commits.len() >= MAX_COMMITS_IN_FLIGHT {
+                        commits.join_next().await;
+                    }
+                    let (db, metrics, id, counts) = (
+                        self.db.clone(),
+                        self.metrics.clone(),
+                        self.id.clone(),
+                        self.counts.clone(),
+                    );
+                    commits.spawn(async move {
+                        counts.record(ended.commit(&db, &metrics, &id).await);
+                    });
                 }
                 Ok(None) => {
                     // Woken by a submission in this process, by the database's
@@ -240,10 +348,10 @@ impl Worker {
             };
             let found = self
                 .db
-                .resource_content(&job.owner, kind, id)
+                .resource_body(&job.owner, kind, id)
                 .await
                 .map_err(InputsError::Storage)?;
-            let Some((file_name, media_type, content)) = found else {
+            let Some((file_name, media_type, size, body)) = found else {
                 return Err(InputsError::Invalid(Problem::new(
                     StatusCode::UNPROCESSABLE_ENTITY,
                     "input-gone",
@@ -254,21 +362,57 @@ impl Worker {
                     ),
                 )));
             };
-            loaded.insert(
-                name,
-                LoadedInput {
+            let input = match body {
+                ResourceBody::Inline(content) => LoadedInput {
                     file_name,
                     media_type,
                     content,
+                    ..Default::default()
                 },
-            );
+                // A job's process is sent the chunks as it reads them; a job on a thread
+                // of this process takes the content whole.
+                ResourceBody::Chunked { id, chunks }
+                    if self.config.isolation == Isolation::Process =>
+                {
+                    LoadedInput {
+                        file_name,
+                        media_type,
+                        stored_chunks: Some(StoredChunks {
+                            resource_id: id,
+                            chunks,
+                            size: size as u64,
+                        }),
+                        ..Default::default()
+                    }
+                }
+                ResourceBody::Chunked { .. } => {
+                    let (file_name, media_type, content) = self
+                        .db
+                        .resource_content(&job.owner, kind, id)
+                        .await
+                        .map_err(InputsError::Storage)?
+                        .ok_or_else(|| {
+                            InputsError::Storage(StoreError::Vanished(format!(
+                                "{} {id}",
+                                kind.as_str()
+                            )))
+                        })?;
+                    LoadedInput {
+                        file_name,
+                        media_type,
+                        content,
+                        ..Default::default()
+                    }
+                }
+            };
+            loaded.insert(name, input);
         }
         Ok(loaded)
     }
 
-    /// Runs a claimed job; the outcome it committed, or None when it did not end it
-    /// (given back, lease lost, commit failed).
-    async fn run_job(&mut self, job: ClaimedJob) -> Option<&'static str> {
+    /// Runs a claimed job; its outcome to commit, or None when this worker does not end
+    /// it (given back, lease lost).
+    async fn run_job(&mut self, job: ClaimedJob) -> Option<JobEnded> {
         let started = Instant::now();
         tracing::info!(worker = %self.id, job = %job.id, kind = %job.kind, attempt = job.attempt, "job claimed");
         // A kind this build does not know (stored by a newer server sharing the database):
@@ -302,27 +446,12 @@ impl Worker {
                 None => return None,
             },
         };
-        let label = match &outcome {
-            Finish::Succeeded { .. } => "succeeded",
-            Finish::Failed { .. } => "failed",
-            Finish::Cancelled => "cancelled",
-        };
-        match self.db.finish_job(&job, &self.id, outcome).await {
-            Ok(true) => {
-                self.metrics
-                    .observe_job(&job.kind, label, started.elapsed());
-                tracing::info!(worker = %self.id, job = %job.id, outcome = label, seconds = started.elapsed().as_secs_f64(), "job finished");
-                Some(label)
-            }
-            Ok(false) => {
-                tracing::warn!(worker = %self.id, job = %job.id, "lease lost before commit; result dropped");
-                None
-            }
-            Err(e) => {
-                tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not commit the job's outcome");
-                None
-            }
-        }
+        Some(JobEnded {
+            job,
+            finish: outcome,
+            started,
+            ran_until: crate::store::now_ms(),
+        })
     }
 
     /// Runs the engine and heartbeats until it ends. None when the job must not be
@@ -463,7 +592,12 @@ impl Worker {
         let limits = self.config.limits;
         match self.config.isolation {
             Isolation::Process => Ok(Engine::Process(isolate::spawn(
-                kind, &options, inputs, limits, progress,
+                kind,
+                &options,
+                inputs,
+                limits,
+                progress,
+                Some(self.db.clone()),
             )?)),
             Isolation::Thread => {
                 let cancel = CancelFlag::new();

@@ -687,11 +687,15 @@ impl Db {
 
     /// Writes the outcome and the results in one transaction, only if this worker still
     /// holds this attempt's lease. Returns false (and writes nothing) when it does not.
+    /// `ran_until` (unix ms) is when the attempt's run ended: the attempt spans its claim
+    /// to then (a worker on PostgreSQL may claim its next job while this commits); the
+    /// job's finished_at is the commit's time, when its outcome became visible.
     pub async fn finish_job(
         &self,
         job: &ClaimedJob,
         worker: &str,
         finish: Finish,
+        ran_until: i64,
     ) -> Result<bool, StoreError> {
         let now = now_ms();
         let (status, summary, error, outcome) = match &finish {
@@ -775,7 +779,7 @@ impl Db {
             "UPDATE job_attempts SET outcome = $1, finished_at = $2 WHERE job_id = $3 AND attempt = $4",
         )
         .bind(outcome)
-        .bind(now)
+        .bind(ran_until.min(now))
         .bind(&job.id)
         .bind(job.attempt)
         .execute(&mut *c)

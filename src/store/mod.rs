@@ -4,6 +4,7 @@
 
 pub mod backend;
 pub mod bulk;
+pub mod chunks;
 pub mod jobs;
 pub mod notify;
 pub mod resources;
@@ -34,6 +35,8 @@ pub enum StoreError {
     Migrate(#[from] sqlx::migrate::MigrateError),
     #[error("stored JSON is corrupt: {0}")]
     Json(#[from] serde_json::Error),
+    #[error("reading stored content: {0}")]
+    Io(#[from] std::io::Error),
     /// A row this request had just found or written was deleted by another one.
     #[error("{0} was deleted while this request ran")]
     Vanished(String),

@@ -3,7 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::backend::{on_pool, on_tx, RowGet, Tx};
-use super::{now_ms, rfc3339, Db, StoreError};
+use super::chunks::ResourceBody;
+use super::{rfc3339, Db, StoreError};
 
 /// Serialized as [`as_str`](Self::as_str) names it (a job's process sends the kind of a
 /// resource it made to the server).
@@ -119,23 +120,58 @@ pub async fn insert_with_id(
     owner: &str,
     new: &NewResource<'_>,
 ) -> Result<(), StoreError> {
+    insert_row(tx, id, owner, new, new.content.len() as i64, 0).await
+}
+
+/// The resource's row: with `new.content` when `chunks` is 0, else with no content in
+/// the row and `size` bytes in `chunks` chunk rows written next (see `chunks`).
+pub(super) async fn insert_row(
+    tx: &mut Tx,
+    id: &str,
+    owner: &str,
+    new: &NewResource<'_>,
+    size: i64,
+    chunks: i64,
+) -> Result<(), StoreError> {
+    let inline: &[u8] = if chunks == 0 { new.content } else { &[] };
     on_tx!(tx, c => sqlx::query(
-        "INSERT INTO resources (id, owner, kind, name, media_type, size, summary, content, created_at)
-         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+        "INSERT INTO resources (id, owner, kind, name, media_type, size, summary, content, created_at, chunks)
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
     )
     .bind(id)
     .bind(owner)
     .bind(new.kind.as_str())
     .bind(new.name)
     .bind(new.media_type)
-    .bind(new.content.len() as i64)
+    .bind(size)
     .bind(new.summary.to_string())
-    .bind(new.content)
-    .bind(now_ms())
+    .bind(inline)
+    .bind(super::now_ms())
+    .bind(chunks)
     .execute(&mut *c)
     .await?
     .rows_affected());
     Ok(())
+}
+
+/// The record of a resource just inserted, read in the insert's transaction: once
+/// committed, a DELETE may come first.
+pub(super) async fn read_back(
+    tx: &mut Tx,
+    owner: &str,
+    kind: ResourceKind,
+    id: &str,
+) -> Result<ResourceRecord, StoreError> {
+    Ok(on_tx!(tx, c => {
+        let row = sqlx::query("SELECT * FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
+            .bind(owner)
+            .bind(kind.as_str())
+            .bind(id)
+            .fetch_optional(&mut *c)
+            .await?
+            .ok_or_else(|| StoreError::Vanished(format!("{} {id}", kind.as_str())))?;
+        record(kind, &row, true)?
+    }))
 }
 
 impl Db {
@@ -144,19 +180,9 @@ impl Db {
         owner: &str,
         new: &NewResource<'_>,
     ) -> Result<ResourceRecord, StoreError> {
-        // Read back in the insert's transaction: once committed, a DELETE may come first.
         let mut tx = self.begin().await?;
         let id = insert(&mut tx, owner, new).await?;
-        let created = on_tx!(&mut tx, c => {
-            let row = sqlx::query("SELECT * FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
-                .bind(owner)
-                .bind(new.kind.as_str())
-                .bind(&id)
-                .fetch_optional(&mut *c)
-                .await?
-                .ok_or_else(|| StoreError::Vanished(format!("{} {id}", new.kind.as_str())))?;
-            record(new.kind, &row, true)?
-        });
+        let created = read_back(&mut tx, owner, new.kind, &id).await?;
         tx.commit().await?;
         Ok(created)
     }
@@ -178,21 +204,64 @@ impl Db {
         })
     }
 
-    /// The stored bytes and media type of a resource, unchanged.
+    /// The stored bytes and media type of a resource, unchanged, whole in memory (a
+    /// chunked one is put together: see [`Db::resource_body`] to read it a chunk at a
+    /// time).
     pub async fn resource_content(
         &self,
         owner: &str,
         kind: ResourceKind,
         id: &str,
     ) -> Result<Option<(Option<String>, String, Vec<u8>)>, StoreError> {
-        Ok(
-            on_pool!(&self.pool, p => sqlx::query_as("SELECT name, media_type, content FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
-            .bind(owner)
-            .bind(kind.as_str())
-            .bind(id)
-            .fetch_optional(p)
-            .await?),
+        let Some((name, media_type, size, body)) = self.resource_body(owner, kind, id).await?
+        else {
+            return Ok(None);
+        };
+        let bytes = match body {
+            ResourceBody::Inline(bytes) => bytes,
+            ResourceBody::Chunked { id, chunks } => {
+                let mut out = Vec::with_capacity(size as usize);
+                for seq in 0..chunks {
+                    let chunk = self
+                        .resource_chunk(&id, seq)
+                        .await?
+                        .ok_or_else(|| StoreError::Vanished(format!("{} {id}", kind.as_str())))?;
+                    out.extend_from_slice(&chunk);
+                }
+                out
+            }
+        };
+        Ok(Some((name, media_type, bytes)))
+    }
+
+    /// A resource's file name, media type, size and content (inline, or where its
+    /// chunks are).
+    pub async fn resource_body(
+        &self,
+        owner: &str,
+        kind: ResourceKind,
+        id: &str,
+    ) -> Result<Option<(Option<String>, String, i64, ResourceBody)>, StoreError> {
+        type Row = (Option<String>, String, i64, Vec<u8>, i64);
+        let row: Option<Row> = on_pool!(&self.pool, p => sqlx::query_as(
+            "SELECT name, media_type, size, content, chunks FROM resources WHERE owner = $1 AND kind = $2 AND id = $3",
         )
+        .bind(owner)
+        .bind(kind.as_str())
+        .bind(id)
+        .fetch_optional(p)
+        .await?);
+        Ok(row.map(|(name, media_type, size, content, chunks)| {
+            let body = if chunks > 0 {
+                ResourceBody::Chunked {
+                    id: id.to_string(),
+                    chunks,
+                }
+            } else {
+                ResourceBody::Inline(content)
+            };
+            (name, media_type, size, body)
+        }))
     }
 
     /// One page of resources of a kind, oldest first, after `cursor` (an id).

@@ -42,6 +42,7 @@ pub mod frame;
 pub mod path;
 pub mod removal;
 pub mod stl;
+pub mod stl_read;
 pub mod stock;
 pub mod sweep;
 

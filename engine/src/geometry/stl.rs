@@ -1,4 +1,4 @@
-//! STL stock: reading (stl_io), validation, and filling the tri-dexel grid by casting
+//! STL stock: reading (`stl_read`, streamed), validation, and filling the tri-dexel grid by casting
 //! every ray against the mesh (parry3d TriMesh and its BVH find the candidate triangles).
 //!
 //! Hits are exact for axis-parallel rays: a 2-D point-in-triangle test in the plane
@@ -8,7 +8,6 @@
 //! the ray tells entry from exit; material is where the winding count is positive.
 
 use std::collections::HashMap;
-use std::io::Cursor;
 
 use parry3d_f64::bounding_volume::Aabb;
 use parry3d_f64::math::Vector;
@@ -38,6 +37,11 @@ pub enum StlError {
     NonFinite { triangle: usize },
     #[error("mesh is not closed: {open_edges} edges are not shared by exactly one pair of opposite triangles (e.g. near {near:?})")]
     NotClosed { open_edges: usize, near: [f64; 3] },
+    /// From the constant-memory check of a streamed file, which cannot say which edge.
+    #[error(
+        "mesh is not closed: some edges are not shared by exactly one pair of opposite triangles"
+    )]
+    NotClosedSomewhere,
     #[error("mesh is degenerate: all triangles have zero area")]
     Degenerate,
     #[error("mesh is {size} mm across: larger than {MAX_STOCK_SIZE} mm")]
@@ -53,69 +57,23 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-fn is_binary(bytes: &[u8]) -> Result<bool, StlError> {
-    if bytes.len() < 84 {
-        // An ASCII file can be short; a binary one cannot.
-        return if bytes.starts_with(b"solid") {
-            Ok(false)
-        } else {
-            Err(StlError::TooShort(bytes.len()))
-        };
-    }
-    let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]);
-    let expected = 84 + 50 * n as u64;
-    if expected == bytes.len() as u64 {
-        // Exactly the binary size: binary, even when the header starts with "solid".
-        return Ok(true);
-    }
-    let text =
-        bytes.starts_with(b"solid") && bytes[..bytes.len().min(1024)].iter().all(|&b| b.is_ascii());
-    if text {
-        Ok(false)
-    } else {
-        Err(StlError::Truncated {
-            triangles: n,
-            expected,
-            actual: bytes.len() as u64,
-        })
-    }
-}
-
 impl Mesh {
     /// Reads a binary or ASCII STL and checks it: finite vertices, at least one
     /// triangle, closed and consistently oriented.
     pub fn from_stl_bytes(bytes: &[u8]) -> Result<Mesh, StlError> {
-        let mut data = bytes.to_vec();
-        if is_binary(bytes)? {
-            if data.starts_with(b"solid") {
-                // stl_io decides ASCII by the "solid" prefix; blank it so the binary
-                // reader runs.
-                data[..5].copy_from_slice(b"     ");
-            }
-        } else {
-            // ASCII keywords are case-insensitive in practice (FACET, ENDLOOP, ...), stl_io
-            // wants them in lower case; numbers read the same either way.
-            data.make_ascii_lowercase();
-        }
-        let mut cur = Cursor::new(data);
-        let reader =
-            stl_io::create_stl_reader(&mut cur).map_err(|e| StlError::Parse(e.to_string()))?;
+        Mesh::from_stl_reader(bytes, bytes.len() as u64)
+    }
+
+    /// [`Mesh::from_stl_bytes`] from a stream of `len` bytes: the file's bytes are read
+    /// a block at a time, never whole; only the merged mesh is kept.
+    pub fn from_stl_reader(r: impl std::io::Read, len: u64) -> Result<Mesh, StlError> {
         let mut vertices: Vec<[f64; 3]> = Vec::new();
         let mut index: HashMap<[u64; 3], u32> = HashMap::new();
         let mut triangles = Vec::new();
-        for (t, tri) in reader.enumerate() {
-            let tri = tri.map_err(|e| StlError::Parse(format!("triangle {t}: {e}")))?;
+        super::stl_read::for_each_triangle(r, len, |_, tri| {
             let mut idx = [0u32; 3];
-            for (k, v) in tri.vertices.iter().enumerate() {
-                if v.0.iter().any(|c| !c.is_finite()) {
-                    return Err(StlError::NonFinite { triangle: t });
-                }
-                // +0.0 folds −0.0 into 0.0 so both merge.
-                let p = [
-                    v.0[0] as f64 + 0.0,
-                    v.0[1] as f64 + 0.0,
-                    v.0[2] as f64 + 0.0,
-                ];
+            for (k, v) in tri.iter().enumerate() {
+                let p = super::stl_read::vertex_f64(*v);
                 let key = p.map(f64::to_bits);
                 let next = vertices.len() as u32;
                 idx[k] = *index.entry(key).or_insert_with(|| {
@@ -127,7 +85,9 @@ impl Mesh {
             if idx[0] != idx[1] && idx[1] != idx[2] && idx[0] != idx[2] {
                 triangles.push(idx);
             }
-        }
+            Ok(())
+        })?;
+        drop(index);
         if triangles.is_empty() {
             return Err(if vertices.is_empty() {
                 StlError::Empty

@@ -26,7 +26,7 @@ pub use rows::{
     Collision, EnergyTotals, MoveRow, OptimizationSummary, RoughnessSummary, SimulationOutput,
     SimulationSummary, StageTimings, StepSample, ToolLife,
 };
-pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StockSource};
+pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StlSource, StockSource};
 
 use std::time::Instant;
 
@@ -157,9 +157,8 @@ pub fn simulate_in_batches(
 
     let volume_after = stock.volume();
     let part = match &spec.part {
-        Some(bytes) => {
-            let mesh =
-                geometry::Mesh::from_stl_bytes(bytes).map_err(geometry::GeometryError::from)?;
+        Some(source) => {
+            let mesh = source.mesh().map_err(geometry::GeometryError::from)?;
             Some(geometry::compare_with_part(&stock, &mesh)?)
         }
         None => None,
@@ -220,9 +219,7 @@ fn stock(spec: &SimulateSpec, cell: f64, frame: GridFrame) -> Result<Stock, Simu
     };
     let mesh = match &spec.stock {
         StockSource::Shape(_) => None,
-        StockSource::Stl(bytes) => {
-            Some(geometry::Mesh::from_stl_bytes(bytes).map_err(geometry::GeometryError::from)?)
-        }
+        StockSource::Stl(source) => Some(source.mesh().map_err(geometry::GeometryError::from)?),
     };
     let bounds = |frame: &GridFrame| -> Result<([f64; 3], [f64; 3]), SimulateError> {
         Ok(match (&spec.stock, &mesh) {

@@ -15,7 +15,32 @@ use crate::tool::Tool;
 /// Where the stock comes from.
 pub enum StockSource {
     Shape(StockShape),
-    Stl(Vec<u8>),
+    Stl(StlSource),
+}
+
+/// An STL mesh as given: the file's bytes (read when the simulation starts), or the
+/// mesh already read (from a stream, so that the file was never whole in memory).
+pub enum StlSource {
+    Bytes(Vec<u8>),
+    Mesh(std::sync::Arc<geometry::Mesh>),
+}
+
+impl StlSource {
+    /// The mesh, read and checked (borrowed when it was given read).
+    pub fn mesh(&self) -> Result<std::borrow::Cow<'_, geometry::Mesh>, geometry::StlError> {
+        Ok(match self {
+            StlSource::Bytes(bytes) => {
+                std::borrow::Cow::Owned(geometry::Mesh::from_stl_bytes(bytes)?)
+            }
+            StlSource::Mesh(mesh) => std::borrow::Cow::Borrowed(mesh),
+        })
+    }
+}
+
+impl From<Vec<u8>> for StlSource {
+    fn from(bytes: Vec<u8>) -> Self {
+        StlSource::Bytes(bytes)
+    }
 }
 
 /// How a program's X Y Z A B C words relate to the part on a multi-axis machine.
@@ -55,7 +80,7 @@ pub struct SimulateSpec {
     /// The tool's frequency response, for the chatter margin of every block.
     pub chatter: Option<ChatterSpec>,
     /// The design part (STL, in the stock's frame): gouges and the allowance left.
-    pub part: Option<Vec<u8>>,
+    pub part: Option<StlSource>,
 }
 
 impl SimulateSpec {

@@ -1,0 +1,526 @@
+//! STL reading as a stream: triangles are handed on one at a time from any `Read`, so a
+//! file of hundreds of megabytes never sits whole in memory (the service validates an
+//! upload, and a job reads its stock, through this). Binary: the 80-byte header, the
+//! triangle count, then 50-byte records, the count checked against the length. ASCII:
+//! line by line, each line bounded.
+//!
+//! [`scan`] checks a file without building a mesh: finite vertices, at least one
+//! non-degenerate triangle, bounds, volume, and closedness in constant memory (see
+//! [`EdgeSum`]).
+
+use std::io::{BufRead, BufReader, Read};
+
+use super::stl::StlError;
+
+/// The three vertices of a triangle as the file gives them (the normal is not used).
+pub type Triangle = [[f32; 3]; 3];
+
+/// An ASCII line longer than this is refused rather than buffered.
+const MAX_LINE: u64 = 4096;
+/// Bytes looked at to tell ASCII from binary.
+const SNIFF: usize = 1024;
+
+/// Whether the file is binary, from its first bytes and its length (as the whole-file
+/// reader decided: exactly the binary size means binary, even when the header starts
+/// with "solid").
+fn is_binary(head: &[u8], len: u64) -> Result<bool, StlError> {
+    let solid = head.len() >= 5 && head[..5].eq_ignore_ascii_case(b"solid");
+    if len < 84 {
+        // An ASCII file can be short; a binary one cannot.
+        return if solid {
+            Ok(false)
+        } else {
+            Err(StlError::TooShort(len as usize))
+        };
+    }
+    let n = u32::from_le_bytes([head[80], head[81], head[82], head[83]]);
+    let expected = 84 + 50 * n as u64;
+    if expected == len {
+        return Ok(true);
+    }
+    if solid && head.iter().all(|b| b.is_ascii()) {
+        Ok(false)
+    } else {
+        Err(StlError::Truncated {
+            triangles: n,
+            expected,
+            actual: len,
+        })
+    }
+}
+
+/// Reads up to `want` bytes (fewer only at the end of the stream).
+fn read_head(r: &mut impl Read, want: usize) -> Result<Vec<u8>, StlError> {
+    let mut head = vec![0u8; want];
+    let mut got = 0;
+    while got < want {
+        match r.read(&mut head[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(StlError::Parse(format!("reading: {e}"))),
+        }
+    }
+    head.truncate(got);
+    Ok(head)
+}
+
+/// Calls `f` with each triangle of the STL read from `r`, whose length is `len` bytes,
+/// in file order. Returns the number of triangles read. Stops at the first error, from
+/// the file or from `f`.
+pub fn for_each_triangle<R: Read>(
+    mut r: R,
+    len: u64,
+    mut f: impl FnMut(usize, &Triangle) -> Result<(), StlError>,
+) -> Result<usize, StlError> {
+    let head = read_head(&mut r, SNIFF.min(len as usize))?;
+    let binary = is_binary(&head, len)?;
+    let reader = BufReader::with_capacity(1 << 16, std::io::Cursor::new(head).chain(r));
+    if binary {
+        binary_triangles(reader, len, &mut f)
+    } else {
+        ascii_triangles(reader, &mut f)
+    }
+}
+
+fn vertex_check(t: usize, v: [f32; 3]) -> Result<[f32; 3], StlError> {
+    if v.iter().all(|c| c.is_finite()) {
+        Ok(v)
+    } else {
+        Err(StlError::NonFinite { triangle: t })
+    }
+}
+
+fn binary_triangles(
+    mut r: impl BufRead,
+    len: u64,
+    f: &mut impl FnMut(usize, &Triangle) -> Result<(), StlError>,
+) -> Result<usize, StlError> {
+    let mut header = [0u8; 84];
+    r.read_exact(&mut header)
+        .map_err(|_| StlError::TooShort(len as usize))?;
+    let n = u32::from_le_bytes([header[80], header[81], header[82], header[83]]);
+    let expected = 84 + 50 * n as u64;
+    let mut record = [0u8; 50];
+    for t in 0..n as usize {
+        if let Err(e) = r.read_exact(&mut record) {
+            return Err(if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                StlError::Truncated {
+                    triangles: n,
+                    expected,
+                    actual: 84 + 50 * t as u64,
+                }
+            } else {
+                StlError::Parse(format!("reading triangle {t}: {e}"))
+            });
+        }
+        let c = |k: usize| {
+            let at = 12 + 4 * k;
+            f32::from_le_bytes([record[at], record[at + 1], record[at + 2], record[at + 3]])
+        };
+        let tri = [
+            vertex_check(t, [c(0), c(1), c(2)])?,
+            vertex_check(t, [c(3), c(4), c(5)])?,
+            vertex_check(t, [c(6), c(7), c(8)])?,
+        ];
+        f(t, &tri)?;
+    }
+    // The stream may be longer than it said it was.
+    let extra = r
+        .fill_buf()
+        .map_err(|e| StlError::Parse(format!("reading: {e}")))?
+        .len();
+    if extra > 0 {
+        return Err(StlError::Truncated {
+            triangles: n,
+            expected,
+            actual: expected + extra as u64,
+        });
+    }
+    Ok(n as usize)
+}
+
+/// ASCII STL, keywords in any case: `solid`, then `facet normal ...`, `outer loop`,
+/// three `vertex x y z`, `endloop`, `endfacet` per triangle, and `endsolid`.
+fn ascii_triangles(
+    mut r: impl BufRead,
+    f: &mut impl FnMut(usize, &Triangle) -> Result<(), StlError>,
+) -> Result<usize, StlError> {
+    let mut line = Vec::with_capacity(128);
+    let mut line_no = 0usize;
+    let mut count = 0usize;
+    // Next meaningful line, lowercased and split into words; None at the end.
+    let mut next = |line: &mut Vec<u8>| -> Result<Option<(usize, Vec<String>)>, StlError> {
+        loop {
+            line.clear();
+            let n = (&mut r)
+                .take(MAX_LINE + 1)
+                .read_until(b'\n', line)
+                .map_err(|e| StlError::Parse(format!("reading: {e}")))?;
+            if n == 0 {
+                return Ok(None);
+            }
+            line_no += 1;
+            if n as u64 > MAX_LINE && line.last() != Some(&b'\n') {
+                return Err(StlError::Parse(format!(
+                    "line {line_no} is longer than {MAX_LINE} bytes"
+                )));
+            }
+            let text = std::str::from_utf8(line)
+                .map_err(|_| StlError::Parse(format!("line {line_no} is not ASCII text")))?;
+            let words: Vec<String> = text
+                .split_ascii_whitespace()
+                .map(str::to_ascii_lowercase)
+                .collect();
+            if !words.is_empty() {
+                return Ok(Some((line_no, words)));
+            }
+        }
+    };
+    let expect =
+        |got: Option<(usize, Vec<String>)>, want: &str| -> Result<(usize, Vec<String>), StlError> {
+            match got {
+                Some((n, w)) if w[0] == want => Ok((n, w)),
+                Some((n, w)) => Err(StlError::Parse(format!(
+                    "line {n}: expected `{want}`, found `{}`",
+                    w.join(" ")
+                ))),
+                None => Err(StlError::Parse(format!(
+                    "the file ends where `{want}` was expected"
+                ))),
+            }
+        };
+    expect(next(&mut line)?, "solid")?;
+    loop {
+        let Some((n, words)) = next(&mut line)? else {
+            return Err(StlError::Parse(
+                "the file ends without `endsolid`".to_string(),
+            ));
+        };
+        match words[0].as_str() {
+            "endsolid" => {
+                // Some exporters write several solids in one file.
+                match next(&mut line)? {
+                    None => return Ok(count),
+                    Some((_, w)) if w[0] == "solid" => continue,
+                    Some((n, w)) => {
+                        return Err(StlError::Parse(format!(
+                            "line {n}: expected `solid` or the end of the file, found `{}`",
+                            w.join(" ")
+                        )))
+                    }
+                }
+            }
+            "facet" => {}
+            _ => {
+                return Err(StlError::Parse(format!(
+                    "line {n}: expected `facet` or `endsolid`, found `{}`",
+                    words.join(" ")
+                )))
+            }
+        }
+        let (n, words) = expect(next(&mut line)?, "outer")?;
+        if words.get(1).map(String::as_str) != Some("loop") {
+            return Err(StlError::Parse(format!(
+                "line {n}: expected `outer loop`, found `{}`",
+                words.join(" ")
+            )));
+        }
+        let mut tri = [[0f32; 3]; 3];
+        for v in &mut tri {
+            let (n, words) = expect(next(&mut line)?, "vertex")?;
+            if words.len() != 4 {
+                return Err(StlError::Parse(format!(
+                    "line {n}: expected `vertex x y z`, found `{}`",
+                    words.join(" ")
+                )));
+            }
+            for k in 0..3 {
+                v[k] = words[k + 1].parse::<f32>().map_err(|_| {
+                    StlError::Parse(format!("line {n}: `{}` is not a number", words[k + 1]))
+                })?;
+            }
+            *v = vertex_check(count, *v)?;
+        }
+        expect(next(&mut line)?, "endloop")?;
+        expect(next(&mut line)?, "endfacet")?;
+        f(count, &tri)?;
+        count += 1;
+    }
+}
+
+/// A vertex as the mesh merges it: in f64, −0.0 folded into 0.0.
+pub fn vertex_f64(v: [f32; 3]) -> [f64; 3] {
+    [v[0] as f64 + 0.0, v[1] as f64 + 0.0, v[2] as f64 + 0.0]
+}
+
+/// Closedness in constant memory. A mesh is closed when every undirected edge is used
+/// as often in one direction as in the other (what `Mesh`'s exact check counts per
+/// edge). Adding a 128-bit hash of the edge for one direction and subtracting it for the
+/// other makes the total zero exactly when that holds, but for hash collisions (about
+/// 2^-64 for a file that is not built to collide; a job's exact check still runs on
+/// the mesh it builds). It cannot say which edge is open, only that one is.
+#[derive(Default)]
+pub struct EdgeSum {
+    sum: [u64; 2],
+}
+
+fn mix(mut h: u64, w: u64) -> u64 {
+    // splitmix64's finalizer on each word folded in.
+    h ^= w;
+    h = h.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    h = (h ^ (h >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    h = (h ^ (h >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    h ^ (h >> 31)
+}
+
+impl EdgeSum {
+    /// Adds the directed edge a → b.
+    pub fn add(&mut self, a: [u64; 3], b: [u64; 3]) {
+        let (p, q, forward) = if a < b { (a, b, true) } else { (b, a, false) };
+        for (k, seed) in [0x243F_6A88_85A3_08D3u64, 0x1319_8A2E_0370_7344]
+            .into_iter()
+            .enumerate()
+        {
+            let h = p.iter().chain(q.iter()).fold(seed, |h, &w| mix(h, w));
+            self.sum[k] = if forward {
+                self.sum[k].wrapping_add(h)
+            } else {
+                self.sum[k].wrapping_sub(h)
+            };
+        }
+    }
+
+    pub fn closed(&self) -> bool {
+        self.sum == [0, 0]
+    }
+}
+
+/// What [`scan`] found in a valid STL.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StlScan {
+    /// Triangles with three distinct vertices (those a mesh keeps).
+    pub triangles: usize,
+    pub bounds: ([f64; 3], [f64; 3]),
+    /// Enclosed volume, mm³.
+    pub volume: f64,
+}
+
+/// Reads an STL from `r` (of `len` bytes) and checks it as `Mesh::from_stl_bytes` does:
+/// finite vertices, at least one non-degenerate triangle, closed, in memory that does not
+/// grow with the file.
+pub fn scan<R: Read>(r: R, len: u64) -> Result<StlScan, StlError> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    let mut kept = 0usize;
+    let mut volume = 0.0;
+    let mut edges = EdgeSum::default();
+    let read = for_each_triangle(r, len, |_, tri| {
+        let p = tri.map(vertex_f64);
+        for v in &p {
+            for a in 0..3 {
+                lo[a] = lo[a].min(v[a]);
+                hi[a] = hi[a].max(v[a]);
+            }
+        }
+        let keys = p.map(|v| v.map(f64::to_bits));
+        if keys[0] == keys[1] || keys[1] == keys[2] || keys[0] == keys[2] {
+            return Ok(());
+        }
+        kept += 1;
+        for k in 0..3 {
+            edges.add(keys[k], keys[(k + 1) % 3]);
+        }
+        let [a, b, c] = p;
+        let cr = [
+            b[1] * c[2] - b[2] * c[1],
+            b[2] * c[0] - b[0] * c[2],
+            b[0] * c[1] - b[1] * c[0],
+        ];
+        volume += (a[0] * cr[0] + a[1] * cr[1] + a[2] * cr[2]) / 6.0;
+        Ok(())
+    })?;
+    if kept == 0 {
+        return Err(if read == 0 {
+            StlError::Empty
+        } else {
+            StlError::Degenerate
+        });
+    }
+    if !edges.closed() {
+        return Err(StlError::NotClosedSomewhere);
+    }
+    Ok(StlScan {
+        triangles: kept,
+        bounds: (lo, hi),
+        volume,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Mesh;
+
+    /// A binary STL of a unit cube's 12 triangles (outward normals), optionally without
+    /// its last triangle.
+    fn cube(drop_last: bool) -> Vec<u8> {
+        let v = |i: usize| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32];
+        let faces: [[usize; 3]; 12] = [
+            [0, 2, 1],
+            [1, 2, 3],
+            [4, 5, 6],
+            [5, 7, 6],
+            [0, 1, 4],
+            [1, 5, 4],
+            [2, 6, 3],
+            [3, 6, 7],
+            [0, 4, 2],
+            [2, 4, 6],
+            [1, 3, 5],
+            [3, 7, 5],
+        ];
+        let n = if drop_last { 11 } else { 12 };
+        let mut out = vec![0u8; 80];
+        out.extend_from_slice(&(n as u32).to_le_bytes());
+        for f in &faces[..n] {
+            out.extend_from_slice(&[0u8; 12]);
+            for &i in f {
+                for c in v(i) {
+                    out.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+            out.extend_from_slice(&[0u8; 2]);
+        }
+        out
+    }
+
+    fn ascii(bytes: &[u8]) -> String {
+        let mut s = String::from("SOLID cube\n");
+        for t in 0..u32::from_le_bytes(bytes[80..84].try_into().unwrap()) as usize {
+            s += "  FACET NORMAL 0 0 0\n    OUTER LOOP\n";
+            for k in 0..3 {
+                let at = 84 + 50 * t + 12 + 12 * k;
+                let c = |j: usize| {
+                    f32::from_le_bytes(bytes[at + 4 * j..at + 4 * j + 4].try_into().unwrap())
+                };
+                s += &format!("      VERTEX {} {} {}\n", c(0), c(1), c(2));
+            }
+            s += "    ENDLOOP\n  ENDFACET\n";
+        }
+        s + "ENDSOLID cube\n"
+    }
+
+    #[test]
+    fn a_closed_cube_scans_as_its_mesh_reads() {
+        for bytes in [cube(false), ascii(&cube(false)).into_bytes()] {
+            let s = scan(&bytes[..], bytes.len() as u64).unwrap();
+            let mesh = Mesh::from_stl_bytes(&bytes).unwrap();
+            assert_eq!(s.triangles, mesh.triangles.len());
+            assert_eq!(s.bounds, mesh.bounds());
+            assert!((s.volume - 1.0).abs() < 1e-12, "{}", s.volume);
+            assert!((mesh.volume() - 1.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn an_open_cube_is_refused_by_both_checks() {
+        for bytes in [cube(true), ascii(&cube(true)).into_bytes()] {
+            assert_eq!(
+                scan(&bytes[..], bytes.len() as u64),
+                Err(StlError::NotClosedSomewhere)
+            );
+            assert!(matches!(
+                Mesh::from_stl_bytes(&bytes),
+                Err(StlError::NotClosed { open_edges: 3, .. })
+            ));
+        }
+    }
+
+    #[test]
+    fn a_flipped_triangle_is_not_closed() {
+        // Same edges, one triangle wound the other way: every undirected edge is used
+        // twice, but not in opposite directions.
+        let mut bytes = cube(false);
+        let at = 84 + 12;
+        let (a, b) = (
+            bytes[at..at + 12].to_vec(),
+            bytes[at + 12..at + 24].to_vec(),
+        );
+        bytes[at..at + 12].copy_from_slice(&b);
+        bytes[at + 12..at + 24].copy_from_slice(&a);
+        assert_eq!(
+            scan(&bytes[..], bytes.len() as u64),
+            Err(StlError::NotClosedSomewhere)
+        );
+    }
+
+    #[test]
+    fn length_and_count_must_agree() {
+        let bytes = cube(false);
+        // The stream ends before the count's records.
+        let short = &bytes[..bytes.len() - 50];
+        assert!(matches!(
+            scan(short, bytes.len() as u64),
+            Err(StlError::Truncated { actual, .. }) if actual == 84 + 50 * 11
+        ));
+        // The length given is not the count's.
+        assert!(matches!(
+            scan(short, short.len() as u64),
+            Err(StlError::Truncated {
+                expected: 684,
+                actual: 634,
+                ..
+            })
+        ));
+        // More bytes than the count's.
+        let mut long = bytes.clone();
+        long.extend_from_slice(&[0u8; 50]);
+        assert!(matches!(
+            scan(&long[..], bytes.len() as u64),
+            Err(StlError::Truncated { actual: 734, .. })
+        ));
+    }
+
+    #[test]
+    fn a_nan_vertex_names_its_triangle() {
+        let mut bytes = cube(false);
+        let at = 84 + 50 * 5 + 12 + 4;
+        bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert_eq!(
+            scan(&bytes[..], bytes.len() as u64),
+            Err(StlError::NonFinite { triangle: 5 })
+        );
+    }
+
+    #[test]
+    fn ascii_errors_name_the_line() {
+        let text = ascii(&cube(false)).replace("      VERTEX 1 0 0\n", "      VERTEX 1 x 0\n");
+        let err = scan(text.as_bytes(), text.len() as u64).unwrap_err();
+        assert!(
+            err.to_string().contains("line ") && err.to_string().contains("`x` is not a number"),
+            "{err}"
+        );
+        let long = format!("solid a\n{}\n", "9".repeat(5000));
+        let err = scan(long.as_bytes(), long.len() as u64).unwrap_err();
+        assert!(
+            err.to_string().contains("line 2 is longer than 4096 bytes"),
+            "{err}"
+        );
+        let cut = "solid a\n  facet normal 0 0 1\n";
+        let err = scan(cut.as_bytes(), cut.len() as u64).unwrap_err();
+        assert!(
+            err.to_string().contains("ends where `outer` was expected"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn an_empty_solid_is_empty() {
+        let text = "solid a\nendsolid a\n";
+        assert_eq!(
+            scan(text.as_bytes(), text.len() as u64),
+            Err(StlError::Empty)
+        );
+    }
+}
