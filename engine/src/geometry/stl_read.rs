@@ -141,7 +141,8 @@ fn binary_triangles(
 }
 
 /// ASCII STL, keywords in any case: `solid`, then `facet normal ...`, `outer loop`,
-/// three `vertex x y z`, `endloop`, `endfacet` per triangle, and `endsolid`.
+/// three `vertex x y z`, `endloop`, `endfacet` per triangle, and `endsolid` (which may be
+/// missing at the end of the file).
 fn ascii_triangles(
     mut r: impl BufRead,
     f: &mut impl FnMut(usize, &Triangle) -> Result<(), StlError>,
@@ -192,10 +193,10 @@ fn ascii_triangles(
         };
     expect(next(&mut line)?, "solid")?;
     loop {
+        // A file that ends after a whole facet without `endsolid` (some exporters leave it
+        // out) has all its triangles: taken as it is; a file cut inside a facet is not.
         let Some((n, words)) = next(&mut line)? else {
-            return Err(StlError::Parse(
-                "the file ends without `endsolid`".to_string(),
-            ));
+            return Ok(count);
         };
         match words[0].as_str() {
             "endsolid" => {
@@ -513,6 +514,22 @@ mod tests {
             err.to_string().contains("ends where `outer` was expected"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn a_file_without_endsolid_keeps_its_facets_and_one_cut_in_a_facet_is_refused() {
+        let text = ascii(&cube(false));
+        let cut = text.trim_end().rsplit_once('\n').unwrap().0.to_string();
+        assert!(!cut.contains("ENDSOLID") && cut.trim_end().ends_with("ENDFACET"));
+        let mut n = 0;
+        let count = for_each_triangle(cut.as_bytes(), cut.len() as u64, |_, _| {
+            n += 1;
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!((count, n), (12, 12));
+        let mid = cut.rsplit_once("ENDLOOP").unwrap().0;
+        assert!(for_each_triangle(mid.as_bytes(), mid.len() as u64, |_, _| Ok(())).is_err());
     }
 
     #[test]
