@@ -67,11 +67,35 @@ pub async fn body_timeout(State(state): State<AppState>, req: Request, next: Nex
     res.into_response()
 }
 
-pub async fn read_limited(
+/// Where a request body's bytes go as they arrive: memory, or a temporary file for the
+/// uploads too large to hold.
+pub trait BodySink: Sized {
+    fn create() -> Result<Self, ApiError>;
+    /// Appends a chunk, refusing the upload as soon as it crosses `limit` bytes.
+    fn append(&mut self, chunk: &[u8], limit: u64) -> Result<(), ApiError>;
+}
+
+impl BodySink for Vec<u8> {
+    fn create() -> Result<Self, ApiError> {
+        Ok(Vec::new())
+    }
+
+    fn append(&mut self, chunk: &[u8], limit: u64) -> Result<(), ApiError> {
+        if self.len() as u64 + chunk.len() as u64 > limit {
+            return Err(ApiError::too_large(limit));
+        }
+        self.extend_from_slice(chunk);
+        Ok(())
+    }
+}
+
+/// The body into a sink, at most `limit` bytes: a Content-Length over it is refused before
+/// any of the body is read, a body without one as soon as it crosses it.
+pub async fn collect_limited<S: BodySink>(
     headers: &HeaderMap,
     body: Body,
     limit: u64,
-) -> Result<Vec<u8>, ApiError> {
+) -> Result<S, ApiError> {
     if let Some(len) = headers
         .get(header::CONTENT_LENGTH)
         .and_then(|v| v.to_str().ok())
@@ -81,16 +105,22 @@ pub async fn read_limited(
             return Err(ApiError::too_large(limit));
         }
     }
-    let mut out = Vec::new();
+    let mut out = S::create()?;
     let mut stream = body.into_data_stream();
     while let Some(chunk) = stream.next().await {
         let chunk = chunk.map_err(body_error)?;
-        if out.len() as u64 + chunk.len() as u64 > limit {
-            return Err(ApiError::too_large(limit));
-        }
-        out.extend_from_slice(&chunk);
+        out.append(&chunk, limit)?;
     }
     Ok(out)
+}
+
+/// [`collect_limited`] into memory.
+pub async fn read_limited(
+    headers: &HeaderMap,
+    body: Body,
+    limit: u64,
+) -> Result<Vec<u8>, ApiError> {
+    collect_limited(headers, body, limit).await
 }
 
 /// A request body written to an unnamed temporary file as it arrives (the file is gone
@@ -100,15 +130,14 @@ pub struct Spooled {
     pub len: u64,
 }
 
-impl Spooled {
-    pub fn new() -> Result<Spooled, ApiError> {
+impl BodySink for Spooled {
+    fn create() -> Result<Spooled, ApiError> {
         let file = tempfile::tempfile()
             .map_err(|e| ApiError::internal(format!("temporary file for the upload: {e}")))?;
         Ok(Spooled { file, len: 0 })
     }
 
-    /// Appends a chunk, refusing the upload as soon as it crosses `limit` bytes.
-    pub fn append(&mut self, chunk: &[u8], limit: u64) -> Result<(), ApiError> {
+    fn append(&mut self, chunk: &[u8], limit: u64) -> Result<(), ApiError> {
         use std::io::Write;
         if self.len + chunk.len() as u64 > limit {
             return Err(ApiError::too_large(limit));
@@ -121,7 +150,9 @@ impl Spooled {
         self.len += chunk.len() as u64;
         Ok(())
     }
+}
 
+impl Spooled {
     /// A reader from the start of the file (sharing its handle).
     pub fn reader(&self) -> Result<std::fs::File, ApiError> {
         use std::io::{Seek, SeekFrom};
@@ -133,30 +164,6 @@ impl Spooled {
             .map_err(|e| ApiError::internal(format!("reading the upload's temporary file: {e}")))?;
         Ok(f)
     }
-}
-
-/// [`read_limited`] into a temporary file instead of memory.
-pub async fn spool_limited(
-    headers: &HeaderMap,
-    body: Body,
-    limit: u64,
-) -> Result<Spooled, ApiError> {
-    if let Some(len) = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<u64>().ok())
-    {
-        if len > limit {
-            return Err(ApiError::too_large(limit));
-        }
-    }
-    let mut out = Spooled::new()?;
-    let mut stream = body.into_data_stream();
-    while let Some(chunk) = stream.next().await {
-        let chunk = chunk.map_err(body_error)?;
-        out.append(&chunk, limit)?;
-    }
-    Ok(out)
 }
 
 fn body_error(e: axum::Error) -> ApiError {

@@ -13,7 +13,7 @@ use serde_json::json;
 use millsim_engine::tool::Tool;
 use millsim_engine::tool_library::ImportReport;
 
-use super::body::{media_type, read_limited, spool_limited, Spooled};
+use super::body::{collect_limited, media_type, read_limited, BodySink, Spooled};
 use super::problem::ApiError;
 use super::{parse_query, AppState, Owner, PageQuery};
 use crate::store::chunks::ResourceBody;
@@ -42,9 +42,14 @@ fn disposition_name(headers: &HeaderMap) -> Option<String> {
     .filter(|s| !s.is_empty())
 }
 
-/// Reads the uploaded bytes: the raw body, or the `file` part (else the first part) of
-/// a multipart form. Returns the bytes and the file name the client gave, if any.
-async fn upload_bytes(req: Request, limit: u64) -> Result<(Vec<u8>, Option<String>), ApiError> {
+/// The uploaded bytes into a sink as they arrive (memory, or a temporary file so that a
+/// stock of hundreds of megabytes never sits in memory), at most `limit` bytes: the raw
+/// body, or the `file` part (else the first part with a file name) of a multipart form.
+/// Returns the sink and the file name the client gave, if any.
+async fn upload_into<S: BodySink>(
+    req: Request,
+    limit: u64,
+) -> Result<(S, Option<String>), ApiError> {
     let headers = req.headers().clone();
     if media_type(&headers) == "multipart/form-data" {
         let mut form = Multipart::from_request(req, &())
@@ -60,44 +65,7 @@ async fn upload_bytes(req: Request, limit: u64) -> Result<(Vec<u8>, Option<Strin
                 continue;
             }
             let name = field.file_name().map(str::to_string);
-            let mut out = Vec::new();
-            while let Some(chunk) = field.chunk().await.map_err(|e| multipart_error(e, limit))? {
-                if out.len() as u64 + chunk.len() as u64 > limit {
-                    return Err(ApiError::too_large(limit));
-                }
-                out.extend_from_slice(&chunk);
-            }
-            return Ok((out, name));
-        }
-        return Err(ApiError::invalid_field(
-            "file",
-            "the multipart form has no `file` part",
-        ));
-    }
-    let name = disposition_name(&headers);
-    let bytes = read_limited(&headers, req.into_body(), limit).await?;
-    Ok((bytes, name))
-}
-
-/// [`upload_bytes`] into a temporary file: the body is written out as it arrives, so a
-/// stock of hundreds of megabytes never sits in memory; the limit holds as it streams.
-async fn upload_spooled(req: Request, limit: u64) -> Result<(Spooled, Option<String>), ApiError> {
-    let headers = req.headers().clone();
-    if media_type(&headers) == "multipart/form-data" {
-        let mut form = Multipart::from_request(req, &())
-            .await
-            .map_err(|e| ApiError::bad_request(format!("multipart form: {}", e.body_text())))?;
-        while let Some(mut field) = form
-            .next_field()
-            .await
-            .map_err(|e| multipart_error(e, limit))?
-        {
-            let is_file = field.name() == Some("file") || field.file_name().is_some();
-            if !is_file {
-                continue;
-            }
-            let name = field.file_name().map(str::to_string);
-            let mut out = Spooled::new()?;
+            let mut out = S::create()?;
             while let Some(chunk) = field.chunk().await.map_err(|e| multipart_error(e, limit))? {
                 out.append(&chunk, limit)?;
             }
@@ -109,8 +77,8 @@ async fn upload_spooled(req: Request, limit: u64) -> Result<(Spooled, Option<Str
         ));
     }
     let name = disposition_name(&headers);
-    let spooled = spool_limited(&headers, req.into_body(), limit).await?;
-    Ok((spooled, name))
+    let sink = collect_limited(&headers, req.into_body(), limit).await?;
+    Ok((sink, name))
 }
 
 fn multipart_error(e: axum::extract::multipart::MultipartError, limit: u64) -> ApiError {
@@ -144,7 +112,7 @@ pub async fn create(
             (bytes, None, v)
         }
         ResourceKind::Stock => {
-            let (spooled, name) = upload_spooled(req, limits.max_stl_bytes).await?;
+            let (spooled, name) = upload_into::<Spooled>(req, limits.max_stl_bytes).await?;
             let file = query
                 .name
                 .clone()
@@ -177,7 +145,7 @@ pub async fn create(
             return Ok(created(kind, record));
         }
         ResourceKind::Program => {
-            let (bytes, name) = upload_bytes(req, limits.max_program_bytes).await?;
+            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes).await?;
             let file = query
                 .name
                 .clone()
@@ -192,7 +160,7 @@ pub async fn create(
         }
         ResourceKind::ToolLibrary => {
             // Any media type: the engine tells the format from the content, as offline.
-            let (bytes, name) = upload_bytes(req, limits.max_program_bytes).await?;
+            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes).await?;
             let file = query
                 .name
                 .clone()
