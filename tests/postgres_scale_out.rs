@@ -18,21 +18,49 @@ use sqlx::Connection;
 /// mid-job often.
 const SHORT_LOOP: &str = "G21 G90\nG0 X0 Y0 Z5\n#1=0\no100 while [#1 LT 400]\nG1 X10 F1000\nG1 X0\n#1=[#1+1]\no100 endwhile\nM30\n";
 
-fn start_worker(db_url: &str) -> Child {
-    Command::new(BIN)
-        .args([
-            "worker",
-            "--database",
-            db_url,
-            "--workers",
-            "1",
-            "--lease-secs",
-            "1",
-        ])
-        .env("RUST_LOG", "warn")
-        .stdout(Stdio::null())
-        .spawn()
-        .expect("start millsim worker")
+/// A `millsim worker` process, killed when the test ends however it ends: a failed
+/// assertion would otherwise leave it running against the throwaway cluster.
+struct Worker(Child);
+
+impl std::ops::Deref for Worker {
+    type Target = Child;
+    fn deref(&self) -> &Child {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Worker {
+    fn deref_mut(&mut self) -> &mut Child {
+        &mut self.0
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        if let Ok(None) = self.0.try_wait() {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+}
+
+fn start_worker(db_url: &str) -> Worker {
+    Worker(
+        Command::new(BIN)
+            .args([
+                "worker",
+                "--database",
+                db_url,
+                "--workers",
+                "1",
+                "--lease-secs",
+                "1",
+            ])
+            .env("RUST_LOG", "warn")
+            .stdout(Stdio::null())
+            .spawn()
+            .expect("start millsim worker"),
+    )
 }
 
 /// Starts `millsim serve` against an existing database URL.
@@ -151,7 +179,7 @@ async fn four_workers_two_apis_two_killed_every_job_once() {
         let text = get_text(&c, api, "/metrics").await;
         assert!(text.contains("\nmillsim_queue_depth 400\n"), "{text}");
     }
-    let mut workers: Vec<Child> = (0..4).map(|_| start_worker(&url)).collect();
+    let mut workers: Vec<Worker> = (0..4).map(|_| start_worker(&url)).collect();
 
     // Kill two worker processes while each has an attempt open (mid-job), then restart one.
     let mut conn = sqlx::PgConnection::connect(&url).await.unwrap();
