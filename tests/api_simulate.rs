@@ -14,22 +14,13 @@ const OPT_COLUMNS: &str = "feed_opt_mm_min,time_opt_s,force_peak_opt_n,force_mea
 /// The block stock (100 × 40 × 10 mm, top at z = 0) and flat D10 4-flute zero-helix tool both
 /// tests cut their slot with; returns their ids.
 async fn slot_stock_and_tool(c: &reqwest::Client, s: &Server) -> (String, String) {
-    let mut ids = Vec::new();
-    for (path, body) in [
-        (
-            "/v1/stocks",
-            json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-        ),
-        (
-            "/v1/tools",
-            json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length_mm": 20.0}),
-        ),
-    ] {
-        let (st, v) = post_json(&c, &s, path, &body).await;
-        assert_eq!(st, 201, "{path}: {v}");
-        ids.push(v["id"].as_str().unwrap().to_string());
-    }
-    (ids.remove(0), ids.remove(0))
+    let block = json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]});
+    let (st, v) = post_json(c, s, "/v1/stocks", &block).await;
+    assert_eq!(st, 201, "{v}");
+    (
+        v["id"].as_str().unwrap().to_string(),
+        post_slot_tool(c, s).await,
+    )
 }
 
 #[tokio::test]
@@ -40,15 +31,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let id = |v: serde_json::Value| v["id"].as_str().unwrap().to_string();
     let (stock, tool) = slot_stock_and_tool(&c, &s).await;
     let program = "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n";
-    let (st, prog) = json(
-        c.post(s.url("/v1/programs?name=slot.nc"))
-            .body(program)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
-    assert_eq!(st, 201);
+    let prog = post_program(&c, &s, "slot.nc", program).await;
     // A design part up to z = −3 (STL, as a stock resource): the 5 mm slot gouges it 2 mm.
     let part =
         millsim_engine::geometry::Stock::block([0.0, -20.0, -10.0], [100.0, 20.0, -3.0], 0.25)
@@ -56,7 +39,7 @@ async fn simulate_a_slot_and_fetch_rows_summary_and_final_stock() {
     let (stl, _) = millsim_engine::geometry::export_stl_vec(&part).unwrap();
     let (st, part) = post_stl(&c, &s, "/v1/stocks", stl).await;
     assert_eq!(st, 201, "{part}");
-    let body = json!({"kind": "simulate", "inputs": {"program": id(prog), "stock": stock, "tool": tool, "part": id(part)},
+    let body = json!({"kind": "simulate", "inputs": {"program": prog, "stock": stock, "tool": tool, "part": id(part)},
                       "options": {"material": "Al7075-T6", "cell_mm": 0.25}});
     let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");

@@ -169,24 +169,15 @@ async fn bad_streamed_uploads_are_problems_and_leave_no_rows() {
     // (a few MB at 0.5 mm) and the fixed 96 MB fit in.
     let (st, v) = post_stl(&c, &s, "/v1/stocks?name=box.stl", good).await;
     assert_eq!(st, 201, "{v}");
-    let (st, tool) = post_json(
+    let tool = post_slot_tool(&c, &s).await;
+    let prog = post_program(
         &c,
         &s,
-        "/v1/tools",
-        &json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length_mm": 20.0}),
+        "slot.nc",
+        "G0 X-10 Y0 Z-5\nG1 X60 F4000 S10000 M3\nM30\n",
     )
     .await;
-    assert_eq!(st, 201, "{tool}");
-    let (st, prog) = json(
-        c.post(s.url("/v1/programs?name=slot.nc"))
-            .body("G0 X-10 Y0 Z-5\nG1 X60 F4000 S10000 M3\nM30\n")
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
-    assert_eq!(st, 201, "{prog}");
-    let body = json!({"kind": "simulate", "inputs": {"program": prog["id"], "stock": v["id"], "tool": tool["id"]},
+    let body = json!({"kind": "simulate", "inputs": {"program": prog, "stock": v["id"], "tool": tool},
                       "options": {"material": "Al7075-T6", "cell_mm": 0.5}});
     let (st, p) = post_json(&c, &s, "/v1/jobs", &body).await;
     assert_eq!(st, 422, "{p}");
@@ -231,36 +222,12 @@ async fn a_large_upload_round_trips_and_a_worker_simulates_on_it() {
     assert_eq!(chunks as usize, stl.len().div_ceil(1 << 20));
 
     // A worker loads it and cuts a 5 mm deep, 10 mm wide slot 60 mm long into it.
-    let (st, tool) = post_json(
-        &c,
-        &s,
-        "/v1/tools",
-        &json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length_mm": 20.0}),
-    )
-    .await;
-    assert_eq!(st, 201, "{tool}");
+    let tool = post_slot_tool(&c, &s).await;
     let program = "G21 G90 G17\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n";
-    let (st, prog) = json(
-        c.post(s.url("/v1/programs?name=slot.nc"))
-            .body(program)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
-    assert_eq!(st, 201, "{prog}");
-    let body = json!({"kind": "simulate", "inputs": {"program": prog["id"], "stock": stock, "tool": tool["id"]},
+    let prog = post_program(&c, &s, "slot.nc", program).await;
+    let body = json!({"kind": "simulate", "inputs": {"program": prog, "stock": stock, "tool": tool},
                       "options": {"material": "Al7075-T6", "cell_mm": 0.5}});
-    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
-    assert_eq!(st, 202, "{job}");
-    let done = wait_job(
-        &c,
-        &s,
-        job["id"].as_str().unwrap(),
-        Duration::from_secs(120),
-    )
-    .await;
-    assert_eq!(done["status"], "succeeded", "{done}");
+    let done = run_job(&c, &s, &body, Duration::from_secs(120)).await;
     let removed = done["summary"]["removed_volume_mm3"].as_f64().unwrap();
     let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
     assert!(

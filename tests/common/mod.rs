@@ -221,11 +221,20 @@ pub async fn json(res: reqwest::Response) -> (u16, Value) {
 /// Uploads a program file and returns its id.
 pub async fn upload_program(c: &reqwest::Client, s: &Server, path: &Path) -> String {
     let name = path.file_name().unwrap().to_string_lossy().to_string();
-    let body = std::fs::read(path).unwrap();
+    post_program(c, s, &name, std::fs::read(path).unwrap()).await
+}
+
+/// Uploads a program's text as `name` (it must be accepted) and returns its id.
+pub async fn post_program(
+    c: &reqwest::Client,
+    s: &Server,
+    name: &str,
+    text: impl Into<reqwest::Body>,
+) -> String {
     let (status, v) = json(
         c.post(s.url(&format!("/v1/programs?name={name}")))
             .header("content-type", "text/plain")
-            .body(body)
+            .body(text)
             .send()
             .await
             .unwrap(),
@@ -233,6 +242,25 @@ pub async fn upload_program(c: &reqwest::Client, s: &Server, path: &Path) -> Str
     .await;
     assert_eq!(status, 201, "{v}");
     v["id"].as_str().unwrap().to_string()
+}
+
+/// Creates the tool the slot tests cut with (flat Ø10, 4 flutes, no helix, 20 mm flutes)
+/// and returns its id.
+pub async fn post_slot_tool(c: &reqwest::Client, s: &Server) -> String {
+    let tool = serde_json::json!({"type": "flat", "diameter_mm": 10.0, "flutes": 4, "helix_deg": 0.0, "flute_length_mm": 20.0});
+    let (status, v) = post_json(c, s, "/v1/tools", &tool).await;
+    assert_eq!(status, 201, "{v}");
+    v["id"].as_str().unwrap().to_string()
+}
+
+/// Submits a job (it must be accepted), waits up to `within` for it and returns it,
+/// asserting that it succeeded.
+pub async fn run_job(c: &reqwest::Client, s: &Server, body: &Value, within: Duration) -> Value {
+    let (status, job) = post_json(c, s, "/v1/jobs", body).await;
+    assert_eq!(status, 202, "{job}");
+    let done = wait_job(c, s, job["id"].as_str().unwrap(), within).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    done
 }
 
 pub async fn submit_interpret(c: &reqwest::Client, s: &Server, program: &str) -> Value {
