@@ -142,29 +142,57 @@ async fn main() {
         percentile(&lat, 0.99)
     );
 
-    // 3. Stream 100,000 per-block CSV rows: seed a finished job's rows in the database.
-    let pool = sqlx::SqlitePool::connect(&db_url).await.unwrap();
-    let mut tx = pool.begin().await.unwrap();
-    sqlx::query("INSERT INTO jobs (id, owner, kind, status, spec, max_attempts, created_at, updated_at, summary) VALUES ('seeded-100k', '', 'interpret', 'succeeded', '{}', 3, 0, 0, '{}')")
-        .execute(&mut *tx)
+    // 3. Stream 100,000 per-block CSV rows: a real interpret job of 99,999 moves plus its
+    // M30 makes them (the rows go the way every job's go: grouped and compressed).
+    let mut text = String::from("G21 G90 G1 F1200\n");
+    for i in 0..99_998 {
+        text.push_str(&format!(
+            "X{:.3} Y{:.3}\n",
+            (i % 1000) as f64 * 0.01,
+            (i / 1000) as f64 * 0.1
+        ));
+    }
+    text.push_str("M30\n");
+    let program: Value = c
+        .post(format!("{base}/v1/programs?name=100k.nc"))
+        .header("content-type", "text/plain")
+        .body(text)
+        .send()
+        .await
+        .unwrap()
+        .json()
         .await
         .unwrap();
-    for chunk in 0..250 {
-        let mut q = sqlx::QueryBuilder::new("INSERT INTO job_rows (job_id, seq, data) ");
-        q.push_values(0..400, |mut b, i| {
-            let seq = chunk * 400 + i;
-            let row = json!({"block": seq, "line": seq + 1, "kind": "linear", "end": [seq as f64 * 0.01, 12.5, -1.0, 0.0, 0.0, 0.0],
-                             "feed": 1200.0, "feed_mode": "per_min", "spindle": 12000.0, "tool": 1});
-            b.push_bind("seeded-100k").push_bind(seq as i64).push_bind(row.to_string());
-        });
-        q.build().execute(&mut *tx).await.unwrap();
+    let job: Value = c
+        .post(format!("{base}/v1/jobs"))
+        .json(&json!({"kind": "interpret", "inputs": {"program": program["id"]}}))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let seeded = job["id"].as_str().expect("job submitted").to_string();
+    loop {
+        let v: Value = c
+            .get(format!("{base}/v1/jobs/{seeded}"))
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        match v["status"].as_str() {
+            Some("succeeded") => break,
+            Some("queued" | "running") => tokio::time::sleep(Duration::from_millis(50)).await,
+            _ => panic!("the 100k-row job did not succeed: {v}"),
+        }
     }
-    tx.commit().await.unwrap();
-    // First run right after seeding (cold cache, WAL not yet checkpointed), then warm.
+    // First run right after the job (cold cache, WAL not yet checkpointed), then warm.
     for run in ["cold", "warm"] {
         let t = Instant::now();
         let body = c
-            .get(format!("{base}/v1/jobs/seeded-100k/blocks?format=csv"))
+            .get(format!("{base}/v1/jobs/{seeded}/blocks?format=csv"))
             .send()
             .await
             .unwrap()

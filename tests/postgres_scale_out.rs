@@ -264,15 +264,24 @@ async fn four_workers_two_apis_two_killed_every_job_once() {
             assert!(w[0].1 <= w[1].0, "{what} ran two attempts at once: {w:?}");
         }
     }
-    // Every result row written once: the loop's 802 moves for every job.
-    let rows: Vec<(i64,)> = sqlx::query_as("SELECT COUNT(*) FROM job_rows GROUP BY job_id")
-        .fetch_all(&mut conn)
-        .await
-        .unwrap();
+    // Every result row written once: the loop's 802 moves for every job. Rows are stored
+    // in groups of consecutive seqs; a second commit of a job would add its groups again,
+    // so the groups' row counts would add up to twice the seqs they span.
+    let rows: Vec<(i64, i64, i64)> = sqlx::query_as(
+        "SELECT SUM(last_seq - first_seq + 1)::BIGINT, MIN(first_seq), MAX(last_seq)
+         FROM job_row_groups GROUP BY job_id",
+    )
+    .fetch_all(&mut conn)
+    .await
+    .unwrap();
     assert_eq!(rows.len(), 400);
     let first = rows[0].0;
     assert!(first > 800, "{first} rows");
-    assert!(rows.iter().all(|r| r.0 == first));
+    assert!(
+        rows.iter()
+            .all(|&(n, lo, hi)| n == first && lo == 0 && hi == first - 1),
+        "rows lost or doubled: {rows:?}"
+    );
     assert!(
         by_worker.len() >= 5,
         "the restarted worker took no work: {by_worker:?}"

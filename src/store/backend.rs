@@ -1,7 +1,7 @@
 //! The two databases behind the one store. Statements are written once, with `$N`
 //! placeholders (SQLite reads them as PostgreSQL does), and `on_pool!` / `on_tx!` compile
 //! each for both drivers. What differs is here, in one place: row locking for claims, the
-//! JSON constructor, serializing one owner's submissions, and bulk row writes.
+//! JSON constructor and serializing one owner's submissions.
 
 use sqlx::postgres::{PgRow, Postgres};
 use sqlx::sqlite::{Sqlite, SqliteRow};

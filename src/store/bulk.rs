@@ -1,74 +1,92 @@
-//! Per-block result rows written in bulk, inside the job's success transaction: SQLite
-//! takes multi-row INSERTs, PostgreSQL a binary COPY above a few hundred rows (one stream
-//! instead of a statement per chunk).
+//! A job's result rows and samples in and out of their group tables (`job_row_groups`,
+//! `job_sample_groups`; the layout is `row_groups`'): written inside the job's success
+//! transaction as multi-row INSERTs of whole groups, read back a few groups at a time.
 
-use super::backend::{on_tx, Tx};
+use super::backend::{on_pool, on_tx, Pool, Tx};
+use super::row_groups::{unpack, Group};
 use super::StoreError;
 
-/// Up to this many rows, PostgreSQL gets an INSERT too.
-const COPY_FROM_ROWS: usize = 400;
-/// How much COPY text is buffered before it is sent.
-const COPY_CHUNK_BYTES: usize = 1 << 20;
+/// Groups per INSERT statement (a few MB of compressed bytes).
+const GROUPS_PER_INSERT: usize = 16;
+/// Groups per read: a page of a few thousand rows takes one or two reads.
+const GROUPS_PER_READ: i64 = 4;
 
-/// Writes a job's rows in `table` (job_id, seq, data). Rows are written once, with the
-/// job's success (only the lease holder commits it), so there are none to replace.
-pub async fn insert_rows(
+/// Writes a job's groups in `table`. They are written once, with the job's success (only
+/// the lease holder commits it), so there are none to replace.
+pub async fn insert_groups(
     tx: &mut Tx,
     table: &str,
     job_id: &str,
-    items: &[(usize, String)],
+    groups: &[Group],
 ) -> Result<(), StoreError> {
-    match tx {
-        Tx::Postgres(t) if items.len() > COPY_FROM_ROWS => {
-            // Binary COPY: the JSON goes as it is, with no escaping on our side and no
-            // text parsing on the server's (the text format escaped every backslash of
-            // the JSON's own escapes, a character at a time).
-            let mut copy = t
-                .copy_in_raw(&format!(
-                    "COPY {table} (job_id, seq, data) FROM STDIN (FORMAT binary)"
-                ))
-                .await?;
-            let mut buf = Vec::with_capacity(COPY_CHUNK_BYTES + 4096);
-            buf.extend_from_slice(b"PGCOPY\n\xff\r\n\0");
-            buf.extend_from_slice(&0i32.to_be_bytes()); // flags
-            buf.extend_from_slice(&0i32.to_be_bytes()); // header extension length
-            for (seq, data) in items {
-                buf.extend_from_slice(&3i16.to_be_bytes());
-                push_field(&mut buf, job_id.as_bytes());
-                push_field(&mut buf, &(*seq as i64).to_be_bytes());
-                push_field(&mut buf, data.as_bytes());
-                if buf.len() >= COPY_CHUNK_BYTES {
-                    copy.send(buf.as_slice()).await?;
-                    buf.clear();
-                }
-            }
-            buf.extend_from_slice(&(-1i16).to_be_bytes()); // trailer
-            copy.send(buf.as_slice()).await?;
-            copy.finish().await?;
-        }
-        // SQLite, and a few rows on PostgreSQL (most jobs: one round trip, where a COPY
-        // takes three): one multi-row INSERT per 400 rows instead of one per row.
-        _ => {
-            for chunk in items.chunks(400) {
-                on_tx!(tx, c => {
-                    let mut q =
-                        sqlx::QueryBuilder::new(format!("INSERT INTO {table} (job_id, seq, data) "));
-                    q.push_values(chunk, |mut b, (seq, data)| {
-                        b.push_bind(job_id).push_bind(*seq as i64).push_bind(data);
-                    });
-                    q.build().execute(&mut *c).await?;
-                });
-            }
-        }
+    for chunk in groups.chunks(GROUPS_PER_INSERT) {
+        on_tx!(tx, c => {
+            let mut q = sqlx::QueryBuilder::new(format!(
+                "INSERT INTO {table} (job_id, last_seq, first_seq, codec, raw_bytes, data) "
+            ));
+            q.push_values(chunk, |mut b, g| {
+                b.push_bind(job_id)
+                    .push_bind(g.last_seq)
+                    .push_bind(g.first_seq)
+                    .push_bind(g.codec)
+                    .push_bind(g.raw_bytes)
+                    .push_bind(g.data.as_slice());
+            });
+            q.build().execute(&mut *c).await?;
+        });
     }
     Ok(())
 }
 
-/// One field of a binary COPY tuple: its length, then its bytes (a text column's are
-/// its UTF-8, a bigint's its 8 bytes big-endian).
-fn push_field(buf: &mut Vec<u8>, bytes: &[u8]) {
-    buf.extend_from_slice(&(bytes.len() as i32).to_be_bytes());
-    buf.extend_from_slice(bytes);
+/// Up to `want` of job `job_id`'s rows in `table` with seq in `from..=to`, in seq order.
+pub async fn read_rows(
+    pool: &Pool,
+    table: &str,
+    job_id: &str,
+    from: i64,
+    to: i64,
+    want: usize,
+) -> Result<Vec<(i64, String)>, StoreError> {
+    let mut out = Vec::new();
+    let mut next = from;
+    while out.len() < want && next <= to {
+        // Groups never overlap, so in last_seq order they are in seq order, and the first
+        // with last_seq >= next holds `next` or the first row after it (an index range scan).
+        let groups: Vec<(i64, i64, String, i64, Vec<u8>)> = on_pool!(pool, p => sqlx::query_as(&format!(
+            "SELECT last_seq, first_seq, codec, raw_bytes, data FROM {table}
+             WHERE job_id = $1 AND last_seq >= $2 AND first_seq <= $3 ORDER BY last_seq LIMIT $4"
+        ))
+        .bind(job_id)
+        .bind(next)
+        .bind(to)
+        .bind(GROUPS_PER_READ)
+        .fetch_all(p)
+        .await?);
+        let Some(&(last, ..)) = groups.last() else {
+            break;
+        };
+        let done = (groups.len() as i64) < GROUPS_PER_READ;
+        // Decompression is CPU work: off the async threads.
+        let rows = tokio::task::spawn_blocking(move || {
+            let mut rows = Vec::new();
+            for (_, first, codec, raw, data) in groups {
+                rows.extend(unpack(&codec, first, raw, data)?);
+            }
+            Ok::<_, std::io::Error>(rows)
+        })
+        .await
+        .map_err(std::io::Error::other)??;
+        out.extend(
+            rows.into_iter()
+                .filter(|(seq, _)| (next..=to).contains(seq))
+                .take(want - out.len()),
+        );
+        if done || last == i64::MAX {
+            break;
+        }
+        next = last + 1;
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -122,7 +140,11 @@ mod tests {
         let finish = Finish::Succeeded {
             summary: serde_json::json!({"rows": 100_000}),
             rows,
-            samples: Vec::new(),
+            // Every tenth row has its steps' samples, as force rows do.
+            samples: (0..100_000)
+                .step_by(10)
+                .map(|s| (s, format!("[[{s}.5,1.25]]")))
+                .collect(),
             artifacts: Vec::new(),
             resources: Vec::new(),
             progress: (100_000, 100_000),
@@ -135,7 +157,126 @@ mod tests {
         let page = db.job_rows(&job.id, 99_998, 10).await.unwrap();
         assert_eq!(page.len(), 2);
         assert_eq!(page[1], (99_999, last), "the row reads back as written");
+        // A page from the middle, across groups, in order and whole.
+        let page = db.job_rows(&job.id, 41_234, 5000).await.unwrap();
+        assert_eq!(page.len(), 5000);
+        assert!(page
+            .iter()
+            .enumerate()
+            .all(|(i, (seq, d))| *seq == 41_234 + i as i64 && *d == row(*seq as usize)));
+        let samples = db.job_samples(&job.id, 49_990, 50_500).await.unwrap();
+        let seqs: Vec<i64> = samples.iter().map(|s| s.0).collect();
+        assert_eq!(
+            seqs,
+            (49_990..=50_500)
+                .filter(|s| s % 10 == 0)
+                .collect::<Vec<_>>()
+        );
+        assert!(samples
+            .iter()
+            .all(|(seq, d)| *d == format!("[[{seq}.5,1.25]]")));
         took
+    }
+
+    /// The migrations of `backend` (a folder under migrations/) before the row groups,
+    /// copied to a folder of their own so that a database can be left at that version.
+    fn migrations_before_groups(backend: &str, last: i64) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("migrations")
+            .join(backend);
+        for e in std::fs::read_dir(src).unwrap() {
+            let e = e.unwrap();
+            let name = e.file_name().into_string().unwrap();
+            let version: i64 = name[..4].parse().unwrap();
+            if version <= last {
+                std::fs::copy(e.path(), dir.path().join(name)).unwrap();
+            }
+        }
+        dir
+    }
+
+    const OLD_ROWS: [&str; 3] = [r#"{"block":0,"é":"a"}"#, r#"{"block":1}"#, r#"{"block":2}"#];
+
+    /// Rows and samples as one row each (before groups), for a database at that version.
+    fn old_rows_statements() -> [String; 3] {
+        [
+            "INSERT INTO jobs (id, owner, kind, status, spec, max_attempts, created_at, updated_at, summary) VALUES ('old', '', 'interpret', 'succeeded', '{}', 3, 0, 0, '{}')".to_string(),
+            format!("INSERT INTO job_rows (job_id, seq, data) VALUES ('old', 0, '{}'), ('old', 1, '{}'), ('old', 2, '{}')", OLD_ROWS[0], OLD_ROWS[1], OLD_ROWS[2]),
+            "INSERT INTO job_samples (job_id, seq, data) VALUES ('old', 1, '[[1.5,2]]')".to_string(),
+        ]
+    }
+
+    async fn old_rows_read_back(db: &Db) {
+        let all = db.job_rows("old", 0, 10).await.unwrap();
+        let want: Vec<(i64, String)> = OLD_ROWS
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (i as i64, r.to_string()))
+            .collect();
+        assert_eq!(all, want);
+        assert_eq!(db.job_rows("old", 1, 1).await.unwrap(), want[1..2]);
+        assert_eq!(
+            db.job_samples("old", 0, 2).await.unwrap(),
+            vec![(1, "[[1.5,2]]".to_string())]
+        );
+    }
+
+    /// A database whose rows were stored one by one keeps them when it is migrated to groups.
+    #[tokio::test]
+    async fn rows_stored_before_groups_read_back_after_the_migration() {
+        let dir = tempfile::tempdir().unwrap();
+        let url = format!("sqlite://{}", dir.path().join("old.db").display());
+        {
+            use sqlx::Connection;
+            let old = migrations_before_groups("sqlite", 7);
+            let opts: sqlx::sqlite::SqliteConnectOptions = url.parse().unwrap();
+            let mut c = sqlx::SqliteConnection::connect_with(&opts.create_if_missing(true))
+                .await
+                .unwrap();
+            sqlx::migrate::Migrator::new(old.path())
+                .await
+                .unwrap()
+                .run(&mut c)
+                .await
+                .unwrap();
+            for q in old_rows_statements() {
+                sqlx::query(&q).execute(&mut c).await.unwrap();
+            }
+            c.close().await.unwrap();
+        }
+        old_rows_read_back(&Db::open(&url).await.unwrap()).await;
+
+        let Some(base) = std::env::var("MILLSIM_TEST_DATABASE")
+            .ok()
+            .filter(|u| u.starts_with("postgres"))
+        else {
+            println!("postgres part skipped: MILLSIM_TEST_DATABASE names no PostgreSQL server");
+            return;
+        };
+        let name = format!("millsim_unit_{}", uuid::Uuid::new_v4().simple());
+        let (server, _) = base.rsplit_once('/').unwrap();
+        admin(&base, &format!("CREATE DATABASE {name}")).await;
+        let url = format!("{server}/{name}");
+        {
+            use sqlx::Connection;
+            let old = migrations_before_groups("postgres", 4);
+            let mut c = sqlx::PgConnection::connect(&url).await.unwrap();
+            sqlx::migrate::Migrator::new(old.path())
+                .await
+                .unwrap()
+                .run(&mut c)
+                .await
+                .unwrap();
+            for q in old_rows_statements() {
+                sqlx::query(&q).execute(&mut c).await.unwrap();
+            }
+            c.close().await.unwrap();
+        }
+        let pg = Db::open(&url).await.unwrap();
+        old_rows_read_back(&pg).await;
+        drop(pg);
+        admin(&base, &format!("DROP DATABASE {name} WITH (FORCE)")).await;
     }
 
     /// What the test holds the commit to (the figures are printed): room for a busy

@@ -7,8 +7,9 @@ use std::sync::atomic::Ordering;
 use serde::Serialize;
 
 use super::backend::{on_pool, on_tx, RowGet, Tx};
-use super::bulk::insert_rows;
+use super::bulk::{insert_groups, read_rows};
 use super::resources::{insert as insert_resource, insert_with_id, NewResource};
+use super::row_groups::{pack, Group};
 use super::webhooks::enqueue_job_event;
 use super::{new_id, now_ms, rfc3339, Db, StoreError};
 
@@ -694,7 +695,7 @@ impl Db {
         &self,
         job: &ClaimedJob,
         worker: &str,
-        finish: Finish,
+        mut finish: Finish,
         ran_until: i64,
     ) -> Result<bool, StoreError> {
         let now = now_ms();
@@ -708,6 +709,27 @@ impl Db {
         let progress = match &finish {
             Finish::Succeeded { progress, .. } => Some((progress.0 as i64, progress.1 as i64)),
             _ => None,
+        };
+        // Rows and samples are grouped and compressed before the transaction begins, so
+        // it writes (and holds its locks for) a seventh of their bytes.
+        let (row_groups, sample_groups) = match &mut finish {
+            Finish::Succeeded { rows, samples, .. } => {
+                let rows: Vec<(i64, String)> = std::mem::take(rows)
+                    .into_iter()
+                    .enumerate()
+                    .map(|(seq, r)| (seq as i64, r))
+                    .collect();
+                let samples: Vec<(i64, String)> = std::mem::take(samples)
+                    .into_iter()
+                    .map(|(seq, s)| (seq as i64, s))
+                    .collect();
+                tokio::task::spawn_blocking(move || {
+                    Ok::<_, std::io::Error>((pack(&rows)?, pack(&samples)?))
+                })
+                .await
+                .map_err(std::io::Error::other)??
+            }
+            _ => (Vec::<Group>::new(), Vec::new()),
         };
         let mut tx = self.begin().await?;
         // The state change comes first so the transaction takes the write lock before it
@@ -735,8 +757,6 @@ impl Db {
             return Ok(false);
         }
         if let Finish::Succeeded {
-            rows,
-            samples,
             artifacts,
             resources,
             ..
@@ -760,9 +780,8 @@ impl Db {
                 };
                 insert_with_id(&mut tx, &r.id, &owner, &new).await?;
             }
-            let numbered: Vec<(usize, String)> = rows.into_iter().enumerate().collect();
-            insert_rows(&mut tx, "job_rows", &job.id, &numbered).await?;
-            insert_rows(&mut tx, "job_samples", &job.id, &samples).await?;
+            insert_groups(&mut tx, "job_row_groups", &job.id, &row_groups).await?;
+            insert_groups(&mut tx, "job_sample_groups", &job.id, &sample_groups).await?;
             for a in artifacts {
                 on_tx!(&mut tx, c => sqlx::query("INSERT INTO job_artifacts (job_id, name, media_type, file_name, content) VALUES ($1, $2, $3, $4, $5)")
                     .bind(&job.id)
@@ -829,14 +848,8 @@ impl Db {
         from: i64,
         limit: i64,
     ) -> Result<Vec<(i64, String)>, StoreError> {
-        Ok(on_pool!(&self.pool, p => sqlx::query_as(
-            "SELECT seq, data FROM job_rows WHERE job_id = $1 AND seq >= $2 ORDER BY seq LIMIT $3",
-        )
-        .bind(job_id)
-        .bind(from)
-        .bind(limit)
-        .fetch_all(p)
-        .await?))
+        let want = usize::try_from(limit).unwrap_or(0);
+        read_rows(&self.pool, "job_row_groups", job_id, from, i64::MAX, want).await
     }
 
     /// Per-step samples of the rows with seq in [from, to], in seq order.
@@ -846,14 +859,15 @@ impl Db {
         from: i64,
         to: i64,
     ) -> Result<Vec<(i64, String)>, StoreError> {
-        Ok(
-            on_pool!(&self.pool, p => sqlx::query_as("SELECT seq, data FROM job_samples WHERE job_id = $1 AND seq >= $2 AND seq <= $3 ORDER BY seq")
-            .bind(job_id)
-            .bind(from)
-            .bind(to)
-            .fetch_all(p)
-            .await?),
+        read_rows(
+            &self.pool,
+            "job_sample_groups",
+            job_id,
+            from,
+            to,
+            usize::MAX,
         )
+        .await
     }
 
     pub async fn job_artifact(

@@ -8,6 +8,7 @@ pub mod chunks;
 pub mod jobs;
 pub mod notify;
 pub mod resources;
+pub mod row_groups;
 pub mod webhooks;
 pub mod workers;
 
