@@ -142,13 +142,13 @@ async fn main() {
         percentile(&lat, 0.99)
     );
 
-    // 3. Stream 100,000 per-block CSV rows: a real interpret job of 99,999 moves plus its
-    // M30 makes them (the rows go the way every job's go: grouped and compressed).
-    let mut text = String::from("G21 G90 G1 F1200\n");
-    for i in 0..99_998 {
+    // 3. Stream 100,000 per-block CSV rows: a real interpret job of 100,000 moves (a row
+    // each) makes them, and they are stored as every job's are (grouped and compressed).
+    let mut text = String::from("G21 G90 G1 F1200 X0.5\n");
+    for i in 0..99_999 {
         text.push_str(&format!(
             "X{:.3} Y{:.3}\n",
-            (i % 1000) as f64 * 0.01,
+            1.0 + (i % 1000) as f64 * 0.01,
             (i / 1000) as f64 * 0.1
         ));
     }
@@ -201,7 +201,7 @@ async fn main() {
             .unwrap();
         let elapsed = t.elapsed().as_secs_f64();
         let lines = body.iter().filter(|&&b| b == b'\n').count();
-        assert_eq!(lines, 100_001, "header + 100,000 rows");
+        assert_eq!(lines, 100_001, "header + 100,000 rows, got {lines} lines");
         println!(
             "CSV stream of 100,000 rows ({run}): {elapsed:.3} s ({:.0} rows/s, {:.1} MB)",
             100_000.0 / elapsed,
@@ -209,4 +209,5 @@ async fn main() {
         );
     }
     let _ = child.kill();
+    let _ = child.wait();
 }
