@@ -14,9 +14,10 @@ use millsim_engine::tool::Tool;
 use millsim_engine::tool_library::ImportReport;
 
 use super::body::{collect_limited, media_type, read_limited, BodySink, Spooled};
+use super::chunked::chunk_body;
 use super::problem::ApiError;
 use super::{parse_query, AppState, Owner, PageQuery};
-use crate::store::chunks::ResourceBody;
+use crate::store::chunks::{ChunkKey, ResourceBody};
 use crate::store::resources::{NewResource, ResourceRecord};
 use crate::store::ResourceKind;
 use crate::validate::{self, Validated};
@@ -317,37 +318,14 @@ pub async fn content(
         .ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
     let mut res = match body {
         ResourceBody::Inline(bytes) => ([(header::CONTENT_TYPE, mt)], bytes).into_response(),
-        ResourceBody::Chunked { id, chunks } => {
-            // One chunk read from the database per chunk sent. A resource deleted
-            // while it is sent ends the body early (the client sees a short body against
-            // its Content-Length).
-            let db = state.db.clone();
-            let stream = futures_util::stream::unfold(0i64, move |seq| {
-                let db = db.clone();
-                let id = id.clone();
-                async move {
-                    if seq >= chunks {
-                        return None;
-                    }
-                    let next = match db.resource_chunk(&id, seq).await {
-                        Ok(Some(chunk)) => Ok(bytes::Bytes::from(chunk)),
-                        Ok(None) => Err(std::io::Error::other(format!(
-                            "{id} was deleted while it was sent"
-                        ))),
-                        Err(e) => Err(std::io::Error::other(e.to_string())),
-                    };
-                    Some((next, seq + 1))
-                }
-            });
-            (
-                [
-                    (header::CONTENT_TYPE, mt),
-                    (header::CONTENT_LENGTH, size.to_string()),
-                ],
-                axum::body::Body::from_stream(stream),
-            )
-                .into_response()
-        }
+        ResourceBody::Chunked { id, chunks } => (
+            [
+                (header::CONTENT_TYPE, mt),
+                (header::CONTENT_LENGTH, size.to_string()),
+            ],
+            chunk_body(state.db.clone(), ChunkKey::Resource { id }, chunks),
+        )
+            .into_response(),
     };
     if let Some(name) = name {
         res.headers_mut().insert(
