@@ -13,7 +13,9 @@ use serde_json::json;
 use millsim_engine::tool::Tool;
 use millsim_engine::tool_library::ImportReport;
 
-use super::body::{collect_limited, media_type, read_limited, BodySink, Spooled};
+use super::body::{
+    collect_limited, content_length, media_type, read_limited, BodySink, SinkPlan, Spooled,
+};
 use super::chunked::chunk_body;
 use super::problem::ApiError;
 use super::{parse_query, AppState, Owner, PageQuery};
@@ -46,12 +48,20 @@ fn disposition_name(headers: &HeaderMap) -> Option<String> {
 /// The uploaded bytes into a sink as they arrive (memory, or a temporary file so that a
 /// stock of hundreds of megabytes never sits in memory), at most `limit` bytes: the raw
 /// body, or the `file` part (else the first part with a file name) of a multipart form.
-/// Returns the sink and the file name the client gave, if any.
+/// Returns the sink and the file name the client gave, if any. A spooled upload leaves
+/// `disk_reserve` bytes free in the temporary directory.
 async fn upload_into<S: BodySink>(
     req: Request,
     limit: u64,
+    disk_reserve: u64,
 ) -> Result<(S, Option<String>), ApiError> {
     let headers = req.headers().clone();
+    let plan = SinkPlan {
+        // A multipart form's length is a little over its file's: close enough to check.
+        expected: content_length(&headers),
+        disk_reserve,
+    };
+
     if media_type(&headers) == "multipart/form-data" {
         let mut form = Multipart::from_request(req, &())
             .await
@@ -66,10 +76,11 @@ async fn upload_into<S: BodySink>(
                 continue;
             }
             let name = field.file_name().map(str::to_string);
-            let mut out = S::create()?;
+            let mut out = S::create(&plan)?;
             while let Some(chunk) = field.chunk().await.map_err(|e| multipart_error(e, limit))? {
-                out.append(&chunk, limit)?;
+                out.append(&chunk, limit).await?;
             }
+            out.finish().await?;
             return Ok((out, name));
         }
         return Err(ApiError::invalid_field(
@@ -78,7 +89,7 @@ async fn upload_into<S: BodySink>(
         ));
     }
     let name = disposition_name(&headers);
-    let sink = collect_limited(&headers, req.into_body(), limit).await?;
+    let sink = collect_limited(&headers, req.into_body(), limit, disk_reserve).await?;
     Ok((sink, name))
 }
 
@@ -113,7 +124,9 @@ pub async fn create(
             (bytes, None, v)
         }
         ResourceKind::Stock => {
-            let (spooled, name) = upload_into::<Spooled>(req, limits.max_stl_bytes).await?;
+            let (spooled, name) =
+                upload_into::<Spooled>(req, limits.max_stl_bytes, limits.upload_disk_reserve_bytes)
+                    .await?;
             let file = query
                 .name
                 .clone()
@@ -146,7 +159,7 @@ pub async fn create(
             return Ok(created(kind, record));
         }
         ResourceKind::Program => {
-            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes).await?;
+            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0).await?;
             let file = query
                 .name
                 .clone()
@@ -161,7 +174,7 @@ pub async fn create(
         }
         ResourceKind::ToolLibrary => {
             // Any media type: the engine tells the format from the content, as offline.
-            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes).await?;
+            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0).await?;
             let file = query
                 .name
                 .clone()
