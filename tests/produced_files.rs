@@ -84,18 +84,30 @@ async fn a_large_produced_stock_downloads_byte_for_byte() {
         expected.len()
     );
 
-    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    // In a job process (the default) and on a worker thread: both write the stock to the
+    // job's directory.
+    for isolation in ["process", "thread"] {
+        println!("job isolation {isolation}");
+        let db = dir.path().join(format!("{isolation}.db"));
+        let s = Server::start(&db, &["--workers", "1", "--job-isolation", isolation]);
+        download_matches(&s, &program, &expected).await;
+    }
+}
+
+/// Runs the raster job on `s`, downloads its stock and compares it with `expected`; checks
+/// its rows in the database, and that deleting the job removes them.
+async fn download_matches(s: &Server, program: &str, expected: &[u8]) {
     let c = client();
     let block = json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]});
-    let (st, stock) = post_json(&c, &s, "/v1/stocks", &block).await;
+    let (st, stock) = post_json(&c, s, "/v1/stocks", &block).await;
     assert_eq!(st, 201, "{stock}");
-    let (st, tool) = post_json(&c, &s, "/v1/tools", &serde_json::from_str(BALL).unwrap()).await;
+    let (st, tool) = post_json(&c, s, "/v1/tools", &serde_json::from_str(BALL).unwrap()).await;
     assert_eq!(st, 201, "{tool}");
-    let prog = post_program(&c, &s, "raster.nc", program).await;
+    let prog = post_program(&c, s, "raster.nc", program.to_string()).await;
     let body = json!({"kind": "simulate",
         "inputs": {"program": prog, "stock": stock["id"], "tool": tool["id"]},
         "options": {"material": "Al7075-T6", "cell_mm": CELL}});
-    let done = run_job(&c, &s, &body, Duration::from_secs(300)).await;
+    let done = run_job(&c, s, &body, Duration::from_secs(300)).await;
     let id = done["id"].as_str().unwrap();
 
     let res = c
@@ -119,7 +131,7 @@ async fn a_large_produced_stock_downloads_byte_for_byte() {
         "the download differs from the file"
     );
 
-    let (chunks, size, rows) = stored_chunks(&s, id).await;
+    let (chunks, size, rows) = stored_chunks(s, id).await;
     assert_eq!(size as usize, expected.len());
     assert_eq!(chunks as usize, expected.len().div_ceil(1 << 20));
     assert_eq!(rows, chunks, "one row per chunk");
