@@ -42,8 +42,8 @@ use crate::jobs::{
 };
 use crate::problem::Problem;
 use crate::queue::SharedProgress;
+use crate::store::artifacts::{Artifact, ArtifactContent};
 use crate::store::chunks::CHUNK_BYTES;
-use crate::store::jobs::{Artifact, ArtifactContent};
 use crate::store::Db;
 
 const JOB: u8 = b'J';

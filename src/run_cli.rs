@@ -10,7 +10,7 @@ use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::csv;
 use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs, SimulateOptions};
-use crate::store::jobs::ArtifactContent;
+use crate::store::artifacts::ArtifactContent;
 
 #[derive(clap::Args)]
 pub struct RunArgs {

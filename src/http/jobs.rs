@@ -19,7 +19,8 @@ use super::problem::{parse_json, ApiError};
 use super::{parse_query, AppState, Owner, PageQuery};
 use crate::job_limits;
 use crate::jobs::{JobKind, SimulateOptions};
-use crate::store::jobs::{ArtifactBody, CreateOutcome, InlineInput, NewJob};
+use crate::store::artifacts::ArtifactBody;
+use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
 use crate::validate;
 

@@ -20,7 +20,7 @@ use millsim_engine::tool::{HolderSegment, Tool};
 use super::inputs::{invalid, json_input};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
 use crate::problem::{parse_options, Problem};
-use crate::store::jobs::ArtifactContent;
+use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
 pub const INPUTS: [InputSpec; 2] = [

@@ -25,7 +25,7 @@ use millsim_engine::pipeline::StlSource;
 
 use crate::job_limits::JobLimits;
 use crate::problem::Problem;
-use crate::store::jobs::ArtifactContent;
+use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
 pub use accessibility::{

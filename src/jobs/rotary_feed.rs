@@ -15,7 +15,7 @@ use super::inputs::{invalid, json_input, program_text, required, stem_and_ext};
 use super::interpret::default_dialect;
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
 use crate::problem::{parse_options, Problem};
-use crate::store::jobs::ArtifactContent;
+use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
 pub const INPUTS: [InputSpec; 2] = [

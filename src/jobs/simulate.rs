@@ -25,7 +25,7 @@ use super::{
 use crate::job_library::JobLibrary;
 use crate::job_limits::{check_simulation, JobLimits, Refusal, SimulationCheck};
 use crate::problem::Problem;
-use crate::store::jobs::ArtifactContent;
+use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
 pub const INPUTS: [InputSpec; 7] = [

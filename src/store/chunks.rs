@@ -169,7 +169,8 @@ impl Db {
 mod tests {
     use std::io::Write;
 
-    use crate::store::jobs::{Artifact, ArtifactBody, ArtifactContent, Finish, NewJob};
+    use crate::store::artifacts::{Artifact, ArtifactBody, ArtifactContent};
+    use crate::store::jobs::{Finish, NewJob};
     use crate::store::Db;
 
     use super::ChunkKey;
