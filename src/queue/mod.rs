@@ -22,6 +22,8 @@ use crate::store::jobs::{ClaimedJob, CreatedResource, Finish, LeaseState, IN_PRO
 use crate::store::workers::WorkerReport;
 use crate::store::{Db, ResourceKind, StoreError};
 
+mod job_dir;
+
 /// Why a job's inputs could not be loaded.
 enum InputsError {
     /// The database did not answer: the job is not at fault and is tried again.
@@ -145,6 +147,18 @@ pub async fn run_workers(
     shutdown: watch::Receiver<bool>,
 ) {
     let prefix = process_worker_prefix();
+    // Job directories of this host's worker processes that were killed: their files
+    // were never stored.
+    let tmp = std::env::temp_dir();
+    let removed = tokio::task::spawn_blocking(move || job_dir::remove_stale(&tmp))
+        .await
+        .unwrap_or(0);
+    if removed > 0 {
+        tracing::info!(
+            removed,
+            "removed job directories of worker processes that are gone"
+        );
+    }
     let mut handles = Vec::new();
     let mut reported = Vec::new();
     for i in 0..config.workers {
@@ -448,7 +462,7 @@ impl Worker {
             }
             Ok((kind, inputs)) => {
                 // Where the job writes its large files, until they are committed.
-                let dir = match tempfile::Builder::new().prefix("millsim-job-").tempdir() {
+                let dir = match job_dir::create() {
                     Ok(d) => d,
                     Err(e) => {
                         tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not make the job's directory; giving the job back");
