@@ -11,6 +11,9 @@ pub struct Limits {
     pub body_timeout: std::time::Duration,
     /// Queued jobs one API key may have; a submission over it is answered 429.
     pub max_queued_per_key: i64,
+    /// Bytes a spooled upload must leave free in the temporary directory; an upload that
+    /// would not is answered 507.
+    pub upload_disk_reserve_bytes: u64,
 }
 
 impl Default for Limits {
@@ -22,6 +25,7 @@ impl Default for Limits {
             upload_timeout_secs: 600,
             body_timeout: std::time::Duration::from_secs(30),
             max_queued_per_key: 1000,
+            upload_disk_reserve_bytes: 512 << 20,
         }
     }
 }

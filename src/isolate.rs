@@ -9,8 +9,10 @@
 //!   media type), then one `B` frame per input with its content, in the same order;
 //! - child → parent: `P` progress (done, total as two u64) at most every 100 ms; then `S`
 //!   the summary, `R` per row, `M` per sample (u64 row seq, then the JSON), `F` a file's
-//!   name, media type and file name followed by a `B` with its content, `N` a resource the
-//!   job made (JSON), and `D` done; or
+//!   name, media type and file name followed by a `B` with its content, `W` a file the
+//!   job wrote in its directory (name, media type, file name, the file and its length:
+//!   large files go to storage from there, never whole through the worker's memory), `N`
+//!   a resource the job made (JSON), and `D` done; or
 //!   `X` a problem document (the inputs are at fault), or `C` cancelled.
 //!
 //! A child that ends without an outcome frame died: killed by a signal (the kernel's OOM
@@ -20,6 +22,7 @@
 
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::path::{Path, PathBuf};
 use std::process::{ExitCode, Stdio};
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
@@ -39,6 +42,8 @@ use crate::jobs::{
 };
 use crate::problem::Problem;
 use crate::queue::SharedProgress;
+use crate::store::artifacts::{Artifact, ArtifactContent};
+use crate::store::chunks::CHUNK_BYTES;
 use crate::store::Db;
 
 const JOB: u8 = b'J';
@@ -52,6 +57,7 @@ const DONE: u8 = b'D';
 const PROBLEM: u8 = b'X';
 const CANCELLED: u8 = b'C';
 const RESOURCE: u8 = b'N';
+const WRITTEN: u8 = b'W';
 
 /// Largest frame either side accepts (an STL stock upload is at most a few hundred MiB).
 const MAX_FRAME: u64 = 8 << 30;
@@ -71,6 +77,10 @@ struct JobHeader {
     options: Value,
     limits: JobLimits,
     inputs: Vec<InputHeader>,
+    /// The job's directory, made and removed by the worker: where the job writes its
+    /// large files.
+    #[serde(default)]
+    work_dir: Option<PathBuf>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -86,6 +96,21 @@ struct FileHeader {
     media_type: String,
     file_name: String,
 }
+
+/// A file the job wrote in its directory.
+#[derive(Serialize, Deserialize)]
+struct WrittenHeader {
+    name: String,
+    media_type: String,
+    file_name: String,
+    /// The file's name in the job's directory (no path).
+    file: String,
+    len: u64,
+}
+
+/// Files the job made in memory larger than this are written to its directory and sent
+/// as `W` frames, so the worker does not hold them.
+const WRITE_FILES_OVER: usize = CHUNK_BYTES;
 
 fn write_frame(w: &mut impl Write, tag: u8, payload: &[u8]) -> std::io::Result<()> {
     w.write_all(&[tag])?;
@@ -212,17 +237,19 @@ pub fn job_exec_main() -> ExitCode {
         out: out.clone(),
         last: Mutex::new(None),
     };
+    // The stock, the largest file a job makes, goes straight to the job's directory.
+    let stock_file = header.work_dir.as_ref().map(|d| d.join("stock.stl"));
     let result = header.kind.run(
         &header.options,
         inputs,
         &header.limits,
         &CancelFlag::new(),
         &progress,
-        None,
+        stock_file.as_deref(),
     );
     let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
     let written = match result {
-        Ok(output) => write_output(&mut *out, output),
+        Ok(output) => write_output(&mut *out, output, header.work_dir.as_deref()),
         Err(JobFailure::Invalid(problem)) => {
             write_frame(&mut *out, PROBLEM, problem.to_json().to_string().as_bytes())
         }
@@ -253,7 +280,11 @@ fn private_stdout() -> std::io::Result<std::fs::File> {
     }
 }
 
-fn write_output(w: &mut impl Write, output: JobOutput) -> std::io::Result<()> {
+fn write_output(
+    w: &mut impl Write,
+    output: JobOutput,
+    work_dir: Option<&Path>,
+) -> std::io::Result<()> {
     write_frame(w, SUMMARY, output.summary.to_string().as_bytes())?;
     for row in &output.rows {
         write_frame(w, ROW, row.as_bytes())?;
@@ -264,14 +295,41 @@ fn write_output(w: &mut impl Write, output: JobOutput) -> std::io::Result<()> {
         payload.extend_from_slice(json.as_bytes());
         write_frame(w, SAMPLE, &payload)?;
     }
-    for f in &output.files {
-        let header = FileHeader {
-            name: f.name.clone(),
-            media_type: f.media_type.to_string(),
-            file_name: f.file_name.clone(),
+    for (i, f) in output.files.into_iter().enumerate() {
+        let (path, len) = match (f.content, work_dir) {
+            (ArtifactContent::File { path, len }, _) => (path, len),
+            (ArtifactContent::Bytes(content), Some(dir)) if content.len() > WRITE_FILES_OVER => {
+                let path = dir.join(format!("file-{i}"));
+                std::fs::write(&path, &content)?;
+                (path, content.len() as u64)
+            }
+            (ArtifactContent::Bytes(content), _) => {
+                let header = FileHeader {
+                    name: f.name,
+                    media_type: f.media_type.to_string(),
+                    file_name: f.file_name,
+                };
+                write_frame(w, FILE, &serde_json::to_vec(&header)?)?;
+                write_frame(w, BYTES, &content)?;
+                continue;
+            }
         };
-        write_frame(w, FILE, &serde_json::to_vec(&header)?)?;
-        write_frame(w, BYTES, &f.content)?;
+        let file = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .filter(|_| work_dir.is_some_and(|d| path.parent() == Some(d)))
+            .ok_or_else(|| {
+                std::io::Error::other(format!("{} is not in the job's directory", path.display()))
+            })?
+            .to_string();
+        let header = WrittenHeader {
+            name: f.name,
+            media_type: f.media_type.to_string(),
+            file_name: f.file_name,
+            file,
+            len,
+        };
+        write_frame(w, WRITTEN, &serde_json::to_vec(&header)?)?;
     }
     for r in &output.resources {
         write_frame(w, RESOURCE, &serde_json::to_vec(r)?)?;
@@ -294,7 +352,7 @@ pub struct ParentOutput {
     pub summary: Value,
     pub rows: Vec<String>,
     pub samples: Vec<(usize, String)>,
-    pub files: Vec<(String, String, String, Vec<u8>)>,
+    pub files: Vec<Artifact>,
     pub resources: Vec<OutputResource>,
 }
 
@@ -307,7 +365,12 @@ impl From<JobOutput> for ParentOutput {
             files: o
                 .files
                 .into_iter()
-                .map(|f: OutputFile| (f.name, f.media_type.to_string(), f.file_name, f.content))
+                .map(|f: OutputFile| Artifact {
+                    name: f.name,
+                    media_type: f.media_type.to_string(),
+                    file_name: f.file_name,
+                    content: f.content,
+                })
                 .collect(),
             resources: o.resources,
         }
@@ -342,7 +405,8 @@ impl ChildJob {
 
 /// Starts `millsim job-exec` for a job, with its address space limited, dying with the
 /// server (PR_SET_PDEATHSIG), and feeds it the job.
-/// `db` is where inputs left in the database in chunks are read from as they are sent.
+/// `db` is where inputs left in the database in chunks are read from as they are sent;
+/// `work_dir` the job's directory (the worker's to remove), where it writes large files.
 pub fn spawn(
     kind: JobKind,
     options: &Value,
@@ -350,6 +414,7 @@ pub fn spawn(
     limits: JobLimits,
     progress: Arc<SharedProgress>,
     db: Option<Db>,
+    work_dir: &Path,
 ) -> std::io::Result<ChildJob> {
     let exe = std::env::current_exe()?;
     let parent = std::process::id() as libc::pid_t;
@@ -413,8 +478,10 @@ pub fn spawn(
                 media_type: i.media_type.clone(),
             })
             .collect(),
+        work_dir: Some(work_dir.to_path_buf()),
     };
     let header = serde_json::to_vec(&header)?;
+    let work_dir = work_dir.to_path_buf();
     // The inputs go in on their own task: a child that dies early must not block them.
     tokio::spawn(async move {
         // A child that died early closed its end: its exit status says why.
@@ -440,7 +507,7 @@ pub fn spawn(
     let (was_killed, now_reaped) = (killed.clone(), reaped.clone());
     let memory_mb = limits.memory_mb();
     let ended = Box::pin(async move {
-        let outcome = read_outcome(&mut stdout, &progress, limits.memory_bytes).await;
+        let outcome = read_outcome(&mut stdout, &progress, limits.memory_bytes, &work_dir).await;
         if outcome.is_some() {
             // Done, or results over the budget: either way nothing more is read.
             let _ = child.start_kill();
@@ -526,10 +593,13 @@ async fn send_job(
 /// Reads frames until an outcome; None when the stream ends (or breaks) before one.
 /// Results over `budget` bytes are refused (the server holds them until they are stored:
 /// a job's budget bounds them too).
+/// Files the job wrote (`W`) are taken from `work_dir` and not counted: they are not in
+/// memory.
 async fn read_outcome(
     r: &mut (impl AsyncRead + Unpin),
     progress: &SharedProgress,
     budget: u64,
+    work_dir: &Path,
 ) -> Option<Result<ParentOutput, JobFailure>> {
     let mut out = ParentOutput {
         summary: Value::Null,
@@ -572,7 +642,31 @@ async fn read_outcome(
             FILE => file = Some(serde_json::from_slice(&payload).ok()?),
             BYTES => {
                 let h = file.take()?;
-                out.files.push((h.name, h.media_type, h.file_name, payload));
+                out.files.push(Artifact {
+                    name: h.name,
+                    media_type: h.media_type,
+                    file_name: h.file_name,
+                    content: ArtifactContent::Bytes(payload),
+                });
+            }
+            WRITTEN => {
+                let h: WrittenHeader = serde_json::from_slice(&payload).ok()?;
+                // A plain name in the job's directory, as long as the job said: anything
+                // else is a broken child, as a malformed frame is.
+                if h.file.is_empty() || h.file.contains('/') || h.file.starts_with('.') {
+                    return None;
+                }
+                let path = work_dir.join(&h.file);
+                let meta = tokio::fs::symlink_metadata(&path).await.ok()?;
+                if !meta.is_file() || meta.len() != h.len {
+                    return None;
+                }
+                out.files.push(Artifact {
+                    name: h.name,
+                    media_type: h.media_type,
+                    file_name: h.file_name,
+                    content: ArtifactContent::File { path, len: h.len },
+                });
             }
             RESOURCE => out.resources.push(serde_json::from_slice(&payload).ok()?),
             DONE => return Some(Ok(out)),

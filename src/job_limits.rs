@@ -272,7 +272,9 @@ mod tests {
         let e = submission_estimate(cube, 0, Some(0.005), &[], &limits).unwrap();
         let p = over_budget_problem(None, &e, &limits);
         assert_eq!(p["limit"], 2048);
-        assert!(p["estimate_mb"].as_u64().unwrap() > 8_000, "{p}");
+        // The grid alone is 4 GB (5400 rays a side, three families); the stock file
+        // goes to disk, a band of its triangles at a time.
+        assert!(p["estimate_mb"].as_u64().unwrap() > 4_000, "{p}");
         assert!(submission_estimate(cube, 0, Some(0.1), &[], &limits).is_none());
         assert!(submission_estimate(cube, 0, None, &[], &limits).is_none());
     }

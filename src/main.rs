@@ -204,6 +204,10 @@ struct ServeArgs {
     /// Queued jobs one API key may have; over it, submissions are answered 429.
     #[arg(long, env = "MILLSIM_MAX_QUEUED_PER_KEY", default_value_t = 1000)]
     max_queued_per_key: i64,
+    /// MiB an STL upload must leave free in the temporary directory ($TMPDIR) it is
+    /// spooled to; an upload that would not is answered 507 Insufficient Storage.
+    #[arg(long, env = "MILLSIM_UPLOAD_DISK_RESERVE_MB", default_value_t = 512)]
+    upload_disk_reserve_mb: u64,
 }
 
 #[derive(clap::Args)]
@@ -449,6 +453,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     let limits = Limits {
         max_stl_bytes: args.max_upload_bytes,
         max_queued_per_key: args.max_queued_per_key,
+        upload_disk_reserve_bytes: args.upload_disk_reserve_mb.saturating_mul(1 << 20),
         body_timeout: std::time::Duration::from_secs_f64(args.body_timeout_s),
         ..Limits::default()
     };

@@ -144,6 +144,30 @@ impl Problem {
         .with("limit_bytes", limit)
     }
 
+    /// An upload the server has no disk for: spooling it would leave less than the
+    /// reserve free in its temporary directory (`free` known), or the disk filled while
+    /// it was written (`free` 0). The client may try again later; nothing was stored.
+    pub fn insufficient_storage(free: u64, needed: u64, reserve: u64) -> Self {
+        let detail = if free > 0 {
+            format!(
+                "the server's temporary directory has {free} bytes free; spooling this upload ({needed} bytes so far, or as its Content-Length said) would leave less than the {reserve} bytes it keeps free (upload_disk_reserve_mb). Nothing was stored; try again later"
+            )
+        } else {
+            "the server's temporary directory filled up while this upload was written. Nothing was stored; try again later".to_string()
+        };
+        Self::new(
+            StatusCode::INSUFFICIENT_STORAGE,
+            "insufficient-storage",
+            "Insufficient storage",
+            detail,
+        )
+        .with("field", "file")
+        .with("limit_name", "upload_disk_reserve_mb")
+        .with("free_bytes", free)
+        .with("needed_bytes", needed)
+        .with("reserve_bytes", reserve)
+    }
+
     /// A job over the server's job memory budget, from the same problem document a job
     /// refused at run time carries (its detail and extensions: limit, estimate).
     pub fn over_budget(problem: Value) -> Self {

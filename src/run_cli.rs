@@ -10,6 +10,7 @@ use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::csv;
 use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs, SimulateOptions};
+use crate::store::artifacts::ArtifactContent;
 
 #[derive(clap::Args)]
 pub struct RunArgs {
@@ -373,6 +374,10 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     }
     write("blocks.csv", text.as_bytes())?;
     for f in &out.files {
+        // The stock went straight to its file.
+        let ArtifactContent::Bytes(content) = &f.content else {
+            continue;
+        };
         // The rewritten program keeps the input's name with .opt before the extension.
         write(
             if f.name == "program" {
@@ -380,7 +385,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             } else {
                 &f.name
             },
-            &f.content,
+            content,
         )?;
     }
     eprintln!(

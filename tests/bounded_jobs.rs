@@ -170,7 +170,8 @@ async fn a_grid_and_export_over_the_memory_budget_are_refused_at_submission() {
         (Some("job_memory_mb"), Some(1024)),
         "{p}"
     );
-    assert!(p["estimate_mb"].as_u64().unwrap() > 8_000, "{p}");
+    // The grid alone is 4 GB; the export writes the file to disk a band at a time.
+    assert!(p["estimate_mb"].as_u64().unwrap() > 4_000, "{p}");
     let detail = p["detail"].as_str().unwrap();
     assert!(
         detail.contains("1024 MiB") && detail.contains("stock export"),

@@ -235,3 +235,77 @@ async fn a_large_upload_round_trips_and_a_worker_simulates_on_it() {
         "{removed} vs {analytic}"
     );
 }
+
+/// An upload that would leave less than the reserve free in the temporary directory is
+/// refused 507 before it is spooled (its Content-Length known, or not), naming what is
+/// short, and stores nothing; the JSON and program routes, held in memory, are not held
+/// to it.
+#[tokio::test]
+async fn an_upload_the_disk_cannot_spare_is_refused_507() {
+    let dir = tempfile::tempdir().unwrap();
+    // A reserve of a petabyte: more than any disk here has free.
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "0", "--upload-disk-reserve-mb", "1000000000"],
+    );
+    let c = client();
+    let stl = subdivided_box([0.0, -20.0, -10.0], [100.0, 20.0, 0.0], 20);
+    let before = row_counts(&s).await;
+    let check = |st: u16, p: &serde_json::Value| {
+        assert_eq!(st, 507, "{p}");
+        assert_eq!(
+            p["type"],
+            "https://millsim.dev/problems/insufficient-storage"
+        );
+        assert_eq!(p["field"], "file", "{p}");
+        assert_eq!(p["limit_name"], "upload_disk_reserve_mb", "{p}");
+        assert_eq!(p["reserve_bytes"], 1_000_000_000u64 << 20, "{p}");
+        assert!(p["free_bytes"].as_u64().unwrap() > 0, "{p}");
+        assert!(
+            p["detail"]
+                .as_str()
+                .unwrap()
+                .contains("upload_disk_reserve_mb"),
+            "{p}"
+        );
+    };
+    // With a Content-Length: the upload's size is counted.
+    let (st, p) = post_stl(&c, &s, "/v1/stocks?name=box.stl", stl.clone()).await;
+    check(st, &p);
+    assert_eq!(p["needed_bytes"], stl.len(), "{p}");
+    // Without one (chunked transfer).
+    let chunks: Vec<Result<Vec<u8>, std::io::Error>> =
+        stl.chunks(1 << 16).map(|c| Ok(c.to_vec())).collect();
+    let res = c
+        .post(s.url("/v1/stocks"))
+        .header("content-type", "model/stl")
+        .body(reqwest::Body::wrap_stream(futures_util::stream::iter(
+            chunks,
+        )))
+        .send()
+        .await;
+    if let Ok(res) = res {
+        let (st, p) = json(res).await;
+        check(st, &p);
+    }
+    // A multipart form.
+    let form = reqwest::multipart::Form::new().part(
+        "file",
+        reqwest::multipart::Part::bytes(stl.clone()).file_name("box.stl"),
+    );
+    let (st, p) = json(
+        c.post(s.url("/v1/stocks"))
+            .multipart(form)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    check(st, &p);
+    assert_eq!(row_counts(&s).await, before, "a refused upload left rows");
+
+    // A parametric stock is no upload to spool.
+    let block = json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]});
+    let (st, v) = post_json(&c, &s, "/v1/stocks", &block).await;
+    assert_eq!(st, 201, "{v}");
+}

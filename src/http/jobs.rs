@@ -19,6 +19,7 @@ use super::problem::{parse_json, ApiError};
 use super::{parse_query, AppState, Owner, PageQuery};
 use crate::job_limits;
 use crate::jobs::{JobKind, SimulateOptions};
+use crate::store::artifacts::ArtifactBody;
 use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
 use crate::validate;
@@ -623,7 +624,20 @@ async fn artifact(
             ),
         )
     })?;
-    let mut res = ([(header::CONTENT_TYPE, a.media_type)], a.content).into_response();
+    let mut res = match a.body {
+        ArtifactBody::Inline(bytes) => {
+            ([(header::CONTENT_TYPE, a.media_type)], bytes).into_response()
+        }
+        // A large file (the stock of a fine grid) is sent a chunk at a time.
+        ArtifactBody::Chunked { key, chunks } => (
+            [
+                (header::CONTENT_TYPE, a.media_type),
+                (header::CONTENT_LENGTH, a.size.to_string()),
+            ],
+            super::chunked::chunk_body(state.db.clone(), key, chunks),
+        )
+            .into_response(),
+    };
     res.headers_mut().insert(
         header::CONTENT_DISPOSITION,
         super::download::attachment(&a.file_name),

@@ -2,6 +2,7 @@
 
 pub mod auth;
 pub mod body;
+pub mod chunked;
 pub mod dashboard;
 pub mod download;
 pub mod jobs;

@@ -13,10 +13,13 @@ use serde_json::json;
 use millsim_engine::tool::Tool;
 use millsim_engine::tool_library::ImportReport;
 
-use super::body::{collect_limited, media_type, read_limited, BodySink, Spooled};
+use super::body::{
+    collect_limited, content_length, media_type, read_limited, BodySink, SinkPlan, Spooled,
+};
+use super::chunked::chunk_body;
 use super::problem::ApiError;
 use super::{parse_query, AppState, Owner, PageQuery};
-use crate::store::chunks::ResourceBody;
+use crate::store::chunks::{ChunkKey, ResourceBody};
 use crate::store::resources::{NewResource, ResourceRecord};
 use crate::store::ResourceKind;
 use crate::validate::{self, Validated};
@@ -45,12 +48,20 @@ fn disposition_name(headers: &HeaderMap) -> Option<String> {
 /// The uploaded bytes into a sink as they arrive (memory, or a temporary file so that a
 /// stock of hundreds of megabytes never sits in memory), at most `limit` bytes: the raw
 /// body, or the `file` part (else the first part with a file name) of a multipart form.
-/// Returns the sink and the file name the client gave, if any.
+/// Returns the sink and the file name the client gave, if any. A spooled upload leaves
+/// `disk_reserve` bytes free in the temporary directory.
 async fn upload_into<S: BodySink>(
     req: Request,
     limit: u64,
+    disk_reserve: u64,
 ) -> Result<(S, Option<String>), ApiError> {
     let headers = req.headers().clone();
+    let plan = SinkPlan {
+        // A multipart form's length is a little over its file's: close enough to check.
+        expected: content_length(&headers),
+        disk_reserve,
+    };
+
     if media_type(&headers) == "multipart/form-data" {
         let mut form = Multipart::from_request(req, &())
             .await
@@ -65,10 +76,11 @@ async fn upload_into<S: BodySink>(
                 continue;
             }
             let name = field.file_name().map(str::to_string);
-            let mut out = S::create()?;
+            let mut out = S::create(&plan)?;
             while let Some(chunk) = field.chunk().await.map_err(|e| multipart_error(e, limit))? {
-                out.append(&chunk, limit)?;
+                out.append(&chunk, limit).await?;
             }
+            out.finish().await?;
             return Ok((out, name));
         }
         return Err(ApiError::invalid_field(
@@ -77,7 +89,7 @@ async fn upload_into<S: BodySink>(
         ));
     }
     let name = disposition_name(&headers);
-    let sink = collect_limited(&headers, req.into_body(), limit).await?;
+    let sink = collect_limited(&headers, req.into_body(), limit, disk_reserve).await?;
     Ok((sink, name))
 }
 
@@ -112,7 +124,9 @@ pub async fn create(
             (bytes, None, v)
         }
         ResourceKind::Stock => {
-            let (spooled, name) = upload_into::<Spooled>(req, limits.max_stl_bytes).await?;
+            let (spooled, name) =
+                upload_into::<Spooled>(req, limits.max_stl_bytes, limits.upload_disk_reserve_bytes)
+                    .await?;
             let file = query
                 .name
                 .clone()
@@ -145,7 +159,7 @@ pub async fn create(
             return Ok(created(kind, record));
         }
         ResourceKind::Program => {
-            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes).await?;
+            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0).await?;
             let file = query
                 .name
                 .clone()
@@ -160,7 +174,7 @@ pub async fn create(
         }
         ResourceKind::ToolLibrary => {
             // Any media type: the engine tells the format from the content, as offline.
-            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes).await?;
+            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0).await?;
             let file = query
                 .name
                 .clone()
@@ -317,37 +331,14 @@ pub async fn content(
         .ok_or_else(|| ApiError::not_found(kind.as_str(), &id))?;
     let mut res = match body {
         ResourceBody::Inline(bytes) => ([(header::CONTENT_TYPE, mt)], bytes).into_response(),
-        ResourceBody::Chunked { id, chunks } => {
-            // One chunk read from the database per chunk sent. A resource deleted
-            // while it is sent ends the body early (the client sees a short body against
-            // its Content-Length).
-            let db = state.db.clone();
-            let stream = futures_util::stream::unfold(0i64, move |seq| {
-                let db = db.clone();
-                let id = id.clone();
-                async move {
-                    if seq >= chunks {
-                        return None;
-                    }
-                    let next = match db.resource_chunk(&id, seq).await {
-                        Ok(Some(chunk)) => Ok(bytes::Bytes::from(chunk)),
-                        Ok(None) => Err(std::io::Error::other(format!(
-                            "{id} was deleted while it was sent"
-                        ))),
-                        Err(e) => Err(std::io::Error::other(e.to_string())),
-                    };
-                    Some((next, seq + 1))
-                }
-            });
-            (
-                [
-                    (header::CONTENT_TYPE, mt),
-                    (header::CONTENT_LENGTH, size.to_string()),
-                ],
-                axum::body::Body::from_stream(stream),
-            )
-                .into_response()
-        }
+        ResourceBody::Chunked { id, chunks } => (
+            [
+                (header::CONTENT_TYPE, mt),
+                (header::CONTENT_LENGTH, size.to_string()),
+            ],
+            chunk_body(state.db.clone(), ChunkKey::Resource { id }, chunks),
+        )
+            .into_response(),
     };
     if let Some(name) = name {
         res.headers_mut().insert(

@@ -20,6 +20,7 @@ use millsim_engine::tool::{HolderSegment, Tool};
 use super::inputs::{invalid, json_input};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
 use crate::problem::{parse_options, Problem};
+use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
 pub const INPUTS: [InputSpec; 2] = [
@@ -347,14 +348,14 @@ pub fn run(
         name: "free_region.svg".into(),
         media_type: "image/svg+xml",
         file_name: "free_region.svg".into(),
-        content: out.svg.into_bytes(),
+        content: ArtifactContent::Bytes(out.svg.into_bytes()),
     }];
     if let Some(text) = out.program {
         files.push(OutputFile {
             name: "program".into(),
             media_type: "text/plain; charset=utf-8",
             file_name: "accessibility_roughing.nc".into(),
-            content: text.into_bytes(),
+            content: ArtifactContent::Bytes(text.into_bytes()),
         });
     }
     Ok(JobOutput {

@@ -25,6 +25,7 @@ use millsim_engine::pipeline::StlSource;
 
 use crate::job_limits::JobLimits;
 use crate::problem::Problem;
+use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
 pub use accessibility::{
@@ -312,7 +313,9 @@ pub struct OutputFile {
     pub name: String,
     pub media_type: &'static str,
     pub file_name: String,
-    pub content: Vec<u8>,
+    /// In memory, or a file the job wrote in its directory (the stock STL of a job given
+    /// one: see `JobKind::run`'s `stock_file`).
+    pub content: ArtifactContent,
 }
 
 /// A resource a job makes (an identified material), stored with the job's success and

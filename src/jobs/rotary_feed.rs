@@ -15,6 +15,7 @@ use super::inputs::{invalid, json_input, program_text, required, stem_and_ext};
 use super::interpret::default_dialect;
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
 use crate::problem::{parse_options, Problem};
+use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
 pub const INPUTS: [InputSpec; 2] = [
@@ -103,7 +104,7 @@ fn post_cls_job(
             name,
             media_type: "text/plain; charset=utf-8",
             file_name,
-            content: p.text.clone().into_bytes(),
+            content: ArtifactContent::Bytes(p.text.clone().into_bytes()),
         });
     }
     Ok(JobOutput {
@@ -168,7 +169,7 @@ pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFa
             name: "program".into(),
             media_type: "text/plain; charset=utf-8",
             file_name: format!("{stem}.rotary{ext}"),
-            content: corrected.into_bytes(),
+            content: ArtifactContent::Bytes(corrected.into_bytes()),
         }],
         resources: Vec::new(),
     })

@@ -25,6 +25,7 @@ use super::{
 use crate::job_library::JobLibrary;
 use crate::job_limits::{check_simulation, JobLimits, Refusal, SimulationCheck};
 use crate::problem::Problem;
+use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
 pub const INPUTS: [InputSpec; 7] = [
@@ -215,13 +216,16 @@ struct SimulateSummary<'a> {
     row_columns: Vec<String>,
 }
 
-/// The stock as a binary STL into the file at `path`.
-fn stream_stl(stock: &geometry::Stock, path: &std::path::Path) -> Result<(), String> {
+/// The stock as a binary STL into the file at `path`; its length.
+fn stream_stl(stock: &geometry::Stock, path: &std::path::Path) -> Result<u64, String> {
+    use std::io::Seek;
     let name = path.display();
     let file = std::fs::File::create(path).map_err(|e| format!("{name}: {e}"))?;
     let mut out = std::io::BufWriter::with_capacity(1 << 20, file);
     geometry::export_stl(stock, &mut out).map_err(|e| format!("{name}: {e}"))?;
-    std::io::Write::flush(&mut out).map_err(|e| format!("{name}: {e}"))
+    std::io::Write::flush(&mut out).map_err(|e| format!("{name}: {e}"))?;
+    out.seek(std::io::SeekFrom::End(0))
+        .map_err(|e| format!("{name}: {e}"))
 }
 
 pub fn run(
@@ -369,9 +373,12 @@ pub fn run(
         });
         let clock = std::time::Instant::now();
         let written = match stock_file {
-            Some(path) => stream_stl(&out.stock, path).map(|()| None),
+            Some(path) => stream_stl(&out.stock, path).map(|len| ArtifactContent::File {
+                path: path.to_path_buf(),
+                len,
+            }),
             None => geometry::export_stl_vec(&out.stock)
-                .map(|(stl, _)| Some(stl))
+                .map(|(stl, _)| ArtifactContent::Bytes(stl))
                 .map_err(|e| e.to_string()),
         };
         let exported = (written, clock.elapsed().as_secs_f64());
@@ -399,21 +406,18 @@ pub fn run(
         _ => Vec::new(),
     };
     let (stem, ext) = stem_and_ext(&file);
-    let mut files: Vec<OutputFile> = stl
-        .map(|content| OutputFile {
-            name: "stock.stl".into(),
-            media_type: "model/stl",
-            file_name: format!("{stem}.stock.stl"),
-            content,
-        })
-        .into_iter()
-        .collect();
+    let mut files = vec![OutputFile {
+        name: "stock.stl".into(),
+        media_type: "model/stl",
+        file_name: format!("{stem}.stock.stl"),
+        content: stl,
+    }];
     if let Some(text) = out.optimized_program {
         files.push(OutputFile {
             name: "program".into(),
             media_type: "text/plain; charset=utf-8",
             file_name: format!("{stem}.opt{ext}"),
-            content: text.into_bytes(),
+            content: ArtifactContent::Bytes(text.into_bytes()),
         });
     }
     let mut summary = serde_json::to_value(SimulateSummary {

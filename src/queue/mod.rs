@@ -18,11 +18,11 @@ use crate::metrics::Metrics;
 use crate::problem::Problem;
 use crate::store::backend::Backend;
 use crate::store::chunks::ResourceBody;
-use crate::store::jobs::{
-    Artifact, ClaimedJob, CreatedResource, Finish, LeaseState, IN_PROCESS_MARK,
-};
+use crate::store::jobs::{ClaimedJob, CreatedResource, Finish, LeaseState, IN_PROCESS_MARK};
 use crate::store::workers::WorkerReport;
 use crate::store::{Db, ResourceKind, StoreError};
+
+mod job_dir;
 
 /// Why a job's inputs could not be loaded.
 enum InputsError {
@@ -147,6 +147,18 @@ pub async fn run_workers(
     shutdown: watch::Receiver<bool>,
 ) {
     let prefix = process_worker_prefix();
+    // Job directories of this host's worker processes that were killed: their files
+    // were never stored.
+    let tmp = std::env::temp_dir();
+    let removed = tokio::task::spawn_blocking(move || job_dir::remove_stale(&tmp))
+        .await
+        .unwrap_or(0);
+    if removed > 0 {
+        tracing::info!(
+            removed,
+            "removed job directories of worker processes that are gone"
+        );
+    }
     let mut handles = Vec::new();
     let mut reported = Vec::new();
     for i in 0..config.workers {
@@ -191,10 +203,13 @@ struct JobEnded {
     started: Instant,
     /// When the run ended (unix ms): the end of the attempt in its log.
     ran_until: i64,
+    /// The job's directory, holding the files it wrote until they are committed (removed
+    /// when this is dropped, committed or not).
+    _work_dir: Option<tempfile::TempDir>,
 }
 
 impl JobEnded {
-    /// Bytes of the result held until it is committed.
+    /// Bytes of the result to commit: held in memory, or in files the job wrote.
     fn bytes(&self) -> usize {
         match &self.finish {
             Finish::Succeeded {
@@ -207,7 +222,10 @@ impl JobEnded {
             } => {
                 rows.iter().map(String::len).sum::<usize>()
                     + samples.iter().map(|(_, s)| s.len()).sum::<usize>()
-                    + artifacts.iter().map(|a| a.content.len()).sum::<usize>()
+                    + artifacts
+                        .iter()
+                        .map(|a| a.content.size() as usize)
+                        .sum::<usize>()
                     + resources.iter().map(|r| r.content.len()).sum::<usize>()
             }
             Finish::Failed { .. } | Finish::Cancelled => 0,
@@ -222,6 +240,7 @@ impl JobEnded {
             finish,
             started,
             ran_until,
+            _work_dir,
         } = self;
         let label = match &finish {
             Finish::Succeeded { .. } => "succeeded",
@@ -427,6 +446,7 @@ impl Worker {
                 job.kind
             )))),
         };
+        let mut work_dir = None;
         let outcome = match loaded {
             Err(InputsError::Invalid(problem)) => Finish::Failed {
                 error: problem.to_json(),
@@ -440,17 +460,31 @@ impl Worker {
                 tokio::time::sleep(Duration::from_millis(STORAGE_BACKOFF_MS)).await;
                 return None;
             }
-            Ok((kind, inputs)) => match self.execute(&job, kind, inputs).await {
-                Some(finish) => finish,
-                // Lease lost or given back: whoever holds the job now writes its outcome.
-                None => return None,
-            },
+            Ok((kind, inputs)) => {
+                // Where the job writes its large files, until they are committed.
+                let dir = match job_dir::create() {
+                    Ok(d) => d,
+                    Err(e) => {
+                        tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not make the job's directory; giving the job back");
+                        self.give_back(&job).await;
+                        return None;
+                    }
+                };
+                let finish = self.execute(&job, kind, inputs, dir.path()).await;
+                work_dir = Some(dir);
+                match finish {
+                    Some(finish) => finish,
+                    // Lease lost or given back: whoever holds the job now writes its outcome.
+                    None => return None,
+                }
+            }
         };
         Some(JobEnded {
             job,
             finish: outcome,
             started,
             ran_until: crate::store::now_ms(),
+            _work_dir: work_dir,
         })
     }
 
@@ -461,17 +495,15 @@ impl Worker {
         job: &ClaimedJob,
         kind: JobKind,
         inputs: LoadedInputs,
+        work_dir: &std::path::Path,
     ) -> Option<Finish> {
         let progress = Arc::new(SharedProgress::default());
-        let mut engine = match self.start_engine(job, kind, inputs, progress.clone()) {
+        let mut engine = match self.start_engine(job, kind, inputs, progress.clone(), work_dir) {
             Ok(e) => e,
             Err(e) => {
                 // Cannot start a process (descriptors, fork): not the job's fault.
                 tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not start the job's process; giving the job back");
-                if let Err(e) = self.db.release_job(job, &self.id).await {
-                    tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not give the job back; its lease will expire");
-                }
-                tokio::time::sleep(Duration::from_millis(STORAGE_BACKOFF_MS)).await;
+                self.give_back(job).await;
                 return None;
             }
         };
@@ -535,16 +567,7 @@ impl Worker {
                 summary: out.summary,
                 rows: out.rows,
                 samples: out.samples,
-                artifacts: out
-                    .files
-                    .into_iter()
-                    .map(|(name, media_type, file_name, content)| Artifact {
-                        name,
-                        media_type,
-                        file_name,
-                        content,
-                    })
-                    .collect(),
+                artifacts: out.files,
                 progress: (
                     progress.done.load(Ordering::Relaxed),
                     progress.total.load(Ordering::Relaxed),
@@ -580,13 +603,24 @@ impl Worker {
         }
     }
 
-    /// Starts the job's engine work: in a child process, or on a blocking thread.
+    /// Gives a job back after a failure that is not the job's (no process, no directory)
+    /// and waits a little before the next claim.
+    async fn give_back(&self, job: &ClaimedJob) {
+        if let Err(e) = self.db.release_job(job, &self.id).await {
+            tracing::error!(worker = %self.id, job = %job.id, error = %e, "could not give the job back; its lease will expire");
+        }
+        tokio::time::sleep(Duration::from_millis(STORAGE_BACKOFF_MS)).await;
+    }
+
+    /// Starts the job's engine work: in a child process, or on a blocking thread. Either
+    /// writes the stock it exports into `work_dir`.
     fn start_engine(
         &self,
         job: &ClaimedJob,
         kind: JobKind,
         inputs: LoadedInputs,
         progress: Arc<SharedProgress>,
+        work_dir: &std::path::Path,
     ) -> std::io::Result<Engine> {
         let options = job.spec["options"].clone();
         let limits = self.config.limits;
@@ -598,13 +632,22 @@ impl Worker {
                 limits,
                 progress,
                 Some(self.db.clone()),
+                work_dir,
             )?)),
             Isolation::Thread => {
                 let cancel = CancelFlag::new();
                 let flag = cancel.clone();
+                let stock_file = work_dir.join("stock.stl");
                 let handle = tokio::task::spawn_blocking(move || {
-                    kind.run(&options, inputs, &limits, &flag, progress.as_ref(), None)
-                        .map(isolate::ParentOutput::from)
+                    kind.run(
+                        &options,
+                        inputs,
+                        &limits,
+                        &flag,
+                        progress.as_ref(),
+                        Some(&stock_file),
+                    )
+                    .map(isolate::ParentOutput::from)
                 });
                 Ok(Engine::Thread { handle, cancel })
             }

@@ -6,6 +6,7 @@ use std::sync::atomic::Ordering;
 
 use serde::Serialize;
 
+use super::artifacts::{insert_artifact, Artifact};
 use super::backend::{on_pool, on_tx, RowGet, Tx};
 use super::bulk::{insert_groups, read_rows};
 use super::resources::{insert as insert_resource, insert_with_id, NewResource};
@@ -190,13 +191,6 @@ pub struct CreatedResource {
     pub name: String,
     pub media_type: String,
     pub summary: serde_json::Value,
-    pub content: Vec<u8>,
-}
-
-pub struct Artifact {
-    pub name: String,
-    pub media_type: String,
-    pub file_name: String,
     pub content: Vec<u8>,
 }
 
@@ -782,16 +776,10 @@ impl Db {
             }
             insert_groups(&mut tx, "job_row_groups", &job.id, &row_groups).await?;
             insert_groups(&mut tx, "job_sample_groups", &job.id, &sample_groups).await?;
+            // Written after the lease check above, in this transaction: an attempt that
+            // lost its lease leaves no chunk behind.
             for a in artifacts {
-                on_tx!(&mut tx, c => sqlx::query("INSERT INTO job_artifacts (job_id, name, media_type, file_name, content) VALUES ($1, $2, $3, $4, $5)")
-                    .bind(&job.id)
-                    .bind(&a.name)
-                    .bind(&a.media_type)
-                    .bind(&a.file_name)
-                    .bind(&a.content)
-                    .execute(&mut *c)
-                    .await?
-                    .rows_affected());
+                insert_artifact(&mut tx, &job.id, a).await?;
             }
         }
         on_tx!(&mut tx, c => sqlx::query(
@@ -868,24 +856,6 @@ impl Db {
             usize::MAX,
         )
         .await
-    }
-
-    pub async fn job_artifact(
-        &self,
-        job_id: &str,
-        name: &str,
-    ) -> Result<Option<Artifact>, StoreError> {
-        let row: Option<(String, String, String, Vec<u8>)> = on_pool!(&self.pool, p => sqlx::query_as("SELECT name, media_type, file_name, content FROM job_artifacts WHERE job_id = $1 AND name = $2")
-            .bind(job_id)
-            .bind(name)
-            .fetch_optional(p)
-            .await?);
-        Ok(row.map(|(name, media_type, file_name, content)| Artifact {
-            name,
-            media_type,
-            file_name,
-            content,
-        }))
     }
 
     pub async fn delete_job(&self, owner: &str, id: &str) -> Result<bool, StoreError> {

@@ -2,6 +2,7 @@
 //! opening and migrating the database, resources, jobs and results. One store for both:
 //! see [`backend`] for how, and for the few statements that differ.
 
+pub mod artifacts;
 pub mod backend;
 pub mod bulk;
 pub mod chunks;

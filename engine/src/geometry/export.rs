@@ -76,7 +76,7 @@ fn band_rows(stock: &Stock) -> usize {
 
 /// Rows per band at most: enough row tasks for the threads, few enough that their
 /// triangles stay small (a whole 90 mm impeller blank at 0.1 mm in one band was 312 MB).
-const BAND_ROWS: usize = 64;
+pub const BAND_ROWS: usize = 64;
 
 fn stl_header(triangles: u32) -> [u8; 84] {
     let mut header = [0u8; 84];
