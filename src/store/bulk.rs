@@ -93,7 +93,8 @@ pub async fn read_rows(
 mod tests {
     use std::time::{Duration, Instant};
 
-    use crate::store::jobs::{Finish, NewJob};
+    use crate::store::jobs::Finish;
+    use crate::store::scratch::{new_job, ScratchPostgres};
     use crate::store::Db;
 
     /// A result row the size of a simulate job's (about 700 bytes of JSON).
@@ -114,25 +115,9 @@ mod tests {
         serde_json::Value::Object(o).to_string()
     }
 
-    async fn admin(url: &str, statement: &str) {
-        use sqlx::Connection;
-        let mut c = sqlx::PgConnection::connect(url).await.unwrap();
-        sqlx::query(statement).execute(&mut c).await.unwrap();
-    }
-
     /// Commits a claimed job's 100k-row result; returns how long the commit took.
     async fn commit_100k_rows(db: &Db) -> Duration {
-        let new = NewJob {
-            kind: "simulate".into(),
-            inputs: serde_json::Map::new(),
-            inline: Vec::new(),
-            options: serde_json::json!({}),
-            idempotency_key: None,
-            request_hash: String::new(),
-            max_attempts: 3,
-            max_queued: 10,
-        };
-        db.create_job("bench", new).await.unwrap();
+        db.create_job("bench", new_job()).await.unwrap();
         let job = db.claim_job("w", 600_000).await.unwrap().unwrap();
         let rows: Vec<String> = (0..100_000).map(row).collect();
         let last = rows[99_999].clone();
@@ -222,6 +207,24 @@ mod tests {
         );
     }
 
+    /// Leaves the database of connection `$c` (either driver) at `$backend`'s migrations up
+    /// to `$last`, the last before groups, holding rows stored one by one; closes `$c`.
+    macro_rules! migrate_before_groups_and_seed {
+        ($c:ident, $backend:literal, $last:literal) => {
+            let old = migrations_before_groups($backend, $last);
+            sqlx::migrate::Migrator::new(old.path())
+                .await
+                .unwrap()
+                .run(&mut $c)
+                .await
+                .unwrap();
+            for q in old_rows_statements() {
+                sqlx::query(&q).execute(&mut $c).await.unwrap();
+            }
+            $c.close().await.unwrap();
+        };
+    }
+
     /// A database whose rows were stored one by one keeps them when it is migrated to groups.
     #[tokio::test]
     async fn rows_stored_before_groups_read_back_after_the_migration() {
@@ -229,54 +232,27 @@ mod tests {
         let url = format!("sqlite://{}", dir.path().join("old.db").display());
         {
             use sqlx::Connection;
-            let old = migrations_before_groups("sqlite", 7);
             let opts: sqlx::sqlite::SqliteConnectOptions = url.parse().unwrap();
             let mut c = sqlx::SqliteConnection::connect_with(&opts.create_if_missing(true))
                 .await
                 .unwrap();
-            sqlx::migrate::Migrator::new(old.path())
-                .await
-                .unwrap()
-                .run(&mut c)
-                .await
-                .unwrap();
-            for q in old_rows_statements() {
-                sqlx::query(&q).execute(&mut c).await.unwrap();
-            }
-            c.close().await.unwrap();
+            migrate_before_groups_and_seed!(c, "sqlite", 7);
         }
         old_rows_read_back(&Db::open(&url).await.unwrap()).await;
 
-        let Some(base) = std::env::var("MILLSIM_TEST_DATABASE")
-            .ok()
-            .filter(|u| u.starts_with("postgres"))
-        else {
-            println!("postgres part skipped: MILLSIM_TEST_DATABASE names no PostgreSQL server");
+        let Some(scratch) = ScratchPostgres::create().await else {
             return;
         };
-        let name = format!("millsim_unit_{}", uuid::Uuid::new_v4().simple());
-        let (server, _) = base.rsplit_once('/').unwrap();
-        admin(&base, &format!("CREATE DATABASE {name}")).await;
-        let url = format!("{server}/{name}");
+        let url = scratch.url.clone();
         {
             use sqlx::Connection;
-            let old = migrations_before_groups("postgres", 4);
             let mut c = sqlx::PgConnection::connect(&url).await.unwrap();
-            sqlx::migrate::Migrator::new(old.path())
-                .await
-                .unwrap()
-                .run(&mut c)
-                .await
-                .unwrap();
-            for q in old_rows_statements() {
-                sqlx::query(&q).execute(&mut c).await.unwrap();
-            }
-            c.close().await.unwrap();
+            migrate_before_groups_and_seed!(c, "postgres", 4);
         }
         let pg = Db::open(&url).await.unwrap();
         old_rows_read_back(&pg).await;
         drop(pg);
-        admin(&base, &format!("DROP DATABASE {name} WITH (FORCE)")).await;
+        scratch.remove().await;
     }
 
     /// What the test holds the commit to (the figures are printed): room for a busy
@@ -292,23 +268,15 @@ mod tests {
         let took = commit_100k_rows(&sqlite).await;
         println!("sqlite: 100k rows committed in {took:?}");
         let sqlite_took = took;
-        let Some(base) = std::env::var("MILLSIM_TEST_DATABASE")
-            .ok()
-            .filter(|u| u.starts_with("postgres"))
-        else {
-            println!("postgres part skipped: MILLSIM_TEST_DATABASE names no PostgreSQL server");
-            assert!(sqlite_took < COMMIT_BOUND, "sqlite: {sqlite_took:?}");
+        assert!(sqlite_took < COMMIT_BOUND, "sqlite: {sqlite_took:?}");
+        let Some(scratch) = ScratchPostgres::create().await else {
             return;
         };
-        let name = format!("millsim_unit_{}", uuid::Uuid::new_v4().simple());
-        let (server, _) = base.rsplit_once('/').unwrap();
-        admin(&base, &format!("CREATE DATABASE {name}")).await;
-        let pg = Db::open(&format!("{server}/{name}")).await.unwrap();
+        let pg = Db::open(&scratch.url).await.unwrap();
         let took = commit_100k_rows(&pg).await;
         println!("postgres: 100k rows committed in {took:?}");
         drop(pg);
-        admin(&base, &format!("DROP DATABASE {name} WITH (FORCE)")).await;
+        scratch.remove().await;
         assert!(took < COMMIT_BOUND, "postgres: {took:?}");
-        assert!(sqlite_took < COMMIT_BOUND, "sqlite: {sqlite_took:?}");
     }
 }

@@ -170,16 +170,11 @@ mod tests {
     use std::io::Write;
 
     use crate::store::artifacts::{Artifact, ArtifactBody, ArtifactContent};
-    use crate::store::jobs::{Finish, NewJob};
+    use crate::store::jobs::Finish;
+    use crate::store::scratch::{new_job, ScratchPostgres};
     use crate::store::Db;
 
     use super::ChunkKey;
-
-    async fn admin(url: &str, statement: &str) {
-        use sqlx::Connection;
-        let mut c = sqlx::PgConnection::connect(url).await.unwrap();
-        sqlx::query(statement).execute(&mut c).await.unwrap();
-    }
 
     async fn artifact_chunk_rows(db: &Db) -> i64 {
         crate::store::backend::on_pool!(&db.pool, p => sqlx::query_scalar::<_, i64>(
@@ -223,21 +218,7 @@ mod tests {
             .write_all(&content)
             .unwrap();
         let len = content.len() as u64;
-        db.create_job(
-            "o",
-            NewJob {
-                kind: "simulate".into(),
-                inputs: serde_json::Map::new(),
-                inline: Vec::new(),
-                options: serde_json::json!({}),
-                idempotency_key: None,
-                request_hash: String::new(),
-                max_attempts: 3,
-                max_queued: 10,
-            },
-        )
-        .await
-        .unwrap();
+        db.create_job("o", new_job()).await.unwrap();
         let first = db.claim_job("w1", 50).await.unwrap().unwrap();
         tokio::time::sleep(std::time::Duration::from_millis(120)).await;
         let second = db.claim_job("w2", 60_000).await.unwrap().unwrap();
@@ -290,19 +271,12 @@ mod tests {
             .await
             .unwrap();
         lost_lease_leaves_no_chunks(&sqlite).await;
-        let Some(base) = std::env::var("MILLSIM_TEST_DATABASE")
-            .ok()
-            .filter(|u| u.starts_with("postgres"))
-        else {
-            println!("postgres part skipped: MILLSIM_TEST_DATABASE names no PostgreSQL server");
+        let Some(scratch) = ScratchPostgres::create().await else {
             return;
         };
-        let name = format!("millsim_unit_{}", uuid::Uuid::new_v4().simple());
-        let (server, _) = base.rsplit_once('/').unwrap();
-        admin(&base, &format!("CREATE DATABASE {name}")).await;
-        let pg = Db::open(&format!("{server}/{name}")).await.unwrap();
+        let pg = Db::open(&scratch.url).await.unwrap();
         lost_lease_leaves_no_chunks(&pg).await;
         drop(pg);
-        admin(&base, &format!("DROP DATABASE {name} WITH (FORCE)")).await;
+        scratch.remove().await;
     }
 }

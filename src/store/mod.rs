@@ -10,6 +10,8 @@ pub mod jobs;
 pub mod notify;
 pub mod resources;
 pub mod row_groups;
+#[cfg(test)]
+mod scratch;
 pub mod webhooks;
 pub mod workers;
 

@@ -1,0 +1,59 @@
+//! Databases for the store's unit tests that run on both backends: where
+//! MILLSIM_TEST_DATABASE names a PostgreSQL server, a database of the test's own created
+//! there and dropped after it.
+
+use super::jobs::NewJob;
+
+/// A database created on the test server for one test.
+pub struct ScratchPostgres {
+    admin: String,
+    name: String,
+    pub url: String,
+}
+
+impl ScratchPostgres {
+    /// None, after saying so, when MILLSIM_TEST_DATABASE names no PostgreSQL server.
+    pub async fn create() -> Option<ScratchPostgres> {
+        let Some(admin) = std::env::var("MILLSIM_TEST_DATABASE")
+            .ok()
+            .filter(|u| u.starts_with("postgres"))
+        else {
+            println!("postgres part skipped: MILLSIM_TEST_DATABASE names no PostgreSQL server");
+            return None;
+        };
+        let name = format!("millsim_unit_{}", uuid::Uuid::new_v4().simple());
+        let (server, _) = admin.rsplit_once('/').expect("a database URL");
+        let url = format!("{server}/{name}");
+        execute(&admin, &format!("CREATE DATABASE {name}")).await;
+        Some(ScratchPostgres { admin, name, url })
+    }
+
+    /// Drops the database, closing what is still connected to it.
+    pub async fn remove(self) {
+        execute(
+            &self.admin,
+            &format!("DROP DATABASE {} WITH (FORCE)", self.name),
+        )
+        .await;
+    }
+}
+
+async fn execute(url: &str, statement: &str) {
+    use sqlx::Connection;
+    let mut c = sqlx::PgConnection::connect(url).await.unwrap();
+    sqlx::query(statement).execute(&mut c).await.unwrap();
+}
+
+/// A simulate job with nothing in it, which the store takes as it is.
+pub fn new_job() -> NewJob {
+    NewJob {
+        kind: "simulate".into(),
+        inputs: serde_json::Map::new(),
+        inline: Vec::new(),
+        options: serde_json::json!({}),
+        idempotency_key: None,
+        request_hash: String::new(),
+        max_attempts: 3,
+        max_queued: 10,
+    }
+}
