@@ -118,7 +118,7 @@ impl Progress for StderrProgress {
         } else {
             (done * 10 / total, 10)
         };
-        if self.shown.fetch_max(step + 1, Ordering::Relaxed) >= step + 1 {
+        if self.shown.fetch_max(step + 1, Ordering::Relaxed) > step {
             return;
         }
         let percent = step * 100 / steps;

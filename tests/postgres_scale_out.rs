@@ -223,7 +223,8 @@ async fn four_workers_two_apis_two_killed_every_job_once() {
     assert_eq!(jobs, 400);
     // Every job succeeded exactly once, by the attempts log; every attempt but the
     // succeeded one was lost with a killed worker.
-    let attempts: Vec<(String, i64, String, i64, Option<i64>, Option<String>)> = sqlx::query_as(
+    type Attempt = (String, i64, String, i64, Option<i64>, Option<String>);
+    let attempts: Vec<Attempt> = sqlx::query_as(
         "SELECT job_id, attempt, worker, started_at, finished_at, outcome FROM job_attempts ORDER BY job_id, attempt",
     )
     .fetch_all(&mut conn)

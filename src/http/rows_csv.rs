@@ -69,10 +69,7 @@ pub async fn csv_response(
     tokio::spawn(async move {
         let mut page = first;
         let mut header = true;
-        loop {
-            let Some(&(last, _)) = page.last() else {
-                break;
-            };
+        while let Some(&(last, _)) = page.last() {
             let full = page.len() as i64 == PAGE;
             let c = cols.clone();
             let text = tokio::task::spawn_blocking(move || convert(&page, &c, header, numbers));

@@ -146,7 +146,7 @@ impl JobWatch {
         let wait = async {
             loop {
                 match rx.recv().await {
-                    Ok(id) if &*id == self.id || &*id == ANY_JOB => return,
+                    Ok(id) if *id == *self.id || &*id == ANY_JOB => return,
                     Ok(_) => {}
                     // Fell behind the bus: this job's change may be among the dropped ones.
                     Err(broadcast::error::RecvError::Lagged(_)) => return,
