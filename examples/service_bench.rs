@@ -14,6 +14,33 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() as f64 - 1.0) * p).round() as usize]
 }
 
+/// The JSON answer to a request.
+async fn answer(request: reqwest::RequestBuilder) -> Value {
+    request.send().await.unwrap().json().await.unwrap()
+}
+
+/// Submits an interpret job of `program` (inline, or a stored program's id); its id.
+async fn submit_interpret(c: &reqwest::Client, base: &str, program: &Value) -> String {
+    let job = answer(
+        c.post(format!("{base}/v1/jobs"))
+            .json(&json!({"kind": "interpret", "inputs": {"program": program}})),
+    )
+    .await;
+    job["id"].as_str().expect("job submitted").to_string()
+}
+
+/// Polls job `id` every `poll` until it has succeeded; its state then.
+async fn wait_succeeded(c: &reqwest::Client, base: &str, id: &str, poll: Duration) -> Value {
+    loop {
+        let job = answer(c.get(format!("{base}/v1/jobs/{id}"))).await;
+        match job["status"].as_str() {
+            Some("succeeded") => return job,
+            Some("queued" | "running") => tokio::time::sleep(poll).await,
+            _ => panic!("job {id} did not succeed: {job}"),
+        }
+    }
+}
+
 #[tokio::main]
 async fn main() {
     let dir = tempfile::tempdir().unwrap();
@@ -54,30 +81,8 @@ async fn main() {
         json!({"name": "one.nc", "content": "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10\nM30\n"});
     let mut server_ms = Vec::new();
     for _ in 0..200 {
-        let job: Value = c
-            .post(format!("{base}/v1/jobs"))
-            .json(&json!({"kind": "interpret", "inputs": {"program": program}}))
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        let id = job["id"].as_str().unwrap();
-        let done = loop {
-            let j: Value = c
-                .get(format!("{base}/v1/jobs/{id}"))
-                .send()
-                .await
-                .unwrap()
-                .json()
-                .await
-                .unwrap();
-            if j["status"] == "succeeded" {
-                break j;
-            }
-            tokio::time::sleep(Duration::from_millis(2)).await;
-        };
+        let id = submit_interpret(&c, &base, &program).await;
+        let done = wait_succeeded(&c, &base, &id, Duration::from_millis(2)).await;
         let t = |k: &str| {
             let s = done[k].as_str().unwrap();
             // ...THH:MM:SS.mmmZ -> seconds of the day, enough for a difference.
@@ -153,41 +158,14 @@ async fn main() {
         ));
     }
     text.push_str("M30\n");
-    let program: Value = c
-        .post(format!("{base}/v1/programs?name=100k.nc"))
-        .header("content-type", "text/plain")
-        .body(text)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let job: Value = c
-        .post(format!("{base}/v1/jobs"))
-        .json(&json!({"kind": "interpret", "inputs": {"program": program["id"]}}))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let seeded = job["id"].as_str().expect("job submitted").to_string();
-    loop {
-        let v: Value = c
-            .get(format!("{base}/v1/jobs/{seeded}"))
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        match v["status"].as_str() {
-            Some("succeeded") => break,
-            Some("queued" | "running") => tokio::time::sleep(Duration::from_millis(50)).await,
-            _ => panic!("the 100k-row job did not succeed: {v}"),
-        }
-    }
+    let program = answer(
+        c.post(format!("{base}/v1/programs?name=100k.nc"))
+            .header("content-type", "text/plain")
+            .body(text),
+    )
+    .await;
+    let seeded = submit_interpret(&c, &base, &program["id"]).await;
+    wait_succeeded(&c, &base, &seeded, Duration::from_millis(50)).await;
     // First run right after the job (cold cache, WAL not yet checkpointed), then warm.
     for run in ["cold", "warm"] {
         let t = Instant::now();

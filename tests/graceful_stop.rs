@@ -7,7 +7,7 @@
 mod common;
 
 use std::collections::HashMap;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::*;
@@ -17,20 +17,11 @@ const JOBS: usize = 300;
 /// Three moves: rows 0..3 of every job.
 const PROGRAM: &str = "G21 G90\nG0 X0 Y0 Z5\nG1 X10 F1000\nG1 Y10\nM30\n";
 
-struct Worker(Child);
-
-impl Drop for Worker {
-    fn drop(&mut self) {
-        if let Ok(None) = self.0.try_wait() {
-            let _ = self.0.kill();
-            let _ = self.0.wait();
-        }
-    }
-}
+type Worker = KilledOnDrop;
 
 fn start_worker(db_url: &str) -> Worker {
     // A long lease: a job left running by the stopped worker would stay visibly so.
-    Worker(
+    KilledOnDrop(
         Command::new(BIN)
             .args(["worker", "--database", db_url, "--workers", "2"])
             .args(["--lease-secs", "60", "--shutdown-grace-secs", "30"])

@@ -7,7 +7,7 @@
 mod common;
 
 use std::collections::{BTreeMap, HashMap};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::*;
@@ -18,34 +18,10 @@ use sqlx::Connection;
 /// mid-job often.
 const SHORT_LOOP: &str = "G21 G90\nG0 X0 Y0 Z5\n#1=0\no100 while [#1 LT 400]\nG1 X10 F1000\nG1 X0\n#1=[#1+1]\no100 endwhile\nM30\n";
 
-/// A `millsim worker` process, killed when the test ends however it ends: a failed
-/// assertion would otherwise leave it running against the throwaway cluster.
-struct Worker(Child);
-
-impl std::ops::Deref for Worker {
-    type Target = Child;
-    fn deref(&self) -> &Child {
-        &self.0
-    }
-}
-
-impl std::ops::DerefMut for Worker {
-    fn deref_mut(&mut self) -> &mut Child {
-        &mut self.0
-    }
-}
-
-impl Drop for Worker {
-    fn drop(&mut self) {
-        if let Ok(None) = self.0.try_wait() {
-            let _ = self.0.kill();
-            let _ = self.0.wait();
-        }
-    }
-}
+type Worker = KilledOnDrop;
 
 fn start_worker(db_url: &str) -> Worker {
-    Worker(
+    KilledOnDrop(
         Command::new(BIN)
             .args([
                 "worker",

@@ -195,6 +195,32 @@ impl Drop for Server {
     }
 }
 
+/// A child process (a worker, an API) killed when the test ends however it ends: a failed
+/// assertion would otherwise leave it running against the test's database.
+pub struct KilledOnDrop(pub Child);
+
+impl std::ops::Deref for KilledOnDrop {
+    type Target = Child;
+    fn deref(&self) -> &Child {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for KilledOnDrop {
+    fn deref_mut(&mut self) -> &mut Child {
+        &mut self.0
+    }
+}
+
+impl Drop for KilledOnDrop {
+    fn drop(&mut self) {
+        if let Ok(None) = self.0.try_wait() {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+}
+
 /// Sends a signal with the `kill` command (no libc dependency for one call).
 pub fn unsafe_kill(pid: i32, signal: i32) {
     let _ = Command::new("kill")
