@@ -147,8 +147,8 @@ pub async fn run_workers(
     shutdown: watch::Receiver<bool>,
 ) {
     let prefix = process_worker_prefix();
-    // Job directories of this host's worker processes that were killed: their files
-    // were never stored.
+    // Job directories of worker processes that were killed (any that shared this
+    // temporary directory): their files were never stored.
     let tmp = std::env::temp_dir();
     let removed = tokio::task::spawn_blocking(move || job_dir::remove_stale(&tmp))
         .await
@@ -205,7 +205,7 @@ struct JobEnded {
     ran_until: i64,
     /// The job's directory, holding the files it wrote until they are committed (removed
     /// when this is dropped, committed or not).
-    _work_dir: Option<tempfile::TempDir>,
+    _work_dir: Option<job_dir::JobDir>,
 }
 
 impl JobEnded {
