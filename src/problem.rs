@@ -155,17 +155,23 @@ impl Problem {
         } else {
             "the server's temporary directory filled up while this upload was written. Nothing was stored; try again later".to_string()
         };
+        Self::disk_full(detail)
+            .with("field", "file")
+            .with("limit_name", "upload_disk_reserve_mb")
+            .with("free_bytes", free)
+            .with("needed_bytes", needed)
+            .with("reserve_bytes", reserve)
+    }
+
+    /// The server's disk is full (the detail says which and for what): not the client's
+    /// fault; it may try again later.
+    pub fn disk_full(detail: impl Into<String>) -> Self {
         Self::new(
             StatusCode::INSUFFICIENT_STORAGE,
             "insufficient-storage",
             "Insufficient storage",
             detail,
         )
-        .with("field", "file")
-        .with("limit_name", "upload_disk_reserve_mb")
-        .with("free_bytes", free)
-        .with("needed_bytes", needed)
-        .with("reserve_bytes", reserve)
     }
 
     /// A job over the server's job memory budget, from the same problem document a job

@@ -217,15 +217,47 @@ struct SimulateSummary<'a> {
 }
 
 /// The stock as a binary STL into the file at `path`; its length.
-fn stream_stl(stock: &geometry::Stock, path: &std::path::Path) -> Result<u64, String> {
+fn stream_stl(stock: &geometry::Stock, path: &std::path::Path) -> Result<u64, ExportError> {
     use std::io::Seek;
-    let name = path.display();
-    let file = std::fs::File::create(path).map_err(|e| format!("{name}: {e}"))?;
+    let at = |e: std::io::Error| ExportError::Io(path.to_path_buf(), e);
+    let file = std::fs::File::create(path).map_err(at)?;
     let mut out = std::io::BufWriter::with_capacity(1 << 20, file);
-    geometry::export_stl(stock, &mut out).map_err(|e| format!("{name}: {e}"))?;
-    std::io::Write::flush(&mut out).map_err(|e| format!("{name}: {e}"))?;
-    out.seek(std::io::SeekFrom::End(0))
-        .map_err(|e| format!("{name}: {e}"))
+    geometry::export_stl(stock, &mut out).map_err(|e| match e {
+        geometry::GeometryError::Io(e) => at(e),
+        other => ExportError::Other(other.to_string()),
+    })?;
+    std::io::Write::flush(&mut out).map_err(at)?;
+    out.seek(std::io::SeekFrom::End(0)).map_err(at)
+}
+
+/// Why the machined stock could not be exported.
+#[derive(Debug)]
+enum ExportError {
+    /// Writing the job's file failed.
+    Io(std::path::PathBuf, std::io::Error),
+    Other(String),
+}
+
+impl ExportError {
+    /// The job's failure: a full disk is the server's (507, try again later), anything
+    /// else the export's own.
+    fn into_failure(self) -> JobFailure {
+        match self {
+            ExportError::Io(path, e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded
+                ) =>
+            {
+                JobFailure::Invalid(Problem::disk_full(format!(
+                        "the worker's disk filled up while it wrote the machined stock ({}: {e}); this is not a fault of the job's inputs: submit it again once the server has space",
+                        path.display()
+                )))
+            }
+            ExportError::Io(path, e) => invalid("Stock export failed", format!("{}: {e}", path.display())),
+            ExportError::Other(e) => invalid("Stock export failed", e),
+        }
+    }
 }
 
 pub fn run(
@@ -379,7 +411,7 @@ pub fn run(
             }),
             None => geometry::export_stl_vec(&out.stock)
                 .map(|(stl, _)| ArtifactContent::Bytes(stl))
-                .map_err(|e| e.to_string()),
+                .map_err(|e| ExportError::Other(e.to_string())),
         };
         let exported = (written, clock.elapsed().as_secs_f64());
         match serialized.join() {
@@ -387,7 +419,7 @@ pub fn run(
             Err(panic) => std::panic::resume_unwind(panic),
         }
     });
-    let stl = stl.map_err(|e| invalid("Stock export failed", e.to_string()))?;
+    let stl = stl.map_err(ExportError::into_failure)?;
     let tool_library = library.map(|library| {
         let (section, warnings) = library.report(&out.tool_numbers);
         out.summary.tool_warnings.extend(warnings);
@@ -476,5 +508,54 @@ fn place_collisions(spec: &SimulateSpec, summary: &mut Value) {
             c["from"] = json!([m.start[0], m.start[1], m.start[2]]);
             c["to"] = json!([m.end[0], m.end[1], m.end[2]]);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn problem(e: ExportError) -> Problem {
+        match e.into_failure() {
+            JobFailure::Invalid(p) => p,
+            JobFailure::Cancelled => panic!("an export failure is not a cancel"),
+        }
+    }
+
+    #[test]
+    fn a_full_disk_fails_the_export_as_the_servers_not_the_jobs() {
+        let path = std::path::PathBuf::from("/tmp/millsim-job-x/stock.stl");
+        // ENOSPC and EDQUOT, as the kernel reports them.
+        for errno in [libc::ENOSPC, libc::EDQUOT] {
+            let p = problem(ExportError::Io(
+                path.clone(),
+                std::io::Error::from_raw_os_error(errno),
+            ));
+            assert_eq!(p.status.as_u16(), 507, "errno {errno}");
+            assert_eq!(p.slug, "insufficient-storage");
+            assert!(
+                p.detail.contains("/tmp/millsim-job-x/stock.stl"),
+                "{}",
+                p.detail
+            );
+            assert!(
+                p.detail.contains("not a fault of the job's inputs"),
+                "{}",
+                p.detail
+            );
+        }
+        // Other errors stay the export's own.
+        let p = problem(ExportError::Io(
+            path.clone(),
+            std::io::Error::from_raw_os_error(libc::EACCES),
+        ));
+        assert_eq!(p.status.as_u16(), 422);
+        assert_eq!(p.title, "Stock export failed");
+        assert!(
+            p.detail.starts_with("/tmp/millsim-job-x/stock.stl: "),
+            "{}",
+            p.detail
+        );
+        assert_eq!(problem(ExportError::Other("x".into())).status.as_u16(), 422);
     }
 }
