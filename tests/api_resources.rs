@@ -162,18 +162,7 @@ async fn files_are_stored_unchanged_with_their_names() {
     assert_eq!(back.as_ref(), std::fs::read(&path).unwrap().as_slice());
     // An STL, multipart, whose binary header starts with "solid".
     let stl = std::fs::read(corpus("stl/numpystl_Cube_binary_solid_header.stl")).unwrap();
-    let form = reqwest::multipart::Form::new().part(
-        "file",
-        reqwest::multipart::Part::bytes(stl.clone()).file_name("cube.stl"),
-    );
-    let (status, v) = json(
-        c.post(s.url("/v1/stocks"))
-            .multipart(form)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (status, v) = post_stl_multipart(&c, &s, stl.clone(), "cube.stl").await;
     assert_eq!(status, 201, "{v}");
     assert_eq!(v["name"], "cube.stl");
     assert_eq!(v["summary"]["triangles"], 12);

@@ -19,6 +19,20 @@ const PROGRAM: &str = "G21 G90\nG0 X0 Y0 Z5\nG1 X10 F1000\nG1 Y10\nM30\n";
 
 type Worker = KilledOnDrop;
 
+/// Waits until `n` jobs have succeeded (well into the stream, not at its end).
+async fn wait_for_successes(db_url: &str, n: usize) {
+    let deadline = Instant::now() + Duration::from_secs(120);
+    loop {
+        let (jobs, _) = queue_state(db_url).await;
+        let done = jobs.values().filter(|v| *v == "succeeded").count();
+        if done >= n {
+            return;
+        }
+        assert!(Instant::now() < deadline, "{done} jobs succeeded in 120 s");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
 fn start_worker(db_url: &str) -> Worker {
     // A long lease: a job left running by the stopped worker would stay visibly so.
     KilledOnDrop(
@@ -112,16 +126,7 @@ async fn sigterm_commits_every_result_in_flight() {
 
     let worker = start_worker(&s.db_url);
     // Stop it once it is well into the stream.
-    let deadline = Instant::now() + Duration::from_secs(120);
-    loop {
-        let (jobs, _) = queue_state(&s.db_url).await;
-        let done = jobs.values().filter(|v| *v == "succeeded").count();
-        if done >= 40 {
-            break;
-        }
-        assert!(Instant::now() < deadline, "{done} jobs succeeded in 120 s");
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
+    wait_for_successes(&s.db_url, 40).await;
     assert!(
         stop(worker),
         "the worker's exit after SIGTERM was not clean"
@@ -175,16 +180,7 @@ async fn sigterm_to_serve_commits_every_result_in_flight() {
             "30",
         ],
     );
-    let deadline = Instant::now() + Duration::from_secs(120);
-    loop {
-        let (jobs, _) = queue_state(&s.db_url).await;
-        let done = jobs.values().filter(|v| *v == "succeeded").count();
-        if done >= 40 {
-            break;
-        }
-        assert!(Instant::now() < deadline, "{done} jobs succeeded in 120 s");
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
+    wait_for_successes(&s.db_url, 40).await;
     assert!(s.terminate(), "serve's exit after SIGTERM was not clean");
     // An API alone to read the rows back.
     let s = Server::start(&path, &["--workers", "0"]);

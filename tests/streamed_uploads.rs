@@ -121,19 +121,8 @@ async fn bad_streamed_uploads_are_problems_and_leave_no_rows() {
         let answer = String::from_utf8_lossy(&answer[..n]);
         assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
     }
-    let chunks: Vec<Result<Vec<u8>, std::io::Error>> =
-        big.chunks(1 << 16).map(|c| Ok(c.to_vec())).collect();
-    let res = c
-        .post(s.url("/v1/stocks"))
-        .header("content-type", "model/stl")
-        .body(reqwest::Body::wrap_stream(futures_util::stream::iter(
-            chunks,
-        )))
-        .send()
-        .await;
     // The server may answer and close before the whole body is sent.
-    if let Ok(res) = res {
-        let (st, p) = json(res).await;
+    if let Some((st, p)) = post_stl_chunked(&c, &s, &big).await {
         assert_eq!(st, 413, "{p}");
     }
 
@@ -274,33 +263,11 @@ async fn an_upload_the_disk_cannot_spare_is_refused_507() {
     check(st, &p);
     assert_eq!(p["needed_bytes"], stl.len(), "{p}");
     // Without one (chunked transfer).
-    let chunks: Vec<Result<Vec<u8>, std::io::Error>> =
-        stl.chunks(1 << 16).map(|c| Ok(c.to_vec())).collect();
-    let res = c
-        .post(s.url("/v1/stocks"))
-        .header("content-type", "model/stl")
-        .body(reqwest::Body::wrap_stream(futures_util::stream::iter(
-            chunks,
-        )))
-        .send()
-        .await;
-    if let Ok(res) = res {
-        let (st, p) = json(res).await;
+    if let Some((st, p)) = post_stl_chunked(&c, &s, &stl).await {
         check(st, &p);
     }
     // A multipart form.
-    let form = reqwest::multipart::Form::new().part(
-        "file",
-        reqwest::multipart::Part::bytes(stl.clone()).file_name("box.stl"),
-    );
-    let (st, p) = json(
-        c.post(s.url("/v1/stocks"))
-            .multipart(form)
-            .send()
-            .await
-            .unwrap(),
-    )
-    .await;
+    let (st, p) = post_stl_multipart(&c, &s, stl.clone(), "box.stl").await;
     check(st, &p);
     assert_eq!(row_counts(&s).await, before, "a refused upload left rows");
 

@@ -371,6 +371,45 @@ pub async fn post_stl(c: &reqwest::Client, s: &Server, path: &str, stl: Vec<u8>)
     .await
 }
 
+/// POSTs an STL to /v1/stocks in chunked transfer (no Content-Length), 64 KiB a chunk.
+/// None when the server answered and closed before the whole body was sent (a refusal
+/// of the request as a whole; its answer is then not read).
+pub async fn post_stl_chunked(c: &reqwest::Client, s: &Server, stl: &[u8]) -> Option<(u16, Value)> {
+    let chunks: Vec<Result<Vec<u8>, std::io::Error>> =
+        stl.chunks(1 << 16).map(|c| Ok(c.to_vec())).collect();
+    let res = c
+        .post(s.url("/v1/stocks"))
+        .header("content-type", "model/stl")
+        .body(reqwest::Body::wrap_stream(futures_util::stream::iter(
+            chunks,
+        )))
+        .send()
+        .await
+        .ok()?;
+    Some(json(res).await)
+}
+
+/// POSTs an STL to /v1/stocks as a multipart form's `file` part named `file_name`.
+pub async fn post_stl_multipart(
+    c: &reqwest::Client,
+    s: &Server,
+    stl: Vec<u8>,
+    file_name: &str,
+) -> (u16, Value) {
+    let form = reqwest::multipart::Form::new().part(
+        "file",
+        reqwest::multipart::Part::bytes(stl).file_name(file_name.to_string()),
+    );
+    json(
+        c.post(s.url("/v1/stocks"))
+            .multipart(form)
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await
+}
+
 /// GET a path's body as text (CSV results, programs).
 pub async fn get_text(c: &reqwest::Client, s: &Server, path: &str) -> String {
     c.get(s.url(path))
