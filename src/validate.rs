@@ -111,17 +111,20 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
     })
 }
 
+/// The problem of an STL `file` the engine's reader refused for `e`.
+fn invalid_stl(file: &str, e: impl std::fmt::Display) -> Problem {
+    Problem::new(
+        axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+        "invalid-stl",
+        "STL is not usable",
+        format!("{file}: {e}"),
+    )
+    .with("file", file.to_string())
+}
+
 /// STL stock or part: read and checked (closed, finite, sane size) by the engine.
 pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
-    let mesh = geometry::Mesh::from_stl_bytes(bytes).map_err(|e| {
-        Problem::new(
-            axum::http::StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid-stl",
-            "STL is not usable",
-            format!("{file}: {e}"),
-        )
-        .with("file", file.to_string())
-    })?;
+    let mesh = geometry::Mesh::from_stl_bytes(bytes).map_err(|e| invalid_stl(file, e))?;
     let (min, max) = mesh.bounds();
     Ok(Validated {
         media_type: "model/stl",
@@ -133,15 +136,7 @@ pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
 /// format, the count against the length, finite vertices, closedness (see
 /// `stl_read::EdgeSum`); no mesh is built.
 pub fn stl_stream(r: impl std::io::Read, len: u64, file: &str) -> Result<Validated, Problem> {
-    let scan = geometry::stl_read::scan(r, len).map_err(|e| {
-        Problem::new(
-            axum::http::StatusCode::UNPROCESSABLE_ENTITY,
-            "invalid-stl",
-            "STL is not usable",
-            format!("{file}: {e}"),
-        )
-        .with("file", file.to_string())
-    })?;
+    let scan = geometry::stl_read::scan(r, len).map_err(|e| invalid_stl(file, e))?;
     let (min, max) = scan.bounds;
     Ok(Validated {
         media_type: "model/stl",
