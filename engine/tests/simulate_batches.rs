@@ -4,6 +4,8 @@
 //! exactly (their JSON, where floats are written in full) between one step per batch, small
 //! batches and the whole program in one batch.
 
+mod common;
+
 use std::collections::BTreeMap;
 
 use millsim_engine::geometry::StockShape;
@@ -19,6 +21,8 @@ use millsim_engine::pipeline::{
     DEFAULT_BATCH_STEPS,
 };
 use millsim_engine::tool::Tool;
+
+use common::simulate::block_spec;
 
 /// Everything a job's user reads, as text (floats in full), timings aside.
 fn figures(out: &SimulationOutput) -> Vec<String> {
@@ -70,20 +74,12 @@ fn two_tool_spec() -> SimulateSpec {
         source: "test constants".into(),
     });
     SimulateSpec {
-        program: program.into(),
-        interpret: InterpretOptions::default(),
-        stock: StockSource::Shape(StockShape::Block {
-            min: [0.0, -20.0, -10.0],
-            max: [100.0, 20.0, 0.0],
-        }),
         tools: BTreeMap::from([(1, t1), (2, t2)]),
         material,
         machine: Machine {
             energy: Some(EnergyModel::reference_example()),
             ..Machine::generic()
         },
-        cell: Some(0.25),
-        memory_limit: 1 << 30,
         force_positions: 90,
         optimize: Some(FeedLimits {
             max_force: Some(500.0),
@@ -92,14 +88,14 @@ fn two_tool_spec() -> SimulateSpec {
             split: Some(SplitOptions::default()),
             ..FeedLimits::default()
         }),
-        axes: Default::default(),
         chatter: Some(ChatterSpec {
             modes_x: serde_json::from_str(modes).unwrap(),
             modes_y: serde_json::from_str(modes).unwrap(),
             method: millsim_engine::physics::stability::Method::Sdm,
             steps_per_period: 20,
         }),
-        part: None,
+        // The block, the cell and the rest as every cutting test has them.
+        ..block_spec(program, Tool::flat(10.0, 4), 0.25)
     }
 }
 
