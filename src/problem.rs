@@ -318,10 +318,16 @@ impl From<ToolLibraryError> for Problem {
     }
 }
 
+/// The bytes without a leading UTF-8 byte-order mark (Windows editors write one; JSON
+/// parsers refuse it).
+pub fn without_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes)
+}
+
 /// Parses JSON and, on failure, says where: the JSON path of a bad value, or the line
 /// and column of a syntax error.
 pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Problem> {
-    let de = &mut serde_json::Deserializer::from_slice(bytes);
+    let de = &mut serde_json::Deserializer::from_slice(without_bom(bytes));
     serde_path_to_error::deserialize(de).map_err(|e| {
         let path = e.path().to_string();
         let inner = e.into_inner();

@@ -212,17 +212,6 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         crate::validate::tool(&tool.content).map_err(|e| format!("{path}: {}", e.detail))?;
         inputs.insert(name, tool);
     }
-    if args.tool.len() == 1 {
-        // One tool: it serves every tool number of the program, whatever it is named.
-        if let Some(k) = inputs
-            .keys()
-            .find(|k| JobKind::Simulate.tool_number_input(k).is_some())
-            .cloned()
-        {
-            let tool = inputs.remove(&k).expect("key found above");
-            inputs.insert("tool".into(), tool);
-        }
-    }
     if let Some(path) = &args.tool_library {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let library = millsim_engine::tool_library::ToolLibrary::read(&text)
@@ -388,10 +377,98 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             content,
         )?;
     }
+    eprint!("{}", run_report(&summary));
     eprintln!(
         "millsim run: {} moves in {wall:.2} s; wrote {}",
         rows.len(),
         args.out.display()
     );
     Ok(())
+}
+
+/// The few lines a machinist reads before running the output: the cycle time before and
+/// after, the peak force and its line, every collision (the first 20 by line), limits the
+/// optimizer could not hold, and the tool and program warnings. The rest is in summary.json.
+pub fn run_report(summary: &Value) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    let num = |v: &Value| v.as_f64().unwrap_or(0.0);
+    let opt = &summary["optimization"];
+    if opt.is_object() {
+        let (before, after) = (
+            num(&opt["cycle_time_before_s"]),
+            num(&opt["cycle_time_after_s"]),
+        );
+        let change = if before > 0.0 {
+            100.0 * (after - before) / before
+        } else {
+            0.0
+        };
+        let _ = writeln!(
+            out,
+            "cycle time: {before:.1} s programmed, {after:.1} s optimized ({change:+.1} %); best constant feed {:.1} s",
+            num(&opt["cycle_time_constant_feed_s"])
+        );
+    } else {
+        let _ = writeln!(out, "cycle time: {:.1} s", num(&summary["cycle_time_s"]));
+    }
+    match summary["force_peak_line"].as_u64() {
+        Some(line) => {
+            let _ = write!(
+                out,
+                "peak force: {:.0} N at line {line}",
+                num(&summary["force_peak_n"])
+            );
+            if opt.is_object() {
+                let _ = write!(out, "; {:.0} N after", num(&opt["peak_force_after"]));
+            }
+            out.push('\n');
+        }
+        None => out.push_str("peak force: no cut\n"),
+    }
+    if let Some(list) = summary["collisions"].as_array().filter(|c| !c.is_empty()) {
+        let _ = writeln!(out, "COLLISIONS: {}", list.len());
+        for c in list.iter().take(20) {
+            let _ = writeln!(
+                out,
+                "  line {}: {}",
+                c["line"],
+                c["kind"].as_str().unwrap_or("?")
+            );
+        }
+        if list.len() > 20 {
+            let _ = writeln!(out, "  ... {} more in summary.json", list.len() - 20);
+        }
+    }
+    if opt.is_object() {
+        let n = opt["force_limit_unreachable_moves"].as_u64().unwrap_or(0);
+        if n > 0 {
+            let lines: Vec<String> = opt["force_limit_unreachable_lines"]
+                .as_array()
+                .map(|l| l.iter().take(10).map(|v| v.to_string()).collect())
+                .unwrap_or_default();
+            let _ = writeln!(
+                out,
+                "limit not met on {n} moves (even at the minimum feed), lines {}",
+                lines.join(", ")
+            );
+        }
+        if let Some(tools) = opt["tools"].as_array() {
+            for t in tools {
+                if let Some(notes) = t["limited_by"].as_array().filter(|n| !n.is_empty()) {
+                    let notes: Vec<String> = notes
+                        .iter()
+                        .map(|n| format!("{} ({} moves)", n["limit"].as_str().unwrap_or("?"), n["moves"]))
+                        .collect();
+                    let _ = writeln!(out, "T{}: slowed by {}", t["tool"], notes.join(", "));
+                }
+            }
+        }
+    }
+    for key in ["tool_warnings", "warnings"] {
+        for w in summary[key].as_array().into_iter().flatten() {
+            let _ = writeln!(out, "warning: {}", w.as_str().unwrap_or_default());
+        }
+    }
+    out
 }

@@ -265,3 +265,80 @@ fn run_takes_tools_from_a_library_or_from_the_program_header() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("missing.csv"));
 }
+
+/// A program that calls T3 run with only T1 is refused naming T3 (it ran T1's tool as T3
+/// before), and a run ends with its summary on stderr: cycle time, peak force and its
+/// line, collisions with their lines.
+#[test]
+fn run_refuses_a_tool_number_it_was_not_given_and_prints_a_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let tool = dir.path().join("tool.json");
+    std::fs::write(
+        &tool,
+        r#"{"type":"flat","diameter_mm":10,"flutes":4,"helix_deg":0,"flute_length_mm":20}"#,
+    )
+    .unwrap();
+    let run = |program: &str| {
+        let path = dir.path().join("p.nc");
+        std::fs::write(&path, program).unwrap();
+        Command::new(BIN)
+            .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6"])
+            .args(["--cell", "0.5", "--program"])
+            .arg(&path)
+            .arg("--tool")
+            .arg(format!("T1={}", tool.display()))
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap()
+    };
+    let out = run("G21 G90\nT3 M6\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nM30\n");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("T3"), "{err}");
+
+    // A rapid into the stock at line 6 and a cut at line 7: both named on stderr.
+    let out = run(
+        "G21 G90\nT1 M6\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 X10 Z-2\nG1 X60 Z-5 F2000\nG0 Z5\nM30\n",
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("cycle time:"), "{err}");
+    assert!(err.contains("peak force:") && err.contains("at line 7"), "{err}");
+    assert!(err.contains("COLLISIONS: 1") && err.contains("line 6: rapid_in_material"), "{err}");
+}
+
+/// Files saved by Windows editors start with a UTF-8 byte-order mark: programs and tool
+/// files are read as if it were not there.
+#[test]
+fn a_byte_order_mark_is_accepted_in_programs_and_tools() {
+    let dir = tempfile::tempdir().unwrap();
+    let tool = dir.path().join("tool.json");
+    std::fs::write(
+        &tool,
+        "\u{feff}{\"type\":\"flat\",\"diameter_mm\":10,\"flutes\":4,\"flute_length_mm\":20}",
+    )
+    .unwrap();
+    let program = dir.path().join("p.nc");
+    std::fs::write(
+        &program,
+        "\u{feff}G21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nM30\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6"])
+        .args(["--cell", "0.5", "--program"])
+        .arg(&program)
+        .arg("--tool")
+        .arg(&tool)
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join("out").join("summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(summary["removed_volume_mm3"].as_f64().unwrap() > 2500.0, "{summary}");
+}

@@ -23,7 +23,7 @@ pub fn json_input<T: serde::de::DeserializeOwned>(
     inputs
         .remove(name)
         .map(|i| {
-            serde_json::from_slice(&i.content)
+            serde_json::from_slice(crate::problem::without_bom(&i.content))
                 .map_err(|e| invalid(title, format!("input `{name}`: {e}")))
         })
         .transpose()

@@ -65,7 +65,26 @@ pub struct Machine {
     /// figures; [`crate::physics::energy::EnergyModel::reference_example`] is an example).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub energy: Option<crate::physics::energy::EnergyModel>,
+    /// Where the tool tip stands when the program starts (machine frame of the program, mm).
+    /// Absent: above the stock's top by `clearance_mm` over program zero's X and Y (a machine
+    /// starts where the last job left it, retracted, never in the stock).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_position_mm: Option<[f64; 3]>,
+    /// Where an M6 tool change leaves the tip. Absent: X and Y stay and Z rises to the start
+    /// height (the stock's top plus `clearance_mm`), as a change that retracts Z.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tool_change_position_mm: Option<[f64; 3]>,
+    /// Height above the stock's top of the default start and tool-change positions, mm.
+    #[serde(default = "default_clearance")]
+    pub clearance_mm: f64,
 }
+
+fn default_clearance() -> f64 {
+    DEFAULT_CLEARANCE_MM
+}
+
+/// Default height of the start position above the stock's top, mm.
+pub const DEFAULT_CLEARANCE_MM: f64 = 10.0;
 
 fn default_kinematics() -> Kinematics {
     Kinematics::Xyz
@@ -104,6 +123,9 @@ impl Machine {
             max_rotary_speed_deg_min: None,
             max_rotary_acceleration_deg_s2: None,
             energy: None,
+            start_position_mm: None,
+            tool_change_position_mm: None,
+            clearance_mm: DEFAULT_CLEARANCE_MM,
         }
     }
 
@@ -167,6 +189,20 @@ impl Machine {
         }
         if !self.tool_change_time.is_finite() || self.tool_change_time < 0.0 {
             return err("tool_change_time", "must be a non-negative number".into());
+        }
+        for (field, p) in [
+            ("start_position_mm", self.start_position_mm),
+            ("tool_change_position_mm", self.tool_change_position_mm),
+        ] {
+            if p.is_some_and(|p| p.iter().any(|v| !v.is_finite())) {
+                return err(field, "must be three finite numbers [x, y, z] in mm".into());
+            }
+        }
+        if !(self.clearance_mm.is_finite() && self.clearance_mm >= 0.0) {
+            return err(
+                "clearance_mm",
+                format!("must be a non-negative number, got {}", self.clearance_mm),
+            );
         }
         if let Some(t) = self.travel {
             for (i, [lo, hi]) in t.iter().enumerate() {

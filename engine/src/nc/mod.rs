@@ -162,6 +162,21 @@ pub struct InterpretOptions {
     /// Programs that calls to programs not in the file run (`M98`, `G65`, `G66`, LinuxCNC
     /// `o<name> call`); see [`ProgramLibrary`]. Shared, as options are cloned per job stage.
     pub library: Option<std::sync::Arc<ProgramLibrary>>,
+    /// Where the tool tip stands (machine frame, mm) before the first block: a real machine
+    /// starts where the last job or the operator left it, not at program zero. None: at
+    /// program zero, as LinuxCNC's `rs274` starts (the `interpret` job's default).
+    pub start_position: Option<[f64; 3]>,
+    /// Where an M6 tool change leaves the tip (the next move starts there). None: where it was.
+    pub tool_change: Option<ToolChangeTo>,
+}
+
+/// Where a tool change leaves the tool tip, machine frame, mm.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ToolChangeTo {
+    /// This position.
+    Position([f64; 3]),
+    /// X and Y stay; Z rises to this height (or stays, when it is already higher).
+    RaiseTo(f64),
 }
 
 impl Default for InterpretOptions {
@@ -180,6 +195,8 @@ impl Default for InterpretOptions {
             block_delete: false,
             cancel: None,
             library: None,
+            start_position: None,
+            tool_change: None,
         }
     }
 }

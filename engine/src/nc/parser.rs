@@ -553,6 +553,10 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
         depth: 0,
         ops: 0,
     };
+    // A UTF-8 byte-order mark (Windows editors write one) is no part of the first block.
+    if block.span.start == 0 && source[..block.span.end].starts_with('\u{feff}') {
+        p.lx.pos = '\u{feff}'.len_utf8();
+    }
     if p.lx.peek_byte() == Some(b'/') {
         p.lx.next(false)?;
         block.block_delete = true;

@@ -16,6 +16,7 @@ mod frame;
 mod optimize_stage;
 mod removal;
 mod rows;
+mod setup;
 mod spec;
 mod stages;
 mod step_totals;
@@ -55,11 +56,22 @@ pub fn simulate_in_batches(
     progress: &dyn Progress,
 ) -> Result<SimulationOutput, SimulateError> {
     let mut timings = StageTimings::default();
+    // The STL stock read once, for its bounds (where the machine starts) and its grid.
+    let mesh = match &spec.stock {
+        StockSource::Shape(_) => None,
+        StockSource::Stl(source) => Some(source.mesh().map_err(geometry::GeometryError::from)?),
+    };
+    let bounds = setup::stock_bounds(spec, mesh.as_deref())?;
+    let interpret =
+        spec.interpret_options(setup::start_positions(&spec.machine, bounds.1[2]));
     let clock = Instant::now();
     let interpretation =
-        nc::interpret(&spec.program, &spec.interpret_options()).map_err(SimulateError::Program)?;
+        nc::interpret(&spec.program, &interpret).map_err(SimulateError::Program)?;
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
+    let mut warnings: Vec<String> = setup::size_mismatch_warning(moves, bounds)
+        .into_iter()
+        .collect();
     let tools = tools::ToolLookup::new(spec, moves, &interpretation.selected_tools)?;
     check_inputs(spec, moves, &tools)?;
 
@@ -73,7 +85,7 @@ pub fn simulate_in_batches(
 
     // The grid's frame follows the plan's pieces (along a 3+2 program's tool axis).
     let clock = Instant::now();
-    let mut stock = stock(spec, cell, plan.grid_frame(moves))?;
+    let mut stock = stock(spec, mesh.as_deref(), cell, plan.grid_frame(moves))?;
     let volume_before = stock.volume();
     timings.stock_s = clock.elapsed().as_secs_f64();
 
@@ -147,6 +159,7 @@ pub fn simulate_in_batches(
                 (kept.as_deref().unwrap_or_default(), &scales),
                 &plan.models,
                 &times,
+                &interpret,
                 &mut timings,
             )?;
             (Some(text), Some(summary))
@@ -174,6 +187,7 @@ pub fn simulate_in_batches(
             energy,
             tool_life,
             tool_warnings: tools.warnings,
+            warnings,
             chatter,
             part,
         },
@@ -212,14 +226,15 @@ fn check_inputs(
 
 /// The stock's grid at dexel spacing `cell`, turned by `frame` unless that grows it by more
 /// than `geometry::frame::MAX_TURNED_GRID_GROWTH` or past the memory limit.
-fn stock(spec: &SimulateSpec, cell: f64, frame: GridFrame) -> Result<Stock, SimulateError> {
+fn stock(
+    spec: &SimulateSpec,
+    mesh: Option<&geometry::Mesh>,
+    cell: f64,
+    frame: GridFrame,
+) -> Result<Stock, SimulateError> {
     let grid = GridOptions {
         cell: Some(cell),
         memory_limit: spec.memory_limit,
-    };
-    let mesh = match &spec.stock {
-        StockSource::Shape(_) => None,
-        StockSource::Stl(source) => Some(source.mesh().map_err(geometry::GeometryError::from)?),
     };
     let bounds = |frame: &GridFrame| -> Result<([f64; 3], [f64; 3]), SimulateError> {
         Ok(match (&spec.stock, &mesh) {

@@ -22,6 +22,7 @@ pub(super) fn optimize_stage(
     (steps, scales): (&[KeptStep], &[optimize::FeedScale]),
     models: &BTreeMap<u32, ForceModel>,
     before: &crate::machine::cycle_time::CycleTime,
+    interpret: &nc::InterpretOptions,
     timings: &mut StageTimings,
 ) -> Result<(String, OptimizationSummary), SimulateError> {
     let mut limits = limits.clone().with_machine(&spec.machine);
@@ -81,7 +82,7 @@ pub(super) fn optimize_stage(
         },
     )
     .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
-    let after = nc::interpret(&rewrite.text, &spec.interpret_options())
+    let after = nc::interpret(&rewrite.text, interpret)
         .map_err(|d| SimulateError::Rewrite(d.to_string()))?
         .moves;
     optimize::verify_rewrite(moves, &after, &rewrite).map_err(SimulateError::Rewrite)?;
@@ -118,7 +119,7 @@ pub(super) fn optimize_stage(
                 .map_err(|d| SimulateError::Rewrite(d.to_string()))?;
         skipped = s;
         if !w.is_empty() {
-            let checked = nc::interpret(&split_text, &spec.interpret_options())
+            let checked = nc::interpret(&split_text, interpret)
                 .map_err(|d| d.to_string())
                 .and_then(|split| {
                     optimize::verify_splits(&after, &split.moves, &w).map(|o| (split.moves, o))

@@ -227,6 +227,10 @@ pub struct SimulationSummary {
     /// line, the comment and every assumed value.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub tool_warnings: Vec<String>,
+    /// What the program as a whole may have wrong (its size against the stock's, moves that
+    /// cut with no force, limits the optimizer could not hold), one sentence each.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     /// The worst scallop and feed marks of the program and where.
     pub roughness: RoughnessSummary,
     /// With a design part: stock cut below its surface (gouge volume and depth) and the
@@ -388,6 +392,7 @@ pub(super) struct SummaryExtras {
     pub(super) energy: Option<EnergyTotals>,
     pub(super) tool_life: Result<Vec<ToolLife>, String>,
     pub(super) tool_warnings: Vec<String>,
+    pub(super) warnings: Vec<String>,
     pub(super) chatter: Option<(usize, f64)>,
     pub(super) part: Option<geometry::PartComparison>,
 }
@@ -450,6 +455,7 @@ pub(super) fn summarize(
         tool_life_unavailable: extras.tool_life.as_ref().err().cloned(),
         tool_life: extras.tool_life.ok(),
         tool_warnings: extras.tool_warnings,
+        warnings: extras.warnings,
         chatter_moves: extras.chatter.map(|(n, _)| n),
         chatter_margin_max: extras.chatter.map(|(_, m)| m),
         part: extras.part,

@@ -87,8 +87,15 @@ impl SimulateSpec {
     /// The interpreter's options for this job's program and every rewrite of it: cutter
     /// compensation takes the radius of the job's own tool where the program's tool table
     /// gives none.
-    pub(super) fn interpret_options(&self) -> nc::InterpretOptions {
+    /// `start`: where the machine stands at the start and after a tool change (see
+    /// `setup::start_positions`), unless the caller's options already say.
+    pub(super) fn interpret_options(
+        &self,
+        (start, change): (Option<[f64; 3]>, Option<nc::ToolChangeTo>),
+    ) -> nc::InterpretOptions {
         let mut o = self.interpret.clone();
+        o.start_position = o.start_position.or(start);
+        o.tool_change = o.tool_change.or(change);
         for (&number, tool) in self.tools.iter().filter(|(&n, _)| n > 0) {
             o.tool_diameters.entry(number).or_insert(tool.diameter);
         }

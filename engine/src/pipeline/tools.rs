@@ -30,11 +30,6 @@ impl ToolLookup {
         moves: &[Move],
         selected: &[(u32, u32)],
     ) -> Result<Self, SimulateError> {
-        let single = match (spec.tools.len(), spec.tools.get(&0)) {
-            (1, Some(_)) => true,
-            (_, None) => false,
-            _ => return Err(SimulateError::ToolZeroWithOthers),
-        };
         let mut used: Vec<(u32, u32)> = Vec::new();
         for m in moves
             .iter()
@@ -44,6 +39,19 @@ impl ToolLookup {
                 used.push((m.tool, m.line));
             }
         }
+        let mut tools = spec.tools.clone();
+        // One numbered tool and a program that names no tool at all: it is the tool in the
+        // spindle. (A program that names another number is refused, naming it.)
+        if used.is_empty() && selected.is_empty() && tools.len() == 1 && !tools.contains_key(&0)
+        {
+            let (_, tool) = tools.pop_first().expect("one tool");
+            tools.insert(0, tool);
+        }
+        let single = match (tools.len(), tools.get(&0)) {
+            (1, Some(_)) => true,
+            (_, None) => false,
+            _ => return Err(SimulateError::ToolZeroWithOthers),
+        };
         // One tool serves a program that uses one tool number; a second number would be cut
         // with the wrong tool, so it is an error, never a guess.
         if single {
@@ -66,7 +74,6 @@ impl ToolLookup {
             Some(t) => vec![t],
             None => used.iter().map(|(t, _)| *t).collect(),
         };
-        let mut tools = spec.tools.clone();
         let mut single = single;
         let mut warnings = Vec::new();
         let mut missing: Vec<u32> = numbers

@@ -6,7 +6,7 @@ use super::modal::{g_group, g_name, m_group, Motion, Plane};
 use super::words::{letter_index, Words, AXES};
 use super::{Interp, MM_PER_INCH, R};
 use crate::nc::view::BlockView;
-use crate::nc::{Dialect, FeedMode, MoveKind, SpindleDir};
+use crate::nc::{Dialect, FeedMode, MoveKind, SpindleDir, ToolChangeTo};
 
 impl<'p> Interp<'p> {
     pub(super) fn exec_block(&mut self, idx: usize, b: &BlockView<'p>) -> R<()> {
@@ -142,6 +142,20 @@ impl<'p> Interp<'p> {
                 let p = self.to_machine(self.cur);
                 let m = self.base_move(MoveKind::ToolChange, p, p);
                 self.push(m)?;
+                // The change takes the tip where the machine changes tools: the next move
+                // starts there, not where the last tool stopped.
+                if let Some(to) = self.opts.tool_change {
+                    let mut q = p;
+                    match to {
+                        ToolChangeTo::Position([x, y, z]) => {
+                            q[0] = x;
+                            q[1] = y;
+                            q[2] = z;
+                        }
+                        ToolChangeTo::RaiseTo(z) => q[2] = q[2].max(z),
+                    }
+                    self.cur = self.from_machine(q);
+                }
             }
             if let Some(i) = w.m(61) {
                 let Some(q) = w.take('Q') else {

@@ -313,6 +313,10 @@ fn run_units(
     if fanuc {
         it.params.init_fanuc();
     }
+    if let Some([x, y, z]) = options.start_position {
+        // No offsets are active yet: the machine frame is the program's (in mm).
+        it.cur = it.from_machine([x, y, z, 0.0, 0.0, 0.0]);
+    }
     match it.run() {
         Ok(()) => {
             // The lines with a syntax error the run never reached: the user should know.

@@ -1,0 +1,80 @@
+//! Where the machine starts: a program's first rapid starts with the tool above the stock,
+//! not at program zero, and a tool change leaves the new tool retracted (issue 29).
+
+mod common;
+
+use std::collections::BTreeMap;
+
+use millsim_engine::geometry::StockShape;
+use millsim_engine::job::{CancelFlag, NoProgress};
+use millsim_engine::nc::{self, InterpretOptions};
+use millsim_engine::pipeline::{simulate, StockSource};
+use millsim_engine::tool::Tool;
+
+/// A 60×60 block whose top is at Z+1 (origin on the top centre, 1 mm of facing stock left),
+/// as most setups have it.
+fn spec(program: &str, tools: BTreeMap<u32, Tool>) -> millsim_engine::pipeline::SimulateSpec {
+    let mut s = common::simulate::block_spec(program, Tool::flat(10.0, 4), 0.25);
+    s.stock = StockSource::Shape(StockShape::Block {
+        min: [-30.0, -30.0, -20.0],
+        max: [30.0, 30.0, 1.0],
+    });
+    s.tools = tools;
+    s
+}
+
+#[test]
+fn the_first_rapid_starts_above_the_stock_not_at_program_zero() {
+    let program = "G21 G90\nT1 M6\nS8000 M3\nG0 Z50\nG0 X40 Y0\nG0 Z-3\nG1 X20 F500\nG0 Z50\nM30\n";
+    let out = simulate(
+        &spec(program, BTreeMap::from([(1, Tool::flat(10.0, 4))])),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    // From program zero, `G0 Z50` would drill a Ø10 hole 1 mm deep in the top at rapid.
+    let first = out.rows.iter().find(|r| r.line == 4).unwrap();
+    assert_eq!(first.removed_volume, 0.0, "{first:?}");
+    assert!(!first.rapid_in_material, "{first:?}");
+    assert_eq!(out.summary.rapid_in_material_moves, 0, "{:?}", out.summary);
+    // The only cut is the side cut at line 7.
+    let cut: f64 = out.rows.iter().filter(|r| r.line != 7).map(|r| r.removed_volume).sum();
+    assert_eq!(cut, 0.0);
+}
+
+#[test]
+fn a_tool_change_leaves_the_new_tool_retracted() {
+    // T1 (Ø6) ends its cut in the stock; T2 (Ø20) is loaded and its first move is the
+    // length offset's `G43 H2 Z50.`: from where T1 stopped, T2 would bore a Ø20 hole at
+    // rapid; the change retracts it first.
+    let program = "G21 G90\nT1 M6\nS8000 M3\nG0 Z5\nG0 X40 Y0\nG0 Z-3\nG1 X10 F500\nT2 M6\nS6000 M3\nG43 H2 Z50.\nM30\n";
+    let tools = BTreeMap::from([(1, Tool::flat(6.0, 3)), (2, Tool::flat(20.0, 4))]);
+    let out = simulate(&spec(program, tools), &CancelFlag::new(), &NoProgress).unwrap();
+    let up = out.rows.iter().find(|r| r.line == 10).unwrap();
+    assert_eq!(up.removed_volume, 0.0, "{up:?}");
+    assert!(!up.rapid_in_material, "{up:?}");
+}
+
+#[test]
+fn the_machine_gives_its_own_start_and_tool_change_positions() {
+    let opts = InterpretOptions {
+        start_position: Some([-100.0, 50.0, 200.0]),
+        tool_change: Some(nc::ToolChangeTo::Position([0.0, 0.0, 300.0])),
+        ..Default::default()
+    };
+    let i = nc::interpret("G21 G90\nG0 X10\nT2 M6\nG0 Y5\nM30\n", &opts).unwrap();
+    let rapids: Vec<_> = i
+        .moves
+        .iter()
+        .filter(|m| m.kind == nc::MoveKind::Rapid)
+        .collect();
+    // X10 alone keeps Y and Z where the machine stands.
+    assert_eq!(rapids[0].start[..3], [-100.0, 50.0, 200.0]);
+    assert_eq!(rapids[0].end[..3], [10.0, 50.0, 200.0]);
+    // After the change, from the tool-change position.
+    assert_eq!(rapids[1].start[..3], [0.0, 0.0, 300.0]);
+    assert_eq!(rapids[1].end[..3], [0.0, 5.0, 300.0]);
+    // Without a start the interpreter starts at program zero, as LinuxCNC's rs274 does.
+    let i = nc::interpret("G0 X10\n", &InterpretOptions::default()).unwrap();
+    assert_eq!(i.moves[0].start[..3], [0.0, 0.0, 0.0]);
+}
