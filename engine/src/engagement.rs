@@ -27,6 +27,19 @@ pub struct EngagedSlice {
     pub arcs: Arcs,
 }
 
+/// A ring of the tool's flat end (κ = 0: the end teeth of a flat or bull-nose end mill,
+/// the tip flat of a chamfer mill), from radius `r0` to `r1`, and the immersion intervals
+/// where it meets material ahead of it along the axis: the end teeth cut when the tool
+/// feeds toward its tip (plunges, ramps, helical entries), with a chip of the axial feed
+/// per tooth.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct EndRing {
+    pub r0: f64,
+    pub r1: f64,
+    /// As a slice's arcs: (φ_entry, φ_exit), radians, sorted, not overlapping.
+    pub arcs: Arcs,
+}
+
 /// The engagement of one step.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Engagement {
@@ -39,12 +52,16 @@ pub struct Engagement {
     pub feed_dir: [f64; 3],
     /// Tool axis, unit vector in the part frame, from tip to spindle.
     pub tool_axis: [f64; 3],
+    /// The flat end's rings that meet material (none when the tool does not feed toward
+    /// its tip, or has no flat end).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub end: Vec<EndRing>,
 }
 
 impl Engagement {
     /// No edge meets material: an air step.
     pub fn is_air(&self) -> bool {
-        self.slices.iter().all(|s| s.arcs.is_empty())
+        self.slices.iter().all(|s| s.arcs.is_empty()) && self.end.iter().all(|r| r.arcs.is_empty())
     }
 
     /// Axial depth of cut: from the lowest to the highest engaged slice edge, mm.
@@ -152,7 +169,8 @@ impl PackedEngagement {
 
     fn on_grid(e: &Engagement, dz: f64, dphi: f64) -> Option<Packing> {
         let finite = |v: f64| v.is_finite() && v > 0.0;
-        if !finite(dz) || !finite(dphi) {
+        // End rings are rare (steps that feed toward the tip): kept as they are.
+        if !finite(dz) || !finite(dphi) || !e.end.is_empty() {
             return None;
         }
         // An index whose value, computed as unpacking computes it, is `v` exactly.
@@ -236,6 +254,7 @@ impl PackedEngagement {
                 out.feed_dir = *feed_dir;
                 out.tool_axis = *tool_axis;
                 out.slices.clear();
+                out.end.clear();
                 let mut parts = parts.iter();
                 for (k, r) in runs.iter().enumerate() {
                     let end = runs
@@ -286,7 +305,8 @@ impl PackedEngagement {
     pub fn heap_bytes(&self) -> usize {
         match &self.0 {
             Packing::Full(e) => {
-                e.slices.capacity() * std::mem::size_of::<EngagedSlice>()
+                (e.slices.capacity() * std::mem::size_of::<EngagedSlice>())
+                    + e.end.capacity() * std::mem::size_of::<EndRing>()
                     + e.slices
                         .iter()
                         .filter(|s| s.arcs.spilled())

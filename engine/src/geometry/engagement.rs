@@ -22,7 +22,7 @@ use std::f64::consts::PI;
 
 use super::dexel::DexelGrid;
 use super::path::unit;
-use super::sweep::{frame_around, ToolBody};
+use super::sweep::ToolBody;
 use crate::engagement::{Arcs, EngagedSlice, Engagement};
 use crate::tool::{EdgeNormal, Tool};
 use crate::vec3::{cross, dot};
@@ -178,16 +178,30 @@ pub(crate) fn compute(
         v[1] - dot(v, a) * a[1],
         v[2] - dot(v, a) * a[2],
     ];
+    // A plunge has no lateral feed: x is then the part's X (or Y) across the axis, as the
+    // force model's frame takes it (`ToolFrame::from_engagement`).
     let xf = if dot(vp, vp) > 1e-18 {
         unit(vp)
     } else {
-        frame_around(a).0
+        let e = if a[0].abs() < 0.9 {
+            [1.0, 0.0, 0.0]
+        } else {
+            [0.0, 1.0, 0.0]
+        };
+        unit([
+            e[0] - dot(e, a) * a[0],
+            e[1] - dot(e, a) * a[1],
+            e[2] - dot(e, a) * a[2],
+        ])
     };
     let yf = cross(a, xf);
     let mut eng = Engagement {
         slices: Vec::new(),
-        feed_dir: xf,
+        // The whole direction of travel: its part along the axis is the chip of the edges
+        // that face the tip (the force model projects x out of it itself).
+        feed_dir: if step_len > 0.0 { v } else { xf },
         tool_axis: a,
+        end: Vec::new(),
     };
     let nb = opts.angular_bins.max(4);
     let (dz, dphi) = grid_steps(grid.cell, opts);
@@ -612,7 +626,27 @@ pub(crate) fn compute(
             bits[k * nb..(k + 1) * nb].fill(false);
         }
     }
-    if eng.slices.is_empty() {
+    // The flat end, when the step feeds toward the tip.
+    if dot(v, a) < 0.0 {
+        let radial: Vec<[f64; 3]> = (0..nb).map(radial_of).collect();
+        eng.end = super::end_engagement::end_rings(
+            grid,
+            tool,
+            input.pos,
+            a,
+            input.motion,
+            &radial,
+            dphi,
+        );
+        for ring in &eng.end {
+            let sp = Spread::of_arcs(&ring.arcs);
+            met.entry_angle = met.entry_angle.min(sp.entry);
+            met.exit_angle = met.exit_angle.max(sp.exit);
+            met.radial_width = met.radial_width.max(ring.r1 * (sp.cmax - sp.cmin));
+            met.engaged_edge_length += ring.r1 - ring.r0;
+        }
+    }
+    if eng.slices.is_empty() && eng.end.is_empty() {
         return (eng, StepMetrics::default());
     }
     met.axial_depth = eng.axial_depth();

@@ -36,6 +36,7 @@
 pub mod checks;
 pub mod compare;
 pub mod dexel;
+mod end_engagement;
 pub mod engagement;
 pub mod export;
 pub mod frame;

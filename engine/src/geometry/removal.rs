@@ -433,6 +433,7 @@ fn run_segments(
                         slices: Vec::new(),
                         feed_dir: [0.0; 3],
                         tool_axis: axis,
+                        end: Vec::new(),
                     },
                     StepMetrics::default(),
                 )

@@ -731,6 +731,7 @@ impl EnergyProblem {
             slices,
             feed_dir: [1.0, 0.0, 0.0],
             tool_axis: [0.0, 0.0, 1.0],
+            end: Vec::new(),
         }
     }
 

@@ -3,6 +3,7 @@
 
 use std::f64::consts::TAU;
 
+use super::edge::EdgeSlice;
 use super::frame::ToolFrame;
 use super::kernel::{four_blocks, max_sin, run_segment, sample_sin_cos, Accumulated, Pass};
 use super::model::ForceModel;
@@ -59,13 +60,25 @@ impl ForceModel {
         let symmetric = self.table.runout_steps.is_empty() && kpos.is_multiple_of(n);
         let computed_teeth = if symmetric { 1 } else { n };
 
-        for s in &engagement.slices {
-            if s.arcs.is_empty() {
-                continue;
-            }
-            let Some(g) = self.table.slice(s.z, s.dz) else {
-                skipped += 1;
-                continue;
+        // The flank and corner slices, then the flat end's rings (the end teeth).
+        let flank = engagement.slices.len();
+        for i in 0..flank + engagement.end.len() {
+            let (g, arcs) = if i < flank {
+                let s = &engagement.slices[i];
+                if s.arcs.is_empty() {
+                    continue;
+                }
+                let Some(g) = self.table.slice(s.z, s.dz) else {
+                    skipped += 1;
+                    continue;
+                };
+                (g, &s.arcs)
+            } else {
+                let r = &engagement.end[i - flank];
+                if r.arcs.is_empty() {
+                    continue;
+                }
+                (EdgeSlice::end_ring(r.r0, r.r1), &r.arcs)
             };
             engaged += 1;
             for j in 0..computed_teeth {
@@ -78,7 +91,7 @@ impl ForceModel {
                     &self.table.runout_steps[j * n..(j + 1) * n]
                 };
                 let row = j * kpos..(j + 1) * kpos;
-                for &(a, b) in &s.arcs {
+                for &(a, b) in arcs {
                     // Sample k sees this tooth at φ = k·Δ − α: the arc covers index range [u, v].
                     let u = (a + alpha) / delta;
                     let v = (b + alpha) / delta;

@@ -45,6 +45,32 @@ pub struct EdgeSlice {
 }
 
 impl EdgeSlice {
+    /// The ring [r0, r1] of a flat end (κ = 0, at the tip, no helix lag): the κ → 0 limit
+    /// of a cone slice, where dz → 0 and dz·cot κ → dr. The chip is the axial feed per tooth
+    /// (h = −V), its width and the edge length are dr, and the torque arm is ∫ r dr; the
+    /// flank integrals (∫ sin κ dz, ∫ cos κ dz, ∫ r dz) vanish.
+    pub fn end_ring(r0: f64, r1: f64) -> EdgeSlice {
+        let dr = r1 - r0;
+        let r_dr = 0.5 * (r1 * r1 - r0 * r0);
+        EdgeSlice {
+            z: 0.0,
+            dz: 0.0,
+            radius: 0.5 * (r0 + r1),
+            sin_kappa: 0.0,
+            cos_kappa: 1.0,
+            lag: 0.0,
+            edge_length: dr,
+            radius_rise: dr,
+            int_sin: 0.0,
+            int_cos: 0.0,
+            int_cot: dr,
+            int_cos2_sin: dr,
+            int_r_dz: 0.0,
+            int_r_cot: r_dr,
+            int_r_ds: r_dr,
+        }
+    }
+
     /// The slice [z0, z1] of `tool`'s edge, clipped to the flutes (0, flute_length];
     /// None when nothing of it is on the flutes.
     pub fn compute(tool: &Tool, z0: f64, z1: f64) -> Option<EdgeSlice> {
