@@ -1,0 +1,263 @@
+//! The optimization's targets and bounds ([`FeedLimits`], [`SplitOptions`]), checked and
+//! tightened by the machine, the quantity/target ratio of a force result, what set a feed
+//! ([`Governing`]), and [`OptimizeError`].
+
+use serde::Serialize;
+
+use crate::machine::Machine;
+use crate::physics::{ForceResult, PhysicsError};
+
+/// Targets and bounds of the feed optimization. Forces in N, power in W (peak cutting power),
+/// torque in N·m (peak), chip thickness in mm, feeds in mm/min.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FeedLimits {
+    /// Peak |F| over the revolution (3-D, tool frame).
+    pub max_force: Option<f64>,
+    pub max_power: Option<f64>,
+    pub max_torque: Option<f64>,
+    pub max_chip_thickness: Option<f64>,
+    /// Rubbing floor: the thickest chip of a cutting move should be at least this.
+    pub min_chip_thickness: Option<f64>,
+    pub min_feed: f64,
+    pub max_feed: f64,
+    /// Feed of moves that cut nothing; None keeps their programmed feed.
+    pub air_feed: Option<f64>,
+    /// Factor (0, 1] on the feed of a move that enters material after air or a rapid.
+    pub entry_feed_factor: f64,
+    /// Rounding step of written per-minute feeds, in the program's units (rounded down).
+    pub feed_step: Option<f64>,
+    /// A block keeps its programmed F when the new feed differs by less than this fraction of
+    /// it (and the programmed feed respects the limits).
+    pub min_change: f64,
+    /// Accept a feed once the governing ratio is in [1 − tolerance, 1].
+    pub tolerance: f64,
+    pub max_iterations: usize,
+    /// Solve every step's own limit (for [`split_plan`](super::split_plan)); otherwise steps that do not bind get
+    /// a lower bound of theirs (one evaluation), which is all the block feed needs.
+    pub exact_step_limits: bool,
+    /// Write long moves whose engagement varies as several blocks, each at its own feed.
+    pub split: Option<SplitOptions>,
+}
+
+/// When a move is worth splitting: into at most `max_parts` parts of at least `min_length`
+/// mm, only when that saves at least `min_saving` of the move's time.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SplitOptions {
+    pub max_parts: usize,
+    pub min_length: f64,
+    pub min_saving: f64,
+}
+
+impl Default for SplitOptions {
+    fn default() -> Self {
+        SplitOptions {
+            max_parts: 4,
+            min_length: 2.0,
+            min_saving: 0.05,
+        }
+    }
+}
+
+impl Default for FeedLimits {
+    fn default() -> Self {
+        FeedLimits {
+            max_force: None,
+            max_power: None,
+            max_torque: None,
+            max_chip_thickness: None,
+            min_chip_thickness: None,
+            min_feed: 1.0,
+            max_feed: 10_000.0,
+            air_feed: None,
+            entry_feed_factor: 1.0,
+            feed_step: None,
+            min_change: 0.0,
+            tolerance: 0.005,
+            max_iterations: 12,
+            exact_step_limits: false,
+            split: None,
+        }
+    }
+}
+
+#[derive(Debug, PartialEq, thiserror::Error)]
+pub enum OptimizeError {
+    #[error("limits field `{field}`: {message}")]
+    Limits {
+        field: &'static str,
+        message: String,
+    },
+    #[error("engagement {index}: move {move_index} does not exist ({moves} moves)")]
+    NoSuchMove {
+        index: usize,
+        move_index: usize,
+        moves: usize,
+    },
+    #[error("engagement {index}: cutter {cutter} does not exist")]
+    NoSuchCutter { index: usize, cutter: usize },
+    #[error("engagement {index} (move {move_index}, line {line}): {source}")]
+    Physics {
+        index: usize,
+        move_index: usize,
+        line: u32,
+        source: PhysicsError,
+    },
+}
+
+impl FeedLimits {
+    pub fn validate(&self) -> Result<(), OptimizeError> {
+        let bad =
+            |field: &'static str, message: String| Err(OptimizeError::Limits { field, message });
+        for (field, v) in [
+            ("max_force", self.max_force),
+            ("max_power", self.max_power),
+            ("max_torque", self.max_torque),
+            ("max_chip_thickness", self.max_chip_thickness),
+            ("min_chip_thickness", self.min_chip_thickness),
+            ("air_feed", self.air_feed),
+            ("feed_step", self.feed_step),
+        ] {
+            if let Some(v) = v {
+                if !(v.is_finite() && v > 0.0) {
+                    return bad(field, format!("must be a positive number, got {v}"));
+                }
+            }
+        }
+        if !(self.min_feed.is_finite() && self.min_feed > 0.0) {
+            return bad(
+                "min_feed",
+                format!("must be a positive number, got {}", self.min_feed),
+            );
+        }
+        if !(self.max_feed.is_finite() && self.max_feed >= self.min_feed) {
+            return bad(
+                "max_feed",
+                format!("must be a number ≥ min_feed, got {}", self.max_feed),
+            );
+        }
+        if !(self.entry_feed_factor > 0.0 && self.entry_feed_factor <= 1.0) {
+            return bad(
+                "entry_feed_factor",
+                format!("must be in (0, 1], got {}", self.entry_feed_factor),
+            );
+        }
+        if !(self.min_change.is_finite() && (0.0..1.0).contains(&self.min_change)) {
+            return bad(
+                "min_change",
+                format!("must be in [0, 1), got {}", self.min_change),
+            );
+        }
+        if !(self.tolerance > 0.0 && self.tolerance < 0.5) {
+            return bad(
+                "tolerance",
+                format!("must be in (0, 0.5), got {}", self.tolerance),
+            );
+        }
+        if self.max_iterations < 2 || self.max_iterations > 100 {
+            return bad(
+                "max_iterations",
+                format!("must be in 2..=100, got {}", self.max_iterations),
+            );
+        }
+        if let Some(sp) = &self.split {
+            if !(2..=20).contains(&sp.max_parts) {
+                return bad(
+                    "split.max_parts",
+                    format!("must be in 2..=20, got {}", sp.max_parts),
+                );
+            }
+            if !(sp.min_length.is_finite() && sp.min_length > 0.0) {
+                return bad(
+                    "split.min_length",
+                    format!("must be a positive length in mm, got {}", sp.min_length),
+                );
+            }
+            if !(sp.min_saving.is_finite() && (0.0..1.0).contains(&sp.min_saving)) {
+                return bad(
+                    "split.min_saving",
+                    format!("must be in [0, 1), got {}", sp.min_saving),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The limits tightened by what the machine allows: max feed, η·rated power, torque limit,
+    /// and the axis thrust limit as a bound on peak |F|.
+    pub fn with_machine(mut self, machine: &Machine) -> FeedLimits {
+        let tighten = |v: Option<f64>, m: Option<f64>| match (v, m) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        self.max_feed = self.max_feed.min(machine.max_feed);
+        self.min_feed = self.min_feed.min(self.max_feed);
+        self.max_power = tighten(
+            self.max_power,
+            Some(machine.efficiency * machine.rated_power),
+        );
+        self.max_torque = tighten(self.max_torque, machine.torque_limit);
+        self.max_force = tighten(self.max_force, machine.axis_thrust_limit);
+        self.air_feed = self.air_feed.map(|f| f.min(self.max_feed));
+        self
+    }
+
+    pub(super) fn has_upper_limit(&self) -> bool {
+        self.max_force.is_some()
+            || self.max_power.is_some()
+            || self.max_torque.is_some()
+            || self.max_chip_thickness.is_some()
+    }
+
+    /// Largest quantity/target ratio of a force result, and which quantity it is.
+    pub fn ratio(&self, r: &ForceResult) -> (f64, Governing) {
+        self.ratio_of(
+            r.force.peak,
+            r.power.peak,
+            r.torque.peak,
+            r.max_chip_thickness,
+        )
+    }
+
+    /// As [`ratio`](Self::ratio), from the peak |F| (N), power (W), torque (N·m) and chip (mm).
+    pub fn ratio_of(&self, force: f64, power: f64, torque: f64, chip: f64) -> (f64, Governing) {
+        let mut best = (0.0, Governing::MaxFeed);
+        for (lim, q, g) in [
+            (self.max_force, force, Governing::Force),
+            (self.max_power, power, Governing::Power),
+            (self.max_torque, torque, Governing::Torque),
+            (self.max_chip_thickness, chip, Governing::ChipThickness),
+        ] {
+            if let Some(l) = lim {
+                let x = q / l;
+                if x > best.0 || best.1 == Governing::MaxFeed {
+                    best = (x, g);
+                }
+            }
+        }
+        best
+    }
+}
+
+/// What set a feed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Governing {
+    Force,
+    Power,
+    Torque,
+    ChipThickness,
+    /// The feed range's upper end (no limit reached below it).
+    MaxFeed,
+    /// Even the lowest allowed feed exceeds a limit.
+    MinFeed,
+    /// The rubbing floor lifted the feed.
+    RubbingFloor,
+    /// Cuts nothing.
+    Air,
+    /// The entry reduction set it.
+    Entry,
+    /// The move has no engagement data: left as programmed.
+    Unknown,
+}
