@@ -40,6 +40,7 @@ fn synthesized(material: &str) -> Vec<[f64; 4]> {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     };
     // A fixed linear congruential sequence: the same noise at every run.
     let mut seed: u64 = 0x2545_f491_4f6c_dd1d;

@@ -44,6 +44,7 @@ fn engagement(depth: f64, ae_d: f64) -> Engagement {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     }
 }
 
@@ -93,6 +94,8 @@ fn setup() -> (String, Vec<Move>, Vec<MoveEngagement<'static>>) {
             })
             .collect();
         segments.push(MoveEngagement {
+            removes_material: false,
+            plunge: false,
             move_index: i,
             cutter: 0,
             scale: FeedScale::UNIT,

@@ -21,6 +21,7 @@ fn engagement(depth: f64, arc: (f64, f64)) -> Engagement {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     }
 }
 

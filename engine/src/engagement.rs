@@ -350,6 +350,7 @@ mod tests {
             slices,
             feed_dir: [0.6, 0.8, 0.0],
             tool_axis: [0.0, -0.6, 0.8],
+            end: Vec::new(),
         };
         let p = PackedEngagement::pack(e.clone(), dz, dphi);
         assert_eq!(p.unpack(), e, "bit for bit");
@@ -371,6 +372,7 @@ mod tests {
             slices: vec![EngagedSlice::default(); 300],
             feed_dir: [1.0, 0.0, 0.0],
             tool_axis: [0.0, 0.0, 1.0],
+            end: Vec::new(),
         }
     }
 
@@ -415,6 +417,7 @@ mod tests {
             slices,
             feed_dir: [1.0, 0.0, 0.0],
             tool_axis: [0.0, 0.0, 1.0],
+            end: Vec::new(),
         };
         let p = PackedEngagement::pack(e.clone(), dz, dphi);
         assert!(matches!(p.0, Packing::Grid { .. }), "{p:?}");

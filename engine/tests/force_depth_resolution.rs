@@ -53,6 +53,7 @@ fn exact(tool: &Tool, depth: f64, arcs: &[(f64, f64)]) -> [f64; 4] {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     };
     let k = Material::builtin("Al7075-T6").unwrap().coefficients;
     let fz = FEED / RPM / tool.flutes as f64;
@@ -188,6 +189,7 @@ fn a_ball_beside_its_own_groove_cuts_only_the_cusp() {
                 .collect(),
             feed_dir: [1.0, 0.0, 0.0],
             tool_axis: [0.0, 0.0, 1.0],
+            end: Vec::new(),
         };
         let k = Material::builtin("Al7075-T6").unwrap().coefficients;
         let c = CuttingConditions {

@@ -38,6 +38,7 @@ fn engagement(phi_st: f64, phi_ex: f64) -> Engagement {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     }
 }
 
@@ -53,6 +54,8 @@ fn tenth() -> Engagement {
 
 fn seg(move_index: usize, e: Engagement) -> MoveEngagement<'static> {
     MoveEngagement {
+        removes_material: false,
+        plunge: false,
         move_index,
         cutter: 0,
         scale: FeedScale::UNIT,

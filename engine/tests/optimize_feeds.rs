@@ -39,6 +39,7 @@ fn engagement(depth: f64, phi_st: f64, phi_ex: f64) -> Engagement {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     }
 }
 
@@ -65,6 +66,8 @@ fn step(e: Engagement) -> EngagementStep<'static> {
 
 fn seg(move_index: usize, es: Vec<Engagement>) -> MoveEngagement<'static> {
     MoveEngagement {
+        removes_material: false,
+        plunge: false,
         move_index,
         cutter: 0,
         scale: FeedScale::UNIT,

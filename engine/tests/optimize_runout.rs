@@ -36,6 +36,7 @@ fn engagement(depth: f64, st: f64, ex: f64) -> Engagement {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     }
 }
 
@@ -72,6 +73,8 @@ fn setup(
         .iter()
         .zip(es)
         .map(|(&i, e)| MoveEngagement {
+            removes_material: false,
+            plunge: false,
             move_index: i,
             cutter: 0,
             scale: FeedScale::UNIT,

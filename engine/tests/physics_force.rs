@@ -36,6 +36,7 @@ fn engagement(a: f64, n: usize, arcs: &[(f64, f64)]) -> Engagement {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     }
 }
 

@@ -22,6 +22,7 @@ fn slot(a: f64, n: usize) -> Engagement {
             .collect(),
         feed_dir: [1.0, 0.0, 0.0],
         tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
     }
 }
 

@@ -119,6 +119,7 @@ proptest! {
             slices: (0..slices).map(|i| EngagedSlice { z: (i as f64 + 0.5) * dz, dz, arcs: arcs.clone().into() }).collect(),
             feed_dir: unit(f),
             tool_axis: unit([axis.0, axis.1, 1.0]),
+            end: Vec::new(),
         };
         let k = CuttingCoefficients { ktc: k[0], krc: k[1], kac: k[2], kte: k[3], kre: k[4], kae: k[5] };
         let mut m = ForceModel::new(&tool, 1 + slices % 7 * 10, positions).unwrap();

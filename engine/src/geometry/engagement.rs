@@ -995,7 +995,11 @@ mod tests {
             let nb = opts.angular_bins;
             let dz = stock.grid.cell;
             let dphi = 2.0 * PI / nb as f64;
-            let (xf, a) = (eng.feed_dir, axis);
+            // x: the direction of travel across the axis (the feed direction has its part
+            // along the axis too).
+            let a = axis;
+            let f = eng.feed_dir;
+            let xf = unit(std::array::from_fn(|i| f[i] - dot(f, a) * a[i]));
             let yf = cross(a, xf);
             let v = unit(input.motion);
             let out = 0.5 * stock.grid.cell;

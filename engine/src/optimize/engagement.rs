@@ -38,7 +38,17 @@ pub struct MoveEngagement<'a> {
     /// How the move's machine-axis feed drives the tool tip, and the axes' own bound.
     pub scale: FeedScale,
     pub steps: Vec<EngagementStep<'a>>,
+    /// The move removes material (from the removal, whatever the engagement says): it is
+    /// never scheduled as air.
+    pub removes_material: bool,
+    /// The move feeds toward the tool's tip by more than [`PLUNGE_MIN_SIN`] of its length
+    /// (a plunge, ramp or helical entry): never sped past its programmed feed.
+    pub plunge: bool,
 }
+
+/// A move is a plunge or ramp when it descends along the tool axis by more than sin 1° of
+/// its length (CAM ramps and helical entries are 1–5°; a contour along a floor is 0°).
+pub const PLUNGE_MIN_SIN: f64 = 0.017_452_406_437_283_51; // sin 1°
 
 /// A tool's force model and the work material's coefficients.
 #[derive(Clone, Debug)]

@@ -38,6 +38,64 @@ pub struct FeedLimits {
     pub exact_step_limits: bool,
     /// Write long moves whose engagement varies as several blocks, each at its own feed.
     pub split: Option<SplitOptions>,
+    /// Plunges and ramps (see `optimize::PLUNGE_MIN_SIN`) may be sped up to this feed;
+    /// None: never past their programmed feed. They may always be slowed for a limit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_plunge_feed: Option<f64>,
+    /// Limits of one tool, by T number (`"T2"`): each given field wins over the job's for
+    /// that tool's moves.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub tools: std::collections::BTreeMap<String, ToolLimits>,
+}
+
+/// A tool's own limits: every field optional, each given one replacing the job's.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ToolLimits {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_force: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_power: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_torque: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_chip_thickness: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_chip_thickness: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_feed: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_feed: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub air_feed: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub entry_feed_factor: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_plunge_feed: Option<f64>,
+}
+
+impl FeedLimits {
+    /// The limits tool `number` is held to: the job's, each field the tool's entry gives
+    /// replaced by it (without per-tool entries of its own).
+    pub fn for_tool(&self, number: u32) -> FeedLimits {
+        let mut l = self.clone();
+        l.tools.clear();
+        let Some(t) = self.tools.get(&format!("T{number}")) else {
+            return l;
+        };
+        let pick = |own: Option<f64>, job: Option<f64>| own.or(job);
+        l.max_force = pick(t.max_force, l.max_force);
+        l.max_power = pick(t.max_power, l.max_power);
+        l.max_torque = pick(t.max_torque, l.max_torque);
+        l.max_chip_thickness = pick(t.max_chip_thickness, l.max_chip_thickness);
+        l.min_chip_thickness = pick(t.min_chip_thickness, l.min_chip_thickness);
+        l.min_feed = t.min_feed.unwrap_or(l.min_feed);
+        l.max_feed = t.max_feed.unwrap_or(l.max_feed);
+        l.air_feed = pick(t.air_feed, l.air_feed);
+        l.entry_feed_factor = t.entry_feed_factor.unwrap_or(l.entry_feed_factor);
+        l.max_plunge_feed = pick(t.max_plunge_feed, l.max_plunge_feed);
+        l
+    }
 }
 
 /// When a move is worth splitting: into at most `max_parts` parts of at least `min_length`
@@ -78,12 +136,16 @@ impl Default for FeedLimits {
             max_iterations: 12,
             exact_step_limits: false,
             split: None,
+            max_plunge_feed: None,
+            tools: Default::default(),
         }
     }
 }
 
 #[derive(Debug, PartialEq, thiserror::Error)]
 pub enum OptimizeError {
+    #[error("limits field `tools.{tool}`: {message}")]
+    ToolLimits { tool: String, message: String },
     #[error("limits field `{field}`: {message}")]
     Limits {
         field: &'static str,
@@ -118,6 +180,7 @@ impl FeedLimits {
             ("min_chip_thickness", self.min_chip_thickness),
             ("air_feed", self.air_feed),
             ("feed_step", self.feed_step),
+            ("max_plunge_feed", self.max_plunge_feed),
         ] {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
@@ -160,6 +223,21 @@ impl FeedLimits {
                 "max_iterations",
                 format!("must be in 2..=100, got {}", self.max_iterations),
             );
+        }
+        for name in self.tools.keys() {
+            let number = name
+                .strip_prefix('T')
+                .and_then(|n| n.parse::<u32>().ok())
+                .ok_or_else(|| OptimizeError::ToolLimits {
+                    tool: name.clone(),
+                    message: "a tool's limits are keyed by its number, as `T2`".into(),
+                })?;
+            self.for_tool(number)
+                .validate()
+                .map_err(|e| OptimizeError::ToolLimits {
+                    tool: name.clone(),
+                    message: e.to_string(),
+                })?;
         }
         if let Some(sp) = &self.split {
             if !(2..=20).contains(&sp.max_parts) {
@@ -256,6 +334,10 @@ pub enum Governing {
     RubbingFloor,
     /// Cuts nothing.
     Air,
+    /// Removes material that the force model did not see: kept at its programmed feed.
+    Unmodelled,
+    /// A plunge or ramp held at its programmed feed (or `max_plunge_feed`).
+    Plunge,
     /// The entry reduction set it.
     Entry,
     /// The move has no engagement data: left as programmed.

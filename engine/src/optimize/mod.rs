@@ -28,12 +28,12 @@ mod schedule;
 mod solve;
 mod split;
 
-pub use engagement::{Cutter, EngagementStep, MoveEngagement};
-pub use limits::{FeedLimits, Governing, OptimizeError, SplitOptions};
+pub use engagement::{Cutter, EngagementStep, MoveEngagement, PLUNGE_MIN_SIN};
+pub use limits::{FeedLimits, Governing, OptimizeError, SplitOptions, ToolLimits};
 pub use rewrite::{
     rewrite_program, verify_rewrite, verify_splits, write_splits, BlockChange, Rewrite,
     RewriteOptions, SkippedSplit, WrittenSplit,
 };
 pub use scale::FeedScale;
-pub use schedule::{optimize_feeds, BlockFeed, FeedSchedule, MoveFeed};
+pub use schedule::{optimize_feeds, optimize_feeds_per_cutter, BlockFeed, FeedSchedule, MoveFeed};
 pub use split::{split_plan, SplitPlan};

@@ -44,6 +44,9 @@ impl FeedScale {
         l.air_feed = limits
             .air_feed
             .map(|f| (f / self.tip_ratio).min(l.max_feed));
+        l.max_plunge_feed = limits
+            .max_plunge_feed
+            .map(|f| (f / self.tip_ratio).min(l.max_feed));
         l
     }
 

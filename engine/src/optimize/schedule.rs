@@ -101,7 +101,29 @@ pub fn optimize_feeds(
     cutters: &[Cutter],
     limits: &FeedLimits,
 ) -> Result<FeedSchedule, OptimizeError> {
+    optimize_feeds_per_cutter(
+        moves,
+        engagements,
+        cutters,
+        limits,
+        &vec![limits.clone(); cutters.len()],
+    )
+}
+
+/// [`optimize_feeds`] with each cutter held to its own limits (`per_cutter[i]` for
+/// `cutters[i]`: the job's with the tool's own entries, see [`FeedLimits::for_tool`]);
+/// `limits` bounds the best constant feed.
+pub fn optimize_feeds_per_cutter(
+    moves: &[Move],
+    engagements: &[MoveEngagement],
+    cutters: &[Cutter],
+    limits: &FeedLimits,
+    per_cutter: &[FeedLimits],
+) -> Result<FeedSchedule, OptimizeError> {
     limits.validate()?;
+    for l in per_cutter {
+        l.validate()?;
+    }
     for (i, s) in engagements.iter().enumerate() {
         if s.move_index >= moves.len() {
             return Err(OptimizeError::NoSuchMove {
@@ -127,7 +149,8 @@ pub fn optimize_feeds(
             || (cutters.to_vec(), ForceResult::default()),
             |(cs, out), (i, seg)| {
                 let m = &moves[seg.move_index];
-                solve_move(seg, m, &mut cs[seg.cutter], limits, out).map_err(|source| {
+                let own = per_cutter.get(seg.cutter).unwrap_or(limits);
+                solve_move(seg, m, &mut cs[seg.cutter], own, out).map_err(|source| {
                     OptimizeError::Physics {
                         index: i,
                         move_index: seg.move_index,
@@ -156,8 +179,13 @@ pub fn optimize_feeds(
             let s = &mut solved[i];
             if !s.engaged {
                 s.feed = s.limit_feed;
-                s.governing = Governing::Air;
-                prev_engaged = false;
+                // A cut the model did not see stays what it was; it is not air.
+                s.governing = if s.limit_governing == Governing::Unmodelled {
+                    Governing::Unmodelled
+                } else {
+                    Governing::Air
+                };
+                prev_engaged = s.governing == Governing::Unmodelled;
                 continue;
             }
             s.entry = !prev_engaged;

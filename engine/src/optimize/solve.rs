@@ -256,9 +256,15 @@ pub(super) fn solve_move(
         evaluations: 0,
     };
     if !engaged {
-        res.limit_feed = limits.air_feed.unwrap_or(programmed).min(limits.max_feed);
-        res.limit_governing = Governing::Air;
         res.step_limits.resize(seg.steps.len(), limits.max_feed);
+        if seg.removes_material {
+            // Material goes but no edge of the model met it: never faster than written.
+            res.limit_feed = programmed.min(limits.max_feed);
+            res.limit_governing = Governing::Unmodelled;
+        } else {
+            res.limit_feed = limits.air_feed.unwrap_or(programmed).min(limits.max_feed);
+            res.limit_governing = Governing::Air;
+        }
         return Ok(res);
     }
     let mut start = programmed;
@@ -321,6 +327,16 @@ pub(super) fn solve_move(
     }
     if let (Some(hmin), Some((_, k, last))) = (limits.min_chip_thickness, floor_step) {
         res.floor_feed = solve_floor(cutter, &seg.steps[k], limits, hmin, last, out, &mut evals)?;
+    }
+    // A plunge or ramp may be slowed for a limit, never sped past what was written (or
+    // past max_plunge_feed when given): chip evacuation and the centre of the end are not
+    // in the force model.
+    if seg.plunge {
+        let cap = limits.max_plunge_feed.unwrap_or(programmed).min(limits.max_feed);
+        if res.limit_feed > cap {
+            res.limit_feed = cap;
+            res.limit_governing = Governing::Plunge;
+        }
     }
     res.evaluations = evals;
     Ok(res)

@@ -69,7 +69,7 @@ pub fn simulate_in_batches(
         nc::interpret(&spec.program, &interpret).map_err(SimulateError::Program)?;
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
-    let mut warnings: Vec<String> = setup::size_mismatch_warning(moves, bounds)
+    let warnings: Vec<String> = setup::size_mismatch_warning(moves, bounds)
         .into_iter()
         .collect();
     let tools = tools::ToolLookup::new(spec, moves, &interpretation.selected_tools)?;

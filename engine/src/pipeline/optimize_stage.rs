@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use super::forces::{forces_after, AfterStep};
-use super::rows::{MoveRow, OptimizationSummary, StageTimings};
+use super::rows::{LimitCount, MoveRow, OptimizationSummary, StageTimings, ToolOptimization};
 use super::spec::{SimulateError, SimulateSpec};
 use super::step_totals::KeptStep;
 use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length};
@@ -55,6 +55,8 @@ pub(super) fn optimize_stage(
                 cutter: cutter_index[&step.tool],
                 scale: scales[mi],
                 steps: Vec::new(),
+                removes_material: rows[mi].removed_volume > 0.0,
+                plunge: is_plunge(&moves[mi]),
             });
         }
         // A step that removes nothing is air (an empty engagement, kept so): a split plan
@@ -68,8 +70,11 @@ pub(super) fn optimize_stage(
             response: step.response.clone(),
         });
     }
+    // Each tool held to its own limits where the job gives them.
+    let per_cutter: Vec<FeedLimits> = models.keys().map(|&t| limits.for_tool(t)).collect();
     let clock = std::time::Instant::now();
-    let schedule = optimize::optimize_feeds(moves, &engagements, &cutters, &limits)?;
+    let schedule =
+        optimize::optimize_feeds_per_cutter(moves, &engagements, &cutters, &limits, &per_cutter)?;
     timings.optimize_schedule_s = clock.elapsed().as_secs_f64();
     let clock = std::time::Instant::now();
     let program = nc::Program::parse(&spec.program).map_err(SimulateError::Program)?;
@@ -258,6 +263,7 @@ pub(super) fn optimize_stage(
         evaluations: schedule.evaluations,
         split_blocks: written.len(),
         split_skipped: skipped.into_iter().take(100).collect(),
+        tools: tool_reports(moves, &engagements, &schedule, models, &per_cutter),
         limits,
     };
     Ok((text, summary))
@@ -312,4 +318,65 @@ fn add_forces_after(
             row.mean_power_after = Some(s[2] / whole);
         }
     }
+}
+
+/// Whether a move feeds toward the tool's tip by more than `optimize::PLUNGE_MIN_SIN` of its
+/// length (tool axis +Z, or the move's own for 5-axis input); a move that turns rotary axes
+/// is judged by its tip path at the end (its axis may turn).
+fn is_plunge(m: &Move) -> bool {
+    let a = m.tool_axis.unwrap_or([0.0, 0.0, 1.0]);
+    let d = [
+        m.end[0] - m.start[0],
+        m.end[1] - m.start[1],
+        m.end[2] - m.start[2],
+    ];
+    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    let down = -(d[0] * a[0] + d[1] * a[1] + d[2] * a[2]);
+    len > 0.0 && down > optimize::PLUNGE_MIN_SIN * len
+}
+
+/// Per tool (in the models' order, the cutters'), its limits and the count of its moves
+/// that a limit made slower than programmed, per limit.
+fn tool_reports(
+    moves: &[Move],
+    engagements: &[optimize::MoveEngagement],
+    schedule: &optimize::FeedSchedule,
+    models: &BTreeMap<u32, ForceModel>,
+    per_cutter: &[FeedLimits],
+) -> Vec<ToolOptimization> {
+    let cutter_of: BTreeMap<usize, usize> = engagements
+        .iter()
+        .map(|g| (g.move_index, g.cutter))
+        .collect();
+    let mut counts: Vec<BTreeMap<String, usize>> = vec![BTreeMap::new(); models.len()];
+    for s in &schedule.moves {
+        let Some(&c) = cutter_of.get(&s.move_index) else {
+            continue;
+        };
+        let slower = s.feed < feed_velocity(&moves[s.move_index]) * (1.0 - 1e-9);
+        let by_limit = !matches!(
+            s.governing,
+            optimize::Governing::MaxFeed | optimize::Governing::Air | optimize::Governing::Unknown
+        );
+        if slower && by_limit {
+            let name = serde_json::to_value(s.governing)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default();
+            *counts[c].entry(name).or_default() += 1;
+        }
+    }
+    models
+        .keys()
+        .zip(per_cutter)
+        .zip(counts)
+        .map(|((&tool, limits), counts)| ToolOptimization {
+            tool,
+            limits: limits.clone(),
+            limited_by: counts
+                .into_iter()
+                .map(|(limit, moves)| LimitCount { limit, moves })
+                .collect(),
+        })
+        .collect()
 }

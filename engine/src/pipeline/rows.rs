@@ -328,6 +328,26 @@ pub struct OptimizationSummary {
     /// written, with the reason (the first 100).
     pub split_blocks: usize,
     pub split_skipped: Vec<optimize::SkippedSplit>,
+    /// Per tool: the limits it was held to and which of them made its moves slower than
+    /// written (moves counted per limit).
+    pub tools: Vec<ToolOptimization>,
+}
+
+/// One tool's part of the optimization.
+#[derive(Clone, Debug, Serialize)]
+pub struct ToolOptimization {
+    pub tool: u32,
+    pub limits: FeedLimits,
+    /// What set the feed of moves that now run slower than programmed, with how many.
+    pub limited_by: Vec<LimitCount>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct LimitCount {
+    /// The governing quantity (force, power, torque, chip_thickness, plunge, entry,
+    /// unmodelled, min_feed).
+    pub limit: String,
+    pub moves: usize,
 }
 
 pub struct SimulationOutput {
