@@ -2,11 +2,14 @@
 //! kinematics need to know about a machine tool.
 
 pub mod cycle_time;
+pub mod feed_reading;
 pub mod kinematics;
 pub mod post;
 pub mod rotary_feed;
 
 pub use cycle_time::{cycle_time, cycle_time_with, CycleTime, CycleTimeError, CycleTimeOptions};
+
+pub use feed_reading::RotaryFeedReading;
 
 pub use kinematics::{KinematicChain, MachineKinematics, Pose, PoseIssue, PoseIssueKind};
 
@@ -61,6 +64,11 @@ pub struct Machine {
     /// Rotary axis acceleration, degrees/s² (absent: the linear axes bound the moves).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_rotary_acceleration_deg_s2: Option<f64>,
+    /// How the control reads a G94 F on a move that turns a rotary axis (default
+    /// `linear_only`); the cycle time, the simulation, the rotary feed correction and the post
+    /// all use it. See [`feed_reading`].
+    #[serde(default)]
+    pub rotary_feed_reading: RotaryFeedReading,
     /// Idle spindle power curve and auxiliary power for the energy model (absent: no energy
     /// figures; [`crate::physics::energy::EnergyModel::reference_example`] is an example).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -103,6 +111,7 @@ impl Machine {
             kinematic_chain: None,
             max_rotary_speed_deg_min: None,
             max_rotary_acceleration_deg_s2: None,
+            rotary_feed_reading: RotaryFeedReading::LinearOnly,
             energy: None,
         }
     }
