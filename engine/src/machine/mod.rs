@@ -267,4 +267,20 @@ mod tests {
         m.energy.as_mut().unwrap().aux_power_w = -1.0;
         assert_eq!(m.validate().unwrap_err().field, "energy.aux_power_w");
     }
+
+    #[test]
+    fn rotary_feed_reading_defaults_to_linear_only_and_names_unknown_values() {
+        let mut v = serde_json::to_value(Machine::generic()).unwrap();
+        v.as_object_mut().unwrap().remove("rotary_feed_reading");
+        let m: Machine = serde_json::from_value(v.clone()).unwrap();
+        assert_eq!(m.rotary_feed_reading, RotaryFeedReading::LinearOnly);
+        v["rotary_feed_reading"] = "combined".into();
+        let m: Machine = serde_json::from_value(v.clone()).unwrap();
+        assert_eq!(m.rotary_feed_reading, RotaryFeedReading::Combined);
+        v["rotary_feed_reading"] = "g93".into();
+        let e = serde_json::from_value::<Machine>(v)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("inverse_time_only"), "{e}");
+    }
 }
