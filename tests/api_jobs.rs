@@ -692,6 +692,89 @@ TOOL PATH/OP2,TOOL,BALL6\nLOADTL/2\nSPINDL/RPM,12000,CLW\nRAPID\nGOTO/10,0,5,0,0
     assert!(res.status().is_client_error());
 }
 
+/// Issue 29: a ball end pass around a cylinder edge at FEDRAT 400, C turning about the tool
+/// tip (X Y Z still, up to the CLS's rounding) and then A, C and X Y Z together, posted by the
+/// rotary-feed job for a machine of each rotary feed reading: the posted program, re-timed on
+/// the same machine, moves the tip at 400 mm/min.
+#[tokio::test]
+async fn rotary_feed_job_posts_a_cls_whose_tip_runs_at_fedrat_in_the_machines_reading() {
+    use millsim_engine::machine::cycle_time::cycle_time;
+    use millsim_engine::machine::rotary_feed::{tool_tip_speeds, RotaryFeedOptions};
+    use millsim_engine::machine::Machine;
+    use millsim_engine::nc::{interpret, InterpretOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let mut cls = String::from("LOADTL/3\nSPINDL/RPM,10000,CLW\nRAPID\nGOTO/40,0,25,0.707107,0,0.707107\nFEDRAT/MMPM,400\n");
+    for k in 0..=36 {
+        let (t, lean) = (
+            (5.0 * k as f64).to_radians(),
+            if k <= 18 {
+                45.0f64
+            } else {
+                45.0 - 25.0 * (k - 18) as f64 / 18.0
+            }
+            .to_radians(),
+        );
+        cls.push_str(&format!(
+            "GOTO/{:.4},{:.4},20,{:.6},{:.6},{:.6}\n",
+            40.0 * t.cos(),
+            40.0 * t.sin(),
+            lean.sin() * t.cos(),
+            lean.sin() * t.sin(),
+            lean.cos()
+        ));
+    }
+    for reading in [None, Some("combined"), Some("inverse_time_only")] {
+        let mut machine = json!({"name": "AC trunnion", "kinematics": "xyz_ac", "rapid_rate": 30000.0, "max_feed": 20000.0,
+            "acceleration": [1e7, 1e7, 1e7], "spindle_min_rpm": 0.0, "spindle_max_rpm": 12000.0, "rated_power": 10000.0,
+            "kinematic_chain": {"tilt_pivot": [0.0, 0.0, -80.0], "rotary_center": [0.0, 0.0, 0.0], "pivot_length": 0.0}});
+        if let Some(r) = reading {
+            machine["rotary_feed_reading"] = json!(r);
+        }
+        let (st, m) = post_json(&c, &s, "/v1/machines", &machine).await;
+        assert_eq!(st, 201, "{m}");
+        let body = json!({"kind": "rotary-feed", "inputs": {"program": {"name": "edge.cls", "content": cls}, "machine": m["id"]}});
+        let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+        assert_eq!(st, 202, "{job}");
+        let id = job["id"].as_str().unwrap();
+        let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
+        assert_eq!(done["status"], "succeeded", "{done}");
+        let text = c
+            .get(s.url(&format!("/v1/jobs/{id}/program")))
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        let machine: Machine = serde_json::from_value(machine).unwrap();
+        let moves = interpret(&text, &InterpretOptions::default())
+            .unwrap()
+            .moves;
+        let speeds = tool_tip_speeds(&moves, &machine, &RotaryFeedOptions::default());
+        let times = cycle_time(&moves, &machine, None).unwrap();
+        assert!(speeds.len() >= 36, "{text}");
+        for sp in &speeds {
+            let timed = sp.tip_length / (times.per_move_s[sp.move_index] / 60.0);
+            assert!(
+                (sp.speed - 400.0).abs() <= 4.0 && (timed - 400.0).abs() <= 4.0,
+                "{reading:?} line {}: tip {} mm/min (cycle time {timed})\n{text}",
+                sp.line,
+                sp.speed
+            );
+        }
+        // The 5 mm plunge and 180° of a 40 mm radius at 400 mm/min: about 19.6 s of cutting,
+        // not millions.
+        let want = (std::f64::consts::PI * 40.0 + 5.0) / 400.0 * 60.0;
+        assert!(
+            (times.cutting_s - want).abs() <= 0.02 * want,
+            "{reading:?}: {} s",
+            times.cutting_s
+        );
+    }
+}
+
 #[tokio::test]
 async fn energy_job_finds_a_feasible_point_and_a_pareto_front() {
     let dir = tempfile::tempdir().unwrap();

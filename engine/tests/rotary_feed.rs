@@ -338,3 +338,67 @@ fn corpus_impeller_tool_tip_speeds_on_xyzac_table_table() {
         p[p.len() - 1]
     );
 }
+
+/// The correction writes F in the machine's own reading, and the same machine's cycle time and
+/// tip speeds read it back: the tip runs at the programmed feed for every reading.
+#[test]
+fn corrected_feeds_follow_the_machines_rotary_feed_reading() {
+    use millsim_engine::machine::cycle_time::cycle_time;
+    use millsim_engine::machine::RotaryFeedReading;
+    let io = InterpretOptions::default();
+    let mut firsts = Vec::new();
+    for (reading, output) in [
+        (RotaryFeedReading::LinearOnly, FeedOutput::PerMin),
+        (RotaryFeedReading::Combined, FeedOutput::PerMin),
+        (RotaryFeedReading::InverseTimeOnly, FeedOutput::InverseTime),
+    ] {
+        let machine = Machine {
+            rotary_feed_reading: reading,
+            // Stiff axes: the cycle time's per-move time is the programmed time.
+            acceleration: [1e7; 3],
+            ..b_table()
+        };
+        let opts = RotaryFeedOptions {
+            output,
+            ..RotaryFeedOptions::default()
+        };
+        let (text, report) = correct_program(&g94_program(), &io, &machine, &opts).unwrap();
+        let after = nc::interpret(&text, &io).unwrap();
+        let ct = cycle_time(&after.moves, &machine, None).unwrap();
+        let speeds = tool_tip_speeds(&after.moves, &machine, &opts);
+        assert_eq!(speeds.len(), MOVES.len());
+        for (s, (_, _, _, f)) in speeds.iter().zip(MOVES) {
+            let timed = s.tip_length / (ct.per_move_s[s.move_index] / 60.0);
+            for v in [s.speed, timed] {
+                assert!(
+                    (v - f).abs() <= 0.01 * f,
+                    "{reading:?} line {}: tip speed {v} vs programmed {f}\n{text}",
+                    s.line
+                );
+            }
+        }
+        firsts.push(report.moves[0].feed);
+    }
+    // The first move turns B 10° over 1 mm of X: the combined reading's F is √(1² + 10²) ≈ 10.05
+    // times the XYZ reading's.
+    let ratio = firsts[1] / firsts[0];
+    assert!((ratio - 101f64.sqrt()).abs() < 1e-6, "{ratio}");
+}
+
+#[test]
+fn an_inverse_time_only_machine_refuses_per_min_output_naming_the_field() {
+    use millsim_engine::machine::RotaryFeedReading;
+    let machine = Machine {
+        rotary_feed_reading: RotaryFeedReading::InverseTimeOnly,
+        ..b_table()
+    };
+    let e = correct_program(
+        &g94_program(),
+        &InterpretOptions::default(),
+        &machine,
+        &RotaryFeedOptions::default(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("rotary_feed_reading"), "{e}");
+    assert!(e.to_string().contains("line 3"), "{e}");
+}

@@ -3,12 +3,14 @@
 //! Model (a continuous-path control in G64 blending mode, like grbl or LinuxCNC's planner):
 //!
 //! * Every motion move gets a trapezoidal velocity profile: accelerate at `a`, cruise at the
-//!   nominal speed, decelerate at `a`. `a` is the path acceleration the axes allow along the move,
+//!   nominal speed, decelerate at `a`. The path is the XYZ path (degrees on a move without XYZ
+//!   travel). `a` is the path acceleration the axes allow along the move,
 //!   `a = min over moving axes of a_axis / |u_axis|` (u the unit direction), so no axis exceeds
 //!   its own limit.
-//! * Nominal speed: rapids at `rapid_rate`; feed moves at their feed clamped to `max_feed`, with
-//!   G95 (mm/rev × rpm) and G93 (inverse time: the move lasts 1/F min, so v = L·F) converted to
-//!   mm/min. Arcs also obey the centripetal limit v² ≤ a_n·r (a_n the smaller acceleration of the
+//! * Nominal speed: rapids at `rapid_rate`; feed moves at the rate their F gives along the path
+//!   as the machine's control reads it ([`super::feed_reading`]: G95 is mm/rev × rpm, G93 lasts
+//!   1/F min, a G94 move with rotary travel lasts the distance of the machine's
+//!   `rotary_feed_reading` over F), clamped to `max_feed`. Arcs also obey the centripetal limit v² ≤ a_n·r (a_n the smaller acceleration of the
 //!   arc plane's axes).
 //! * Junction speed between consecutive moves follows the junction-deviation model of grbl:
 //!   v_j² = a_j·δ·sin(θ/2)/(1 − sin(θ/2)), θ the angle between the reversed incoming and the
@@ -32,8 +34,9 @@
 //!
 //! Not modelled: finite look-ahead buffers, exact-stop modes (G61).
 
+use super::feed_reading::{self, RotaryFeedReading};
 use super::Machine;
-use crate::nc::{FeedMode, Move, MoveKind};
+use crate::nc::{Move, MoveKind};
 use crate::vec3::norm;
 
 /// Tunables of the cycle-time model.
@@ -83,8 +86,9 @@ pub enum CycleTimeError {
 }
 
 /// Cycle time with the default options. `feed_override`, when given, has one entry per move: the
-/// feed in mm/min (already converted from G93/G95) that the move should run at instead of its
-/// programmed one; it is used for linear and arc moves only.
+/// rate along [`move_length`] per minute (mm/min; G93, G95 and the machine's rotary feed reading
+/// already converted) that the move should run at instead of its programmed one; it is used for
+/// linear and arc moves only.
 pub fn cycle_time(
     moves: &[Move],
     machine: &Machine,
@@ -93,32 +97,18 @@ pub fn cycle_time(
     cycle_time_with(moves, machine, feed_override, &CycleTimeOptions::default())
 }
 
-/// Path length of a move in mm (XYZ; arcs by arc length). A move with no XYZ motion but rotary
-/// motion gets its rotary distance in degrees, which is how controls read F for it.
+/// Path length of a move in mm (XYZ; arcs by arc length), or its rotary distance in degrees
+/// when X, Y and Z do not move: what the planner moves along ([`feed_reading::path_length`]).
 pub fn move_length(m: &Move) -> f64 {
-    if let Some(arc) = &m.arc {
-        return arc.length();
-    }
-    let d = |r: std::ops::Range<usize>| {
-        r.map(|i| (m.end[i] - m.start[i]).powi(2))
-            .sum::<f64>()
-            .sqrt()
-    };
-    let l = d(0..3);
-    if l > 1e-12 {
-        l
-    } else {
-        d(3..6)
-    }
+    feed_reading::path_length(m)
 }
 
-/// Feed of a feed move in mm/min (G93 and G95 converted), before the machine's clamp.
+/// Rate of a feed move along [`move_length`] per minute (G93 and G95 converted), before the
+/// machine's clamp, read as a `linear_only` control reads F. For callers without a machine;
+/// with one, use `machine.rotary_feed_reading.path_rate(m)` (the two differ only on a
+/// `combined` machine's moves with XYZ and rotary travel).
 pub fn feed_velocity(m: &Move) -> f64 {
-    match m.feed_mode {
-        FeedMode::PerMin => m.feed,
-        FeedMode::PerRev => m.feed * m.spindle,
-        FeedMode::InverseTime => m.feed * move_length(m),
-    }
+    RotaryFeedReading::LinearOnly.path_rate(m)
 }
 
 /// Per-move planning data.
@@ -186,7 +176,7 @@ fn plan_seg(m: &Move, machine: &Machine, over: Option<f64>) -> Seg {
     let v_prog = match m.kind {
         MoveKind::Rapid => machine.rapid_rate,
         _ => over
-            .unwrap_or_else(|| feed_velocity(m))
+            .unwrap_or_else(|| machine.rotary_feed_reading.path_rate(m))
             .min(machine.max_feed),
     };
     let mut v = v_prog / 60.0;

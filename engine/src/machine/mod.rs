@@ -2,11 +2,14 @@
 //! kinematics need to know about a machine tool.
 
 pub mod cycle_time;
+pub mod feed_reading;
 pub mod kinematics;
 pub mod post;
 pub mod rotary_feed;
 
 pub use cycle_time::{cycle_time, cycle_time_with, CycleTime, CycleTimeError, CycleTimeOptions};
+
+pub use feed_reading::RotaryFeedReading;
 
 pub use kinematics::{KinematicChain, MachineKinematics, Pose, PoseIssue, PoseIssueKind};
 
@@ -61,6 +64,11 @@ pub struct Machine {
     /// Rotary axis acceleration, degrees/s² (absent: the linear axes bound the moves).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_rotary_acceleration_deg_s2: Option<f64>,
+    /// How the control reads a G94 F on a move that turns a rotary axis (default
+    /// `linear_only`); the cycle time, the simulation, the rotary feed correction and the post
+    /// all use it. See [`feed_reading`].
+    #[serde(default)]
+    pub rotary_feed_reading: RotaryFeedReading,
     /// Idle spindle power curve and auxiliary power for the energy model (absent: no energy
     /// figures; [`crate::physics::energy::EnergyModel::reference_example`] is an example).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -122,6 +130,7 @@ impl Machine {
             kinematic_chain: None,
             max_rotary_speed_deg_min: None,
             max_rotary_acceleration_deg_s2: None,
+            rotary_feed_reading: RotaryFeedReading::LinearOnly,
             energy: None,
             start_position_mm: None,
             tool_change_position_mm: None,
@@ -293,5 +302,21 @@ mod tests {
         m.energy = Some(crate::physics::energy::EnergyModel::reference_example());
         m.energy.as_mut().unwrap().aux_power_w = -1.0;
         assert_eq!(m.validate().unwrap_err().field, "energy.aux_power_w");
+    }
+
+    #[test]
+    fn rotary_feed_reading_defaults_to_linear_only_and_names_unknown_values() {
+        let mut v = serde_json::to_value(Machine::generic()).unwrap();
+        v.as_object_mut().unwrap().remove("rotary_feed_reading");
+        let m: Machine = serde_json::from_value(v.clone()).unwrap();
+        assert_eq!(m.rotary_feed_reading, RotaryFeedReading::LinearOnly);
+        v["rotary_feed_reading"] = "combined".into();
+        let m: Machine = serde_json::from_value(v.clone()).unwrap();
+        assert_eq!(m.rotary_feed_reading, RotaryFeedReading::Combined);
+        v["rotary_feed_reading"] = "g93".into();
+        let e = serde_json::from_value::<Machine>(v)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("inverse_time_only"), "{e}");
     }
 }

@@ -5,13 +5,24 @@
 //!
 //! Each CLS point goes through the machine's inverse kinematics (nearest the previous solution);
 //! the output has decimal points on every coordinate, modal G0/G1 and axis words (only what
-//! changes is written), F only when it changes (always in G93), optional N numbers. CLS arcs are
+//! changes is written), F only when it changes (always in G93), optional N numbers.
+//!
+//! Feeds are computed for the axes as written (rounded to the output's decimals; an axis that
+//! moves less than one output step keeps its last written value), so a residue of X, Y or Z is
+//! no move at all and a rotation about the tool tip is a rotary-only move, in degrees/min. In G94 output, F is read as the machine's `rotary_feed_reading` reads
+//! it; a move that turns a rotary axis is written in G93 (inverse time, then back to G94) where
+//! the machine needs it or a G94 F would be ill-conditioned (see
+//! [`RotaryFeedReading::g94_sound`]). A move that only turns the tool about its tip runs at the
+//! CLS feed in mm/min of XYZ and in degrees/min of the rotary axes, whichever is slower. CLS arcs are
 //! written as straight moves through points on the arc (chord tolerance `arc_tolerance`); the tool
 //! tip of a posted move goes exactly through those points, while between points the machine
 //! interpolates its axes linearly.
 
+use super::feed_reading::{self, RotaryFeedReading};
 use super::kinematics::{KinematicsError, MachineKinematics, Pose, PoseIssue};
-use super::rotary_feed::{correct_moves, FeedOutput, RotaryFeedOptions, RotaryFeedReport};
+use super::rotary_feed::{
+    block_feeds, correct_moves, FeedOutput, RotaryFeedOptions, RotaryFeedReport,
+};
 use super::Machine;
 use crate::cl;
 use crate::nc::{self, FeedMode, Move, MoveKind, SpindleDir};
@@ -54,7 +65,7 @@ pub struct PostedProgram {
     pub text: String,
     /// Tool-tip targets of the posted moves, in order (part frame), for checking.
     pub tip_targets: Vec<[f64; 3]>,
-    /// Machine axes of the posted moves, in order.
+    /// Machine axes of the posted moves as written (rounded to the output's decimals), in order.
     pub axes: Vec<[f64; 6]>,
     pub feeds: RotaryFeedReport,
     /// Singularities and limit violations; `index` is the CLS source line (1-based).
@@ -89,6 +100,32 @@ fn fmt_num(v: f64, decimals: usize) -> String {
     }
     // Fanuc style keeps the leading zero and the point: `0.5`, `10.`.
     s
+}
+
+/// The axes as the control reads them back from the written words. An axis that has moved
+/// less than one output step from where it was last written (`previous`) stays there: a
+/// residue of the inverse kinematics that happens to cross a rounding boundary is no move,
+/// so it cannot become the distance a G94 F is read against. The written axes stay within
+/// one step of the exact ones.
+fn as_written(axes: [f64; 6], previous: Option<&[f64; 6]>, opts: &PostOptions) -> [f64; 6] {
+    std::array::from_fn(|k| {
+        let dec = if k < 3 {
+            opts.linear_decimals
+        } else {
+            opts.angle_decimals
+        };
+        match previous {
+            Some(p) if (axes[k] - p[k]).abs() < 10f64.powi(-(dec as i32)) => p[k],
+            _ => fmt_num(axes[k], dec).parse().unwrap_or(axes[k]),
+        }
+    })
+}
+
+/// The feed word of one posted feed move: its mode (G93, G94 or G95) and F.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FeedWord {
+    mode: FeedMode,
+    f: f64,
 }
 
 /// A CLS point to post: tip, axis, kind, feed, source line and spindle state.
@@ -146,6 +183,8 @@ pub fn post_cls(
     }
     let kin = MachineKinematics::of(machine);
     let mut prev_axes = [0.0f64; 6];
+    // Where the control is: the axes as last written.
+    let mut prev_written = [0.0f64; 6];
     let mut first = true;
     let mut out = Vec::new();
     for (k, op) in ops.iter().enumerate() {
@@ -192,6 +231,7 @@ pub fn post_cls(
                         source,
                     })?
                     .axes;
+                prev_written = as_written(prev_axes, None, opts);
             }
             first = false;
         }
@@ -221,22 +261,21 @@ pub fn post_cls(
             } else {
                 MoveKind::Linear
             };
-            mv.start = prev_axes;
-            mv.end = s.axes;
+            // IK continues from the exact solution; the move runs between the written axes.
+            let written = as_written(s.axes, Some(&prev_written), opts);
+            mv.start = prev_written;
+            mv.end = written;
             mv.arc = None;
             mv.center = None;
             mv.normal = None;
             mv.clockwise = None;
             mv.tool_axis = None;
             prev_axes = s.axes;
-            axes_list.push(s.axes);
+            prev_written = written;
+            axes_list.push(written);
             machine_moves.push(mv);
         }
-        let feeds = correct_moves(&machine_moves, machine, &opts.feed);
-        let mut feed_of: Vec<Option<f64>> = vec![None; machine_moves.len()];
-        for mf in &feeds.moves {
-            feed_of[mf.move_index] = Some(mf.feed);
-        }
+        let (feeds, feed_of) = feed_words(&machine_moves, machine, opts);
         let text = write_program(k + 1, tool, machine, &kin, &machine_moves, &feed_of, opts);
         out.push(PostedProgram {
             operation: k + 1,
@@ -251,18 +290,94 @@ pub fn post_cls(
     Ok(out)
 }
 
+/// The feed word of every posted feed move, and the correction report with the F and mode
+/// each move is written with.
+fn feed_words(
+    moves: &[Move],
+    machine: &Machine,
+    opts: &PostOptions,
+) -> (RotaryFeedReport, Vec<Option<FeedWord>>) {
+    let reading = machine.rotary_feed_reading;
+    let step = |d: usize| 10f64.powi(-(d as i32));
+    let (lin, ang, fst) = (
+        step(opts.linear_decimals),
+        step(opts.angle_decimals),
+        step(opts.feed_decimals),
+    );
+    let inverse_time = opts.feed.output == FeedOutput::InverseTime;
+    // G94 (or G95 as programmed) where sound, else G93; the move lasts `t` min either way.
+    let word = |m: &Move, t: f64, g94_f: f64| {
+        if inverse_time || !reading.g94_sound(m, t, lin, ang, fst) {
+            FeedWord {
+                mode: FeedMode::InverseTime,
+                f: 1.0 / t,
+            }
+        } else {
+            FeedWord {
+                mode: if m.feed_mode == FeedMode::PerRev {
+                    FeedMode::PerRev
+                } else {
+                    FeedMode::PerMin
+                },
+                f: g94_f,
+            }
+        }
+    };
+    let mut feeds = correct_moves(moves, machine, &opts.feed);
+    let mut out: Vec<Option<FeedWord>> = vec![None; moves.len()];
+    for mf in &mut feeds.moves {
+        let m = &moves[mf.move_index];
+        let w = word(m, mf.time_min, mf.feed);
+        if w.mode == FeedMode::InverseTime {
+            mf.feed = w.f;
+            mf.output = FeedOutput::InverseTime;
+        }
+        out[mf.move_index] = Some(w);
+    }
+    feeds.blocks = block_feeds(&feeds.moves);
+    // Moves the correction leaves (the tip does not move): the CLS feed as mm/min of XYZ and
+    // degrees/min of the rotary axes, whichever is slower.
+    for (i, m) in moves.iter().enumerate() {
+        if out[i].is_some() || !matches!(m.kind, MoveKind::Linear | MoveKind::Arc) {
+            continue;
+        }
+        let f = RotaryFeedReading::LinearOnly.per_min_feed(m);
+        let t = feed_reading::linear_length(m).max(feed_reading::rotary_length(m)) / f;
+        out[i] = Some(if t > 0.0 && t.is_finite() {
+            word(m, t, reading.read_length(m) / t / per_rev_divisor(m))
+        } else {
+            // No usable feed: written as programmed, the control's own reading.
+            FeedWord {
+                mode: m.feed_mode,
+                f: m.feed,
+            }
+        });
+    }
+    (feeds, out)
+}
+
+/// What a G94 F is divided by to give the G95 F (the spindle speed for a per-rev move).
+fn per_rev_divisor(m: &Move) -> f64 {
+    if m.feed_mode == FeedMode::PerRev && m.spindle > 0.0 {
+        m.spindle
+    } else {
+        1.0
+    }
+}
+
 fn write_program(
     op: usize,
     tool: u32,
     machine: &Machine,
     kin: &MachineKinematics,
     moves: &[Move],
-    feed_of: &[Option<f64>],
+    feed_of: &[Option<FeedWord>],
     opts: &PostOptions,
 ) -> String {
     let mut lines: Vec<String> = Vec::new();
     let inverse_time = opts.feed.output == FeedOutput::InverseTime;
-    let mut mode_word = if inverse_time { "G93" } else { "G94" };
+    let program_mode = if inverse_time { "G93" } else { "G94" };
+    let mut mode_word = program_mode;
     let name = machine.name.replace(['(', ')'], "");
     lines.push(format!(
         "(MILLSIM POST OPERATION {op} TOOL {tool} MACHINE {name})"
@@ -298,21 +413,6 @@ fn write_program(
         } else {
             "G1"
         };
-        // Feed mode word when a per-rev feed needs G95 (per-min output only).
-        let want_mode = if inverse_time {
-            "G93"
-        } else if m.feed_mode == FeedMode::PerRev && m.kind != MoveKind::Rapid {
-            "G95"
-        } else if m.kind != MoveKind::Rapid {
-            "G94"
-        } else {
-            mode_word
-        };
-        if want_mode != mode_word {
-            words.push(want_mode.to_string());
-            mode_word = want_mode;
-            last_f = None;
-        }
         let mut axis_words = Vec::new();
         for &s in &slots {
             let dec = if s < 3 {
@@ -329,33 +429,37 @@ fn write_program(
         if axis_words.is_empty() {
             continue;
         }
+        // The feed move's own mode (G93 where G94 is unsound); rapids keep the modal one.
+        let fw = feed_of[i].filter(|_| m.kind != MoveKind::Rapid);
+        let want_mode = match fw.map(|w| w.mode) {
+            Some(FeedMode::InverseTime) => "G93",
+            Some(FeedMode::PerRev) => "G95",
+            Some(FeedMode::PerMin) => "G94",
+            None => mode_word,
+        };
+        if want_mode != mode_word {
+            words.push(want_mode.to_string());
+            mode_word = want_mode;
+            last_f = None;
+        }
         if last_g != Some(g) {
             words.push(g.to_string());
             last_g = Some(g);
         }
         words.extend(axis_words);
-        if m.kind != MoveKind::Rapid {
-            let f = feed_of[i].unwrap_or_else(|| {
-                // Not corrected (the tip does not move): the control's own reading.
-                if inverse_time {
-                    let l = super::cycle_time::move_length(m);
-                    let v = super::cycle_time::feed_velocity(m);
-                    if l > 0.0 {
-                        v / l
-                    } else {
-                        v
-                    }
-                } else {
-                    m.feed
-                }
-            });
-            let fw = fmt_num(f, opts.feed_decimals);
-            if inverse_time || last_f.as_deref() != Some(fw.as_str()) {
-                words.push(format!("F{fw}"));
-                last_f = Some(fw);
+        if let Some(w) = fw {
+            let f = fmt_num(w.f, opts.feed_decimals);
+            // G93 needs an F on every block.
+            if w.mode == FeedMode::InverseTime || last_f.as_deref() != Some(f.as_str()) {
+                words.push(format!("F{f}"));
+                last_f = Some(f);
             }
         }
         lines.push(words.join(" "));
+    }
+    if mode_word != program_mode {
+        // Leave the control in the program's feed mode.
+        lines.push(program_mode.into());
     }
     lines.push("M5".into());
     lines.push("M30".into());

@@ -1,12 +1,13 @@
 //! Rotary-axis feed correction (DESIGN.md, "Rotary-axis feed correction").
 //!
-//! A control without a 5-axis feed mode reads F as the rate of the machine axes: the XYZ
-//! distance of the move (or its rotary distance in degrees when X, Y and Z do not move, see
-//! [`move_length`]). When a rotary axis moves too, the tool tip moves through the part at a
-//! different speed. For every feed move, split into steps, we take the tool-tip distance `i` in
-//! the part frame (forward kinematics of the linearly interpolated machine axes, which is the
-//! path the machine really cuts), the machine distance `I`, the intended time `t = i/f` and the
-//! corrected feed `F = I/t` (mm/min), or the inverse-time feed `F = 1/t` (G93). The time is
+//! A control without a 5-axis feed mode reads F as the rate of a machine distance `I`: the XYZ
+//! distance of the move, or the combined XYZ and rotary distance, as the machine's
+//! `rotary_feed_reading` says (or the rotary distance in degrees when X, Y and Z do not move;
+//! see [`super::feed_reading`]). When a rotary axis moves too, the tool tip moves through the
+//! part at a different speed. For every feed move, split into steps, we take the tool-tip
+//! distance `i` in the part frame (forward kinematics of the linearly interpolated machine axes,
+//! which is the path the machine really cuts), the machine distance `I`, the intended time
+//! `t = i/f` and the corrected feed `F = I/t` (G94), or the inverse-time feed `F = 1/t` (G93). The time is
 //! lengthened where the machine's rotary speed or max feed would be exceeded, and the move says
 //! which limit bound.
 //!
@@ -15,6 +16,7 @@
 //! from the machine distance meant.
 
 use super::cycle_time::move_length;
+use super::feed_reading::RotaryFeedReading;
 use super::kinematics::MachineKinematics;
 use super::Machine;
 use crate::nc::{self, FeedMode, InterpretOptions, Move, MoveKind, Program};
@@ -58,7 +60,8 @@ impl Default for RotaryFeedOptions {
 pub struct FeedStep {
     /// Tool-tip distance in the part frame, mm.
     pub tip_length: f64,
-    /// Machine distance as the control reads it (mm, or degrees for a rotary-only move).
+    /// Machine distance as the control reads it (the machine's `rotary_feed_reading`: mm,
+    /// degrees for a rotary-only move, or both combined).
     pub machine_length: f64,
     /// Intended time i/f, min.
     pub time_min: f64,
@@ -87,7 +90,7 @@ pub struct MoveFeed {
     pub intended_feed: f64,
     /// Σ i, mm.
     pub tip_length: f64,
-    /// I (mm, or degrees for a rotary-only move).
+    /// I, as the machine's `rotary_feed_reading` reads it.
     pub machine_length: f64,
     /// Time of the move after the correction, min (i/f unless a limit binds).
     pub time_min: f64,
@@ -163,21 +166,6 @@ pub fn tip_length(kin: &MachineKinematics, m: &Move, n: usize) -> f64 {
     len
 }
 
-/// How long the control takes for a feed move as programmed, min (None for rapids etc. or
-/// when the feed is zero).
-pub fn control_time_min(m: &Move) -> Option<f64> {
-    if !matches!(m.kind, MoveKind::Linear | MoveKind::Arc) || !(m.feed > 0.0) {
-        return None;
-    }
-    let len = move_length(m);
-    match m.feed_mode {
-        FeedMode::PerMin => Some(len / m.feed),
-        FeedMode::InverseTime => Some(1.0 / m.feed),
-        FeedMode::PerRev if m.spindle > 0.0 => Some(len / (m.feed * m.spindle)),
-        FeedMode::PerRev => None,
-    }
-}
-
 /// Tool-tip speed of one feed move as the control runs it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TipSpeed {
@@ -190,7 +178,8 @@ pub struct TipSpeed {
     pub speed: f64,
 }
 
-/// Tool-tip speed (part frame) of every feed move of an interpreted program on this machine.
+/// Tool-tip speed (part frame) of every feed move of an interpreted program on this machine,
+/// its F read as the machine's control reads it.
 pub fn tool_tip_speeds(
     moves: &[Move],
     machine: &Machine,
@@ -199,7 +188,10 @@ pub fn tool_tip_speeds(
     let kin = MachineKinematics::of(machine);
     let mut out = Vec::new();
     for (i, m) in moves.iter().enumerate() {
-        let Some(t) = control_time_min(m) else {
+        if !matches!(m.kind, MoveKind::Linear | MoveKind::Arc) {
+            continue;
+        }
+        let Some(t) = machine.rotary_feed_reading.programmed_time_min(m) else {
             continue;
         };
         let len = tip_length(&kin, m, step_count(m, opts));
@@ -229,12 +221,9 @@ pub fn correct_moves(
         if !matches!(m.kind, MoveKind::Linear | MoveKind::Arc) {
             continue;
         }
-        let big_i = move_length(m);
-        let f = match m.feed_mode {
-            FeedMode::PerMin => m.feed,
-            FeedMode::InverseTime => m.feed * big_i,
-            FeedMode::PerRev => m.feed * m.spindle,
-        };
+        let reading = machine.rotary_feed_reading;
+        let big_i = reading.read_length(m);
+        let f = reading.per_min_feed(m);
         if !(f > 0.0 && f.is_finite()) {
             report.skipped.push((idx, m.line, "no usable feed".into()));
             continue;
@@ -301,7 +290,9 @@ pub fn correct_moves(
         let rot_rate = (3..6)
             .map(|k| (m.end[k] - m.start[k]).abs() / t)
             .fold(0.0, f64::max);
-        let uncorrected = control_time_min(m).map_or(f64::NAN, |tc| i_sum / tc);
+        let uncorrected = reading
+            .programmed_time_min(m)
+            .map_or(f64::NAN, |tc| i_sum / tc);
         report.moves.push(MoveFeed {
             move_index: idx,
             block: m.block,
@@ -318,10 +309,15 @@ pub fn correct_moves(
             steps,
         });
     }
-    // One F per block: the slowest.
+    report.blocks = block_feeds(&report.moves);
+    report
+}
+
+/// One F per block: the slowest of its moves.
+pub fn block_feeds(moves: &[MoveFeed]) -> Vec<BlockFeed> {
     let mut blocks: Vec<BlockFeed> = Vec::new();
     let mut at: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
-    for mf in &report.moves {
+    for mf in moves {
         match at.get(&mf.block) {
             Some(&k) => {
                 let b = &mut blocks[k];
@@ -340,8 +336,7 @@ pub fn correct_moves(
             }
         }
     }
-    report.blocks = blocks;
-    report
+    blocks
 }
 
 /// The F value `with_feeds` writes (4 decimals), for comparisons.
@@ -379,6 +374,17 @@ pub fn correct_program(
         .iter()
         .filter(|m| matches!(m.kind, MoveKind::Linear | MoveKind::Arc))
         .collect();
+    let g94_rotary = feed_moves
+        .iter()
+        .find(|m| m.feed_mode != FeedMode::InverseTime && m.turns_rotary());
+    if let (FeedOutput::PerMin, RotaryFeedReading::InverseTimeOnly, Some(m)) =
+        (opts.output, machine.rotary_feed_reading, g94_rotary)
+    {
+        return Err(RotaryFeedError::Unsupported {
+            line: m.line,
+            message: "the machine's rotary_feed_reading is inverse_time_only: its control runs a move that turns a rotary axis only in G93; ask for inverse_time output".into(),
+        });
+    }
     if opts.output == FeedOutput::InverseTime
         && !feed_moves.is_empty()
         && feed_moves.iter().all(per_min)

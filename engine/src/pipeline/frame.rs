@@ -5,8 +5,8 @@
 use super::rows::MoveRow;
 use super::spec::AxisReading;
 use crate::geometry::{self, Segment};
-use crate::machine::cycle_time::{feed_velocity, move_length};
-use crate::machine::{Kinematics, Machine, MachineKinematics, Pose};
+use crate::machine::cycle_time::move_length;
+use crate::machine::{Kinematics, Machine, MachineKinematics, Pose, RotaryFeedReading};
 use crate::nc::{Move, MoveKind};
 use crate::optimize;
 
@@ -17,6 +17,8 @@ pub(super) struct PartFrame {
     /// None on a 3-axis machine: the part frame is the machine (G53) frame.
     kinematics: Option<MachineKinematics>,
     reading: AxisReading,
+    /// How the control reads F on a move that turns a rotary axis.
+    feed_reading: RotaryFeedReading,
     /// Largest distance between the true tip path and its pieces, mm.
     tolerance: f64,
     /// Largest angle between the true tool axis and its interpolation, radians.
@@ -45,6 +47,7 @@ impl PartFrame {
             kinematics: (machine.kinematics != Kinematics::Xyz)
                 .then(|| MachineKinematics::of(machine)),
             reading,
+            feed_reading: machine.rotary_feed_reading,
             // As the geometry engine's arcs: chords inside a curve over-cut by their sagitta.
             tolerance: cell / 20.0,
             // The axis error moves the edge by angle × distance from the tip.
@@ -70,7 +73,7 @@ impl PartFrame {
     /// The move's geometry in the part frame: its pieces, and the tip path length. None for
     /// dwells and tool changes.
     pub(super) fn segments(&self, m: &Move) -> Option<(Vec<FramePiece>, f64)> {
-        let machine_segment = segment(m)?;
+        let machine_segment = segment(m, self.feed_reading)?;
         let whole = |segment: Segment| FramePiece {
             segment,
             tip_at: 0.0,
@@ -210,14 +213,16 @@ pub(super) fn feed_scale(
 }
 
 /// The geometry segment of a cutting or positioning move; None for dwells and tool changes.
-fn segment(m: &Move) -> Option<Segment> {
+fn segment(m: &Move, feed_reading: RotaryFeedReading) -> Option<Segment> {
     let (from, to) = (
         [m.start[0], m.start[1], m.start[2]],
         [m.end[0], m.end[1], m.end[2]],
     );
     let seg = match m.kind {
         MoveKind::Rapid => Segment::rapid(m.block, from, to),
-        MoveKind::Linear => Segment::linear(m.block, from, to, feed_velocity(m), m.spindle),
+        MoveKind::Linear => {
+            Segment::linear(m.block, from, to, feed_reading.path_rate(m), m.spindle)
+        }
         MoveKind::Arc => {
             let arc = m.arc.as_ref()?;
             let mut s = Segment::arc(
@@ -227,7 +232,7 @@ fn segment(m: &Move) -> Option<Segment> {
                 arc.center,
                 arc.normal,
                 arc.clockwise,
-                feed_velocity(m),
+                feed_reading.path_rate(m),
                 m.spindle,
             );
             if let geometry::PathShape::Arc { turns, .. } = &mut s.shape {

@@ -78,7 +78,12 @@ pub fn simulate_in_batches(
     let radii: Vec<f64> = tools.all().map(Tool::radius).collect();
     let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
     let times = cycle_time(moves, &spec.machine, None)?;
-    let mut rows = rows::initial_rows(&spec.program, moves, &times);
+    let mut rows = rows::initial_rows(
+        &spec.program,
+        moves,
+        &times,
+        spec.machine.rotary_feed_reading,
+    );
     let clock = Instant::now();
     let plan = removal::plan_removal(spec, moves, &tools, cell, &mut rows)?;
     let plan_s = clock.elapsed().as_secs_f64();

@@ -7,7 +7,7 @@ use super::forces::{forces_after, AfterStep};
 use super::rows::{LimitCount, MoveRow, OptimizationSummary, StageTimings, ToolOptimization};
 use super::spec::{SimulateError, SimulateSpec};
 use super::step_totals::KeptStep;
-use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length};
+use crate::machine::cycle_time::{cycle_time, move_length};
 use crate::nc::{self, Move, MoveKind};
 use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
 use crate::physics::ForceModel;
@@ -154,7 +154,7 @@ pub(super) fn optimize_stage(
             if m.kind == MoveKind::Rapid {
                 0.0
             } else {
-                feed_velocity(m)
+                spec.machine.rotary_feed_reading.path_rate(m)
             }
         })
         .collect();

@@ -3,8 +3,9 @@
 use serde::Serialize;
 
 use crate::geometry::{self, Stock};
-use crate::machine::cycle_time::{feed_velocity, move_length};
+use crate::machine::cycle_time::move_length;
 use crate::machine::CycleTime;
+use crate::machine::RotaryFeedReading;
 use crate::nc::{self, FeedMode, Move, MoveKind};
 use crate::optimize::{self, FeedLimits};
 
@@ -484,7 +485,12 @@ pub(super) fn summarize(
 
 /// A row for every move with what the program says (its N number, feed, length) and its
 /// time in the cycle; the stages fill in the rest.
-pub(super) fn initial_rows(program: &str, moves: &[Move], times: &CycleTime) -> Vec<MoveRow> {
+pub(super) fn initial_rows(
+    program: &str,
+    moves: &[Move],
+    times: &CycleTime,
+    feed_reading: RotaryFeedReading,
+) -> Vec<MoveRow> {
     let lengths: Vec<f64> = moves.iter().map(move_length).collect();
     let n_numbers: Vec<Option<u64>> = nc::Program::parse(program)
         .map(|p| {
@@ -515,7 +521,7 @@ pub(super) fn initial_rows(program: &str, moves: &[Move], times: &CycleTime) -> 
             feed_mm_min: if m.kind == MoveKind::Rapid {
                 0.0
             } else {
-                feed_velocity(m)
+                feed_reading.path_rate(m)
             },
             spindle: m.spindle,
             time_s: times.per_move_s[i],
