@@ -57,6 +57,10 @@ pub struct RunArgs {
     /// program too.
     #[arg(long)]
     optimize: Option<String>,
+    /// A tool's own limits, winning over --optimize's for its moves, e.g.
+    /// `T2:max_force=120,max_feed=2000` (repeat per tool; the job's limits.tools).
+    #[arg(long, value_name = "T<n>:NAME=VALUE,...", requires = "optimize")]
+    optimize_tool: Vec<String>,
     /// On a machine with rotary axes: `machine` (X..C are machine axes) or `tool_tip`
     /// (tool-centre-point control: X Y Z are the tool tip in the part frame).
     #[arg(long, default_value = "machine")]
@@ -294,6 +298,26 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                     limits.insert(k.trim().to_string(), value);
                 }
             }
+        }
+        let mut tools = Map::new();
+        for spec in &args.optimize_tool {
+            let (tool, pairs) = spec
+                .split_once(':')
+                .ok_or_else(|| format!("--optimize-tool: `{spec}` is not T<n>:NAME=VALUE,..."))?;
+            let mut own = Map::new();
+            for pair in pairs.split(',').filter(|p| !p.trim().is_empty()) {
+                let (k, v) = pair
+                    .split_once('=')
+                    .ok_or_else(|| format!("--optimize-tool {tool}: `{pair}` is not NAME=VALUE"))?;
+                let v: f64 = v.trim().parse().map_err(|_| {
+                    format!("--optimize-tool {tool}: `{v}` is not a number (in `{pair}`)")
+                })?;
+                own.insert(k.trim().to_string(), json!(v));
+            }
+            tools.insert(tool.trim().to_ascii_uppercase(), Value::Object(own));
+        }
+        if !tools.is_empty() {
+            limits.insert("tools".into(), Value::Object(tools));
         }
         options.insert("limits".into(), Value::Object(limits));
     }

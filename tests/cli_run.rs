@@ -342,3 +342,51 @@ fn a_byte_order_mark_is_accepted_in_programs_and_tools() {
     .unwrap();
     assert!(summary["removed_volume_mm3"].as_f64().unwrap() > 2500.0, "{summary}");
 }
+
+/// `--optimize-tool T1:max_force=300` holds T1 to its own limit (the job's limits.tools), and
+/// the plunge of the program is not written faster than programmed.
+#[test]
+fn run_takes_a_tools_own_limits_and_keeps_plunges_at_their_feed() {
+    let dir = tempfile::tempdir().unwrap();
+    let tool = dir.path().join("tool.json");
+    std::fs::write(
+        &tool,
+        r#"{"type":"flat","diameter_mm":10,"flutes":4,"flute_length_mm":20}"#,
+    )
+    .unwrap();
+    let program = dir.path().join("p.nc");
+    std::fs::write(
+        &program,
+        "G21 G90\nT1 M6\nS10000 M3\nG0 X50 Y0 Z5\nG0 Z0\nG1 Z-3 F150\nG1 X90 F1000\nG0 Z5\nM30\n",
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = Command::new(BIN)
+        .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6"])
+        .args(["--cell", "0.25", "--program"])
+        .arg(&program)
+        .arg("--tool")
+        .arg(format!("T1={}", tool.display()))
+        .args([
+            "--optimize",
+            "max_force=3000,air_feed=5000,max_feed=5000",
+            "--optimize-tool",
+            "T1:max_force=300",
+        ])
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
+    let t1 = &summary["optimization"]["tools"][0];
+    assert_eq!(t1["tool"], 1, "{summary}");
+    assert_eq!(t1["limits"]["max_force"], 300.0, "{summary}");
+    let text = std::fs::read_to_string(out_dir.join("p.opt.nc")).unwrap();
+    let plunge = text.lines().nth(5).unwrap();
+    let f: f64 = plunge.split('F').nth(1).unwrap().trim().parse().unwrap();
+    assert!(f <= 150.0, "{plunge}");
+    assert!(err.contains("cycle time:"), "{err}");
+}

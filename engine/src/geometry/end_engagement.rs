@@ -17,11 +17,14 @@ use crate::vec3::dot;
 /// At most this many rings across the flat end (one per cell, fewer on a coarse grid).
 const MAX_RINGS: usize = 16;
 
-/// Below this angle between the motion and the plane across the axis (0.5°) the end is not
-/// taken to cut: its axial chip would be under 1% of the feed per tooth, and a move along a
+/// Below this angle between the motion and the plane across the axis (3°) the end is not
+/// taken to cut: its axial chip would be under 5% of the feed per tooth, a move along a
 /// floor whose end point differs by a rounding residue would read its own floor as a slab
-/// (the edge forces, which do not shrink with the chip, would then be counted in full).
-pub const MIN_END_FEED_SIN: f64 = 0.008_726_535_498_373_935; // sin 0.5°
+/// (the edge forces, which do not shrink with the chip, would then be counted in full), and
+/// the chord steps of a rotary move (a wrap), which cut across the turning tool's path by
+/// half their angle, would do the same. Shallower ramps are held by the optimizer's plunge
+/// rule (1°) instead.
+pub const MIN_END_FEED_SIN: f64 = 0.052_335_956_242_943_835; // sin 3°
 
 /// The end rings of the step at `pos` with displacement `motion` along `axis` (unit), the
 /// bins' unit radial directions in `radial` (nb of them, bin m spanning [m, m+1)·dphi).

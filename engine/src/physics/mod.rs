@@ -37,6 +37,7 @@
 //!         .collect(),
 //!     feed_dir: [0.0, 1.0, 0.0],
 //!     tool_axis: [0.0, 0.0, 1.0],
+//!     end: Vec::new(),
 //! };
 //! let mut out = ForceResult::default();
 //! model

@@ -7,7 +7,7 @@ use super::forces::{forces_after, AfterStep};
 use super::rows::{LimitCount, MoveRow, OptimizationSummary, StageTimings, ToolOptimization};
 use super::spec::{SimulateError, SimulateSpec};
 use super::step_totals::KeptStep;
-use crate::machine::cycle_time::{cycle_time, move_length};
+use crate::machine::cycle_time::{cycle_time, feed_velocity, move_length};
 use crate::nc::{self, Move, MoveKind};
 use crate::optimize::{self, Cutter, EngagementStep, FeedLimits, RewriteOptions};
 use crate::physics::ForceModel;
@@ -324,6 +324,11 @@ fn add_forces_after(
 /// length (tool axis +Z, or the move's own for 5-axis input); a move that turns rotary axes
 /// is judged by its tip path at the end (its axis may turn).
 fn is_plunge(m: &Move) -> bool {
+    // Machine rotary axes away from zero: the tool axis is not known here (not judged).
+    let tilted = (3..6).any(|i| m.start[i] != 0.0 || m.end[i] != 0.0);
+    if m.tool_axis.is_none() && tilted {
+        return false;
+    }
     let a = m.tool_axis.unwrap_or([0.0, 0.0, 1.0]);
     let d = [
         m.end[0] - m.start[0],
