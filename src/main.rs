@@ -541,7 +541,8 @@ fn tool_diameter(spec: &str) -> Result<(u32, f64), String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{spec}: {path}: {e}"))?;
     validate::tool(&bytes).map_err(|e| format!("{spec}: {path}: {}", e.detail))?;
     let tool: millsim_engine::tool::Tool =
-        serde_json::from_slice(crate::problem::without_bom(&bytes)).map_err(|e| format!("{spec}: {path}: {e}"))?;
+        serde_json::from_slice(crate::problem::without_bom(&bytes))
+            .map_err(|e| format!("{spec}: {path}: {e}"))?;
     Ok((number, tool.diameter))
 }
 
@@ -668,7 +669,8 @@ fn post(args: PostArgs) -> Result<(), String> {
     validate::machine(&machine_bytes)
         .map_err(|e| format!("{}: {}", args.machine.display(), e.detail))?;
     let machine: millsim_engine::machine::Machine =
-        serde_json::from_slice(crate::problem::without_bom(&machine_bytes)).map_err(|e| e.to_string())?;
+        serde_json::from_slice(crate::problem::without_bom(&machine_bytes))
+            .map_err(|e| e.to_string())?;
     if !(1..=9).contains(&args.decimals) {
         return Err(format!("--decimals must be 1 to 9, got {}", args.decimals));
     }

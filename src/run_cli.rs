@@ -482,7 +482,13 @@ pub fn run_report(summary: &Value) -> String {
                 if let Some(notes) = t["limited_by"].as_array().filter(|n| !n.is_empty()) {
                     let notes: Vec<String> = notes
                         .iter()
-                        .map(|n| format!("{} ({} moves)", n["limit"].as_str().unwrap_or("?"), n["moves"]))
+                        .map(|n| {
+                            format!(
+                                "{} ({} moves)",
+                                n["limit"].as_str().unwrap_or("?"),
+                                n["moves"]
+                            )
+                        })
                         .collect();
                     let _ = writeln!(out, "T{}: slowed by {}", t["tool"], notes.join(", "));
                 }

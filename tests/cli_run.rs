@@ -282,7 +282,12 @@ fn run_refuses_a_tool_number_it_was_not_given_and_prints_a_summary() {
         let path = dir.path().join("p.nc");
         std::fs::write(&path, program).unwrap();
         Command::new(BIN)
-            .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6"])
+            .args([
+                "run",
+                "--block=0,-20,-10,100,40,10",
+                "--material",
+                "Al7075-T6",
+            ])
             .args(["--cell", "0.5", "--program"])
             .arg(&path)
             .arg("--tool")
@@ -304,8 +309,14 @@ fn run_refuses_a_tool_number_it_was_not_given_and_prints_a_summary() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("cycle time:"), "{err}");
-    assert!(err.contains("peak force:") && err.contains("at line 7"), "{err}");
-    assert!(err.contains("COLLISIONS: 1") && err.contains("line 6: rapid_in_material"), "{err}");
+    assert!(
+        err.contains("peak force:") && err.contains("at line 7"),
+        "{err}"
+    );
+    assert!(
+        err.contains("COLLISIONS: 1") && err.contains("line 6: rapid_in_material"),
+        "{err}"
+    );
 }
 
 /// Files saved by Windows editors start with a UTF-8 byte-order mark: programs and tool
@@ -326,7 +337,12 @@ fn a_byte_order_mark_is_accepted_in_programs_and_tools() {
     )
     .unwrap();
     let out = Command::new(BIN)
-        .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6"])
+        .args([
+            "run",
+            "--block=0,-20,-10,100,40,10",
+            "--material",
+            "Al7075-T6",
+        ])
         .args(["--cell", "0.5", "--program"])
         .arg(&program)
         .arg("--tool")
@@ -335,12 +351,19 @@ fn a_byte_order_mark_is_accepted_in_programs_and_tools() {
         .arg(dir.path().join("out"))
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let summary: serde_json::Value = serde_json::from_slice(
         &std::fs::read(dir.path().join("out").join("summary.json")).unwrap(),
     )
     .unwrap();
-    assert!(summary["removed_volume_mm3"].as_f64().unwrap() > 2500.0, "{summary}");
+    assert!(
+        summary["removed_volume_mm3"].as_f64().unwrap() > 2500.0,
+        "{summary}"
+    );
 }
 
 /// `--optimize-tool T1:max_force=300` holds T1 to its own limit (the job's limits.tools), and
@@ -362,7 +385,12 @@ fn run_takes_a_tools_own_limits_and_keeps_plunges_at_their_feed() {
     .unwrap();
     let out_dir = dir.path().join("out");
     let out = Command::new(BIN)
-        .args(["run", "--block=0,-20,-10,100,40,10", "--material", "Al7075-T6"])
+        .args([
+            "run",
+            "--block=0,-20,-10,100,40,10",
+            "--material",
+            "Al7075-T6",
+        ])
         .args(["--cell", "0.25", "--program"])
         .arg(&program)
         .arg("--tool")

@@ -38,7 +38,12 @@ fn the_first_rapid_starts_above_the_stock_not_at_program_zero() {
     assert!(!first.rapid_in_material, "{first:?}");
     assert_eq!(out.summary.rapid_in_material_moves, 0, "{:?}", out.summary);
     // The only cut is the side cut at line 7.
-    let cut: f64 = out.rows.iter().filter(|r| r.line != 7).map(|r| r.removed_volume).sum();
+    let cut: f64 = out
+        .rows
+        .iter()
+        .filter(|r| r.line != 7)
+        .map(|r| r.removed_volume)
+        .sum();
     assert_eq!(cut, 0.0);
 }
 

@@ -264,7 +264,11 @@ fn wrap_is_optimized_to_the_tip_feed_in_both_feed_modes_and_resimulates_at_the_l
         let re = simulate(&again, &CancelFlag::new(), &NoProgress).unwrap();
         // The plunge onto the cylinder (line 3) now has its end teeth's thrust, whose edge
         // part alone is over this limit at any feed: reported as unreachable, not met.
-        let unreachable = &out.optimization.as_ref().unwrap().force_limit_unreachable_lines;
+        let unreachable = &out
+            .optimization
+            .as_ref()
+            .unwrap()
+            .force_limit_unreachable_lines;
         assert!(unreachable.contains(&3), "{unreachable:?}");
         for r in re.rows.iter().filter(|r| r.peak_force > 0.0 && r.line != 3) {
             assert!(

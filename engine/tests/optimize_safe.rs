@@ -22,7 +22,9 @@ fn limits(max_force: f64) -> FeedLimits {
 /// The F word the optimized program writes on `line` (1-based).
 fn f_on(text: &str, line: usize) -> f64 {
     let l = text.lines().nth(line - 1).unwrap();
-    let at = l.find('F').unwrap_or_else(|| panic!("no F on line {line}: {l}"));
+    let at = l
+        .find('F')
+        .unwrap_or_else(|| panic!("no F on line {line}: {l}"));
     l[at + 1..]
         .split(|c: char| !(c.is_ascii_digit() || c == '.'))
         .next()
@@ -45,7 +47,12 @@ fn plunge_spec(l: FeedLimits) -> SimulateSpec {
 #[test]
 fn a_plunge_into_solid_is_never_sped_up_past_its_programmed_feed() {
     // Before: the plunge read as air and was written at the air feed (F5000).
-    let out = simulate(&plunge_spec(limits(3000.0)), &CancelFlag::new(), &NoProgress).unwrap();
+    let out = simulate(
+        &plunge_spec(limits(3000.0)),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
     let text = out.optimized_program.unwrap();
     let f = f_on(&text, 5);
     assert!(f <= 100.0, "plunge written at F{f}:\n{text}");
@@ -80,8 +87,20 @@ fn each_tool_is_held_to_its_own_limits_on_re_simulation() {
     let program = "G21 G90\nT1 M6\nS8000 M3\nG0 X-10 Y-10 Z5\nG0 Z-3\nG1 X110 F600\nG0 Z5\n\
                    T2 M6\nS10000 M3\nG0 X-10 Y10 Z5\nG0 Z-0.5\nG1 X110 F960\nG0 Z5\nM30\n";
     let tools = BTreeMap::from([
-        (1, Tool { flute_length: 30.0, ..Tool::flat(12.0, 4) }),
-        (2, Tool { flute_length: 20.0, ..Tool::ball(6.0, 2) }),
+        (
+            1,
+            Tool {
+                flute_length: 30.0,
+                ..Tool::flat(12.0, 4)
+            },
+        ),
+        (
+            2,
+            Tool {
+                flute_length: 20.0,
+                ..Tool::ball(6.0, 2)
+            },
+        ),
     ]);
     let spec = |own: bool| {
         let mut l = limits(1500.0);
@@ -117,11 +136,23 @@ fn each_tool_is_held_to_its_own_limits_on_re_simulation() {
     let re = simulate(&again, &CancelFlag::new(), &NoProgress).unwrap();
     let peak = |line: u32| re.rows.iter().find(|r| r.line == line).unwrap().peak_force;
     assert!(peak(12) <= 120.0 * 1.02, "T2 at {} N", peak(12));
-    assert!(peak(12) >= 120.0 * 0.9, "T2 at {} N: the limit should bind", peak(12));
-    assert!(peak(6) > 300.0 && peak(6) <= 1500.0 * 1.02, "T1 at {} N", peak(6));
+    assert!(
+        peak(12) >= 120.0 * 0.9,
+        "T2 at {} N: the limit should bind",
+        peak(12)
+    );
+    assert!(
+        peak(6) > 300.0 && peak(6) <= 1500.0 * 1.02,
+        "T1 at {} N",
+        peak(6)
+    );
 
     // A tool's limits keyed by something else than its number are refused, naming it.
     let mut bad = limits(1500.0);
     bad.tools.insert("tool2".into(), ToolLimits::default());
-    assert!(bad.validate().unwrap_err().to_string().contains("tools.tool2"));
+    assert!(bad
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("tools.tool2"));
 }

@@ -66,8 +66,16 @@ fn a_plunge_matches_the_closed_form_of_the_end_edges() {
     let (nf, rr) = (n as f64, d / 2.0);
     let thrust = nf * rr * (k.krc * c + k.kre);
     let torque = nf * (k.ktc * c + k.kte) * rr * rr / 2.0 / 1000.0;
-    assert!(rel(r.fz.mean, thrust) < 1e-9, "Fz {} vs {thrust}", r.fz.mean);
-    assert!(rel(r.torque.mean, torque) < 1e-9, "T {} vs {torque}", r.torque.mean);
+    assert!(
+        rel(r.fz.mean, thrust) < 1e-9,
+        "Fz {} vs {thrust}",
+        r.fz.mean
+    );
+    assert!(
+        rel(r.torque.mean, torque) < 1e-9,
+        "T {} vs {torque}",
+        r.torque.mean
+    );
     // Constant over the revolution: the peak is the mean.
     assert!(rel(r.torque.peak, torque) < 1e-9);
     assert!(r.fx.mean.abs() < 1e-6 * thrust && r.fy.mean.abs() < 1e-6 * thrust);
@@ -188,7 +196,12 @@ fn a_ramp_loads_the_flank_and_the_end_as_a_brute_force_integration_does() {
             },
         )
         .unwrap();
-    assert!(got.fz.mean > f.fz.mean + 100.0, "{} vs {}", got.fz.mean, f.fz.mean);
+    assert!(
+        got.fz.mean > f.fz.mean + 100.0,
+        "{} vs {}",
+        got.fz.mean,
+        f.fz.mean
+    );
 }
 
 #[test]
@@ -219,7 +232,15 @@ fn a_plunge_into_solid_has_its_thrust_and_torque_and_is_not_air() {
     assert_eq!(row.air_fraction, 0.0, "{row:?}");
     assert!(!row.flags.split("|").any(|f| f == "air"), "{row:?}");
     // The rings' test points are on the grid: every step of a plunge into solid is full.
-    assert!(rel(row.fz_mean_n, thrust) < 0.02, "Fz {} vs {thrust}", row.fz_mean_n);
-    assert!(rel(row.peak_torque, torque) < 0.02, "T {} vs {torque}", row.peak_torque);
+    assert!(
+        rel(row.fz_mean_n, thrust) < 0.02,
+        "Fz {} vs {thrust}",
+        row.fz_mean_n
+    );
+    assert!(
+        rel(row.peak_torque, torque) < 0.02,
+        "T {} vs {torque}",
+        row.peak_torque
+    );
     assert!(row.fx_mean_n.abs() < 0.02 * thrust && row.fy_mean_n.abs() < 0.02 * thrust);
 }

@@ -305,8 +305,10 @@ pub fn run(
         .ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
     let stock = if stock.media_type == "application/json" {
         StockSource::Shape(
-            serde_json::from_slice::<geometry::StockShape>(crate::problem::without_bom(&stock.content))
-                .map_err(|e| invalid("Invalid stock", e.to_string()))?,
+            serde_json::from_slice::<geometry::StockShape>(crate::problem::without_bom(
+                &stock.content,
+            ))
+            .map_err(|e| invalid("Invalid stock", e.to_string()))?,
         )
     } else {
         let file = stock

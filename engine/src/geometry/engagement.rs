@@ -629,15 +629,8 @@ pub(crate) fn compute(
     // The flat end, when the step feeds toward the tip.
     if dot(v, a) < 0.0 {
         let radial: Vec<[f64; 3]> = (0..nb).map(radial_of).collect();
-        eng.end = super::end_engagement::end_rings(
-            grid,
-            tool,
-            input.pos,
-            a,
-            input.motion,
-            &radial,
-            dphi,
-        );
+        eng.end =
+            super::end_engagement::end_rings(grid, tool, input.pos, a, input.motion, &radial, dphi);
         for ring in &eng.end {
             let sp = Spread::of_arcs(&ring.arcs);
             met.entry_angle = met.entry_angle.min(sp.entry);

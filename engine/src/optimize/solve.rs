@@ -332,7 +332,10 @@ pub(super) fn solve_move(
     // past max_plunge_feed when given): chip evacuation and the centre of the end are not
     // in the force model.
     if seg.plunge {
-        let cap = limits.max_plunge_feed.unwrap_or(programmed).min(limits.max_feed);
+        let cap = limits
+            .max_plunge_feed
+            .unwrap_or(programmed)
+            .min(limits.max_feed);
         if res.limit_feed > cap {
             res.limit_feed = cap;
             res.limit_governing = Governing::Plunge;

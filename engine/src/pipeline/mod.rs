@@ -62,8 +62,7 @@ pub fn simulate_in_batches(
         StockSource::Stl(source) => Some(source.mesh().map_err(geometry::GeometryError::from)?),
     };
     let bounds = setup::stock_bounds(spec, mesh.as_deref())?;
-    let interpret =
-        spec.interpret_options(setup::start_positions(&spec.machine, bounds.1[2]));
+    let interpret = spec.interpret_options(setup::start_positions(&spec.machine, bounds.1[2]));
     let clock = Instant::now();
     let interpretation =
         nc::interpret(&spec.program, &interpret).map_err(SimulateError::Program)?;

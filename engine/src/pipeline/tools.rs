@@ -42,8 +42,7 @@ impl ToolLookup {
         let mut tools = spec.tools.clone();
         // One numbered tool and a program that names no tool at all: it is the tool in the
         // spindle. (A program that names another number is refused, naming it.)
-        if used.is_empty() && selected.is_empty() && tools.len() == 1 && !tools.contains_key(&0)
-        {
+        if used.is_empty() && selected.is_empty() && tools.len() == 1 && !tools.contains_key(&0) {
             let (_, tool) = tools.pop_first().expect("one tool");
             tools.insert(0, tool);
         }
