@@ -132,7 +132,7 @@ fn each_tool_is_held_to_its_own_limits_on_re_simulation() {
 
     // The optimized program run again at its own feeds.
     let mut again = common::simulate::block_spec(&text, Tool::flat(12.0, 4), 0.25);
-    again.tools = tools;
+    again.tools = tools.clone();
     let re = simulate(&again, &CancelFlag::new(), &NoProgress).unwrap();
     let peak = |line: u32| re.rows.iter().find(|r| r.line == line).unwrap().peak_force;
     assert!(peak(12) <= 120.0 * 1.02, "T2 at {} N", peak(12));
@@ -146,6 +146,28 @@ fn each_tool_is_held_to_its_own_limits_on_re_simulation() {
         "T1 at {} N",
         peak(6)
     );
+
+    // A tool's own entry factor slows that tool's entries only.
+    let mut entry = spec(true);
+    let own = entry
+        .optimize
+        .as_mut()
+        .unwrap()
+        .tools
+        .get_mut("T2")
+        .unwrap();
+    own.entry_feed_factor = Some(0.5);
+    let out = simulate(&entry, &CancelFlag::new(), &NoProgress).unwrap();
+    let governing = |line: u32| {
+        out.rows
+            .iter()
+            .find(|r| r.line == line)
+            .unwrap()
+            .governing
+            .clone()
+    };
+    assert_eq!(governing(12).as_deref(), Some("entry"));
+    assert_ne!(governing(6).as_deref(), Some("entry"));
 
     // A tool's limits keyed by something else than its number are refused, naming it.
     let mut bad = limits(1500.0);

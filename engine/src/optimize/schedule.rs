@@ -176,6 +176,8 @@ pub fn optimize_feeds_per_cutter(
             continue;
         }
         for &i in &per_move[mi] {
+            // The policies of the move's own tool (its entry factor and feed range).
+            let limits = per_cutter.get(engagements[i].cutter).unwrap_or(limits);
             let s = &mut solved[i];
             if !s.engaged {
                 s.feed = s.limit_feed;
