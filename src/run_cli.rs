@@ -274,14 +274,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     }
     if let Some(spec) = &args.optimize {
         let mut limits = Map::new();
-        for pair in spec.split(',').filter(|p| !p.trim().is_empty()) {
-            let (k, v) = pair
-                .split_once('=')
-                .ok_or_else(|| format!("--optimize: `{pair}` is not NAME=VALUE"))?;
-            let v: f64 = v
-                .trim()
-                .parse()
-                .map_err(|_| format!("--optimize: `{v}` is not a number (in `{pair}`)"))?;
+        for (k, v) in name_values("--optimize", spec)? {
             // Counts (max_iterations) are integers in the options.
             let value = if v.fract() == 0.0 && v.abs() < 1e15 {
                 json!(v as i64)
@@ -289,13 +282,13 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                 json!(v)
             };
             // split_max_parts=4, split_min_length=2, split_min_saving=0.05: limits.split.
-            match k.trim().strip_prefix("split_") {
+            match k.strip_prefix("split_") {
                 Some(field) => {
                     let split = limits.entry("split").or_insert_with(|| json!({}));
                     split[field] = value;
                 }
                 None => {
-                    limits.insert(k.trim().to_string(), value);
+                    limits.insert(k, value);
                 }
             }
         }
@@ -304,16 +297,10 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             let (tool, pairs) = spec
                 .split_once(':')
                 .ok_or_else(|| format!("--optimize-tool: `{spec}` is not T<n>:NAME=VALUE,..."))?;
-            let mut own = Map::new();
-            for pair in pairs.split(',').filter(|p| !p.trim().is_empty()) {
-                let (k, v) = pair
-                    .split_once('=')
-                    .ok_or_else(|| format!("--optimize-tool {tool}: `{pair}` is not NAME=VALUE"))?;
-                let v: f64 = v.trim().parse().map_err(|_| {
-                    format!("--optimize-tool {tool}: `{v}` is not a number (in `{pair}`)")
-                })?;
-                own.insert(k.trim().to_string(), json!(v));
-            }
+            let own: Map<String, Value> = name_values(&format!("--optimize-tool {tool}"), pairs)?
+                .into_iter()
+                .map(|(k, v)| (k, json!(v)))
+                .collect();
             tools.insert(tool.trim().to_ascii_uppercase(), Value::Object(own));
         }
         if !tools.is_empty() {
@@ -408,6 +395,23 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         args.out.display()
     );
     Ok(())
+}
+
+/// `NAME=VALUE,...` of option `flag` as (name, number) pairs; errors name the flag and pair.
+fn name_values(flag: &str, list: &str) -> Result<Vec<(String, f64)>, String> {
+    list.split(',')
+        .filter(|p| !p.trim().is_empty())
+        .map(|pair| {
+            let (k, v) = pair
+                .split_once('=')
+                .ok_or_else(|| format!("{flag}: `{pair}` is not NAME=VALUE"))?;
+            let v: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| format!("{flag}: `{v}` is not a number (in `{pair}`)"))?;
+            Ok((k.trim().to_string(), v))
+        })
+        .collect()
 }
 
 /// The few lines a machinist reads before running the output: the cycle time before and

@@ -11,6 +11,21 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::vec3::{dot, norm, scale, sub};
+
+/// The x direction of a step that has no feed across the tool axis (a pure plunge): the
+/// part's X (or Y, when the axis is near X) projected across the axis, unit. The geometry
+/// measures a plunge's arcs from it and the force model's frame takes the same x.
+pub fn plunge_x(axis: [f64; 3]) -> [f64; 3] {
+    let e = if axis[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let p = sub(e, scale(axis, dot(e, axis)));
+    scale(p, 1.0 / norm(p))
+}
+
 /// A slice's engaged arcs: one or two inline (the common cases, no allocation per slice).
 pub type Arcs = smallvec::SmallVec<[(f64, f64); 2]>;
 

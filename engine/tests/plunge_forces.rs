@@ -33,6 +33,14 @@ fn rings(r: f64, n: usize) -> Vec<EndRing> {
         .collect()
 }
 
+/// 8000 rpm, `c` mm a tooth.
+fn at_8000(c: f64) -> CuttingConditions {
+    CuttingConditions {
+        spindle_rpm: 8000.0,
+        feed_per_tooth: c,
+    }
+}
+
 fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(1e-9)
 }
@@ -53,16 +61,7 @@ fn a_plunge_matches_the_closed_form_of_the_end_edges() {
         end: rings(d / 2.0, 5),
     };
     let mut m = ForceModel::new(&tool, 300, 360).unwrap();
-    let r = m
-        .evaluate(
-            &e,
-            &k,
-            &CuttingConditions {
-                spindle_rpm: 8000.0,
-                feed_per_tooth: c,
-            },
-        )
-        .unwrap();
+    let r = m.evaluate(&e, &k, &at_8000(c)).unwrap();
     let (nf, rr) = (n as f64, d / 2.0);
     let thrust = nf * rr * (k.krc * c + k.kre);
     let torque = nf * (k.ktc * c + k.kte) * rr * rr / 2.0 / 1000.0;
@@ -162,16 +161,7 @@ fn a_ramp_loads_the_flank_and_the_end_as_a_brute_force_integration_does() {
         end: rings(d / 2.0, 4),
     };
     let mut m = ForceModel::new(&tool, 300, 3600).unwrap();
-    let got = m
-        .evaluate(
-            &e,
-            &k,
-            &CuttingConditions {
-                spindle_rpm: 8000.0,
-                feed_per_tooth: c,
-            },
-        )
-        .unwrap();
+    let got = m.evaluate(&e, &k, &at_8000(c)).unwrap();
     let want = brute_force_ramp(&k, n, d / 2.0, depth, c, ramp);
     for (name, g, w) in [
         ("Fx", got.fx.mean, want[0]),
@@ -186,16 +176,7 @@ fn a_ramp_loads_the_flank_and_the_end_as_a_brute_force_integration_does() {
         end: Vec::new(),
         ..e.clone()
     };
-    let f = m
-        .evaluate(
-            &flank_only,
-            &k,
-            &CuttingConditions {
-                spindle_rpm: 8000.0,
-                feed_per_tooth: c,
-            },
-        )
-        .unwrap();
+    let f = m.evaluate(&flank_only, &k, &at_8000(c)).unwrap();
     assert!(
         got.fz.mean > f.fz.mean + 100.0,
         "{} vs {}",

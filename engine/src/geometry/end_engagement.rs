@@ -10,7 +10,7 @@
 //! higher, so what lies there has not been cut by it.
 
 use super::dexel::DexelGrid;
-use crate::engagement::{Arcs, EndRing};
+use crate::engagement::EndRing;
 use crate::tool::Tool;
 use crate::vec3::dot;
 
@@ -48,29 +48,18 @@ pub(super) fn end_rings(
     let count = ((r_end / grid.cell).ceil() as usize).clamp(1, MAX_RINGS);
     let width = r_end / count as f64;
     let mut rings = Vec::new();
+    let mut row = vec![false; radial.len()];
     for k in 0..count {
         let (r0, r1) = (k as f64 * width, (k + 1) as f64 * width);
         let rm = 0.5 * (r0 + r1);
-        let mut arcs = Arcs::new();
-        let mut open: Option<usize> = None;
-        for (m, d) in radial.iter().enumerate() {
-            let p = [
+        for (bit, d) in row.iter_mut().zip(radial) {
+            *bit = grid.material_at([
                 pos[0] + d[0] * rm - axis[0] * below,
                 pos[1] + d[1] * rm - axis[1] * below,
                 pos[2] + d[2] * rm - axis[2] * below,
-            ];
-            match (grid.material_at(p), open) {
-                (true, None) => open = Some(m),
-                (false, Some(s)) => {
-                    arcs.push((s as f64 * dphi, m as f64 * dphi));
-                    open = None;
-                }
-                _ => {}
-            }
+            ]);
         }
-        if let Some(s) = open {
-            arcs.push((s as f64 * dphi, radial.len() as f64 * dphi));
-        }
+        let arcs = super::engagement::arcs_of_bins(&row, dphi);
         if !arcs.is_empty() {
             rings.push(EndRing { r0, r1, arcs });
         }

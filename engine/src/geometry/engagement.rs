@@ -183,16 +183,7 @@ pub(crate) fn compute(
     let xf = if dot(vp, vp) > 1e-18 {
         unit(vp)
     } else {
-        let e = if a[0].abs() < 0.9 {
-            [1.0, 0.0, 0.0]
-        } else {
-            [0.0, 1.0, 0.0]
-        };
-        unit([
-            e[0] - dot(e, a) * a[0],
-            e[1] - dot(e, a) * a[1],
-            e[2] - dot(e, a) * a[2],
-        ])
+        crate::engagement::plunge_x(a)
     };
     let yf = cross(a, xf);
     let mut eng = Engagement {
@@ -465,22 +456,7 @@ pub(crate) fn compute(
         ..Default::default()
     };
     // The arcs of a row of bins.
-    let arcs_in = |row: &[bool]| {
-        let mut arcs = Arcs::new();
-        let mut m = 0;
-        while m < nb {
-            if row[m] {
-                let start = m;
-                while m < nb && row[m] {
-                    m += 1;
-                }
-                arcs.push((start as f64 * dphi, m as f64 * dphi));
-            } else {
-                m += 1;
-            }
-        }
-        arcs
-    };
+    let arcs_in = |row: &[bool]| arcs_of_bins(&row[..nb], dphi);
     // A slice's metrics from the spread of all its engaged arcs: entry, exit, radial
     // width at the edge's radius at height `z`, and the edge length over [z0, z1].
     let measure = |sp: Spread, z: f64, z0: f64, z1: f64, met: &mut StepMetrics| {
@@ -644,6 +620,25 @@ pub(crate) fn compute(
     }
     met.axial_depth = eng.axial_depth();
     (eng, met)
+}
+
+/// The arcs of a row of bins (bin m spans [m, m + 1)·dphi): one per run of set bins.
+pub(super) fn arcs_of_bins(row: &[bool], dphi: f64) -> Arcs {
+    let nb = row.len();
+    let mut arcs = Arcs::new();
+    let mut m = 0;
+    while m < nb {
+        if row[m] {
+            let start = m;
+            while m < nb && row[m] {
+                m += 1;
+            }
+            arcs.push((start as f64 * dphi, m as f64 * dphi));
+        } else {
+            m += 1;
+        }
+    }
+    arcs
 }
 
 /// Bisection steps that settle where a bin leaves material between two slice centres:

@@ -61,7 +61,7 @@ pub fn simulate_in_batches(
         StockSource::Shape(_) => None,
         StockSource::Stl(source) => Some(source.mesh().map_err(geometry::GeometryError::from)?),
     };
-    let bounds = setup::stock_bounds(spec, mesh.as_deref())?;
+    let bounds = setup::stock_bounds(spec, mesh.as_deref(), &GridFrame::IDENTITY)?;
     let interpret = spec.interpret_options(setup::start_positions(&spec.machine, bounds.1[2]));
     let clock = Instant::now();
     let interpretation =
@@ -240,13 +240,7 @@ fn stock(
         cell: Some(cell),
         memory_limit: spec.memory_limit,
     };
-    let bounds = |frame: &GridFrame| -> Result<([f64; 3], [f64; 3]), SimulateError> {
-        Ok(match (&spec.stock, &mesh) {
-            (StockSource::Shape(shape), _) => shape.bounds_in(frame)?,
-            (_, Some(mesh)) => mesh.bounds_in(frame),
-            _ => unreachable!("an STL stock has its mesh"),
-        })
-    };
+    let bounds = |frame: &GridFrame| setup::stock_bounds(spec, mesh, frame);
     let build = |frame: GridFrame| -> Result<Stock, geometry::GeometryError> {
         match (&spec.stock, &mesh) {
             (StockSource::Shape(shape), _) => Stock::from_shape_in(shape, &grid, frame),

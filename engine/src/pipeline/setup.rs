@@ -7,14 +7,15 @@ use crate::nc::{Move, MoveKind, ToolChangeTo};
 
 use super::spec::{SimulateError, SimulateSpec, StockSource};
 
-/// The stock's bounds in the part frame, mm (the mesh is read by the caller once).
+/// The stock's bounds in `frame`, mm (the mesh is read by the caller once).
 pub(super) fn stock_bounds(
     spec: &SimulateSpec,
     mesh: Option<&geometry::Mesh>,
+    frame: &GridFrame,
 ) -> Result<([f64; 3], [f64; 3]), SimulateError> {
     Ok(match (&spec.stock, mesh) {
-        (StockSource::Shape(shape), _) => shape.bounds_in(&GridFrame::IDENTITY)?,
-        (_, Some(mesh)) => mesh.bounds_in(&GridFrame::IDENTITY),
+        (StockSource::Shape(shape), _) => shape.bounds_in(frame)?,
+        (_, Some(mesh)) => mesh.bounds_in(frame),
         _ => unreachable!("an STL stock has its mesh"),
     })
 }

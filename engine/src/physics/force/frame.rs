@@ -41,13 +41,7 @@ impl ToolFrame {
         let x = if across > 1e-9 {
             scale(h, 1.0 / across)
         } else {
-            let e = if z[0].abs() < 0.9 {
-                [1.0, 0.0, 0.0]
-            } else {
-                [0.0, 1.0, 0.0]
-            };
-            let p = sub(e, scale(z, dot(e, z)));
-            scale(p, 1.0 / norm(p))
+            crate::engagement::plunge_x(z)
         };
         let y = cross(z, x);
         Ok(ToolFrame {
