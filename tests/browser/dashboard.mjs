@@ -142,11 +142,13 @@ async function main() {
   // scrolls to its line.
   await page.waitForSelector('#programs table.diff tr.changed mark');
   const changed = await page.$$eval('#programs table.diff tr.changed', (trs) => trs.map((tr) => [...tr.querySelectorAll('mark')].map((m) => m.textContent)));
-  log('diff:', await page.textContent('#diffinfo'), '; summary changed_blocks', o.changed_blocks, '; first changed F words:', JSON.stringify(changed.slice(0, 3)));
+  log('diff:', await page.textContent('#diffinfo'), '; summary changed_blocks', o.changed_blocks, 'restored_f_words', o.restored_f_words, '; first changed F words:', JSON.stringify(changed.slice(0, 3)));
   // The listing draws the lines in view: those marked are checked, the count is the table's.
   assert.ok(changed.length > 10, 'few marked lines in view: ' + changed.length);
   for (const m of changed) assert.ok(m.length === 2 ? m[1] !== m[0] : m.length === 1, 'a changed line without a new F on the right: ' + m);
-  assert.equal(Number(await page.getAttribute('#programs table.diff[data-changed]', 'data-changed')), o.changed_blocks, 'changed lines against the summary\'s changed_blocks');
+  // A line gets a new F word where the optimizer changed its feed (changed_blocks) and where it
+  // writes the programmed feed back after a changed one (restored_f_words: a plunge kept at its F).
+  assert.equal(Number(await page.getAttribute('#programs table.diff[data-changed]', 'data-changed')), o.changed_blocks + o.restored_f_words, 'changed lines against the summary\'s changed_blocks + restored_f_words');
   await page.mouse.click(bb.x + bb.width / 2, bb.y + bb.height / 2);
   await page.waitForSelector('#programs tr.focus');
   assert.equal(await page.textContent('#programs tr.focus td.ln'), String(hoverLine));
