@@ -56,7 +56,9 @@ fn closed_form(k: &CuttingCoefficients, n: f64, a: f64, c: f64, st: f64, ex: f64
     let fy = n * a * c / (8.0 * PI)
         * br(&|p| k.ktc * (2.0 * p - (2.0 * p).sin()) + k.krc * (2.0 * p).cos())
         - n * a / (2.0 * PI) * br(&|p| k.kte * p.cos() + k.kre * p.sin());
-    let fz = n * a / (2.0 * PI) * br(&|p| -k.kac * c * p.cos() + k.kae * p);
+    // The generalized transformation's sign (REFERENCE.md, corrected): the helical flank
+    // pulls the tool toward the work.
+    let fz = -n * a / (2.0 * PI) * br(&|p| -k.kac * c * p.cos() + k.kae * p);
     [fx, fy, fz]
 }
 
@@ -81,7 +83,7 @@ fn cases() -> Vec<Case> {
             c: 0.1,
             st: 0.0,
             ex: PI,
-            table: [-253.74, 559.85, 148.33, 664.2],
+            table: [-253.74, 559.85, -148.33, 664.2],
         },
         Case {
             name: "half down",
@@ -90,7 +92,7 @@ fn cases() -> Vec<Case> {
             c: 0.1,
             st: FRAC_PI_2,
             ex: PI,
-            table: [83.37, 391.46, 74.16, 659.7],
+            table: [83.37, 391.46, -74.16, 659.7],
         },
         Case {
             name: "half up",
@@ -99,7 +101,7 @@ fn cases() -> Vec<Case> {
             c: 0.1,
             st: 0.0,
             ex: FRAC_PI_2,
-            table: [-337.12, 168.39, 74.16, 565.5],
+            table: [-337.12, 168.39, -74.16, 565.5],
         },
         Case {
             name: "10% down",
@@ -108,7 +110,7 @@ fn cases() -> Vec<Case> {
             c: 0.05,
             st: st10,
             ex: PI,
-            table: [83.62, 124.88, 12.75, 597.8],
+            table: [83.62, 124.88, -12.75, 597.8],
         },
     ]
 }
@@ -400,7 +402,8 @@ fn torus_reference(
                 let nrm = [kap.sin() * phi.sin(), kap.sin() * phi.cos(), -kap.cos()];
                 let tan = [kap.cos() * phi.sin(), kap.cos() * phi.cos(), kap.sin()];
                 for a in 0..3 {
-                    f[a] += -ft * vel[a] - fr * nrm[a] + fa * tan[a];
+                    // Generalized transformation (Lee & Altintas, Engin & Altintas).
+                    f[a] += -ft * vel[a] - fr * nrm[a] - fa * tan[a];
                 }
                 torque += ft * r;
             }
@@ -475,6 +478,44 @@ fn bull_nose_across_corner_and_flank_matches_independent_integration() {
         rel(r.force.peak, peak) < 0.01,
         "peak {} vs {peak}",
         r.force.peak
+    );
+}
+
+/// REFERENCE.md's two figures in the generalized convention (Al7075-T6, zero helix, c = 0.1,
+/// slot 2 mm deep): a D10 two-flute ball, F̄x −62.8 N (the old axial sign gave −23.8 N); a
+/// D8R1 four-flute bull-nose, F̄z +10.7 N (the old sign gave +117 N). Checked by the model and
+/// by this file's independent integration.
+#[test]
+fn ball_and_bull_nose_slots_match_reference_figures_in_generalized_convention() {
+    let k = al7075();
+    let e = engagement(2.0, 40, &[(0.0, PI)]);
+    let ball = cutting_forces(&Tool::ball(10.0, 2), &e, &k, &cond(0.1), 360).unwrap();
+    let (ball_ref, _, _) = torus_reference(&k, 5.0, 5.0, 2, 0.0, 2.0, 0.1, 2000, 1440);
+    assert!(
+        (ball.fx.mean - -62.8).abs() < 0.3,
+        "ball F̄x {}",
+        ball.fx.mean
+    );
+    assert!(
+        (ball_ref[0] - -62.8).abs() < 0.1,
+        "ball reference F̄x {}",
+        ball_ref[0]
+    );
+    let bull = cutting_forces(&Tool::bull_nose(8.0, 1.0, 4), &e, &k, &cond(0.1), 360).unwrap();
+    let (bull_ref, _, _) = torus_reference(&k, 4.0, 1.0, 4, 0.0, 2.0, 0.1, 2000, 1440);
+    assert!(
+        (bull.fz.mean - 10.7).abs() < 0.3,
+        "bull-nose F̄z {}",
+        bull.fz.mean
+    );
+    assert!(
+        (bull_ref[2] - 10.7).abs() < 0.1,
+        "bull-nose reference F̄z {}",
+        bull_ref[2]
+    );
+    println!(
+        "D10 ball slot 2 mm: F̄x {:.2} N (reference −62.8); D8R1 slot 2 mm: F̄z {:.2} N (reference 10.7)",
+        ball.fx.mean, bull.fz.mean
     );
 }
 

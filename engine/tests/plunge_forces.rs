@@ -114,7 +114,8 @@ fn brute_force_ramp(
                     );
                     sum[0] += -ft * cp - fr * sp;
                     sum[1] += ft * sp - fr * cp;
-                    sum[2] += fa;
+                    // Generalized transformation: dFz = dFr·cos κ − dFa·sin κ.
+                    sum[2] -= fa;
                     sum[3] += ft * r;
                 }
             }
@@ -128,8 +129,8 @@ fn brute_force_ramp(
                     (k.krc * h + k.kre) * dr,
                     (k.kac * h + k.kae) * dr,
                 );
-                sum[0] += -ft * cp + fa * sp;
-                sum[1] += ft * sp + fa * cp;
+                sum[0] += -ft * cp - fa * sp;
+                sum[1] += ft * sp - fa * cp;
                 sum[2] += fr;
                 sum[3] += ft * rad;
             }

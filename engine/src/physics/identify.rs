@@ -31,7 +31,7 @@ pub fn closed_form_mean_force(
     [
         q1 * c * (k.ktc * b.cos2 - k.krc * b.two_phi_sin2) + q2 * (-k.kte * b.sin + k.kre * b.cos),
         q1 * c * (k.ktc * b.two_phi_sin2 + k.krc * b.cos2) - q2 * (k.kte * b.cos + k.kre * b.sin),
-        q2 * (-k.kac * c * b.cos + k.kae * b.phi),
+        -q2 * (-k.kac * c * b.cos + k.kae * b.phi),
     ]
 }
 
@@ -195,10 +195,10 @@ pub fn identify_coefficients(
     let coefficients = CuttingCoefficients {
         ktc: (x * b.cos2 + y * b.two_phi_sin2) / d1,
         krc: (y * b.cos2 - x * b.two_phi_sin2) / d1,
-        kac: -fit_z.slope / (q2 * b.cos),
+        kac: fit_z.slope / (q2 * b.cos),
         kte: (q * b.cos - p * b.sin) / d2,
         kre: (p * b.cos + q * b.sin) / d2,
-        kae: fit_z.intercept / (q2 * b.phi),
+        kae: -fit_z.intercept / (q2 * b.phi),
     };
     coefficients.validate()?;
     Ok(Identification {

@@ -10,6 +10,8 @@ use crate::physics::material::CuttingCoefficients;
 /// Per (slice, tooth) constants of the inner loop. Each force component of the slice is
 /// a·X + b0 + bv·V with X the chip's part across the axis (c_h·sin φ, plus runout) and V
 /// its part along it (c_v); components: Ft, in-plane radial (outward), Fz, torque (N·mm).
+/// The axial force enters with the generalized transformation's sign (see the module doc of
+/// `force`): −dFa·cos κ outward in the plane, −dFa·sin κ along the axis.
 #[derive(Clone, Copy)]
 pub(super) struct Pass {
     /// A chip thinner than −eps is no cut.
@@ -45,20 +47,20 @@ impl Pass {
             ck: g.cos_kappa,
             a: [
                 k.ktc * g.dz,
-                -k.krc * g.int_sin + k.kac * g.int_cos,
-                k.krc * g.int_cos + k.kac * g.int_sin,
+                -k.krc * g.int_sin - k.kac * g.int_cos,
+                k.krc * g.int_cos - k.kac * g.int_sin,
                 k.ktc * g.int_r_dz,
             ],
             b0: [
                 k.kte * g.edge_length,
-                -k.kre * g.dz + k.kae * g.radius_rise,
-                k.kre * g.radius_rise + k.kae * g.dz,
+                -k.kre * g.dz - k.kae * g.radius_rise,
+                k.kre * g.radius_rise - k.kae * g.dz,
                 k.kte * g.int_r_ds,
             ],
             bv: [
                 -k.ktc * g.int_cot,
-                k.krc * g.int_cos - k.kac * g.int_cos2_sin,
-                -k.krc * g.int_cos2_sin - k.kac * g.int_cos,
+                k.krc * g.int_cos + k.kac * g.int_cos2_sin,
+                -k.krc * g.int_cos2_sin + k.kac * g.int_cos,
                 -k.ktc * g.int_r_cot,
             ],
         }

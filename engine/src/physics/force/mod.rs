@@ -25,13 +25,17 @@
 //! dFa = Kac·h·db + Kae·ds, with db = ds = dz / sin κ (chip width, edge length), rotated
 //! into the tool frame:
 //!
-//! dFx = −dFt·cos φ + (−dFr·sin κ + dFa·cos κ)·sin φ
-//! dFy = +dFt·sin φ + (−dFr·sin κ + dFa·cos κ)·cos φ
-//! dFz = dFr·cos κ + dFa·sin κ
+//! dFx = −dFt·cos φ − (dFr·sin κ + dFa·cos κ)·sin φ
+//! dFy = +dFt·sin φ − (dFr·sin κ + dFa·cos κ)·cos φ
+//! dFz = dFr·cos κ − dFa·sin κ
 //!
-//! which is Altintas' ball-end transformation with the axial term's sign chosen so that on a
-//! cylindrical flank (κ = 90°) it reduces to the flat end mill relations and the closed form in
-//! ../shared/REFERENCE.md (F̄z = +(N·a/2π)[−Kac·c·cos φ + Kae·φ]). Within a slice these are
+//! the generalized end-mill transformation of Lee & Altintas (1996, ball end) and Engin &
+//! Altintas (2001, general helical end mills), in which published coefficients (Kac, Kae > 0)
+//! are identified: on a helical flank (κ = 90°) the axial force pulls the tool toward the work
+//! (F̄z = −(N·a/2π)[−Kac·c·cos φ + Kae·φ] for a flat end mill), at a ball's tip the radial
+//! force pushes it back. (Until 2026-11 the engine used +dFa, which matches a flat end mill's
+//! |F̄z| but not a ball or bull-nose: a D8R1 slot's mean Fz rose with depth where dynamometers
+//! measure it falling.) Within a slice these are
 //! integrated over z exactly (see [`EdgeSlice`]) rather than taken at the slice centre: at a
 //! ball's tip 1/sin κ is singular and the midpoint value is off by tens of percent on the first
 //! slices. The chip's sign (cut or not) is decided at the slice centre.
