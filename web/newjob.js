@@ -27,7 +27,7 @@ export async function renderNewJob(route) {
   const field = (label, ...input) => el('label', { class: 'field' }, el('span', {}, label), ...input);
   const out = el('div', { id: 'form-result' });
   const newTool = el('div', { id: 'new-tool' },
-    field('Type', el('select', { name: 'tool_type' }, ['flat', 'ball', 'bull', 'chamfer'].map((t) => el('option', { value: t }, t)))),
+    field('Type', el('select', { name: 'tool_type' }, ['flat', 'ball', 'bull', 'chamfer', 'drill'].map((t) => el('option', { value: t }, t)))),
     field('Diameter mm', num('diameter_mm', 10)), field('Corner radius mm (bull)', num('corner_radius_mm', 1)),
     field('Flutes', num('flutes', 4, { step: 1 })), field('Helix °', num('helix_deg', 30)), field('Flute length mm', num('flute_length_mm', 25)));
   const toolSelect = el('select', { name: 'tool_choice', onchange: () => { newTool.hidden = toolSelect.value !== 'new'; } },

@@ -308,6 +308,14 @@ impl PackedEngagement {
         }
     }
 
+    /// The end teeth cut in it (a descent into material along the axis).
+    pub fn cuts_with_end(&self) -> bool {
+        match &self.0 {
+            Packing::Grid { .. } => false,
+            Packing::Full(e) => !e.end.is_empty(),
+        }
+    }
+
     /// No edge meets material: an air step.
     pub fn is_air(&self) -> bool {
         match &self.0 {

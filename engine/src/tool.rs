@@ -22,7 +22,23 @@ pub enum ToolShape {
     /// Chamfer/taper mill: cone from `tip_diameter` widening at `taper_half_angle_deg`
     /// from the axis until it reaches `diameter`, cylindrical above.
     Chamfer,
+    /// Twist drill: a cone of its point angle (`taper_half_angle_deg` is half of it) from a
+    /// sharp tip, cylindrical above. Its two lips cut as the cone's edges do; the chisel
+    /// edge at the centre is not modelled (on a conventional point it adds thrust: see the
+    /// force model's drilling note).
+    Drill,
 }
+
+impl ToolShape {
+    /// Cone-tipped shapes (chamfer mills and drills share the geometry).
+    pub fn is_cone(self) -> bool {
+        matches!(self, ToolShape::Chamfer | ToolShape::Drill)
+    }
+}
+
+/// A drill's point angle when the tool document gives none: the common 118° of HSS and
+/// general-purpose drills.
+pub const DEFAULT_POINT_ANGLE_DEG: f64 = 118.0;
 
 /// One piece of the holder stack, from the bottom (nearest the tool) up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -130,11 +146,16 @@ pub struct Tool {
     pub stick_out: Option<f64>,
     pub holder: Vec<HolderSegment>,
     pub runout: Runout,
+    /// Whether the end teeth reach the centre (a plunge into material can be cut). A tool
+    /// without (`center_cutting: false`) that descends into material along its axis is a
+    /// collision: there is nothing to cut the core under its centre.
+    pub center_cutting: bool,
 }
 
-/// The tool's JSON document: `{"type":"flat|ball|bull|chamfer","diameter_mm":..,
+/// The tool's JSON document: `{"type":"flat|ball|bull|chamfer|drill","diameter_mm":..,
 /// "corner_radius_mm":..,"flutes":..,"helix_deg":..,"flute_length_mm":..,
-/// "shank_diameter_mm":..,"stickout_mm":..,"holder":[..],"runout_um":..}`. The names
+/// "shank_diameter_mm":..,"stickout_mm":..,"holder":[..],"runout_um":..,
+/// "center_cutting":true}`, a drill's `"point_angle_deg"` (118 when not given). The names
 /// without units (`shape`, `diameter`, `flute_length`, ...) are accepted too.
 #[derive(Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -151,6 +172,9 @@ struct ToolJson {
     tip_diameter: f64,
     #[serde(default)]
     taper_half_angle_deg: f64,
+    /// Drills: the included angle of the point, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    point_angle_deg: Option<f64>,
     flutes: u32,
     #[serde(default)]
     helix_deg: f64,
@@ -180,6 +204,16 @@ struct ToolJson {
     /// The older form `{"offset": mm, "angle_deg": deg}`.
     #[serde(default, skip_serializing)]
     runout: Option<Runout>,
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    center_cutting: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 impl TryFrom<ToolJson> for Tool {
@@ -197,13 +231,27 @@ impl TryFrom<ToolJson> for Tool {
                 angle_deg: t.runout_angle_deg,
             },
         };
+        let taper_half_angle_deg = match (t.shape, t.point_angle_deg) {
+            (ToolShape::Drill, Some(_)) if t.taper_half_angle_deg != 0.0 => return Err(
+                "a drill takes `point_angle_deg` (or `taper_half_angle_deg`, half of it), not both"
+                    .into(),
+            ),
+            (ToolShape::Drill, Some(p)) => p / 2.0,
+            (ToolShape::Drill, None) if t.taper_half_angle_deg == 0.0 => {
+                DEFAULT_POINT_ANGLE_DEG / 2.0
+            }
+            (_, Some(_)) if t.shape != ToolShape::Drill => {
+                return Err("`point_angle_deg` is a drill's field (\"type\": \"drill\")".into())
+            }
+            _ => t.taper_half_angle_deg,
+        };
         Ok(Tool {
             name: t.name,
             shape: t.shape,
             diameter: t.diameter,
             corner_radius: t.corner_radius,
             tip_diameter: t.tip_diameter,
-            taper_half_angle_deg: t.taper_half_angle_deg,
+            taper_half_angle_deg,
             flutes: t.flutes,
             helix_deg: t.helix_deg,
             flute_length: t.flute_length,
@@ -211,19 +259,22 @@ impl TryFrom<ToolJson> for Tool {
             stick_out: t.stick_out,
             holder: t.holder,
             runout,
+            center_cutting: t.center_cutting,
         })
     }
 }
 
 impl From<Tool> for ToolJson {
     fn from(t: Tool) -> Self {
+        let drill = t.shape == ToolShape::Drill;
         ToolJson {
             name: t.name,
             shape: t.shape,
             diameter: t.diameter,
             corner_radius: t.corner_radius,
             tip_diameter: t.tip_diameter,
-            taper_half_angle_deg: t.taper_half_angle_deg,
+            taper_half_angle_deg: if drill { 0.0 } else { t.taper_half_angle_deg },
+            point_angle_deg: drill.then_some(2.0 * t.taper_half_angle_deg),
             flutes: t.flutes,
             helix_deg: t.helix_deg,
             flute_length: t.flute_length,
@@ -233,6 +284,7 @@ impl From<Tool> for ToolJson {
             runout_um: t.runout.offset * 1000.0,
             runout_angle_deg: t.runout.angle_deg,
             runout: None,
+            center_cutting: t.center_cutting,
         }
     }
 }
@@ -286,6 +338,7 @@ impl Tool {
             stick_out: None,
             holder: Vec::new(),
             runout: Runout::default(),
+            center_cutting: true,
         }
     }
 
@@ -295,6 +348,17 @@ impl Tool {
             shape: ToolShape::Ball,
             corner_radius: diameter / 2.0,
             ..Tool::flat(diameter, flutes)
+        }
+    }
+
+    /// A twist drill of the given diameter and point angle (degrees), two flutes, 30° helix,
+    /// flute length 5·D.
+    pub fn drill(diameter: f64, point_angle_deg: f64) -> Tool {
+        Tool {
+            shape: ToolShape::Drill,
+            taper_half_angle_deg: point_angle_deg / 2.0,
+            flute_length: 5.0 * diameter,
+            ..Tool::flat(diameter, 2)
         }
     }
 
@@ -314,7 +378,7 @@ impl Tool {
     /// The corner radius that the shape implies (0 flat, R ball, given for bull-nose).
     pub fn effective_corner_radius(&self) -> f64 {
         match self.shape {
-            ToolShape::Flat | ToolShape::Chamfer => 0.0,
+            ToolShape::Flat | ToolShape::Chamfer | ToolShape::Drill => 0.0,
             ToolShape::Ball => self.radius(),
             ToolShape::BullNose => self.corner_radius,
         }
@@ -401,6 +465,24 @@ impl Tool {
                     return Err(bad("taper_half_angle_deg", "must be in (0, 89) degrees"));
                 }
             }
+            ToolShape::Drill => {
+                if self.tip_diameter != 0.0 {
+                    return Err(bad(
+                        "tip_diameter_mm",
+                        "a drill's point is sharp: give 0 or leave it out",
+                    ));
+                }
+                // 60° (centre drills) to 178°: a flat-bottom drill is a flat end mill here.
+                if !(self.taper_half_angle_deg >= 30.0 && self.taper_half_angle_deg < 89.0) {
+                    return Err(bad(
+                        "point_angle_deg",
+                        format!(
+                            "must be in [60, 178) degrees, got {}",
+                            2.0 * self.taper_half_angle_deg
+                        ),
+                    ));
+                }
+            }
             ToolShape::Flat | ToolShape::Ball => {}
         }
         if let Some(d) = self.shank_diameter {
@@ -434,7 +516,7 @@ impl Tool {
         match self.shape {
             ToolShape::Flat => 0.0,
             ToolShape::Ball | ToolShape::BullNose => self.effective_corner_radius(),
-            ToolShape::Chamfer => {
+            ToolShape::Chamfer | ToolShape::Drill => {
                 (self.radius() - self.tip_diameter / 2.0)
                     / self.taper_half_angle_deg.to_radians().tan()
             }
@@ -459,7 +541,7 @@ impl Tool {
                     r - rc + (rc * rc - dz * dz).max(0.0).sqrt()
                 }
             }
-            ToolShape::Chamfer => {
+            ToolShape::Chamfer | ToolShape::Drill => {
                 let top = self.profile_top();
                 if z >= top {
                     r
@@ -487,7 +569,7 @@ impl Tool {
                     ((rc * rc - dz * dz).max(0.0).sqrt() / rc, dz / rc)
                 }
             }
-            ToolShape::Chamfer => {
+            ToolShape::Chamfer | ToolShape::Drill => {
                 if z >= self.profile_top() {
                     (1.0, 0.0)
                 } else {
@@ -527,7 +609,7 @@ impl Tool {
                     ((rc * rc - dz * dz).max(0.0).sqrt() / rc).asin()
                 }
             }
-            ToolShape::Chamfer => {
+            ToolShape::Chamfer | ToolShape::Drill => {
                 if z >= self.profile_top() {
                     half_pi
                 } else {

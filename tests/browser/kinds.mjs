@@ -110,8 +110,9 @@ async function main() {
   await page.screenshot({ path: join(ARTIFACTS, 'rotary-feed.png'), fullPage: true });
 
   // Identify: coefficients from mean slotting forces (straight lines in the feed per tooth).
+  // A slot's mean Fz is negative in the generalized convention (the flank pulls the tool in).
   const feeds = [0.025, 0.05, 0.075, 0.1, 0.125];
-  const measurements = feeds.map((c, i) => ({ feed_per_tooth_mm: c, fx_n: -400 * c - 20 + 0.05 * (i % 2), fy_n: 1000 * c + 40 - 0.05 * (i % 2), fz_n: 150 * c + 5 }));
+  const measurements = feeds.map((c, i) => ({ feed_per_tooth_mm: c, fx_n: -400 * c - 20 + 0.05 * (i % 2), fy_n: 1000 * c + 40 - 0.05 * (i % 2), fz_n: -150 * c - 5 }));
   const ident = await submitJob({ kind: 'identify', inputs: { tool: ex.tool.id }, options: { depth_mm: 2, measurements } });
   const done = await waitJob(base, ident.id, 60);
   assert.equal(done.status, 'succeeded', JSON.stringify(done.error));

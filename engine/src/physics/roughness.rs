@@ -32,7 +32,7 @@ pub fn scallop_height(tool: &Tool, step_over: f64) -> Result<f64, PhysicsError> 
             let rc = tool.effective_corner_radius();
             cusp_height(rc, 0.5 * (step_over - (tool.diameter - 2.0 * rc)))
         }
-        ToolShape::Chamfer => {
+        ToolShape::Chamfer | ToolShape::Drill => {
             let w = 0.5 * (step_over - tool.tip_diameter);
             if w <= 0.0 {
                 0.0
@@ -111,7 +111,7 @@ pub fn feed_marks(
         SurfaceKind::Floor => {
             let rc = match tool.shape {
                 ToolShape::Ball | ToolShape::BullNose => tool.effective_corner_radius(),
-                ToolShape::Flat | ToolShape::Chamfer => 0.0,
+                ToolShape::Flat | ToolShape::Chamfer | ToolShape::Drill => 0.0,
             };
             // Radial runout moves each corner arc along the feed where it cuts the floor.
             (0..n)

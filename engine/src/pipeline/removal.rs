@@ -357,6 +357,12 @@ pub(super) fn remove_material(
                     }
                     // A step that removes nothing is air, even where the edge grazes a wall
                     // that an earlier move cut to exactly the tool's radius.
+                    // A tool whose end teeth stop short of the centre leaves a core under
+                    // it that nothing cuts: its end entering material is a collision.
+                    row.non_center_cutting_plunge |= !tool.center_cutting
+                        && b.steps
+                            .iter()
+                            .any(|s| s.removed_volume > 0.0 && s.engagement.cuts_with_end());
                     let lengths = &mut step_lengths[move_index];
                     for s in &b.steps {
                         if !s.air && s.removed_volume > 0.0 {

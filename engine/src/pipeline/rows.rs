@@ -95,7 +95,8 @@ pub struct MoveRow {
     pub chatter_margin: Option<f64>,
     pub critical_depth_mm: Option<f64>,
     /// What to look at, `|`-separated: air, rapid_in_material, flute_length_exceeded,
-    /// shank_contact, holder_contact, spindle_stopped_in_material, chatter.
+    /// shank_contact, holder_contact, spindle_stopped_in_material, non_center_cutting_plunge,
+    /// chatter.
     pub flags: String,
     pub steps: usize,
     #[serde(skip)]
@@ -109,6 +110,10 @@ pub struct MoveRow {
     /// Material removed while the spindle is stopped.
     #[serde(skip)]
     pub spindle_stopped_in_material: bool,
+    /// A tool with `center_cutting: false` descended into material (its end teeth cut: a
+    /// plunge, or a ramp steeper than the end teeth's 3° threshold).
+    #[serde(skip)]
+    pub non_center_cutting_plunge: bool,
     /// With optimization: the move's feed, time and peak |F| in the rewritten program, and
     /// what set its feed (force, power, torque, chip, air, entry, max_feed, ...).
     #[serde(rename = "feed_opt_mm_min", skip_serializing_if = "Option::is_none")]
@@ -158,6 +163,7 @@ impl MoveRow {
                 self.spindle_stopped_in_material,
                 "spindle_stopped_in_material",
             ),
+            (self.non_center_cutting_plunge, "non_center_cutting_plunge"),
             (self.chatter_margin.is_some_and(|m| m > 1.0), "chatter"),
         ];
         let on: Vec<&str> = flags.iter().filter(|(f, _)| *f).map(|(_, n)| *n).collect();
@@ -170,8 +176,8 @@ impl MoveRow {
 pub struct Collision {
     pub block: usize,
     pub line: u32,
-    /// rapid_in_material, shank_contact, holder_contact, flute_length_exceeded or
-    /// spindle_stopped_in_material.
+    /// rapid_in_material, shank_contact, holder_contact, flute_length_exceeded,
+    /// spindle_stopped_in_material or non_center_cutting_plunge.
     pub kind: &'static str,
 }
 
@@ -395,6 +401,7 @@ pub(super) fn collisions(rows: &[MoveRow]) -> Vec<Collision> {
                 (r.holder_contact, "holder_contact"),
                 (r.flute_length_exceeded, "flute_length_exceeded"),
                 (r.spindle_stopped_in_material, "spindle_stopped_in_material"),
+                (r.non_center_cutting_plunge, "non_center_cutting_plunge"),
             ]
             .into_iter()
             .filter(|(on, _)| *on)

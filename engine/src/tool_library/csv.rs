@@ -97,11 +97,12 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
             Some("ball") => ToolShape::Ball,
             Some("bull") | Some("bull_nose") => ToolShape::BullNose,
             Some("chamfer") => ToolShape::Chamfer,
+            Some("drill") => ToolShape::Drill,
             Some(other) => {
                 return Err(ToolLibraryError::new(
                     &name,
                     "type",
-                    format!("`{other}` is not flat, ball, bull or chamfer"),
+                    format!("`{other}` is not flat, ball, bull, chamfer or drill"),
                 ))
             }
         };

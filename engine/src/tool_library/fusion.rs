@@ -75,7 +75,8 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
             "flat end mill" | "face mill" => ToolShape::Flat,
             "ball end mill" => ToolShape::Ball,
             "bull nose end mill" => ToolShape::BullNose,
-            "chamfer mill" | "drill" | "spot drill" => ToolShape::Chamfer,
+            "chamfer mill" => ToolShape::Chamfer,
+            "drill" | "spot drill" => ToolShape::Drill,
             other => {
                 return Err(ToolLibraryError::new(
                     &name,
@@ -117,7 +118,7 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
                     )
                 })?
             }
-            ToolShape::Chamfer => {
+            ToolShape::Chamfer | ToolShape::Drill => {
                 // A drill's point is a cone of the point angle SIG (its half from the axis);
                 // a chamfer mill's taper angle TA is already measured from the axis.
                 let half = if kind.ends_with("drill") {
@@ -133,7 +134,9 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
                     )
                 })?;
                 tool.taper_half_angle_deg = half;
-                tool.tip_diameter = length("tip-diameter").unwrap_or(0.0);
+                if shape == ToolShape::Chamfer {
+                    tool.tip_diameter = length("tip-diameter").unwrap_or(0.0);
+                }
             }
             _ => {}
         }

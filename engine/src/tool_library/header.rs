@@ -49,10 +49,10 @@ pub fn tools_from_header(program: &str) -> ToolLibrary {
         };
         match (shape, value("CR="), value("TAPER=")) {
             (ToolShape::BullNose, Some(r), _) if r > 0.0 => tool.corner_radius = r * unit,
-            (ToolShape::Chamfer, _, Some(a)) if a > 0.0 && a < 90.0 => {
+            (ToolShape::Chamfer | ToolShape::Drill, _, Some(a)) if a > 0.0 && a < 90.0 => {
                 tool.taper_half_angle_deg = a
             }
-            _ => super::assume_shape_details(&mut lib, &name, &mut tool, text),
+            _ => super::assume_shape_details(&mut lib, &name, &mut tool),
         }
         note_defaults(&mut lib, &name, &tool, &[]);
         if tool.validate().is_ok() {

@@ -64,7 +64,7 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
         tool.name = Some(comment.trim())
             .filter(|s| !s.is_empty())
             .map(str::to_string);
-        super::assume_shape_details(&mut lib, &name, &mut tool, comment);
+        super::assume_shape_details(&mut lib, &name, &mut tool);
         lib.assumed(
             &name,
             "unit",

@@ -133,8 +133,13 @@ fn default_tool(shape: crate::tool::ToolShape, diameter: f64) -> Tool {
     };
     let mut t = Tool::flat(diameter, flutes);
     t.shape = shape;
-    if shape == crate::tool::ToolShape::Ball {
-        t.corner_radius = diameter / 2.0;
+    match shape {
+        crate::tool::ToolShape::Ball => t.corner_radius = diameter / 2.0,
+        // Twist drills have two flutes whatever their size; a source's angle replaces this.
+        crate::tool::ToolShape::Drill => {
+            t = Tool::drill(diameter, crate::tool::DEFAULT_POINT_ANGLE_DEG);
+        }
+        _ => {}
     }
     t
 }
@@ -148,7 +153,9 @@ fn shape_named_in(text: &str) -> Option<crate::tool::ToolShape> {
         Some(ToolShape::Ball)
     } else if t.contains("bull") {
         Some(ToolShape::BullNose)
-    } else if t.contains("chamfer") || t.contains("drill") || t.contains("spot") {
+    } else if t.contains("drill") || t.contains("spot") {
+        Some(ToolShape::Drill)
+    } else if t.contains("chamfer") {
         Some(ToolShape::Chamfer)
     } else if t.contains("flat")
         || t.contains("end mill")
@@ -163,7 +170,7 @@ fn shape_named_in(text: &str) -> Option<crate::tool::ToolShape> {
 
 /// A corner radius or cone angle a source does not give: D/10 for a bull nose, 59° for a
 /// drill's point and 45° for other cones, reported as assumed.
-fn assume_shape_details(lib: &mut ToolLibrary, name: &str, tool: &mut Tool, text: &str) {
+fn assume_shape_details(lib: &mut ToolLibrary, name: &str, tool: &mut Tool) {
     use crate::tool::ToolShape;
     match tool.shape {
         ToolShape::BullNose => {
@@ -174,9 +181,9 @@ fn assume_shape_details(lib: &mut ToolLibrary, name: &str, tool: &mut Tool, text
                 format!("not given: {} (D/10) assumed", tool.corner_radius),
             );
         }
-        ToolShape::Chamfer => {
-            tool.taper_half_angle_deg = if text.to_ascii_lowercase().contains("drill") {
-                59.0
+        ToolShape::Chamfer | ToolShape::Drill => {
+            tool.taper_half_angle_deg = if tool.shape == ToolShape::Drill {
+                crate::tool::DEFAULT_POINT_ANGLE_DEG / 2.0
             } else {
                 45.0
             };

@@ -52,7 +52,7 @@ impl ToolBody {
             ToolShape::Ball | ToolShape::BullNose => Profile::Corner {
                 rc: tool.effective_corner_radius(),
             },
-            ToolShape::Chamfer => Profile::Cone {
+            ToolShape::Chamfer | ToolShape::Drill => Profile::Cone {
                 rtip: tool.tip_diameter / 2.0,
                 tan: tool.taper_half_angle_deg.to_radians().tan(),
                 ztop: tool.profile_top(),

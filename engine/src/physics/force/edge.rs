@@ -112,7 +112,7 @@ impl EdgeSlice {
                 }
                 s.add_flank(r, split, zb);
             }
-            ToolShape::Chamfer => {
+            ToolShape::Chamfer | ToolShape::Drill => {
                 let split = tool.profile_top().clamp(za, zb);
                 if split > za {
                     let alpha = tool.taper_half_angle_deg.to_radians();
