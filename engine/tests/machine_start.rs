@@ -83,3 +83,33 @@ fn the_machine_gives_its_own_start_and_tool_change_positions() {
     let i = nc::interpret("G0 X10\n", &InterpretOptions::default()).unwrap();
     assert_eq!(i.moves[0].start[..3], [0.0, 0.0, 0.0]);
 }
+
+#[test]
+fn an_inch_program_without_g20_is_warned_about_and_a_metric_one_is_not() {
+    // The same 40 mm square contour written in inches (1.575 in) without G20, on the 60 mm
+    // block: read as millimetres it is 25.4 times too small.
+    let contour = |s: f64| {
+        format!(
+            "G90\nT1 M6\nS8000 M3\nG0 X{a} Y{a} Z2\nG1 Z-0.02 F20\nG1 X{b}\nG1 Y{b}\nG1 X{a}\nG1 Y{a}\nG0 Z2\nM30\n",
+            a = -20.0 * s,
+            b = 20.0 * s
+        )
+    };
+    let run = |program: String| {
+        simulate(
+            &spec(&program, BTreeMap::from([(1, Tool::flat(10.0, 4))])),
+            &CancelFlag::new(),
+            &NoProgress,
+        )
+        .unwrap()
+        .summary
+        .warnings
+    };
+    let inch = run(contour(1.0 / 25.4));
+    assert!(
+        inch.iter().any(|w| w.contains("inch program without G20")),
+        "{inch:?}"
+    );
+    let metric = run(contour(1.0));
+    assert!(!metric.iter().any(|w| w.contains("G20")), "{metric:?}");
+}
