@@ -398,7 +398,6 @@ fn a_rotary_move_from_air_into_the_cut_is_split_with_every_axis_interpolated() {
 }
 
 #[test]
-#[ignore = "open (issue 29): since the end teeth cut, this tilting plunge (A 90→80 along Z) re-simulates at 243.9 N against a 200.6 N limit; the optimizer and the re-simulation disagree on the end rings of a turning axis"]
 fn tool_tip_reading_writes_the_tip_feed_in_g94() {
     // Tool-centre-point control: X Y Z are the tip on the part, so a G94 F is the tip's
     // feed even while A tilts the tool (here from 90° to 80° along a plunge into a Ø20
@@ -419,9 +418,16 @@ fn tool_tip_reading_writes_the_tip_feed_in_g94() {
     let plain = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
     let row = plain.rows.iter().find(|r| r.line == 6).unwrap();
     assert!((row.tip_speed_mm_min - 600.0).abs() < 1e-6, "{row:?}");
-    let limit = 0.8 * row.peak_force;
+    // Held to a chip limit: the end teeth rub the whole end face on this tilting cut, and
+    // their edge forces alone are 241 N at 1 mm/min against 244 N at F600, so no feed meets
+    // a force limit of 0.8 × its peak (the optimizer says so: governing min_feed). The chip
+    // is proportional to the feed.
+    let limit = 0.8 * row.max_chip_thickness;
     s.optimize = Some(
-        serde_json::from_str(&format!(r#"{{"max_force": {limit}, "max_feed": 3000}}"#)).unwrap(),
+        serde_json::from_str(&format!(
+            r#"{{"max_chip_thickness": {limit}, "max_feed": 3000}}"#
+        ))
+        .unwrap(),
     );
     let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
     let row = out.rows.iter().find(|r| r.line == 6).unwrap();
@@ -433,7 +439,7 @@ fn tool_tip_reading_writes_the_tip_feed_in_g94() {
     .moves;
     let m = after.iter().find(|m| m.line == 6).unwrap();
     let tip = row.tip_speed_after_mm_min.unwrap();
-    assert!(tip < 600.0);
+    assert!(tip < 600.0, "{row:?}");
     assert!(
         (m.feed - tip).abs() <= 1e-9 * tip,
         "F{} vs tip {tip}",
@@ -445,9 +451,14 @@ fn tool_tip_reading_writes_the_tip_feed_in_g94() {
         &NoProgress,
     )
     .unwrap();
-    let peak = re.rows.iter().find(|r| r.line == 6).unwrap().peak_force;
+    let re_row = re.rows.iter().find(|r| r.line == 6).unwrap();
     assert!(
-        peak <= limit * 1.005 && peak >= limit * 0.99,
-        "{peak} vs {limit}"
+        (re_row.tip_speed_mm_min - tip).abs() <= 1e-6 * tip,
+        "{re_row:?}"
+    );
+    let chip = re_row.max_chip_thickness;
+    assert!(
+        chip <= limit * 1.005 && chip >= limit * 0.99,
+        "{chip} vs {limit}"
     );
 }
