@@ -121,7 +121,7 @@ proptest! {
             tool_axis: unit([axis.0, axis.1, 1.0]),
             end: Vec::new(),
         };
-        let k = CuttingCoefficients { ktc: k[0], krc: k[1], kac: k[2], kte: k[3], kre: k[4], kae: k[5] };
+        let k = CuttingCoefficients::linear([k[0], k[1], k[2], k[3], k[4], k[5]]);
         let mut m = ForceModel::new(&tool, 1 + slices % 7 * 10, positions).unwrap();
         let r = m.evaluate(&e, &k, &CuttingConditions { spindle_rpm: rpm, feed_per_tooth: fz }).unwrap();
         prop_assert!(finite(&r), "{r:?}");

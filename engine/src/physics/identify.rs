@@ -193,6 +193,9 @@ pub fn identify_coefficients(
     let (x, y) = (fit_x.slope / q1, fit_y.slope / q1);
     let (p, q) = (fit_x.intercept / q2, -fit_y.intercept / q2);
     let coefficients = CuttingCoefficients {
+        mtc: 0.0,
+        mrc: 0.0,
+        mac: 0.0,
         ktc: (x * b.cos2 + y * b.two_phi_sin2) / d1,
         krc: (y * b.cos2 - x * b.two_phi_sin2) / d1,
         kac: fit_z.slope / (q2 * b.cos),

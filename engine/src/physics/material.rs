@@ -12,7 +12,13 @@ use super::PhysicsError;
 /// Cutting terms in N/mm² (multiply chip area, mm²), edge terms in N/mm (multiply edge
 /// length, mm). Signs are not restricted: identified axial coefficients are sometimes
 /// negative in the literature.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+///
+/// The size effect (optional): with exponents `mtc`, `mrc`, `mac` in [0, 0.9) each cutting
+/// coefficient is Kienzle's exponential form K(h) = K·h^(−m), h the chip thickness in mm
+/// (so `ktc` is the value at a 1 mm chip, Kienzle's k1.1), and the force K·h^(1−m)·b grows
+/// more slowly than the chip: the measured radial force flattens with feed. All three 0
+/// (the default) is the linear model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CuttingCoefficients {
     pub ktc: f64,
@@ -21,10 +27,48 @@ pub struct CuttingCoefficients {
     pub kte: f64,
     pub kre: f64,
     pub kae: f64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub mtc: f64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub mrc: f64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub mac: f64,
 }
 
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+/// The largest size-effect exponent taken: at m → 1 the cutting force would no longer grow
+/// with the chip (published Kienzle exponents are 0.15–0.4).
+pub const MAX_SIZE_EXPONENT: f64 = 0.9;
+
 impl CuttingCoefficients {
-    /// All six must be finite numbers; names the first one that is not.
+    /// The linear model's six coefficients (ktc, krc, kac, kte, kre, kae).
+    pub fn linear(k: [f64; 6]) -> CuttingCoefficients {
+        CuttingCoefficients {
+            ktc: k[0],
+            krc: k[1],
+            kac: k[2],
+            kte: k[3],
+            kre: k[4],
+            kae: k[5],
+            ..Default::default()
+        }
+    }
+
+    /// Whether the cutting coefficients depend on the chip (a size-effect exponent is set).
+    pub fn has_size_effect(&self) -> bool {
+        self.mtc != 0.0 || self.mrc != 0.0 || self.mac != 0.0
+    }
+
+    /// The size-effect exponents (mtc, mrc, mac).
+    pub fn exponents(&self) -> [f64; 3] {
+        [self.mtc, self.mrc, self.mac]
+    }
+
+    /// All six must be finite numbers and the exponents in [0, 0.9); names the first one
+    /// that is not.
     pub fn validate(&self) -> Result<(), PhysicsError> {
         for (field, v) in [
             ("ktc", self.ktc),
@@ -36,6 +80,16 @@ impl CuttingCoefficients {
         ] {
             super::finite(field, v)?;
         }
+        for (field, m) in [("mtc", self.mtc), ("mrc", self.mrc), ("mac", self.mac)] {
+            if !(m.is_finite() && (0.0..MAX_SIZE_EXPONENT).contains(&m)) {
+                return Err(PhysicsError::invalid(
+                    field,
+                    format!(
+                        "{m} is not a size-effect exponent: must be in [0, {MAX_SIZE_EXPONENT})"
+                    ),
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -45,6 +99,7 @@ impl CuttingCoefficients {
         // Bounds no metal comes near (the hardest superalloys cut at a few thousand N/mm²):
         // past them a value is a typo or a unit mistake, and forces, power and energy would
         // be nonsense (or overflow) rather than an error.
+        self.validate()?;
         const CUTTING: f64 = 20_000.0; // N/mm²
         const EDGE: f64 = 2_000.0; // N/mm
         for (field, v, lo, hi) in [
@@ -104,6 +159,12 @@ struct MaterialJson {
     kte: Option<f64>,
     kre: Option<f64>,
     kae: Option<f64>,
+    #[serde(default)]
+    mtc: f64,
+    #[serde(default)]
+    mrc: f64,
+    #[serde(default)]
+    mac: f64,
 }
 
 impl TryFrom<MaterialJson> for Material {
@@ -111,6 +172,11 @@ impl TryFrom<MaterialJson> for Material {
     fn try_from(m: MaterialJson) -> Result<Self, String> {
         let flat = [m.ktc, m.krc, m.kac, m.kte, m.kre, m.kae];
         let coefficients = match (m.coefficients, flat) {
+            (Some(_), _) if m.mtc != 0.0 || m.mrc != 0.0 || m.mac != 0.0 => {
+                return Err(
+                    "with `coefficients`, give the exponents mtc, mrc, mac inside it".into(),
+                )
+            }
             (Some(c), [None, None, None, None, None, None]) => {
                 return Ok(Material {
                     name: m.name.ok_or("missing field `name`")?,
@@ -126,12 +192,10 @@ impl TryFrom<MaterialJson> for Material {
             }
             (None, [Some(ktc), Some(krc), Some(kac), Some(kte), Some(kre), Some(kae)]) => {
                 CuttingCoefficients {
-                    ktc,
-                    krc,
-                    kac,
-                    kte,
-                    kre,
-                    kae,
+                    mtc: m.mtc,
+                    mrc: m.mrc,
+                    mac: m.mac,
+                    ..CuttingCoefficients::linear([ktc, krc, kac, kte, kre, kae])
                 }
             }
             (None, flat) => {
@@ -200,14 +264,7 @@ fn normalize(s: &str) -> String {
 pub fn builtin_materials() -> Vec<Material> {
     let row = |name: &str, k: [f64; 6], source: &str| Material {
         name: name.to_string(),
-        coefficients: CuttingCoefficients {
-            ktc: k[0],
-            krc: k[1],
-            kac: k[2],
-            kte: k[3],
-            kre: k[4],
-            kae: k[5],
-        },
+        coefficients: CuttingCoefficients::linear(k),
         taylor: None,
         source: source.to_string(),
     };

@@ -10,6 +10,8 @@ use crate::physics::material::CuttingCoefficients;
 /// Per (slice, tooth) constants of the inner loop. Each force component of the slice is
 /// a·X + b0 + bv·V with X the chip's part across the axis (c_h·sin φ, plus runout) and V
 /// its part along it (c_v); components: Ft, in-plane radial (outward), Fz, torque (N·mm).
+/// With a size effect the cutting part of each direction (t, r, a) is scaled by h^(−m) of
+/// the slice-centre chip h (`sized`), so it is kept per direction as well.
 /// The axial force enters with the generalized transformation's sign (see the module doc of
 /// `force`): −dFa·cos κ outward in the plane, −dFa·sin κ along the axis.
 #[derive(Clone, Copy)]
@@ -25,7 +27,20 @@ pub(super) struct Pass {
     a: [f64; 4],
     b0: [f64; 4],
     bv: [f64; 4],
+    /// Size effect: the exponents (t, r, a) and each direction's a and bv rows.
+    sized: Option<SizeParts>,
 }
+
+#[derive(Clone, Copy)]
+struct SizeParts {
+    m: [f64; 3],
+    a: [[f64; 4]; 3],
+    bv: [[f64; 4]; 3],
+}
+
+/// The chip below which K(h) = K·h^(−m) is taken at this value (mm): the force K·h^(1−m)·b
+/// goes to 0 with h, only the factor would overflow.
+const SIZE_EFFECT_MIN_CHIP: f64 = 1e-6;
 
 impl Pass {
     #[allow(clippy::too_many_arguments)]
@@ -37,7 +52,21 @@ impl Pass {
         cv: f64,
         eps: f64,
     ) -> Pass {
+        let sized = k.has_size_effect().then(|| SizeParts {
+            m: k.exponents(),
+            a: [
+                [k.ktc * g.dz, 0.0, 0.0, k.ktc * g.int_r_dz],
+                [0.0, -k.krc * g.int_sin, k.krc * g.int_cos, 0.0],
+                [0.0, -k.kac * g.int_cos, -k.kac * g.int_sin, 0.0],
+            ],
+            bv: [
+                [-k.ktc * g.int_cot, 0.0, 0.0, -k.ktc * g.int_r_cot],
+                [0.0, k.krc * g.int_cos, -k.krc * g.int_cos2_sin, 0.0],
+                [0.0, k.kac * g.int_cos2_sin, k.kac * g.int_cos, 0.0],
+            ],
+        });
         Pass {
+            sized,
             eps,
             sa,
             ca,
@@ -87,8 +116,25 @@ impl Pass {
         best
     }
 
+    /// Whether each sample needs its own chip (size effect): no affine shortcut.
+    pub(super) fn is_sized(&self) -> bool {
+        self.sized.is_some()
+    }
+
     #[inline(always)]
     fn force(&self, x: f64, v: f64, sphi: f64, cphi: f64) -> [f64; 4] {
+        if let Some(sz) = &self.sized {
+            let h = (x * self.sk - v * self.ck).max(SIZE_EFFECT_MIN_CHIP);
+            let mut f = self.b0;
+            for d in 0..3 {
+                let scale = h.powf(-sz.m[d]);
+                for (i, fi) in f.iter_mut().enumerate() {
+                    *fi += scale * (sz.a[d][i] * x + sz.bv[d][i] * v);
+                }
+            }
+            let [ft, fp, fz, tq] = f;
+            return [fp * sphi - ft * cphi, ft * sphi + fp * cphi, fz, tq];
+        }
         let ft = self.a[0] * x + self.b0[0] + self.bv[0] * v;
         let fp = self.a[1] * x + self.b0[1] + self.bv[1] * v;
         let fz = self.a[2] * x + self.b0[2] + self.bv[2] * v;
@@ -134,7 +180,7 @@ pub(super) fn run_segment(
         &mut tq[..n],
     );
     let (sa, ca) = (p.sa, p.ca);
-    if steps.is_empty() {
+    if steps.is_empty() && !p.is_sized() {
         let (hs, hv) = (p.ch * p.sk, p.cv * p.ck);
         let a = p.a.map(|v| v * p.ch);
         let b = [0, 1, 2, 3].map(|i| p.b0[i] + p.bv[i] * p.cv);
@@ -165,6 +211,8 @@ pub(super) fn run_segment(
             bd[i] = 0.0;
         }
         let (hs, hv) = (p.ch * p.sk, p.cv * p.ck);
+        // Without runout (a size effect brings us here) the one chip is this tooth's own.
+        let steps = if steps.is_empty() { &[0.0][..] } else { steps };
         for (m, &d) in steps.iter().enumerate() {
             let mf = (m + 1) as f64;
             let e = d * p.sk;

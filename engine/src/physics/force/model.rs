@@ -152,7 +152,8 @@ impl ForceModel {
         fz_range: (f64, f64),
         out: &mut ForceResult,
     ) -> Result<Option<PeakResponse>, PhysicsError> {
-        if !self.table.runout_steps.is_empty() {
+        // With runout or a size effect the chip or the force is not proportional to the feed.
+        if !self.table.runout_steps.is_empty() || k.has_size_effect() {
             self.evaluate_into(engagement, k, conditions, out)?;
             return Ok(None);
         }
