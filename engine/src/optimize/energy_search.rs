@@ -629,10 +629,15 @@ impl EnergyProblem {
         search.max_depth_mm = search.max_depth_mm.max(1.01 * ap_max / o.stability_factor);
         search.tolerance_mm = DEPTH_TOLERANCE_MM;
         let imm = (o.width_mm / radial_passes as f64 / self.diameter).min(1.0);
+        // A size effect's coefficients linearized at the middle (geometric mean) of the feed
+        // range searched: the lobes are computed once for every feed.
+        let (kt, kr) = self
+            .k
+            .linearized_at((self.fz_range.0 * self.fz_range.1).sqrt());
         let sys = StabilitySystem::new(
             self.tool.flutes,
-            self.k.ktc,
-            self.k.krc,
+            kt,
+            kr,
             imm,
             o.milling,
             o.modes_x.clone(),

@@ -8,6 +8,15 @@
 //! quantity/target ratio, lands on the target in one or two steps. Every accepted feed has been
 //! evaluated on the model and is at or below every limit (within `tolerance` below it).
 //!
+//! With a size effect (Kienzle exponents m in [0, 0.9)) each sample's force is
+//! A·f^(1−m) + E: still increasing in the feed, and concave, so G(f) is monotone and the
+//! iteration still converges: on a concave increasing function the secant through two points
+//! below the target overshoots by a bounded amount that the bracket (regula falsi when a guess
+//! leaves it, `solve.rs`) catches, and the secant's order (≈1.6) holds near the root where G is
+//! smooth; it takes a step or two more than the affine case. Only the linear model has the
+//! exact per-step response (`PeakResponse`); with a size effect every step is evaluated on the
+//! model.
+//!
 //! A move's limiting feed is the smallest over its steps; air moves go to the air feed; a move
 //! that enters material after air (or a rapid) is slowed by `entry_feed_factor`; the rubbing
 //! floor (minimum chip thickness) lifts feeds that policies lowered, never above a limit. A block

@@ -62,6 +62,20 @@ impl CuttingCoefficients {
         self.mtc != 0.0 || self.mrc != 0.0 || self.mac != 0.0
     }
 
+    /// The tangential and radial cutting coefficients a linear (stability) model takes at the
+    /// operating chip `h` (mm): the tangent dF/dh = (1 − m)·K·h^(−m) of the size effect,
+    /// because regenerative chatter is driven by the force's change with a small change of
+    /// the chip around its mean; (ktc, krc) themselves without a size effect.
+    pub fn linearized_at(&self, h: f64) -> (f64, f64) {
+        if !self.has_size_effect() || !(h > 0.0 && h.is_finite()) {
+            return (self.ktc, self.krc);
+        }
+        (
+            (1.0 - self.mtc) * self.ktc * h.powf(-self.mtc),
+            (1.0 - self.mrc) * self.krc * h.powf(-self.mrc),
+        )
+    }
+
     /// The size-effect exponents (mtc, mrc, mac).
     pub fn exponents(&self) -> [f64; 3] {
         [self.mtc, self.mrc, self.mac]

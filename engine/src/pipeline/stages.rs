@@ -50,6 +50,21 @@ pub(super) fn chatter_margins(
 ) -> Result<(usize, f64), SimulateError> {
     use crate::physics::chatter::{arc_immersion, ChatterModel};
     let k = spec.material.coefficients;
+    // With a size effect the lobes take the coefficients linearized at the operating chip:
+    // here the median of the cutting moves' thickest chip per tooth count.
+    let mut chips: BTreeMap<u32, Vec<f64>> = BTreeMap::new();
+    for (m, row) in moves.iter().zip(rows.iter()) {
+        if row.removed_volume > 0.0 && row.max_chip_thickness > 0.0 {
+            chips
+                .entry(tools.tool_for(m)?.flutes)
+                .or_default()
+                .push(row.max_chip_thickness);
+        }
+    }
+    for list in chips.values_mut() {
+        list.sort_by(f64::total_cmp);
+    }
+    let operating_chip = |teeth: u32| chips.get(&teeth).map_or(0.0, |l| l[l.len() / 2]);
     // One model per tooth count (the tools of the program may differ).
     let mut models: BTreeMap<u32, ChatterModel> = BTreeMap::new();
     let mut conditions: BTreeMap<u32, Vec<(f64, f64, crate::physics::stability::Milling)>> =
@@ -66,12 +81,13 @@ pub(super) fn chatter_margins(
         let tool = tools.tool_for(m)?;
         let (immersion, milling) = arc_immersion(entry.to_radians(), exit.to_radians());
         if !models.contains_key(&tool.flutes) {
+            let (kt, kr) = k.linearized_at(operating_chip(tool.flutes));
             let model = ChatterModel::new(
                 c.modes_x.clone(),
                 c.modes_y.clone(),
                 tool.flutes,
-                k.ktc,
-                k.krc,
+                kt,
+                kr,
                 c.method,
                 c.steps_per_period,
             )?;
