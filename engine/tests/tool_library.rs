@@ -165,6 +165,31 @@ fn header_comments_describe_tools_with_every_assumed_value_named() {
     assert_eq!(mastercam.tools[&4].diameter, 10.0);
 }
 
+#[test]
+fn a_header_tool_flutes_reach_its_zmin() {
+    // The README example's tool: Ø2.65, ZMIN=-12.55 below a program zero on the stock's top;
+    // 3·D = 7.95 mm of flutes would call every cut below 7.95 mm deep past the flutes.
+    let lib = tools_from_header("(T1  D=2.65 CR=0 - ZMIN=-12.55 - flat end mill)\n(T2 D=10 CR=0 - ZMIN=-4 - flat end mill)\nG21\n");
+    assert_eq!(lib.tools[&1].flute_length, 13.0);
+    let note = lib
+        .report
+        .assumed
+        .iter()
+        .find(|n| n.tool == "T1 (line 1)" && n.field == "flute_length_mm")
+        .unwrap();
+    assert!(note.note.contains("ZMIN=-12.55"), "{}", note.note);
+    assert_eq!(
+        lib.report
+            .assumed
+            .iter()
+            .filter(|n| n.tool == "T1 (line 1)" && n.field == "flute_length_mm")
+            .count(),
+        1
+    );
+    // A shallow ZMIN keeps the 3·D default.
+    assert_eq!(lib.tools[&2].flute_length, 30.0);
+}
+
 fn adaptive_spec(tools: BTreeMap<u32, Tool>) -> Option<SimulateSpec> {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/adaptive");
     let program = std::fs::read_to_string(format!("{dir}/1055_utab_265bit.nc")).ok()?;
@@ -232,20 +257,27 @@ fn the_example_job_runs_with_its_tool_from_a_library_or_from_its_own_header() {
     assert_eq!(from_library.tool_numbers, vec![1]);
     assert!(from_library.summary.tool_warnings.is_empty());
 
-    // No tool at all: T1 from the header comment `(T1 D=2.65 CR=0 - ... - flat end mill)`,
-    // 2 flutes and a 30° helix assumed (as tool.json has them), flute length 3·D.
+    // No tool at all: T1 from the header comment `(T1 D=2.65 CR=0 - ZMIN=-12.55 - flat end
+    // mill)`, 2 flutes and a 30° helix assumed (as tool.json has them), flutes reaching ZMIN
+    // (13 mm: with 3·D, 7.95 mm, the deeper cuts read as past the flutes).
     let header = run(BTreeMap::new());
     let warnings = &header.summary.tool_warnings;
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(
-        warnings[0].starts_with("T1 (line 2)") && warnings[0].contains("flute_length_mm"),
+        warnings[0].starts_with("T1 (line 2)")
+            && warnings[0].contains("flute_length_mm")
+            && warnings[0].contains("ZMIN"),
         "{warnings:?}"
     );
+    assert_eq!(
+        header.summary.flute_length_exceeded_moves, 0,
+        "{:?}",
+        header.summary
+    );
     // Where the geometry agrees (tool.json with the assumed flute length and no shank or
-    // holder: the program cuts deeper than 3·D, so the flutes matter), the same forces and
-    // the same cut.
+    // holder), the same forces and the same cut.
     let mut same = tool_json.clone();
-    same.flute_length = 3.0 * 2.65;
+    same.flute_length = 13.0;
     same.shank_diameter = None;
     same.stick_out = None;
     same.holder.clear();

@@ -54,7 +54,27 @@ pub fn tools_from_header(program: &str) -> ToolLibrary {
             }
             _ => super::assume_shape_details(&mut lib, &name, &mut tool),
         }
-        note_defaults(&mut lib, &name, &tool, &[]);
+        // Fusion's ZMIN is the lowest Z the tool reaches. With the program zero on the stock's
+        // top, as Fusion's setups usually have it, the flutes must reach that deep: a default
+        // 3·D would read every deeper cut as past the flutes (and its force as the flutes'
+        // only). Taken to the next whole millimetre (in the program's unit), noted as assumed.
+        let mut given: Vec<&str> = Vec::new();
+        if let Some(zmin) = value("ZMIN=").filter(|z| z.is_finite() && *z < 0.0) {
+            let depth = (-zmin).ceil() * unit;
+            if depth > tool.flute_length {
+                tool.flute_length = depth;
+                given.push("flute_length_mm");
+                lib.assumed(
+                    &name,
+                    "flute_length_mm",
+                    format!(
+                        "not given: {depth} mm assumed, to reach ZMIN={zmin} below a program zero on the stock's top (3·D would be {})",
+                        3.0 * tool.diameter
+                    ),
+                );
+            }
+        }
+        note_defaults(&mut lib, &name, &tool, &given);
         if tool.validate().is_ok() {
             lib.tools.insert(number, tool);
         }
