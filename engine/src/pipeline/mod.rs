@@ -14,6 +14,7 @@
 mod forces;
 mod frame;
 mod optimize_stage;
+mod pass_spacing;
 mod removal;
 mod rows;
 mod setup;
@@ -143,6 +144,16 @@ pub fn simulate_in_batches(
         Some(c) => Some(stages::chatter_margins(c, spec, moves, &mut rows, &tools)?),
         None => None,
     };
+    // The scallop beside a neighbouring pass from the path's spacing where the path has one.
+    let mut scallops = scallops;
+    for (i, spacing) in pass_spacing::pass_spacings(moves, &rows, &tools)?
+        .into_iter()
+        .enumerate()
+    {
+        if let Some(s) = spacing {
+            scallops[i] = crate::physics::roughness::scallop_height(tools.tool_for(&moves[i])?, s)?;
+        }
+    }
     let tool_life =
         stages::wear_and_roughness(spec, moves, &mut rows, (&diameters, &scallops), &tools)?;
     for row in rows.iter_mut() {

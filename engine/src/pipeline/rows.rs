@@ -86,7 +86,8 @@ pub struct MoveRow {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tool_life_used: Option<f64>,
     /// Kinematic roughness the move leaves, µm: the scallop between it and the pass beside it
-    /// (its radial width as the step-over, when narrower than the tool), and the feed marks
+    /// (the step-over: the spacing to the nearest earlier parallel pass of the tool when the
+    /// path has one, else the engaged radial width when narrower than the tool), and the feed marks
     /// (floor or wall, the larger) at its feed per tooth.
     pub scallop_um: f64,
     pub feed_mark_um: f64,
