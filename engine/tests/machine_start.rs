@@ -113,3 +113,26 @@ fn an_inch_program_without_g20_is_warned_about_and_a_metric_one_is_not() {
     let metric = run(contour(1.0));
     assert!(!metric.iter().any(|w| w.contains("G20")), "{metric:?}");
 }
+
+#[test]
+fn the_row_columns_do_not_depend_on_the_first_move() {
+    // Optimized, a program that starts with a tool change: its first row has no optimized
+    // feed, tip speed or governing limit, but the columns still name them (the CSV header and
+    // `?columns=` are built from them).
+    let program = "G21 G90\nT1 M6\nS8000 M3\nG0 X40 Y0 Z5\nG0 Z-3\nG1 X20 F500\nG0 Z50\nM30\n";
+    let mut s = spec(program, BTreeMap::from([(1, Tool::flat(10.0, 4))]));
+    s.optimize = Some(serde_json::from_str(r#"{"max_force": 300, "max_feed": 3000}"#).unwrap());
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    let first = serde_json::to_value(&out.rows[0]).unwrap();
+    let columns = millsim_engine::pipeline::row_columns(&out.rows);
+    for c in ["tip_speed_opt_mm_min", "feed_opt_mm_min", "governing"] {
+        assert!(
+            columns.iter().any(|k| k == c),
+            "{c} missing from {columns:?}"
+        );
+    }
+    assert!(
+        first.get("tip_speed_opt_mm_min").is_none() || first.get("governing").is_none(),
+        "the first row has every column: the test shows nothing ({first})"
+    );
+}

@@ -427,18 +427,7 @@ pub fn run(
         out.summary.tool_warnings.extend(warnings);
         section
     });
-    // The columns: the first row's keys, and those the first row leaves out (a tool change
-    // has no governing limit) where a later row has them.
-    let mut template = out.rows.first().cloned().unwrap_or_default();
-    for r in &out.rows {
-        template.governing = template.governing.or_else(|| r.governing.clone());
-        template.split_parts = template.split_parts.or(r.split_parts);
-        template.tool_life_used = template.tool_life_used.or(r.tool_life_used);
-    }
-    let row_columns = match serde_json::to_value(template) {
-        Ok(Value::Object(o)) => o.keys().cloned().collect(),
-        _ => Vec::new(),
-    };
+    let row_columns = millsim_engine::pipeline::row_columns(&out.rows);
     let (stem, ext) = stem_and_ext(&file);
     let mut files = vec![OutputFile {
         name: "stock.stl".into(),

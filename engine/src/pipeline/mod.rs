@@ -25,8 +25,8 @@ mod tools;
 
 pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
-    Collision, EnergyTotals, MoveRow, OptimizationSummary, RoughnessSummary, SimulationOutput,
-    SimulationSummary, StageTimings, StepSample, ToolLife,
+    row_columns, Collision, EnergyTotals, MoveRow, OptimizationSummary, RoughnessSummary,
+    SimulationOutput, SimulationSummary, StageTimings, StepSample, ToolLife,
 };
 pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StlSource, StockSource};
 

@@ -147,6 +147,33 @@ pub struct MoveRow {
     pub split_parts: Option<usize>,
 }
 
+/// The row columns of a run: every field any of its rows has, in the rows' field order. A
+/// column a row leaves out (an optimized tip speed on a tool change, a governing limit on a
+/// rapid) still names its column when a later row has it, so the header does not depend on
+/// what the program's first move is.
+pub fn row_columns(rows: &[MoveRow]) -> Vec<String> {
+    let mut t = rows.first().cloned().unwrap_or_default();
+    for r in rows {
+        t.tool_life_used = t.tool_life_used.or(r.tool_life_used);
+        t.feed_after_mm_min = t.feed_after_mm_min.or(r.feed_after_mm_min);
+        t.tip_speed_after_mm_min = t.tip_speed_after_mm_min.or(r.tip_speed_after_mm_min);
+        t.time_after_s = t.time_after_s.or(r.time_after_s);
+        t.peak_force_after = t.peak_force_after.or(r.peak_force_after);
+        t.mean_force_after = t.mean_force_after.or(r.mean_force_after);
+        t.peak_torque_after = t.peak_torque_after.or(r.peak_torque_after);
+        t.mean_power_after = t.mean_power_after.or(r.mean_power_after);
+        t.peak_power_after = t.peak_power_after.or(r.peak_power_after);
+        t.split_parts = t.split_parts.or(r.split_parts);
+        if t.governing.is_none() {
+            t.governing.clone_from(&r.governing);
+        }
+    }
+    match serde_json::to_value(t) {
+        Ok(serde_json::Value::Object(o)) => o.keys().cloned().collect(),
+        _ => Vec::new(),
+    }
+}
+
 impl MoveRow {
     /// True for a feed move that removed nothing.
     pub fn is_air_cut(&self) -> bool {
