@@ -184,8 +184,8 @@ pub fn tool_library(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
         summary: json!({
             "format": lib.format,
             "tools": lib.tools.len(),
-            "unmodelled": lib.report.unmodelled.len(),
-            "assumed": lib.report.assumed.len(),
+            "unmodelled": lib.report.unmodelled.len() + lib.report.unmodelled_omitted,
+            "assumed": lib.report.assumed.len() + lib.report.assumed_omitted,
         }),
     })
 }

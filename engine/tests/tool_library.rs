@@ -296,3 +296,34 @@ fn the_example_job_runs_with_its_tool_from_a_library_or_from_its_own_header() {
         agreeing.summary.removed_volume
     );
 }
+
+#[test]
+fn a_library_with_many_unknown_fields_keeps_a_bounded_report() {
+    // 600 tools with two fields millsim does not model, one of them a long value: 1,200
+    // notes, of which the first 500 are kept (each at most 200 characters and an ellipsis)
+    // and the rest counted.
+    let long = "x".repeat(5000);
+    let tools: Vec<String> = (1..=600)
+        .map(|n| {
+            format!(
+                r#"{{"type":"flat end mill","unit":"millimeters","geometry":{{"DC":6,"NOF":2,"LCF":18,"vendor-a":"{long}","vendor-b":1}},"post-process":{{"number":{n}}}}}"#
+            )
+        })
+        .collect();
+    let lib = ToolLibrary::read(&format!(r#"{{"data":[{}]}}"#, tools.join(","))).unwrap();
+    assert_eq!(lib.tools.len(), 600);
+    let r = &lib.report;
+    assert_eq!(r.unmodelled.len(), millsim_engine::tool_library::MAX_NOTES);
+    assert_eq!(r.unmodelled.len() + r.unmodelled_omitted, 1200);
+    assert!(
+        r.unmodelled.iter().all(|n| n.note.chars().count() <= 201),
+        "a note is unbounded"
+    );
+    let json = serde_json::to_string(r).unwrap();
+    assert!(json.len() < 200_000, "{} bytes of report", json.len());
+    assert!(
+        json.contains("\"unmodelled_omitted\":700"),
+        "{}",
+        &json[json.len() - 100..]
+    );
+}

@@ -180,11 +180,10 @@ pub async fn create(
                 .clone()
                 .or(name.clone())
                 .unwrap_or_else(|| "tools".into());
-            let v = tokio::task::spawn_blocking(move || {
+            let v = read_library_serially("the tool library reader", move || {
                 validate::tool_library(&bytes, &file).map(|v| (bytes, v))
             })
-            .await
-            .map_err(|e| ApiError::blocking_failed(e, "the tool library reader"))??;
+            .await?;
             (v.0, name, v.1)
         }
         ResourceKind::Tool | ResourceKind::Material | ResourceKind::Machine => {
@@ -290,6 +289,25 @@ struct LibraryView {
     report: ImportReport,
 }
 
+/// Tool libraries are parsed in the API process (on upload and on every view), and a large
+/// one takes a few hundred MB while it is read: one read at a time, so that concurrent reads
+/// of a big library wait for each other instead of adding up past the server's memory.
+static LIBRARY_READS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(1);
+
+/// One tool library read at a time (see [`LIBRARY_READS`]).
+async fn read_library_serially<T: Send + 'static>(
+    what: &'static str,
+    read: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    let _turn = LIBRARY_READS
+        .acquire()
+        .await
+        .map_err(|_| ApiError::internal("the tool library reader is closed"))?;
+    Ok(tokio::task::spawn_blocking(read)
+        .await
+        .map_err(|e| ApiError::blocking_failed(e, what))??)
+}
+
 /// The library read again from the stored file (the reader is cheap; the file is the truth).
 async fn library_view(
     state: &AppState,
@@ -302,9 +320,10 @@ async fn library_view(
         .await?
         .ok_or_else(|| ApiError::not_found(ResourceKind::ToolLibrary.as_str(), &record.id))?;
     let file = name.unwrap_or_else(|| "tools".into());
-    let lib = tokio::task::spawn_blocking(move || validate::read_tool_library(&bytes, &file))
-        .await
-        .map_err(|e| ApiError::blocking_failed(e, "the tool library reader"))??;
+    let lib = read_library_serially("the tool library reader", move || {
+        validate::read_tool_library(&bytes, &file)
+    })
+    .await?;
     Ok(Json(LibraryView {
         record,
         format: lib.format,

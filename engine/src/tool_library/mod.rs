@@ -24,13 +24,37 @@ pub struct ToolLibrary {
     pub report: ImportReport,
 }
 
-/// What an import left out or assumed, tool by tool.
+/// What an import left out or assumed, tool by tool: the first [`MAX_NOTES`] of each kind and
+/// how many more there were (a library of 10,000 tools with 700 unknown fields each would
+/// otherwise carry 7 million notes, half a gigabyte, on every read).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct ImportReport {
     /// Fields of the source that millsim does not model (the tool is used without them).
     pub unmodelled: Vec<Note>,
     /// Values the source does not give, with the value taken.
     pub assumed: Vec<Note>,
+    /// Notes of each kind past the first [`MAX_NOTES`], counted only.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub unmodelled_omitted: usize,
+    #[serde(skip_serializing_if = "is_zero")]
+    pub assumed_omitted: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
+/// Notes of each kind an import keeps.
+pub const MAX_NOTES: usize = 500;
+
+/// Longest note text kept, in characters (a source's value is quoted in it).
+const MAX_NOTE_CHARS: usize = 200;
+
+fn bounded(note: String) -> String {
+    match note.char_indices().nth(MAX_NOTE_CHARS) {
+        Some((at, _)) => format!("{}…", &note[..at]),
+        None => note,
+    }
 }
 
 /// One remark on one tool: which tool (T number, or its place in the file), which field.
@@ -105,18 +129,26 @@ impl ToolLibrary {
     }
 
     fn unmodelled(&mut self, tool: &str, field: &str, note: impl Into<String>) {
+        if self.report.unmodelled.len() >= MAX_NOTES {
+            self.report.unmodelled_omitted += 1;
+            return;
+        }
         self.report.unmodelled.push(Note {
             tool: tool.into(),
             field: field.into(),
-            note: note.into(),
+            note: bounded(note.into()),
         });
     }
 
     fn assumed(&mut self, tool: &str, field: &str, note: impl Into<String>) {
+        if self.report.assumed.len() >= MAX_NOTES {
+            self.report.assumed_omitted += 1;
+            return;
+        }
         self.report.assumed.push(Note {
             tool: tool.into(),
             field: field.into(),
-            note: note.into(),
+            note: bounded(note.into()),
         });
     }
 }
