@@ -82,6 +82,13 @@ fn c_table_turn_cuts_a_ring_and_matches_the_same_cut_as_a_g2_circle() {
         turn.length, 360.0,
         "machine path of a rotary-only move, degrees"
     );
+    // Its columns in the units their names say: no linear travel, 360° of rotary travel at
+    // F3600 °/min (issue 32: length_mm 360 and feed_mm_min 3600 before).
+    let json = serde_json::to_value(turn).unwrap();
+    assert_eq!(json["length_mm"], 0.0, "{json}");
+    assert_eq!(json["rotary_deg"], 360.0, "{json}");
+    assert_eq!(json["feed_mm_min"], 0.0, "{json}");
+    assert_eq!(json["rotary_feed_deg_min"], 3600.0, "{json}");
 
     // The same cut on a 3-axis machine: the table turning +C moves the tool clockwise
     // around the part, so G2 at the tip speed. Same chip, same force.

@@ -182,6 +182,9 @@ pub fn simulate_in_batches(
         None => (None, None),
     };
     timings.optimize_s = clock.elapsed().as_secs_f64();
+    for row in rows.iter_mut() {
+        row.set_axis_rates();
+    }
 
     let volume_after = stock.volume();
     let part = match &spec.part {

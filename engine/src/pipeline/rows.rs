@@ -18,13 +18,25 @@ pub struct MoveRow {
     pub n: Option<u64>,
     pub tool: u32,
     pub kind: &'static str,
-    /// Path length of the machine axes (XYZ, or the rotary angle of a rotary-only move), mm.
-    #[serde(rename = "length_mm")]
+    /// Path length the feed is read along (XYZ, or the rotary angle of a rotary-only move):
+    /// mm or degrees, internal (the columns are `length_mm` and `rotary_deg`).
+    #[serde(skip)]
     pub length: f64,
-    /// The F word in force (in the block's feed mode) and the feed it means, mm/min.
+    /// Travel of the linear axes X, Y, Z, mm.
+    #[serde(rename = "length_mm")]
+    pub linear_length_mm: f64,
+    /// Travel of the rotary axes, degrees (√(ΔA² + ΔB² + ΔC²)).
+    pub rotary_deg: f64,
+    /// The F word in force (in the block's feed mode).
     pub feed: f64,
     pub feed_mode: &'static str,
+    /// The rate F means along `length` (mm/min, or °/min on a rotary-only move), internal.
+    #[serde(skip)]
     pub feed_mm_min: f64,
+    /// The linear axes' rate at the programmed feed, mm/min, and the rotary axes', °/min.
+    #[serde(rename = "feed_mm_min")]
+    pub linear_feed_mm_min: f64,
+    pub rotary_feed_deg_min: f64,
     /// Tool-tip path in the part frame and the tip speed at the programmed feed (they equal
     /// length and feed on a 3-axis machine; they differ when rotary axes turn).
     pub tip_length_mm: f64,
@@ -117,8 +129,17 @@ pub struct MoveRow {
     pub non_center_cutting_plunge: bool,
     /// With optimization: the move's feed, time and peak |F| in the rewritten program, and
     /// what set its feed (force, power, torque, chip, air, entry, max_feed, ...).
-    #[serde(rename = "feed_opt_mm_min", skip_serializing_if = "Option::is_none")]
+    /// The optimized rate along `length` (as `feed_mm_min`), internal.
+    #[serde(skip)]
     pub feed_after_mm_min: Option<f64>,
+    /// The linear axes' rate at the new feed, mm/min, and the rotary axes', °/min.
+    #[serde(rename = "feed_opt_mm_min", skip_serializing_if = "Option::is_none")]
+    pub linear_feed_after_mm_min: Option<f64>,
+    #[serde(
+        rename = "rotary_feed_opt_deg_min",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub rotary_feed_after_deg_min: Option<f64>,
     /// The tip speed at that feed (mean over the move), mm/min.
     #[serde(
         rename = "tip_speed_opt_mm_min",
@@ -155,7 +176,8 @@ pub fn row_columns(rows: &[MoveRow]) -> Vec<String> {
     let mut t = rows.first().cloned().unwrap_or_default();
     for r in rows {
         t.tool_life_used = t.tool_life_used.or(r.tool_life_used);
-        t.feed_after_mm_min = t.feed_after_mm_min.or(r.feed_after_mm_min);
+        t.linear_feed_after_mm_min = t.linear_feed_after_mm_min.or(r.linear_feed_after_mm_min);
+        t.rotary_feed_after_deg_min = t.rotary_feed_after_deg_min.or(r.rotary_feed_after_deg_min);
         t.tip_speed_after_mm_min = t.tip_speed_after_mm_min.or(r.tip_speed_after_mm_min);
         t.time_after_s = t.time_after_s.or(r.time_after_s);
         t.peak_force_after = t.peak_force_after.or(r.peak_force_after);
@@ -175,6 +197,23 @@ pub fn row_columns(rows: &[MoveRow]) -> Vec<String> {
 }
 
 impl MoveRow {
+    /// The unit columns from the internal path rates: a rate along `length` split into the
+    /// linear axes' mm/min and the rotary axes' °/min by their shares of the move's travel.
+    pub(super) fn set_axis_rates(&mut self) {
+        let share = |part: f64| {
+            if self.length > 0.0 {
+                part / self.length
+            } else {
+                0.0
+            }
+        };
+        let (lin, rot) = (share(self.linear_length_mm), share(self.rotary_deg));
+        self.linear_feed_mm_min = self.feed_mm_min * lin;
+        self.rotary_feed_deg_min = self.feed_mm_min * rot;
+        self.linear_feed_after_mm_min = self.feed_after_mm_min.map(|f| f * lin);
+        self.rotary_feed_after_deg_min = self.feed_after_mm_min.map(|f| f * rot);
+    }
+
     /// True for a feed move that removed nothing.
     pub fn is_air_cut(&self) -> bool {
         matches!(self.kind, "linear" | "arc") && self.removed_volume <= 0.0
@@ -551,6 +590,8 @@ pub(super) fn initial_rows(
             tool: m.tool,
             kind: kind_name(m.kind),
             length,
+            linear_length_mm: crate::machine::feed_reading::linear_length(m),
+            rotary_deg: crate::machine::feed_reading::rotary_length(m),
             feed: m.feed,
             feed_mode: feed_mode_name(m.feed_mode),
             feed_mm_min: if m.kind == MoveKind::Rapid {
