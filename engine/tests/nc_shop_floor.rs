@@ -351,7 +351,12 @@ fn features_of_other_controls_are_refused_naming_them() {
             "O1\nG47 P0 (TEXT) X0 Y0 I0 J.1 R.05 Z-.005 F15. E10.\nM30\n",
             "engraving",
         ),
-        ("O1\nG43.4 H1\nM30\n", "tool center point"),
+        // G43.4 is read now (tool-centre-point control, simulate_multiaxis); a G43.5 vector
+        // form is not.
+        (
+            "O1\nG43.5 H1 I0 J0 K1\nM30\n",
+            "G43.5 with a tool-axis vector",
+        ),
         (
             "O1\nG68.2 X0 Y0 Z0 I0 J90 K0\nM30\n",
             "tilted working plane",

@@ -299,3 +299,41 @@ fn corpus_impeller_simulates_on_an_xyzac_machine_with_tip_speeds_per_block() {
     assert!(out.summary.removed_volume > 10_000.0);
     assert!(out.summary.force_evaluations > 1000);
 }
+
+#[test]
+fn a_g43_4_program_cuts_as_its_tool_tip_twin() {
+    // Tool-centre-point control: under G43.4 X Y Z are the tip on the part, as `axes:
+    // tool_tip` reads a whole program. The same tilting cut into the cylinder, once with
+    // G43.4 in the program and once read with the job's tool-tip reading (before G43.4, at
+    // A0 C0, the two readings agree; after G49 the words are machine axes again).
+    let body = "G0 A90 C0\nG0 X0 Y30 Z-5\nG0 Y8\nG1 Z-15 A80 F600\nG1 C20 F400\nG0 Y30\n";
+    let tcp = format!("G21 G90 G94 S8000 M3\nG0 Z30\nG43.4 H0\n{body}G0 Z40\nG49\nM30\n");
+    let twin = format!("G21 G90 G94 S8000 M3\nG0 Z30\n(twin)\n{body}G0 Z40\n(twin)\nM30\n");
+    let a = spec(&tcp, Kinematics::XyzAc, 6.0);
+    let got = simulate(&a, &CancelFlag::new(), &NoProgress).unwrap();
+    let mut b = spec(&twin, Kinematics::XyzAc, 6.0);
+    b.axes = AxisReading::ToolTip;
+    let want = simulate(&b, &CancelFlag::new(), &NoProgress).unwrap();
+    assert_eq!(got.rows.len(), want.rows.len());
+    let cut: f64 = got.rows.iter().map(|r| r.removed_volume).sum();
+    assert!(cut > 10.0, "the cut removed {cut} mm³");
+    for (g, w) in got.rows.iter().zip(&want.rows) {
+        assert_eq!(g.line, w.line);
+        assert_eq!(g.removed_volume, w.removed_volume, "line {}", g.line);
+        assert_eq!(g.peak_force, w.peak_force, "line {}", g.line);
+        assert_eq!(g.tip_speed_mm_min, w.tip_speed_mm_min, "line {}", g.line);
+    }
+    // Read as machine axes the same words cut elsewhere: the reading matters here.
+    let mut c = spec(&twin, Kinematics::XyzAc, 6.0);
+    c.axes = AxisReading::Machine;
+    let machine = simulate(&c, &CancelFlag::new(), &NoProgress).unwrap();
+    let other: f64 = machine.rows.iter().map(|r| r.removed_volume).sum();
+    assert!((other - cut).abs() > 1.0, "{other} vs {cut}");
+    // G43.5 with a tool-axis vector is refused, naming G43.4.
+    let e = millsim_engine::nc::interpret(
+        "G21 G90\nG43.5 H1 I0 J0 K1\nM30\n",
+        &InterpretOptions::default(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("G43.4"), "{e}");
+}

@@ -167,6 +167,7 @@ impl Reader {
             feed_mode: self.feed_mode,
             spindle: self.spindle,
             tool: self.tool,
+            tool_tip: false,
             center: None,
             normal: None,
             clockwise: None,

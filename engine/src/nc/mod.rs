@@ -81,7 +81,7 @@
 //!   the library folder.
 //!
 //! Refused with an error naming the feature: Haas G12/G13/G47/G150, tool center point
-//! control G43.4/G43.5, tilted working planes G68.2/G53.1, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
+//! tilted working planes G68.2/G53.1, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
 //! axes, calls to programs neither in the file nor in the library, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5425).
@@ -309,6 +309,10 @@ pub struct Move {
     /// Tool axis unit vector (APT/CLS input, part frame).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tool_axis: Option<[f64; 3]>,
+    /// Tool-centre-point control (G43.4/G43.5) in force: X Y Z are the tool tip on the part
+    /// and A/B/C only orient the tool, as `axes: tool_tip` reads a whole program.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub tool_tip: bool,
     #[serde(skip)]
     pub start: [f64; 6],
     #[serde(skip)]

@@ -55,9 +55,19 @@ impl PartFrame {
         }
     }
 
-    fn pose(&self, axes: &[f64; 6]) -> Pose {
+    /// How move `m`'s axis words are read: G43.4 tool-centre-point control reads them as
+    /// the tool tip whatever the job's reading.
+    fn reading_of(&self, m: &Move) -> AxisReading {
+        if m.tool_tip {
+            AxisReading::ToolTip
+        } else {
+            self.reading
+        }
+    }
+
+    fn pose(&self, axes: &[f64; 6], reading: AxisReading) -> Pose {
         let tip = [axes[0], axes[1], axes[2]];
-        match (&self.kinematics, self.reading) {
+        match (&self.kinematics, reading) {
             (None, _) => Pose {
                 tip,
                 axis: [0.0, 0.0, 1.0],
@@ -74,6 +84,7 @@ impl PartFrame {
     /// dwells and tool changes.
     pub(super) fn segments(&self, m: &Move) -> Option<(Vec<FramePiece>, f64)> {
         let machine_segment = segment(m, self.feed_reading)?;
+        let reading = self.reading_of(m);
         let whole = |segment: Segment| FramePiece {
             segment,
             tip_at: 0.0,
@@ -86,8 +97,8 @@ impl PartFrame {
         };
         if !m.turns_rotary() {
             // Fixed angles: a rigid motion, so lines stay lines and arcs stay arcs.
-            let p0 = self.pose(&m.start);
-            let p1 = self.pose(&m.end);
+            let p0 = self.pose(&m.start, reading);
+            let p1 = self.pose(&m.end, reading);
             let mut seg = machine_segment;
             seg.from = p0.tip;
             seg.to = p1.tip;
@@ -96,9 +107,9 @@ impl PartFrame {
             if let geometry::PathShape::Arc { center, normal, .. } = &mut seg.shape {
                 let mut at = m.start;
                 at[..3].copy_from_slice(center);
-                let c = self.pose(&at).tip;
+                let c = self.pose(&at, reading).tip;
                 at[..3].copy_from_slice(&crate::vec3::add(*center, *normal));
-                *normal = crate::vec3::sub(self.pose(&at).tip, c);
+                *normal = crate::vec3::sub(self.pose(&at, reading).tip, c);
                 *center = c;
             }
             return Some((vec![whole(seg)], move_length(m)));
@@ -111,13 +122,12 @@ impl PartFrame {
                 None => std::array::from_fn(|i| m.start[i] + (m.end[i] - m.start[i]) * u),
             }
         };
-        let mut knots = vec![(0.0, self.pose(&m.start))];
+        let mut knots = vec![(0.0, self.pose(&m.start, reading))];
         self.refine(
             &at,
-            0.0,
-            self.pose(&m.start),
-            1.0,
-            self.pose(&m.end),
+            reading,
+            (0.0, self.pose(&m.start, reading)),
+            (1.0, self.pose(&m.end, reading)),
             0,
             &mut knots,
         );
@@ -150,20 +160,18 @@ impl PartFrame {
 
     /// Appends the knots after `u0` up to and including `u1`, splitting until the midpoint
     /// of each piece is within tolerance of the chord and of the interpolated axis.
-    #[allow(clippy::too_many_arguments)]
     fn refine(
         &self,
         at: &dyn Fn(f64) -> [f64; 6],
-        u0: f64,
-        p0: Pose,
-        u1: f64,
-        p1: Pose,
+        reading: AxisReading,
+        (u0, p0): (f64, Pose),
+        (u1, p1): (f64, Pose),
         depth: u32,
         out: &mut Vec<(f64, Pose)>,
     ) {
         use crate::vec3::{add, dot, norm, scale, sub};
         let um = 0.5 * (u0 + u1);
-        let pm = self.pose(&at(um));
+        let pm = self.pose(&at(um), reading);
         let chord_mid = scale(add(p0.tip, p1.tip), 0.5);
         let tip_error = norm(sub(pm.tip, chord_mid));
         let axis_mid = add(p0.axis, p1.axis);
@@ -179,8 +187,8 @@ impl PartFrame {
             out.push((u1, p1));
             return;
         }
-        self.refine(at, u0, p0, um, pm, depth + 1, out);
-        self.refine(at, um, pm, u1, p1, depth + 1, out);
+        self.refine(at, reading, (u0, p0), (um, pm), depth + 1, out);
+        self.refine(at, reading, (um, pm), (u1, p1), depth + 1, out);
     }
 }
 
@@ -203,7 +211,7 @@ pub(super) fn feed_scale(
         max_axis_feed = max_axis_feed.min(row.length * w / rotary);
     }
     let linear = (0..3).any(|i| (m.end[i] - m.start[i]).abs() > 1e-12);
-    if axes == AxisReading::Machine && linear {
+    if axes == AxisReading::Machine && !m.tool_tip && linear {
         max_axis_feed = max_axis_feed.min(machine.max_feed);
     }
     optimize::FeedScale {

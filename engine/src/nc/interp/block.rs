@@ -271,8 +271,18 @@ impl<'p> Interp<'p> {
                     self.comp_on(w, left, dynamic, self.word_pos(i))?;
                 }
             }
-            // 18. tool length offset
-            if let Some(i) = w.g(430) {
+            // 18. tool length offset; G43.4/G43.5 (tool-centre-point control) take it as G43
+            // does and make X Y Z the tool tip on the part from here to G43/G43.1/G49.
+            let tcp = w.g(434).or(w.g(435));
+            if let Some(i) = w.g(435) {
+                if ['I', 'J', 'K'].iter().any(|&c| w.has(c)) {
+                    return Err(self.err_at(
+                        self.word_pos(i),
+                        "G43.5 with a tool-axis vector (I J K) is not supported: program the rotary angles (A/B/C) under G43.4".to_string(),
+                    ));
+                }
+            }
+            if let Some(i) = w.g(430).or(tcp) {
                 let h = match w.take('H') {
                     Some(h) => {
                         if h < 0.0 || h.fract() != 0.0 || h > u32::MAX as f64 {
@@ -314,8 +324,10 @@ impl<'p> Interp<'p> {
                     }
                 };
                 self.set_tlo(Some(off));
+                self.tcp = tcp.is_some();
             }
             if w.g(431).is_some() {
+                self.tcp = false;
                 // G43.1: the offset comes from the Z word (program units).
                 let Some(z) = w.take('Z') else {
                     return Err(self.err_block("G43.1 needs a Z word (tool length)"));
@@ -327,6 +339,7 @@ impl<'p> Interp<'p> {
                 self.set_tlo(Some(z));
             }
             if w.g(490).is_some() {
+                self.tcp = false;
                 self.set_tlo(None);
             }
             // 19. coordinate system

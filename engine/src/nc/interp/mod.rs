@@ -111,6 +111,8 @@ struct Interp<'p> {
     g30: [f64; 6],
     /// Active tool length offset (mm), None: G49.
     tlo: Option<f64>,
+    /// G43.4/G43.5 tool-centre-point control in force (G43, G43.1 and G49 end it).
+    tcp: bool,
     tool: u32,
     /// Fanuc's modal D: the radius offset number a G41/G42 without D takes (set by D on a
     /// G41/G42 block or on a G43 block, as Fanuc posts write `G43 H1 D1`).
@@ -271,6 +273,7 @@ fn run_units(
         g28: [0.0; 6],
         g30: [0.0; 6],
         tlo: None,
+        tcp: false,
         tool: 0,
         radius_offset: None,
         selected_tool: None,
@@ -412,6 +415,7 @@ impl Interp<'_> {
             tool_length: self.tlo,
             seconds: None,
             tool_axis: None,
+            tool_tip: self.tcp,
             start,
             spindle_dir: self.modal.spindle,
             arc: None,

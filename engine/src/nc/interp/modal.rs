@@ -84,7 +84,7 @@ pub(super) fn g_group(code: u16) -> Option<u8> {
         930 | 940 | 950 => 5,
         200 | 210 => 6,
         400 | 410 | 420 | 411 | 421 => 7,
-        430 | 431 | 490 => 8,
+        430 | 431 | 434 | 435 | 490 => 8,
         980 | 990 => 10,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 | 541 | 1540 => 12,
         610 | 611 | 640 => 13,
@@ -119,8 +119,7 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         120 | 130 => "(Haas circular pocket milling) is not supported",
         470 => "(Haas text engraving) is not supported",
         1500 => "(Haas general-purpose pocket milling) is not supported",
-        434 | 435 => "(tool center point control, 5-axis) is not supported",
-        531 | 682 | 683 | 684 => "(tilted working plane) is not supported",
+        531 | 682 | 683 | 684 => "(tilted working plane) is not supported: post the 3+2 program with its rotary angles (A/B/C words) and part coordinates under G43.4 (tool-centre-point control) or read with axes tool_tip",
         _ => "is not a supported G code",
     }
 }
