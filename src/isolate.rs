@@ -65,10 +65,37 @@ const MAX_FRAME: u64 = 8 << 30;
 /// Address space the child may reserve beyond the job's memory budget: code, thread
 /// stacks and the allocator's per-thread arenas (reserved, mostly never touched).
 pub fn address_space_limit(limits: &JobLimits) -> u64 {
+    limits.memory_bytes + address_space_overhead()
+}
+
+/// What a job process's address space holds besides its budget: the executable, libraries
+/// and a stack and arena per core.
+fn address_space_overhead() -> u64 {
     let cores = std::thread::available_parallelism()
         .map(|n| n.get() as u64)
         .unwrap_or(1);
-    limits.memory_bytes + (512 << 20) + cores * (128 << 20)
+    (512 << 20) + cores * (128 << 20)
+}
+
+/// The hard address-space limit this process inherited (`ulimit -v`, a service manager's
+/// `LimitAS=`, `prlimit`), bytes; None when unlimited. A job process cannot be given more.
+pub fn inherited_address_space() -> Option<u64> {
+    let mut r = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit writes the struct it is given.
+    if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut r) } != 0 || r.rlim_max == libc::RLIM_INFINITY
+    {
+        return None;
+    }
+    Some(r.rlim_max as u64)
+}
+
+/// The largest job memory budget (MiB) whose address space fits under an inherited limit of
+/// `bytes` (at least 64 MiB, the smallest budget).
+pub fn budget_under_address_space(bytes: u64) -> u64 {
+    (bytes.saturating_sub(address_space_overhead()) >> 20).max(64)
 }
 
 #[derive(Serialize, Deserialize)]
@@ -434,9 +461,22 @@ pub fn spawn(
     // close) between fork and exec.
     unsafe {
         cmd.pre_exec(move || {
+            // Never above an inherited hard limit: raising it fails (EPERM) and the job
+            // would be given back and claimed again for ever. The server clamps the budget
+            // to fit at start-up; this keeps an explicit budget from looping.
+            let mut inherited = libc::rlimit {
+                rlim_cur: 0,
+                rlim_max: 0,
+            };
+            let mut cap = address_space as libc::rlim_t;
+            if libc::getrlimit(libc::RLIMIT_AS, &mut inherited) == 0
+                && inherited.rlim_max != libc::RLIM_INFINITY
+            {
+                cap = cap.min(inherited.rlim_max);
+            }
             let limit = libc::rlimit {
-                rlim_cur: address_space as libc::rlim_t,
-                rlim_max: address_space as libc::rlim_t,
+                rlim_cur: cap,
+                rlim_max: cap,
             };
             if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
                 return Err(std::io::Error::last_os_error());

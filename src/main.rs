@@ -154,9 +154,23 @@ impl QueueArgs {
             ));
         }
         let workers = self.workers.unwrap_or(default_workers);
-        let memory_mb = self
+        let mut memory_mb = self
             .job_memory_mb
             .unwrap_or_else(|| job_limits::default_job_memory_mb(workers));
+        // Under an inherited address-space limit a job process gets at most that much: the
+        // budget (what estimates are checked against and what errors name) says so.
+        if let Some(bytes) = crate::isolate::inherited_address_space() {
+            let fits = crate::isolate::budget_under_address_space(bytes);
+            if memory_mb > fits {
+                tracing::warn!(
+                    inherited_address_space_mb = bytes >> 20,
+                    requested_mb = memory_mb,
+                    job_memory_mb = fits,
+                    "the server runs under an address-space limit (ulimit -v, LimitAS=): each job's memory budget is lowered to fit under it"
+                );
+                memory_mb = fits;
+            }
+        }
         if !(64..=1 << 22).contains(&memory_mb) {
             return Err(format!(
                 "--job-memory-mb must be in [64, 4194304], got {memory_mb}"

@@ -544,3 +544,22 @@ async fn results_over_the_budget_fail_the_job_and_stay_out_of_the_server() {
     let rss = peak_rss_kb(s.child.id());
     assert!(rss < 64 * 1024 + 100_000, "server peak RSS {rss} kB");
 }
+
+#[tokio::test]
+async fn a_server_under_an_inherited_address_space_limit_still_runs_jobs() {
+    // Started with `ulimit -v` at 6 GiB: every job process used to fail setrlimit (EPERM,
+    // its budget's address space above the hard limit) and the job was given back and
+    // claimed again for ever, `queued` with 0 attempts. Now the budget fits under the limit.
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start_under_ulimit_v(&dir.path().join("t.db"), 6 << 20, &["--workers", "1"]);
+    let c = client();
+    let ok = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X40\nM30\n";
+    let id = submit(&c, &s, &simulate_body(&c, &s, "ok.nc", ok).await).await;
+    let job = wait_job(&c, &s, &id, Duration::from_secs(60)).await;
+    assert_eq!(job["status"], "succeeded", "{job}");
+    let budget = job["summary"]["memory"]["budget_mb"].as_u64().unwrap();
+    assert!(
+        budget < 6 << 10,
+        "a budget of {budget} MiB cannot fit under 6 GiB"
+    );
+}

@@ -19,7 +19,12 @@ fn close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
 /// Forward from machine axes, inverse back from the pose (starting from the same angles'
 /// neighbourhood), forward again: the same pose; away from the singular vertical axis the
 /// same angles.
-fn round_trip(m: &Machine, tilt_slot: usize, tilts: &[f64], axis_of: impl Fn(f64, f64) -> [f64; 3]) {
+fn round_trip(
+    m: &Machine,
+    tilt_slot: usize,
+    tilts: &[f64],
+    axis_of: impl Fn(f64, f64) -> [f64; 3],
+) {
     let k = MachineKinematics::of(m);
     let mut checked = 0;
     for &t in tilts {
@@ -30,19 +35,60 @@ fn round_trip(m: &Machine, tilt_slot: usize, tilts: &[f64], axis_of: impl Fn(f64
                 axes[5] = c;
                 let pose = k.forward(&axes);
                 let want = axis_of(t.to_radians(), c.to_radians());
-                assert!(close(pose.axis, want, 1e-12), "{}: axis {:?} vs {want:?} at {axes:?}", m.name, pose.axis);
+                assert!(
+                    close(pose.axis, want, 1e-12),
+                    "{}: axis {:?} vs {want:?} at {axes:?}",
+                    m.name,
+                    pose.axis
+                );
                 let mut near = axes;
                 near[tilt_slot] += 0.5;
                 near[5] += 0.5;
-                let back = k.inverse(&Pose { tip: pose.tip, axis: pose.axis }, &near, 0).unwrap();
+                let back = k
+                    .inverse(
+                        &Pose {
+                            tip: pose.tip,
+                            axis: pose.axis,
+                        },
+                        &near,
+                        0,
+                    )
+                    .unwrap();
                 let again = k.forward(&back.axes);
-                assert!(close(again.tip, pose.tip, 1e-9), "{}: tip {:?} vs {:?} from {axes:?}", m.name, again.tip, pose.tip);
-                assert!(close(again.axis, pose.axis, 1e-12), "{}: axis {:?} vs {:?}", m.name, again.axis, pose.axis);
+                assert!(
+                    close(again.tip, pose.tip, 1e-9),
+                    "{}: tip {:?} vs {:?} from {axes:?}",
+                    m.name,
+                    again.tip,
+                    pose.tip
+                );
+                assert!(
+                    close(again.axis, pose.axis, 1e-12),
+                    "{}: axis {:?} vs {:?}",
+                    m.name,
+                    again.axis,
+                    pose.axis
+                );
                 if t.abs() > 1.0 {
-                    assert!((back.axes[tilt_slot] - t).abs() < 1e-9, "{}: tilt {} vs {t}", m.name, back.axes[tilt_slot]);
+                    assert!(
+                        (back.axes[tilt_slot] - t).abs() < 1e-9,
+                        "{}: tilt {} vs {t}",
+                        m.name,
+                        back.axes[tilt_slot]
+                    );
                     let dc = (back.axes[5] - c).rem_euclid(360.0);
-                    assert!(dc < 1e-9 || dc > 360.0 - 1e-9, "{}: C {} vs {c}", m.name, back.axes[5]);
-                    assert!(close([back.axes[0], back.axes[1], back.axes[2]], tip, 1e-9), "{}: xyz {:?} vs {tip:?}", m.name, back.axes);
+                    assert!(
+                        dc < 1e-9 || dc > 360.0 - 1e-9,
+                        "{}: C {} vs {c}",
+                        m.name,
+                        back.axes[5]
+                    );
+                    assert!(
+                        close([back.axes[0], back.axes[1], back.axes[2]], tip, 1e-9),
+                        "{}: xyz {:?} vs {tip:?}",
+                        m.name,
+                        back.axes
+                    );
                 }
                 checked += 1;
             }

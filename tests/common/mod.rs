@@ -139,8 +139,20 @@ impl Server {
 
     /// `start` with extra environment variables for the server process.
     pub fn start_with_env(db: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
+        Self::start_command(Command::new(BIN), db, extra, env)
+    }
+
+    /// `start` under an address-space limit of `kb` KiB (`ulimit -v`), as a service
+    /// manager's `LimitAS=` starts it.
+    pub fn start_under_ulimit_v(db: &Path, kb: u64, extra: &[&str]) -> Server {
+        let mut sh = Command::new("sh");
+        sh.args(["-c", &format!("ulimit -v {kb} && exec \"$0\" \"$@\""), BIN]);
+        Self::start_command(sh, db, extra, &[])
+    }
+
+    fn start_command(mut cmd: Command, db: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
         let db_url = db_url(db);
-        let mut child = Command::new(BIN)
+        let mut child = cmd
             .args(["serve", "--bind", "127.0.0.1:0", "--database", &db_url])
             .args(extra)
             .env("RUST_LOG", "warn")
