@@ -203,6 +203,14 @@ struct ServeArgs {
     /// Serve a non-loopback address without API keys (trusted networks only).
     #[arg(long)]
     insecure_no_auth: bool,
+    /// Another site whose pages may call the API (`https://mes.example:8443`), repeatable or
+    /// comma-separated; requests from any other site's page are refused (403).
+    #[arg(
+        long = "cors-origin",
+        env = "MILLSIM_CORS_ORIGIN",
+        value_delimiter = ','
+    )]
+    cors_origin: Vec<String>,
     /// Largest STL upload, bytes.
     #[arg(long, env = "MILLSIM_MAX_UPLOAD_BYTES", default_value_t = 256 << 20)]
     max_upload_bytes: u64,
@@ -482,6 +490,9 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
         job_limits: queue.limits,
         webhooks: args.queue.webhooks(),
         shutdown: shutdown.clone(),
+        cross_site: Arc::new(http::guard::CrossSite {
+            allowed: args.cors_origin.clone(),
+        }),
     };
     let listener = tokio::net::TcpListener::bind(args.bind)
         .await

@@ -256,6 +256,7 @@ pub async fn create(
     headers: HeaderMap,
     req: Request,
 ) -> Result<Response, ApiError> {
+    super::guard::require_json(&headers)?;
     let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes).await?;
     // Up to the body limit of JSON (an inline program): parsed and hashed off the async
     // runtime, as the program itself is read below.

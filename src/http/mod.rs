@@ -5,6 +5,7 @@ pub mod body;
 pub mod chunked;
 pub mod dashboard;
 pub mod download;
+pub mod guard;
 pub mod jobs;
 pub mod ops;
 pub mod problem;
@@ -17,14 +18,16 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
-use axum::http::{HeaderName, Method, StatusCode};
+use axum::http::{HeaderName, HeaderValue, Method, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::Response;
 use axum::routing::{get, post};
 use axum::Router;
 use tokio::sync::Notify;
 use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::cors::{AllowOrigin, CorsLayer};
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::set_header::SetResponseHeaderLayer;
 use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::{DefaultOnResponse, TraceLayer};
 
@@ -48,6 +51,8 @@ pub struct AppState {
     pub job_limits: crate::job_limits::JobLimits,
     /// Which webhook targets registration accepts.
     pub webhooks: crate::webhooks::WebhookConfig,
+    /// The other sites whose pages may call the API (`--cors-origin`).
+    pub cross_site: Arc<guard::CrossSite>,
 }
 
 /// Every route of the service, as (method, path) in the router's syntax. The router is
@@ -174,7 +179,7 @@ pub fn router(state: AppState) -> Router {
         .layer(timeout(30));
 
     let request_id = HeaderName::from_static("x-request-id");
-    Router::new()
+    let router = Router::new()
         .merge(api)
         .merge(ops)
         .fallback(fallback)
@@ -193,7 +198,33 @@ pub fn router(state: AppState) -> Router {
         )
         .layer(PropagateRequestIdLayer::new(request_id.clone()))
         .layer(SetRequestIdLayer::new(request_id, MakeRequestUuid))
-        .with_state(state)
+        .layer(cors(&state.cross_site))
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            guard::refuse_cross_site,
+        ));
+    let router = guard::security_headers()
+        .into_iter()
+        .fold(router, |r, (name, value)| {
+            r.layer(SetResponseHeaderLayer::if_not_present(name, value))
+        });
+    router.with_state(state)
+}
+
+/// CORS for the sites `--cors-origin` allows (none by default: no CORS headers at all).
+fn cors(sites: &guard::CrossSite) -> CorsLayer {
+    let origins: Vec<HeaderValue> = sites
+        .allowed
+        .iter()
+        .filter_map(|o| HeaderValue::from_str(o).ok())
+        .collect();
+    if origins.is_empty() {
+        return CorsLayer::new();
+    }
+    CorsLayer::new()
+        .allow_origin(AllowOrigin::list(origins))
+        .allow_methods(tower_http::cors::Any)
+        .allow_headers(tower_http::cors::Any)
 }
 
 async fn fallback(req: Request) -> ApiError {

@@ -55,6 +55,7 @@ pub async fn create(
     req: Request,
 ) -> Result<Response, ApiError> {
     let headers = req.headers().clone();
+    super::guard::require_json(&headers)?;
     let bytes = read_limited(&headers, req.into_body(), MAX_BODY).await?;
     let request: WebhookRequest = parse_json(&bytes)?;
     let url = target::check_url(&request.url, state.webhooks.allow_private)
