@@ -130,11 +130,16 @@ pub struct Tool {
     pub stick_out: Option<f64>,
     pub holder: Vec<HolderSegment>,
     pub runout: Runout,
+    /// Feed per tooth the tool's library presets (a Fusion 360 library's
+    /// `start-values.presets[].f_z`), mm: the optimizer's default chip ceiling for the
+    /// tool instead of the rule (see `optimize::guards`).
+    pub feed_per_tooth: Option<f64>,
 }
 
 /// The tool's JSON document: `{"type":"flat|ball|bull|chamfer","diameter_mm":..,
 /// "corner_radius_mm":..,"flutes":..,"helix_deg":..,"flute_length_mm":..,
-/// "shank_diameter_mm":..,"stickout_mm":..,"holder":[..],"runout_um":..}`. The names
+/// "shank_diameter_mm":..,"stickout_mm":..,"holder":[..],"runout_um":..,
+/// "feed_per_tooth_mm":..}`. The names
 /// without units (`shape`, `diameter`, `flute_length`, ...) are accepted too.
 #[derive(Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -180,6 +185,13 @@ struct ToolJson {
     /// The older form `{"offset": mm, "angle_deg": deg}`.
     #[serde(default, skip_serializing)]
     runout: Option<Runout>,
+    #[serde(
+        rename = "feed_per_tooth_mm",
+        alias = "feed_per_tooth",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    feed_per_tooth: Option<f64>,
 }
 
 impl TryFrom<ToolJson> for Tool {
@@ -211,6 +223,7 @@ impl TryFrom<ToolJson> for Tool {
             stick_out: t.stick_out,
             holder: t.holder,
             runout,
+            feed_per_tooth: t.feed_per_tooth,
         })
     }
 }
@@ -233,6 +246,7 @@ impl From<Tool> for ToolJson {
             runout_um: t.runout.offset * 1000.0,
             runout_angle_deg: t.runout.angle_deg,
             runout: None,
+            feed_per_tooth: t.feed_per_tooth,
         }
     }
 }
@@ -286,6 +300,7 @@ impl Tool {
             stick_out: None,
             holder: Vec::new(),
             runout: Runout::default(),
+            feed_per_tooth: None,
         }
     }
 
@@ -425,6 +440,19 @@ impl Tool {
         }
         if !self.runout.angle_deg.is_finite() {
             return Err(bad("runout_angle_deg", "must be a number"));
+        }
+        if let Some(fz) = self.feed_per_tooth {
+            finite_pos("feed_per_tooth_mm", fz)?;
+            // A tooth's bite is a fraction of the diameter; past D/2 it is a unit mistake
+            // (inches per tooth given as mm, or a feed per minute).
+            if fz > self.diameter / 2.0 {
+                return Err(bad(
+                    "feed_per_tooth_mm",
+                    format!(
+                        "{fz} mm per tooth is more than half the diameter: not a feed per tooth"
+                    ),
+                ));
+            }
         }
         Ok(())
     }

@@ -229,7 +229,47 @@ fn solve_floor(
 }
 
 /// Per-move solve without the sequence-dependent policies (entry, floor application).
+///
+/// A force guard that even the lowest feed cannot meet (the edge forces of a deep cut alone
+/// exceed it) is not a reason to crawl: the feed does not bring the move under it. Such a
+/// move is solved without the force guard (every other limit, the chip guard included,
+/// still holds) and kept no faster than programmed, governing `guard_force`; the summary
+/// reports the guard as not met. A user's limit that cannot be met still takes the move to
+/// `min_feed`, as asked.
 pub(super) fn solve_move(
+    seg: &MoveEngagement,
+    m: &Move,
+    cutter: &mut Cutter,
+    limits: &FeedLimits,
+    out: &mut ForceResult,
+) -> Result<MoveFeed, PhysicsError> {
+    let res = solve_move_to(seg, m, cutter, limits, out)?;
+    if res.limit_governing != Governing::MinFeed || limits.guard_force.is_none() {
+        return Ok(res);
+    }
+    let without = FeedLimits {
+        guard_force: None,
+        ..limits.clone()
+    };
+    let mut alt = solve_move_to(seg, m, cutter, &without, out)?;
+    alt.evaluations += res.evaluations;
+    if alt.limit_governing == Governing::MinFeed {
+        // A user's limit (or the chip guard) is out of reach too: as asked.
+        return Ok(MoveFeed {
+            evaluations: alt.evaluations,
+            ..res
+        });
+    }
+    let programmed = feed_velocity(m);
+    if alt.limit_feed > programmed {
+        alt.limit_feed = programmed;
+        alt.limit_governing = Governing::GuardForce;
+    }
+    Ok(alt)
+}
+
+/// [`solve_move`] to exactly these limits.
+fn solve_move_to(
     seg: &MoveEngagement,
     m: &Move,
     cutter: &mut Cutter,

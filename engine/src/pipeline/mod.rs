@@ -24,8 +24,8 @@ mod tools;
 
 pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
-    Collision, EnergyTotals, MoveRow, OptimizationSummary, RoughnessSummary, SimulationOutput,
-    SimulationSummary, StageTimings, StepSample, ToolLife,
+    Collision, EnergyTotals, LimitCount, MoveRow, OptimizationSummary, RoughnessSummary,
+    SimulationOutput, SimulationSummary, StageTimings, StepSample, ToolLife, ToolOptimization,
 };
 pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StlSource, StockSource};
 
@@ -161,7 +161,14 @@ pub fn simulate_in_batches(
                 moves,
                 &mut rows,
                 (kept.as_deref().unwrap_or_default(), &scales),
-                &plan.models,
+                (
+                    &plan.models,
+                    &plan
+                        .models
+                        .keys()
+                        .map(|&k| (k, tools.key_number(k)))
+                        .collect(),
+                ),
                 &times,
                 &interpret,
                 &mut timings,
