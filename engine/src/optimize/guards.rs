@@ -173,7 +173,7 @@ pub fn tool_guards(tool: &Tool, material: &Material) -> ToolGuards {
                 h,
                 GuardSource::Rule,
                 format!(
-                    "{} (Ktc {:.0} N/mm²): {} × min({per_d}·D, {cap} mm) with D = {} mm: {h:.4} mm",
+                    "{} (Ktc {:.0} N/mm²): {} × min({per_d:.4}·D, {cap:.4} mm) with D = {} mm: {h:.4} mm",
                     class.name(),
                     material.coefficients.ktc,
                     shape_factor(tool.shape),
