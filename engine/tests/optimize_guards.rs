@@ -142,6 +142,14 @@ fn a_fusion_library_preset_becomes_the_tools_chip_ceiling() {
         (0.04, GuardSource::LibraryPreset)
     );
 
+    // A CSV library's column does the same.
+    let csv = ToolLibrary::read(
+        "number,type,diameter,flutes,feed_per_tooth\n1,flat,6,3,0.03\n2,ball,4,2,\n",
+    )
+    .unwrap();
+    assert_eq!(csv.tools[&1].feed_per_tooth, Some(0.03));
+    assert_eq!(csv.tools[&2].feed_per_tooth, None);
+
     // A preset that is not a feed per tooth is refused, naming the tool and field.
     let err = ToolLibrary::read(
         r#"{"data":[{"type":"flat end mill","geometry":{"DC":6},
