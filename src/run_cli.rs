@@ -53,12 +53,14 @@ pub struct RunArgs {
     machine: Option<PathBuf>,
     /// Optimize the feeds: comma-separated limits, e.g. max_force=800,air_feed=5000,feed_step=10
     /// (any field of the job's options.limits; split_max_parts=4, split_min_length=2 and
-    /// split_min_saving=0.05 split long moves whose engagement varies). Writes the rewritten
+    /// split_min_saving=0.05 split long moves whose engagement varies; tool_guards=false
+    /// switches off every tool's default chip and force guards). Writes the rewritten
     /// program too.
     #[arg(long)]
     optimize: Option<String>,
     /// A tool's own limits, winning over --optimize's for its moves, e.g.
-    /// `T2:max_force=120,max_feed=2000` (repeat per tool; the job's limits.tools).
+    /// `T2:max_force=120,max_feed=2000` or `T2:tool_guards=false` (repeat per tool; the
+    /// job's limits.tools).
     #[arg(long, value_name = "T<n>:NAME=VALUE,...", requires = "optimize")]
     optimize_tool: Vec<String>,
     /// On a machine with rotary axes: `machine` (X..C are machine axes) or `tool_tip`
@@ -274,12 +276,11 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     }
     if let Some(spec) = &args.optimize {
         let mut limits = Map::new();
-        for (k, v) in name_values("--optimize", spec)? {
+        for (k, value) in name_values("--optimize", spec)? {
             // Counts (max_iterations) are integers in the options.
-            let value = if v.fract() == 0.0 && v.abs() < 1e15 {
-                json!(v as i64)
-            } else {
-                json!(v)
+            let value = match value.as_f64() {
+                Some(v) if v.fract() == 0.0 && v.abs() < 1e15 => json!(v as i64),
+                _ => value,
             };
             // split_max_parts=4, split_min_length=2, split_min_saving=0.05: limits.split.
             match k.strip_prefix("split_") {
@@ -299,7 +300,6 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                 .ok_or_else(|| format!("--optimize-tool: `{spec}` is not T<n>:NAME=VALUE,..."))?;
             let own: Map<String, Value> = name_values(&format!("--optimize-tool {tool}"), pairs)?
                 .into_iter()
-                .map(|(k, v)| (k, json!(v)))
                 .collect();
             tools.insert(tool.trim().to_ascii_uppercase(), Value::Object(own));
         }
@@ -397,19 +397,23 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// `NAME=VALUE,...` of option `flag` as (name, number) pairs; errors name the flag and pair.
-fn name_values(flag: &str, list: &str) -> Result<Vec<(String, f64)>, String> {
+/// `NAME=VALUE,...` of option `flag` as (name, value) pairs, each value a number or
+/// `true`/`false` (`tool_guards=false`); errors name the flag and pair.
+fn name_values(flag: &str, list: &str) -> Result<Vec<(String, Value)>, String> {
     list.split(',')
         .filter(|p| !p.trim().is_empty())
         .map(|pair| {
             let (k, v) = pair
                 .split_once('=')
                 .ok_or_else(|| format!("{flag}: `{pair}` is not NAME=VALUE"))?;
-            let v: f64 = v
-                .trim()
-                .parse()
-                .map_err(|_| format!("{flag}: `{v}` is not a number (in `{pair}`)"))?;
-            Ok((k.trim().to_string(), v))
+            let value = match v.trim() {
+                "true" => Value::Bool(true),
+                "false" => Value::Bool(false),
+                n => json!(n.parse::<f64>().map_err(|_| format!(
+                    "{flag}: `{v}` is neither a number nor true/false (in `{pair}`)"
+                ))?),
+            };
+            Ok((k.trim().to_string(), value))
         })
         .collect()
 }
@@ -483,18 +487,35 @@ pub fn run_report(summary: &Value) -> String {
         }
         if let Some(tools) = opt["tools"].as_array() {
             for t in tools {
-                if let Some(notes) = t["limited_by"].as_array().filter(|n| !n.is_empty()) {
-                    let notes: Vec<String> = notes
-                        .iter()
-                        .map(|n| {
-                            format!(
-                                "{} ({} moves)",
-                                n["limit"].as_str().unwrap_or("?"),
-                                n["moves"]
-                            )
-                        })
-                        .collect();
-                    let _ = writeln!(out, "T{}: slowed by {}", t["tool"], notes.join(", "));
+                let g = &t["guards"];
+                if g.is_object() {
+                    let _ = writeln!(
+                        out,
+                        "T{}: guards: chip {:.3} mm ({}), force {:.0} N ({})",
+                        t["tool"],
+                        num(&g["max_chip_thickness"]),
+                        g["chip_source"].as_str().unwrap_or("?"),
+                        num(&g["max_force"]),
+                        g["force_source"].as_str().unwrap_or("?"),
+                    );
+                }
+                for (key, what) in [
+                    ("limited_by", "slowed by"),
+                    ("limits_not_met", "limit not met at the new feed"),
+                ] {
+                    if let Some(notes) = t[key].as_array().filter(|n| !n.is_empty()) {
+                        let notes: Vec<String> = notes
+                            .iter()
+                            .map(|n| {
+                                format!(
+                                    "{} ({} moves)",
+                                    n["limit"].as_str().unwrap_or("?"),
+                                    n["moves"]
+                                )
+                            })
+                            .collect();
+                        let _ = writeln!(out, "T{}: {what}: {}", t["tool"], notes.join(", "));
+                    }
                 }
             }
         }

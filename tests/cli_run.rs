@@ -184,11 +184,73 @@ fn the_readme_example_runs_as_documented() {
     );
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("summary.json")).unwrap()).unwrap();
+    assert!(summary["force_peak_opt_n"].as_f64().unwrap() <= 400.0 * 1.02);
+    assert!(dir.path().join("1055_utab_265bit.opt.nc").is_file());
+    // As the README says: the Ø2.65 tool's guards (about 0.032 mm of chip and 94 N) bind
+    // long before the job's 400 N. The program as written already exceeds them on most
+    // moves: those keep their programmed feed (a guard never slows a move below it) and are
+    // reported as guards not met; no move is sped up past a guard. Faster than written
+    // still, where moves were under the guards.
+    let t1 = &summary["optimization"]["tools"][0];
     let before = summary["cycle_time_s"].as_f64().unwrap();
     let after = summary["cycle_time_opt_s"].as_f64().unwrap();
     assert!(after < before, "{summary}");
+    let not_met: Vec<&str> = t1["limits_not_met"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|l| l["limit"].as_str())
+        .collect();
+    assert!(
+        not_met.contains(&"guard_force") && not_met.contains(&"guard_chip_thickness"),
+        "{t1}"
+    );
+    assert_eq!(t1["tool"], 1, "{summary}");
+    let guards = &t1["guards"];
+    assert!(guards["max_force"].as_f64().unwrap() < 100.0, "{guards}");
+    assert!(
+        guards["max_chip_thickness"].as_f64().unwrap() < 0.05,
+        "{guards}"
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("T1: guards: chip"), "{err}");
+
+    // With the guards switched off (`tool_guards=false`) the 400 N limit alone sets the
+    // feeds, as before the guards: faster than written.
+    let off = tempfile::tempdir().unwrap();
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--stock",
+            &ex("stock.json"),
+            "--program",
+            &ex("1055_utab_265bit.nc"),
+            "--tool",
+            &format!("T1={}", ex("tool.json")),
+            "--material",
+            "Al7075-T6",
+            "--machine",
+            &ex("machine.json"),
+            "--optimize",
+            "max_force=400,air_feed=5000,max_feed=5000,tool_guards=false",
+            "--resolution",
+            "0.2",
+            "--out",
+        ])
+        .arg(off.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(off.path().join("summary.json")).unwrap()).unwrap();
+    let off_after = summary["cycle_time_opt_s"].as_f64().unwrap();
+    assert!(off_after < after, "{summary}");
     assert!(summary["force_peak_opt_n"].as_f64().unwrap() <= 400.0 * 1.02);
-    assert!(dir.path().join("1055_utab_265bit.opt.nc").is_file());
+    assert!(summary["optimization"]["tools"][0]["guards"].is_null());
 }
 
 /// The slot program of these tests with a tool change, so that T numbers matter.

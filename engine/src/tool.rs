@@ -150,12 +150,17 @@ pub struct Tool {
     /// without (`center_cutting: false`) that descends into material along its axis is a
     /// collision: there is nothing to cut the core under its centre.
     pub center_cutting: bool,
+    /// Feed per tooth the tool's library presets (a Fusion 360 library's
+    /// `start-values.presets[].f_z`), mm: the optimizer's default chip ceiling for the
+    /// tool instead of the rule (see `optimize::guards`).
+    pub feed_per_tooth: Option<f64>,
 }
 
 /// The tool's JSON document: `{"type":"flat|ball|bull|chamfer|drill","diameter_mm":..,
 /// "corner_radius_mm":..,"flutes":..,"helix_deg":..,"flute_length_mm":..,
 /// "shank_diameter_mm":..,"stickout_mm":..,"holder":[..],"runout_um":..,
-/// "center_cutting":true}`, a drill's `"point_angle_deg"` (118 when not given). The names
+/// "center_cutting":true,"feed_per_tooth_mm":..}`, a drill's `"point_angle_deg"` (118 when not
+/// given). The names
 /// without units (`shape`, `diameter`, `flute_length`, ...) are accepted too.
 #[derive(Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -206,6 +211,13 @@ struct ToolJson {
     runout: Option<Runout>,
     #[serde(default = "yes", skip_serializing_if = "is_true")]
     center_cutting: bool,
+    #[serde(
+        rename = "feed_per_tooth_mm",
+        alias = "feed_per_tooth",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    feed_per_tooth: Option<f64>,
 }
 
 fn yes() -> bool {
@@ -260,6 +272,7 @@ impl TryFrom<ToolJson> for Tool {
             holder: t.holder,
             runout,
             center_cutting: t.center_cutting,
+            feed_per_tooth: t.feed_per_tooth,
         })
     }
 }
@@ -285,6 +298,7 @@ impl From<Tool> for ToolJson {
             runout_angle_deg: t.runout.angle_deg,
             runout: None,
             center_cutting: t.center_cutting,
+            feed_per_tooth: t.feed_per_tooth,
         }
     }
 }
@@ -339,6 +353,7 @@ impl Tool {
             holder: Vec::new(),
             runout: Runout::default(),
             center_cutting: true,
+            feed_per_tooth: None,
         }
     }
 
@@ -507,6 +522,19 @@ impl Tool {
         }
         if !self.runout.angle_deg.is_finite() {
             return Err(bad("runout_angle_deg", "must be a number"));
+        }
+        if let Some(fz) = self.feed_per_tooth {
+            finite_pos("feed_per_tooth_mm", fz)?;
+            // A tooth's bite is a fraction of the diameter; past D/2 it is a unit mistake
+            // (inches per tooth given as mm, or a feed per minute).
+            if fz > self.diameter / 2.0 {
+                return Err(bad(
+                    "feed_per_tooth_mm",
+                    format!(
+                        "{fz} mm per tooth is more than half the diameter: not a feed per tooth"
+                    ),
+                ));
+            }
         }
         Ok(())
     }

@@ -46,6 +46,16 @@ pub struct FeedLimits {
     /// that tool's moves.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub tools: std::collections::BTreeMap<String, ToolLimits>,
+    /// Each tool's default guards (its chip and force ceilings, see [`super::guards`]) act
+    /// as limits besides the user's; false switches them off (per tool in `tools`).
+    pub tool_guards: bool,
+    /// The guards in force (set by [`FeedLimits::with_guards`], never read from a
+    /// document): checked beside `max_force` and `max_chip_thickness`, so that the
+    /// tighter one binds and the report names which.
+    #[serde(skip)]
+    pub guard_force: Option<f64>,
+    #[serde(skip)]
+    pub guard_chip_thickness: Option<f64>,
 }
 
 /// A tool's own limits: every field optional, each given one replacing the job's.
@@ -72,6 +82,8 @@ pub struct ToolLimits {
     pub entry_feed_factor: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_plunge_feed: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tool_guards: Option<bool>,
 }
 
 impl FeedLimits {
@@ -94,7 +106,35 @@ impl FeedLimits {
         l.air_feed = pick(t.air_feed, l.air_feed);
         l.entry_feed_factor = t.entry_feed_factor.unwrap_or(l.entry_feed_factor);
         l.max_plunge_feed = pick(t.max_plunge_feed, l.max_plunge_feed);
+        l.tool_guards = t.tool_guards.unwrap_or(l.tool_guards);
         l
+    }
+
+    /// These limits with the tool's guards in force beside them, when `tool_guards` is on
+    /// (unchanged otherwise): the user's limit and the guard are both checked, so the
+    /// tighter one binds.
+    pub fn with_guards(mut self, guards: &super::guards::ToolGuards) -> FeedLimits {
+        if self.tool_guards {
+            self.guard_force = Some(guards.max_force);
+            self.guard_chip_thickness = Some(guards.max_chip_thickness);
+        }
+        self
+    }
+
+    /// The peak |F| and chip thickness in force: the smaller of the user's and the guard's.
+    pub fn effective_force(&self) -> Option<f64> {
+        min_of(self.max_force, self.guard_force)
+    }
+
+    pub fn effective_chip_thickness(&self) -> Option<f64> {
+        min_of(self.max_chip_thickness, self.guard_chip_thickness)
+    }
+}
+
+fn min_of(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
     }
 }
 
@@ -138,6 +178,9 @@ impl Default for FeedLimits {
             split: None,
             max_plunge_feed: None,
             tools: Default::default(),
+            tool_guards: true,
+            guard_force: None,
+            guard_chip_thickness: None,
         }
     }
 }
@@ -181,6 +224,8 @@ impl FeedLimits {
             ("air_feed", self.air_feed),
             ("feed_step", self.feed_step),
             ("max_plunge_feed", self.max_plunge_feed),
+            ("guard_force", self.guard_force),
+            ("guard_chip_thickness", self.guard_chip_thickness),
         ] {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
@@ -286,6 +331,8 @@ impl FeedLimits {
             || self.max_power.is_some()
             || self.max_torque.is_some()
             || self.max_chip_thickness.is_some()
+            || self.guard_force.is_some()
+            || self.guard_chip_thickness.is_some()
     }
 
     /// Largest quantity/target ratio of a force result, and which quantity it is.
@@ -306,6 +353,13 @@ impl FeedLimits {
             (self.max_power, power, Governing::Power),
             (self.max_torque, torque, Governing::Torque),
             (self.max_chip_thickness, chip, Governing::ChipThickness),
+            // After the user's: at a tie the user's limit is named.
+            (self.guard_force, force, Governing::GuardForce),
+            (
+                self.guard_chip_thickness,
+                chip,
+                Governing::GuardChipThickness,
+            ),
         ] {
             if let Some(l) = lim {
                 let x = q / l;
@@ -326,6 +380,10 @@ pub enum Governing {
     Power,
     Torque,
     ChipThickness,
+    /// The tool's own force guard (see `optimize::guards`), tighter than the user's.
+    GuardForce,
+    /// The tool's own chip guard, tighter than the user's.
+    GuardChipThickness,
     /// The feed range's upper end (no limit reached below it).
     MaxFeed,
     /// Even the lowest allowed feed exceeds a limit.

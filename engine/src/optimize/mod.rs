@@ -23,11 +23,15 @@
 //! that runs several times (loops, subroutines, canned cycles) gets the smallest feed over its
 //! executions. [`rewrite`] turns the block feeds into the output program.
 //!
+//! Default guards: each tool's own chip and force ceilings ([`guards`]) act beside the
+//! user's limits, the tighter binding, unless `tool_guards` is false.
+//!
 //! Block splitting: [`split_plan`] says where a long move whose engagement varies would be split
 //! and at which feeds; [`rewrite::write_splits`] writes those parts as new blocks before the
 //! move's own block (which keeps every character but its F).
 
 pub mod energy_search;
+pub mod guards;
 pub mod rewrite;
 
 mod engagement;
@@ -38,6 +42,7 @@ mod solve;
 mod split;
 
 pub use engagement::{Cutter, EngagementStep, MoveEngagement, PLUNGE_MIN_SIN};
+pub use guards::{tool_guards, GuardSource, MaterialClass, ToolGuards};
 pub use limits::{FeedLimits, Governing, OptimizeError, SplitOptions, ToolLimits};
 pub use rewrite::{
     rewrite_program, verify_rewrite, verify_splits, write_splits, BlockChange, Rewrite,

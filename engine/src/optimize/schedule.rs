@@ -326,6 +326,17 @@ impl FeedSchedule {
     /// Every feed move with its tip at the best constant feed (as machine-axis feeds, within
     /// what the axes allow).
     pub fn constant_velocities(&self, moves: &[Move]) -> Vec<f64> {
+        self.constant_velocities_per_move(moves, &vec![Some(self.best_constant_feed); moves.len()])
+    }
+
+    /// As [`constant_velocities`](Self::constant_velocities) with a tip feed of its own for
+    /// each move (None: the move keeps its programmed feed), e.g. each tool's own best
+    /// constant feed on the moves of that tool.
+    pub fn constant_velocities_per_move(
+        &self,
+        moves: &[Move],
+        tip_feeds: &[Option<f64>],
+    ) -> Vec<f64> {
         let mut scale = vec![FeedScale::UNIT; moves.len()];
         for s in &self.moves {
             scale[s.move_index] = s.scale;
@@ -333,14 +344,16 @@ impl FeedSchedule {
         moves
             .iter()
             .zip(&scale)
-            .map(|(m, s)| {
-                if !is_feed_move(m) {
-                    feed_velocity(m)
-                } else if s.schedulable() {
-                    (self.best_constant_feed / s.tip_ratio).min(s.max_axis_feed)
-                } else {
-                    self.best_constant_feed
+            .zip(tip_feeds)
+            .map(|((m, s), tip)| match tip {
+                Some(tip) if is_feed_move(m) => {
+                    if s.schedulable() {
+                        (tip / s.tip_ratio).min(s.max_axis_feed)
+                    } else {
+                        *tip
+                    }
                 }
+                _ => feed_velocity(m),
             })
             .collect()
     }

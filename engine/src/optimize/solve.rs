@@ -229,7 +229,58 @@ fn solve_floor(
 }
 
 /// Per-move solve without the sequence-dependent policies (entry, floor application).
+///
+/// The tool's default guards (see `optimize::guards`) keep the optimizer from raising a move
+/// past what the tool carries, but they never slow a move below its programmed feed: a rule
+/// from the diameter and the material class does not overrule a CAM programmer's feed that
+/// the shop has run (the README example's Ø2.65 tool is programmed at about twice its force
+/// guard, and slowing it to the guard made the "optimized" program 3.7 times slower). Such a
+/// move keeps its programmed feed (or what the user's own limits allow, if lower), governed
+/// by the guard, and the summary reports the guard as not met. The feed is
+/// min(user's limits, max(with the guards, programmed)). A user's limit that cannot be met
+/// still takes the move to `min_feed`, as asked.
 pub(super) fn solve_move(
+    seg: &MoveEngagement,
+    m: &Move,
+    cutter: &mut Cutter,
+    limits: &FeedLimits,
+    out: &mut ForceResult,
+) -> Result<MoveFeed, PhysicsError> {
+    let res = solve_move_to(seg, m, cutter, limits, out)?;
+    let guarded = matches!(
+        res.limit_governing,
+        Governing::GuardForce | Governing::GuardChipThickness | Governing::MinFeed
+    ) && (limits.guard_force.is_some() || limits.guard_chip_thickness.is_some());
+    let programmed = feed_velocity(m);
+    if !guarded || res.limit_feed >= programmed {
+        return Ok(res);
+    }
+    let without = FeedLimits {
+        guard_force: None,
+        guard_chip_thickness: None,
+        ..limits.clone()
+    };
+    let mut alt = solve_move_to(seg, m, cutter, &without, out)?;
+    alt.evaluations += res.evaluations;
+    if alt.limit_feed < programmed {
+        // The user's own limits (or min_feed) take it below its programmed feed: as asked.
+        return Ok(alt);
+    }
+    // Each step likewise (a split move's parts): no faster than the guards allow or the
+    // programmed feed, whichever is higher.
+    for (a, r) in alt.step_limits.iter_mut().zip(&res.step_limits) {
+        *a = a.min(r.max(programmed));
+    }
+    alt.limit_feed = programmed;
+    alt.limit_governing = match res.limit_governing {
+        Governing::MinFeed => Governing::GuardForce,
+        g => g,
+    };
+    Ok(alt)
+}
+
+/// [`solve_move`] to exactly these limits.
+fn solve_move_to(
     seg: &MoveEngagement,
     m: &Move,
     cutter: &mut Cutter,

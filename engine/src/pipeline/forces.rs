@@ -108,7 +108,7 @@ pub(super) fn evaluate_forces(
 pub(super) type StepForces = (Option<ForceResult>, Option<Arc<PeakResponse>>);
 
 /// What a step gives at its new feed: peak |F| (N), and its mean |F| (N), peak torque
-/// (N·m), mean and peak power (W) over a revolution.
+/// (N·m), mean and peak power (W) over a revolution, and its thickest chip (mm).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct AfterStep {
     pub(super) peak_force: f64,
@@ -116,6 +116,7 @@ pub(super) struct AfterStep {
     pub(super) peak_torque: f64,
     pub(super) mean_power: f64,
     pub(super) peak_power: f64,
+    pub(super) max_chip: f64,
 }
 
 /// Every step that removes material evaluated at its own new feed (mm/min), as the removal
@@ -162,13 +163,13 @@ pub(super) fn forces_after(
                 };
                 let model = models.get_mut(t).expect("model per tool");
                 let r = model.evaluate(engagement.view(scratch), k, &conditions)?;
-                let peak = step
+                let response = step
                     .response
                     .as_ref()
-                    .and_then(|p| p.at(conditions.feed_per_tooth))
-                    .map_or(r.force.peak, |p| p.force);
+                    .and_then(|p| p.at(conditions.feed_per_tooth));
                 Ok(Some(AfterStep {
-                    peak_force: peak,
+                    peak_force: response.map_or(r.force.peak, |p| p.force),
+                    max_chip: response.map_or(r.max_chip_thickness, |p| p.chip),
                     mean_force: r.force.mean,
                     peak_torque: r.torque.peak,
                     mean_power: r.power.mean,

@@ -25,8 +25,9 @@ mod tools;
 
 pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
-    row_columns, Collision, EnergyTotals, MoveRow, OptimizationSummary, RoughnessSummary,
-    SimulationOutput, SimulationSummary, StageTimings, StepSample, ToolLife,
+    row_columns, Collision, EnergyTotals, LimitCount, MoveRow, OptimizationSummary,
+    RoughnessSummary, SimulationOutput, SimulationSummary, StageTimings, StepSample, ToolLife,
+    ToolOptimization,
 };
 pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StlSource, StockSource};
 
@@ -172,7 +173,14 @@ pub fn simulate_in_batches(
                 moves,
                 &mut rows,
                 (kept.as_deref().unwrap_or_default(), &scales),
-                &plan.models,
+                (
+                    &plan.models,
+                    &plan
+                        .models
+                        .keys()
+                        .map(|&k| (k, tools.key_number(k)))
+                        .collect(),
+                ),
                 &times,
                 &interpret,
                 &mut timings,

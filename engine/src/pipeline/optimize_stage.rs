@@ -20,7 +20,9 @@ pub(super) fn optimize_stage(
     moves: &[Move],
     rows: &mut [MoveRow],
     (steps, scales): (&[KeptStep], &[optimize::FeedScale]),
-    models: &BTreeMap<u32, ForceModel>,
+    // The force model of each cutter, by the number its moves carry, and the T number
+    // that is (a program that selects a tool without loading it: its moves carry 0).
+    (models, numbers): (&BTreeMap<u32, ForceModel>, &BTreeMap<u32, u32>),
     before: &crate::machine::cycle_time::CycleTime,
     interpret: &nc::InterpretOptions,
     timings: &mut StageTimings,
@@ -70,8 +72,22 @@ pub(super) fn optimize_stage(
             response: step.response.clone(),
         });
     }
-    // Each tool held to its own limits where the job gives them.
-    let per_cutter: Vec<FeedLimits> = models.keys().map(|&t| limits.for_tool(t)).collect();
+    // Each tool held to its own limits where the job gives them (within what the machine
+    // allows, as the job's are), and to its own guards unless they are switched off.
+    let guards: Vec<optimize::ToolGuards> = models
+        .values()
+        .map(|m| optimize::tool_guards(m.table().tool(), &spec.material))
+        .collect();
+    let per_cutter: Vec<FeedLimits> = models
+        .keys()
+        .zip(&guards)
+        .map(|(t, g)| {
+            limits
+                .for_tool(numbers[t])
+                .with_machine(&spec.machine)
+                .with_guards(g)
+        })
+        .collect();
     let clock = std::time::Instant::now();
     let schedule =
         optimize::optimize_feeds_per_cutter(moves, &engagements, &cutters, &limits, &per_cutter)?;
@@ -187,6 +203,27 @@ pub(super) fn optimize_stage(
         &spec.machine,
         Some(&schedule.constant_velocities(moves)),
     )?;
+    // Each tool's own best constant feed (the largest tip feed keeping every cutting move
+    // of that tool under its limits), every feed move of the tool at it.
+    let cutter_of_move: Vec<Option<usize>> = moves
+        .iter()
+        .map(|m| cutter_index.get(&m.tool).copied())
+        .collect();
+    let mut tool_best: Vec<f64> = per_cutter.iter().map(|l| l.max_feed).collect();
+    for (s, g) in schedule.moves.iter().zip(&engagements) {
+        if s.engaged {
+            tool_best[g.cutter] = tool_best[g.cutter].min(s.limit_feed * s.scale.tip_ratio);
+        }
+    }
+    let tip_feeds: Vec<Option<f64>> = cutter_of_move
+        .iter()
+        .map(|c| c.map(|c| tool_best[c]))
+        .collect();
+    let constant_per_tool = cycle_time(
+        moves,
+        &spec.machine,
+        Some(&schedule.constant_velocities_per_move(moves, &tip_feeds)),
+    )?;
     let ideal = cycle_time(
         moves,
         &spec.machine,
@@ -236,6 +273,13 @@ pub(super) fn optimize_stage(
         row.governing = governing.get(&i).cloned();
     }
     add_forces_after(rows, steps, &machine_feeds, &forces_after);
+    let mut chip_after = vec![0.0f64; moves.len()];
+    for (step, a) in steps.iter().zip(&forces_after) {
+        if let Some(a) = a {
+            let c = &mut chip_after[step.move_index];
+            *c = c.max(a.max_chip);
+        }
+    }
     let peak = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
     // The optimizer accepts feeds within its tolerance below the limit; above that, the
     // limit was out of reach for the move.
@@ -263,7 +307,21 @@ pub(super) fn optimize_stage(
         evaluations: schedule.evaluations,
         split_blocks: written.len(),
         split_skipped: skipped.into_iter().take(100).collect(),
-        tools: tool_reports(moves, &engagements, &schedule, models, &per_cutter),
+        tools: tool_reports(
+            moves,
+            (&engagements, &schedule),
+            (models, numbers),
+            (&per_cutter, &guards),
+            &ToolTimes {
+                cutter_of_move: &cutter_of_move,
+                before: &before.per_move_s,
+                after: &time_after,
+                constant: &constant_per_tool.per_move_s,
+                ideal: &ideal.per_move_s,
+                best_constant: &tool_best,
+            },
+            (rows, &chip_after),
+        ),
         limits,
     };
     Ok((text, summary))
@@ -340,20 +398,45 @@ fn is_plunge(m: &Move) -> bool {
     len > 0.0 && down > optimize::PLUNGE_MIN_SIN * len
 }
 
-/// Per tool (in the models' order, the cutters'), its limits and the count of its moves
-/// that a limit made slower than programmed, per limit.
+/// Per move times (s) and each tool's best constant tip feed, for the tools' reports.
+struct ToolTimes<'a> {
+    /// The cutter (index in the models' order) whose number each move carries.
+    cutter_of_move: &'a [Option<usize>],
+    before: &'a [f64],
+    after: &'a [f64],
+    /// Every feed move of each tool at that tool's own best constant feed.
+    constant: &'a [f64],
+    ideal: &'a [f64],
+    best_constant: &'a [f64],
+}
+
+/// The name a limit is reported under: the user's (`force`), or the guard's
+/// (`guard_force`) where the guard is the tighter.
+fn limit_name(user: Option<f64>, guard: Option<f64>, name: &str) -> String {
+    match (user, guard) {
+        (Some(u), Some(g)) if g < u => format!("guard_{name}"),
+        (None, Some(_)) => format!("guard_{name}"),
+        _ => name.to_string(),
+    }
+}
+
+/// Per tool (in the models' order, the cutters'): its limits and guards, the count of its
+/// moves that a limit made slower than programmed and of those where a limit is still
+/// exceeded at the new feed (per limit), and its cycle times and best constant feed.
 fn tool_reports(
     moves: &[Move],
-    engagements: &[optimize::MoveEngagement],
-    schedule: &optimize::FeedSchedule,
-    models: &BTreeMap<u32, ForceModel>,
-    per_cutter: &[FeedLimits],
+    (engagements, schedule): (&[optimize::MoveEngagement], &optimize::FeedSchedule),
+    (models, numbers): (&BTreeMap<u32, ForceModel>, &BTreeMap<u32, u32>),
+    (per_cutter, guards): (&[FeedLimits], &[optimize::ToolGuards]),
+    times: &ToolTimes,
+    (rows, chip_after): (&[MoveRow], &[f64]),
 ) -> Vec<ToolOptimization> {
     let cutter_of: BTreeMap<usize, usize> = engagements
         .iter()
         .map(|g| (g.move_index, g.cutter))
         .collect();
     let mut counts: Vec<BTreeMap<String, usize>> = vec![BTreeMap::new(); models.len()];
+    let mut not_met: Vec<BTreeMap<String, usize>> = vec![BTreeMap::new(); models.len()];
     for s in &schedule.moves {
         let Some(&c) = cutter_of.get(&s.move_index) else {
             continue;
@@ -370,18 +453,68 @@ fn tool_reports(
                 .unwrap_or_default();
             *counts[c].entry(name).or_default() += 1;
         }
+        if !s.engaged {
+            continue;
+        }
+        // At the new feed, within the optimizer's tolerance above each limit in force.
+        let l = &per_cutter[c];
+        let row = &rows[s.move_index];
+        let over = |q: Option<f64>, lim: Option<f64>| {
+            lim.is_some_and(|lim| q.unwrap_or(0.0) > lim * (1.0 + l.tolerance))
+        };
+        for (exceeded, name) in [
+            (
+                over(row.peak_force_after, l.effective_force()),
+                limit_name(l.max_force, l.guard_force, "force"),
+            ),
+            (
+                over(Some(chip_after[s.move_index]), l.effective_chip_thickness()),
+                limit_name(
+                    l.max_chip_thickness,
+                    l.guard_chip_thickness,
+                    "chip_thickness",
+                ),
+            ),
+            (over(row.peak_torque_after, l.max_torque), "torque".into()),
+            (over(row.peak_power_after, l.max_power), "power".into()),
+        ] {
+            if exceeded {
+                *not_met[c].entry(name).or_default() += 1;
+            }
+        }
     }
+    let sum = |per_move: &[f64], c: usize| -> f64 {
+        per_move
+            .iter()
+            .zip(times.cutter_of_move)
+            .filter(|(_, &k)| k == Some(c))
+            .map(|(t, _)| t)
+            .sum()
+    };
+    let as_list = |m: BTreeMap<String, usize>| -> Vec<LimitCount> {
+        m.into_iter()
+            .map(|(limit, moves)| LimitCount { limit, moves })
+            .collect()
+    };
     models
         .keys()
         .zip(per_cutter)
-        .zip(counts)
-        .map(|((&tool, limits), counts)| ToolOptimization {
-            tool,
-            limits: limits.clone(),
-            limited_by: counts
-                .into_iter()
-                .map(|(limit, moves)| LimitCount { limit, moves })
-                .collect(),
-        })
+        .zip(guards)
+        .zip(counts.into_iter().zip(not_met))
+        .enumerate()
+        .map(
+            |(c, (((key, limits), guards), (counts, not_met)))| ToolOptimization {
+                tool: numbers[key],
+                limits: limits.clone(),
+                guards: limits.tool_guards.then(|| guards.clone()),
+                limited_by: as_list(counts),
+                limits_not_met: as_list(not_met),
+                cycle_time_before_s: sum(times.before, c),
+                cycle_time_constant_feed_s: sum(times.constant, c),
+                cycle_time_after_s: sum(times.after, c),
+                cycle_time_ideal_s: sum(times.ideal, c),
+                best_constant_feed_mm_min: times.best_constant[c],
+            },
+        )
         .collect()
 }

@@ -412,14 +412,32 @@ pub struct OptimizationSummary {
 pub struct ToolOptimization {
     pub tool: u32,
     pub limits: FeedLimits,
+    /// The tool's default guards in force beside `limits` (its chip and force ceilings and
+    /// where they come from); null where `tool_guards` is false.
+    pub guards: Option<optimize::ToolGuards>,
     /// What set the feed of moves that now run slower than programmed, with how many.
     pub limited_by: Vec<LimitCount>,
+    /// Limits still exceeded at the new feed (even the lowest allowed feed is over them),
+    /// with how many of the tool's moves.
+    pub limits_not_met: Vec<LimitCount>,
+    /// The job's cycle-time comparison over this tool's moves (those made with its number,
+    /// its tool change included), s: as written, every feed move of the tool at the tool's
+    /// own best constant feed, optimized, and at the ideal bound. The tools' figures add up
+    /// to the job's less the moves made before any tool is loaded.
+    pub cycle_time_before_s: f64,
+    pub cycle_time_constant_feed_s: f64,
+    pub cycle_time_after_s: f64,
+    pub cycle_time_ideal_s: f64,
+    /// The largest tip feed keeping every cutting move of this tool under its limits, mm/min
+    /// (the job's `best_constant_feed_mm_min` is the smallest of these over the tools that
+    /// cut, within the job's `max_feed`).
+    pub best_constant_feed_mm_min: f64,
 }
 
 #[derive(Clone, Debug, Serialize)]
 pub struct LimitCount {
-    /// The governing quantity (force, power, torque, chip_thickness, plunge, entry,
-    /// unmodelled, min_feed).
+    /// The governing quantity (force, power, torque, chip_thickness, guard_force,
+    /// guard_chip_thickness, plunge, entry, unmodelled, min_feed).
     pub limit: String,
     pub moves: usize,
 }

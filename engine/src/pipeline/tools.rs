@@ -159,6 +159,16 @@ impl ToolLookup {
         }
     }
 
+    /// The T number of the moves whose own number is `key` (the key of their cutter):
+    /// the number a program selects without loading it for key 0.
+    pub(super) fn key_number(&self, key: u32) -> u32 {
+        if key == 0 {
+            self.unloaded.unwrap_or(0)
+        } else {
+            key
+        }
+    }
+
     /// Every tool that may cut.
     pub(super) fn all(&self) -> impl Iterator<Item = &Tool> {
         self.tools.values()

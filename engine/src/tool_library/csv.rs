@@ -1,6 +1,7 @@
 //! Tools as CSV: a header line naming the columns (`number`, `type`, `diameter`, and any of
 //! `corner_radius`, `flutes`, `flute_length`, `helix`, `shank_diameter`, `stickout`,
-//! `taper_half_angle`, `tip_diameter`, `name`; lengths in mm), one tool a line.
+//! `taper_half_angle`, `tip_diameter`, `feed_per_tooth` (the tool's chip ceiling in
+//! optimization), `name`; lengths in mm), one tool a line.
 
 use super::{ToolLibrary, ToolLibraryError};
 use crate::tool::ToolShape;
@@ -17,6 +18,7 @@ const COLUMNS: &[&str] = &[
     "stickout",
     "taper_half_angle",
     "tip_diameter",
+    "feed_per_tooth",
     "name",
 ];
 
@@ -140,6 +142,7 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
         }
         tool.shank_diameter = num("shank_diameter")?;
         tool.stick_out = num("stickout")?;
+        tool.feed_per_tooth = num("feed_per_tooth")?;
         tool.name = get("name").map(str::to_string);
         super::note_defaults(&mut lib, &name, &tool, &given);
         lib.insert(number, tool, &name)?;

@@ -1,6 +1,7 @@
 //! Fusion 360 tool libraries: `{"data":[tool, ...]}`, each tool with `type`, `unit`,
 //! `geometry` (DC, NOF, LCF, LB, OAL, RE, SFDM, TA, SIG, HAND, ...), `holder.segments`
-//! (height, lower-diameter, upper-diameter) and `post-process.number` (the T number).
+//! (height, lower-diameter, upper-diameter), `post-process.number` (the T number) and
+//! `start-values.presets[].f_z` (feed per tooth: the tool's chip ceiling in optimization).
 
 use serde_json::Value;
 
@@ -183,8 +184,56 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
                 "a drill is cut as a cone of its point angle; its chisel edge is not modelled",
             );
         }
+        tool.feed_per_tooth = preset_feed_per_tooth(&mut lib, &name, t, unit)?;
         super::note_defaults(&mut lib, &name, &tool, &given);
         lib.insert(number, tool, &name)?;
     }
     Ok(lib)
+}
+
+/// The feed per tooth of the tool's presets (`start-values.presets[].f_z`, in the tool's
+/// unit), mm: the smallest where presets differ (they are for different materials or
+/// operations, and the guard must hold for any of them), with a note saying so.
+fn preset_feed_per_tooth(
+    lib: &mut ToolLibrary,
+    name: &str,
+    tool: &Value,
+    unit: f64,
+) -> Result<Option<f64>, ToolLibraryError> {
+    let Some(presets) = tool
+        .pointer("/start-values/presets")
+        .and_then(Value::as_array)
+    else {
+        return Ok(None);
+    };
+    let mut values = Vec::new();
+    for (k, p) in presets.iter().enumerate() {
+        let Some(v) = p.get("f_z") else { continue };
+        let fz = v
+            .as_f64()
+            .filter(|f| f.is_finite() && *f > 0.0)
+            .ok_or_else(|| {
+                ToolLibraryError::new(
+                    name,
+                    &format!("start-values.presets[{k}].f_z"),
+                    format!("{v} is not a feed per tooth"),
+                )
+            })?;
+        values.push(fz * unit);
+    }
+    let Some(min) = values.iter().copied().reduce(f64::min) else {
+        return Ok(None);
+    };
+    let max = values.iter().copied().fold(min, f64::max);
+    if max > min {
+        lib.assumed(
+            name,
+            "start-values.presets.f_z",
+            format!(
+                "{} presets give {min}–{max} mm per tooth: the smallest, {min} mm, is the tool's chip ceiling",
+                values.len()
+            ),
+        );
+    }
+    Ok(Some(min))
 }
