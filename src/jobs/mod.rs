@@ -7,6 +7,7 @@
 mod accessibility;
 mod energy;
 mod identify;
+mod identify_cuts;
 mod inputs;
 mod interpret;
 mod rotary_feed;
