@@ -328,3 +328,146 @@ async fn bad_measurements_are_refused_naming_the_field() {
     assert_eq!(done["error"]["field"], "inputs.tool", "{done}");
     assert_eq!(done["attempts"], 1);
 }
+
+/// Mean forces of a D10 two-flute ball slotting at two depths and three feeds each, by the
+/// engine's force model on its own fine engagement (0.005 mm slices, 720 positions; the job
+/// builds coarser ones), for Al7075-T6: (depth, feed, fx, fy, fz).
+fn ball_slot_cuts() -> Vec<[f64; 5]> {
+    let truth = Material::builtin("Al7075-T6").unwrap().coefficients;
+    let tool = Tool::ball(10.0, 2);
+    let mut model = ForceModel::new(&tool, 50, 720).unwrap();
+    let mut out = Vec::new();
+    for depth in [1.0, 2.5] {
+        let n = (depth / 0.005_f64).round() as usize;
+        let dz = depth / n as f64;
+        let slot = Engagement {
+            slices: (0..n)
+                .map(|i| EngagedSlice {
+                    z: (i as f64 + 0.5) * dz,
+                    dz,
+                    arcs: vec![(0.0, PI)].into(),
+                })
+                .collect(),
+            feed_dir: [1.0, 0.0, 0.0],
+            tool_axis: [0.0, 0.0, 1.0],
+            end: Vec::new(),
+        };
+        for c in [0.03, 0.06, 0.1] {
+            let r = model
+                .evaluate(
+                    &slot,
+                    &truth,
+                    &CuttingConditions {
+                        spindle_rpm: 8000.0,
+                        feed_per_tooth: c,
+                    },
+                )
+                .unwrap();
+            out.push([depth, c, r.fx.mean, r.fy.mean, r.fz.mean]);
+        }
+    }
+    out
+}
+
+#[tokio::test]
+async fn cuts_of_a_ball_end_mill_give_the_coefficients_back_with_intervals() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let ball = upload_tool(
+        &c,
+        &s,
+        json!({"type": "ball", "diameter_mm": 10.0, "flutes": 2, "helix_deg": 30.0, "flute_length_mm": 20.0}),
+    )
+    .await;
+    let rows = ball_slot_cuts();
+    // CSV with the slot's angles given on every row but one (the default is the slot).
+    let mut csv = String::from("depth_mm,feed_per_tooth_mm,entry_deg,exit_deg,fx_n,fy_n,fz_n\n");
+    for (i, r) in rows.iter().enumerate() {
+        let angles = if i == 0 {
+            ",".to_string()
+        } else {
+            "0,180".to_string()
+        };
+        csv += &format!("{},{},{angles},{},{},{}\n", r[0], r[1], r[2], r[3], r[4]);
+    }
+    let body = json!({"kind": "identify", "inputs": {"tool": ball},
+        "options": {"cuts": csv, "create_material": {"name": "Al7075 ball tests"}}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let done = wait_job(&c, &s, id, Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let summary = &done["summary"];
+    assert_eq!(summary["method"], "force model least squares", "{summary}");
+    assert_eq!(summary["model"], "linear");
+    check_within_one_percent(&summary["coefficients"], "Al7075-T6");
+    assert_eq!(summary["degrees_of_freedom"], 3 * rows.len() - 6);
+    let want = Material::builtin("Al7075-T6").unwrap().coefficients;
+    for (name, w) in [("ktc", want.ktc), ("kte", want.kte), ("kac", want.kac)] {
+        let ci = &summary["confidence_95"][name];
+        let (lo, hi) = (ci["low"].as_f64().unwrap(), ci["high"].as_f64().unwrap());
+        assert!(
+            lo < hi && ci["standard_error"].as_f64().unwrap() > 0.0,
+            "{ci}"
+        );
+        // Noise-free forces: the interval is the models' discretization difference, tight.
+        assert!((hi - lo) < 0.02 * w.abs(), "{name}: {ci}");
+    }
+    for axis in ["x", "y", "z"] {
+        assert!(
+            summary["fit"][axis]["r_squared"].as_f64().unwrap() > 0.9999,
+            "{summary}"
+        );
+    }
+    assert!(summary["tests"]
+        .as_str()
+        .unwrap()
+        .starts_with("6 cuts at 3 feeds"));
+    let csv_out = get_text(&c, &s, &format!("/v1/jobs/{id}/blocks?format=csv")).await;
+    assert!(
+        csv_out.starts_with("cut,depth_mm,feed_per_tooth_mm,"),
+        "{csv_out}"
+    );
+    assert_eq!(csv_out.lines().count(), 1 + rows.len());
+    let material = summary["material"]["id"].as_str().unwrap();
+    let content = get_json(&c, &s, &format!("/v1/materials/{material}/content")).await;
+    check_within_one_percent(&content["coefficients"], "Al7075-T6");
+
+    // Ill-posed sets are refused at submission, naming the option: the exponential law
+    // needs three feeds, these cuts have two; and one feed never separates the terms.
+    let two_feeds: Vec<Value> = rows
+        .iter()
+        .filter(|r| r[1] < 0.08)
+        .map(|r| json!({"depth_mm": r[0], "feed_per_tooth_mm": r[1], "fx_n": r[2], "fy_n": r[3], "fz_n": r[4]}))
+        .collect();
+    let one_feed: Vec<Value> = rows
+        .iter()
+        .filter(|r| r[1] == 0.06)
+        .map(|r| json!({"depth_mm": r[0], "feed_per_tooth_mm": r[1], "fx_n": r[2], "fy_n": r[3], "fz_n": r[4]}))
+        .collect();
+    for (options, says) in [
+        (
+            json!({"cuts": two_feeds, "model": "exponential"}),
+            "at least 3 different feeds",
+        ),
+        (json!({"cuts": one_feed}), "single feed"),
+        (
+            json!({"cuts": [{"depth_mm": 1, "feed_per_tooth_mm": 0.1, "fx_n": 1, "fy_n": 2, "fz_n": 3, "width_mm": 2}]}),
+            "milling",
+        ),
+        (json!({"cuts": two_feeds, "depth_mm": 2}), "not both"),
+    ] {
+        let body = json!({"kind": "identify", "inputs": {"tool": ball}, "options": options});
+        let (st, p) = post_json(&c, &s, "/v1/jobs", &body).await;
+        assert_eq!(st, 422, "{body} -> {p}");
+        assert!(
+            p["field"].as_str().unwrap().starts_with("options.cuts"),
+            "{body} -> {p}"
+        );
+        assert!(
+            p["detail"].as_str().unwrap().contains(says),
+            "{body} -> {p}"
+        );
+    }
+}

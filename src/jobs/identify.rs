@@ -18,14 +18,22 @@ use millsim_engine::physics::{
 use millsim_engine::tool::{Tool, ToolShape};
 
 use super::identify_cuts;
+use super::identify_program;
 use super::inputs::{invalid, json_input, required};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputResource};
+use crate::job_limits::JobLimits;
 use crate::problem::{parse_options, Problem};
 use crate::store::ResourceKind;
+use millsim_engine::job::{CancelFlag, Progress};
 
-pub const INPUTS: [InputSpec; 1] = [
-    // The tests' tool: a flat end mill for `measurements`, any tool for `cuts`.
+pub const INPUTS: [InputSpec; 4] = [
+    // The tests' tool: a flat end mill for `measurements`, any tool for `cuts` and a program.
     input("tool", ResourceKind::Tool, true),
+    // With `line_forces`: the program run on the dynamometer, its stock, and optionally the
+    // machine (for the feeds as the simulate job reads them).
+    input("program", ResourceKind::Program, false),
+    input("stock", ResourceKind::Stock, false),
+    input("machine", ResourceKind::Machine, false),
 ];
 
 /// Most measurements one job takes: a test campaign has tens, not thousands.
@@ -46,6 +54,14 @@ pub struct IdentifyOptions {
     /// and `depth_mm`): see [`identify_cuts::read_cuts`].
     #[serde(default)]
     pub cuts: Option<Value>,
+    /// Measured mean forces per NC line of the `program` input (instead of `measurements`
+    /// or `cuts`): see [`identify_program::read_lines`].
+    #[serde(default)]
+    pub line_forces: Option<Value>,
+    /// With `line_forces`: the simulation's options as a simulate job takes them (dialect,
+    /// cell_mm, force_positions, ...; no material, no limits).
+    #[serde(default)]
+    pub simulation: Option<Value>,
     /// The force law: linear (the default) or exponential (Kienzle's K1·h^(−m) per
     /// direction, plus edge terms; three feeds or more).
     #[serde(default)]
@@ -99,21 +115,60 @@ struct Request {
     /// The least-squares form: the `cuts`, or the measurements as cuts for the exponential
     /// law (None: the closed form).
     cuts: Option<Vec<IdentificationCut>>,
+    /// The program form's measured lines.
+    lines: Option<Vec<millsim_engine::pipeline::LineForce>>,
 }
 
 fn read(options: &Value) -> Result<Request, Problem> {
     let o: IdentifyOptions = parse_options(options)?;
     let field = |f: &str, m: String| Problem::invalid_field(format!("options.{f}"), m);
+    if o.line_forces.is_some() && (o.cuts.is_some() || o.measurements.is_some()) {
+        return Err(field(
+            "line_forces",
+            "give one of `line_forces` (with a program), `cuts` and `measurements`".into(),
+        ));
+    }
     if o.cuts.is_some() && (o.measurements.is_some() || o.depth_mm.is_some()) {
         return Err(field(
             "cuts",
             "give `cuts` (each with its depth) or `measurements` with `depth_mm`, not both".into(),
         ));
     }
+    if o.simulation.is_some() && o.line_forces.is_none() {
+        return Err(field(
+            "simulation",
+            "goes with `line_forces` (the program's simulation)".into(),
+        ));
+    }
+    if let Some(lines) = &o.line_forces {
+        let lines = identify_program::read_lines(lines)?;
+        identify_program::simulation_options(o.simulation.as_ref())?;
+        // Enough forces for the law's parameters; the feeds are known once simulated.
+        if 3 * lines.len() < o.model.parameters() {
+            return Err(field(
+                "line_forces",
+                format!(
+                    "{} lines give {} mean forces for {} parameters",
+                    lines.len(),
+                    3 * lines.len(),
+                    o.model.parameters()
+                ),
+            ));
+        }
+        return Ok(Request {
+            entry: 0.0,
+            exit: PI,
+            depth_mm: 0.0,
+            measurements: Vec::new(),
+            cuts: None,
+            lines: Some(lines),
+            options: o,
+        });
+    }
     if o.cuts.is_none() && o.measurements.is_none() {
         return Err(field(
             "measurements",
-            "give `measurements` (with `depth_mm`) or `cuts`".into(),
+            "give `measurements` (with `depth_mm`), `cuts`, or `line_forces` with a program".into(),
         ));
     }
     let depth_mm = match (o.depth_mm, &o.cuts) {
@@ -161,6 +216,7 @@ fn read(options: &Value) -> Result<Request, Problem> {
             depth_mm,
             measurements: Vec::new(),
             cuts: Some(cuts),
+            lines: None,
             options: o,
         });
     }
@@ -201,6 +257,7 @@ fn read(options: &Value) -> Result<Request, Problem> {
         options: o,
         measurements,
         cuts,
+        lines: None,
     })
 }
 
@@ -366,7 +423,7 @@ pub(super) fn implausible(name: &str, value: f64, axis: &str) -> Problem {
 /// only scale the coefficients, so one flute stands in for the tool here).
 pub fn check(options: &Value) -> Result<(), Problem> {
     let r = read(options)?;
-    if r.cuts.is_some() {
+    if r.cuts.is_some() || r.lines.is_some() {
         // The least-squares fit needs the tool's geometry: it runs with the job.
         return Ok(());
     }
@@ -389,8 +446,27 @@ fn fit_json(f: &AxisFit) -> Value {
     })
 }
 
-pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
+pub fn run(
+    options: &Value,
+    mut inputs: LoadedInputs,
+    limits: &JobLimits,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<JobOutput, JobFailure> {
     let r = read(options).map_err(JobFailure::Invalid)?;
+    if let Some(lines) = &r.lines {
+        let (mut out, tests, coefficients) = identify_program::run(
+            options,
+            lines,
+            r.options.model,
+            inputs,
+            limits,
+            cancel,
+            progress,
+        )?;
+        out.resources = material_resource(&r, &tests, &coefficients, &mut out.summary)?;
+        return Ok(out);
+    }
     let tool: Tool = required(json_input(&mut inputs, "tool", "Invalid tool")?, "tool")?;
     if let Some(cuts) = &r.cuts {
         return run_cuts(&r, &tool, cuts);

@@ -240,7 +240,12 @@ pub fn identify(
     law: ForceLaw,
 ) -> Result<ModelIdentification, Problem> {
     let id = identify_from_cuts(tool, cuts, law).map_err(engine_problem)?;
-    let k = &id.coefficients;
+    check_signs(&id.coefficients)?;
+    Ok(id)
+}
+
+/// Refuses a negative tangential or radial coefficient (see [`identify`]).
+pub fn check_signs(k: &millsim_engine::physics::CuttingCoefficients) -> Result<(), Problem> {
     for (name, value, axis) in [
         ("ktc", k.ktc, "x and y"),
         ("krc", k.krc, "x and y"),
@@ -251,7 +256,7 @@ pub fn identify(
             return Err(super::identify::implausible(name, value, axis));
         }
     }
-    Ok(id)
+    Ok(())
 }
 
 /// The summary's part of a least-squares identification.
