@@ -471,3 +471,100 @@ async fn cuts_of_a_ball_end_mill_give_the_coefficients_back_with_intervals() {
         );
     }
 }
+
+#[tokio::test]
+async fn a_programs_measured_line_forces_give_the_coefficients_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let tool = upload_tool(
+        &c,
+        &s,
+        json!({"type": "bull", "diameter_mm": 8.0, "corner_radius_mm": 1.0, "flutes": 4, "flute_length_mm": 20.0}),
+    )
+    .await;
+    let (st, stock) = post_json(
+        &c,
+        &s,
+        "/v1/stocks",
+        &json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
+    )
+    .await;
+    assert_eq!(st, 201, "{stock}");
+    // Slots at 1 and 2 mm at four feeds, then a side cut beside the deeper slot.
+    let program = "G21 G90 G17\nS8000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-1\nG1 X30 F800\nG1 X60 F2400\nG0 Z5\nG0 X-10 Y-10\nG0 Z-2\nG1 X30 F1600\nG1 X60 F3200\nG0 Z5\nG0 X-10 Y-15\nG0 Z-2\nG1 X60 F2000\nG0 Z5\nM30\n";
+    let inputs = json!({"program": {"name": "dyno.nc", "content": program},
+                        "stock": stock["id"], "tool": tool});
+    // The "dynamometer": a simulate job with TC6, its rows' mean forces per line.
+    let (st, job) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "simulate", "inputs": inputs,
+                "options": {"material": "TC6", "cell_mm": 0.25, "force_positions": 360}}),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let done = wait_job(&c, &s, id, Duration::from_secs(120)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let rows = get_json(&c, &s, &format!("/v1/jobs/{id}/blocks?limit=1000")).await;
+    let mut csv = String::from("line,fx_n,fy_n,fz_n\n");
+    let mut count = 0;
+    for r in rows["items"].as_array().unwrap() {
+        if r["force_mean_n"].as_f64().unwrap_or(0.0) > 0.0 {
+            csv += &format!(
+                "{},{},{},{}\n",
+                r["line"], r["fx_mean_n"], r["fy_mean_n"], r["fz_mean_n"]
+            );
+            count += 1;
+        }
+    }
+    assert_eq!(count, 5, "{csv}");
+
+    let body = json!({"kind": "identify", "inputs": inputs,
+        "options": {"line_forces": csv, "simulation": {"cell_mm": 0.25, "force_positions": 360},
+                    "create_material": {"name": "TC6 from the dyno program"}}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let done = wait_job(&c, &s, id, Duration::from_secs(120)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let summary = &done["summary"];
+    assert_eq!(summary["lines"], 5, "{summary}");
+    check_within_one_percent(&summary["coefficients"], "TC6");
+    let csv_out = get_text(&c, &s, &format!("/v1/jobs/{id}/blocks?format=csv")).await;
+    assert!(csv_out.starts_with("line,feed_per_tooth_mm,"), "{csv_out}");
+    assert!(summary["material"]["source"]
+        .as_str()
+        .unwrap()
+        .contains("5 lines of dyno.nc"));
+
+    // A line that does not cut has no cutting force to fit: refused naming it.
+    let air = csv.replacen("\n6,", "\n3,", 1);
+    let body = json!({"kind": "identify", "inputs": inputs, "options": {"line_forces": air}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let done = wait_job(
+        &c,
+        &s,
+        job["id"].as_str().unwrap(),
+        Duration::from_secs(120),
+    )
+    .await;
+    assert_eq!(done["status"], "failed", "{done}");
+    assert_eq!(
+        done["error"]["field"], "options.line_forces[0].line",
+        "{done}"
+    );
+    // Without the program: refused naming the input.
+    let body =
+        json!({"kind": "identify", "inputs": {"tool": tool}, "options": {"line_forces": csv}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    if st == 202 {
+        let done = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(60)).await;
+        assert_eq!(done["error"]["field"], "inputs.program", "{done}");
+    } else {
+        assert_eq!(st, 422, "{job}");
+    }
+}
