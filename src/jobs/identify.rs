@@ -239,6 +239,16 @@ fn read(options: &Value) -> Result<Request, Problem> {
         ));
     }
     // The exponential law goes by the force model: the measurements become cuts.
+    if o.model == ForceLaw::Exponential {
+        let feeds: Vec<f64> = measurements.iter().map(|m| m.feed_per_tooth).collect();
+        millsim_engine::physics::identify::check_set(
+            measurements.len(),
+            &feeds,
+            o.model,
+            "measurements",
+        )
+        .map_err(identify_cuts::engine_problem)?;
+    }
     let cuts = (o.model == ForceLaw::Exponential).then(|| {
         measurements
             .iter()

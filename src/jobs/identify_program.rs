@@ -218,7 +218,9 @@ pub fn run(
         }
     }
     let opts = simulation_options(options.get("simulation")).map_err(JobFailure::Invalid)?;
-    let BuiltSpec { file, spec, .. } = spec_from_inputs(&opts, false, &mut inputs, limits, cancel)?;
+    // Every cutting step is kept for the fit, as an optimize job keeps them: the memory
+    // estimate counts them.
+    let BuiltSpec { file, spec, .. } = spec_from_inputs(&opts, true, &mut inputs, limits, cancel)?;
     let simulated =
         pipeline::simulate_for_identification(&spec, cancel, progress).map_err(|e| match e {
             SimulateError::Cancelled => JobFailure::Cancelled,

@@ -261,10 +261,12 @@ impl ExportError {
 }
 
 /// The simulation the job's inputs and options describe (the program's file name with it),
-/// refused before anything is allocated when it would exceed the job limits.
+/// refused before anything is allocated when it would exceed the job limits. `keeps_steps`:
+/// the job keeps a record of every step (optimize, identification), which the memory
+/// estimate counts.
 pub(super) fn spec_from_inputs(
     opts: &SimulateOptions,
-    optimize: bool,
+    keeps_steps: bool,
     inputs: &mut LoadedInputs,
     limits: &JobLimits,
     cancel: &CancelFlag,
@@ -352,7 +354,7 @@ pub(super) fn spec_from_inputs(
         stock: &stock,
         tools: &tools,
         cell: opts.cell_mm,
-        optimize,
+        optimize: keeps_steps,
         part_triangles: match &part {
             Some(StlSource::Mesh(mesh)) => mesh.triangles.len() as u64,
             // Not read yet: the binary size's count (an ASCII file's is lower).

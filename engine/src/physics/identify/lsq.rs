@@ -447,16 +447,27 @@ fn search_exponents(
 ) -> Result<([f64; 3], usize), PhysicsError> {
     let n = b.len();
     // The residual vector at exponents m (None where the set is singular there). Column d
-    // depends on m[d] alone: only the changed ones are recomputed.
-    let mut at = [f64::NAN; 3];
+    // depends on m[d] alone: each direction keeps its last few columns (the Jacobian's
+    // differences come back to the base point), so only new exponents are evaluated.
+    const KEEP: usize = 4;
+    let mut cache: [Vec<(f64, Vec<[f64; 3]>)>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let mut residual = |m: [f64; 3],
                         columns: &mut [Vec<[f64; 3]>]|
      -> Result<Option<DVector<f64>>, PhysicsError> {
         for d in 0..3 {
-            if at[d] != m[d] {
-                columns[d] = source.column(d, m[d])?;
-                at[d] = m[d];
-            }
+            let kept = &mut cache[d];
+            let col = match kept.iter().position(|(e, _)| *e == m[d]) {
+                Some(i) => kept[i].1.clone(),
+                None => {
+                    let c = source.column(d, m[d])?;
+                    if kept.len() == KEEP {
+                        kept.remove(0);
+                    }
+                    kept.push((m[d], c.clone()));
+                    c
+                }
+            };
+            columns[d] = col;
         }
         Ok(solve_linear(&design(columns), b).ok().map(|s| b - s.fitted))
     };
