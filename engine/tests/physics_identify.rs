@@ -492,8 +492,8 @@ fn confidence_intervals_cover_the_truth_and_widen_with_the_noise() {
     }
     // Residuals per cut are the noise back, to the same accuracy.
     for (i, r) in loud.residuals.iter().enumerate() {
-        for a in 0..3 {
-            assert!(r[a].abs() < 1.5, "cut {i} axis {a}: {}", r[a]);
+        for (a, v) in r.iter().enumerate() {
+            assert!(v.abs() < 1.5, "cut {i} axis {a}: {v}");
         }
     }
 }

@@ -431,6 +431,9 @@ fn inverse_normal(j: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     }))
 }
 
+/// Builds the design matrix from its six columns (three components per observation).
+type Design<'a> = dyn Fn(&[Vec<[f64; 3]>]) -> DMatrix<f64> + 'a;
+
 /// Most Levenberg–Marquardt iterations of the exponent search.
 const MAX_ITERATIONS: usize = 100;
 /// The largest exponent tried: just inside the material's bound.
@@ -443,7 +446,7 @@ fn search_exponents(
     source: &mut dyn UnitForces,
     columns: &mut [Vec<[f64; 3]>],
     b: &DVector<f64>,
-    design: &dyn Fn(&[Vec<[f64; 3]>]) -> DMatrix<f64>,
+    design: &Design<'_>,
 ) -> Result<([f64; 3], usize), PhysicsError> {
     let n = b.len();
     // The residual vector at exponents m (None where the set is singular there). Column d
