@@ -568,3 +568,92 @@ async fn a_programs_measured_line_forces_give_the_coefficients_back() {
         assert_eq!(st, 422, "{job}");
     }
 }
+
+#[tokio::test]
+async fn slot_measurements_fit_the_exponential_law() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let tool = upload_tool(&c, &s, d10_helix30()).await;
+    // Kienzle-type coefficients (K at a 1 mm chip) with exponents, slot forces by the
+    // engine's model at 720 positions (the job uses 360).
+    let truth = millsim_engine::physics::CuttingCoefficients {
+        ktc: 1100.0,
+        krc: 380.0,
+        kac: 260.0,
+        kte: 24.0,
+        kre: 43.0,
+        kae: 5.0,
+        mtc: 0.22,
+        mrc: 0.38,
+        mac: 0.18,
+    };
+    let t = Tool {
+        helix_deg: 30.0,
+        ..Tool::flat(10.0, 4)
+    };
+    let mut model = ForceModel::new(&t, 100, 720).unwrap();
+    let n = 400;
+    let dz = DEPTH / n as f64;
+    let slot = Engagement {
+        slices: (0..n)
+            .map(|i| EngagedSlice {
+                z: (i as f64 + 0.5) * dz,
+                dz,
+                arcs: vec![(0.0, PI)].into(),
+            })
+            .collect(),
+        feed_dir: [1.0, 0.0, 0.0],
+        tool_axis: [0.0, 0.0, 1.0],
+        end: Vec::new(),
+    };
+    let rows: Vec<[f64; 4]> = [0.02, 0.04, 0.07, 0.1, 0.14]
+        .iter()
+        .map(|&f| {
+            let r = model
+                .evaluate(
+                    &slot,
+                    &truth,
+                    &CuttingConditions {
+                        spindle_rpm: 3000.0,
+                        feed_per_tooth: f,
+                    },
+                )
+                .unwrap();
+            [f, r.fx.mean, r.fy.mean, r.fz.mean]
+        })
+        .collect();
+    let body = json!({"kind": "identify", "inputs": {"tool": tool},
+        "options": {"depth_mm": DEPTH, "measurements": as_json(&rows), "model": "exponential"}});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+    let done = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let summary = &done["summary"];
+    assert_eq!(summary["model"], "exponential", "{summary}");
+    let k = &summary["coefficients"];
+    for (name, want, tol) in [
+        ("ktc", truth.ktc, 0.01),
+        ("krc", truth.krc, 0.01),
+        ("kac", truth.kac, 0.01),
+        ("kte", truth.kte, 0.01),
+        ("kre", truth.kre, 0.01),
+        ("kae", truth.kae, 0.01),
+        ("mtc", truth.mtc, 0.01),
+        ("mrc", truth.mrc, 0.01),
+        ("mac", truth.mac, 0.01),
+    ] {
+        let got = k[name].as_f64().unwrap_or_else(|| panic!("{name} in {k}"));
+        assert!(
+            (got - want).abs() <= tol * want,
+            "{name}: identified {got}, true {want}"
+        );
+    }
+    assert!(summary["confidence_95"]["mrc"].is_object(), "{summary}");
+    // Two feeds cannot give the exponents: refused at submission.
+    let body = json!({"kind": "identify", "inputs": {"tool": tool},
+        "options": {"depth_mm": DEPTH, "measurements": as_json(&rows[..2]), "model": "exponential"}});
+    let (st, p) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 422, "{p}");
+    assert_eq!(p["field"], "options.measurements", "{p}");
+}
