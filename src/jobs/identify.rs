@@ -1,7 +1,10 @@
 //! The `identify` job: the six cutting coefficients of a work material from mean forces
-//! measured in slotting tests at several feeds per tooth (the engine's average-force
-//! method), with the fit's R² and residuals per axis, and on request a material resource
-//! made from them.
+//! measured in test cuts, with the fit's R² and residuals, and on request a material
+//! resource made from them. Two forms: `measurements` at one depth and immersion with a flat
+//! end mill (the engine's closed-form average-force method, the fast path), or `cuts` of any
+//! tool, each with its own depth, immersion or radial width (least squares on the force
+//! model's unit responses, [`super::identify_cuts`]); `model: "exponential"` fits Kienzle's
+//! K1 and m per direction by the latter.
 
 use std::f64::consts::PI;
 
@@ -9,19 +12,28 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 
 use millsim_engine::physics::{
-    identify_coefficients, AxisFit, ForceMeasurement, Identification, IdentificationSetup,
-    Material, PhysicsError,
+    identify_coefficients, AxisFit, ForceLaw, ForceMeasurement, Identification, IdentificationCut,
+    IdentificationSetup, Immersion, Material, PhysicsError,
 };
 use millsim_engine::tool::{Tool, ToolShape};
 
+use super::identify_cuts;
+use super::identify_program;
 use super::inputs::{invalid, json_input, required};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputResource};
+use crate::job_limits::JobLimits;
 use crate::problem::{parse_options, Problem};
 use crate::store::ResourceKind;
+use millsim_engine::job::{CancelFlag, Progress};
 
-pub const INPUTS: [InputSpec; 1] = [
-    // A flat end mill: its flutes scale the coefficients.
+pub const INPUTS: [InputSpec; 4] = [
+    // The tests' tool: a flat end mill for `measurements`, any tool for `cuts` and a program.
     input("tool", ResourceKind::Tool, true),
+    // With `line_forces`: the program run on the dynamometer, its stock, and optionally the
+    // machine (for the feeds as the simulate job reads them).
+    input("program", ResourceKind::Program, false),
+    input("stock", ResourceKind::Stock, false),
+    input("machine", ResourceKind::Machine, false),
 ];
 
 /// Most measurements one job takes: a test campaign has tens, not thousands.
@@ -31,12 +43,31 @@ const MAX_MEASUREMENTS: usize = 10_000;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct IdentifyOptions {
-    /// Axial depth of cut of the tests, mm.
-    pub depth_mm: f64,
+    /// Axial depth of cut of the tests, mm (with `measurements`).
+    #[serde(default)]
+    pub depth_mm: Option<f64>,
     /// The mean forces per feed: an array of {feed_per_tooth_mm, fx_n, fy_n, fz_n}, or CSV
     /// text whose header names those columns.
-    pub measurements: Value,
-    /// Immersion of the tests, degrees (slotting, the default: 0 to 180).
+    #[serde(default)]
+    pub measurements: Option<Value>,
+    /// Test cuts of any tool, each with its depth and immersion (instead of `measurements`
+    /// and `depth_mm`): see [`identify_cuts::read_cuts`].
+    #[serde(default)]
+    pub cuts: Option<Value>,
+    /// Measured mean forces per NC line of the `program` input (instead of `measurements`
+    /// or `cuts`): see [`identify_program::read_lines`].
+    #[serde(default)]
+    pub line_forces: Option<Value>,
+    /// With `line_forces`: the simulation's options as a simulate job takes them (dialect,
+    /// cell_mm, force_positions, ...; no material, no limits).
+    #[serde(default)]
+    pub simulation: Option<Value>,
+    /// The force law: linear (the default) or exponential (Kienzle's K1·h^(−m) per
+    /// direction, plus edge terms; three feeds or more).
+    #[serde(default)]
+    pub model: ForceLaw,
+    /// Immersion of the tests, degrees (slotting, the default: 0 to 180); with `cuts`, the
+    /// immersion of the cuts that give none of their own.
     #[serde(default)]
     pub entry_deg: Option<f64>,
     #[serde(default)]
@@ -74,23 +105,88 @@ const COLUMNS: [(&str, &str); 4] = [
 ];
 
 /// The options checked and read: the tests' set-up (but the tool's flutes) and the
-/// measurements.
+/// measurements, or the cuts.
 struct Request {
     options: IdentifyOptions,
     entry: f64,
     exit: f64,
+    depth_mm: f64,
     measurements: Vec<ForceMeasurement>,
+    /// The least-squares form: the `cuts`, or the measurements as cuts for the exponential
+    /// law (None: the closed form).
+    cuts: Option<Vec<IdentificationCut>>,
+    /// The program form's measured lines.
+    lines: Option<Vec<millsim_engine::pipeline::LineForce>>,
 }
 
 fn read(options: &Value) -> Result<Request, Problem> {
     let o: IdentifyOptions = parse_options(options)?;
     let field = |f: &str, m: String| Problem::invalid_field(format!("options.{f}"), m);
-    if !(o.depth_mm.is_finite() && o.depth_mm > 0.0) {
+    if o.line_forces.is_some() && (o.cuts.is_some() || o.measurements.is_some()) {
         return Err(field(
-            "depth_mm",
-            format!("must be a positive number of mm, got {}", o.depth_mm),
+            "line_forces",
+            "give one of `line_forces` (with a program), `cuts` and `measurements`".into(),
         ));
     }
+    if o.cuts.is_some() && (o.measurements.is_some() || o.depth_mm.is_some()) {
+        return Err(field(
+            "cuts",
+            "give `cuts` (each with its depth) or `measurements` with `depth_mm`, not both".into(),
+        ));
+    }
+    if o.simulation.is_some() && o.line_forces.is_none() {
+        return Err(field(
+            "simulation",
+            "goes with `line_forces` (the program's simulation)".into(),
+        ));
+    }
+    if let Some(lines) = &o.line_forces {
+        let lines = identify_program::read_lines(lines)?;
+        identify_program::simulation_options(o.simulation.as_ref())?;
+        // Enough forces for the law's parameters; the feeds are known once simulated.
+        if 3 * lines.len() < o.model.parameters() {
+            return Err(field(
+                "line_forces",
+                format!(
+                    "{} lines give {} mean forces for {} parameters",
+                    lines.len(),
+                    3 * lines.len(),
+                    o.model.parameters()
+                ),
+            ));
+        }
+        return Ok(Request {
+            entry: 0.0,
+            exit: PI,
+            depth_mm: 0.0,
+            measurements: Vec::new(),
+            cuts: None,
+            lines: Some(lines),
+            options: o,
+        });
+    }
+    if o.cuts.is_none() && o.measurements.is_none() {
+        return Err(field(
+            "measurements",
+            "give `measurements` (with `depth_mm`), `cuts`, or `line_forces` with a program".into(),
+        ));
+    }
+    let depth_mm = match (o.depth_mm, &o.cuts) {
+        (_, Some(_)) => 0.0,
+        (Some(d), None) if d.is_finite() && d > 0.0 => d,
+        (Some(d), None) => {
+            return Err(field(
+                "depth_mm",
+                format!("must be a positive number of mm, got {d}"),
+            ))
+        }
+        (None, None) => {
+            return Err(field(
+                "depth_mm",
+                "the tests' axial depth of cut, mm, goes with `measurements`".into(),
+            ))
+        }
+    };
     let entry = o.entry_deg.unwrap_or(0.0);
     let exit = o.exit_deg.unwrap_or(180.0);
     if !(entry.is_finite() && exit.is_finite() && 0.0 <= entry && entry < exit && exit <= 180.0) {
@@ -107,7 +203,24 @@ fn read(options: &Value) -> Result<Request, Problem> {
             ));
         }
     }
-    let measurements = match &o.measurements {
+    let (entry, exit) = (entry.to_radians(), exit.to_radians());
+    if let Some(cuts) = &o.cuts {
+        let cuts = identify_cuts::read_cuts(cuts, (entry, exit))?;
+        let feeds: Vec<f64> = cuts.iter().map(|c| c.feed_per_tooth).collect();
+        // What can be told before the tool is loaded: enough forces and feeds.
+        millsim_engine::physics::identify::check_set(cuts.len(), &feeds, o.model, "cuts")
+            .map_err(identify_cuts::engine_problem)?;
+        return Ok(Request {
+            entry,
+            exit,
+            depth_mm,
+            measurements: Vec::new(),
+            cuts: Some(cuts),
+            lines: None,
+            options: o,
+        });
+    }
+    let measurements = match o.measurements.as_ref().expect("checked above") {
         Value::Array(rows) => rows_from_json(rows)?,
         Value::String(text) => rows_from_csv(text)?,
         _ => return Err(field(
@@ -125,11 +238,36 @@ fn read(options: &Value) -> Result<Request, Problem> {
             ),
         ));
     }
+    // The exponential law goes by the force model: the measurements become cuts.
+    if o.model == ForceLaw::Exponential {
+        let feeds: Vec<f64> = measurements.iter().map(|m| m.feed_per_tooth).collect();
+        millsim_engine::physics::identify::check_set(
+            measurements.len(),
+            &feeds,
+            o.model,
+            "measurements",
+        )
+        .map_err(identify_cuts::engine_problem)?;
+    }
+    let cuts = (o.model == ForceLaw::Exponential).then(|| {
+        measurements
+            .iter()
+            .map(|m| IdentificationCut {
+                depth: depth_mm,
+                immersion: Immersion::Angles { entry, exit },
+                feed_per_tooth: m.feed_per_tooth,
+                force: [m.fx, m.fy, m.fz],
+            })
+            .collect()
+    });
     Ok(Request {
-        entry: entry.to_radians(),
-        exit: exit.to_radians(),
+        entry,
+        exit,
+        depth_mm,
         options: o,
         measurements,
+        cuts,
+        lines: None,
     })
 }
 
@@ -269,20 +407,25 @@ fn identify(
         ("kae", k.kae, "z"),
     ] {
         if value < 0.0 {
-            return Err(Problem::new(
-                axum::http::StatusCode::UNPROCESSABLE_ENTITY,
-                "implausible-fit",
-                "Identified coefficients are not credible",
-                format!(
-                    "the fit gives {name} = {value:.4}, a negative coefficient: check the sign convention of the {axis} forces (forces on the tool, x along the feed; a dynamometer under the part measures the reaction: negate it) and their units (N)"
-                ),
-            )
-            .with("field", "options.measurements")
-            .with("coefficient", name)
-            .with("value", value));
+            return Err(implausible(name, value, axis).with("field", "options.measurements"));
         }
     }
     Ok(id)
+}
+
+/// A negative coefficient where every metal has a positive one.
+pub(super) fn implausible(name: &str, value: f64, axis: &str) -> Problem {
+    Problem::new(
+        axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+        "implausible-fit",
+        "Identified coefficients are not credible",
+        format!(
+            "the fit gives {name} = {value:.4}, a negative coefficient: check the sign convention of the {axis} forces (forces on the tool, x along the feed; a dynamometer under the part measures the reaction: negate it) and their units (N)"
+        ),
+    )
+    .with("field", "options.cuts")
+    .with("coefficient", name.to_string())
+    .with("value", value)
 }
 
 /// The options at submission: they read, there are two feeds or more, every number is
@@ -290,9 +433,13 @@ fn identify(
 /// only scale the coefficients, so one flute stands in for the tool here).
 pub fn check(options: &Value) -> Result<(), Problem> {
     let r = read(options)?;
+    if r.cuts.is_some() || r.lines.is_some() {
+        // The least-squares fit needs the tool's geometry: it runs with the job.
+        return Ok(());
+    }
     let setup = IdentificationSetup {
         flutes: 1,
-        axial_depth: r.options.depth_mm,
+        axial_depth: r.depth_mm,
         entry: r.entry,
         exit: r.exit,
     };
@@ -309,18 +456,40 @@ fn fit_json(f: &AxisFit) -> Value {
     })
 }
 
-pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
+pub fn run(
+    options: &Value,
+    mut inputs: LoadedInputs,
+    limits: &JobLimits,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<JobOutput, JobFailure> {
     let r = read(options).map_err(JobFailure::Invalid)?;
+    if let Some(lines) = &r.lines {
+        let (mut out, tests, coefficients) = identify_program::run(
+            options,
+            lines,
+            r.options.model,
+            inputs,
+            limits,
+            cancel,
+            progress,
+        )?;
+        out.resources = material_resource(&r, &tests, &coefficients, &mut out.summary)?;
+        return Ok(out);
+    }
     let tool: Tool = required(json_input(&mut inputs, "tool", "Invalid tool")?, "tool")?;
+    if let Some(cuts) = &r.cuts {
+        return run_cuts(&r, &tool, cuts);
+    }
     if tool.shape != ToolShape::Flat {
         return Err(JobFailure::Invalid(Problem::invalid_field(
             "inputs.tool",
-            "the average-force method needs a flat end mill (the tests' tool)",
+            "the average-force method (`measurements`) needs a flat end mill (the tests' tool); give the tests as `cuts` (each with its depth_mm) for a ball, bull-nose or any other tool",
         )));
     }
     let setup = IdentificationSetup {
         flutes: tool.flutes,
-        axial_depth: r.options.depth_mm,
+        axial_depth: r.depth_mm,
         entry: r.entry,
         exit: r.exit,
     };
@@ -335,7 +504,7 @@ pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFa
         id.distinct_feeds,
         feeds[0],
         feeds[feeds.len() - 1],
-        r.options.depth_mm,
+        r.depth_mm,
         tool.diameter,
         tool.flutes,
     );
@@ -344,13 +513,84 @@ pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFa
         "tests": tests,
         "measurements": r.measurements.len(),
         "distinct_feeds": id.distinct_feeds,
-        "depth_mm": r.options.depth_mm,
+        "depth_mm": r.depth_mm,
         "entry_deg": r.entry.to_degrees(),
         "exit_deg": r.exit.to_degrees(),
         "coefficients": id.coefficients,
         "fit": { "x": fit_json(&id.fit_x), "y": fit_json(&id.fit_y), "z": fit_json(&id.fit_z) },
         "row_columns": ["feed_per_tooth_mm", "fx_n", "fy_n", "fz_n", "fx_residual_n", "fy_residual_n", "fz_residual_n"],
     });
+    let resources = material_resource(&r, &tests, &id.coefficients, &mut summary)?;
+    let rows = r
+        .measurements
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            json!({
+                "feed_per_tooth_mm": m.feed_per_tooth, "fx_n": m.fx, "fy_n": m.fy, "fz_n": m.fz,
+                "fx_residual_n": id.fit_x.residuals[i],
+                "fy_residual_n": id.fit_y.residuals[i],
+                "fz_residual_n": id.fit_z.residuals[i],
+            })
+            .to_string()
+        })
+        .collect();
+    let mut out = JobOutput::rows(summary, rows);
+    out.resources = resources;
+    Ok(out)
+}
+
+/// The least-squares form: any tool, the cuts as given, the law asked for.
+fn run_cuts(r: &Request, tool: &Tool, cuts: &[IdentificationCut]) -> Result<JobOutput, JobFailure> {
+    let law = r.options.model;
+    let id = identify_cuts::identify(tool, cuts, law).map_err(JobFailure::Invalid)?;
+    let mut feeds: Vec<f64> = cuts.iter().map(|c| c.feed_per_tooth).collect();
+    feeds.sort_by(f64::total_cmp);
+    let mut depths: Vec<f64> = cuts.iter().map(|c| c.depth).collect();
+    depths.sort_by(f64::total_cmp);
+    let tests = format!(
+        "{} cuts at {} feeds per tooth from {} to {} mm, depths {} to {} mm, a {} mm {}-flute {} ({} law)",
+        cuts.len(),
+        id.distinct_feeds,
+        feeds[0],
+        feeds[feeds.len() - 1],
+        depths[0],
+        depths[depths.len() - 1],
+        tool.diameter,
+        tool.flutes,
+        shape_name(tool.shape),
+        match law {
+            ForceLaw::Linear => "linear",
+            ForceLaw::Exponential => "exponential",
+        },
+    );
+    let mut summary = identify_cuts::summary(&id);
+    summary["tests"] = json!(tests);
+    summary["cuts"] = json!(cuts.len());
+    summary["row_columns"] = json!(identify_cuts::ROW_COLUMNS);
+    let resources = material_resource(r, &tests, &id.coefficients, &mut summary)?;
+    let mut out = JobOutput::rows(summary, identify_cuts::rows(cuts, &id));
+    out.resources = resources;
+    Ok(out)
+}
+
+fn shape_name(shape: ToolShape) -> &'static str {
+    match shape {
+        ToolShape::Flat => "flat end mill",
+        ToolShape::Ball => "ball end mill",
+        ToolShape::BullNose => "bull-nose end mill",
+        ToolShape::Chamfer => "chamfer mill",
+        ToolShape::Drill => "drill",
+    }
+}
+
+/// The material resource asked for with `create_material`, noted in the summary.
+fn material_resource(
+    r: &Request,
+    tests: &str,
+    coefficients: &millsim_engine::physics::CuttingCoefficients,
+    summary: &mut Value,
+) -> Result<Vec<OutputResource>, JobFailure> {
     let mut resources = Vec::new();
     if let Some(request) = &r.options.create_material {
         let source = match &request.tests {
@@ -359,7 +599,7 @@ pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFa
         };
         let material = Material {
             name: request.name.trim().to_string(),
-            coefficients: id.coefficients,
+            coefficients: *coefficients,
             taylor: None,
             source,
         };
@@ -378,21 +618,5 @@ pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFa
             json!({ "id": resource.id, "name": material.name, "source": material.source });
         resources.push(resource);
     }
-    let rows = r
-        .measurements
-        .iter()
-        .enumerate()
-        .map(|(i, m)| {
-            json!({
-                "feed_per_tooth_mm": m.feed_per_tooth, "fx_n": m.fx, "fy_n": m.fy, "fz_n": m.fz,
-                "fx_residual_n": id.fit_x.residuals[i],
-                "fy_residual_n": id.fit_y.residuals[i],
-                "fz_residual_n": id.fit_z.residuals[i],
-            })
-            .to_string()
-        })
-        .collect();
-    let mut out = JobOutput::rows(summary, rows);
-    out.resources = resources;
-    Ok(out)
+    Ok(resources)
 }

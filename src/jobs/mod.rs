@@ -7,6 +7,8 @@
 mod accessibility;
 mod energy;
 mod identify;
+mod identify_cuts;
+mod identify_program;
 mod inputs;
 mod interpret;
 mod rotary_feed;
@@ -220,7 +222,7 @@ impl JobKind {
             JobKind::Stability => stability::run(options, cancel, progress),
             JobKind::RotaryFeed => rotary_feed::run(options, inputs),
             JobKind::Energy => energy::run(options, inputs, cancel),
-            JobKind::Identify => identify::run(options, inputs),
+            JobKind::Identify => identify::run(options, inputs, limits, cancel, progress),
             JobKind::Accessibility => accessibility::run(options, inputs, cancel),
         }
     }

@@ -260,20 +260,18 @@ impl ExportError {
     }
 }
 
-pub fn run(
-    optimize: bool,
-    options: &Value,
-    mut inputs: LoadedInputs,
+/// The simulation the job's inputs and options describe (the program's file name with it),
+/// refused before anything is allocated when it would exceed the job limits. `keeps_steps`:
+/// the job keeps a record of every step (optimize, identification), which the memory
+/// estimate counts.
+pub(super) fn spec_from_inputs(
+    opts: &SimulateOptions,
+    keeps_steps: bool,
+    inputs: &mut LoadedInputs,
     limits: &JobLimits,
     cancel: &CancelFlag,
-    progress: &dyn Progress,
-    stock_file: Option<&std::path::Path>,
-) -> Result<JobOutput, JobFailure> {
-    let opts: SimulateOptions = serde_json::from_value(options.clone())
-        .map_err(|e| invalid("Invalid options", e.to_string()))?;
-    opts.check(optimize, inputs.contains_key("material"))
-        .map_err(|e| invalid("Invalid options", e.to_string()))?;
-    let (file, text) = program_text(&mut inputs)?;
+) -> Result<BuiltSpec, JobFailure> {
+    let (file, text) = program_text(inputs)?;
     // Key 0: one tool serves every tool number; else the tool of each number.
     let mut tools = BTreeMap::new();
     let names: Vec<String> = inputs.keys().cloned().collect();
@@ -285,7 +283,7 @@ pub fn run(
         } else {
             continue;
         };
-        let tool: Tool = required(json_input(&mut inputs, &name, "Invalid tool")?, &name)?;
+        let tool: Tool = required(json_input(inputs, &name, "Invalid tool")?, &name)?;
         tools.insert(number, tool);
     }
     let library = inputs
@@ -297,9 +295,9 @@ pub fn run(
             library.fill(&mut tools);
             library
         });
-    let material = job_material(opts.material.as_deref(), &mut inputs)?;
+    let material = job_material(opts.material.as_deref(), inputs)?;
     let machine =
-        json_input(&mut inputs, "machine", "Invalid machine")?.unwrap_or_else(Machine::generic);
+        json_input(inputs, "machine", "Invalid machine")?.unwrap_or_else(Machine::generic);
     let stock = inputs
         .remove("stock")
         .ok_or_else(|| invalid("Missing input", "the job has no `stock` input"))?;
@@ -327,7 +325,7 @@ pub fn run(
         passthrough_m_codes: opts.passthrough_m_codes.clone(),
         strict_m_codes: opts.strict_m_codes,
         cancel: Some(cancel.clone()),
-        library: super::inputs::program_library(&mut inputs)?,
+        library: super::inputs::program_library(inputs)?,
         ..Default::default()
     };
     let part = match inputs.remove("part") {
@@ -356,7 +354,7 @@ pub fn run(
         stock: &stock,
         tools: &tools,
         cell: opts.cell_mm,
-        optimize,
+        optimize: keeps_steps,
         part_triangles: match &part {
             Some(StlSource::Mesh(mesh)) => mesh.triangles.len() as u64,
             // Not read yet: the binary size's count (an ASCII file's is lower).
@@ -383,6 +381,41 @@ pub fn run(
         chatter: opts.chatter.clone(),
         part,
     };
+    Ok(BuiltSpec {
+        file,
+        spec,
+        estimate,
+        library,
+    })
+}
+
+/// A simulation built from a job's inputs, with what its summary reports of them.
+pub(super) struct BuiltSpec {
+    pub file: String,
+    pub spec: SimulateSpec,
+    pub estimate: Option<millsim_engine::budget::MemoryEstimate>,
+    pub library: Option<JobLibrary>,
+}
+
+pub fn run(
+    optimize: bool,
+    options: &Value,
+    mut inputs: LoadedInputs,
+    limits: &JobLimits,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+    stock_file: Option<&std::path::Path>,
+) -> Result<JobOutput, JobFailure> {
+    let opts: SimulateOptions = serde_json::from_value(options.clone())
+        .map_err(|e| invalid("Invalid options", e.to_string()))?;
+    opts.check(optimize, inputs.contains_key("material"))
+        .map_err(|e| invalid("Invalid options", e.to_string()))?;
+    let BuiltSpec {
+        file,
+        spec,
+        estimate,
+        library,
+    } = spec_from_inputs(&opts, optimize, &mut inputs, limits, cancel)?;
     let mut out = pipeline::simulate(&spec, cancel, progress).map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,
         SimulateError::Program(d) => program_failure(cancel, &file, &d),

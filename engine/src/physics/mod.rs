@@ -10,7 +10,8 @@
 //!   [`BlockForces`] (per-block aggregate and down-sampled trace).
 //! - [`material`]: [`CuttingCoefficients`], [`Material`], [`builtin_materials`].
 //! - [`identify`]: [`identify_coefficients`] (average-force method) and
-//!   [`closed_form_mean_force`].
+//!   [`closed_form_mean_force`]; [`identify_from_cuts`] (least squares on the model's unit
+//!   responses: any tool, any cut, linear or exponential law) and [`fit_unit_forces`].
 //! - [`life`]: [`TaylorLife`], [`tool_life`] (life consumed per block, remaining life).
 //! - [`roughness`]: [`scallop_height`], [`feed_marks`], [`surface_roughness`].
 //! - [`stability`]: chatter stability lobes (zero-order, semi- and full discretization) and
@@ -65,8 +66,10 @@ pub use force::{
     TracePoint, DEFAULT_POSITIONS,
 };
 pub use identify::{
-    closed_form_mean_force, identify_coefficients, AxisFit, ForceMeasurement, Identification,
-    IdentificationSetup,
+    closed_form_mean_force, fit_unit_forces, identify_coefficients, identify_from_cuts,
+    steady_cut_engagement, unit_coefficients, AxisFit, AxisQuality, Estimate, ForceLaw,
+    ForceMeasurement, Identification, IdentificationCut, IdentificationSetup, Immersion,
+    ModelIdentification, UnitForces,
 };
 pub use life::{
     cutting_speed_m_per_min, effective_diameter, tool_life, BlockLife, BlockWear, LifeReport,

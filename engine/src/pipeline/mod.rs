@@ -13,6 +13,7 @@
 
 mod forces;
 mod frame;
+mod line_forces;
 mod optimize_stage;
 mod pass_spacing;
 mod removal;
@@ -23,6 +24,7 @@ mod stages;
 mod step_totals;
 mod tools;
 
+pub use line_forces::{simulate_for_identification, LineForce, ProgramCuts, MAX_LINES};
 pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
     row_columns, Collision, EnergyTotals, LimitCount, MoveRow, OptimizationSummary,
@@ -57,6 +59,19 @@ pub fn simulate_in_batches(
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<SimulationOutput, SimulateError> {
+    run(spec, batch_steps, cancel, progress, false).map(|(out, _)| out)
+}
+
+/// The pipeline; with `keep_steps` it also gives every cutting step (where, at what
+/// conditions, its engagement and its time weight) and the force models, for
+/// identification.
+fn run(
+    spec: &SimulateSpec,
+    batch_steps: usize,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+    keep_steps: bool,
+) -> Result<(SimulationOutput, Option<line_forces::KeptCuts>), SimulateError> {
     let mut timings = StageTimings::default();
     // The STL stock read once, for its bounds (where the machine starts) and its grid.
     let mesh = match &spec.stock {
@@ -104,7 +119,8 @@ pub fn simulate_in_batches(
         coefficients: spec.material.coefficients,
         feed_ranges: feed_ranges.as_deref(),
     };
-    let mut totals = step_totals::StepTotals::new(moves.len(), spec.optimize.is_some());
+    let mut totals =
+        step_totals::StepTotals::new(moves.len(), spec.optimize.is_some() || keep_steps);
     // The forces of each batch are computed as it comes; their time is counted apart.
     let mut batch_forces_s = 0.0;
     let rays_tested = removal::remove_material(
@@ -218,7 +234,16 @@ pub fn simulate_in_batches(
             part,
         },
     );
-    Ok(SimulationOutput {
+    let kept_cuts = match (keep_steps, kept) {
+        (true, Some(kept)) => Some(line_forces::KeptCuts::new(
+            kept,
+            moves,
+            &rows,
+            plan.models.clone(),
+        )),
+        _ => None,
+    };
+    let output = SimulationOutput {
         rows,
         optimized_program,
         optimization,
@@ -228,7 +253,8 @@ pub fn simulate_in_batches(
         timings,
         rays_tested,
         tool_numbers: tools.numbers,
-    })
+    };
+    Ok((output, kept_cuts))
 }
 
 /// What can be refused before any work: rotary axes on a 3-axis machine, tools and

@@ -8,9 +8,27 @@
 //! Forces are the mean forces on the tool in the Engagement frame (x feed, y = z × x, z the
 //! tool axis), as in ../shared/REFERENCE.md. A dynamometer under the workpiece measures the
 //! reaction: negate its readings.
+//!
+//! That closed form holds for flat end mills only. [`identify_from_cuts`] takes any cut the
+//! force model can evaluate (any tool shape, helix and runout, slot or side cut, several
+//! depths and feeds) and the exponential (Kienzle) law too, by least squares on the model's
+//! own unit responses ([`lsq`]); [`fit_unit_forces`] is that solve for any other source of
+//! unit responses (the simulated lines of a program).
 
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
+
+pub mod cuts;
+pub mod lsq;
+
+pub use cuts::{
+    identify_from_cuts, steady_cut_engagement, unit_coefficients, IdentificationCut, Immersion,
+    MAX_CUTS,
+};
+pub use lsq::{
+    check_set, fit_unit_forces, t_quantile_975, AxisQuality, Estimate, ForceLaw,
+    ModelIdentification, UnitForces, MAX_CONDITION, PARAMETER_NAMES,
+};
 
 use super::material::CuttingCoefficients;
 use super::{finite, positive, PhysicsError};
