@@ -402,6 +402,14 @@ pub(super) fn remove_material(
         }
         let (cut, all) = step_lengths[i];
         row.air_fraction = if all > 0.0 { 1.0 - cut / all } else { 1.0 };
+        // A move that removed nothing (an air re-trace along a wall it cut to the tool's
+        // radius) has no cut to describe: its grazing engagement is not a depth or a width.
+        if row.removed_volume <= 0.0 {
+            row.max_axial_depth = 0.0;
+            row.max_radial_width = 0.0;
+            row.entry_angle_deg = None;
+            row.exit_angle_deg = None;
+        }
         row.spindle_stopped_in_material = row.removed_volume > 1e-6
             && turning_rpm(&moves[i]) <= 0.0
             && moves[i].kind != MoveKind::Rapid;
