@@ -13,18 +13,34 @@ use millsim_engine::tool::Tool;
 #[test]
 fn an_air_retrace_has_no_depth_width_or_angles_and_rows_name_the_tool() {
     // A slot, then the same slot again: the second pass removes nothing.
-    let program = "G21 G90\nT1\nS8000 M3\nG0 X-10 Y0 Z5\nG0 Z-3\nG1 X60 F500\nG1 X-10\nG0 Z5\nM30\n";
+    let program =
+        "G21 G90\nT1\nS8000 M3\nG0 X-10 Y0 Z5\nG0 Z-3\nG1 X60 F500\nG1 X-10\nG0 Z5\nM30\n";
     let mut spec = common::simulate::block_spec(program, Tool::flat(12.0, 4), 0.25);
     spec.tools = BTreeMap::from([(1, Tool::flat(12.0, 4))]);
     let out = simulate(&spec, &CancelFlag::new(), &NoProgress).unwrap();
     let row = |line: u32| out.rows.iter().find(|r| r.line == line).unwrap();
     let first = row(6);
-    assert!(first.removed_volume > 100.0 && first.max_axial_depth > 2.9, "{first:?}");
+    assert!(
+        first.removed_volume > 100.0 && first.max_axial_depth > 2.9,
+        "{first:?}"
+    );
     let again = row(7);
     assert_eq!(again.removed_volume, 0.0, "{again:?}");
     assert!(again.flags.split('|').any(|f| f == "air"), "{again:?}");
-    assert_eq!((again.max_axial_depth, again.max_radial_width), (0.0, 0.0), "{again:?}");
-    assert_eq!((again.entry_angle_deg, again.exit_angle_deg), (None, None), "{again:?}");
+    assert_eq!(
+        (again.max_axial_depth, again.max_radial_width),
+        (0.0, 0.0),
+        "{again:?}"
+    );
+    assert_eq!(
+        (again.entry_angle_deg, again.exit_angle_deg),
+        (None, None),
+        "{again:?}"
+    );
     // T1 selected, never loaded with M6: the rows say tool 1, the tool that cut.
-    assert!(out.rows.iter().all(|r| r.tool == 1), "{:?}", out.rows.iter().map(|r| r.tool).collect::<Vec<_>>());
+    assert!(
+        out.rows.iter().all(|r| r.tool == 1),
+        "{:?}",
+        out.rows.iter().map(|r| r.tool).collect::<Vec<_>>()
+    );
 }

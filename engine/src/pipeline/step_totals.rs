@@ -197,7 +197,11 @@ impl StepTotals {
                 row.fz_mean_n = w.components[2] / w.engaged_length;
             }
             if row.length > 0.0 {
-                row.mean_power = w.power / row.length;
+                // Never below 0: at a grazing step a corner or cone slice whose chip changes
+                // sign across it can integrate to a slightly negative torque (−4e-5 J over a
+                // move of the tilted benchmark's turning chamfer), and the spindle takes no
+                // power back from a cut; the energy model refuses negative energy.
+                row.mean_power = (w.power / row.length).max(0.0);
             }
             row.cutting_energy_j = row.mean_power * row.time_s;
             if row.time_s > 0.0 {
