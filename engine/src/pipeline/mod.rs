@@ -206,10 +206,8 @@ fn run(
         None => (None, None),
     };
     timings.optimize_s = clock.elapsed().as_secs_f64();
-    for (row, m) in rows.iter_mut().zip(moves) {
+    for row in rows.iter_mut() {
         row.set_axis_rates();
-        // The T number that cut: a program that selects T1 without M6 is simulated with T1.
-        row.tool = tools.number(m);
     }
 
     let volume_after = stock.volume();
