@@ -464,16 +464,11 @@ pub fn spawn(
             // Never above an inherited hard limit: raising it fails (EPERM) and the job
             // would be given back and claimed again for ever. The server clamps the budget
             // to fit at start-up; this keeps an explicit budget from looping.
-            let mut inherited = libc::rlimit {
-                rlim_cur: 0,
-                rlim_max: 0,
-            };
-            let mut cap = address_space as libc::rlim_t;
-            if libc::getrlimit(libc::RLIMIT_AS, &mut inherited) == 0
-                && inherited.rlim_max != libc::RLIM_INFINITY
-            {
-                cap = cap.min(inherited.rlim_max);
-            }
+            // (inherited_address_space only calls getrlimit: async-signal-safe.)
+            let cap = match inherited_address_space() {
+                Some(max) => address_space.min(max),
+                None => address_space,
+            } as libc::rlim_t;
             let limit = libc::rlimit {
                 rlim_cur: cap,
                 rlim_max: cap,
