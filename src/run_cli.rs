@@ -458,6 +458,21 @@ pub fn run_report(summary: &Value) -> String {
         }
         None => out.push_str("peak force: no cut\n"),
     }
+    // Each tool's worst bending: where it deflects most and the form error it leaves.
+    for t in summary["deflection"].as_array().into_iter().flatten() {
+        let line = |k: &str| t[k].as_u64().map_or("?".to_string(), |l| l.to_string());
+        let _ = writeln!(
+            out,
+            "T{}: deflection {:.1} µm at line {}; form error {:+.1} µm at line {} ({}); bending stress {:.0} MPa",
+            t["tool"],
+            num(&t["deflection_peak_um"]),
+            line("deflection_line"),
+            num(&t["form_error_um"]),
+            line("form_error_line"),
+            if num(&t["form_error_um"]) >= 0.0 { "material left" } else { "overcut" },
+            num(&t["bending_stress_mpa"]),
+        );
+    }
     if let Some(list) = summary["collisions"].as_array().filter(|c| !c.is_empty()) {
         let _ = writeln!(out, "COLLISIONS: {}", list.len());
         for c in list.iter().take(20) {

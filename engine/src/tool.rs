@@ -40,6 +40,47 @@ impl ToolShape {
 /// general-purpose drills.
 pub const DEFAULT_POINT_ANGLE_DEG: f64 = 118.0;
 
+/// What the tool is made of: its stiffness in bending (deflection) and its strength (the
+/// bending-stress guard).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ToolMaterial {
+    /// Cemented carbide (WC–Co), what solid end mills are ground from.
+    #[default]
+    Carbide,
+    /// High-speed steel (M2, M42, powder-metallurgy grades).
+    Hss,
+}
+
+impl ToolMaterial {
+    /// Young's modulus, GPa. Carbide: WC with 6–12 % Co grades list 550–650 GPa in their
+    /// sheets, 600 taken (the usual figure of end-mill deflection calculators). HSS: M2/M42
+    /// sheets list 210–230 GPa, 217 taken.
+    pub fn young_modulus_gpa(self) -> f64 {
+        match self {
+            ToolMaterial::Carbide => 600.0,
+            ToolMaterial::Hss => 217.0,
+        }
+    }
+
+    /// Strength in bending, MPa: carbide's transverse rupture strength (ultrafine grades
+    /// 3,500–4,500 MPa, 4,000 taken); hardened HSS (62–65 HRC) 3,000–4,000 MPa bend
+    /// strength in steel-makers' sheets, the lower end taken.
+    pub fn bending_strength_mpa(self) -> f64 {
+        match self {
+            ToolMaterial::Carbide => 4_000.0,
+            ToolMaterial::Hss => 3_000.0,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ToolMaterial::Carbide => "carbide",
+            ToolMaterial::Hss => "hss",
+        }
+    }
+}
+
 /// One piece of the holder stack, from the bottom (nearest the tool) up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "HolderJson", into = "HolderJson")]
@@ -154,12 +195,20 @@ pub struct Tool {
     /// `start-values.presets[].f_z`), mm: the optimizer's default chip ceiling for the
     /// tool instead of the rule (see `optimize::guards`).
     pub feed_per_tooth: Option<f64>,
+    /// What the tool is made of (carbide unless said).
+    pub tool_material: ToolMaterial,
+    /// Young's modulus, GPa, overriding the tool material's.
+    pub young_modulus: Option<f64>,
+    /// A measured static stiffness at the tip (holder and spindle included), N/µm: the
+    /// beam's compliance is scaled to it (see `physics::deflection`).
+    pub static_stiffness: Option<f64>,
 }
 
 /// The tool's JSON document: `{"type":"flat|ball|bull|chamfer|drill","diameter_mm":..,
 /// "corner_radius_mm":..,"flutes":..,"helix_deg":..,"flute_length_mm":..,
 /// "shank_diameter_mm":..,"stickout_mm":..,"holder":[..],"runout_um":..,
-/// "center_cutting":true,"feed_per_tooth_mm":..}`, a drill's `"point_angle_deg"` (118 when not
+/// "center_cutting":true,"feed_per_tooth_mm":..,"tool_material":"carbide|hss",
+/// "young_modulus_gpa":..,"static_stiffness_n_per_um":..}`, a drill's `"point_angle_deg"` (118 when not
 /// given). The names
 /// without units (`shape`, `diameter`, `flute_length`, ...) are accepted too.
 #[derive(Clone, Serialize, Deserialize)]
@@ -218,6 +267,16 @@ struct ToolJson {
         skip_serializing_if = "Option::is_none"
     )]
     feed_per_tooth: Option<f64>,
+    #[serde(default, skip_serializing_if = "is_carbide")]
+    tool_material: ToolMaterial,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    young_modulus_gpa: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    static_stiffness_n_per_um: Option<f64>,
+}
+
+fn is_carbide(m: &ToolMaterial) -> bool {
+    *m == ToolMaterial::Carbide
 }
 
 fn yes() -> bool {
@@ -273,6 +332,9 @@ impl TryFrom<ToolJson> for Tool {
             runout,
             center_cutting: t.center_cutting,
             feed_per_tooth: t.feed_per_tooth,
+            tool_material: t.tool_material,
+            young_modulus: t.young_modulus_gpa,
+            static_stiffness: t.static_stiffness_n_per_um,
         })
     }
 }
@@ -299,6 +361,9 @@ impl From<Tool> for ToolJson {
             runout: None,
             center_cutting: t.center_cutting,
             feed_per_tooth: t.feed_per_tooth,
+            tool_material: t.tool_material,
+            young_modulus_gpa: t.young_modulus,
+            static_stiffness_n_per_um: t.static_stiffness,
         }
     }
 }
@@ -354,6 +419,9 @@ impl Tool {
             runout: Runout::default(),
             center_cutting: true,
             feed_per_tooth: None,
+            tool_material: ToolMaterial::Carbide,
+            young_modulus: None,
+            static_stiffness: None,
         }
     }
 
@@ -401,6 +469,14 @@ impl Tool {
 
     pub fn shank_diameter(&self) -> f64 {
         self.shank_diameter.unwrap_or(self.diameter)
+    }
+
+    /// Young's modulus in force, N/mm² (MPa).
+    pub fn young_modulus_mpa(&self) -> f64 {
+        1000.0
+            * self
+                .young_modulus
+                .unwrap_or_else(|| self.tool_material.young_modulus_gpa())
     }
 
     pub fn stick_out(&self) -> f64 {
@@ -522,6 +598,23 @@ impl Tool {
         }
         if !self.runout.angle_deg.is_finite() {
             return Err(bad("runout_angle_deg", "must be a number"));
+        }
+        if let Some(e) = self.young_modulus {
+            // Polymers to diamond: outside, a unit mistake (MPa or psi given as GPa).
+            if !(e.is_finite() && (1.0..=1500.0).contains(&e)) {
+                return Err(bad(
+                    "young_modulus_gpa",
+                    format!("must be in [1, 1500] GPa, got {e}"),
+                ));
+            }
+        }
+        if let Some(k) = self.static_stiffness {
+            if !(k.is_finite() && k > 0.0 && k <= 1.0e6) {
+                return Err(bad(
+                    "static_stiffness_n_per_um",
+                    format!("must be in (0, 1e6] N/µm, got {k}"),
+                ));
+            }
         }
         if let Some(fz) = self.feed_per_tooth {
             finite_pos("feed_per_tooth_mm", fz)?;

@@ -66,7 +66,9 @@ impl Cutter {
         positions: usize,
     ) -> Result<Cutter, PhysicsError> {
         coefficients.validate()?;
-        let model = ForceModel::new(tool, slice_count, positions)?.keep_samples(false);
+        let model = ForceModel::new(tool, slice_count, positions)?
+            .keep_samples(false)
+            .with_beam(crate::physics::deflection::ToolBeam::of(tool));
         Ok(Cutter {
             model,
             coefficients,

@@ -96,22 +96,18 @@ pub fn shape_factor(shape: ToolShape) -> f64 {
     }
 }
 
-/// Allowed bending stress of the tool's section, MPa: the transverse rupture strength of
-/// the ultrafine cemented carbide (WC with 8–12 % Co, sub-micron grain) solid end mills are
-/// ground from, 3,500–4,500 MPa in the grade sheets (4,000 taken), over a safety factor of
-/// 2. The factor covers the bending being reversed once a revolution (fatigue) and each
-/// tooth entry being an impact; the notch the flutes cut is in the effective core diameter
-/// already, and the core's section is taken over the whole stick-out although a shank
-/// thicker than the core runs from the flutes to the holder. Tools are carbide unless said
-/// otherwise (HSS has about the strength but bends 3 times as far: the deflection
-/// refinement will tell them apart).
-pub const CARBIDE_TRS_MPA: f64 = 4_000.0;
+/// Allowed bending stress of the tool's section: its material's bending strength
+/// ([`ToolMaterial::bending_strength_mpa`](crate::tool::ToolMaterial::bending_strength_mpa):
+/// carbide's transverse rupture strength 4,000 MPa, hardened HSS 3,000 MPa) over a safety
+/// factor of 2. The factor covers the bending being reversed once a revolution (fatigue) and
+/// each tooth entry being an impact; the notch the flutes cut is in the effective core
+/// diameter already, and the core's section is taken over the whole stick-out although a
+/// shank thicker than the core runs from the flutes to the holder. The simulation reports
+/// the real stress at the clamp and the flute root from each slice's load
+/// (`bending_stress_mpa`, see `physics::deflection`).
 pub const BENDING_SAFETY_FACTOR: f64 = 2.0;
 
-/// The fluted core's effective diameter for bending, as a fraction of the cutting
-/// diameter: the flutes remove material but the core and the lands still carry the load;
-/// 0.8·D is the equivalent round section of usual 2- to 4-flute end mills.
-pub const EFFECTIVE_CORE_RATIO: f64 = 0.8;
+pub use crate::physics::deflection::EFFECTIVE_CORE_RATIO;
 
 /// Where a ceiling comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -156,7 +152,7 @@ pub fn effective_diameter(tool: &Tool) -> f64 {
 /// core runs from the flutes to the holder. It bounds peak |F| (the 3-D force, axial part
 /// included), which is at least the bending part.
 pub fn force_rule(tool: &Tool) -> f64 {
-    let sigma = CARBIDE_TRS_MPA / BENDING_SAFETY_FACTOR;
+    let sigma = tool.tool_material.bending_strength_mpa() / BENDING_SAFETY_FACTOR;
     let d = effective_diameter(tool);
     sigma * std::f64::consts::PI * d.powi(3) / (32.0 * tool.stick_out())
 }
@@ -194,8 +190,9 @@ pub fn tool_guards(tool: &Tool, material: &Material) -> ToolGuards {
         max_force: force,
         force_source: GuardSource::Rule,
         force_rule: format!(
-            "carbide, σ_allow = {} MPa / {}: F = σ_allow·π·d_e³/(32·L) with d_e = {:.3} mm, L = {} mm (stick-out): {force:.1} N",
-            CARBIDE_TRS_MPA,
+            "{}, σ_allow = {} MPa / {}: F = σ_allow·π·d_e³/(32·L) with d_e = {:.3} mm, L = {} mm (stick-out): {force:.1} N",
+            tool.tool_material.name(),
+            tool.tool_material.bending_strength_mpa(),
             BENDING_SAFETY_FACTOR,
             effective_diameter(tool),
             tool.stick_out()

@@ -19,6 +19,12 @@ pub struct FeedLimits {
     pub max_chip_thickness: Option<f64>,
     /// Rubbing floor: the thickest chip of a cutting move should be at least this.
     pub min_chip_thickness: Option<f64>,
+    /// The tool's deflection at its lowest cutting point, and the form error a pass leaves
+    /// (its magnitude), µm (see `physics::deflection`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_deflection_um: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_form_error_um: Option<f64>,
     pub min_feed: f64,
     pub max_feed: f64,
     /// Feed of moves that cut nothing; None keeps their programmed feed.
@@ -73,6 +79,10 @@ pub struct ToolLimits {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub min_chip_thickness: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_deflection_um: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_form_error_um: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub min_feed: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_feed: Option<f64>,
@@ -101,6 +111,8 @@ impl FeedLimits {
         l.max_torque = pick(t.max_torque, l.max_torque);
         l.max_chip_thickness = pick(t.max_chip_thickness, l.max_chip_thickness);
         l.min_chip_thickness = pick(t.min_chip_thickness, l.min_chip_thickness);
+        l.max_deflection_um = pick(t.max_deflection_um, l.max_deflection_um);
+        l.max_form_error_um = pick(t.max_form_error_um, l.max_form_error_um);
         l.min_feed = t.min_feed.unwrap_or(l.min_feed);
         l.max_feed = t.max_feed.unwrap_or(l.max_feed);
         l.air_feed = pick(t.air_feed, l.air_feed);
@@ -166,6 +178,8 @@ impl Default for FeedLimits {
             max_torque: None,
             max_chip_thickness: None,
             min_chip_thickness: None,
+            max_deflection_um: None,
+            max_form_error_um: None,
             min_feed: 1.0,
             max_feed: 10_000.0,
             air_feed: None,
@@ -221,6 +235,8 @@ impl FeedLimits {
             ("max_torque", self.max_torque),
             ("max_chip_thickness", self.max_chip_thickness),
             ("min_chip_thickness", self.min_chip_thickness),
+            ("max_deflection_um", self.max_deflection_um),
+            ("max_form_error_um", self.max_form_error_um),
             ("air_feed", self.air_feed),
             ("feed_step", self.feed_step),
             ("max_plunge_feed", self.max_plunge_feed),
@@ -333,16 +349,43 @@ impl FeedLimits {
             || self.max_chip_thickness.is_some()
             || self.guard_force.is_some()
             || self.guard_chip_thickness.is_some()
+            || self.has_bending_limit()
+    }
+
+    /// A deflection or form-error limit is set: each evaluation needs the tool's bending
+    /// (a peak response, which knows only the forces, cannot stand for the model).
+    pub fn has_bending_limit(&self) -> bool {
+        self.max_deflection_um.is_some() || self.max_form_error_um.is_some()
     }
 
     /// Largest quantity/target ratio of a force result, and which quantity it is.
     pub fn ratio(&self, r: &ForceResult) -> (f64, Governing) {
-        self.ratio_of(
+        let mut best = self.ratio_of(
             r.force.peak,
             r.power.peak,
             r.torque.peak,
             r.max_chip_thickness,
-        )
+        );
+        for (lim, q, g) in [
+            (
+                self.max_deflection_um,
+                1000.0 * r.deflection.peak,
+                Governing::Deflection,
+            ),
+            (
+                self.max_form_error_um,
+                1000.0 * r.deflection.form_error.abs(),
+                Governing::FormError,
+            ),
+        ] {
+            if let Some(l) = lim {
+                let x = q / l;
+                if x > best.0 || best.1 == Governing::MaxFeed {
+                    best = (x, g);
+                }
+            }
+        }
+        best
     }
 
     /// As [`ratio`](Self::ratio), from the peak |F| (N), power (W), torque (N·m) and chip (mm).
@@ -380,6 +423,10 @@ pub enum Governing {
     Power,
     Torque,
     ChipThickness,
+    /// The tool's deflection at its lowest cutting point (`max_deflection_um`).
+    Deflection,
+    /// The form error the pass leaves (`max_form_error_um`).
+    FormError,
     /// The tool's own force guard (see `optimize::guards`), tighter than the user's.
     GuardForce,
     /// The tool's own chip guard, tighter than the user's.

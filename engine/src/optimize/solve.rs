@@ -34,7 +34,11 @@ fn evaluate(
         spindle_rpm: step.spindle_rpm,
         feed_per_tooth: step.tip_ratio * v / (teeth * step.spindle_rpm),
     };
-    if let Some(p) = step.response.as_ref().and_then(|r| r.at(c.feed_per_tooth)) {
+    let response = step
+        .response
+        .as_ref()
+        .filter(|_| !limits.has_bending_limit());
+    if let Some(p) = response.and_then(|r| r.at(c.feed_per_tooth)) {
         let Peaks {
             force,
             torque,

@@ -48,6 +48,7 @@
 //! ```
 
 pub mod chatter;
+pub mod deflection;
 pub mod energy;
 pub mod force;
 pub mod identify;

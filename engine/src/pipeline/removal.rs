@@ -200,7 +200,8 @@ pub(super) fn plan_removal(
                 ToolEdgeTable::with_slice_height(tool, cell)?,
                 spec.force_positions,
             )?
-            .keep_samples(false),
+            .keep_samples(false)
+            .with_beam(crate::physics::deflection::ToolBeam::of(tool)),
         );
     }
     Ok(RemovalPlan { runs, models })

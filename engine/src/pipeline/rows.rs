@@ -103,6 +103,14 @@ pub struct MoveRow {
     /// (floor or wall, the larger) at its feed per tooth.
     pub scallop_um: f64,
     pub feed_mark_um: f64,
+    /// How the tool bends over the move's steps (see `physics::deflection`), µm: the lowest
+    /// cutting point's largest deflection normal to the axis, and the form error the move
+    /// leaves, the largest in magnitude with its sign (+ material left, − overcut).
+    pub deflection_peak_um: f64,
+    pub form_error_um: f64,
+    /// The higher of the peak bending stresses at the clamp and at the flute root, MPa.
+    #[serde(rename = "bending_stress_mpa")]
+    pub bending_stress: f64,
     /// With the tool's modes: axial depth / critical depth at the move's speed, immersion
     /// and direction (> 1 chatters), and that critical depth, mm.
     pub chatter_margin: Option<f64>,
@@ -307,6 +315,8 @@ pub struct SimulationSummary {
     pub warnings: Vec<String>,
     /// The worst scallop and feed marks of the program and where.
     pub roughness: RoughnessSummary,
+    /// Per tool: its largest deflection, form error and bending stress, and where.
+    pub deflection: Vec<ToolDeflection>,
     /// With a design part: stock cut below its surface (gouge volume and depth) and the
     /// allowance left on it (min/mean/max), mm³ and mm.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -324,6 +334,19 @@ pub struct ToolLife {
     /// worn out, if it is.
     pub most_wearing_line: Option<u32>,
     pub worn_out_line: Option<u32>,
+}
+
+/// How far one tool bends over the program, and the lines where it bends most, leaves the
+/// largest form error (+ material left, − overcut) and is stressed most.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ToolDeflection {
+    pub tool: u32,
+    pub deflection_peak_um: f64,
+    pub deflection_line: Option<u32>,
+    pub form_error_um: f64,
+    pub form_error_line: Option<u32>,
+    pub bending_stress_mpa: f64,
+    pub bending_stress_line: Option<u32>,
 }
 
 /// The roughest a program leaves, µm, and the line of the move that leaves it.
@@ -565,6 +588,7 @@ pub(super) fn summarize(
         cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
         energy: extras.energy,
         roughness: roughest(rows),
+        deflection: deflection_per_tool(rows),
         tool_life_unavailable: extras.tool_life.as_ref().err().cloned(),
         tool_life: extras.tool_life.ok(),
         tool_warnings: extras.tool_warnings,
@@ -640,4 +664,29 @@ fn roughest(rows: &[MoveRow]) -> RoughnessSummary {
         feed_mark_max_um: marks.map_or(0.0, |w| w.0),
         feed_mark_line: marks.map(|w| w.1),
     }
+}
+
+/// Per tool number (in order), the worst deflection, form error and bending stress of its
+/// moves and their lines.
+pub fn deflection_per_tool(rows: &[MoveRow]) -> Vec<ToolDeflection> {
+    let mut out: std::collections::BTreeMap<u32, ToolDeflection> = Default::default();
+    for r in rows.iter().filter(|r| r.deflection_peak_um > 0.0) {
+        let t = out.entry(r.tool).or_insert_with(|| ToolDeflection {
+            tool: r.tool,
+            ..Default::default()
+        });
+        if r.deflection_peak_um > t.deflection_peak_um {
+            t.deflection_peak_um = r.deflection_peak_um;
+            t.deflection_line = Some(r.line);
+        }
+        if r.form_error_um.abs() > t.form_error_um.abs() {
+            t.form_error_um = r.form_error_um;
+            t.form_error_line = Some(r.line);
+        }
+        if r.bending_stress > t.bending_stress_mpa {
+            t.bending_stress_mpa = r.bending_stress;
+            t.bending_stress_line = Some(r.line);
+        }
+    }
+    out.into_values().collect()
 }

@@ -152,6 +152,12 @@ impl StepTotals {
                 row.peak_torque = row.peak_torque.max(f.torque.peak);
                 row.peak_power = row.peak_power.max(f.power.peak);
                 row.max_chip_thickness = row.max_chip_thickness.max(f.max_chip_thickness);
+                let d = &f.deflection;
+                row.deflection_peak_um = row.deflection_peak_um.max(1000.0 * d.peak);
+                if (1000.0 * d.form_error).abs() > row.form_error_um.abs() {
+                    row.form_error_um = 1000.0 * d.form_error;
+                }
+                row.bending_stress = row.bending_stress.max(d.clamp_stress.max(d.root_stress));
                 let w = &mut self.weighted[mi];
                 let length = machine_length;
                 w.force += f.force.mean * length;

@@ -15,12 +15,15 @@ impl ForceModel {
     /// Per tooth and sample, the forces of the engaged slices into `acc`, the thickest chip
     /// per tooth into `tooth_hmax`, with the boundary-bin corrections of the mean. With
     /// `edge` coefficients too, those go into `acc_edge` in the same pass (their corrections
-    /// in the second entry): the slices' geometry is looked up once for both.
+    /// in the second entry): the slices' geometry is looked up once for both. With `bend`
+    /// (coefficients and feed per tooth of the real cut) and a beam, the three bending
+    /// channels (see `bending`) go into `acc_bend`.
     pub(super) fn accumulate(
         &mut self,
         engagement: &Engagement,
         k: &CuttingCoefficients,
         edge: Option<&CuttingCoefficients>,
+        bend: Option<(&CuttingCoefficients, f64)>,
         frame: &ToolFrame,
         fz: f64,
     ) -> (Accumulated, [f64; 4]) {
@@ -44,7 +47,30 @@ impl ForceModel {
             }
             buf.fill(0.0);
         }
+        let bend = bend.filter(|_| self.beam.is_some());
+        if bend.is_some() {
+            for buf in self.acc_bend.iter_mut() {
+                if buf.len() != 4 * n * kpos {
+                    *buf = vec![0.0; 4 * n * kpos];
+                }
+                buf.fill(0.0);
+            }
+        }
+        let bend_eps = |fz: f64| {
+            if self.table.runout_steps.is_empty() {
+                CHIP_EPS_PER_FEED * fz
+            } else {
+                CHIP_EPS
+            }
+        };
+        let mut lowest = f64::INFINITY;
         self.tooth_hmax.fill(f64::NEG_INFINITY);
+        let [b0, b1, b2] = &mut self.acc_bend;
+        let mut bend_bufs = [
+            four_blocks(b0, n * kpos),
+            four_blocks(b1, n * kpos),
+            four_blocks(b2, n * kpos),
+        ];
         let mut bufs = [
             four_blocks(&mut self.acc, n * kpos),
             four_blocks(&mut self.acc_edge, n * kpos),
@@ -63,7 +89,7 @@ impl ForceModel {
         // The flank and corner slices, then the flat end's rings (the end teeth).
         let flank = engagement.slices.len();
         for i in 0..flank + engagement.end.len() {
-            let (g, arcs) = if i < flank {
+            let (g, arcs, (z, dz)) = if i < flank {
                 let s = &engagement.slices[i];
                 if s.arcs.is_empty() {
                     continue;
@@ -72,19 +98,30 @@ impl ForceModel {
                     skipped += 1;
                     continue;
                 };
-                (g, &s.arcs)
+                (g, &s.arcs, (s.z, s.dz))
             } else {
                 let r = &engagement.end[i - flank];
                 if r.arcs.is_empty() {
                     continue;
                 }
-                (EdgeSlice::end_ring(r.r0, r.r1), &r.arcs)
+                (EdgeSlice::end_ring(r.r0, r.r1), &r.arcs, (0.0, 0.0))
             };
             engaged += 1;
+            lowest = lowest.min((z - 0.5 * dz).max(0.0));
+            // The slice's lever arm and compliance weights (its load spread over its height).
+            let weights = match (bend, &self.beam) {
+                (Some(_), Some(beam)) => Some(beam.slice_weights(z, dz)),
+                _ => None,
+            };
             for j in 0..computed_teeth {
                 let alpha = j as f64 * self.table.pitch + g.lag;
                 let sc = alpha.sin_cos();
                 let passes = coefficients.map(|k| k.map(|k| Pass::new(&g, k, sc, c_h, c_v, eps)));
+                let bend_passes = bend.zip(weights).map(|((kb, fb), w)| {
+                    let (ch, cv) = (fb * frame.feed_across, fb * frame.feed_along);
+                    let p = Pass::new(&g, kb, sc, ch, cv, bend_eps(fb));
+                    [p.scaled(w.arm), p.scaled(w.a), p.scaled(w.b)]
+                });
                 let steps: &[f64] = if self.table.runout_steps.is_empty() {
                     &no_steps
                 } else {
@@ -117,6 +154,24 @@ impl ForceModel {
                                     &mut fy[at(seg)],
                                     &mut fz[at(seg)],
                                     &mut tq[at(seg)],
+                                    &mut self.scratch,
+                                );
+                            }
+                        }
+                        for (p, [fx, fy, fz, tq]) in
+                            bend_passes.iter().flatten().zip(bend_bufs.iter_mut())
+                        {
+                            for seg in pieces.iter().filter(|r| !r.is_empty()) {
+                                let at = row.start + seg.start..row.start + seg.end;
+                                run_segment(
+                                    p,
+                                    steps,
+                                    &self.sin_t[seg.clone()],
+                                    &self.cos_t[seg.clone()],
+                                    &mut fx[at.clone()],
+                                    &mut fy[at.clone()],
+                                    &mut fz[at.clone()],
+                                    &mut tq[at],
                                     &mut self.scratch,
                                 );
                             }
@@ -184,6 +239,7 @@ impl ForceModel {
                 engaged,
                 skipped,
                 symmetric,
+                lowest,
             },
             corr_edge,
         )

@@ -57,6 +57,7 @@
 //! include a tooth exactly on an arc boundary.
 
 mod accumulate;
+mod bending;
 mod edge;
 mod frame;
 mod kernel;

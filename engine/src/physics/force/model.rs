@@ -57,6 +57,12 @@ pub struct ForceModel {
     pub(super) scratch: Vec<f64>,
     pub(super) tooth_hmax: Vec<f64>,
     pub(super) keep_samples: bool,
+    /// The tool as a beam, for the deflection (see `bending`); None: no deflection.
+    pub(super) beam: Option<crate::physics::deflection::ToolBeam>,
+    /// The bending channels per tooth and position (four blocks of N·K each, x and y used):
+    /// Σ arm·F, Σ a·F, Σ b·F over the slices; and their totals over the teeth.
+    pub(super) acc_bend: [Vec<f64>; 3],
+    pub(super) tot_bend: [Vec<f64>; 3],
 }
 
 impl ForceModel {
@@ -92,6 +98,9 @@ impl ForceModel {
             tooth_hmax: vec![0.0; n],
             table,
             keep_samples: true,
+            beam: None,
+            acc_bend: Default::default(),
+            tot_bend: Default::default(),
         })
     }
 
@@ -134,8 +143,9 @@ impl ForceModel {
         validate_slices(engagement)?;
         let frame = Self::frame_of(engagement)?;
         let fz = conditions.feed_per_tooth;
-        let (acc, _) = self.accumulate(engagement, k, None, &frame, fz);
+        let (acc, _) = self.accumulate(engagement, k, None, Some((k, fz)), &frame, fz);
         self.summarize(frame, conditions, acc, out);
+        self.bend(engagement, k, &frame, fz, &acc, out);
         Ok(())
     }
 
@@ -181,8 +191,15 @@ impl ForceModel {
             kac: 0.0,
             ..*k
         };
-        let (a, corr_e) = self.accumulate(engagement, &cutting, Some(&edge), &frame, 1.0);
         let fz = conditions.feed_per_tooth;
+        let (a, corr_e) = self.accumulate(
+            engagement,
+            &cutting,
+            Some(&edge),
+            Some((k, fz)),
+            &frame,
+            1.0,
+        );
         // The totals per sample of each part, for the response.
         let (kpos, n) = (self.positions, self.table.flutes);
         let mut tot_a = std::mem::take(&mut self.tot);
@@ -206,6 +223,7 @@ impl ForceModel {
             ..a
         };
         self.summarize(frame, conditions, acc, out);
+        self.bend(engagement, k, &frame, fz, &acc, out);
         Ok(Some(response))
     }
 

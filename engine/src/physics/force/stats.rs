@@ -79,6 +79,9 @@ pub struct ForceResult {
     pub per_tooth: Vec<ToothStats>,
     /// The tool frame in part coordinates.
     pub frame: Option<ToolFrame>,
+    /// How the tool bends (zero when the model has no beam).
+    #[serde(default)]
+    pub deflection: crate::physics::deflection::Deflection,
     /// Engagement slices that contributed / that lay outside the flutes (no edge there).
     pub engaged_slices: usize,
     pub skipped_slices: usize,

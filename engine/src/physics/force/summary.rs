@@ -22,6 +22,7 @@ impl ForceModel {
             engaged,
             skipped,
             symmetric,
+            ..
         } = acc;
         let kpos = self.positions;
         let n = self.table.flutes;
