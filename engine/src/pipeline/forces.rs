@@ -149,7 +149,14 @@ pub(super) fn forces_after(
         .zip(step_feeds)
         .zip(&same_as_previous)
         .map_init(
-            || (models.clone(), Engagement::default()),
+            // The forces at the new feeds report no bending: no beam to carry.
+            || {
+                let models: BTreeMap<u32, ForceModel> = models
+                    .iter()
+                    .map(|(t, m)| (*t, m.clone().without_beam()))
+                    .collect();
+                (models, Engagement::default())
+            },
             |(models, scratch), ((step, &feed), &same)| {
                 let (m, t) = (&moves[step.move_index], &step.tool);
                 let flutes = models[t].table().flutes() as f64;

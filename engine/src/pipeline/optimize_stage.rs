@@ -33,13 +33,6 @@ pub(super) fn optimize_stage(
     let k = spec.material.coefficients;
     let cutter_index: BTreeMap<u32, usize> =
         models.keys().enumerate().map(|(i, t)| (*t, i)).collect();
-    let cutters: Vec<Cutter> = models
-        .values()
-        .map(|m| Cutter {
-            model: m.clone(),
-            coefficients: k,
-        })
-        .collect();
     // One engagement per swept feed move (possibly without engaged steps: air), in move order.
     // A move whose tip stands still (a rotary-only move read at the tool tip) has no tip
     // speed to schedule: it keeps its F.
@@ -86,6 +79,20 @@ pub(super) fn optimize_stage(
                 .for_tool(numbers[t])
                 .with_machine(&spec.machine)
                 .with_guards(g)
+        })
+        .collect();
+    // The tool's bending is computed only where a limit reads it: the secant iterations
+    // would pay for it at every evaluation.
+    let cutters: Vec<Cutter> = models
+        .values()
+        .zip(&per_cutter)
+        .map(|(m, l)| Cutter {
+            model: if l.has_bending_limit() {
+                m.clone()
+            } else {
+                m.clone().without_beam()
+            },
+            coefficients: k,
         })
         .collect();
     let clock = std::time::Instant::now();

@@ -111,6 +111,10 @@ pub struct MoveRow {
     /// The higher of the peak bending stresses at the clamp and at the flute root, MPa.
     #[serde(rename = "bending_stress_mpa")]
     pub bending_stress: f64,
+    /// The number of the tool the simulation cut the move with (the program's T number, or
+    /// the only tool given when the program selects none), for the per-tool summaries.
+    #[serde(skip)]
+    pub cut_by: u32,
     /// With the tool's modes: axial depth / critical depth at the move's speed, immersion
     /// and direction (> 1 chatters), and that critical depth, mm.
     pub chatter_margin: Option<f64>,
@@ -671,8 +675,8 @@ fn roughest(rows: &[MoveRow]) -> RoughnessSummary {
 pub fn deflection_per_tool(rows: &[MoveRow]) -> Vec<ToolDeflection> {
     let mut out: std::collections::BTreeMap<u32, ToolDeflection> = Default::default();
     for r in rows.iter().filter(|r| r.deflection_peak_um > 0.0) {
-        let t = out.entry(r.tool).or_insert_with(|| ToolDeflection {
-            tool: r.tool,
+        let t = out.entry(r.cut_by).or_insert_with(|| ToolDeflection {
+            tool: r.cut_by,
             ..Default::default()
         });
         if r.deflection_peak_um > t.deflection_peak_um {

@@ -34,7 +34,7 @@ pub use beam::{SliceWeights, ToolBeam, EFFECTIVE_CORE_RATIO};
 use serde::{Deserialize, Serialize};
 
 /// Generating heights evaluated per step (the lowest and highest engaged ones among them).
-pub const MAX_GENERATING_HEIGHTS: usize = 8;
+pub const MAX_GENERATING_HEIGHTS: usize = 4;
 
 /// How the tool bends over one revolution of a step (all zero when the model has no beam
 /// or nothing cuts). Lengths in mm, stresses in MPa.

@@ -110,17 +110,24 @@ impl ForceModel {
             lowest = lowest.min((z - 0.5 * dz).max(0.0));
             // The slice's lever arm and compliance weights (its load spread over its height).
             let weights = match (bend, &self.beam) {
-                (Some(_), Some(beam)) => Some(beam.slice_weights(z, dz)),
+                (Some(_), Some(beam)) => Some(
+                    match (i < flank).then(|| self.table.slice_index(z, dz)).flatten() {
+                        Some(t) => self.bend_weights[t],
+                        None => beam.slice_weights(z, dz),
+                    },
+                ),
                 _ => None,
             };
             for j in 0..computed_teeth {
                 let alpha = j as f64 * self.table.pitch + g.lag;
                 let sc = alpha.sin_cos();
                 let passes = coefficients.map(|k| k.map(|k| Pass::new(&g, k, sc, c_h, c_v, eps)));
-                let bend_passes = bend.zip(weights).map(|((kb, fb), w)| {
+                let bend_pass = bend.zip(weights).map(|((kb, fb), w)| {
                     let (ch, cv) = (fb * frame.feed_across, fb * frame.feed_along);
-                    let p = Pass::new(&g, kb, sc, ch, cv, bend_eps(fb));
-                    [p.scaled(w.arm), p.scaled(w.a), p.scaled(w.b)]
+                    (
+                        Pass::new(&g, kb, sc, ch, cv, bend_eps(fb)),
+                        [w.arm, w.a, w.b],
+                    )
                 });
                 let steps: &[f64] = if self.table.runout_steps.is_empty() {
                     &no_steps
@@ -158,22 +165,37 @@ impl ForceModel {
                                 );
                             }
                         }
-                        for (p, [fx, fy, fz, tq]) in
-                            bend_passes.iter().flatten().zip(bend_bufs.iter_mut())
-                        {
+                        // The slice's own forces once, then weighted into the three channels.
+                        if let Some((p, w)) = &bend_pass {
                             for seg in pieces.iter().filter(|r| !r.is_empty()) {
-                                let at = row.start + seg.start..row.start + seg.end;
+                                let len = seg.len();
+                                let [tx, ty, tz, tt] = four_blocks(&mut self.bend_tmp, kpos);
+                                for t in [&mut *tx, &mut *ty, &mut *tz, &mut *tt] {
+                                    t[..len].fill(0.0);
+                                }
                                 run_segment(
                                     p,
                                     steps,
                                     &self.sin_t[seg.clone()],
                                     &self.cos_t[seg.clone()],
-                                    &mut fx[at.clone()],
-                                    &mut fy[at.clone()],
-                                    &mut fz[at.clone()],
-                                    &mut tq[at],
+                                    &mut tx[..len],
+                                    &mut ty[..len],
+                                    &mut tz[..len],
+                                    &mut tt[..len],
                                     &mut self.scratch,
                                 );
+                                let at = row.start + seg.start..row.start + seg.end;
+                                for (c, [bx, by, _, _]) in bend_bufs.iter_mut().enumerate() {
+                                    let wc = w[c];
+                                    for ((o, &f), (q, &g)) in bx[at.clone()]
+                                        .iter_mut()
+                                        .zip(&tx[..len])
+                                        .zip(by[at.clone()].iter_mut().zip(&ty[..len]))
+                                    {
+                                        *o += wc * f;
+                                        *q += wc * g;
+                                    }
+                                }
                             }
                         }
                         let p = passes[0].as_ref().expect("the first channel is always on");

@@ -20,7 +20,20 @@ const GENERATING_TOLERANCE: f64 = 0.1;
 impl ForceModel {
     /// The model with the tool's beam: every evaluation then carries its [`Deflection`].
     pub fn with_beam(mut self, beam: ToolBeam) -> ForceModel {
+        self.bend_weights = self
+            .table
+            .slices()
+            .iter()
+            .map(|s| beam.slice_weights(s.z, s.dz))
+            .collect();
         self.beam = Some(beam);
+        self
+    }
+
+    /// The model without its beam: evaluations then skip the deflection.
+    pub fn without_beam(mut self) -> ForceModel {
+        self.beam = None;
+        self.bend_weights = Vec::new();
         self
     }
 
@@ -55,15 +68,18 @@ impl ForceModel {
         let s_low = beam.s_of(acc.lowest);
         let root = beam.flute_root();
         let [arm, a, b] = &self.tot_bend;
+        // Squared magnitudes in the loop, one square root each at the end.
         let (mut peak, mut m_clamp, mut m_root) = (0.0f64, 0.0f64, 0.0f64);
         for i in 0..kpos {
             let f = [self.tot[i], self.tot[kpos + i]];
             let s = [arm[i], arm[kpos + i]];
             let d = [a[i] + s_low * b[i], a[kpos + i] + s_low * b[kpos + i]];
-            peak = peak.max(d[0].hypot(d[1]));
-            m_clamp = m_clamp.max(s[0].hypot(s[1]));
-            m_root = m_root.max((s[0] - root * f[0]).hypot(s[1] - root * f[1]));
+            let r = [s[0] - root * f[0], s[1] - root * f[1]];
+            peak = peak.max(d[0] * d[0] + d[1] * d[1]);
+            m_clamp = m_clamp.max(s[0] * s[0] + s[1] * s[1]);
+            m_root = m_root.max(r[0] * r[0] + r[1] * r[1]);
         }
+        let (peak, m_clamp, m_root) = (peak.sqrt(), m_clamp.sqrt(), m_root.sqrt());
         let (form_error, form_error_z) = self.form_error(engagement, k, frame, fz);
         let beam = self.beam.as_ref().expect("checked above");
         out.deflection = Deflection {
@@ -144,6 +160,11 @@ impl ForceModel {
                 &no_steps
             }
         };
+        // One pass per slice: the tooth's angle (sa, ca) only serves the kernel's sample runs.
+        let passes: Vec<Pass> = loads
+            .iter()
+            .map(|(g, _, _)| Pass::new(g, k, (0.0, 1.0), ch, cv, eps))
+            .collect();
         let mut worst = (0.0f64, 0.0f64);
         for (gi, phi_g) in picks {
             let (gg, _, zg) = &loads[gi];
@@ -152,7 +173,7 @@ impl ForceModel {
                 // Tooth j is at φ_g at height z_g when θ = φ_g + α_j(z_g).
                 let theta = phi_g + j as f64 * self.table.pitch + gg.lag;
                 let mut d = [0.0f64; 2];
-                for (g, arcs, z) in &loads {
+                for ((g, arcs, z), p) in loads.iter().zip(&passes) {
                     let c = beam.compliance(sg, beam.s_of(*z));
                     for m in 0..n {
                         let alpha = m as f64 * self.table.pitch + g.lag;
@@ -160,7 +181,6 @@ impl ForceModel {
                         if !arcs.iter().any(|&(p, q)| inside(p, q, phi)) {
                             continue;
                         }
-                        let p = Pass::new(g, k, alpha.sin_cos(), ch, cv, eps);
                         let (sp, cp) = phi.sin_cos();
                         let f = p.force_at_sin_cos(steps_of(m), sp, cp);
                         d[0] += c * f[0];

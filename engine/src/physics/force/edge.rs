@@ -274,15 +274,23 @@ impl ToolEdgeTable {
 
     /// Geometry of the engagement slice centred at `z` with height `dz`.
     pub fn slice(&self, z: f64, dz: f64) -> Option<EdgeSlice> {
+        match self.slice_index(z, dz) {
+            Some(i) => Some(self.slices[i]),
+            None => EdgeSlice::compute(&self.tool, z - 0.5 * dz, z + 0.5 * dz),
+        }
+    }
+
+    /// The table's own slice that the engagement slice (`z`, `dz`) is, if it is on the grid.
+    pub fn slice_index(&self, z: f64, dz: f64) -> Option<usize> {
         let h = self.slice_height;
         let tol = 1e-9 * h.max(1.0);
         let i = (z / h).floor();
         if i >= 0.0 && (i as usize) < self.slices.len() && (dz - h).abs() <= tol {
             let s = &self.slices[i as usize];
             if (s.z - z).abs() <= tol && (s.dz - dz).abs() <= tol {
-                return Some(*s);
+                return Some(i as usize);
             }
         }
-        EdgeSlice::compute(&self.tool, z - 0.5 * dz, z + 0.5 * dz)
+        None
     }
 }

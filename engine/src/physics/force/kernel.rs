@@ -116,23 +116,6 @@ impl Pass {
         best
     }
 
-    /// The same pass with every force it gives multiplied by `w` (the chip, and so which
-    /// samples cut, unchanged): a slice's force weighted by its lever arm or its compliance.
-    pub(super) fn scaled(&self, w: f64) -> Pass {
-        let mul = |v: [f64; 4]| v.map(|x| x * w);
-        Pass {
-            a: mul(self.a),
-            b0: mul(self.b0),
-            bv: mul(self.bv),
-            sized: self.sized.map(|s| SizeParts {
-                m: s.m,
-                a: s.a.map(mul),
-                bv: s.bv.map(mul),
-            }),
-            ..*self
-        }
-    }
-
     /// Whether each sample needs its own chip (size effect): no affine shortcut.
     pub(super) fn is_sized(&self) -> bool {
         self.sized.is_some()

@@ -63,6 +63,10 @@ pub struct ForceModel {
     /// Σ arm·F, Σ a·F, Σ b·F over the slices; and their totals over the teeth.
     pub(super) acc_bend: [Vec<f64>; 3],
     pub(super) tot_bend: [Vec<f64>; 3],
+    /// One slice's samples before they are weighted into the channels (four blocks of K).
+    pub(super) bend_tmp: Vec<f64>,
+    /// The beam's weights of each of the table's slices (computed once with the beam).
+    pub(super) bend_weights: Vec<crate::physics::deflection::SliceWeights>,
 }
 
 impl ForceModel {
@@ -101,6 +105,8 @@ impl ForceModel {
             beam: None,
             acc_bend: Default::default(),
             tot_bend: Default::default(),
+            bend_tmp: vec![0.0; 4 * positions],
+            bend_weights: Vec::new(),
         })
     }
 
