@@ -33,7 +33,7 @@ fn columns(csv: &str, names: &[&str]) -> BTreeMap<u32, Vec<f64>> {
 async fn optimize_the_corpus_impeller_at_the_tool_tip_and_resimulate_it() {
     let path = corpus("gcode/linuxcnc_5axis_impeller_7bl_xyzac_g93.ngc");
     if !path.exists() {
-        println!("skipped: {} is absent (shared corpus)", path.display());
+        skip(&format!("{} (the shared corpus)", path.display()));
         return;
     }
     let original = std::fs::read_to_string(&path).unwrap();

@@ -27,18 +27,18 @@ fn run_script(script: &str) {
         .map(|o| o.status.success())
         .unwrap_or(false);
     if !node_ok {
-        println!("skipped: node is not installed");
+        skip("node");
         return;
     }
     if !dir.join("node_modules/playwright-core").is_dir() {
-        println!(
-            "skipped: playwright-core is not installed (run `npm ci` in {})",
+        skip(&format!(
+            "playwright-core (run `npm ci` in {})",
             dir.display()
-        );
+        ));
         return;
     }
     if !Path::new(&chromium).exists() {
-        println!("skipped: {chromium} is absent (apt-get install chromium)");
+        skip(&format!("{chromium} (apt-get install chromium)"));
         return;
     }
     let out = Command::new("node")

@@ -63,14 +63,11 @@ fn linuxcnc_available() -> Result<(), String> {
     let out = Command::new(PYTHON)
         .args(["-c", "import gcode"])
         .output()
-        .map_err(|e| format!("{PYTHON} not runnable: {e}"))?;
+        .map_err(|e| format!("{PYTHON} to run LinuxCNC's `gcode` module ({e})"))?;
     if out.status.success() {
         Ok(())
     } else {
-        Err(
-            "LinuxCNC's python module `gcode` is not installed (apt-get install linuxcnc-uspace)"
-                .into(),
-        )
+        Err("LinuxCNC's python module `gcode` (apt-get install linuxcnc-uspace)".into())
     }
 }
 
@@ -463,7 +460,7 @@ fn corpus_matches_linuxcnc() {
         return;
     }
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let opts = InterpretOptions::default();
@@ -521,7 +518,7 @@ fn corpus_matches_linuxcnc() {
 #[test]
 fn linuxcnc_sample_programs() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let mut files: Vec<PathBuf> = std::fs::read_dir(NCFILES)
@@ -731,7 +728,7 @@ fn tool_length_offsets_match_rs274() {
         return;
     }
     if !Path::new("/usr/bin/rs274").exists() {
-        println!("SKIPPED: /usr/bin/rs274 not installed (apt-get install linuxcnc-uspace)");
+        common::skip("/usr/bin/rs274 (apt-get install linuxcnc-uspace)");
         return;
     }
     let table = tmp_copy("rs274.tbl", "T1 P1 Z0.511 D0.25\n");
@@ -770,7 +767,7 @@ fn tool_length_offsets_match_rs274() {
 #[test]
 fn random_programs_match_linuxcnc() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     // NC_DIFF_SEED / NC_DIFF_CASES run other or more programs.
@@ -900,7 +897,7 @@ fn random_programs_match_linuxcnc() {
 #[test]
 fn cutter_compensation_matches_linuxcnc() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let opts = InterpretOptions::default();
@@ -935,15 +932,9 @@ fn cutter_compensation_matches_linuxcnc() {
         ),
         (
             "mmount_compensated",
-            // Empty (skipped below, the reason printed) in a clone without the corpus.
+            // Empty (skipped below, saying so) in a clone without the corpus.
             strip_tools(
-                &common::corpus_dir()
-                    .and_then(|_| {
-                        std::fs::read_to_string(
-                            Path::new(CORPUS).join("linuxcnc_mmount_g81_subs.ngc"),
-                        )
-                        .ok()
-                    })
+                &std::fs::read_to_string(Path::new(CORPUS).join("linuxcnc_mmount_g81_subs.ngc"))
                     .unwrap_or_default(),
             )
             .replace("G41 D15", "G41.1 D0.3")
@@ -957,7 +948,9 @@ fn cutter_compensation_matches_linuxcnc() {
     let mut compared = 0;
     for (name, src) in &programs {
         if src.is_empty() {
-            println!("{name}: skipped (its corpus file is absent)");
+            common::skip(&format!(
+                "the corpus file of its case {name} (the others are compared)"
+            ));
             continue;
         }
         let path = tmp_copy(&format!("{name}.ngc"), src);
@@ -1002,7 +995,7 @@ fn cutter_compensation_matches_linuxcnc() {
 #[test]
 fn coordinate_transforms_match_linuxcnc() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let opts = InterpretOptions::default();
@@ -1110,7 +1103,7 @@ fn dist_to_polyline(p: [f64; 2], pts: &[[f64; 2]]) -> f64 {
 #[test]
 fn splines_match_linuxcnc() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let opts = InterpretOptions {
@@ -1261,7 +1254,7 @@ fn compare_with_curves(
 #[test]
 fn o_word_keywords_written_with_blanks_match_linuxcnc() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let src = "G21 G90\n#1=2\no100 if [#1 EQ 1]\nG0 X1\no100 else if [#1 EQ 2]\nG0 X2\no100 else\nG0 X3\no100 end if\n#2=0\no101 while [#2 LT 3]\nG0 Y#2\n#2=[#2+1]\no101 end while\nM2\n";
@@ -1282,7 +1275,7 @@ fn o_word_keywords_written_with_blanks_match_linuxcnc() {
 #[test]
 fn library_subroutines_match_linuxcnc() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let dir = std::env::temp_dir().join(format!("millsim-lcnc-lib-{}", std::process::id()));
@@ -1349,7 +1342,7 @@ fn library_subroutines_match_linuxcnc() {
 #[test]
 fn current_position_parameters_match_linuxcnc() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let src = "G20 G90\nG10 L2 P2 X1 Y-2 Z0.5\nG55\nG0 X4.63248 Y-3.41752 Z0.2 A30\n\
@@ -1374,7 +1367,7 @@ fn current_position_parameters_match_linuxcnc() {
 #[test]
 fn syntax_errors_only_in_lines_executed_match_linuxcnc() {
     if let Err(why) = linuxcnc_available() {
-        println!("SKIPPED: {why}");
+        common::skip(&why);
         return;
     }
     let cases: [(&str, &str, Option<u32>); 4] = [

@@ -24,12 +24,25 @@ pub fn corpus_present() -> bool {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
     let present = dir.is_dir();
     if !present {
-        println!(
-            "skipped: {} is absent (the shared corpus is not part of a clone)",
+        skip(&format!(
+            "{} (the shared corpus is not part of a clone)",
             dir.display()
-        );
+        ));
     }
     present
+}
+
+/// Says on the run's output that the running test checks nothing (or less) for want of
+/// `what`: `SKIPPED: <test> needs <what>`. Written to the stderr handle itself, because the
+/// harness captures `println!` and `eprintln!` and shows them only for a failing test; the
+/// test's name is its thread's, which the harness gives it.
+pub fn skip(what: &str) {
+    use std::io::Write;
+    let thread = std::thread::current();
+    let test = thread.name().unwrap_or("a test");
+    // One write, so that the line stays whole among the harness's own output.
+    let line = format!("SKIPPED: {test} needs {what}\n");
+    let _ = std::io::stderr().write_all(line.as_bytes());
 }
 
 /// A stability job that runs for about a minute and counts its speeds as progress:
@@ -60,9 +73,7 @@ pub fn test_postgres() -> Option<String> {
 pub fn require_postgres() -> Option<String> {
     let url = test_postgres();
     if url.is_none() {
-        println!(
-            "skipped: MILLSIM_TEST_DATABASE does not name a PostgreSQL server (.ci/run sets it)"
-        );
+        skip("MILLSIM_TEST_DATABASE naming a PostgreSQL server (.ci/run sets it)");
     }
     url
 }

@@ -551,7 +551,7 @@ impl Interp<'_> {
                 pc = self.exec_macro(pc, &b, m)?;
             } else {
                 if !b.is_empty() {
-                    self.exec_block(pc, &b)?;
+                    self.exec_block(&b)?;
                 }
                 pc = match self.jump.take() {
                     Some(to) => to,
