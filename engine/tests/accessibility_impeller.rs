@@ -321,6 +321,7 @@ fn simulate_program(
         force_positions: 36,
         optimize: None,
         axes: AxisReading::Machine,
+        workpiece: None,
         chatter: None,
         part: Some(stl_bytes(part).into()),
     };

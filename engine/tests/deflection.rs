@@ -350,3 +350,44 @@ fn a_wall_pass_deflects_as_its_cantilever_and_the_optimizer_holds_a_tolerance() 
         );
     }
 }
+
+#[test]
+fn a_thin_wall_adds_its_static_give_to_the_form_error() {
+    use millsim_engine::physics::deflection::WorkpieceModes;
+    // The wall's modes normal to the feed at 2 and 8 mm of allowance: one mode, 2 and 10
+    // N/µm (2e6 and 1e7 N/m). A half-immersion pass of a Ø10 tool removes 5 mm: halfway,
+    // k = 6 N/µm, c_w = 1/6000 mm/N.
+    let modes: WorkpieceModes = serde_json::from_value(serde_json::json!({"allowance": [
+        {"allowance_mm": 8, "modes_y": [{"freq_hz": 900, "damping": 0.02, "stiffness_n_m": 1e7}]},
+        {"allowance_mm": 2, "modes_y": [{"freq_hz": 600, "damping": 0.02, "stiffness_n_m": 2e6}]}
+    ]}))
+    .unwrap();
+    let wall = modes.compliance().unwrap();
+    assert!(rel(wall.at(5.0), 1.0 / 6000.0) < 1e-12);
+    assert!(
+        rel(wall.at(20.0), 1.0 / 10_000.0) < 1e-12,
+        "held at the last measurement"
+    );
+    // Three teeth, no helix, one 0.5 mm slice: at the generating instant (tooth 1 at π) only
+    // its edge force acts, Fy = Kre·a; the tool's compliance and the wall's add.
+    let tool = slender(3);
+    let k = al7075();
+    let e = side_cut(0.5, 0.5, (PI / 2.0, PI));
+    let beam = ToolBeam::of(&tool);
+    let s = beam.s_of(0.25);
+    let fy = k.kre * 0.5;
+    let mut model = ForceModel::new(&tool, 20, 360)
+        .unwrap()
+        .with_beam(beam.clone());
+    let rigid = model.evaluate(&e, &k, &CUT).unwrap().deflection.form_error;
+    assert!(rel(rigid, beam.compliance(s, s) * fy) < 1e-9, "{rigid}");
+    let mut thin = model.with_wall_from(Some(&modes)).unwrap();
+    let got = thin.evaluate(&e, &k, &CUT).unwrap().deflection.form_error;
+    let expected = (beam.compliance(s, s) + 1.0 / 6000.0) * fy;
+    assert!(rel(got, expected) < 1e-9, "{got} vs {expected}");
+    // A table without modes normal to the feed is refused, naming the field.
+    let bad: WorkpieceModes =
+        serde_json::from_value(serde_json::json!({"allowance": [{"allowance_mm": 1}]})).unwrap();
+    let err = bad.compliance().unwrap_err();
+    assert_eq!(err.field(), "allowance[0].modes_y");
+}

@@ -76,6 +76,7 @@ fn spec_at(program: &str, cell: f64) -> SimulateSpec {
         force_positions: 180,
         optimize: None,
         axes: AxisReading::Machine,
+        workpiece: None,
         chatter: None,
         part: None,
     }

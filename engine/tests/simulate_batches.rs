@@ -88,6 +88,7 @@ fn two_tool_spec() -> SimulateSpec {
             split: Some(SplitOptions::default()),
             ..FeedLimits::default()
         }),
+        workpiece: None,
         chatter: Some(ChatterSpec {
             modes_x: serde_json::from_str(modes).unwrap(),
             modes_y: serde_json::from_str(modes).unwrap(),
@@ -145,6 +146,7 @@ fn batches_split_the_pieces_of_a_rotary_move_without_changing_it() {
             ..FeedLimits::default()
         }),
         axes: Default::default(),
+        workpiece: None,
         chatter: None,
         part: None,
     };
@@ -183,6 +185,7 @@ fn the_adaptive_example_gives_the_same_blocks_in_small_batches() {
             ..FeedLimits::default()
         }),
         axes: Default::default(),
+        workpiece: None,
         chatter: None,
         part: None,
     };

@@ -42,6 +42,7 @@ fn spec(program: &str, kinematics: Kinematics, tool_diameter: f64) -> SimulateSp
         force_positions: 180,
         optimize: None,
         axes: AxisReading::Machine,
+        workpiece: None,
         chatter: None,
         part: None,
     }

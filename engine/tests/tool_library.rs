@@ -214,6 +214,7 @@ fn adaptive_spec(tools: BTreeMap<u32, Tool>) -> Option<SimulateSpec> {
         force_positions: 90,
         optimize: None,
         axes: Default::default(),
+        workpiece: None,
         chatter: None,
         part: None,
     })

@@ -110,6 +110,10 @@ pub struct SimulateOptions {
     /// "method":"sdm","steps_per_period":40}.
     #[serde(default)]
     pub chatter: Option<pipeline::ChatterSpec>,
+    /// A thin wall's modes by remaining allowance, {"allowance":[{"allowance_mm":..,
+    /// "modes_y":[..]}]}: its static give adds to the form error.
+    #[serde(default)]
+    pub workpiece: Option<millsim_engine::physics::deflection::WorkpieceModes>,
 }
 
 fn default_positions() -> usize {
@@ -177,6 +181,11 @@ impl SimulateOptions {
             )
             .map_err(|e| {
                 FieldError::new(format!("options.chatter.{}", e.field()), e.to_string())
+            })?;
+        }
+        if let Some(w) = &self.workpiece {
+            w.compliance().map_err(|e| {
+                FieldError::new(format!("options.workpiece.{}", e.field()), e.to_string())
             })?;
         }
         if !(1..=16384).contains(&self.max_grid_mib) {
@@ -379,6 +388,7 @@ pub(super) fn spec_from_inputs(
         optimize: opts.limits.clone(),
         axes: opts.axes,
         chatter: opts.chatter.clone(),
+        workpiece: opts.workpiece.clone(),
         part,
     };
     Ok(BuiltSpec {

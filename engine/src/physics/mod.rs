@@ -116,6 +116,21 @@ impl PhysicsError {
         }
     }
 
+    /// The same error with its field under `prefix` (`prefix.field`).
+    pub fn prefixed(self, prefix: &str) -> PhysicsError {
+        match self {
+            PhysicsError::NotFinite { field, value } => PhysicsError::NotFinite {
+                field: format!("{prefix}.{field}"),
+                value,
+            },
+            PhysicsError::Invalid { field, message } => PhysicsError::Invalid {
+                field: format!("{prefix}.{field}"),
+                message,
+            },
+            other => other,
+        }
+    }
+
     /// The field the error is about.
     pub fn field(&self) -> &str {
         match self {

@@ -273,6 +273,9 @@ fn check_inputs(
         t.validate().map_err(crate::physics::PhysicsError::from)?;
     }
     spec.material.validate()?;
+    if let Some(w) = &spec.workpiece {
+        w.compliance().map_err(|e| e.prefixed("workpiece"))?;
+    }
     Ok(())
 }
 

@@ -201,7 +201,8 @@ pub(super) fn plan_removal(
                 spec.force_positions,
             )?
             .keep_samples(false)
-            .with_beam(crate::physics::deflection::ToolBeam::of(tool)),
+            .with_beam(crate::physics::deflection::ToolBeam::of(tool))
+            .with_wall_from(spec.workpiece.as_ref())?,
         );
     }
     Ok(RemovalPlan { runs, models })

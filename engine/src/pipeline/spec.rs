@@ -79,6 +79,9 @@ pub struct SimulateSpec {
     pub axes: AxisReading,
     /// The tool's frequency response, for the chatter margin of every block.
     pub chatter: Option<ChatterSpec>,
+    /// A thin wall's modes by remaining allowance: its static give adds to the form error
+    /// (see `physics::deflection`).
+    pub workpiece: Option<crate::physics::deflection::WorkpieceModes>,
     /// The design part (STL, in the stock's frame): gouges and the allowance left.
     pub part: Option<StlSource>,
 }

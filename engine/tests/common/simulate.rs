@@ -28,6 +28,7 @@ pub fn block_spec(program: &str, tool: Tool, cell: f64) -> SimulateSpec {
         force_positions: 360,
         optimize: None,
         axes: Default::default(),
+        workpiece: None,
         chatter: None,
         part: None,
     }

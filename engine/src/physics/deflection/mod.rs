@@ -26,10 +26,18 @@
 //! ball's tip (κ → 0) the floor does not move with lateral bending. The generating heights
 //! are at most [`MAX_GENERATING_HEIGHTS`] of the engaged ones, evenly spread from the
 //! lowest to the highest.
+//!
+//! **Thin walls**: where the job gives the workpiece's modes by remaining allowance
+//! ([`WorkpieceModes`]), the wall yields too: under the reaction −F it moves by its static
+//! compliance c_w (see [`WallCompliance`]) along its normal, away from the tool when the
+//! tool is pushed away from it, so the two add: e = −(δ + c_w·F)·n, F the total force on
+//! the tool at the generating instant.
 
 mod beam;
+mod wall;
 
 pub use beam::{SliceWeights, ToolBeam, EFFECTIVE_CORE_RATIO};
+pub use wall::{WallCompliance, WorkpieceModes};
 
 use serde::{Deserialize, Serialize};
 

@@ -10,7 +10,7 @@ use super::model::ForceModel;
 use super::stats::ForceResult;
 use super::{CHIP_EPS, CHIP_EPS_PER_FEED};
 use crate::engagement::Engagement;
-use crate::physics::deflection::{Deflection, ToolBeam, MAX_GENERATING_HEIGHTS};
+use crate::physics::deflection::{Deflection, ToolBeam, WallCompliance, MAX_GENERATING_HEIGHTS};
 use crate::physics::material::CuttingCoefficients;
 
 /// How far an engaged arc may stop short of the generating immersion (0 or π) and still be
@@ -35,6 +35,24 @@ impl ForceModel {
         self.beam = None;
         self.bend_weights = Vec::new();
         self
+    }
+
+    /// The model with a thin wall's compliance by allowance: the form error adds the wall's
+    /// own give (see `physics::deflection`).
+    pub fn with_wall(mut self, wall: WallCompliance) -> ForceModel {
+        self.wall = Some(wall);
+        self
+    }
+
+    /// [`with_wall`](Self::with_wall) from the job's workpiece modes, if any.
+    pub fn with_wall_from(
+        self,
+        modes: Option<&crate::physics::deflection::WorkpieceModes>,
+    ) -> Result<ForceModel, crate::physics::PhysicsError> {
+        Ok(match modes {
+            Some(m) => self.with_wall(m.compliance()?),
+            None => self,
+        })
     }
 
     pub fn beam(&self) -> Option<&ToolBeam> {
@@ -165,6 +183,10 @@ impl ForceModel {
             .iter()
             .map(|(g, _, _)| Pass::new(g, k, (0.0, 1.0), ch, cv, eps))
             .collect();
+        let wall = self
+            .wall
+            .as_ref()
+            .map_or(0.0, |w| w.at(radial_width(&loads)));
         let mut worst = (0.0f64, 0.0f64);
         for (gi, phi_g) in picks {
             let (gg, _, zg) = &loads[gi];
@@ -173,6 +195,7 @@ impl ForceModel {
                 // Tooth j is at φ_g at height z_g when θ = φ_g + α_j(z_g).
                 let theta = phi_g + j as f64 * self.table.pitch + gg.lag;
                 let mut d = [0.0f64; 2];
+                let mut total = [0.0f64; 2];
                 for ((g, arcs, z), p) in loads.iter().zip(&passes) {
                     let c = beam.compliance(sg, beam.s_of(*z));
                     for m in 0..n {
@@ -185,9 +208,13 @@ impl ForceModel {
                         let f = p.force_at_sin_cos(steps_of(m), sp, cp);
                         d[0] += c * f[0];
                         d[1] += c * f[1];
+                        total[0] += f[0];
+                        total[1] += f[1];
                     }
                 }
                 // n = (sin φ_g·sin κ, cos φ_g·sin κ, −cos κ); lateral bending only.
+                // The wall yields under the reaction: its compliance adds to the tool's.
+                let d = [d[0] + wall * total[0], d[1] + wall * total[1]];
                 let e = -(d[1] * phi_g.cos() + d[0] * phi_g.sin()) * gg.sin_kappa;
                 if e.abs() > worst.0.abs() {
                     worst = (e, *zg);
@@ -216,4 +243,32 @@ fn inside(p: f64, q: f64, phi: f64) -> bool {
     [phi - TAU, phi, phi + TAU]
         .into_iter()
         .any(|x| x >= p - EPS && x <= q + EPS)
+}
+
+/// The step's engaged radial width, mm, as the geometry measures it: the widest extent
+/// across the feed (along y, r·cos φ) of any slice's engaged arcs.
+fn radial_width(loads: &[(super::edge::EdgeSlice, &crate::engagement::Arcs, f64)]) -> f64 {
+    let mut width = 0.0f64;
+    for (g, arcs, _) in loads {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &(p, q) in arcs.iter() {
+            let mut see = |phi: f64| {
+                let c = phi.cos();
+                lo = lo.min(c);
+                hi = hi.max(c);
+            };
+            see(p);
+            see(q);
+            // cos φ peaks at 0 and 2π and bottoms at π inside the arc.
+            for x in [0.0, PI, TAU, 3.0 * PI] {
+                if x > p && x < q {
+                    see(x);
+                }
+            }
+        }
+        if hi >= lo {
+            width = width.max(g.radius * (hi - lo));
+        }
+    }
+    width
 }

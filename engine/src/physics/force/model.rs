@@ -67,6 +67,8 @@ pub struct ForceModel {
     pub(super) bend_tmp: Vec<f64>,
     /// The beam's weights of each of the table's slices (computed once with the beam).
     pub(super) bend_weights: Vec<crate::physics::deflection::SliceWeights>,
+    /// A thin wall's compliance by allowance, for the form error (None: a rigid part).
+    pub(super) wall: Option<crate::physics::deflection::WallCompliance>,
 }
 
 impl ForceModel {
@@ -107,6 +109,7 @@ impl ForceModel {
             tot_bend: Default::default(),
             bend_tmp: vec![0.0; 4 * positions],
             bend_weights: Vec::new(),
+            wall: None,
         })
     }
 

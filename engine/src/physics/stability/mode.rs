@@ -67,7 +67,7 @@ impl Mode {
         Complex::new(1.0 - r * r, 2.0 * self.damping * r).inv() / self.stiffness()
     }
 
-    pub(super) fn validate(&self, field: &str) -> Result<(), PhysicsError> {
+    pub(crate) fn validate(&self, field: &str) -> Result<(), PhysicsError> {
         positive(format!("{field}.freq_hz"), self.freq_hz)?;
         positive(format!("{field}.damping"), self.damping)?;
         if self.damping >= 1.0 {
