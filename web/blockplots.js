@@ -38,7 +38,7 @@ function mergeX(xa, ya, xb, yb) {
 }
 
 // The plots as data: each series says which timeline it runs on (before or after).
-function specs(rows, opt, limit) {
+function specs(rows, opt, limit, ctx_limits) {
   const c = (n) => rows.col(n);
   const list = [];
   const force = [
@@ -49,6 +49,16 @@ function specs(rows, opt, limit) {
   if (opt && rows.has('force_mean_opt_n')) force.push({ label: 'mean |F| after', values: c('force_mean_opt_n'), color: '#8fb3f5', after: true });
   if (limit != null) force.push({ label: 'limit', color: '#444', dash: [6, 4], constant: limit });
   list.push({ title: 'Cutting force', unit: 'N', series: force });
+  // How the tool bends: its lowest cutting point, and the form error the move leaves
+  // (+ material left, − overcut), beside the force that causes them.
+  if (rows.has('deflection_peak_um')) {
+    const bend = [
+      { label: 'tool deflection', values: c('deflection_peak_um'), color: '#455a64' },
+      { label: 'form error', values: c('form_error_um'), color: '#d81b60' },
+    ];
+    if (ctx_limits && ctx_limits.max_deflection_um != null) bend.push({ label: 'deflection limit', color: '#444', dash: [6, 4], constant: ctx_limits.max_deflection_um });
+    list.push({ title: 'Deflection and form error', unit: 'µm', series: bend });
+  }
   const feed = [{ label: 'feed before', values: c('feed_mm_min'), color: '#7a5c00' }];
   if (opt) feed.push({ label: 'feed after', values: c('feed_opt_mm_min'), color: '#18794e', after: true });
   list.push({ title: 'Feed', unit: 'mm/min', series: feed });
@@ -92,7 +102,7 @@ export function blockPlots(container, rows, ctx) {
   const lines = rows.col('line');
   const ns = rows.col('n');
   const kinds = rows.col('kind');
-  const list = specs(rows, ctx.opt, ctx.limit);
+  const list = specs(rows, ctx.opt, ctx.limit, ctx.opt && ctx.opt.limits);
   const holder = el('div');
   const toggle = el('div', { class: 'toolbar', id: 'xmode' }, 'x axis: ',
     ...[['block', 'block'], ['time', 'cycle time']].map(([v, label]) => el('label', {},

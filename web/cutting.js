@@ -10,7 +10,8 @@ import { programDiff } from './programdiff.js';
 // The row columns this view reads.
 const ROW_COLUMNS = ['block', 'line', 'n', 'kind', 'time_s', 'time_opt_s', 'feed_mm_min', 'feed_opt_mm_min',
   'force_peak_n', 'force_mean_n', 'force_peak_opt_n', 'force_mean_opt_n', 'removed_mm3', 'mrr_mm3_s',
-  'power_peak_w', 'power_mean_w', 'power_peak_opt_w', 'power_mean_opt_w', 'torque_peak_nm', 'torque_peak_opt_nm', 'chatter_margin'];
+  'power_peak_w', 'power_mean_w', 'power_peak_opt_w', 'power_mean_opt_w', 'torque_peak_nm', 'torque_peak_opt_nm', 'chatter_margin',
+  'deflection_peak_um', 'form_error_um'];
 
 function summaryCards(s, opt) {
   const cards = el('div', { class: 'cards', id: 'cards' });
@@ -35,6 +36,11 @@ function summaryCards(s, opt) {
   if (Array.isArray(s.tool_warnings) && s.tool_warnings.length) warn.push(s.tool_warnings.length + ' tool warning(s)');
   if (opt && opt.force_limit_unreachable_moves) warn.push(opt.force_limit_unreachable_moves + ' moves cannot reach the force limit');
   cards.append(card('Warnings', String(warn.length), warn.join('; ') || 'none', warn.length ? 'bad' : ''));
+  // Each tool's worst form error, the one a CAM programmer acts on.
+  for (const t of Array.isArray(s.deflection) ? s.deflection : []) {
+    cards.append(card('T' + t.tool + ' form error', fmt(t.form_error_um, 1) + ' µm',
+      'line ' + (t.form_error_line ?? '–') + ' · deflection ' + fmt(t.deflection_peak_um, 1) + ' µm (line ' + (t.deflection_line ?? '–') + ') · ' + fmt(t.bending_stress_mpa, 0) + ' MPa'));
+  }
   if (s.cutting_energy_j != null) cards.append(card('Cutting energy', fmt(s.cutting_energy_j / 1000, 2) + ' kJ'));
   if (s.part) cards.append(card('Gouge', fmt(s.part.gouge_volume, 2) + ' mm³', 'deepest ' + fmt(s.part.max_gouge_depth, 3) + ' mm · allowance ' + fmt(s.part.allowance_min, 2) + '–' + fmt(s.part.allowance_max, 2) + ' mm', s.part.gouge_volume > 0 ? 'bad' : ''));
   return cards;

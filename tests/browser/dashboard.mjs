@@ -33,6 +33,7 @@ async function submit(base, headers, kind, programName, program, options) {
 // The colours of each plot's series, before and after (web/blockplots.js).
 const SERIES = {
   'Cutting force': ['#c62828', '#2463eb', '#8fb3f5'],
+  'Deflection and form error': ['#455a64', '#d81b60'],
   Feed: ['#7a5c00', '#18794e'],
   'Material removal rate': ['#6a1b9a', '#ba68c8'],
   'Spindle power': ['#ef6c00', '#1565c0', '#64b5f6'],
@@ -112,7 +113,12 @@ async function main() {
     assert.ok(text.includes(secs), `${k}: ${text} lacks ${secs}`);
   }
   assert.match(await cardText('Collisions'), new RegExp('^Collisions' + s.collisions.length));
-  const titles = ['Cutting force', 'Feed', 'Material removal rate', 'Spindle power', 'Torque'];
+  const titles = ['Cutting force', 'Deflection and form error', 'Feed', 'Material removal rate', 'Spindle power', 'Torque'];
+  // Each tool's worst form error, as the summary gives it.
+  for (const t of s.deflection) {
+    assert.match(await cardText('T' + t.tool + ' form error'), new RegExp(esc(fmt(t.form_error_um, 1)) + ' µm'));
+  }
+  assert.ok(s.deflection.length > 0, 'no tool bends: ' + JSON.stringify(s.deflection));
   const ink = await canvasInk(page, '#plots .plot:not([data-plot="Samples"]) canvas');
   log('plots against block, ink (pixels drawn):', ink.join(', '));
   assert.equal(ink.length, titles.length);
