@@ -147,8 +147,9 @@ impl SimulateOptions {
                     && l.max_power.is_none()
                     && l.max_torque.is_none()
                     && l.max_chip_thickness.is_none()
+                    && !l.has_bending_limit()
                 {
-                    return Err(FieldError::new("options.limits", "give at least one target: max_force, max_power, max_torque or max_chip_thickness"));
+                    return Err(FieldError::new("options.limits", "give at least one target: max_force, max_power, max_torque, max_chip_thickness, max_deflection_um or max_form_error_um"));
                 }
             }
             (None, false) => {}

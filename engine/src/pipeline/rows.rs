@@ -111,8 +111,8 @@ pub struct MoveRow {
     /// The higher of the peak bending stresses at the clamp and at the flute root, MPa.
     #[serde(rename = "bending_stress_mpa")]
     pub bending_stress: f64,
-    /// The number of the tool the simulation cut the move with (the program's T number, or
-    /// the only tool given when the program selects none), for the per-tool summaries.
+    /// The T number of the tool the simulation cut the move with (the program's own, or the
+    /// one it selects without loading), for the per-tool summaries.
     #[serde(skip)]
     pub cut_by: u32,
     /// With the tool's modes: axial depth / critical depth at the move's speed, immersion

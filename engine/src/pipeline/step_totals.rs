@@ -152,7 +152,7 @@ impl StepTotals {
                 row.peak_torque = row.peak_torque.max(f.torque.peak);
                 row.peak_power = row.peak_power.max(f.power.peak);
                 row.max_chip_thickness = row.max_chip_thickness.max(f.max_chip_thickness);
-                row.cut_by = step.tool;
+                row.cut_by = ctx.tools.key_number(step.tool);
                 let d = &f.deflection;
                 row.deflection_peak_um = row.deflection_peak_um.max(1000.0 * d.peak);
                 if (1000.0 * d.form_error).abs() > row.form_error_um.abs() {
