@@ -607,3 +607,29 @@ fn division_by_a_vacant_argument_names_it() {
         "{msg}"
     );
 }
+
+#[test]
+fn thirty_i_extended_common_variables_hold_values() {
+    // Fanuc 30i-series: #100000–#199999 and #500000–#999999 are common variables like
+    // #100–#199 and #500–#999; unset they are vacant (a word of vacant value is left out).
+    let src = "O0001\n#100000=12.5\n#901200=3\n#199999=#100000+#901200\n\
+               G0 X#100000 Y#901200 Z#199999\nG0 X#500000 Y1\nIF[#500001 EQ #0] THEN #1=7\nG0 X#1\nM30\n";
+    let i = run_with(src, &fanuc());
+    assert_eq!(
+        xyz(&i),
+        vec![[12.5, 3.0, 15.5], [12.5, 1.0, 15.5], [7.0, 1.0, 15.5]]
+    );
+    // Between the ranges, and past them: refused naming the number.
+    for bad in ["#6000=1\n", "#200000=1\n", "#1000000=1\n"] {
+        let (line, _, msg) = fail(bad, &fanuc());
+        assert_eq!(line, 1);
+        assert!(msg.contains("out of range"), "{msg}");
+    }
+    // LinuxCNC's parameters stop at #5601.
+    let l = InterpretOptions {
+        dialect: Dialect::LinuxCnc,
+        ..InterpretOptions::default()
+    };
+    let (_, _, msg) = fail("#100000=1\n", &l);
+    assert!(msg.contains("1..5601"), "{msg}");
+}

@@ -57,14 +57,26 @@ pub(crate) trait Env {
     }
 }
 
-/// Parameter number from a value: an integer in 1..=5601.
-pub(crate) fn param_index(v: f64) -> Result<usize, String> {
+/// Fanuc 30i-series extended common variables (#100000–#199999 and #500000–#999999, the
+/// first non-volatile like #500–#999 on the machine): production macros keep their tables
+/// there. Held sparsely (see [`Params::extended`]).
+pub(crate) const FANUC_EXTENDED: [std::ops::RangeInclusive<usize>; 2] =
+    [100_000..=199_999, 500_000..=999_999];
+
+/// Parameter number from a value: an integer in 1..=5601, or with `fanuc` in the 30i's
+/// extended common ranges.
+pub(crate) fn param_index(v: f64, fanuc: bool) -> Result<usize, String> {
     let r = v.round();
     if !v.is_finite() || (v - r).abs() > 1e-4 {
         return Err(format!("parameter number {v} is not a whole number"));
     }
-    if r < 1.0 || r > MAX_PARAM as f64 {
-        return Err(format!("parameter number {r} out of range 1..{MAX_PARAM}"));
+    let extended = fanuc && FANUC_EXTENDED.iter().any(|x| x.contains(&(r as usize)));
+    if !extended && (r < 1.0 || r > MAX_PARAM as f64) {
+        return Err(if fanuc {
+            format!("variable number {r} out of range: 1..{MAX_PARAM}, 100000..199999 or 500000..999999")
+        } else {
+            format!("parameter number {r} out of range 1..{MAX_PARAM}")
+        });
     }
     Ok(r as usize)
 }
@@ -75,7 +87,7 @@ pub(crate) fn resolve_index(e: &Expr, env: &dyn Env) -> Result<usize, String> {
     if v == 0.0 && env.fanuc() {
         return Ok(0);
     }
-    param_index(v)
+    param_index(v, env.fanuc())
 }
 
 pub(crate) fn eval(e: &Expr, env: &dyn Env) -> Result<f64, String> {
@@ -233,6 +245,9 @@ fn eval_inner(e: &Expr, env: &dyn Env) -> Result<f64, String> {
 #[derive(Clone, Debug)]
 pub(crate) struct Params {
     pub numbered: Vec<f64>,
+    /// The Fanuc extended common variables that were set (the rest are vacant): sparse,
+    /// since 800,000 of them would be 6.4 MB per interpreter; at most that many entries.
+    pub extended: HashMap<usize, f64>,
     pub globals: HashMap<String, f64>,
     /// One scope per active call level; index 0 is the main program.
     pub locals: Vec<HashMap<String, f64>>,
@@ -242,6 +257,7 @@ impl Params {
     pub fn new() -> Self {
         Params {
             numbered: vec![0.0; MAX_PARAM + 1],
+            extended: HashMap::new(),
             globals: HashMap::new(),
             locals: vec![HashMap::new()],
         }
@@ -252,6 +268,23 @@ impl Params {
     pub fn init_fanuc(&mut self) {
         for r in [0..=33, 100..=199, 500..=999] {
             self.numbered[r].fill(vacant());
+        }
+    }
+
+    /// A numbered parameter's value (an extended one never set is vacant).
+    pub fn get(&self, n: usize) -> f64 {
+        match self.numbered.get(n) {
+            Some(&v) => v,
+            None => self.extended.get(&n).copied().unwrap_or_else(vacant),
+        }
+    }
+
+    pub fn set(&mut self, n: usize, v: f64) {
+        match self.numbered.get_mut(n) {
+            Some(x) => *x = v,
+            None => {
+                self.extended.insert(n, v);
+            }
         }
     }
 

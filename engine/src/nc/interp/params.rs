@@ -97,7 +97,7 @@ impl Interp<'_> {
         if let Some(i) = axis(5419) {
             return self.cur[i];
         }
-        self.params.numbered[n]
+        self.params.get(n)
     }
 
     /// Fanuc system variables that reflect the live state: modal information (#4001-#4120)
@@ -239,7 +239,7 @@ impl Interp<'_> {
                         format!("parameter #{n} holds machine state (offsets, home positions, tool) and cannot be assigned here; use G10/G92/G28.1"),
                     ));
                 }
-                self.params.numbered[n] = v;
+                self.params.set(n, v);
             }
         }
         Ok(())
