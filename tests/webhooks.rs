@@ -1054,3 +1054,38 @@ async fn an_address_that_never_connects_holds_a_slot_for_the_connect_timeout_onl
     let ms = attempt["duration_ms"].as_i64().unwrap();
     assert!((1_500..4_000).contains(&ms), "{attempt}");
 }
+
+/// Issue 34: `localhost.` and its other spellings are refused when registered (422 naming
+/// `url`), as at delivery, not accepted and then failed at every attempt.
+#[tokio::test]
+async fn localhost_spelled_any_way_is_refused_at_registration() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
+    let c = client();
+    for url in [
+        "http://localhost./hook",
+        "http://LOCALHOST./hook",
+        "http://localhost../hook",
+        "http://mes.localhost./hook",
+        "http://localhost.localdomain/hook",
+        "http://LocalHost.LocalDomain.:8080/hook",
+    ] {
+        let res = c
+            .post(s.url("/v1/webhooks"))
+            .json(&json!({ "url": url }))
+            .send()
+            .await
+            .unwrap();
+        let kind = res
+            .headers()
+            .get("content-type")
+            .map(|v| v.to_str().unwrap().to_string());
+        let (st, p) = json(res).await;
+        assert_eq!((st, p["field"].as_str()), (422, Some("url")), "{url}: {p}");
+        assert_eq!(kind.as_deref(), Some("application/problem+json"), "{url}");
+        assert!(
+            p["detail"].as_str().unwrap().contains("loopback"),
+            "{url}: {p}"
+        );
+    }
+}
