@@ -122,25 +122,50 @@ fn invalid_stl(file: &str, e: impl std::fmt::Display) -> Problem {
     .with("file", file.to_string())
 }
 
-/// STL stock or part: read and checked (closed, finite, sane size) by the engine.
-pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
-    let mesh = geometry::Mesh::from_stl_bytes(bytes).map_err(|e| invalid_stl(file, e))?;
-    let (min, max) = mesh.bounds();
-    Ok(Validated {
-        media_type: "model/stl",
-        summary: json!({ "format": "stl", "triangles": mesh.triangles.len(), "bounds": { "min": min, "max": max }, "volume_mm3": mesh.volume() }),
+/// An STL's summary: what a job reads from it, and what reading it repaired (a job reads
+/// the same repaired mesh: `Mesh::from_stl_reader_repaired`).
+fn stl_summary(
+    triangles: usize,
+    (min, max): ([f64; 3], [f64; 3]),
+    volume: f64,
+    repairs: geometry::StlRepairs,
+) -> Value {
+    json!({
+        "format": "stl",
+        "triangles": triangles,
+        "bounds": { "min": min, "max": max },
+        "volume_mm3": volume,
+        "repairs": { "duplicate_triangles_dropped": repairs.duplicates, "turned_right_way_out": repairs.flipped },
+        "warnings": repairs.warnings(),
     })
 }
 
-/// [`stl`] on a stream of `len` bytes, in memory that does not grow with the file: the
-/// format, the count against the length, finite vertices, closedness (see
-/// `stl_read::EdgeSum`); no mesh is built.
-pub fn stl_stream(r: impl std::io::Read, len: u64, file: &str) -> Result<Validated, Problem> {
-    let scan = geometry::stl_read::scan(r, len).map_err(|e| invalid_stl(file, e))?;
-    let (min, max) = scan.bounds;
+/// STL stock or part: read and checked (closed, finite, sane size) by the engine.
+pub fn stl(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
+    let (mesh, repairs) = geometry::Mesh::from_stl_reader_repaired(bytes, bytes.len() as u64)
+        .map_err(|e| invalid_stl(file, e))?;
     Ok(Validated {
         media_type: "model/stl",
-        summary: json!({ "format": "stl", "triangles": scan.triangles, "bounds": { "min": min, "max": max }, "volume_mm3": scan.volume }),
+        summary: stl_summary(mesh.triangles.len(), mesh.bounds(), mesh.volume(), repairs),
+    })
+}
+
+/// [`stl`] on a file of `len` bytes that `open` reads from its start, without building a
+/// mesh: the format, the count against the length, finite vertices, duplicates,
+/// closedness (see `stl_read::EdgeSum`), orientation; 8 bytes of memory a triangle.
+pub fn stl_stream<R: std::io::Read>(
+    mut open: impl FnMut() -> std::io::Result<R>,
+    len: u64,
+    file: &str,
+) -> Result<Validated, Problem> {
+    let scan = geometry::stl_read::scan(
+        || open().map_err(|e| geometry::StlError::Parse(format!("reading: {e}"))),
+        len,
+    )
+    .map_err(|e| invalid_stl(file, e))?;
+    Ok(Validated {
+        media_type: "model/stl",
+        summary: stl_summary(scan.triangles, scan.bounds, scan.volume, scan.repairs),
     })
 }
 

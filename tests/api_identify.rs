@@ -657,3 +657,86 @@ async fn slot_measurements_fit_the_exponential_law() {
     assert_eq!(st, 422, "{p}");
     assert_eq!(p["field"], "options.measurements", "{p}");
 }
+
+/// Issue 34: conditions outside a milling test's range are refused at submission, naming
+/// the field (feeds of 1e308 were answered with all-zero coefficients, a depth of 1e-300
+/// with a ktc of 2e304), and so is a fit whose coefficients no material has.
+#[tokio::test]
+async fn conditions_outside_a_milling_tests_range_are_refused_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let tool = upload_tool(&c, &s, d10_helix30()).await;
+    let rows = synthesized("Al6082-T6");
+    let huge_feeds: Vec<[f64; 4]> = rows
+        .iter()
+        .enumerate()
+        .map(|(i, r)| [1e308 / (i + 1) as f64, r[1], r[2], r[3]])
+        .collect();
+    let mut huge_force = rows.clone();
+    huge_force[2][1] = 2e6;
+    let mut wide_feed = rows.clone();
+    wide_feed[3][0] = 20.0;
+    let measured =
+        |depth: f64, rows: &[[f64; 4]]| json!({"depth_mm": depth, "measurements": as_json(rows)});
+    let cut = |depth: f64, fz: f64| {
+        json!({"cuts": [
+            {"depth_mm": depth, "feed_per_tooth_mm": 0.05, "fx_n": -100, "fy_n": 300, "fz_n": fz},
+            {"depth_mm": depth, "feed_per_tooth_mm": 0.1, "fx_n": -150, "fy_n": 500, "fz_n": fz}]})
+    };
+    let mut exponential = measured(DEPTH, &wide_feed);
+    exponential["model"] = json!("exponential");
+    let cases: Vec<(Value, &str, &str)> = vec![
+        (
+            measured(DEPTH, &huge_feeds),
+            "options.measurements[0].feed_per_tooth_mm",
+            "feed per tooth",
+        ),
+        (measured(1e-300, &rows), "options.depth_mm", "axial depth"),
+        (measured(500.0, &rows), "options.depth_mm", "axial depth"),
+        (
+            measured(DEPTH, &huge_force),
+            "options.measurements[2].fx_n",
+            "force",
+        ),
+        (
+            exponential,
+            "options.measurements[3].feed_per_tooth_mm",
+            "feed per tooth",
+        ),
+        (
+            cut(1e-300, -20.0),
+            "options.cuts[0].depth_mm",
+            "axial depth",
+        ),
+        (cut(2.0, -5e6), "options.cuts[0].fz_n", "force"),
+        // A 2 mm test's forces given for a 1 µm depth: every number in range, a ktc of
+        // about 10^6 N/mm².
+        (
+            measured(1e-3, &rows),
+            "options.measurements",
+            "beyond any material",
+        ),
+    ];
+    for (options, field, says) in cases {
+        let body = json!({"kind": "identify", "inputs": {"tool": tool}, "options": options});
+        let res = c.post(s.url("/v1/jobs")).json(&body).send().await.unwrap();
+        let kind = res
+            .headers()
+            .get("content-type")
+            .map(|v| v.to_str().unwrap().to_string());
+        let (st, p) = json(res).await;
+        assert_eq!(st, 422, "{body} -> {p}");
+        assert_eq!(kind.as_deref(), Some("application/problem+json"));
+        assert_eq!(p["field"], field, "{body} -> {p}");
+        assert!(
+            p["detail"].as_str().unwrap().contains(says),
+            "{body} -> {p}"
+        );
+    }
+    // The same rows at their own depth still fit.
+    let body =
+        json!({"kind": "identify", "inputs": {"tool": tool}, "options": measured(DEPTH, &rows)});
+    let (st, job) = post_json(&c, &s, "/v1/jobs", &body).await;
+    assert_eq!(st, 202, "{job}");
+}

@@ -5,6 +5,7 @@ mod common;
 
 use common::*;
 use serde_json::json;
+use std::time::Duration;
 
 fn tool() -> serde_json::Value {
     json!({"shape": "bull_nose", "diameter": 8.0, "corner_radius": 1.0, "flutes": 4, "helix_deg": 35.0, "flute_length": 20.0})
@@ -374,4 +375,109 @@ async fn download_names_are_cleaned_of_paths_and_control_characters() {
         cd, "attachment; filename=\"passwd ___.nc\"; filename*=UTF-8''passwd%20%22%C3%B6%22.nc",
         "{cd}"
     );
+}
+
+/// A binary STL of the box from `a` to `b`, its triangles wound outwards, or inwards
+/// (`inside_out`), each given `copies` times.
+fn box_stl(a: [f32; 3], b: [f32; 3], inside_out: bool, copies: usize) -> Vec<u8> {
+    let p = |i: usize| [0, 1, 2].map(|k| if (i >> k) & 1 == 1 { b[k] } else { a[k] });
+    let faces: [[usize; 3]; 12] = [
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    let mut out = vec![0u8; 80];
+    out.extend_from_slice(&((12 * copies) as u32).to_le_bytes());
+    for _ in 0..copies {
+        for f in faces {
+            let f = if inside_out { [f[0], f[2], f[1]] } else { f };
+            out.extend_from_slice(&[0u8; 12]);
+            for i in f {
+                for c in p(i) {
+                    out.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+            out.extend_from_slice(&[0u8; 2]);
+        }
+    }
+    out
+}
+
+/// Issue 34: an inside-out STL stock (stored before with volume −24,000 mm³, and read by a
+/// job as no material) and one with every face twice (volume doubled) are repaired, with a
+/// warning in the upload's summary, and a job cuts them as the plain box.
+#[tokio::test]
+async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let (a, b) = ([0.0, 0.0, -10.0], [60.0, 40.0, 0.0]);
+    let mut stocks = Vec::new();
+    for (name, stl, warning) in [
+        ("plain.stl", box_stl(a, b, false, 1), None),
+        ("inside-out.stl", box_stl(a, b, true, 1), Some("inside out")),
+        (
+            "twice.stl",
+            box_stl(a, b, false, 2),
+            Some("12 duplicate triangles"),
+        ),
+    ] {
+        let (st, v) = post_stl(&c, &s, &format!("/v1/stocks?name={name}"), stl).await;
+        assert_eq!(st, 201, "{name}: {v}");
+        let summary = &v["summary"];
+        assert_eq!(summary["volume_mm3"], 24_000.0, "{name}: {v}");
+        assert_eq!(summary["triangles"], 12, "{name}: {v}");
+        let warnings = summary["warnings"].as_array().unwrap();
+        match warning {
+            None => assert!(warnings.is_empty(), "{name}: {v}"),
+            Some(w) => assert!(
+                warnings.len() == 1 && warnings[0].as_str().unwrap().contains(w),
+                "{name}: {v}"
+            ),
+        }
+        stocks.push(v["id"].as_str().unwrap().to_string());
+    }
+    let (_, tool) = post_json(
+        &c,
+        &s,
+        "/v1/tools",
+        &json!({"type": "flat", "diameter_mm": 8, "flutes": 3, "helix_deg": 35, "flute_length_mm": 20}),
+    )
+    .await;
+    let program =
+        "G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z5\nG1 Z-2 F300\nG1 X70 F600\nG0 Z5\nM30\n";
+    let mut summaries = Vec::new();
+    for stock in &stocks {
+        let body = json!({"kind": "simulate", "inputs": {"program": {"name": "slot.nc", "content": program},
+            "stock": stock, "tool": tool["id"]}, "options": {"material": "Al7075-T6"}});
+        let done = run_job(&c, &s, &body, Duration::from_secs(60)).await;
+        // What the stock decides (the timings differ from run to run).
+        let cut: Vec<serde_json::Value> = [
+            "stock_volume_before",
+            "stock_volume_after",
+            "removed_volume_mm3",
+            "cutting_moves",
+            "force_peak_n",
+        ]
+        .iter()
+        .map(|k| done["summary"][k].clone())
+        .collect();
+        summaries.push(cut);
+    }
+    assert!(
+        summaries[0][2].as_f64().unwrap() > 900.0,
+        "{:?}",
+        summaries[0]
+    );
+    assert_eq!(summaries[1], summaries[0]);
+    assert_eq!(summaries[2], summaries[0]);
 }

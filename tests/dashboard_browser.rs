@@ -60,6 +60,12 @@ fn dashboard_in_chromium() {
     run_script("dashboard.mjs");
 }
 
+/// Names with bidi controls shown with the controls written out (list, job page, form).
+#[test]
+fn bidi_controls_in_names_are_shown_escaped_in_chromium() {
+    run_script("bidi.mjs");
+}
+
 /// Every job kind's view, collisions in 3-D, and cancelling from the page.
 #[test]
 fn every_job_kind_in_chromium() {

@@ -1,7 +1,8 @@
 //! Webhooks end to end with a local receiver on 127.0.0.1 (servers run with
 //! --webhook-allow-private): a signed delivery per event soon after the state change, a
 //! receiver down for three attempts, a server SIGKILLed with deliveries pending, another
-//! key's webhooks, the README's signature recipes, a slow receiver.
+//! key's webhooks, the README's signature recipes, a slow receiver, a tarpit holding one
+//! key's deliveries beside another key's, an address that never completes a connection.
 
 mod common;
 
@@ -884,4 +885,207 @@ async fn progress_deliveries_come_at_most_once_a_second_while_the_job_runs() {
         !quiet.is_empty() && quiet.iter().all(|r| r.event == "job.cancelled"),
         "{quiet:?}"
     );
+}
+
+/// A receiver that accepts connections and never answers (nor closes them); how many
+/// it accepted, and its URL.
+async fn tarpit() -> (Arc<Mutex<usize>>, String) {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let url = format!("http://{}/hook", listener.local_addr().unwrap());
+    let accepted = Arc::new(Mutex::new(0usize));
+    let count = accepted.clone();
+    tokio::spawn(async move {
+        let mut held = Vec::new();
+        while let Ok((stream, _)) = listener.accept().await {
+            *count.lock().unwrap() += 1;
+            held.push(stream);
+        }
+    });
+    (accepted, url)
+}
+
+/// A key's job, run to its end with that key; the job as finished.
+async fn keyed_job(c: &reqwest::Client, s: &Server, key: &str) -> Value {
+    let (st, job) = json(
+        c.post(s.url("/v1/jobs"))
+            .bearer_auth(key)
+            .json(&json!({"kind": "interpret", "inputs": {"program": {"content": "G0 X1\n"}}}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let id = job["id"].as_str().unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let (_, j) = json(
+            c.get(s.url(&format!("/v1/jobs/{id}")))
+                .bearer_auth(key)
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
+        if j["status"] == "succeeded" {
+            return j;
+        }
+        assert!(Instant::now() < deadline, "{j}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Issue 34 item 4: one key's 100 webhooks to a receiver that accepts and never answers
+/// (each attempt holds a delivery slot for the whole response timeout) do not delay
+/// another key's delivery: it arrives within seconds of its job's end (59 s before the
+/// fix: 16 slots shared oldest first, 10 s each).
+#[tokio::test]
+async fn a_tarpit_holding_one_keys_deliveries_does_not_delay_another_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let (keys, key_file) = two_keys(dir.path());
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &[
+            "--workers",
+            "1",
+            "--webhook-allow-private",
+            "--api-key-file",
+            key_file.to_str().unwrap(),
+        ],
+    );
+    let c = client();
+    let (mes, cam) = (keys[0].as_str(), keys[1].as_str());
+    let (held, pit) = tarpit().await;
+    for i in 0..100 {
+        let (st, v) = json(
+            c.post(s.url("/v1/webhooks"))
+                .bearer_auth(mes)
+                .json(&json!({"url": format!("{pit}/{i}")}))
+                .send()
+                .await
+                .unwrap(),
+        )
+        .await;
+        assert_eq!(st, 201, "{v}");
+    }
+    let (rx, url) = receiver(always_ok).await;
+    let (st, v) = json(
+        c.post(s.url("/v1/webhooks"))
+            .bearer_auth(cam)
+            .json(&json!({"url": url}))
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 201, "{v}");
+    // mes's job ends first: its 100 deliveries are due before cam's.
+    keyed_job(&c, &s, mes).await;
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while *held.lock().unwrap() == 0 && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert!(*held.lock().unwrap() > 0, "the tarpit got no connection");
+    let job = keyed_job(&c, &s, cam).await;
+    let finished = rfc3339_ms(job["finished_at"].as_str().unwrap());
+    // Long enough to measure the delay before the fix; a pass returns as soon as it lands.
+    let got = rx.wait_for(1, Duration::from_secs(90)).await;
+    assert_eq!(got.len(), 1, "cam's delivery never came");
+    let latency = got[0].at_ms - finished;
+    println!(
+        "cam's delivery came {latency} ms after its job ended; the tarpit held {} connections",
+        held.lock().unwrap()
+    );
+    assert!(latency < 5_000, "cam's delivery came {latency} ms late");
+}
+
+/// An address whose connections never complete: a listener that accepts none, its accept
+/// queue filled, so Linux drops further connection attempts (as a firewall that drops
+/// packets does). The listener and the filling connections are kept alive by the caller.
+async fn unconnectable() -> (tokio::net::TcpListener, Vec<tokio::net::TcpStream>, String) {
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.bind("127.0.0.1:0".parse().unwrap()).unwrap();
+    let listener = socket.listen(1).unwrap();
+    let addr = listener.local_addr().unwrap();
+    let mut fill = Vec::new();
+    // The queue holds backlog + 1; the connection after that hangs.
+    loop {
+        match tokio::time::timeout(
+            Duration::from_millis(300),
+            tokio::net::TcpStream::connect(addr),
+        )
+        .await
+        {
+            Ok(Ok(stream)) => fill.push(stream),
+            Ok(Err(e)) => panic!("{e}"),
+            Err(_) => break,
+        }
+        assert!(fill.len() < 64, "the accept queue never filled");
+    }
+    (listener, fill, format!("http://{addr}/hook"))
+}
+
+/// An attempt at an address that never completes a connection ends after the 2 s connect
+/// timeout, not the 10 s response timeout, and says so.
+#[tokio::test]
+async fn an_address_that_never_connects_holds_a_slot_for_the_connect_timeout_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        &dir.path().join("t.db"),
+        &["--workers", "1", "--webhook-allow-private"],
+    );
+    let c = client();
+    let (_listener, _fill, url) = unconnectable().await;
+    let hook = register(&c, &s, None, json!({"url": url})).await;
+    let id = hook["id"].as_str().unwrap();
+    let job = inline_interpret(&c, &s, "G0 X1\n").await;
+    wait_job(&c, &s, &job, Duration::from_secs(30)).await;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let attempt = loop {
+        let page = deliveries(&c, &s, None, id).await;
+        if let Some(a) = page["items"][0]["attempts"].get(0) {
+            break a.clone();
+        }
+        assert!(Instant::now() < deadline, "{page}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    let error = attempt["error"].as_str().unwrap_or_default();
+    assert!(error.contains("cannot connect within 2s"), "{attempt}");
+    let ms = attempt["duration_ms"].as_i64().unwrap();
+    assert!((1_500..4_000).contains(&ms), "{attempt}");
+}
+
+/// Issue 34: `localhost.` and its other spellings are refused when registered (422 naming
+/// `url`), as at delivery, not accepted and then failed at every attempt.
+#[tokio::test]
+async fn localhost_spelled_any_way_is_refused_at_registration() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
+    let c = client();
+    for url in [
+        "http://localhost./hook",
+        "http://LOCALHOST./hook",
+        "http://localhost../hook",
+        "http://mes.localhost./hook",
+        "http://localhost.localdomain/hook",
+        "http://LocalHost.LocalDomain.:8080/hook",
+    ] {
+        let res = c
+            .post(s.url("/v1/webhooks"))
+            .json(&json!({ "url": url }))
+            .send()
+            .await
+            .unwrap();
+        let kind = res
+            .headers()
+            .get("content-type")
+            .map(|v| v.to_str().unwrap().to_string());
+        let (st, p) = json(res).await;
+        assert_eq!((st, p["field"].as_str()), (422, Some("url")), "{url}: {p}");
+        assert_eq!(kind.as_deref(), Some("application/problem+json"), "{url}");
+        assert!(
+            p["detail"].as_str().unwrap().contains("loopback"),
+            "{url}: {p}"
+        );
+    }
 }

@@ -1,6 +1,6 @@
 // The job list (/): newest first, filters by status and kind, cursor paging, and progress
 // bars that follow running jobs live (their event streams; polling for the rest).
-import { el, fmt, fmtDate, statusPill, progressBar } from './util.js';
+import { el, fmt, fmtDate, statusPill, progressBar, safeText } from './util.js';
 import { app, getJson, follow, handleError, programName, cancelJob } from './api.js';
 
 const KINDS = ['interpret', 'simulate', 'optimize', 'stability', 'energy', 'rotary-feed', 'identify', 'accessibility'];
@@ -87,7 +87,7 @@ export async function renderList(route) {
     const order = [];
     for (const job of page.items) {
       let tr = rows.get(job.id);
-      if (!tr) { tr = el('tr', { 'data-id': job.id }); rows.set(job.id, tr); programName(job).then((n) => { if (n) { tr.dataset.prog = n; const a = tr.querySelector('td.prog a'); if (a) a.textContent = n; } }); }
+      if (!tr) { tr = el('tr', { 'data-id': job.id }); rows.set(job.id, tr); programName(job).then((n) => { if (n) { tr.dataset.prog = n; const a = tr.querySelector('td.prog a'); if (a) a.textContent = safeText(n); } }); }
       // A row's event stream may be ahead of the list's copy: the further progress is kept.
       const live = latest.get(job.id);
       if (live && (job.status === 'queued' || job.status === 'running') && live.done >= (job.progress ? job.progress.done : 0)) {

@@ -1,5 +1,15 @@
 // Small DOM and number helpers shared by every view.
 
+// Bidi controls (U+202A–U+202E, U+2066–U+2069, U+200E/F) in text the dashboard shows are
+// written out as [U+202E]: names come from users, and an override in one would reverse the
+// rest of its line (a program 'x\u202Ecn.exe' shown as 'xexe.nc').
+const BIDI_CONTROLS = /[\u200E\u200F\u202A-\u202E\u2066-\u2069]/g;
+export function safeText(s) {
+  return String(s).replace(BIDI_CONTROLS, (c) => '[U+' + c.charCodeAt(0).toString(16).toUpperCase() + ']');
+}
+
+// Every text child goes through safeText: user-given names reach the page only this way
+// (or through safeText directly where textContent is set).
 export function el(tag, attrs, ...children) {
   const e = document.createElement(tag);
   for (const [k, v] of Object.entries(attrs || {})) {
@@ -10,7 +20,7 @@ export function el(tag, attrs, ...children) {
   }
   for (const c of children.flat()) {
     if (c === null || c === undefined || c === false) continue;
-    e.append(c instanceof Node ? c : document.createTextNode(String(c)));
+    e.append(c instanceof Node ? c : document.createTextNode(safeText(c)));
   }
   return e;
 }

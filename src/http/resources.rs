@@ -132,14 +132,21 @@ pub async fn create(
                 .clone()
                 .or(name.clone())
                 .unwrap_or_else(|| "stock.stl".into());
-            // Read back from the file a block at a time; the check is CPU work: keep it
-            // off the runtime.
-            let reader = spooled.reader()?;
+            // Read back from the file a block at a time (twice if it has duplicate
+            // triangles); the check is CPU work: keep it off the runtime.
+            let spool = spooled.reader()?;
             let len = spooled.len;
-            let checked =
-                tokio::task::spawn_blocking(move || validate::stl_stream(reader, len, &file))
-                    .await
-                    .map_err(|e| ApiError::blocking_failed(e, "the STL reader"))??;
+            let checked = tokio::task::spawn_blocking(move || {
+                let open = || {
+                    use std::io::{Seek, SeekFrom};
+                    let mut f = spool.try_clone()?;
+                    f.seek(SeekFrom::Start(0))?;
+                    Ok(f)
+                };
+                validate::stl_stream(open, len, &file)
+            })
+            .await
+            .map_err(|e| ApiError::blocking_failed(e, "the STL reader"))??;
             let name = query.name.or(name);
             let record = state
                 .db

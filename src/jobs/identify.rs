@@ -173,13 +173,8 @@ fn read(options: &Value) -> Result<Request, Problem> {
     }
     let depth_mm = match (o.depth_mm, &o.cuts) {
         (_, Some(_)) => 0.0,
-        (Some(d), None) if d.is_finite() && d > 0.0 => d,
-        (Some(d), None) => {
-            return Err(field(
-                "depth_mm",
-                format!("must be a positive number of mm, got {d}"),
-            ))
-        }
+        (Some(d), None) => millsim_engine::physics::identify::check_depth("axial_depth", d)
+            .map_err(engine_problem)?,
         (None, None) => {
             return Err(field(
                 "depth_mm",
@@ -206,6 +201,10 @@ fn read(options: &Value) -> Result<Request, Problem> {
     let (entry, exit) = (entry.to_radians(), exit.to_radians());
     if let Some(cuts) = &o.cuts {
         let cuts = identify_cuts::read_cuts(cuts, (entry, exit))?;
+        for (i, cut) in cuts.iter().enumerate() {
+            millsim_engine::physics::identify::check_cut(i, cut)
+                .map_err(identify_cuts::engine_problem)?;
+        }
         let feeds: Vec<f64> = cuts.iter().map(|c| c.feed_per_tooth).collect();
         // What can be told before the tool is loaded: enough forces and feeds.
         millsim_engine::physics::identify::check_set(cuts.len(), &feeds, o.model, "cuts")
@@ -237,6 +236,19 @@ fn read(options: &Value) -> Result<Request, Problem> {
                 measurements.len()
             ),
         ));
+    }
+    // Within a milling test's range, whichever law fits them (the exponential one is
+    // not fitted until the job runs).
+    for (i, m) in measurements.iter().enumerate() {
+        use millsim_engine::physics::identify::{check_feed, check_force};
+        check_feed(
+            format!("measurements[{i}].feed_per_tooth"),
+            m.feed_per_tooth,
+        )
+        .and_then(|_| check_force(format!("measurements[{i}].fx"), m.fx))
+        .and_then(|_| check_force(format!("measurements[{i}].fy"), m.fy))
+        .and_then(|_| check_force(format!("measurements[{i}].fz"), m.fz))
+        .map_err(engine_problem)?;
     }
     // The exponential law goes by the force model: the measurements become cuts.
     if o.model == ForceLaw::Exponential {
@@ -410,6 +422,7 @@ fn identify(
             return Err(implausible(name, value, axis).with("field", "options.measurements"));
         }
     }
+    identify_cuts::check_magnitudes(k).map_err(|p| p.with("field", "options.measurements"))?;
     Ok(id)
 }
 
@@ -421,6 +434,22 @@ pub(super) fn implausible(name: &str, value: f64, axis: &str) -> Problem {
         "Identified coefficients are not credible",
         format!(
             "the fit gives {name} = {value:.4}, a negative coefficient: check the sign convention of the {axis} forces (forces on the tool, x along the feed; a dynamometer under the part measures the reaction: negate it) and their units (N)"
+        ),
+    )
+    .with("field", "options.cuts")
+    .with("coefficient", name.to_string())
+    .with("value", value)
+}
+
+/// A coefficient larger than any material's: the forces and the conditions disagree by
+/// orders of magnitude (a unit, or a test that did not cut as given).
+pub(super) fn beyond_any_material(name: &str, value: f64, limit: f64, unit: &str) -> Problem {
+    Problem::new(
+        axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+        "implausible-fit",
+        "Identified coefficients are not credible",
+        format!(
+            "the fit gives {name} = {value:.4e} {unit}, beyond any material's (at most {limit:e} {unit}): check the units of the forces (N), feeds and depths (mm)"
         ),
     )
     .with("field", "options.cuts")

@@ -256,6 +256,31 @@ pub fn check_signs(k: &millsim_engine::physics::CuttingCoefficients) -> Result<(
             return Err(super::identify::implausible(name, value, axis));
         }
     }
+    check_magnitudes(k)
+}
+
+/// Cutting coefficients above this, N/mm², belong to no material (hardened steels and
+/// superalloys are below 10^4).
+const MAX_CUTTING_COEFFICIENT: f64 = 1e5;
+/// Edge coefficients above this, N/mm (published ones are below 10^3).
+const MAX_EDGE_COEFFICIENT: f64 = 1e4;
+
+/// Refuses a coefficient that is not finite or larger than any material's, either sign.
+pub fn check_magnitudes(k: &millsim_engine::physics::CuttingCoefficients) -> Result<(), Problem> {
+    for (name, value, limit, unit) in [
+        ("ktc", k.ktc, MAX_CUTTING_COEFFICIENT, "N/mm²"),
+        ("krc", k.krc, MAX_CUTTING_COEFFICIENT, "N/mm²"),
+        ("kac", k.kac, MAX_CUTTING_COEFFICIENT, "N/mm²"),
+        ("kte", k.kte, MAX_EDGE_COEFFICIENT, "N/mm"),
+        ("kre", k.kre, MAX_EDGE_COEFFICIENT, "N/mm"),
+        ("kae", k.kae, MAX_EDGE_COEFFICIENT, "N/mm"),
+    ] {
+        if !(value.abs() <= limit) {
+            return Err(super::identify::beyond_any_material(
+                name, value, limit, unit,
+            ));
+        }
+    }
     Ok(())
 }
 

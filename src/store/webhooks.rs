@@ -23,6 +23,11 @@ pub const DEFAULT_EVENTS: [&str; 3] = ["job.succeeded", "job.failed", "job.cance
 /// heartbeat records progress four times a second).
 pub const PROGRESS_INTERVAL_MS: i64 = 1000;
 
+/// Deliveries one API key may have pending: a key whose receivers do not keep up gets
+/// further events recorded as failed (listed, redeliverable) instead of an outbox that
+/// grows without bound.
+pub const MAX_QUEUED_PER_KEY: i64 = 1000;
+
 /// Attempts a delivery gets before it is given up (see `webhooks::retry_delay` for the
 /// schedule: over a day from the first to the last).
 pub const ATTEMPT_LIMIT: i64 = 20;
@@ -133,41 +138,103 @@ pub async fn enqueue_job_event(tx: &mut Tx, job_id: &str, event: &str) -> Result
         return Ok(());
     };
     let now = now_ms();
+    let (mut queued,): (i64,) = on_tx!(tx, c => sqlx::query_as(
+        "SELECT COUNT(*) FROM webhook_deliveries WHERE owner = $1 AND status = 'pending'",
+    )
+    .bind(&owner)
+    .fetch_one(&mut *c)
+    .await?);
     for (webhook_id, events) in hooks {
         let events: Vec<String> = serde_json::from_str(&events)?;
         if !events.iter().any(|e| e == event) {
             continue;
         }
+        let body = |id: &str| -> Result<String, StoreError> {
+            let mut job_doc = json!({
+                "id": job_id,
+                "kind": kind,
+                "status": status,
+                "attempts": attempts,
+                "created_at": rfc3339(created_at),
+                "finished_at": finished_at.map(rfc3339),
+                "progress": {
+                    "done": done,
+                    "total": total,
+                },
+            });
+            if let Some(error) = &error {
+                job_doc["error"] = serde_json::from_str::<Value>(error)?;
+            }
+            let base = format!("/v1/jobs/{job_id}");
+            let mut links = json!({ "job": base, "attempts": format!("{base}/attempts") });
+            if status == "succeeded" {
+                links["summary"] = json!(format!("{base}/summary"));
+                links["blocks"] = json!(format!("{base}/blocks"));
+            }
+            Ok(json!({
+                "id": id,
+                "event": event,
+                "webhook_id": webhook_id,
+                "created_at": rfc3339(now),
+                "job": job_doc,
+                "links": links,
+            })
+            .to_string())
+        };
+        if event == "job.progress" {
+            // Progress coalesces: a progress delivery of this webhook and job still queued
+            // (not in flight) takes the latest progress in place, keeping its id, attempts
+            // and backoff, so a slow receiver's backlog holds one per job, not one a second.
+            let waiting: Option<(String,)> = on_tx!(tx, c => sqlx::query_as(
+                "SELECT id FROM webhook_deliveries WHERE webhook_id = $1 AND job_id = $2 AND event = 'job.progress'
+                   AND status = 'pending' AND (lease_expires_at IS NULL OR lease_expires_at < $3) LIMIT 1",
+            )
+            .bind(&webhook_id)
+            .bind(job_id)
+            .bind(now)
+            .fetch_optional(&mut *c)
+            .await?);
+            if let Some((id,)) = waiting {
+                let replaced = on_tx!(tx, c => sqlx::query(
+                    "UPDATE webhook_deliveries SET body = $1, created_at = $2, updated_at = $2
+                     WHERE id = $3 AND status = 'pending' AND (lease_expires_at IS NULL OR lease_expires_at < $2)",
+                )
+                .bind(body(&id)?)
+                .bind(now)
+                .bind(&id)
+                .execute(&mut *c)
+                .await?
+                .rows_affected());
+                // Claimed in between: a new one queues behind it.
+                if replaced > 0 {
+                    continue;
+                }
+            }
+        }
         let id = new_id();
-        let mut job_doc = json!({
-            "id": job_id,
-            "kind": kind,
-            "status": status,
-            "attempts": attempts,
-            "created_at": rfc3339(created_at),
-            "finished_at": finished_at.map(rfc3339),
-            "progress": {
-                "done": done,
-                "total": total,
-            },
-        });
-        if let Some(error) = &error {
-            job_doc["error"] = serde_json::from_str::<Value>(error)?;
+        let body = body(&id)?;
+        if queued >= MAX_QUEUED_PER_KEY {
+            let why = format!(
+                "not sent: this API key had {MAX_QUEUED_PER_KEY} deliveries pending (its receivers do not keep up); ask for a redelivery once they do"
+            );
+            on_tx!(tx, c => sqlx::query(
+                "INSERT INTO webhook_deliveries (id, webhook_id, owner, event, job_id, body, status, attempts, attempt_limit, last_error, created_at, updated_at)
+                 VALUES ($1, $2, $3, $4, $5, $6, 'failed', 0, $7, $8, $9, $9)",
+            )
+            .bind(&id)
+            .bind(&webhook_id)
+            .bind(&owner)
+            .bind(event)
+            .bind(job_id)
+            .bind(body)
+            .bind(ATTEMPT_LIMIT)
+            .bind(why)
+            .bind(now)
+            .execute(&mut *c)
+            .await?
+            .rows_affected());
+            continue;
         }
-        let base = format!("/v1/jobs/{job_id}");
-        let mut links = json!({ "job": base, "attempts": format!("{base}/attempts") });
-        if status == "succeeded" {
-            links["summary"] = json!(format!("{base}/summary"));
-            links["blocks"] = json!(format!("{base}/blocks"));
-        }
-        let body = json!({
-            "id": id,
-            "event": event,
-            "webhook_id": webhook_id,
-            "created_at": rfc3339(now),
-            "job": job_doc,
-            "links": links,
-        });
         on_tx!(tx, c => sqlx::query(
             "INSERT INTO webhook_deliveries (id, webhook_id, owner, event, job_id, body, status, attempts, attempt_limit, next_attempt_at, created_at, updated_at)
              VALUES ($1, $2, $3, $4, $5, $6, 'pending', 0, $7, $8, $8, $8)",
@@ -177,12 +244,13 @@ pub async fn enqueue_job_event(tx: &mut Tx, job_id: &str, event: &str) -> Result
         .bind(&owner)
         .bind(event)
         .bind(job_id)
-        .bind(body.to_string())
+        .bind(body)
         .bind(ATTEMPT_LIMIT)
         .bind(now)
         .execute(&mut *c)
         .await?
         .rows_affected());
+        queued += 1;
     }
     Ok(())
 }
@@ -464,27 +532,46 @@ impl Db {
     /// attempt counter moves here, so an attempt cut short by a crash still counts. On
     /// PostgreSQL the due rows are locked `FOR UPDATE SKIP LOCKED`: dispatchers on other
     /// hosts take other deliveries.
+    ///
+    /// Fair between API keys: the keys take turns (each key's oldest due delivery, then
+    /// each key's second, ...), and a key has at most `per_key` deliveries in flight over
+    /// all dispatchers (its unexpired leases), so receivers that hold every attempt for
+    /// the whole timeout stall only their own key's deliveries.
     pub async fn claim_deliveries(
         &self,
         dispatcher: &str,
         lease_ms: i64,
         limit: i64,
+        per_key: i64,
     ) -> Result<Vec<DueDelivery>, StoreError> {
         let now = now_ms();
         let skip_locked = self.backend().skip_locked();
         type Claimed = (String, String, String, String, i64, i64);
+        // The window ranks in a subquery of its own: PostgreSQL locks no rows of a query
+        // with window functions, so the lock is taken by the plain select around it.
         let rows: Vec<Claimed> = on_pool!(&self.pool, p => sqlx::query_as(&format!(
             "UPDATE webhook_deliveries SET lease_owner = $1, lease_expires_at = $2, attempts = attempts + 1, updated_at = $3
-             WHERE id IN (SELECT id FROM webhook_deliveries
-                          WHERE status = 'pending' AND next_attempt_at <= $3
-                            AND (lease_expires_at IS NULL OR lease_expires_at < $3)
-                          ORDER BY next_attempt_at LIMIT $4{skip_locked})
+             WHERE id IN (SELECT id FROM webhook_deliveries WHERE id IN (
+                 SELECT id FROM (
+                     SELECT d.id, d.next_attempt_at, COALESCE(f.n, 0) AS in_flight,
+                            ROW_NUMBER() OVER (PARTITION BY d.owner ORDER BY d.next_attempt_at, d.id) AS turn
+                     FROM webhook_deliveries d
+                     LEFT JOIN (SELECT owner, COUNT(*) AS n FROM webhook_deliveries
+                                WHERE status = 'pending' AND lease_expires_at >= $3 GROUP BY owner) f
+                       ON f.owner = d.owner
+                     WHERE d.status = 'pending' AND d.next_attempt_at <= $3
+                       AND (d.lease_expires_at IS NULL OR d.lease_expires_at < $3)
+                 ) ranked
+                 WHERE turn + in_flight <= $5
+                 ORDER BY turn, next_attempt_at LIMIT $4
+             ){skip_locked})
              RETURNING id, webhook_id, event, body, attempts, attempt_limit",
         ))
         .bind(dispatcher)
         .bind(now + lease_ms)
         .bind(now)
         .bind(limit)
+        .bind(per_key)
         .fetch_all(p)
         .await?);
         let mut due = Vec::with_capacity(rows.len());
@@ -573,5 +660,194 @@ impl Db {
         .rows_affected());
         tx.commit().await?;
         Ok(true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    use crate::store::scratch::ScratchPostgres;
+
+    /// Runs `check` on a fresh SQLite database, then on PostgreSQL where the suite has one.
+    macro_rules! on_both {
+        ($check:ident) => {{
+            let dir = tempfile::tempdir().unwrap();
+            let sqlite = Db::open(&format!("sqlite://{}", dir.path().join("w.db").display()))
+                .await
+                .unwrap();
+            $check(&sqlite).await;
+            if let Some(scratch) = ScratchPostgres::create().await {
+                let pg = Db::open(&scratch.url).await.unwrap();
+                $check(&pg).await;
+                drop(pg);
+                scratch.remove().await;
+            }
+        }};
+    }
+
+    /// A running job of `owner` that has counted its work: its id.
+    async fn job(db: &Db, owner: &str, done: i64) -> String {
+        let id = new_id();
+        on_pool!(&db.pool, p => sqlx::query(
+            "INSERT INTO jobs (id, owner, kind, status, spec, max_attempts, progress_done, progress_total, created_at, updated_at)
+             VALUES ($1, $2, 'interpret', 'running', '{}', 1, $3, 100, 0, 0)",
+        )
+        .bind(&id)
+        .bind(owner)
+        .bind(done)
+        .execute(p)
+        .await
+        .unwrap()
+        .rows_affected());
+        id
+    }
+
+    async fn set_done(db: &Db, job: &str, done: i64) {
+        on_pool!(&db.pool, p => sqlx::query("UPDATE jobs SET progress_done = $1 WHERE id = $2")
+            .bind(done)
+            .bind(job)
+            .execute(p)
+            .await
+            .unwrap()
+            .rows_affected());
+    }
+
+    async fn event(db: &Db, job: &str, event: &str) {
+        let mut tx = db.begin().await.unwrap();
+        enqueue_job_event(&mut tx, job, event).await.unwrap();
+        tx.commit().await.unwrap();
+    }
+
+    /// (status, body) of every delivery of `owner`, oldest first.
+    async fn rows(db: &Db, owner: &str) -> Vec<(String, Value)> {
+        let rows: Vec<(String, String)> = on_pool!(&db.pool, p => sqlx::query_as(
+            "SELECT status, body FROM webhook_deliveries WHERE owner = $1 ORDER BY id",
+        )
+        .bind(owner)
+        .fetch_all(p)
+        .await
+        .unwrap());
+        rows.into_iter()
+            .map(|(s, b)| (s, serde_json::from_str(&b).unwrap()))
+            .collect()
+    }
+
+    #[tokio::test]
+    async fn keys_take_turns_and_each_has_a_few_deliveries_in_flight_at_most() {
+        on_both!(fairness);
+    }
+
+    async fn fairness(db: &Db) {
+        let events = vec!["job.succeeded".to_string()];
+        for _ in 0..50 {
+            db.create_webhook("a", "http://a.example/", &events, "s")
+                .await
+                .unwrap();
+        }
+        db.create_webhook("b", "http://b.example/", &events, "s")
+            .await
+            .unwrap();
+        event(db, &job(db, "a", 0).await, "job.succeeded").await;
+        event(db, &job(db, "b", 0).await, "job.succeeded").await;
+        let first = db.claim_deliveries("d1", 30_000, 16, 4).await.unwrap();
+        let to = |d: &[DueDelivery], host: &str| d.iter().filter(|d| d.url.contains(host)).count();
+        // b's one delivery, queued after a's fifty, is claimed at once; a gets 4.
+        assert_eq!((to(&first, "a.example"), to(&first, "b.example")), (4, 1));
+        // a's four are in flight (leased, another dispatcher too): no more of a's.
+        let second = db.claim_deliveries("d2", 30_000, 16, 4).await.unwrap();
+        assert!(second.is_empty(), "{second:?}");
+        // One of a's ends: a gets one slot back.
+        let outcome = AttemptOutcome {
+            started_at: now_ms(),
+            duration_ms: 1,
+            status_code: Some(200),
+            error: None,
+            delivered: true,
+            retry_at: None,
+        };
+        let a_one = first.iter().find(|d| d.url.contains("a.example")).unwrap();
+        assert!(db.record_attempt(a_one, "d1", &outcome).await.unwrap());
+        let third = db.claim_deliveries("d2", 30_000, 16, 4).await.unwrap();
+        assert_eq!(to(&third, "a.example"), 1);
+    }
+
+    #[tokio::test]
+    async fn queued_progress_keeps_only_the_latest_per_webhook_and_job() {
+        on_both!(coalescing);
+    }
+
+    async fn coalescing(db: &Db) {
+        let events = vec!["job.progress".to_string()];
+        db.create_webhook("a", "http://a.example/", &events, "s")
+            .await
+            .unwrap();
+        let j = job(db, "a", 10).await;
+        let other = job(db, "a", 5).await;
+        for done in [10, 20, 30] {
+            set_done(db, &j, done).await;
+            event(db, &j, "job.progress").await;
+        }
+        event(db, &other, "job.progress").await;
+        let got = rows(db, "a").await;
+        assert_eq!(got.len(), 2, "{got:?}");
+        assert_eq!(got[0].1["job"]["progress"]["done"], 30);
+        assert_eq!(got[1].1["job"]["id"], json!(other));
+        // In flight, a delivery keeps what it sends; the next progress queues behind it.
+        let claimed = db.claim_deliveries("d", 30_000, 16, 4).await.unwrap();
+        assert_eq!(claimed.len(), 2);
+        set_done(db, &j, 40).await;
+        event(db, &j, "job.progress").await;
+        set_done(db, &j, 50).await;
+        event(db, &j, "job.progress").await;
+        let got = rows(db, "a").await;
+        assert_eq!(got.len(), 3, "{got:?}");
+        assert_eq!(got[0].1["job"]["progress"]["done"], 30);
+        assert_eq!(got[2].1["job"]["progress"]["done"], 50);
+        // The body names the row it is sent as.
+        let ids: Vec<String> = on_pool!(&db.pool, p => sqlx::query_scalar(
+            "SELECT id FROM webhook_deliveries ORDER BY id"
+        )
+        .fetch_all(p)
+        .await
+        .unwrap());
+        assert_eq!(got[2].1["id"], json!(ids[2]));
+    }
+
+    #[tokio::test]
+    async fn a_key_past_its_queue_cap_gets_further_deliveries_recorded_as_failed() {
+        on_both!(queue_cap);
+    }
+
+    async fn queue_cap(db: &Db) {
+        let events = vec!["job.succeeded".to_string()];
+        for _ in 0..100 {
+            db.create_webhook("a", "http://a.example/", &events, "s")
+                .await
+                .unwrap();
+        }
+        db.create_webhook("b", "http://b.example/", &events, "s")
+            .await
+            .unwrap();
+        let jobs = (MAX_QUEUED_PER_KEY / 100 + 1) as usize;
+        for _ in 0..jobs {
+            event(db, &job(db, "a", 0).await, "job.succeeded").await;
+        }
+        event(db, &job(db, "b", 0).await, "job.succeeded").await;
+        let count = |rows: &[(String, Value)], status: &str| {
+            rows.iter().filter(|(s, _)| s == status).count() as i64
+        };
+        let a = rows(db, "a").await;
+        assert_eq!(count(&a, "pending"), MAX_QUEUED_PER_KEY);
+        assert_eq!(count(&a, "failed"), jobs as i64 * 100 - MAX_QUEUED_PER_KEY);
+        let (why,): (String,) = on_pool!(&db.pool, p => sqlx::query_as(
+            "SELECT last_error FROM webhook_deliveries WHERE status = 'failed' LIMIT 1"
+        )
+        .fetch_one(p)
+        .await
+        .unwrap());
+        assert!(why.contains("pending"), "{why}");
+        // Another key's queue is its own.
+        assert_eq!(count(&rows(db, "b").await, "pending"), 1);
     }
 }

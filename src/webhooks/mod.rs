@@ -2,7 +2,8 @@
 //! deliveries (written with each job state change, see `store::webhooks`), signs each
 //! attempt, records it, and schedules a retry with exponential backoff. A receiver that
 //! answers slowly holds one of the dispatcher's bounded delivery slots for at most the
-//! request timeout, never a job worker.
+//! request timeout, never a job worker, and one API key holds at most
+//! `MAX_IN_FLIGHT_PER_KEY` of them: the keys take turns at the free ones.
 
 pub mod signature;
 pub mod target;
@@ -24,7 +25,10 @@ pub struct WebhookConfig {
 
 /// How long a receiver has to answer one attempt.
 const REQUEST_TIMEOUT: Duration = Duration::from_secs(10);
-const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+/// How long connecting may take, within the request timeout: a live receiver accepts in
+/// milliseconds, and an address that drops the connection attempt would otherwise hold a
+/// slot for the whole request timeout.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// A claimed delivery is this dispatcher's for this long: resolving, connecting and the
 /// request fit in it, so a live dispatcher never loses one it is still sending.
@@ -32,6 +36,10 @@ const LEASE_MS: i64 = 30_000;
 
 /// Deliveries in flight at once, per dispatcher.
 const MAX_IN_FLIGHT: usize = 16;
+
+/// Deliveries of one API key in flight at once, over all dispatchers: a key whose
+/// receivers never answer holds this many slots, the others stay free for other keys.
+const MAX_IN_FLIGHT_PER_KEY: i64 = 4;
 
 /// How often an idle dispatcher looks for due deliveries: the first attempt follows a
 /// job's state change within about this.
@@ -63,7 +71,10 @@ pub async fn run_dispatcher(db: Db, config: WebhookConfig, mut shutdown: watch::
         } else {
             match db.delivery_due().await {
                 Ok(false) => Vec::new(),
-                Ok(true) => match db.claim_deliveries(&id, LEASE_MS, free as i64).await {
+                Ok(true) => match db
+                    .claim_deliveries(&id, LEASE_MS, free as i64, MAX_IN_FLIGHT_PER_KEY)
+                    .await
+                {
                     Ok(due) => due,
                     Err(e) => {
                         tracing::warn!(error = %e, "claiming webhook deliveries failed");
@@ -159,7 +170,9 @@ async fn post(d: &DueDelivery, config: WebhookConfig) -> Result<u16, String> {
         .send()
         .await
         .map_err(|e| {
-            if e.is_timeout() {
+            if e.is_connect() && e.is_timeout() {
+                format!("cannot connect within {CONNECT_TIMEOUT:?}")
+            } else if e.is_timeout() {
                 format!("no answer within {REQUEST_TIMEOUT:?}")
             } else if e.is_connect() {
                 format!("cannot connect: {}", root_cause(&e))

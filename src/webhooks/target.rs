@@ -40,14 +40,27 @@ pub fn check_url(url: &str, allow_private: bool) -> Result<Url, String> {
             .trim_end_matches(']')
             .parse::<IpAddr>()
             .ok();
-        let local_name = host.eq_ignore_ascii_case("localhost") || host.ends_with(".localhost");
-        if local_name || literal.is_some_and(is_private) {
+        if is_local_name(host) || literal.is_some_and(is_private) {
             return Err(format!(
                 "`{host}` is a private or loopback address; the server needs --webhook-allow-private to post there"
             ));
         }
     }
     Ok(parsed)
+}
+
+/// Names that mean this host whatever DNS says: `localhost` and its subdomains (RFC 6761),
+/// the names Debian's /etc/hosts gives loopback, in any case and with trailing dots (the
+/// absolute `localhost.` is the same name). Registration and delivery both ask this (through
+/// `check_url`), so a name is refused when registered, not first at delivery.
+pub fn is_local_name(host: &str) -> bool {
+    let name = host.trim_end_matches('.').to_ascii_lowercase();
+    name == "localhost"
+        || name.ends_with(".localhost")
+        || matches!(
+            name.as_str(),
+            "localhost.localdomain" | "ip6-localhost" | "ip6-loopback"
+        )
 }
 
 /// The addresses to connect to for `url`: all of its host's, every one public unless
@@ -138,6 +151,27 @@ mod tests {
         }
         assert!(check_url("http://93.184.215.14/hook", false).is_ok());
         assert!(check_url("http://mes.example.com/hook", false).is_ok());
+    }
+
+    #[test]
+    fn localhost_spelled_any_way_is_local() {
+        for url in [
+            "http://localhost./",
+            "http://LOCALHOST./hook",
+            "http://LocalHost/",
+            "http://localhost../",
+            "http://mes.localhost./",
+            "http://localhost.localdomain/",
+            "http://LOCALHOST.LOCALDOMAIN./",
+            "http://ip6-localhost:9000/",
+            "http://127.0.0.1./",
+        ] {
+            let e = check_url(url, false).unwrap_err();
+            assert!(e.contains("private or loopback"), "{url}: {e}");
+            assert!(check_url(url, true).is_ok(), "{url}");
+        }
+        assert!(!is_local_name("localhost.example.com"));
+        assert!(!is_local_name("mylocalhost"));
     }
 
     #[test]

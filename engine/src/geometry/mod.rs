@@ -58,7 +58,7 @@ pub use removal::{
     simulate_removal, simulate_removal_with_progress, BlockGeometry, SimOptions, SimulationReport,
     StepGeometry,
 };
-pub use stl::{Mesh, StlError};
+pub use stl::{Mesh, StlError, StlRepairs};
 pub use stock::{Stock, StockShape};
 pub use sweep::{remove_sweep, RemovalStats, SubMove, ToolBody};
 

@@ -50,6 +50,39 @@ pub enum StlError {
     Topology(String),
 }
 
+/// What reading an STL repaired, where the repair is unambiguous: exact duplicate
+/// triangles (same vertices, same winding) dropped, since a surface covered twice encloses
+/// nothing more and doubled the volume; and a mesh whose enclosed volume came out negative
+/// (wound inside out, every normal pointing in) turned the right way out, since a solid's
+/// volume is positive and material is where the winding count is.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StlRepairs {
+    /// Exact duplicate triangles dropped.
+    pub duplicates: usize,
+    /// Every triangle's winding reversed (the file was inside out).
+    pub flipped: bool,
+}
+
+impl StlRepairs {
+    /// One sentence per repair made, for an upload's summary.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.duplicates > 0 {
+            w.push(format!(
+                "{} duplicate triangles (the same vertices in the same order as another) were dropped",
+                self.duplicates
+            ));
+        }
+        if self.flipped {
+            w.push(
+                "the mesh is inside out (its triangles wound so its volume is negative); it is read turned the right way out"
+                    .to_string(),
+            );
+        }
+        w
+    }
+}
+
 /// An indexed triangle mesh with vertices merged by position.
 #[derive(Clone, Debug)]
 pub struct Mesh {
@@ -65,8 +98,17 @@ impl Mesh {
     }
 
     /// [`Mesh::from_stl_bytes`] from a stream of `len` bytes: the file's bytes are read
-    /// a block at a time, never whole; only the merged mesh is kept.
+    /// a block at a time, never whole; only the merged mesh is kept. Repaired as
+    /// [`StlRepairs`] says.
     pub fn from_stl_reader(r: impl std::io::Read, len: u64) -> Result<Mesh, StlError> {
+        Mesh::from_stl_reader_repaired(r, len).map(|(mesh, _)| mesh)
+    }
+
+    /// [`Mesh::from_stl_reader`], with what was repaired.
+    pub fn from_stl_reader_repaired(
+        r: impl std::io::Read,
+        len: u64,
+    ) -> Result<(Mesh, StlRepairs), StlError> {
         let mut vertices: Vec<[f64; 3]> = Vec::new();
         let mut index: HashMap<[u64; 3], u32> = HashMap::new();
         let mut triangles = Vec::new();
@@ -95,12 +137,29 @@ impl Mesh {
                 StlError::Degenerate
             });
         }
-        let mesh = Mesh {
+        // Duplicates first: a closed mesh with one face given twice is not closed until
+        // the copy goes.
+        let mut repairs = StlRepairs::default();
+        let mut seen: std::collections::HashSet<[u32; 3]> =
+            std::collections::HashSet::with_capacity(triangles.len());
+        triangles.retain(|t| {
+            let fresh = seen.insert(canonical_rotation(*t));
+            repairs.duplicates += usize::from(!fresh);
+            fresh
+        });
+        drop(seen);
+        let mut mesh = Mesh {
             vertices,
             triangles,
         };
         mesh.check_closed()?;
-        Ok(mesh)
+        if mesh.volume() < 0.0 {
+            for t in &mut mesh.triangles {
+                t.swap(1, 2);
+            }
+            repairs.flipped = true;
+        }
+        Ok((mesh, repairs))
     }
 
     /// Every directed edge must be matched by the opposite edge of another triangle.
@@ -182,6 +241,13 @@ impl Mesh {
             })
             .sum()
     }
+}
+
+/// A triangle's corners rotated so the smallest comes first: the same triangle with the
+/// same winding gives the same key wherever the file started it.
+pub fn canonical_rotation<T: Ord + Copy>(t: [T; 3]) -> [T; 3] {
+    let k = (0..3).min_by_key(|&k| t[k]).expect("three corners");
+    [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
 }
 
 /// Signed edge function of point (pu, pv) against edge p→q, exactly antisymmetric in the

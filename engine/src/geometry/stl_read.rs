@@ -5,12 +5,12 @@
 //! line by line, each line bounded.
 //!
 //! [`scan`] checks a file without building a mesh: finite vertices, at least one
-//! non-degenerate triangle, bounds, volume, and closedness in constant memory (see
-//! [`EdgeSum`]).
+//! non-degenerate triangle, bounds, volume, closedness in constant memory (see
+//! [`EdgeSum`]), and the repairs a mesh makes (duplicates, inside out; 8 bytes a triangle).
 
 use std::io::{BufRead, BufReader, Read};
 
-use super::stl::StlError;
+use super::stl::{StlError, StlRepairs};
 
 /// The three vertices of a triangle as the file gives them (the normal is not used).
 pub type Triangle = [[f32; 3]; 3];
@@ -300,61 +300,145 @@ impl EdgeSum {
 /// What [`scan`] found in a valid STL.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StlScan {
-    /// Triangles with three distinct vertices (those a mesh keeps).
+    /// Triangles with three distinct vertices (those a mesh keeps), duplicates dropped.
     pub triangles: usize,
     pub bounds: ([f64; 3], [f64; 3]),
-    /// Enclosed volume, mm³.
+    /// Enclosed volume, mm³ (positive: an inside-out file is counted turned out).
     pub volume: f64,
+    /// What a mesh built from the file repairs (`Mesh::from_stl_reader_repaired`).
+    pub repairs: StlRepairs,
 }
 
-/// Reads an STL from `r` (of `len` bytes) and checks it as `Mesh::from_stl_bytes` does:
-/// finite vertices, at least one non-degenerate triangle, closed, in memory that does not
-/// grow with the file.
-pub fn scan<R: Read>(r: R, len: u64) -> Result<StlScan, StlError> {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    let mut kept = 0usize;
-    let mut volume = 0.0;
-    let mut edges = EdgeSum::default();
-    let read = for_each_triangle(r, len, |_, tri| {
-        let p = tri.map(vertex_f64);
-        for v in &p {
+/// A triangle's fingerprint: a 64-bit hash of its vertex keys from its smallest corner on,
+/// the same for the same triangle and winding (see `stl::canonical_rotation`).
+fn fingerprint(keys: [[u64; 3]; 3]) -> u64 {
+    super::stl::canonical_rotation(keys)
+        .iter()
+        .flatten()
+        .fold(0x4528_21E6_38D0_1377, |h, &w| mix(h, w))
+}
+
+/// Triangles a second pass skips: the fingerprints seen more than once (sorted), and
+/// whether each one's first copy has been passed.
+struct Skip {
+    repeated: Vec<u64>,
+    passed: Vec<bool>,
+    skipped: usize,
+}
+
+/// One pass over the file: bounds, kept triangles, volume, edges.
+struct Pass {
+    lo: [f64; 3],
+    hi: [f64; 3],
+    read: usize,
+    kept: usize,
+    volume: f64,
+    edges: EdgeSum,
+}
+
+fn pass<R: Read>(
+    r: R,
+    len: u64,
+    mut prints: Option<&mut Vec<u64>>,
+    mut skip: Option<&mut Skip>,
+) -> Result<Pass, StlError> {
+    let mut p = Pass {
+        lo: [f64::INFINITY; 3],
+        hi: [f64::NEG_INFINITY; 3],
+        read: 0,
+        kept: 0,
+        volume: 0.0,
+        edges: EdgeSum::default(),
+    };
+    p.read = for_each_triangle(r, len, |_, tri| {
+        let v = tri.map(vertex_f64);
+        for x in &v {
             for a in 0..3 {
-                lo[a] = lo[a].min(v[a]);
-                hi[a] = hi[a].max(v[a]);
+                p.lo[a] = p.lo[a].min(x[a]);
+                p.hi[a] = p.hi[a].max(x[a]);
             }
         }
-        let keys = p.map(|v| v.map(f64::to_bits));
+        let keys = v.map(|x| x.map(f64::to_bits));
         if keys[0] == keys[1] || keys[1] == keys[2] || keys[0] == keys[2] {
             return Ok(());
         }
-        kept += 1;
-        for k in 0..3 {
-            edges.add(keys[k], keys[(k + 1) % 3]);
+        if let Some(prints) = prints.as_deref_mut() {
+            prints.push(fingerprint(keys));
         }
-        let [a, b, c] = p;
+        if let Some(skip) = skip.as_deref_mut() {
+            if let Ok(i) = skip.repeated.binary_search(&fingerprint(keys)) {
+                if skip.passed[i] {
+                    skip.skipped += 1;
+                    return Ok(());
+                }
+                skip.passed[i] = true;
+            }
+        }
+        p.kept += 1;
+        for k in 0..3 {
+            p.edges.add(keys[k], keys[(k + 1) % 3]);
+        }
+        let [a, b, c] = v;
         let cr = [
             b[1] * c[2] - b[2] * c[1],
             b[2] * c[0] - b[0] * c[2],
             b[0] * c[1] - b[1] * c[0],
         ];
-        volume += (a[0] * cr[0] + a[1] * cr[1] + a[2] * cr[2]) / 6.0;
+        p.volume += (a[0] * cr[0] + a[1] * cr[1] + a[2] * cr[2]) / 6.0;
         Ok(())
     })?;
-    if kept == 0 {
-        return Err(if read == 0 {
+    Ok(p)
+}
+
+/// Reads an STL of `len` bytes and checks it as `Mesh::from_stl_reader_repaired` does:
+/// finite vertices, at least one non-degenerate triangle, exact duplicate triangles
+/// dropped, closed, turned right way out. `open` gives the file from its start: a file with
+/// duplicates is read twice (the second time skipping them). Memory: 8 bytes per triangle
+/// (a fingerprint, to find duplicates; two triangles sharing one by chance, about
+/// n²/2^65, would be taken for duplicates), nothing else grows with the file.
+pub fn scan<R: Read>(
+    mut open: impl FnMut() -> Result<R, StlError>,
+    len: u64,
+) -> Result<StlScan, StlError> {
+    let mut prints = Vec::new();
+    let mut p = pass(open()?, len, Some(&mut prints), None)?;
+    if p.kept == 0 {
+        return Err(if p.read == 0 {
             StlError::Empty
         } else {
             StlError::Degenerate
         });
     }
-    if !edges.closed() {
+    prints.sort_unstable();
+    let mut repeated: Vec<u64> = prints
+        .windows(2)
+        .filter(|w| w[0] == w[1])
+        .map(|w| w[0])
+        .collect();
+    drop(prints);
+    repeated.dedup();
+    let mut repairs = StlRepairs::default();
+    if !repeated.is_empty() {
+        let mut skip = Skip {
+            passed: vec![false; repeated.len()],
+            repeated,
+            skipped: 0,
+        };
+        p = pass(open()?, len, None, Some(&mut skip))?;
+        repairs.duplicates = skip.skipped;
+    }
+    if !p.edges.closed() {
         return Err(StlError::NotClosedSomewhere);
     }
+    if p.volume < 0.0 {
+        p.volume = -p.volume;
+        repairs.flipped = true;
+    }
     Ok(StlScan {
-        triangles: kept,
-        bounds: (lo, hi),
-        volume,
+        triangles: p.kept,
+        bounds: (p.lo, p.hi),
+        volume: p.volume,
+        repairs,
     })
 }
 
@@ -415,7 +499,7 @@ mod tests {
     #[test]
     fn a_closed_cube_scans_as_its_mesh_reads() {
         for bytes in [cube(false), ascii(&cube(false)).into_bytes()] {
-            let s = scan(&bytes[..], bytes.len() as u64).unwrap();
+            let s = scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap();
             let mesh = Mesh::from_stl_bytes(&bytes).unwrap();
             assert_eq!(s.triangles, mesh.triangles.len());
             assert_eq!(s.bounds, mesh.bounds());
@@ -428,13 +512,101 @@ mod tests {
     fn an_open_cube_is_refused_by_both_checks() {
         for bytes in [cube(true), ascii(&cube(true)).into_bytes()] {
             assert_eq!(
-                scan(&bytes[..], bytes.len() as u64),
+                scan(|| Ok(&bytes[..]), bytes.len() as u64),
                 Err(StlError::NotClosedSomewhere)
             );
             assert!(matches!(
                 Mesh::from_stl_bytes(&bytes),
                 Err(StlError::NotClosed { open_edges: 3, .. })
             ));
+        }
+    }
+
+    /// The binary STL of `tris` (triangles as cube corner numbers, see `cube`).
+    fn binary(tris: &[[usize; 3]]) -> Vec<u8> {
+        let v = |i: usize| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32];
+        let mut out = vec![0u8; 80];
+        out.extend_from_slice(&(tris.len() as u32).to_le_bytes());
+        for f in tris {
+            out.extend_from_slice(&[0u8; 12]);
+            for &i in f {
+                for c in v(i) {
+                    out.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+            out.extend_from_slice(&[0u8; 2]);
+        }
+        out
+    }
+
+    /// The unit cube's triangles, outward (as `cube` writes them).
+    fn cube_faces(bytes: &[u8]) -> Vec<[usize; 3]> {
+        (0..12)
+            .map(|t| {
+                let at = 84 + 50 * t + 12;
+                [0, 1, 2].map(|k| {
+                    let c = |j: usize| {
+                        let o = at + 12 * k + 4 * j;
+                        f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as usize
+                    };
+                    c(0) | c(1) << 1 | c(2) << 2
+                })
+            })
+            .collect()
+    }
+
+    /// Both readers on `bytes`: (scan, mesh volume, mesh repairs).
+    fn both(bytes: &[u8]) -> (StlScan, f64, StlRepairs) {
+        let s = scan(|| Ok(bytes), bytes.len() as u64).unwrap();
+        let (mesh, repairs) = Mesh::from_stl_reader_repaired(bytes, bytes.len() as u64).unwrap();
+        assert_eq!(s.triangles, mesh.triangles.len());
+        (s, mesh.volume(), repairs)
+    }
+
+    #[test]
+    fn an_inside_out_cube_is_read_turned_out_and_says_so() {
+        let faces: Vec<[usize; 3]> = cube_faces(&cube(false))
+            .into_iter()
+            .map(|[a, b, c]| [a, c, b])
+            .collect();
+        for bytes in [binary(&faces), ascii(&binary(&faces)).into_bytes()] {
+            let (s, volume, repairs) = both(&bytes);
+            assert!((s.volume - 1.0).abs() < 1e-12, "{}", s.volume);
+            assert!((volume - 1.0).abs() < 1e-12, "{volume}");
+            let want = StlRepairs {
+                duplicates: 0,
+                flipped: true,
+            };
+            assert_eq!((s.repairs, repairs), (want, want));
+        }
+        // The right way out: nothing to say.
+        let (s, _, repairs) = both(&cube(false));
+        assert_eq!(
+            (s.repairs, repairs),
+            (StlRepairs::default(), StlRepairs::default())
+        );
+        assert!(s.repairs.warnings().is_empty());
+    }
+
+    #[test]
+    fn duplicate_triangles_are_dropped_wherever_the_copy_starts() {
+        let faces = cube_faces(&cube(false));
+        // Every face twice (the volume doubled before), the copies rotated.
+        let mut twice = faces.clone();
+        twice.extend(faces.iter().map(|&[a, b, c]| [b, c, a]));
+        // One face three times: not closed until the copies go.
+        let mut one = faces.clone();
+        one.push(faces[4]);
+        one.push([faces[4][2], faces[4][0], faces[4][1]]);
+        for (tris, dropped) in [(twice, 12), (one, 2)] {
+            for bytes in [binary(&tris), ascii(&binary(&tris)).into_bytes()] {
+                let (s, volume, repairs) = both(&bytes);
+                assert_eq!((s.triangles, s.repairs.duplicates), (12, dropped));
+                assert_eq!(repairs.duplicates, dropped);
+                assert!((s.volume - 1.0).abs() < 1e-12, "{}", s.volume);
+                assert!((volume - 1.0).abs() < 1e-12, "{volume}");
+                assert!(s.repairs.warnings()[0].contains("duplicate"));
+            }
         }
     }
 
@@ -451,7 +623,7 @@ mod tests {
         bytes[at..at + 12].copy_from_slice(&b);
         bytes[at + 12..at + 24].copy_from_slice(&a);
         assert_eq!(
-            scan(&bytes[..], bytes.len() as u64),
+            scan(|| Ok(&bytes[..]), bytes.len() as u64),
             Err(StlError::NotClosedSomewhere)
         );
     }
@@ -462,12 +634,12 @@ mod tests {
         // The stream ends before the count's records.
         let short = &bytes[..bytes.len() - 50];
         assert!(matches!(
-            scan(short, bytes.len() as u64),
+            scan(|| Ok(short), bytes.len() as u64),
             Err(StlError::Truncated { actual, .. }) if actual == 84 + 50 * 11
         ));
         // The length given is not the count's.
         assert!(matches!(
-            scan(short, short.len() as u64),
+            scan(|| Ok(short), short.len() as u64),
             Err(StlError::Truncated {
                 expected: 684,
                 actual: 634,
@@ -478,7 +650,7 @@ mod tests {
         let mut long = bytes.clone();
         long.extend_from_slice(&[0u8; 50]);
         assert!(matches!(
-            scan(&long[..], bytes.len() as u64),
+            scan(|| Ok(&long[..]), bytes.len() as u64),
             Err(StlError::Truncated { actual: 734, .. })
         ));
     }
@@ -489,7 +661,7 @@ mod tests {
         let at = 84 + 50 * 5 + 12 + 4;
         bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
         assert_eq!(
-            scan(&bytes[..], bytes.len() as u64),
+            scan(|| Ok(&bytes[..]), bytes.len() as u64),
             Err(StlError::NonFinite { triangle: 5 })
         );
     }
@@ -497,19 +669,19 @@ mod tests {
     #[test]
     fn ascii_errors_name_the_line() {
         let text = ascii(&cube(false)).replace("      VERTEX 1 0 0\n", "      VERTEX 1 x 0\n");
-        let err = scan(text.as_bytes(), text.len() as u64).unwrap_err();
+        let err = scan(|| Ok(text.as_bytes()), text.len() as u64).unwrap_err();
         assert!(
             err.to_string().contains("line ") && err.to_string().contains("`x` is not a number"),
             "{err}"
         );
         let long = format!("solid a\n{}\n", "9".repeat(5000));
-        let err = scan(long.as_bytes(), long.len() as u64).unwrap_err();
+        let err = scan(|| Ok(long.as_bytes()), long.len() as u64).unwrap_err();
         assert!(
             err.to_string().contains("line 2 is longer than 4096 bytes"),
             "{err}"
         );
         let cut = "solid a\n  facet normal 0 0 1\n";
-        let err = scan(cut.as_bytes(), cut.len() as u64).unwrap_err();
+        let err = scan(|| Ok(cut.as_bytes()), cut.len() as u64).unwrap_err();
         assert!(
             err.to_string().contains("ends where `outer` was expected"),
             "{err}"
@@ -536,7 +708,7 @@ mod tests {
     fn an_empty_solid_is_empty() {
         let text = "solid a\nendsolid a\n";
         assert_eq!(
-            scan(text.as_bytes(), text.len() as u64),
+            scan(|| Ok(text.as_bytes()), text.len() as u64),
             Err(StlError::Empty)
         );
     }

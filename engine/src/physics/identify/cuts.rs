@@ -180,6 +180,17 @@ pub fn unit_coefficients(j: usize, exponent: f64) -> CuttingCoefficients {
     k
 }
 
+/// A test cut's feed, depth and forces within a milling test's range (see
+/// [`super::check_feed`]), named `cuts[i].…`; what can be told without the tool.
+pub fn check_cut(i: usize, cut: &IdentificationCut) -> Result<(), PhysicsError> {
+    super::check_feed(format!("cuts[{i}].feed_per_tooth"), cut.feed_per_tooth)?;
+    super::check_depth(format!("cuts[{i}].depth"), cut.depth)?;
+    for (c, v) in cut.force.iter().enumerate() {
+        super::check_force(format!("cuts[{i}].{}", ["fx", "fy", "fz"][c]), *v)?;
+    }
+    Ok(())
+}
+
 /// Identifies the coefficients of `law` from steady test cuts with `tool` (any shape,
 /// helix and runout as the tool has them).
 pub fn identify_from_cuts(
@@ -195,7 +206,7 @@ pub fn identify_from_cuts(
     }
     let mut engagements = Vec::with_capacity(cuts.len());
     for (i, cut) in cuts.iter().enumerate() {
-        positive(format!("cuts[{i}].feed_per_tooth"), cut.feed_per_tooth)?;
+        check_cut(i, cut)?;
         let e = steady_cut_engagement(tool, cut.depth, cut.immersion).map_err(|e| match e {
             PhysicsError::Invalid { field, message } => PhysicsError::Invalid {
                 field: format!("cuts[{i}].{field}"),

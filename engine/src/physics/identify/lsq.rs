@@ -138,7 +138,7 @@ pub fn fit_unit_forces(
     assert_eq!(n, feeds.len(), "one feed per observation");
     for (i, m) in measured.iter().enumerate() {
         for (c, v) in m.iter().enumerate() {
-            crate::physics::finite(format!("{field}[{i}].{}", ["fx", "fy", "fz"][c]), *v)?;
+            super::check_force(format!("{field}[{i}].{}", ["fx", "fy", "fz"][c]), *v)?;
         }
     }
     let distinct = check_set(n, feeds, law, field)?;

@@ -22,8 +22,8 @@ pub mod cuts;
 pub mod lsq;
 
 pub use cuts::{
-    identify_from_cuts, steady_cut_engagement, unit_coefficients, IdentificationCut, Immersion,
-    MAX_CUTS,
+    check_cut, identify_from_cuts, steady_cut_engagement, unit_coefficients, IdentificationCut,
+    Immersion, MAX_CUTS,
 };
 pub use lsq::{
     check_set, fit_unit_forces, t_quantile_975, AxisQuality, Estimate, ForceLaw,
@@ -31,7 +31,64 @@ pub use lsq::{
 };
 
 use super::material::CuttingCoefficients;
-use super::{finite, positive, PhysicsError};
+use super::{finite, PhysicsError};
+
+/// The feed per tooth of a milling test, mm: from 0.1 µm (micro-milling) to 10 mm. A feed
+/// outside it is a unit or typing error, and fits to nonsense (feeds of 1e308 gave all-zero
+/// coefficients).
+pub const FEED_PER_TOOTH_RANGE_MM: (f64, f64) = (1e-4, 10.0);
+/// The axial depth of a milling test, mm: from 1 µm to 100 mm (a depth of 1e-300 gave a
+/// ktc of 2e304 N/mm²).
+pub const DEPTH_RANGE_MM: (f64, f64) = (1e-3, 100.0);
+/// The largest mean force component a test can measure, N (a dynamometer's range is
+/// kilonewtons; 1e6 N is a unit error).
+pub const MAX_FORCE_N: f64 = 1e6;
+
+fn in_range(field: String, v: f64, (lo, hi): (f64, f64), what: &str) -> Result<f64, PhysicsError> {
+    finite(field.clone(), v)?;
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(PhysicsError::invalid(
+            field,
+            format!("{v} mm is not {what} (from {lo} to {hi} mm)"),
+        ))
+    }
+}
+
+/// A test's feed per tooth, mm, within [`FEED_PER_TOOTH_RANGE_MM`].
+pub fn check_feed(field: impl Into<String>, v: f64) -> Result<f64, PhysicsError> {
+    in_range(
+        field.into(),
+        v,
+        FEED_PER_TOOTH_RANGE_MM,
+        "a milling test's feed per tooth",
+    )
+}
+
+/// A test's axial depth, mm, within [`DEPTH_RANGE_MM`].
+pub fn check_depth(field: impl Into<String>, v: f64) -> Result<f64, PhysicsError> {
+    in_range(
+        field.into(),
+        v,
+        DEPTH_RANGE_MM,
+        "a milling test's axial depth",
+    )
+}
+
+/// A measured mean force component, N: finite and at most [`MAX_FORCE_N`] either way.
+pub fn check_force(field: impl Into<String>, v: f64) -> Result<f64, PhysicsError> {
+    let field = field.into();
+    finite(field.clone(), v)?;
+    if v.abs() <= MAX_FORCE_N {
+        Ok(v)
+    } else {
+        Err(PhysicsError::invalid(
+            field,
+            format!("{v} N is beyond any cutting test's force (at most {MAX_FORCE_N} N either way): check the unit (N)"),
+        ))
+    }
+}
 
 /// Closed-form mean force (F̄x, F̄y, F̄z) of a flat end mill (zero or any helix: the mean over
 /// a revolution does not depend on it) with `flutes` teeth, axial depth `a`, feed per tooth `c`,
@@ -109,7 +166,7 @@ impl IdentificationSetup {
                 format!("must be between 1 and 64, got {}", self.flutes),
             ));
         }
-        positive("axial_depth", self.axial_depth)?;
+        check_depth("axial_depth", self.axial_depth)?;
         finite("entry", self.entry)?;
         finite("exit", self.exit)?;
         if !(self.exit > self.entry
@@ -166,13 +223,13 @@ pub fn identify_coefficients(
 ) -> Result<Identification, PhysicsError> {
     setup.validate()?;
     for (i, m) in measurements.iter().enumerate() {
-        positive(
+        check_feed(
             format!("measurements[{i}].feed_per_tooth"),
             m.feed_per_tooth,
         )?;
-        finite(format!("measurements[{i}].fx"), m.fx)?;
-        finite(format!("measurements[{i}].fy"), m.fy)?;
-        finite(format!("measurements[{i}].fz"), m.fz)?;
+        check_force(format!("measurements[{i}].fx"), m.fx)?;
+        check_force(format!("measurements[{i}].fy"), m.fy)?;
+        check_force(format!("measurements[{i}].fz"), m.fz)?;
     }
     let mut feeds: Vec<f64> = measurements.iter().map(|m| m.feed_per_tooth).collect();
     feeds.sort_by(f64::total_cmp);
