@@ -66,7 +66,9 @@ enum Command {
     Interpret(InterpretArgs),
     /// Simulate a program offline: writes summary.json, blocks.csv and stock.stl.
     Run(run_cli::RunArgs),
-    /// Stability lobes: prints CSV rpm,depth_mm for INPUT.json (the `stability` job's options).
+    /// Stability lobes: prints CSV rpm,depth_mm for INPUT.json (the `stability` job's options:
+    /// with `recommend` the recommended speed on stderr; with `allowance` and
+    /// `allowances_mm` the 3-D lobes as allowance_mm,rpm,depth_mm).
     Stability {
         /// The lobe input: method (zoa|sdm|fdm), teeth, coefficients, immersion, modes, speeds.
         input: std::path::PathBuf,
@@ -323,8 +325,11 @@ fn main() -> ExitCode {
     match cli.command {
         Command::Interpret(args) => interpret(args),
         Command::Stability { input } => match stability_cli::run(&input) {
-            Ok(csv) => {
-                print!("{csv}");
+            Ok(out) => {
+                print!("{}", out.csv);
+                if let Some(note) = out.note {
+                    eprintln!("{note}");
+                }
                 ExitCode::SUCCESS
             }
             Err(e) => {

@@ -1,20 +1,62 @@
 //! `millsim stability INPUT.json`: stability lobes offline. Reads the same JSON object the
-//! `stability` job takes ([`millsim_engine::physics::stability::StabilityInput`]) and returns
-//! the CSV `rpm,depth_mm` (critical axial depth per spindle speed) for stdout.
+//! `stability` job takes (its options, parsed by the job's own parser: the lobe input, with
+//! `recommend` {near_rpm, depth_mm, window_rpm} or `allowance` and `allowances_mm` for 3-D
+//! lobes) and returns the CSV for stdout: `rpm,depth_mm` (critical axial depth per spindle
+//! speed) or `allowance_mm,rpm,depth_mm`, and the recommendation's line for stderr.
 
 use std::path::Path;
 
-use millsim_engine::physics::stability::{compute_lobes, StabilityInput};
+use millsim_engine::physics::stability::{
+    compute_lobes, compute_lobes_3d, recommend_spindle_speed,
+};
+
+use crate::jobs::stability::{options, StabilityRequest};
+
+/// What the command prints: the CSV, and a note (the recommended speed) when asked.
+#[derive(Debug)]
+pub struct StabilityOutput {
+    pub csv: String,
+    pub note: Option<String>,
+}
 
 /// Reads INPUT.json, computes the lobes with the chosen method and returns the CSV text.
 /// Errors name the file and, for bad input, the offending field.
-pub fn run(path: &Path) -> Result<String, String> {
+pub fn run(path: &Path) -> Result<StabilityOutput, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let de = &mut serde_json::Deserializer::from_str(&text);
-    let input: StabilityInput = serde_path_to_error::deserialize(de)
-        .map_err(|e| format!("{}: field `{}`: {}", path.display(), e.path(), e.inner()))?;
-    let curve = compute_lobes(&input).map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(curve.to_csv())
+    let value: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    // The job's fields are `options.X`; here the file is the options object.
+    let request = options(&value).map_err(|e| {
+        let field = e.field.strip_prefix("options.").unwrap_or(&e.field);
+        format!("{}: field `{field}`: {}", path.display(), e.message)
+    })?;
+    let refused = |e: millsim_engine::physics::PhysicsError| format!("{}: {e}", path.display());
+    Ok(match request {
+        StabilityRequest::Lobes(input, recommend) => {
+            let curve = compute_lobes(&input).map_err(refused)?;
+            let note = recommend.map(|r| {
+                match recommend_spindle_speed(&curve.points, r.near_rpm, r.depth_mm, r.window_rpm)
+                {
+                    Some(rec) => format!(
+                        "recommended: {}",
+                        serde_json::to_string(&rec).unwrap_or_default()
+                    ),
+                    None => format!(
+                        "recommended: none: no speed within {} rpm of {} rpm is stable at {} mm",
+                        r.window_rpm, r.near_rpm, r.depth_mm
+                    ),
+                }
+            });
+            StabilityOutput {
+                csv: curve.to_csv(),
+                note,
+            }
+        }
+        StabilityRequest::Surface(input) => StabilityOutput {
+            csv: compute_lobes_3d(&input).map_err(refused)?.to_csv(),
+            note: None,
+        },
+    })
 }
 
 #[cfg(test)]
@@ -31,7 +73,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("input.json");
         std::fs::write(&path, INPUT).unwrap();
-        let csv = run(&path).unwrap();
+        let csv = run(&path).unwrap().csv;
         let mut lines = csv.lines();
         assert_eq!(lines.next(), Some("rpm,depth_mm"));
         let rows: Vec<(f64, f64)> = lines
@@ -52,7 +94,7 @@ mod tests {
             .replace("\"zoa\"", "\"sdm\"")
             .replace("\"from\":5000,\"to\":25000", "\"from\":15500,\"to\":16000");
         std::fs::write(&path, sdm).unwrap();
-        let csv = run(&path).unwrap();
+        let csv = run(&path).unwrap().csv;
         assert_eq!(csv.lines().count(), 4);
         let at_15750: f64 = csv
             .lines()
@@ -69,5 +111,30 @@ mod tests {
         let err = run(&path).unwrap_err();
         assert!(err.contains("modes_x[0].damping"), "{err}");
         assert!(run(&dir.path().join("missing.json")).is_err());
+
+        // The job's `recommend` too: the centre of the widest stable pocket near 15,000 rpm at
+        // 0.5 mm (above the 0.298 mm floor: a pocket's speed, not any speed).
+        let with = INPUT.replace("\"steps_per_period\":40", "\"steps_per_period\":40,\"recommend\":{\"near_rpm\":15000,\"depth_mm\":0.5}");
+        std::fs::write(&path, with).unwrap();
+        let out = run(&path).unwrap();
+        let note = out.note.expect("a recommendation");
+        assert!(note.starts_with("recommended: {"), "{note}");
+        let rec: serde_json::Value =
+            serde_json::from_str(note.strip_prefix("recommended: ").unwrap()).unwrap();
+        let rpm = rec["rpm"].as_f64().unwrap();
+        let depth_at = |csv: &str, at: f64| -> f64 {
+            csv.lines()
+                .skip(1)
+                .map(|l| l.split_once(',').unwrap())
+                .map(|(r, d)| (r.parse::<f64>().unwrap(), d.parse::<f64>().unwrap()))
+                .min_by(|a, b| (a.0 - at).abs().total_cmp(&(b.0 - at).abs()))
+                .unwrap()
+                .1
+        };
+        assert!(depth_at(&out.csv, rpm) >= 0.5, "{note}");
+        let bad = INPUT.replace("\"steps_per_period\":40", "\"steps_per_period\":40,\"recommend\":{\"near_rpm\":-1,\"depth_mm\":0.5}");
+        std::fs::write(&path, bad).unwrap();
+        let err = run(&path).unwrap_err();
+        assert!(err.contains("recommend.near_rpm"), "{err}");
     }
 }

@@ -13,7 +13,7 @@ mod inputs;
 mod interpret;
 mod rotary_feed;
 mod simulate;
-mod stability;
+pub(crate) mod stability;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
