@@ -11,6 +11,7 @@ mod job_limits;
 mod jobs;
 mod metrics;
 mod problem;
+mod program_args;
 mod queue;
 mod run_cli;
 mod stability_cli;
@@ -261,43 +262,12 @@ struct PostArgs {
     out: std::path::PathBuf,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum DialectArg {
-    Auto,
-    Fanuc,
-    Linuxcnc,
-}
-
 #[derive(clap::Args)]
 struct InterpretArgs {
     /// The NC program (G-code, or APT/CLS).
     file: std::path::PathBuf,
-    #[arg(long, value_enum, default_value = "auto")]
-    dialect: DialectArg,
-    /// LinuxCNC tool table for G43 tool lengths.
-    #[arg(long)]
-    tool_table: Option<std::path::PathBuf>,
-    /// Fanuc: length words without a decimal point count in thousandths of a mm.
-    #[arg(long)]
-    fanuc_implied_decimal: bool,
-    /// Fanuc parameter CCR: corner rounding R and chamfer C written without the comma.
-    #[arg(long)]
-    fanuc_corners_without_comma: bool,
-    /// M codes that do not move the machine and may be skipped, e.g. --passthrough-m 428,429.
-    #[arg(long, value_delimiter = ',')]
-    passthrough_m: Vec<u32>,
-    /// Skip blocks that start with `/` (block-delete switch on).
-    #[arg(long)]
-    block_delete: bool,
-    /// Refuse M codes the interpreter does not know instead of running them as no-ops
-    /// with a warning.
-    #[arg(long)]
-    strict_m_codes: bool,
-    /// Folder of the programs that calls to programs not in the file run (`M98 P1000`:
-    /// `O1000.nc`; `o<name> call`: `name.ngc`). A library move's row has `source_file`
-    /// (the index into the list printed on stderr) and `source_line`.
-    #[arg(long, value_name = "DIR")]
-    library: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    program: program_args::ProgramArgs,
     /// The tool of a tool number, as `T1=tool.json` (JSON as POST /v1/tools takes it);
     /// repeat per number. Cutter compensation (G41 D1) takes its radius where the program's
     /// tool table and G10 give none, as `millsim run` does.
@@ -597,34 +567,19 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let tool_table = match &args.tool_table {
-        Some(path) => match std::fs::read_to_string(path) {
-            Ok(t) => Some(t),
-            Err(e) => {
-                eprintln!("{}: {e}", path.display());
-                return ExitCode::from(2);
-            }
-        },
-        None => None,
-    };
-    let job_options = jobs::InterpretOptions {
-        dialect: match args.dialect {
-            DialectArg::Auto => nc::Dialect::Auto,
-            DialectArg::Fanuc => nc::Dialect::Fanuc,
-            DialectArg::Linuxcnc => nc::Dialect::LinuxCnc,
-        },
-        fanuc_implied_decimal: args.fanuc_implied_decimal,
-        fanuc_corners_without_comma: args.fanuc_corners_without_comma,
-        passthrough_m_codes: args.passthrough_m.clone(),
-        block_delete: args.block_delete,
-        strict_m_codes: args.strict_m_codes,
-        tool_table,
+    let job_options = match args.program.job_options() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::from(2);
+        }
     };
     // The same options a job gets; only the tool table's errors name its own file.
     let mut options = match job_options.engine_options() {
         Ok(o) => o,
         Err(diags) => {
             let table = args
+                .program
                 .tool_table
                 .as_ref()
                 .map(|p| p.display().to_string())
@@ -649,7 +604,7 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             }
         }
     }
-    if let Some(dir) = &args.library {
+    if let Some(dir) = &args.program.library {
         match nc::ProgramLibrary::from_dir(dir) {
             Ok(l) => options.library = Some(std::sync::Arc::new(l)),
             Err(e) => {

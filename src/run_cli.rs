@@ -36,10 +36,6 @@ pub struct RunArgs {
     /// (`(T1 D=6 CR=0 - flat end mill)`) describe the tools, with a warning per assumption.
     #[arg(long, value_name = "FILE")]
     tool_library: Option<PathBuf>,
-    /// Folder of the programs that calls to programs not in the file run (`M98 P1000`:
-    /// `O1000.nc`; `o<name> call`: `name.ngc`).
-    #[arg(long, value_name = "DIR")]
-    library: Option<PathBuf>,
     /// A built-in material name (TC6, Al7075-T6, Al6082-T6) or a material JSON file.
     #[arg(long)]
     material: String,
@@ -67,9 +63,9 @@ pub struct RunArgs {
     /// (tool-centre-point control: X Y Z are the tool tip in the part frame).
     #[arg(long, default_value = "machine")]
     axes: String,
-    /// M codes that do not move the machine and may be skipped, e.g. 428,429.
-    #[arg(long, value_delimiter = ',')]
-    passthrough_m: Vec<u32>,
+    /// The program's options, as `millsim interpret` and the jobs take them.
+    #[command(flatten)]
+    program_options: crate::program_args::ProgramArgs,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -184,7 +180,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
     };
     inputs.insert("stock".into(), stock);
-    if let Some(dir) = &args.library {
+    if let Some(dir) = &args.program_options.library {
         let library = millsim_engine::nc::ProgramLibrary::from_dir(dir)
             .map_err(|e| format!("--library {e}"))?;
         for f in library.files() {
@@ -268,9 +264,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         options.insert("material".into(), Value::String(args.material.clone()));
     }
     options.insert("axes".into(), Value::String(args.axes.clone()));
-    if !args.passthrough_m.is_empty() {
-        options.insert("passthrough_m_codes".into(), json!(args.passthrough_m));
-    }
+    args.program_options.insert_into(&mut options)?;
     if let Some(c) = args.resolution {
         options.insert("cell_mm".into(), json!(c));
     }

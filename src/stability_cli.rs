@@ -35,8 +35,7 @@ pub fn run(path: &Path) -> Result<StabilityOutput, String> {
         StabilityRequest::Lobes(input, recommend) => {
             let curve = compute_lobes(&input).map_err(refused)?;
             let note = recommend.map(|r| {
-                match recommend_spindle_speed(&curve.points, r.near_rpm, r.depth_mm, r.window_rpm)
-                {
+                match recommend_spindle_speed(&curve.points, r.near_rpm, r.depth_mm, r.window_rpm) {
                     Some(rec) => format!(
                         "recommended: {}",
                         serde_json::to_string(&rec).unwrap_or_default()
@@ -114,7 +113,10 @@ mod tests {
 
         // The job's `recommend` too: the centre of the widest stable pocket near 15,000 rpm at
         // 0.5 mm (above the 0.298 mm floor: a pocket's speed, not any speed).
-        let with = INPUT.replace("\"steps_per_period\":40", "\"steps_per_period\":40,\"recommend\":{\"near_rpm\":15000,\"depth_mm\":0.5}");
+        let with = INPUT.replace(
+            "\"steps_per_period\":40",
+            "\"steps_per_period\":40,\"recommend\":{\"near_rpm\":15000,\"depth_mm\":0.5}",
+        );
         std::fs::write(&path, with).unwrap();
         let out = run(&path).unwrap();
         let note = out.note.expect("a recommendation");
@@ -132,7 +134,10 @@ mod tests {
                 .1
         };
         assert!(depth_at(&out.csv, rpm) >= 0.5, "{note}");
-        let bad = INPUT.replace("\"steps_per_period\":40", "\"steps_per_period\":40,\"recommend\":{\"near_rpm\":-1,\"depth_mm\":0.5}");
+        let bad = INPUT.replace(
+            "\"steps_per_period\":40",
+            "\"steps_per_period\":40,\"recommend\":{\"near_rpm\":-1,\"depth_mm\":0.5}",
+        );
         std::fs::write(&path, bad).unwrap();
         let err = run(&path).unwrap_err();
         assert!(err.contains("recommend.near_rpm"), "{err}");

@@ -480,3 +480,83 @@ fn run_takes_a_tools_own_limits_and_keeps_plunges_at_their_feed() {
     assert!(f <= 150.0, "{plunge}");
     assert!(err.contains("cycle time:"), "{err}");
 }
+
+#[test]
+fn run_takes_the_program_options_interpret_and_the_jobs_take() {
+    // A Fanuc program with implied decimals (X60000 is 60 mm) and a block-delete line that
+    // would plunge 50 mm into the block: run as the control runs it with the switch on.
+    let dir = tempfile::tempdir().unwrap();
+    let program = dir.path().join("o1000.nc");
+    std::fs::write(
+        &program,
+        "O1000\nG21 G90\nS10000 M3\nG0 Z5000\nG0 X-10000 Y0\nG0 Z-5000\n/G1 Z-50000 F100\nG1 X60000 F4000\nG0 Z5000\nM30\n",
+    )
+    .unwrap();
+    let tool = dir.path().join("tool.json");
+    std::fs::write(
+        &tool,
+        r#"{"type":"flat","diameter_mm":10,"flutes":4,"flute_length_mm":20}"#,
+    )
+    .unwrap();
+    let run = |extra: &[&str]| {
+        let out_dir = dir.path().join("out");
+        let _ = std::fs::remove_dir_all(&out_dir);
+        let out = Command::new(BIN)
+            .args([
+                "run",
+                "--block=0,-20,-10,100,40,10",
+                "--material",
+                "Al7075-T6",
+                "--cell",
+                "0.25",
+            ])
+            .args(extra)
+            .arg("--program")
+            .arg(&program)
+            .arg("--tool")
+            .arg(format!("T1={}", tool.display()))
+            .arg("--out")
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        let summary = std::fs::read(out_dir.join("summary.json"))
+            .ok()
+            .map(|b| serde_json::from_slice::<serde_json::Value>(&b).unwrap());
+        (out, summary)
+    };
+    let (out, summary) = run(&[
+        "--dialect",
+        "fanuc",
+        "--fanuc-implied-decimal",
+        "--block-delete",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary = summary.unwrap();
+    let analytic = 5.0 * (60.0 * 10.0 + std::f64::consts::PI * 25.0 / 2.0);
+    let removed = summary["removed_volume_mm3"].as_f64().unwrap();
+    assert!(
+        (removed - analytic).abs() / analytic < 0.005,
+        "{removed} vs {analytic}"
+    );
+    // Without the switch the deleted block runs: 50 mm down through a 10 mm block's floor
+    // is refused or flagged, and the removed volume is not the slot's.
+    let (_, without) = run(&["--dialect", "fanuc", "--fanuc-implied-decimal"]);
+    if let Some(s) = without {
+        let r = s["removed_volume_mm3"].as_f64().unwrap();
+        assert!((r - analytic).abs() / analytic > 0.01, "{r}");
+    }
+    // A tool table file that does not read names the file.
+    let table = dir.path().join("bad.tbl");
+    std::fs::write(&table, "T1 P1 D=oops\n").unwrap();
+    let (out, _) = run(&["--tool-table", table.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("tool_table"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

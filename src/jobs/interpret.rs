@@ -13,8 +13,9 @@ use crate::store::ResourceKind;
 
 pub const INPUTS: [InputSpec; 1] = [input("program", ResourceKind::Program, true)];
 
-/// Options of an `interpret` job.
-#[derive(Debug, Default, Deserialize)]
+/// The program options: of an `interpret` job, and (the same fields) of every job and
+/// command that reads an NC program (`simulate`, `optimize`, `millsim interpret`, `run`).
+#[derive(Debug, Default, Clone, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct InterpretOptions {
     #[serde(default = "default_dialect")]

@@ -102,6 +102,15 @@ pub struct SimulateOptions {
     /// Refuse M codes the interpreter does not know instead of warning.
     #[serde(default)]
     pub strict_m_codes: bool,
+    /// Fanuc parameter CCR: corner rounding R and chamfer C written without the comma.
+    #[serde(default)]
+    pub fanuc_corners_without_comma: bool,
+    /// Skip blocks that start with `/` (the control's block-delete switch on).
+    #[serde(default)]
+    pub block_delete: bool,
+    /// A LinuxCNC tool table (`T1 P1 D6 Z50`), for G43 tool lengths.
+    #[serde(default)]
+    pub tool_table: Option<String>,
     /// On a machine with rotary axes: `machine` (X..C are machine axes, the default) or
     /// `tool_tip` (tool-centre-point control: X Y Z are the tip in the part frame).
     #[serde(default)]
@@ -125,8 +134,26 @@ fn default_grid_mib() -> u64 {
 }
 
 impl SimulateOptions {
+    /// The program options among these, as every job and command that reads a program
+    /// takes them (one conversion to the interpreter's options).
+    pub fn program_options(&self) -> super::InterpretOptions {
+        super::InterpretOptions {
+            dialect: self.dialect,
+            fanuc_implied_decimal: self.fanuc_implied_decimal,
+            fanuc_corners_without_comma: self.fanuc_corners_without_comma,
+            passthrough_m_codes: self.passthrough_m_codes.clone(),
+            block_delete: self.block_delete,
+            strict_m_codes: self.strict_m_codes,
+            tool_table: self.tool_table.clone(),
+        }
+    }
+
     /// Checks what can be checked before the job runs; names the option.
     pub fn check(&self, optimize: bool, has_material_input: bool) -> Result<(), FieldError> {
+        self.program_options().engine_options().map_err(|d| {
+            let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
+            FieldError::new("options.tool_table", format!("tool table: {first}"))
+        })?;
         match (&self.limits, optimize) {
             (None, true) => {
                 return Err(FieldError::new(
@@ -330,13 +357,12 @@ pub(super) fn spec_from_inputs(
         )
     };
     let interpret = nc::InterpretOptions {
-        dialect: opts.dialect,
-        fanuc_implied_decimal: opts.fanuc_implied_decimal,
-        passthrough_m_codes: opts.passthrough_m_codes.clone(),
-        strict_m_codes: opts.strict_m_codes,
         cancel: Some(cancel.clone()),
         library: super::inputs::program_library(inputs)?,
-        ..Default::default()
+        ..opts.program_options().engine_options().map_err(|d| {
+            let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
+            invalid("Invalid options", format!("options.tool_table: {first}"))
+        })?
     };
     let part = match inputs.remove("part") {
         Some(p) if p.media_type == "application/json" => {
