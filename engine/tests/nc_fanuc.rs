@@ -633,3 +633,23 @@ fn thirty_i_extended_common_variables_hold_values() {
     let (_, _, msg) = fail("#100000=1\n", &l);
     assert!(msg.contains("1..5601"), "{msg}");
 }
+
+#[test]
+fn d0_is_the_zero_offset() {
+    // Fanuc: D0 / D00 is offset number 0, whose value is 0: G41 D00 runs the path as written
+    // (compensation with radius 0), where LinuxCNC has no tool 0 radius to take.
+    let src = "O1\nG90 G0 X0 Y-20 Z0\nG41 D00 G1 Y0 F100\nG1 X50.\nG40 G0 Z10.\nM30\n";
+    let i = run_with(src, &fanuc());
+    assert_eq!(
+        xyz(&i),
+        vec![
+            [0.0, -20.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [50.0, 0.0, 0.0],
+            [50.0, 0.0, 10.0],
+        ]
+    );
+    // Another offset number with no radius is still refused, naming it.
+    let (_, _, msg) = fail(&src.replace("D00", "D7"), &fanuc());
+    assert!(msg.contains("D7"), "{msg}");
+}

@@ -165,6 +165,9 @@ impl Interp<'_> {
             };
             match self.tool_radius(number) {
                 Some(r) => r / u,
+                // Fanuc's offset number 0 is the zero offset (D0/D00 cancels the radius while
+                // G41/G42 stays modal): the path runs uncompensated, as the control runs it.
+                None if self.fanuc && number == 0 => 0.0,
                 // Simulating the uncompensated path would cut in the wrong place: refuse.
                 None => {
                     return Err(self.err_at(
