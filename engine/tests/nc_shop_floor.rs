@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::nc::{dialect, fail, run, run_with, xyz};
+use common::nc::{close, dialect, fail, motions, run, run_with, xyz};
 use millsim_engine::nc::{
     parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
 };
@@ -489,4 +489,24 @@ fn override_switches_take_their_p_word() {
         &dialect(Dialect::LinuxCnc),
     );
     assert_eq!(path(&i), vec![(MoveKind::Rapid, [1.0, 0.0, 0.0])]);
+}
+
+#[test]
+fn a_zero_centre_word_off_the_arc_plane_is_ignored_with_a_warning() {
+    // FreeCAD's grbl post writes K0 in every G17 arc; grbl ignores it. The arc runs as
+    // written, with a warning naming the line; a non-zero K stays an error (LinuxCNC's and
+    // Fanuc's alarm).
+    let src = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 F300\nG2 X20 Y0 I5 J0 K0\nM2\n";
+    let i = run(src);
+    let last = *motions(&i).last().unwrap();
+    assert!(close(&last.end[..3], &[20.0, 0.0, 0.0]), "{:?}", last.end);
+    assert!(last.arc.is_some());
+    let w: Vec<&str> = i.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert!(
+        i.warnings.iter().any(|w| w.line == 4 && w.message.contains("K0 in a")),
+        "{w:?}"
+    );
+    let (line, _, msg) = fail(&src.replace("K0", "K2"), &InterpretOptions::default());
+    assert_eq!(line, 4);
+    assert!(msg.contains("K word"), "{msg}");
 }

@@ -8,10 +8,7 @@ impl Interp<'_> {
         self.check_feed()?;
         let plane = self.modal.plane;
         let [a, b, _n] = plane.axes();
-        let bad = plane.forbidden_ijk();
-        if w.has(bad) {
-            return Err(self.err_word(w, bad, format!("{bad} word in a {} arc", plane.name())));
-        }
+        self.off_plane_centre_word(w, plane)?;
         let start = self.cur;
         let end = self.target(w, false)?;
         let turns = match w.take('P') {
@@ -50,6 +47,29 @@ impl Interp<'_> {
         self.cur = end;
         Ok(())
     }
+    /// The centre word of the axis normal to the arc's plane (K in G17, J in G18, I in G19):
+    /// LinuxCNC and Fanuc alarm on it. grbl ignores it, and posts for grbl (FreeCAD's) write
+    /// `K0` in every G17 arc: a zero one is ignored with a warning; any other is refused.
+    pub(super) fn off_plane_centre_word(
+        &mut self,
+        w: &mut Words,
+        plane: super::modal::Plane,
+    ) -> R<()> {
+        let bad = plane.forbidden_ijk();
+        match w.get(bad) {
+            None => Ok(()),
+            Some(v) if v == 0.0 => {
+                w.take(bad);
+                self.warnings.push(self.err_block(format!(
+                    "{bad}0 in a {} arc ignored (the plane's normal axis has no centre offset; grbl ignores it, LinuxCNC and Fanuc alarm)",
+                    plane.name()
+                )));
+                Ok(())
+            }
+            Some(_) => Err(self.err_word(w, bad, format!("{bad} word in a {} arc", plane.name()))),
+        }
+    }
+
     /// Centre of an arc from `start` to `end` (program coordinates) in the selected plane,
     /// from the block's R or I/J/K words, as LinuxCNC 2.9 checks them.
     pub(super) fn arc_center(

@@ -590,10 +590,7 @@ impl Interp<'_> {
         let c = self.comp.as_ref().expect("compensation on");
         let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
         let plane = self.comp_plane;
-        let bad = plane.forbidden_ijk();
-        if w.has(bad) {
-            return Err(self.err_word(w, bad, format!("{bad} word in a {} arc", plane.name())));
-        }
+        self.off_plane_centre_word(w, plane)?;
         let target = self.comp_target(w)?;
         let turns = match w.take('P') {
             Some(p) if p.fract() != 0.0 || !(1.0..=super::MAX_ARC_TURNS).contains(&p) => {
