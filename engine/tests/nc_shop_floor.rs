@@ -503,7 +503,9 @@ fn a_zero_centre_word_off_the_arc_plane_is_ignored_with_a_warning() {
     assert!(last.arc.is_some());
     let w: Vec<&str> = i.warnings.iter().map(|w| w.message.as_str()).collect();
     assert!(
-        i.warnings.iter().any(|w| w.line == 4 && w.message.contains("K0 in a")),
+        i.warnings
+            .iter()
+            .any(|w| w.line == 4 && w.message.contains("K0 in a")),
         "{w:?}"
     );
     let (line, _, msg) = fail(&src.replace("K0", "K2"), &InterpretOptions::default());

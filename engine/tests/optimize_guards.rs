@@ -126,6 +126,17 @@ fn a_fusion_library_preset_becomes_the_tools_chip_ceiling() {
         .assumed
         .iter()
         .any(|n| n.tool.starts_with("T1 ") && n.field == "start-values.presets.f_z"));
+    // The presets' other values are read and reported as not used (the program's S and F
+    // are simulated).
+    for t in ["T1 ", "T3 "] {
+        assert!(
+            lib.report.unmodelled.iter().any(|n| n.tool.starts_with(t)
+                && n.field == "start-values.presets"
+                && n.note.starts_with("n not used")),
+            "{t}: {:?}",
+            lib.report.unmodelled
+        );
+    }
     // In the tool's unit.
     assert!(close(lib.tools[&2].feed_per_tooth.unwrap(), 0.002 * 25.4));
     assert_eq!(lib.tools[&3].feed_per_tooth, None);

@@ -206,6 +206,30 @@ fn preset_feed_per_tooth(
     else {
         return Ok(None);
     };
+    // The presets' other values (spindle speed n, cutting speed v_c, feeds v_f, ...) are
+    // the CAM's starting values: the program's own S and F words are what is simulated.
+    // One note per tool naming them, so that a user sees they were read and not used.
+    let mut others: Vec<&str> = presets
+        .iter()
+        .filter_map(Value::as_object)
+        .flat_map(|p| p.keys().map(String::as_str))
+        .filter(|k| !matches!(*k, "f_z" | "name" | "guid" | "description"))
+        .collect();
+    others.sort_unstable();
+    others.dedup();
+    if !others.is_empty() {
+        const SHOWN: usize = 12;
+        let more = others.len().saturating_sub(SHOWN);
+        lib.unmodelled(
+            name,
+            "start-values.presets",
+            format!(
+                "{}{} not used: the program's S and F words are simulated (f_z is the tool's chip ceiling)",
+                others[..others.len().min(SHOWN)].join(", "),
+                if more > 0 { format!(" and {more} more") } else { String::new() }
+            ),
+        );
+    }
     let mut values = Vec::new();
     for (k, p) in presets.iter().enumerate() {
         let Some(v) = p.get("f_z") else { continue };
