@@ -512,3 +512,24 @@ fn a_zero_centre_word_off_the_arc_plane_is_ignored_with_a_warning() {
     assert_eq!(line, 4);
     assert!(msg.contains("K word"), "{msg}");
 }
+
+#[test]
+fn g28_2_homing_in_a_header_is_a_rapid_home_with_a_warning() {
+    // Bantam Tools' and Smoothieware's homing cycle: the named axes go home (the stored G28
+    // position, here set by G28.1 at X5 Y6 Z7), straight, the values being flags.
+    let src = "G21 G90\nG0 X5 Y6 Z7\nG28.1\nG0 X20 Y30 Z40\nG28.2 Z0\nG28.2 X0 Y0\nM2\n";
+    let i = run(src);
+    assert_eq!(
+        xyz(&i)[2..],
+        [[20.0, 30.0, 7.0], [5.0, 6.0, 7.0]],
+        "{:?}",
+        xyz(&i)
+    );
+    assert_eq!(
+        i.warnings
+            .iter()
+            .filter(|w| w.message.contains("G28.2"))
+            .count(),
+        2
+    );
+}

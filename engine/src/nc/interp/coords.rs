@@ -209,6 +209,30 @@ impl Interp<'_> {
                     self.straight(true, hp)?;
                 }
             }
+            282 => {
+                // Smoothieware's and Bantam Tools' homing cycle (`G28.2 X0 Y0 Z0` in a
+                // header): the named axes (every axis when none is named; the values are
+                // flags) go to the home position, straight, with no intermediate point. The
+                // simulated home is the stored G28 position.
+                let mut which = [!w.has_axis(); 6];
+                for (ai, &c) in AXES.iter().enumerate() {
+                    if w.take(c).is_some() {
+                        which[ai] = true;
+                    }
+                }
+                let hp = self.from_machine(self.g28);
+                let mut end = self.cur;
+                for ai in 0..6 {
+                    if which[ai] {
+                        end[ai] = hp[ai];
+                    }
+                }
+                self.warnings.push(self.err_at(
+                    self.word_pos(i),
+                    "G28.2 (homing cycle) simulated as a rapid of the named axes to the G28 home position",
+                ));
+                self.straight(true, end)?;
+            }
             281 | 301 => {
                 let m = self.to_machine(self.cur);
                 if g == 281 {

@@ -75,7 +75,7 @@ pub(super) enum Motion {
 /// Modal group of a G code (times ten), LinuxCNC numbering; None: unsupported.
 pub(super) fn g_group(code: u16) -> Option<u8> {
     Some(match code {
-        40 | 100 | 280 | 281 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => 0,
+        40 | 100 | 280 | 281 | 282 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => 0,
         0 | 10 | 20 | 30 | 50 | 51 | 52 | 53 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 800
         | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880 | 890 => 1,
         170 | 180 | 190 => 2,

@@ -28,7 +28,7 @@ impl Interp<'_> {
                 .copied();
         let g53 = w.g(530);
         if let (Some((g0, i0)), Some((gm, _))) = (group0, block_motion) {
-            if matches!(g0, 100 | 280 | 300 | 520 | 920) && gm != 800 && w.has_axis() {
+            if matches!(g0, 100 | 280 | 282 | 300 | 520 | 920) && gm != 800 && w.has_axis() {
                 return Err(self.err_at(
                     self.word_pos(i0),
                     format!("{} and {} both use axis words", g_name(g0), g_name(gm)),
@@ -36,7 +36,9 @@ impl Interp<'_> {
             }
         }
         if let Some((g0, i0)) = group0 {
-            if self.comp.is_some() && matches!(g0, 100 | 280 | 300 | 520 | 920 | 921 | 922 | 923) {
+            if self.comp.is_some()
+                && matches!(g0, 100 | 280 | 282 | 300 | 520 | 920 | 921 | 922 | 923)
+            {
                 return Err(self.err_at(
                     self.word_pos(i0),
                     format!(
@@ -79,7 +81,7 @@ impl Interp<'_> {
             self.cycle_il = None;
             if w.has_axis()
                 && self.motion.is_none()
-                && !matches!(group0, Some((100 | 280 | 300 | 520 | 920, _)))
+                && !matches!(group0, Some((100 | 280 | 282 | 300 | 520 | 920, _)))
             {
                 return Err(self.err_block("axis words with G80 (motion cancelled)"));
             }
@@ -96,7 +98,7 @@ impl Interp<'_> {
         block_motion: Option<(u16, usize)>,
         g53: Option<usize>,
     ) -> R<bool> {
-        let axis_users = matches!(group0, Some((100 | 280 | 300 | 520 | 920, _)));
+        let axis_users = matches!(group0, Some((100 | 280 | 282 | 300 | 520 | 920, _)));
         let mut moved = false;
         let corner = w
             .corner_r
