@@ -1,5 +1,10 @@
 //! Limits and timing the service runs with.
 
+/// The default largest STL upload and NC program, bytes (`--max-upload-bytes`,
+/// `--max-program-bytes`).
+pub const DEFAULT_MAX_STL_BYTES: u64 = 256 << 20;
+pub const DEFAULT_MAX_PROGRAM_BYTES: u64 = 64 << 20;
+
 /// Per-route body limits and timeouts.
 #[derive(Clone, Debug)]
 pub struct Limits {
@@ -19,8 +24,8 @@ pub struct Limits {
 impl Default for Limits {
     fn default() -> Self {
         Limits {
-            max_stl_bytes: 256 << 20,
-            max_program_bytes: 64 << 20,
+            max_stl_bytes: DEFAULT_MAX_STL_BYTES,
+            max_program_bytes: DEFAULT_MAX_PROGRAM_BYTES,
             max_json_bytes: 1 << 20,
             upload_timeout_secs: 600,
             body_timeout: std::time::Duration::from_secs(30),

@@ -215,8 +215,11 @@ struct ServeArgs {
     )]
     cors_origin: Vec<String>,
     /// Largest STL upload, bytes.
-    #[arg(long, env = "MILLSIM_MAX_UPLOAD_BYTES", default_value_t = 256 << 20)]
+    #[arg(long, env = "MILLSIM_MAX_UPLOAD_BYTES", default_value_t = config::DEFAULT_MAX_STL_BYTES)]
     max_upload_bytes: u64,
+    /// Largest NC program (upload or inline in a job), bytes.
+    #[arg(long, env = "MILLSIM_MAX_PROGRAM_BYTES", default_value_t = config::DEFAULT_MAX_PROGRAM_BYTES)]
+    max_program_bytes: u64,
     /// Seconds a client has to send a request's headers before its connection is closed.
     #[arg(long, env = "MILLSIM_HEADER_TIMEOUT_S", default_value_t = 10.0)]
     header_timeout_s: f64,
@@ -452,6 +455,7 @@ async fn serve(args: ServeArgs) -> Result<(), String> {
     let wake = Arc::new(Notify::new());
     let limits = Limits {
         max_stl_bytes: args.max_upload_bytes,
+        max_program_bytes: args.max_program_bytes,
         max_queued_per_key: args.max_queued_per_key,
         upload_disk_reserve_bytes: args.upload_disk_reserve_mb.saturating_mul(1 << 20),
         body_timeout: std::time::Duration::from_secs_f64(args.body_timeout_s),

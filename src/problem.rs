@@ -144,6 +144,19 @@ impl Problem {
         .with("limit_bytes", limit)
     }
 
+    /// A 413 for a limit the server's operator can raise: the detail names the option, its
+    /// environment variable and its default (other problems are returned unchanged).
+    pub fn raised_by(mut self, option: &str, env: &str, default: u64) -> Self {
+        if self.status == StatusCode::PAYLOAD_TOO_LARGE {
+            self.detail = format!(
+                "{}; the server's {option} (or {env}; default {default} bytes) raises it",
+                self.detail
+            );
+            self = self.with("setting", option);
+        }
+        self
+    }
+
     /// An upload the server has no disk for: spooling it would leave less than the
     /// reserve free in its temporary directory (`free` known), or the disk filled while
     /// it was written (`free` 0). The client may try again later; nothing was stored.

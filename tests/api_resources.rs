@@ -200,7 +200,14 @@ async fn bad_input_is_a_problem_document_naming_what_and_where() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(
         &dir.path().join("t.db"),
-        &["--workers", "0", "--max-upload-bytes", "4096"],
+        &[
+            "--workers",
+            "0",
+            "--max-upload-bytes",
+            "4096",
+            "--max-program-bytes",
+            "2048",
+        ],
     );
     let c = client();
     let problem = |res: reqwest::Response| async move {
@@ -277,6 +284,45 @@ async fn bad_input_is_a_problem_document_naming_what_and_where() {
     .await;
     assert_eq!(st, 413);
     assert_eq!(v["limit_bytes"], 4096);
+    // The problem names the server option that raises the limit, and its default.
+    assert_eq!(v["setting"], "--max-upload-bytes", "{v}");
+    assert!(
+        v["detail"]
+            .as_str()
+            .unwrap()
+            .contains("MILLSIM_MAX_UPLOAD_BYTES"),
+        "{v}"
+    );
+    // A program over its own limit likewise, as an upload and inline in a job.
+    let big = "G1 X1 Y1 F100\n".repeat(300);
+    let (st, v) = problem(
+        once()
+            .post(s.url("/v1/programs"))
+            .header("content-type", "text/plain")
+            .body(big.clone())
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 413, "{v}");
+    assert_eq!(
+        (v["limit_bytes"].as_u64(), v["setting"].as_str()),
+        (Some(2048), Some("--max-program-bytes")),
+        "{v}"
+    );
+    let (st, v) = problem(
+        once()
+            .post(s.url("/v1/jobs"))
+            .header("content-type", "application/json")
+            .body(serde_json::json!({"kind": "interpret", "inputs": {"program": {"name": "big.nc", "content": big}}}).to_string())
+            .send()
+            .await
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(st, 413, "{v}");
+    assert_eq!(v["setting"], "--max-program-bytes", "{v}");
     let chunks =
         futures_util::stream::iter((0..10).map(|_| Ok::<_, std::io::Error>(vec![0u8; 1000])));
     let (st, _) = problem(

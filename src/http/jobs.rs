@@ -257,7 +257,9 @@ pub async fn create(
     req: Request,
 ) -> Result<Response, ApiError> {
     super::guard::require_json(&headers)?;
-    let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes).await?;
+    let bytes = read_limited(&headers, req.into_body(), state.limits.max_program_bytes)
+        .await
+        .map_err(super::resources::program_too_large)?;
     // Up to the body limit of JSON (an inline program): parsed and hashed off the async
     // runtime, as the program itself is read below.
     let (request, request_hash) = tokio::task::spawn_blocking(move || {

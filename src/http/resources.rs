@@ -126,7 +126,14 @@ pub async fn create(
         ResourceKind::Stock => {
             let (spooled, name) =
                 upload_into::<Spooled>(req, limits.max_stl_bytes, limits.upload_disk_reserve_bytes)
-                    .await?;
+                    .await
+                    .map_err(|e| {
+                        e.raised_by(
+                            "--max-upload-bytes",
+                            "MILLSIM_MAX_UPLOAD_BYTES",
+                            crate::config::DEFAULT_MAX_STL_BYTES,
+                        )
+                    })?;
             let file = query
                 .name
                 .clone()
@@ -166,7 +173,9 @@ pub async fn create(
             return Ok(created(kind, record));
         }
         ResourceKind::Program => {
-            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0).await?;
+            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0)
+                .await
+                .map_err(program_too_large)?;
             let file = query
                 .name
                 .clone()
@@ -181,7 +190,9 @@ pub async fn create(
         }
         ResourceKind::ToolLibrary => {
             // Any media type: the engine tells the format from the content, as offline.
-            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0).await?;
+            let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0)
+                .await
+                .map_err(program_too_large)?;
             let file = query
                 .name
                 .clone()
@@ -386,4 +397,13 @@ pub async fn delete(
     } else {
         Err(ApiError::not_found(kind.as_str(), &id))
     }
+}
+
+/// A program over the limit: the 413 names the server option that raises it.
+pub(super) fn program_too_large(e: ApiError) -> ApiError {
+    e.raised_by(
+        "--max-program-bytes",
+        "MILLSIM_MAX_PROGRAM_BYTES",
+        crate::config::DEFAULT_MAX_PROGRAM_BYTES,
+    )
 }
