@@ -326,6 +326,10 @@ pub(super) fn spec_from_inputs(
         strict_m_codes: opts.strict_m_codes,
         cancel: Some(cancel.clone()),
         library: super::inputs::program_library(inputs)?,
+        // G53.1 turns the machine's rotary axes (the job's checks interpret before the engine).
+        kinematics: (machine.kinematics != millsim_engine::machine::Kinematics::Xyz)
+            .then(|| millsim_engine::machine::MachineKinematics::of(&machine)),
+        tool_tip_reading: opts.axes == pipeline::AxisReading::ToolTip,
         ..Default::default()
     };
     let part = match inputs.remove("part") {
