@@ -428,11 +428,10 @@ pub fn run(
     // The stock mesh and the rows' JSON are independent: both at once.
     let ((rows, samples), (stl, export_s)) = std::thread::scope(|scope| {
         let serialized = scope.spawn(|| {
-            let rows: Vec<String> = out
-                .rows
-                .iter()
-                .map(|r| serde_json::to_string(r).expect("rows serialize"))
-                .collect();
+            // Every row names every column of the job (null where it has no value), so a
+            // page of rows reads the same whatever its first row is.
+            let json = pipeline::RowJson::new(&out.rows);
+            let rows: Vec<String> = out.rows.iter().map(|r| json.to_json(r)).collect();
             let samples: Vec<(usize, String)> = out
                 .samples
                 .iter()
