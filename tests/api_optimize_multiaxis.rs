@@ -163,3 +163,85 @@ async fn optimize_the_corpus_impeller_at_the_tool_tip_and_resimulate_it() {
         assert!(peaks[&(*line as u32)][0] > limit * 1.005, "line {line}");
     }
 }
+
+/// An optimized 5-axis program that starts with a tool change: the tool change's row has no
+/// optimized tip speed, yet every row of a page names every column of the job (null where
+/// it has no value), and the CSV's column filter takes the column.
+#[tokio::test]
+async fn a_tool_change_first_optimize_names_every_column_in_every_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let mut ids = Vec::new();
+    for (route, body) in [
+        (
+            "/v1/stocks",
+            json!({"kind": "cylinder", "base_center": [0, 0, -40.5], "radius": 10, "height": 40}),
+        ),
+        (
+            "/v1/tools",
+            json!({"type": "flat", "diameter_mm": 6.0, "flutes": 3, "flute_length_mm": 20.0}),
+        ),
+        (
+            "/v1/machines",
+            json!({"name": "AC trunnion", "kinematics": "xyz_ac", "rapid_rate": 24000.0, "max_feed": 10000.0,
+                   "acceleration": [2000.0, 2000.0, 1500.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 20000.0,
+                   "rated_power": 11000.0, "max_rotary_speed_deg_min": 20000.0}),
+        ),
+    ] {
+        let (st, v) = post_json(&c, &s, route, &body).await;
+        assert_eq!(st, 201, "{route}: {v}");
+        ids.push(v["id"].as_str().unwrap().to_string());
+    }
+    // Tool-centre-point control: a tilting cut into the cylinder, then a C turn.
+    let program = "G21 G90 G94\nT1 M6\nS8000 M3\nG0 Z30\nG43.4 H0\nG0 A90 C0\nG0 X0 Y30 Z-5\nG0 Y8\nG1 Z-15 A80 F600\nG1 C20 F400\nG0 Y30\nG0 Z40\nG49\nM30\n";
+    let inputs = json!({"program": {"name": "tc.nc", "content": program}, "stock": ids[0], "tool": ids[1], "machine": ids[2]});
+    let done = run_job(
+        &c,
+        &s,
+        &json!({"kind": "optimize", "inputs": inputs,
+                "options": {"material": "Al7075-T6", "cell_mm": 0.25, "limits": {"max_force": 300}}}),
+        Duration::from_secs(120),
+    )
+    .await;
+    let id = done["id"].as_str().unwrap();
+    let declared: Vec<String> =
+        serde_json::from_value(done["summary"]["row_columns"].clone()).unwrap();
+    assert!(
+        declared.iter().any(|c| c == "tip_speed_opt_mm_min"),
+        "{declared:?}"
+    );
+    let mut want: Vec<&str> = declared.iter().map(String::as_str).collect();
+    want.sort_unstable();
+    // A page that starts with the tool change, and the whole job on one page.
+    for limit in [1, 100] {
+        let page = get_json(&c, &s, &format!("/v1/jobs/{id}/blocks?limit={limit}")).await;
+        let items = page["items"].as_array().unwrap();
+        assert_eq!(items[0]["kind"], "tool_change", "{}", items[0]);
+        assert!(items[0]["tip_speed_opt_mm_min"].is_null());
+        for row in items {
+            let mut keys: Vec<&str> = row
+                .as_object()
+                .unwrap()
+                .keys()
+                .map(String::as_str)
+                .collect();
+            keys.sort_unstable();
+            assert_eq!(keys, want, "{row}");
+        }
+        if limit == 100 {
+            let cut = items.iter().find(|r| r["line"] == 9).unwrap();
+            assert!(cut["tip_speed_opt_mm_min"].as_f64().unwrap() > 0.0, "{cut}");
+        }
+    }
+    let csv = get_text(
+        &c,
+        &s,
+        &format!("/v1/jobs/{id}/blocks?format=csv&columns=line,tip_speed_opt_mm_min"),
+    )
+    .await;
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("line,tip_speed_opt_mm_min"), "{csv}");
+    let cut = lines.find(|l| l.starts_with("9,")).unwrap();
+    assert!(cut[2..].parse::<f64>().unwrap() > 0.0, "{cut}");
+}

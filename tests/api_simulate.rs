@@ -419,3 +419,71 @@ async fn each_tool_number_gets_its_own_tool_input() {
     assert!((at(7)["radial_width_mm"].as_f64().unwrap() - 10.0).abs() <= 0.25);
     assert!((at(13)["radial_width_mm"].as_f64().unwrap() - 6.0).abs() <= 0.25);
 }
+
+/// A 3+2 program as posts write it (G68.2 / G53.1 / G69) simulated on the job's A/C
+/// machine: G53.1 turns the table within its A limits; without rotary axes the job fails
+/// naming G53.1's line.
+#[tokio::test]
+async fn a_tilted_working_plane_runs_on_the_jobs_machine() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let mut ids = Vec::new();
+    for (route, body) in [
+        (
+            "/v1/stocks",
+            json!({"kind": "block", "min": [-25, -25, -20], "max": [25, 25, 0]}),
+        ),
+        (
+            "/v1/tools",
+            json!({"type": "flat", "diameter_mm": 6.0, "flutes": 3, "flute_length_mm": 20.0}),
+        ),
+        (
+            "/v1/machines",
+            json!({"name": "AC trunnion", "kinematics": "xyz_ac", "rapid_rate": 24000.0, "max_feed": 10000.0,
+                   "acceleration": [2000.0, 2000.0, 1500.0], "spindle_min_rpm": 0.0, "spindle_max_rpm": 20000.0,
+                   "rated_power": 11000.0, "kinematic_chain": {"a_limits": [0.0, 110.0]}}),
+        ),
+    ] {
+        let (st, v) = post_json(&c, &s, route, &body).await;
+        assert_eq!(st, 201, "{route}: {v}");
+        ids.push(v["id"].as_str().unwrap().to_string());
+    }
+    let program = "G21 G90 G94 S9000 M3\nG0 X0 Y0 Z60\nG68.2 X0 Y0 Z0 I0 J30 K0\nG53.1\nG0 X-8 Y0 Z10\nG1 Z-2 F300\nG1 X8 F800\nG0 Z10\nG69\nM30\n";
+    let inputs = json!({"program": {"name": "tilt.nc", "content": program}, "stock": ids[0], "tool": ids[1], "machine": ids[2]});
+    let done = run_job(
+        &c,
+        &s,
+        &json!({"kind": "simulate", "inputs": inputs, "options": {"material": "Al7075-T6", "cell_mm": 0.25}}),
+        Duration::from_secs(120),
+    )
+    .await;
+    let id = done["id"].as_str().unwrap();
+    let page = get_json(&c, &s, &format!("/v1/jobs/{id}/blocks?limit=100")).await;
+    let rows = page["items"].as_array().unwrap();
+    let at = |line: u32| rows.iter().find(|r| r["line"] == line).unwrap();
+    // A ≥ 0 leaves A30 C±180 (not the nearer A−30 C0): √(30² + 180²) degrees of travel.
+    let turn = at(4)["rotary_deg"].as_f64().unwrap();
+    assert!(
+        (turn - (30f64.powi(2) + 180f64.powi(2)).sqrt()).abs() < 1e-6,
+        "{}",
+        at(4)
+    );
+    assert!(at(7)["removed_mm3"].as_f64().unwrap() > 10.0, "{}", at(7));
+
+    // The generic 3-axis machine has no rotary axes to turn.
+    let inputs = json!({"program": {"name": "tilt.nc", "content": program}, "stock": ids[0], "tool": ids[1]});
+    let (st, job) = post_json(
+        &c,
+        &s,
+        "/v1/jobs",
+        &json!({"kind": "simulate", "inputs": inputs, "options": {"material": "Al7075-T6", "cell_mm": 0.25}}),
+    )
+    .await;
+    assert_eq!(st, 202, "{job}");
+    let done = wait_job(&c, &s, job["id"].as_str().unwrap(), Duration::from_secs(60)).await;
+    assert_eq!(done["status"], "failed", "{done}");
+    assert_eq!(done["error"]["errors"][0]["line"], 4, "{done}");
+    let message = done["error"]["errors"][0]["message"].as_str().unwrap();
+    assert!(message.contains("no rotary axes"), "{message}");
+}

@@ -463,3 +463,49 @@ fn tool_tip_reading_writes_the_tip_feed_in_g94() {
         "{chip} vs {limit}"
     );
 }
+
+#[test]
+fn a_tool_change_first_optimized_wrap_names_every_column_in_every_row() {
+    // Optimized, a 4-axis program that starts with `T1 M6`: its first row (the tool change)
+    // has no optimized tip speed, feed or governing limit. Written for the rows' pages, every
+    // row names every column of the run, null where it has no value.
+    let program = format!("T1 M6\n{}", wrap(400.0, false));
+    let mut s = spec_at(&program, 0.1);
+    s.optimize = Some(serde_json::from_str(r#"{"max_force": 150}"#).unwrap());
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    assert_eq!(out.rows[0].kind, "tool_change", "{:?}", out.rows[0]);
+    let columns = millsim_engine::pipeline::row_columns(&out.rows);
+    assert!(columns.iter().any(|c| c == "tip_speed_opt_mm_min"));
+    // Plain serde leaves the column out of the tool change's row: what the pages showed.
+    let plain = serde_json::to_value(&out.rows[0]).unwrap();
+    assert!(plain.get("tip_speed_opt_mm_min").is_none(), "{plain}");
+    let json = millsim_engine::pipeline::RowJson::new(&out.rows);
+    let mut want: Vec<&str> = columns.iter().map(String::as_str).collect();
+    want.sort_unstable();
+    for r in &out.rows {
+        let v: serde_json::Value = serde_json::from_str(&json.to_json(r)).unwrap();
+        let o = v.as_object().unwrap();
+        let mut keys: Vec<&str> = o.keys().map(String::as_str).collect();
+        keys.sort_unstable();
+        assert_eq!(keys, want, "line {}", r.line);
+        let tip = &o["tip_speed_opt_mm_min"];
+        match r.tip_speed_after_mm_min {
+            Some(t) => assert_eq!(tip.as_f64(), Some(t), "line {}", r.line),
+            None => assert!(tip.is_null(), "line {}: {tip}", r.line),
+        }
+    }
+    assert!(json
+        .to_json(&out.rows[0])
+        .contains("\"tip_speed_opt_mm_min\":null"));
+    let helix = helix_row(&out.rows);
+    assert!(
+        helix.tip_speed_after_mm_min.is_some_and(|t| t > 0.0),
+        "{helix:?}"
+    );
+    // Without optimization no row has the optimized columns, and none is added.
+    let plain_run = simulate(&spec_at(&program, 0.1), &CancelFlag::new(), &NoProgress).unwrap();
+    let json = millsim_engine::pipeline::RowJson::new(&plain_run.rows);
+    for r in &plain_run.rows {
+        assert_eq!(json.to_json(r), serde_json::to_string(r).unwrap());
+    }
+}

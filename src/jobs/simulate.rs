@@ -359,6 +359,10 @@ pub(super) fn spec_from_inputs(
     let interpret = nc::InterpretOptions {
         cancel: Some(cancel.clone()),
         library: super::inputs::program_library(inputs)?,
+        // G53.1 turns the machine's rotary axes (the job's checks interpret before the engine).
+        kinematics: (machine.kinematics != millsim_engine::machine::Kinematics::Xyz)
+            .then(|| millsim_engine::machine::MachineKinematics::of(&machine)),
+        tool_tip_reading: opts.axes == pipeline::AxisReading::ToolTip,
         ..opts.program_options().engine_options().map_err(|d| {
             let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
             invalid("Invalid options", format!("options.tool_table: {first}"))
@@ -461,11 +465,10 @@ pub fn run(
     // The stock mesh and the rows' JSON are independent: both at once.
     let ((rows, samples), (stl, export_s)) = std::thread::scope(|scope| {
         let serialized = scope.spawn(|| {
-            let rows: Vec<String> = out
-                .rows
-                .iter()
-                .map(|r| serde_json::to_string(r).expect("rows serialize"))
-                .collect();
+            // Every row names every column of the job (null where it has no value), so a
+            // page of rows reads the same whatever its first row is.
+            let json = pipeline::RowJson::new(&out.rows);
+            let rows: Vec<String> = out.rows.iter().map(|r| json.to_json(r)).collect();
             let samples: Vec<(usize, String)> = out
                 .samples
                 .iter()

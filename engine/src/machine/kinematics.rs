@@ -364,6 +364,14 @@ impl MachineKinematics {
         Ok(InverseSolution { axes, issues })
     }
 
+    /// The machine axes that put the tip at part-frame `tip` with the rotary angles of
+    /// `angles` (its X Y Z are ignored): the inverse of [`Self::forward`]'s tip at fixed angles.
+    pub fn machine_axes(&self, tip: [f64; 3], angles: &[f64; 6]) -> [f64; 6] {
+        let mut axes = *angles;
+        axes[..3].copy_from_slice(&self.tip_machine(angles, tip, [0.0, 0.0, 1.0]));
+        axes
+    }
+
     /// Machine X Y Z for a part-frame tip once the angles in `axes` are chosen.
     fn tip_machine(&self, axes: &[f64; 6], tip: V3, _u: V3) -> V3 {
         let mut p = tip;

@@ -80,8 +80,12 @@
 //!   library's files; see `library.rs` and `interp/units.rs`. Checked against LinuxCNC run in
 //!   the library folder.
 //!
-//! Refused with an error naming the feature: Haas G12/G13/G47/G150, tool center point
-//! tilted working planes G68.2/G53.1, cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
+//! * Tilted working planes (`interp/tilted_plane.rs`): G68.2 X Y Z I J K (Euler angles, Fanuc's
+//!   P0), G53.1 turning the rotary axes normal to the plane with `InterpretOptions::kinematics`,
+//!   G69; moves in the plane are tool-tip moves, its G2/G3 chords.
+//!
+//! Refused with an error naming the feature: Haas G12/G13/G47/G150, G68.3/G68.4 and G68.2 P1-P4,
+//! cutter radius compensation in G19, G33, G76, G7/G8 (LinuxCNC), U V W
 //! axes, calls to programs neither in the file nor in the library, G66.1, M60,
 //! non-standard M codes with `strict_m_codes`
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5425).
@@ -168,6 +172,13 @@ pub struct InterpretOptions {
     pub start_position: Option<[f64; 3]>,
     /// Where an M6 tool change leaves the tip (the next move starts there). None: where it was.
     pub tool_change: Option<ToolChangeTo>,
+    /// The machine's kinematics: G53.1 turns its rotary axes so that the tool is normal to
+    /// the G68.2 plane. None (or a 3-axis machine): G53.1 is refused.
+    pub kinematics: Option<crate::machine::MachineKinematics>,
+    /// The job reads X Y Z as the tool tip on every move (`axes: tool_tip`), not only under
+    /// G43.4/G68.2. Decides whether G69 with the rotary axes turned has to hand the position
+    /// back as machine axes.
+    pub tool_tip_reading: bool,
 }
 
 /// Where a tool change leaves the tool tip, machine frame, mm.
@@ -197,6 +208,8 @@ impl Default for InterpretOptions {
             library: None,
             start_position: None,
             tool_change: None,
+            kinematics: None,
+            tool_tip_reading: false,
         }
     }
 }

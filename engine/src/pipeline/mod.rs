@@ -28,7 +28,7 @@ pub use line_forces::{simulate_for_identification, LineForce, ProgramCuts, MAX_L
 pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
     row_columns, Collision, EnergyTotals, LimitCount, MoveRow, OptimizationSummary,
-    RoughnessSummary, SimulationOutput, SimulationSummary, StageTimings, StepSample,
+    RoughnessSummary, RowJson, SimulationOutput, SimulationSummary, StageTimings, StepSample,
     ToolDeflection, ToolLife, ToolOptimization,
 };
 pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StlSource, StockSource};

@@ -208,7 +208,81 @@ pub fn row_columns(rows: &[MoveRow]) -> Vec<String> {
     }
 }
 
+/// Writes rows as JSON objects that all name the same columns: a column serde leaves out of
+/// a row without a value (an optimized tip speed on a tool change, a governing limit on a
+/// rapid) is written as null in that row when another row of the run has it, so a page of
+/// rows names every column of the job whatever its first row is. Columns no row has stay
+/// out (a simulate job's rows have no optimized feeds).
+#[derive(Clone, Debug)]
+pub struct RowJson {
+    present: [bool; OPTIONAL_COLUMNS],
+}
+
+const OPTIONAL_COLUMNS: usize = 12;
+
+impl RowJson {
+    pub fn new(rows: &[MoveRow]) -> RowJson {
+        let mut present = [false; OPTIONAL_COLUMNS];
+        for r in rows {
+            for (p, (_, has)) in present.iter_mut().zip(r.optional_columns()) {
+                *p |= has;
+            }
+        }
+        RowJson { present }
+    }
+
+    /// The row's JSON object, with null for each of the run's columns it has no value for.
+    pub fn to_json(&self, row: &MoveRow) -> String {
+        let mut s = serde_json::to_string(row).expect("rows serialize");
+        let absent = row
+            .optional_columns()
+            .into_iter()
+            .zip(self.present)
+            .filter(|((_, has), present)| *present && !has);
+        let mut closed = true;
+        for ((name, _), _) in absent {
+            if closed {
+                // A row always has fields, so the object continues with a comma.
+                s.pop();
+                closed = false;
+            }
+            s.push_str(",\"");
+            s.push_str(name);
+            s.push_str("\":null");
+        }
+        if !closed {
+            s.push('}');
+        }
+        s
+    }
+}
+
 impl MoveRow {
+    /// The columns serde leaves out when they have no value (their serialized names) and
+    /// whether this row has them.
+    fn optional_columns(&self) -> [(&'static str, bool); OPTIONAL_COLUMNS] {
+        [
+            ("tool_life_used", self.tool_life_used.is_some()),
+            ("feed_opt_mm_min", self.linear_feed_after_mm_min.is_some()),
+            (
+                "rotary_feed_opt_deg_min",
+                self.rotary_feed_after_deg_min.is_some(),
+            ),
+            (
+                "tip_speed_opt_mm_min",
+                self.tip_speed_after_mm_min.is_some(),
+            ),
+            ("time_opt_s", self.time_after_s.is_some()),
+            ("force_peak_opt_n", self.peak_force_after.is_some()),
+            ("force_mean_opt_n", self.mean_force_after.is_some()),
+            ("torque_peak_opt_nm", self.peak_torque_after.is_some()),
+            ("power_mean_opt_w", self.mean_power_after.is_some()),
+            ("power_peak_opt_w", self.peak_power_after.is_some()),
+            ("governing", self.governing.is_some()),
+            ("split_parts", self.split_parts.is_some()),
+        ]
+    }
+
     /// The unit columns from the internal path rates: a rate along `length` split into the
     /// linear axes' mm/min and the rotary axes' °/min by their shares of the move's travel.
     pub(super) fn set_axis_rates(&mut self) {

@@ -99,6 +99,11 @@ impl SimulateSpec {
         let mut o = self.interpret.clone();
         o.start_position = o.start_position.or(start);
         o.tool_change = o.tool_change.or(change);
+        // G53.1 turns this machine's rotary axes; G69 hands the position back in its reading.
+        if o.kinematics.is_none() && self.machine.kinematics != crate::machine::Kinematics::Xyz {
+            o.kinematics = Some(crate::machine::MachineKinematics::of(&self.machine));
+        }
+        o.tool_tip_reading |= self.axes == AxisReading::ToolTip;
         for (&number, tool) in self.tools.iter().filter(|(&n, _)| n > 0) {
             o.tool_diameters.entry(number).or_insert(tool.diameter);
         }

@@ -42,6 +42,11 @@ impl Interp<'_> {
             }
             sweep += tau * (turns - 1) as f64;
         }
+        if self.tilt.is_some_and(|t| !t.keeps_axis(plane.axes()[2])) {
+            self.tilted_arc_as_chords(plane, start, end, [cx, cy], sweep, turns)?;
+            self.cur = end;
+            return Ok(());
+        }
         let m = self.arc_move_machine(plane, start, end, [cx, cy], sweep, turns)?;
         self.push(m)?;
         self.cur = end;

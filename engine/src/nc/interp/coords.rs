@@ -273,6 +273,7 @@ impl Interp<'_> {
             922 => self.change_offsets(|st| st.g92_applied = false),
             923 => self.change_offsets(|st| st.g92_applied = true),
             520 => self.g52(w, self.word_pos(i))?,
+            531 => self.turn_tool_to_plane(self.word_pos(i))?,
             _ => {}
         }
         Ok(())
@@ -280,6 +281,9 @@ impl Interp<'_> {
 
     /// Target of a straight or arc move in program coordinates.
     pub(super) fn target(&self, w: &mut Words, g53: bool) -> R<[f64; 6]> {
+        if self.tilt.is_some() {
+            self.refuse_rotary_under_tilt(w)?;
+        }
         let mut t = self.cur;
         if g53 {
             return self.g53_target(w);

@@ -25,6 +25,7 @@ mod params;
 mod polar;
 mod splines;
 mod subprograms;
+mod tilted_plane;
 mod transforms;
 mod units;
 mod words;
@@ -96,6 +97,8 @@ struct Interp<'p> {
     rot_xy: [f64; CS_COUNT],
     /// Fanuc mirror image, scaling and rotation.
     prog_xf: transforms::ProgramTransforms,
+    /// G68.2: the feature coordinate system program X Y Z are in, until G69.
+    tilt: Option<tilted_plane::TiltedPlane>,
     /// G66: the macro called after each moving block, until G67.
     /// Nested G66: the last one is called after the setting level's moves, each earlier one
     /// after the moves of the macro of the one after it.
@@ -265,6 +268,7 @@ fn run_units(
         g52: [0.0; 6],
         rot_xy: [0.0; CS_COUNT],
         prog_xf: Default::default(),
+        tilt: None,
         modal_calls: Vec::new(),
         nurbs: None,
         polar_mode: false,
@@ -415,7 +419,8 @@ impl Interp<'_> {
             tool_length: self.tlo,
             seconds: None,
             tool_axis: None,
-            tool_tip: self.tcp,
+            // Under G68.2 the tip is placed in the feature frame whatever the angles.
+            tool_tip: self.tcp || self.tilt.is_some(),
             start,
             spindle_dir: self.modal.spindle,
             arc: None,

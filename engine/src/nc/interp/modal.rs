@@ -75,7 +75,7 @@ pub(super) enum Motion {
 /// Modal group of a G code (times ten), LinuxCNC numbering; None: unsupported.
 pub(super) fn g_group(code: u16) -> Option<u8> {
     Some(match code {
-        40 | 100 | 280 | 281 | 282 | 300 | 301 | 520 | 530 | 920 | 921 | 922 | 923 => 0,
+        40 | 100 | 280 | 281 | 282 | 300 | 301 | 520 | 530 | 531 | 920 | 921 | 922 | 923 => 0,
         0 | 10 | 20 | 30 | 50 | 51 | 52 | 53 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 800
         | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880 | 890 => 1,
         170 | 180 | 190 => 2,
@@ -90,7 +90,8 @@ pub(super) fn g_group(code: u16) -> Option<u8> {
         610 | 611 | 640 => 13,
         // Fanuc's own groups: scaling, rotation, polar coordinates, mirror image.
         500 | 510 => 11,
-        680 | 690 => 16,
+        // G68.2 (tilted working plane) shares G68's group: G69 ends either.
+        680 | 682 | 690 => 16,
         150 | 160 => 17,
         501 | 511 => 22,
         670 => 23,
@@ -119,7 +120,7 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         120 | 130 => "(Haas circular pocket milling) is not supported",
         470 => "(Haas text engraving) is not supported",
         1500 => "(Haas general-purpose pocket milling) is not supported",
-        531 | 682 | 683 | 684 => "(tilted working plane) is not supported: post the 3+2 program with its rotary angles (A/B/C words) and part coordinates under G43.4 (tool-centre-point control) or read with axes tool_tip",
+        683 | 684 => "(tilted working plane from the tool axis, or incremental) is not supported: define the plane with G68.2 X Y Z I J K (origin and Euler angles), then G53.1 turns the tool normal to it",
         _ => "is not a supported G code",
     }
 }

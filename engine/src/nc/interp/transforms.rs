@@ -100,7 +100,7 @@ impl Interp<'_> {
 
     /// No rotation, mirror or scaling: the transform is a translation (per-axis offsets).
     pub(super) fn only_offsets(&self) -> bool {
-        self.prog_xf.is_identity() && self.rot_xy[self.modal.cs] == 0.0
+        self.prog_xf.is_identity() && self.rot_xy[self.modal.cs] == 0.0 && self.tilt.is_none()
     }
 
     /// The G92 offset as applied, plus the Fanuc G52 local offset (mm/deg).
@@ -146,6 +146,9 @@ impl Interp<'_> {
         for i in 0..6 {
             m[i] = if i < 3 { p[i] * u } else { p[i] };
         }
+        if let Some(t) = &self.tilt {
+            t.apply(&mut m);
+        }
         self.prog_xf.apply(&mut m);
         for i in 0..6 {
             m[i] += local[i];
@@ -178,6 +181,9 @@ impl Interp<'_> {
             p[i] -= local[i];
         }
         self.prog_xf.invert(&mut p);
+        if let Some(t) = &self.tilt {
+            t.invert(&mut p);
+        }
         for v in &mut p[..3] {
             *v /= u;
         }
@@ -224,8 +230,13 @@ impl Interp<'_> {
             let tol = 1e-9 * la.max(lb);
             let dot = va[0] * vb[0] + va[1] * vb[1];
             if va[2].abs() > tol || vb[2].abs() > tol {
+                let hint = if self.tilt.is_some() {
+                    " (a tilted G68.2 plane: its G2/G3 are cut as chords, but not with cutter compensation or corner rounding)"
+                } else {
+                    ""
+                };
                 return Err(self.err_block(format!(
-                    "arc in {} with a coordinate rotation in another plane: the arc would leave its plane (not supported)",
+                    "arc in {} with a coordinate rotation in another plane: the arc would leave its plane (not supported){hint}",
                     plane.name()
                 )));
             }
@@ -263,7 +274,7 @@ impl Interp<'_> {
 
     /// Whether one of Fanuc's program transforms is on (offset setting refuses then).
     pub(super) fn program_transform_on(&self) -> bool {
-        !self.prog_xf.is_identity()
+        !self.prog_xf.is_identity() || self.tilt.is_some()
     }
 
     /// LinuxCNC G10 L2 R: the rotation (degrees, about the coordinate system's origin in XY)

@@ -221,7 +221,13 @@ impl Interp<'_> {
     pub(super) fn fanuc_transforms(&mut self, w: &mut Words) -> R<()> {
         if w.transform {
             for k in 0..w.gs.len() {
-                if matches!(w.gs[k].0, 500 | 510 | 501 | 511 | 680 | 690 | 150 | 160) {
+                let (code, i) = w.gs[k];
+                if matches!(code, 500 | 510 | 501 | 511 | 680 | 682 | 690)
+                    && self.tilted_plane_code(w, code, self.word_pos(i))?
+                {
+                    continue;
+                }
+                if matches!(code, 500 | 510 | 501 | 511 | 680 | 690 | 150 | 160) {
                     self.fanuc_transform_code(w, k)?;
                 }
             }
