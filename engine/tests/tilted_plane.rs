@@ -275,6 +275,7 @@ fn spec(program: &str) -> SimulateSpec {
         force_positions: 90,
         optimize: None,
         axes: AxisReading::Machine,
+        workpiece: None,
         chatter: None,
         part: None,
     }
