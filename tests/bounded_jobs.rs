@@ -443,7 +443,14 @@ async fn sigterm_exits_within_the_grace_period_with_a_long_job_running() {
         jobs = child_processes(s.child.id());
     }
     assert_eq!(jobs.len(), 1, "{jobs:?}");
-    let adj = std::fs::read_to_string(format!("/proc/{}/oom_score_adj", jobs[0])).unwrap();
+    // The child is listed from its fork; its pre-exec hook sets the address-space limit and
+    // then the score a moment later (seen read as 0 under load): wait for the hook.
+    let read_adj = || std::fs::read_to_string(format!("/proc/{}/oom_score_adj", jobs[0])).unwrap();
+    let mut adj = read_adj();
+    while adj.trim() != "1000" && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        adj = read_adj();
+    }
     assert_eq!(adj.trim(), "1000");
     let limits = std::fs::read_to_string(format!("/proc/{}/limits", jobs[0])).unwrap();
     let address = limits
