@@ -84,7 +84,7 @@ mod tests {
         assert_eq!(rows.len(), 81);
         assert_eq!(rows[0].0, 5000.0);
         assert_eq!(rows[80].0, 25000.0);
-        // Zero-order slot limit of the benchmark: 0.298 mm (REFERENCE.md).
+        // Zero-order slot limit of the benchmark: 0.298 mm (docs/reference.md).
         let min = rows.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
         assert!((min - 0.298).abs() / 0.298 < 0.01, "{min}");
 

@@ -1,7 +1,7 @@
 //! Where the cutting edge meets material at one step of a move: the hand-off from the
 //! geometry engine (which finds it) to the force model (which turns it into forces).
 //!
-//! Angles follow Altintas and ../shared/REFERENCE.md: in the tool frame, x is the feed
+//! Angles follow Altintas and docs/reference.md: in the tool frame, x is the feed
 //! direction (the step's direction of travel projected perpendicular to the tool axis),
 //! z the tool axis pointing from the tip to the spindle, y = z × x. The immersion angle
 //! φ is measured clockwise, seen from the spindle looking down at the tip, from +y; the

@@ -1,6 +1,7 @@
-//! Workers: claim a job, run the engine on a blocking thread, heartbeat the lease while
-//! it runs, then commit the outcome with the results (only while holding the lease).
-//! N workers run at most N engine threads: the pool is bounded by construction.
+//! Workers: claim a job, run its engine work (in a child process per job by default, under
+//! the job's memory budget; on a blocking thread with `--job-isolation thread`), heartbeat
+//! the lease while it runs, then commit the outcome with the results (only while holding the
+//! lease). N workers run at most N jobs: the pool is bounded by construction.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -299,7 +300,8 @@ impl Worker {
                         continue;
                     };
                     // SQLite runs one writer at a time: a commit in flight would only
-                    // make the next claim wait for it (measured: 989 -> 649 jobs/s).
+                    // make the next claim wait for it (pipelining it measured slower; see the
+                    // README's queue throughput table).
                     if self.db.backend() == Backend::Sqlite
                         || ended.bytes() > PIPELINED_COMMIT_BYTES
                     {

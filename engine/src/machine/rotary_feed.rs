@@ -1,4 +1,4 @@
-//! Rotary-axis feed correction (DESIGN.md, "Rotary-axis feed correction").
+//! Rotary-axis feed correction (a rotary move's F read as the machine reads it, and the feed that gives the tip its speed).
 //!
 //! A control without a 5-axis feed mode reads F as the rate of a machine distance `I`: the XYZ
 //! distance of the move, or the combined XYZ and rotary distance, as the machine's
@@ -347,7 +347,7 @@ fn written(feed: f64) -> f64 {
 /// Correct a G-code program in place: only F words change (or are added where the modal feed
 /// would otherwise carry a corrected value into a block that needs another). A G94 program gets
 /// mm/min, a G93 program inverse times; a G94 program asked for inverse time is converted (see
-/// [`to_inverse_time`]); other mode changes are refused. Inch programs are refused (the rewrite
+/// `to_inverse_time`); other mode changes are refused. Inch programs are refused (the rewrite
 /// would need inch feeds).
 pub fn correct_program(
     source: &str,

@@ -330,7 +330,8 @@ mod tests {
         }
         // The G-code corpus and LinuxCNC's sample programs, where installed.
         let mut checked = 0;
-        for dir in ["/work/shared/corpus/gcode", "/usr/share/linuxcnc/ncfiles"] {
+        let corpus = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/corpus/gcode");
+        for dir in [corpus, "/usr/share/linuxcnc/ncfiles"] {
             for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
                 let path = entry.path();
                 if let Ok(source) = std::fs::read_to_string(&path) {

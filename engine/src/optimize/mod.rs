@@ -1,4 +1,4 @@
-//! Feed scheduling (DESIGN.md, engine pipeline step 6) and program rewriting (step 7).
+//! Feed scheduling (a feed per move from the limits on the force model) and program rewriting (the input with its F words changed).
 //!
 //! The removal gives, for each move (or part of a move: a [`MoveEngagement`]), the engagement at a
 //! series of steps. For every engaged step the optimizer finds the largest feed that keeps every

@@ -1,4 +1,4 @@
-//! The output program: the input with F words changed or inserted (DESIGN.md step 7), through
+//! The output program: the input with F words changed or inserted (the pipeline's last step), through
 //! [`Program::with_feeds`], so every other byte stays as it was.
 //!
 //! Modal F: a block without an F word inherits the last F executed. When an earlier block's F

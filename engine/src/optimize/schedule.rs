@@ -300,7 +300,7 @@ impl FeedSchedule {
     }
 
     /// Per-move feed (mm/min) of the optimized blocks, unrounded, for
-    /// [`crate::machine::cycle_time`]'s override (other moves keep their programmed feed).
+    /// [`crate::machine::cycle_time()`]'s override (other moves keep their programmed feed).
     pub fn optimized_velocities(&self, moves: &[Move]) -> Vec<f64> {
         moves
             .iter()

@@ -274,7 +274,7 @@ mod tests {
     use super::*;
     use crate::physics::stability::{compute_lobes, DepthSearch, RpmRange};
 
-    /// The 1-DOF benchmark of ../shared/REFERENCE.md.
+    /// The 1-DOF benchmark of docs/reference.md.
     fn benchmark(method: Method) -> ChatterModel {
         ChatterModel::new(
             vec![Mode::with_mass(922.0, 0.011, 0.03993)],
@@ -373,7 +373,7 @@ mod tests {
                 lobes_at(Method::Zoa, n, a, d)
             );
         }
-        // Slot at 8000 rpm, zero-order: at least the absolute limit 0.298 mm of REFERENCE.md.
+        // Slot at 8000 rpm, zero-order: at least the absolute limit 0.298 mm of docs/reference.md.
         assert!(m.critical_depth(8000.0, 1.0, Milling::Down).unwrap() >= 0.298 * 0.99);
     }
 

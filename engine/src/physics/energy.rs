@@ -3,7 +3,7 @@
 //! job is an optimization: [`crate::optimize::energy_search`].
 //!
 //! - [`IdlePowerCurve`]: idle spindle power, one quadratic in the speed up to a base speed and
-//!   another above it (the form of the fits in ../shared/REFERENCE.md).
+//!   another above it (the form of the fits in docs/reference.md).
 //! - [`EnergyModel`]: idle curve and auxiliary power (coolant, hydraulics, controls: drawn
 //!   whenever the program runs). P_idle is drawn only while the spindle turns.
 //! - [`program_energy`]: per-block and total E_idle, E_aux, E_cut, E_in and U from each
@@ -72,7 +72,7 @@ pub struct EnergyModel {
 }
 
 impl EnergyModel {
-    /// The example fit of ../shared/REFERENCE.md (high-speed milling study, 45 steel):
+    /// The example fit of docs/reference.md (high-speed milling study, 45 steel):
     /// P_idle = 2e-6·n² + 0.0149·n + 823.3 W up to 3000 rpm, 3e-6·n² − 0.0034·n + 881.5 W
     /// above, auxiliary power 804 W. An example, not a property of any particular machine.
     pub fn reference_example() -> EnergyModel {

@@ -4,7 +4,7 @@
 //! and h the uncut chip thickness (mm); hence T = (C / (v · h^a))^(1/n). With a = 0 this is
 //! the classic Taylor equation. A block that cuts for t minutes at (v, h) uses t / T of the
 //! tool (Palmgren–Miner rule: fractions add up; the tool is worn out when they reach 1).
-//! No constants ship: none of the sources in ../shared/REFERENCE.md gives them; users supply
+//! No constants ship: none of the sources in docs/reference.md gives them; users supply
 //! them with their material.
 
 use serde::{Deserialize, Serialize};

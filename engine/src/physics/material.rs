@@ -1,6 +1,6 @@
 //! Work materials: mechanistic cutting coefficients, optional tool-life constants, and
 //! where each number comes from. The built-in library holds only rows with a cited source
-//! (../shared/REFERENCE.md); everything else is user-defined.
+//! (docs/reference.md); everything else is user-defined.
 
 use serde::{Deserialize, Serialize};
 
@@ -273,7 +273,7 @@ fn normalize(s: &str) -> String {
         .collect()
 }
 
-/// The sourced rows of ../shared/REFERENCE.md, nothing else. No Taylor constants ship:
+/// The sourced rows of docs/reference.md, nothing else. No Taylor constants ship:
 /// none of these sources gives them.
 pub fn builtin_materials() -> Vec<Material> {
     let row = |name: &str, k: [f64; 6], source: &str| Material {

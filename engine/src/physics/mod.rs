@@ -18,8 +18,10 @@
 //!   3-D lobes over the remaining allowance; [`chatter`]: the memoized per-block chatter
 //!   margin ([`ChatterModel`]).
 //! - [`energy`]: [`EnergyModel`] (idle and auxiliary power), [`program_energy`] (per block
-//!   and per program, utilization U), the `energy` job's parameter search and Pareto front
-//!   ([`EnergyProblem`], [`run_energy_job`]).
+//!   and per program, utilization U); the `energy` job's parameter search and Pareto front
+//!   live with the optimizer ([`crate::optimize::energy`]).
+//! - [`deflection`]: the tool as a stepped cantilever ([`deflection::ToolBeam`]), the form
+//!   error a pass leaves and a thin wall's give ([`deflection::WorkpieceModes`]).
 //!
 //! Typical use at every engagement step of a program:
 //!

@@ -25,7 +25,7 @@ const SLICES_PER_MM: f64 = 100.0;
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Immersion {
-    /// The same immersion interval at every height (rad, REFERENCE.md convention: a slot is
+    /// The same immersion interval at every height (rad, docs/reference.md convention: a slot is
     /// 0 to π, down-milling half immersion π/2 to π, up-milling 0 to π/2).
     Angles { entry: f64, exit: f64 },
     /// A side cut against a vertical wall of the stock `width` mm into it (from the tool's

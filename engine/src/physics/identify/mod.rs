@@ -6,7 +6,7 @@
 //! separates the coefficients.
 //!
 //! Forces are the mean forces on the tool in the Engagement frame (x feed, y = z × x, z the
-//! tool axis), as in ../shared/REFERENCE.md. A dynamometer under the workpiece measures the
+//! tool axis), as in docs/reference.md. A dynamometer under the workpiece measures the
 //! reaction: negate its readings.
 //!
 //! That closed form holds for flat end mills only. [`identify_from_cuts`] takes any cut the
@@ -92,7 +92,7 @@ pub fn check_force(field: impl Into<String>, v: f64) -> Result<f64, PhysicsError
 
 /// Closed-form mean force (F̄x, F̄y, F̄z) of a flat end mill (zero or any helix: the mean over
 /// a revolution does not depend on it) with `flutes` teeth, axial depth `a`, feed per tooth `c`,
-/// engaged from `entry` to `exit` (radians, REFERENCE.md convention).
+/// engaged from `entry` to `exit` (radians, docs/reference.md convention).
 pub fn closed_form_mean_force(
     k: &CuttingCoefficients,
     flutes: u32,

@@ -11,7 +11,7 @@ use crate::physics::{positive, PhysicsError};
 /// Depth search of the time-domain methods.
 ///
 /// The default is plain bisection on [0, `max_depth_mm`] (as the reference curves of
-/// REFERENCE.md were computed). Where the stable region in depth is not one interval (narrow
+/// docs/reference.md were computed). Where the stable region in depth is not one interval (narrow
 /// flip-lobe bands below a wider stable zone, found at low immersion and near lobe
 /// intersections), bisection can return a boundary above such a band; `scan_step_mm` makes the
 /// search scan upwards first and return the first loss of stability (conservative).
