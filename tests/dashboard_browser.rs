@@ -60,6 +60,13 @@ fn dashboard_in_chromium() {
     run_script("dashboard.mjs");
 }
 
+/// A page of another origin cannot register a webhook, submit a job or upload a program
+/// (403, nothing stored); one allowed by `--cors-origin` can.
+#[test]
+fn a_page_of_another_origin_is_refused_in_chromium() {
+    run_script("cross_origin.mjs");
+}
+
 /// Names with bidi controls shown with the controls written out (list, job page, form).
 #[test]
 fn bidi_controls_in_names_are_shown_escaped_in_chromium() {
