@@ -37,3 +37,19 @@ fn an_air_retrace_has_no_depth_width_or_angles_and_rows_name_the_tool() {
         "{again:?}"
     );
 }
+
+#[test]
+fn a_tool_selected_without_m6_names_its_rows() {
+    // Fusion's one-tool posts select T1 and never load it: the rows say tool 1 whether the
+    // job gives the tool as its one tool or as T1.
+    let program = "G21 G90\nT1\nS10000 M3\nG0 X-10 Y0 Z5\nG0 Z-1\nG1 X60 F600\nG0 Z5\nM30\n";
+    let one = common::simulate::block_spec(program, Tool::flat(6.0, 2), 0.2);
+    let mut numbered = common::simulate::block_spec(program, Tool::flat(6.0, 2), 0.2);
+    numbered.tools = BTreeMap::from([(1, Tool::flat(6.0, 2))]);
+    for spec in [one, numbered] {
+        let out = simulate(&spec, &CancelFlag::new(), &NoProgress).unwrap();
+        let tools: Vec<u32> = out.rows.iter().map(|r| r.tool).collect();
+        assert!(tools.iter().all(|&t| t == 1), "{tools:?}");
+        assert_eq!(out.summary.deflection[0].tool, 1);
+    }
+}

@@ -100,6 +100,11 @@ fn run(
         &times,
         spec.machine.rotary_feed_reading,
     );
+    // A program that selects its one tool without loading it (T1, no M6): its moves carry
+    // no number, the rows say the tool that cut them.
+    for (row, m) in rows.iter_mut().zip(moves) {
+        row.tool = tools.number(m);
+    }
     let clock = Instant::now();
     let plan = removal::plan_removal(spec, moves, &tools, cell, &mut rows)?;
     let plan_s = clock.elapsed().as_secs_f64();

@@ -16,6 +16,8 @@ pub(super) struct ToolLookup {
     single: bool,
     /// The T number a program selects but never loads (no M6): its moves carry none.
     unloaded: Option<u32>,
+    /// The one T number a program selects without loading it (M6), however its tool came.
+    selected_number: Option<u32>,
     /// The T numbers whose tools cut, in the order the program first uses them.
     pub(super) numbers: Vec<u32>,
     /// What was assumed for the derived tools, one line each.
@@ -65,10 +67,13 @@ impl ToolLookup {
         }
         // A program that selects one tool (T1) but never loads it (no M6, as Fusion's posts
         // write a one-tool program): its moves carry no number and are cut with that tool.
-        let unloaded = match selected {
-            [(t, _)] if used.is_empty() && !single => Some(*t),
+        // The number such a program's moves carry in the rows and reports, whether its tool
+        // came as the job's one `tool` or from a library: the T number it selects.
+        let selected_number = match selected {
+            [(t, _)] if used.is_empty() => Some(*t),
             _ => None,
         };
+        let unloaded = selected_number.filter(|_| !single);
         let mut numbers: Vec<u32> = match unloaded {
             Some(t) => vec![t],
             None => used.iter().map(|(t, _)| *t).collect(),
@@ -135,6 +140,7 @@ impl ToolLookup {
             tools,
             single,
             unloaded,
+            selected_number,
             numbers,
             warnings,
         })
@@ -153,7 +159,7 @@ impl ToolLookup {
     /// without loading (0: none).
     pub(super) fn number(&self, m: &Move) -> u32 {
         if m.tool == 0 {
-            self.unloaded.unwrap_or(0)
+            self.selected_number.unwrap_or(0)
         } else {
             m.tool
         }
@@ -163,7 +169,7 @@ impl ToolLookup {
     /// the number a program selects without loading it for key 0.
     pub(super) fn key_number(&self, key: u32) -> u32 {
         if key == 0 {
-            self.unloaded.unwrap_or(0)
+            self.selected_number.unwrap_or(0)
         } else {
             key
         }
