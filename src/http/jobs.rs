@@ -270,13 +270,6 @@ pub async fn create(
     .map_err(|e| ApiError::blocking_failed(e, "the job request reader"))??;
     let key = idempotency_key(&headers)?;
     let job_kind = JobKind::from_request(&request.kind, "kind")?;
-    if !job_kind.is_supported() {
-        return Err(ApiError::not_supported(format!(
-            "job kind `{}` is not supported yet by this server",
-            request.kind
-        ))
-        .with("field", "kind"));
-    }
     let options = request.options.clone().unwrap_or_else(|| json!({}));
     if !options.is_object() {
         return Err(ApiError::invalid_field(

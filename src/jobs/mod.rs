@@ -93,11 +93,6 @@ impl JobKind {
         })
     }
 
-    pub fn is_supported(self) -> bool {
-        // Every kind has its engine; a kind added before its engine lands answers false.
-        true
-    }
-
     /// The inputs this kind takes by name (besides per-number tools, see
     /// [`tool_number_input`](Self::tool_number_input)).
     pub fn inputs(self) -> &'static [InputSpec] {

@@ -14,8 +14,6 @@ pub(super) struct ToolLookup {
     tools: BTreeMap<u32, Tool>,
     /// The tool given under key 0, alone: it serves every move.
     single: bool,
-    /// The T number a program selects but never loads (no M6): its moves carry none.
-    unloaded: Option<u32>,
     /// The one T number a program selects without loading it (M6), however its tool came.
     selected_number: Option<u32>,
     /// The T numbers whose tools cut, in the order the program first uses them.
@@ -139,7 +137,6 @@ impl ToolLookup {
         Ok(ToolLookup {
             tools,
             single,
-            unloaded,
             selected_number,
             numbers,
             warnings,
