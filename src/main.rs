@@ -111,8 +111,10 @@ struct QueueArgs {
     /// On SIGTERM/SIGINT, how long running jobs may finish before their leases are given back, seconds.
     #[arg(long, env = "MILLSIM_SHUTDOWN_GRACE_SECS", default_value_t = 30.0)]
     shutdown_grace_secs: f64,
-    /// Memory budget of one job, MiB; default: the machine's memory / workers (512 MiB to
-    /// 16 GiB). Jobs estimated over it are refused; a job's process is limited to it.
+    /// Memory budget of one job, MiB; default: the smaller of the machine's memory and the
+    /// cgroup's memory.max, / workers (512 MiB to 16 GiB), never above what an inherited
+    /// address-space limit (ulimit -v) leaves a job. Jobs estimated over it are refused; a
+    /// job's process is limited to it.
     #[arg(long, env = "MILLSIM_JOB_MEMORY_MB")]
     job_memory_mb: Option<u64>,
     /// Where jobs run: `process` (a child process each, under the memory limit) or
