@@ -61,6 +61,34 @@ pub fn default_budget_mb(
     }
 }
 
+/// Refuses an explicit `--job-memory-mb` no job process could be given: above what the
+/// inherited address-space limit leaves a job (`address_space_fit_mb`, with the limit
+/// `address_space_bytes`), or above the cgroup's `memory.max` (one job alone would be
+/// killed by the kernel before reaching it).
+pub fn check_requested_budget(
+    requested_mb: u64,
+    address_space: Option<(u64, u64)>,
+    cgroup_bytes: Option<u64>,
+) -> Result<(), String> {
+    if let Some((limit_bytes, fit_mb)) = address_space {
+        if requested_mb > fit_mb {
+            return Err(format!(
+                "--job-memory-mb {requested_mb} is above the {fit_mb} MiB the inherited address-space limit (ulimit -v, LimitAS=: {} MiB, less what a job process needs besides its budget) allows; lower --job-memory-mb or raise the limit",
+                limit_bytes >> 20
+            ));
+        }
+    }
+    if let Some(c) = cgroup_bytes {
+        if requested_mb > c >> 20 {
+            return Err(format!(
+                "--job-memory-mb {requested_mb} is above the {} MiB the cgroup's memory.max (the container's memory limit) allows; lower --job-memory-mb or raise the limit",
+                c >> 20
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The memory limit of this process's cgroup (v2) and its ancestors, the smallest, bytes;
 /// None when there is none (or no cgroup v2).
 pub fn cgroup_memory_max() -> Option<u64> {
@@ -365,6 +393,28 @@ mod tests {
         );
         // Under a tiny address-space limit, below the usual 512 MiB floor.
         assert_eq!(default_budget_mb(Some(64 * gib), None, Some(100), 1), 100);
+    }
+
+    #[test]
+    fn a_requested_budget_above_a_limit_is_refused_naming_both() {
+        let as_limit = Some((6u64 << 30, 4864));
+        let e = check_requested_budget(12000, as_limit, None).unwrap_err();
+        assert!(
+            e.contains("--job-memory-mb 12000")
+                && e.contains("4864 MiB")
+                && e.contains("address-space"),
+            "{e}"
+        );
+        assert!(check_requested_budget(4864, as_limit, None).is_ok());
+        let e = check_requested_budget(3000, None, Some(2 << 30)).unwrap_err();
+        assert!(
+            e.contains("--job-memory-mb 3000")
+                && e.contains("2048 MiB")
+                && e.contains("memory.max"),
+            "{e}"
+        );
+        assert!(check_requested_budget(2048, None, Some(2 << 30)).is_ok());
+        assert!(check_requested_budget(1 << 20, None, None).is_ok());
     }
 
     #[test]
