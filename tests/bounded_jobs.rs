@@ -626,3 +626,40 @@ fn a_budget_above_the_inherited_address_space_limit_is_refused_at_start() {
     );
     assert!(stdout.is_empty(), "it must not have listened: {stdout}");
 }
+
+#[tokio::test]
+async fn a_job_whose_process_cannot_be_started_fails_after_three_tries_saying_why() {
+    // The server's executable removed under it (an upgrade in place): its `job-exec` cannot
+    // be started (ENOENT at exec). The job used to be given back and claimed again every
+    // 0.5 s for ever, `queued` with 0 attempts.
+    let dir = tempfile::tempdir().unwrap();
+    let exe = dir.path().join("millsim-copy");
+    std::fs::copy(BIN, &exe).unwrap();
+    let s = Server::start_exe(&exe, &dir.path().join("t.db"), &["--workers", "2"]);
+    std::fs::remove_file(&exe).unwrap();
+    let c = client();
+    let ok = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X40\nM30\n";
+    let id = submit(&c, &s, &simulate_body(&c, &s, "ok.nc", ok).await).await;
+    let started = Instant::now();
+    let job = wait_job(&c, &s, &id, Duration::from_secs(15)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    let e = &job["error"];
+    assert_eq!(
+        e["type"], "https://millsim.dev/problems/job-not-started",
+        "{e}"
+    );
+    assert_eq!(e["tries"], 3, "{e}");
+    let detail = e["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("3 times") && detail.contains("os error 2") && detail.contains("job-exec"),
+        "{detail}"
+    );
+    // The tries given back do not count as attempts: only the last, which failed it.
+    assert_eq!(job["attempts"], 1, "{job}");
+    // Two give-backs of 0.5 s each, not a loop.
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "failed after {:?}",
+        started.elapsed()
+    );
+}
