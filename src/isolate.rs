@@ -462,8 +462,8 @@ pub fn spawn(
     unsafe {
         cmd.pre_exec(move || {
             // Never above an inherited hard limit: raising it fails (EPERM) and the job
-            // would be given back and claimed again for ever. The server clamps the budget
-            // to fit at start-up; this keeps an explicit budget from looping.
+            // would not start. The budget fits at start-up (the default lowered to it, an
+            // explicit one over it refused); this guards against a limit lowered since.
             // (inherited_address_space only calls getrlimit: async-signal-safe.)
             let cap = match inherited_address_space() {
                 Some(max) => address_space.min(max),

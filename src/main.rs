@@ -111,8 +111,10 @@ struct QueueArgs {
     /// On SIGTERM/SIGINT, how long running jobs may finish before their leases are given back, seconds.
     #[arg(long, env = "MILLSIM_SHUTDOWN_GRACE_SECS", default_value_t = 30.0)]
     shutdown_grace_secs: f64,
-    /// Memory budget of one job, MiB; default: the machine's memory / workers (512 MiB to
-    /// 16 GiB). Jobs estimated over it are refused; a job's process is limited to it.
+    /// Memory budget of one job, MiB; default: the smaller of the machine's memory and the
+    /// cgroup's memory.max, / workers (512 MiB to 16 GiB), never above what an inherited
+    /// address-space limit (ulimit -v) leaves a job. Jobs estimated over it are refused; a
+    /// job's process is limited to it. A value above either limit is refused at start.
     #[arg(long, env = "MILLSIM_JOB_MEMORY_MB")]
     job_memory_mb: Option<u64>,
     /// Where jobs run: `process` (a child process each, under the memory limit) or
@@ -157,23 +159,21 @@ impl QueueArgs {
             ));
         }
         let workers = self.workers.unwrap_or(default_workers);
-        let mut memory_mb = self
-            .job_memory_mb
-            .unwrap_or_else(|| job_limits::default_job_memory_mb(workers));
-        // Under an inherited address-space limit a job process gets at most that much: the
-        // budget (what estimates are checked against and what errors name) says so.
-        if let Some(bytes) = crate::isolate::inherited_address_space() {
-            let fits = crate::isolate::budget_under_address_space(bytes);
-            if memory_mb > fits {
-                tracing::warn!(
-                    inherited_address_space_mb = bytes >> 20,
-                    requested_mb = memory_mb,
-                    job_memory_mb = fits,
-                    "the server runs under an address-space limit (ulimit -v, LimitAS=): each job's memory budget is lowered to fit under it"
-                );
-                memory_mb = fits;
+        // The default fits what the process may use; a budget asked for that no job process
+        // could be given is refused here rather than failing every job later.
+        let memory_mb = match self.job_memory_mb {
+            None => job_limits::default_job_memory_mb(workers),
+            Some(mb) => {
+                let address_space = crate::isolate::inherited_address_space()
+                    .map(|b| (b, crate::isolate::budget_under_address_space(b)));
+                job_limits::check_requested_budget(
+                    mb,
+                    address_space,
+                    job_limits::cgroup_memory_max(),
+                )?;
+                mb
             }
-        }
+        };
         if !(64..=1 << 22).contains(&memory_mb) {
             return Err(format!(
                 "--job-memory-mb must be in [64, 4194304], got {memory_mb}"

@@ -576,3 +576,90 @@ async fn a_server_under_an_inherited_address_space_limit_still_runs_jobs() {
         "a budget of {budget} MiB cannot fit under 6 GiB"
     );
 }
+
+#[test]
+fn a_budget_above_the_inherited_address_space_limit_is_refused_at_start() {
+    // Asked for 12000 MiB under `ulimit -v` 6 GiB: every job process would fail its
+    // setrlimit, so the server refuses to start, naming the option and the limit.
+    let dir = tempfile::tempdir().unwrap();
+    let db = db_url(&dir.path().join("t.db"));
+    let started = Instant::now();
+    let child = std::process::Command::new("sh")
+        .args(["-c", "ulimit -v 6291456 && exec \"$0\" \"$@\"", BIN])
+        .args(["serve", "--bind", "127.0.0.1:0", "--database", &db])
+        .args(["--workers", "1", "--job-memory-mb", "12000"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // A server that starts anyway would serve for ever: killed after 20 s, failing the test.
+    let mut child = KilledOnDrop(child);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(20),
+            "still running after 20 s: it started with a budget it cannot give"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let (mut stderr, mut stdout) = (String::new(), String::new());
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut stdout)
+        .unwrap();
+    assert!(!status.success(), "exited 0: {stderr}");
+    assert!(
+        stderr.contains("--job-memory-mb 12000 is above the")
+            && stderr.contains("inherited address-space limit")
+            && stderr.contains("6144 MiB"),
+        "{stderr}"
+    );
+    assert!(stdout.is_empty(), "it must not have listened: {stdout}");
+}
+
+#[tokio::test]
+async fn a_job_whose_process_cannot_be_started_fails_after_three_tries_saying_why() {
+    // The server's executable removed under it (an upgrade in place): its `job-exec` cannot
+    // be started (ENOENT at exec). The job used to be given back and claimed again every
+    // 0.5 s for ever, `queued` with 0 attempts.
+    let dir = tempfile::tempdir().unwrap();
+    let exe = dir.path().join("millsim-copy");
+    std::fs::copy(BIN, &exe).unwrap();
+    let s = Server::start_exe(&exe, &dir.path().join("t.db"), &["--workers", "2"]);
+    std::fs::remove_file(&exe).unwrap();
+    let c = client();
+    let ok = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X40\nM30\n";
+    let id = submit(&c, &s, &simulate_body(&c, &s, "ok.nc", ok).await).await;
+    let started = Instant::now();
+    let job = wait_job(&c, &s, &id, Duration::from_secs(15)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    let e = &job["error"];
+    assert_eq!(
+        e["type"], "https://millsim.dev/problems/job-not-started",
+        "{e}"
+    );
+    assert_eq!(e["tries"], 3, "{e}");
+    let detail = e["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("3 times") && detail.contains("os error 2") && detail.contains("job-exec"),
+        "{detail}"
+    );
+    // The tries given back do not count as attempts: only the last, which failed it.
+    assert_eq!(job["attempts"], 1, "{job}");
+    // Two give-backs of 0.5 s each, not a loop.
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "failed after {:?}",
+        started.elapsed()
+    );
+}

@@ -161,6 +161,21 @@ impl Server {
         Self::start_command(sh, db, extra, &[])
     }
 
+    /// `start` of another executable (a copy of the binary the test may remove).
+    pub fn start_exe(exe: &Path, db: &Path, extra: &[&str]) -> Server {
+        // A copy just written may still be open for writing in a process another test
+        // thread forked (ETXTBSY until that child execs): wait for it to be runnable.
+        for _ in 0..100 {
+            match Command::new(exe).arg("--version").output() {
+                Err(e) if e.raw_os_error() == Some(26) => {
+                    std::thread::sleep(Duration::from_millis(20))
+                }
+                _ => break,
+            }
+        }
+        Self::start_command(Command::new(exe), db, extra, &[])
+    }
+
     fn start_command(mut cmd: Command, db: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
         let db_url = db_url(db);
         let mut child = cmd
