@@ -312,17 +312,7 @@ fn rows_from_json(rows: &[Value]) -> Result<Vec<ForceMeasurement>, Problem> {
 /// by the finiteness check, naming the row.
 fn rows_from_csv(text: &str) -> Result<Vec<ForceMeasurement>, Problem> {
     let field = "options.measurements";
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines
-        .next()
-        .ok_or_else(|| Problem::invalid_field(field, "the CSV text is empty"))?;
-    let names: Vec<&str> = header
-        .split(',')
-        .map(|c| c.trim().trim_matches('"'))
-        .collect();
+    let (names, lines) = super::csv_text::header_and_lines(text, field)?;
     let mut at = [usize::MAX; 4];
     for (i, name) in names.iter().enumerate() {
         let Some(k) = COLUMNS.iter().position(|(c, _)| c == name) else {
@@ -343,32 +333,10 @@ fn rows_from_csv(text: &str) -> Result<Vec<ForceMeasurement>, Problem> {
     }
     let mut out = Vec::new();
     for (n, line) in lines {
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        if cells.len() != names.len() {
-            return Err(Problem::invalid_field(
-                field,
-                format!(
-                    "CSV line {}: {} values for {} columns",
-                    n + 1,
-                    cells.len(),
-                    names.len()
-                ),
-            ));
-        }
+        let cells = super::csv_text::cells(field, n, line, names.len())?;
         let mut v = [0.0; 4];
         for k in 0..4 {
-            let cell = cells[at[k]];
-            v[k] = cell.parse().map_err(|_| {
-                Problem::invalid_field(
-                    field,
-                    format!(
-                        "CSV line {}: {} `{cell}` is not a number",
-                        n + 1,
-                        COLUMNS[k].0
-                    ),
-                )
-                .with("line", n + 1)
-            })?;
+            v[k] = super::csv_text::number(field, n, COLUMNS[k].0, cells[at[k]])?;
         }
         out.push(ForceMeasurement {
             feed_per_tooth: v[0],

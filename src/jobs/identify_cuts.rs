@@ -132,17 +132,7 @@ pub fn read_cuts(
 /// them (NaN arrives and is refused by the engine, naming the cut), empty cells left out.
 fn csv_rows(text: &str) -> Result<Vec<Value>, Problem> {
     let field = "options.cuts";
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines
-        .next()
-        .ok_or_else(|| Problem::invalid_field(field, "the CSV text is empty"))?;
-    let names: Vec<&str> = header
-        .split(',')
-        .map(|c| c.trim().trim_matches('"'))
-        .collect();
+    let (names, lines) = super::csv_text::header_and_lines(text, field)?;
     for name in &names {
         if !NUMERIC.contains(name) && !TEXT.contains(name) {
             return Err(Problem::invalid_field(
@@ -163,18 +153,7 @@ fn csv_rows(text: &str) -> Result<Vec<Value>, Problem> {
                 format!("at most {MAX_CUTS} cuts"),
             ));
         }
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        if cells.len() != names.len() {
-            return Err(Problem::invalid_field(
-                field,
-                format!(
-                    "CSV line {}: {} values for {} columns",
-                    n + 1,
-                    cells.len(),
-                    names.len()
-                ),
-            ));
-        }
+        let cells = super::csv_text::cells(field, n, line, names.len())?;
         let mut row = Map::new();
         for (name, cell) in names.iter().zip(cells) {
             let cell = cell.trim_matches('"');
@@ -184,20 +163,8 @@ fn csv_rows(text: &str) -> Result<Vec<Value>, Problem> {
             let value = if TEXT.contains(name) {
                 Value::String(cell.to_string())
             } else {
-                let v: f64 = cell.parse().map_err(|_| {
-                    Problem::invalid_field(
-                        field,
-                        format!("CSV line {}: {name} `{cell}` is not a number", n + 1),
-                    )
-                    .with("line", n + 1)
-                })?;
                 // JSON has no NaN: a non-finite number is refused here, naming the row.
-                if !v.is_finite() {
-                    return Err(Problem::invalid_field(
-                        format!("{field}[{}].{name}", out.len()),
-                        format!("must be a finite number, got {cell} (CSV line {})", n + 1),
-                    ));
-                }
+                let v = super::csv_text::finite_number(field, n, out.len(), name, cell)?;
                 json!(v)
             };
             row.insert(name.to_string(), value);

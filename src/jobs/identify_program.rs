@@ -79,17 +79,7 @@ pub fn read_lines(value: &Value) -> Result<Vec<LineForce>, Problem> {
 
 fn csv_rows(text: &str) -> Result<Vec<Value>, Problem> {
     let field = "options.line_forces";
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    let (_, header) = lines
-        .next()
-        .ok_or_else(|| Problem::invalid_field(field, "the CSV text is empty"))?;
-    let names: Vec<&str> = header
-        .split(',')
-        .map(|c| c.trim().trim_matches('"'))
-        .collect();
+    let (names, lines) = super::csv_text::header_and_lines(text, field)?;
     for c in COLUMNS {
         if !names.contains(&c) {
             return Err(Problem::invalid_field(
@@ -112,33 +102,10 @@ fn csv_rows(text: &str) -> Result<Vec<Value>, Problem> {
                 format!("at most {MAX_LINES} lines"),
             ));
         }
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        if cells.len() != names.len() {
-            return Err(Problem::invalid_field(
-                field,
-                format!(
-                    "CSV line {}: {} values for {} columns",
-                    n + 1,
-                    cells.len(),
-                    names.len()
-                ),
-            ));
-        }
+        let cells = super::csv_text::cells(field, n, line, names.len())?;
         let mut row = serde_json::Map::new();
         for (name, cell) in names.iter().zip(cells) {
-            let v: f64 = cell.parse().map_err(|_| {
-                Problem::invalid_field(
-                    field,
-                    format!("CSV line {}: {name} `{cell}` is not a number", n + 1),
-                )
-                .with("line", n + 1)
-            })?;
-            if !v.is_finite() {
-                return Err(Problem::invalid_field(
-                    format!("{field}[{}].{name}", out.len()),
-                    format!("must be a finite number, got {cell} (CSV line {})", n + 1),
-                ));
-            }
+            let v = super::csv_text::finite_number(field, n, out.len(), name, cell)?;
             let value = if *name == "line" {
                 if v.fract() != 0.0 || !(1.0..=u32::MAX as f64).contains(&v) {
                     return Err(Problem::invalid_field(

@@ -5,6 +5,7 @@
 //! line all go through it.
 
 mod accessibility;
+mod csv_text;
 mod energy;
 mod identify;
 mod identify_cuts;
