@@ -72,21 +72,22 @@ pub fn compare_with_part(stock: &Stock, part: &Mesh) -> Result<PartComparison, G
     let mut pg = DexelGrid::new(g.origin, g.max_corner(), g.cell, u64::MAX)?;
     // Same cell count as the stock (the constructor rounds the extent up the same way).
     debug_assert_eq!(pg.n, g.n);
+    pg.edges = g.edges.clone();
     fill_grid(&mut pg, &part)?;
-    let h2 = g.cell * g.cell;
     let mut gouge = [0.0; 3];
     let mut max_depth: f64 = 0.0;
     for fam in 0..3 {
-        for (sr, pr) in g.families[fam]
+        for (k, (sr, pr)) in g.families[fam]
             .rays
             .iter()
             .zip(pg.families[fam].rays.iter())
+            .enumerate()
         {
             if pr.is_empty() {
                 continue;
             }
             let d = difference(pr, sr);
-            gouge[fam] += interval_length(&d);
+            gouge[fam] += interval_length(&d) * g.ray_area(fam, k);
             if fam == 2 {
                 for iv in d.iter() {
                     max_depth = max_depth.max(iv[1] - iv[0]);
@@ -96,7 +97,7 @@ pub fn compare_with_part(stock: &Stock, part: &Mesh) -> Result<PartComparison, G
     }
     let (gouges, gouge_regions) = gouge_regions(stock, &pg);
     let mut out = PartComparison {
-        gouge_volume: (gouge[0] + gouge[1] + gouge[2]) / 3.0 * h2,
+        gouge_volume: (gouge[0] + gouge[1] + gouge[2]) / 3.0,
         max_gouge_depth: max_depth,
         gouges,
         gouge_regions,
@@ -179,7 +180,7 @@ fn gouge_regions(stock: &Stock, pg: &DexelGrid) -> (Vec<GougeRegion>, usize) {
             let (r, len, run, span) = gouged[k];
             let (i, j) = (r % nu, r / nu);
             let (x, y) = (g.center(0, i), g.center(1, j));
-            volume += len * h * h;
+            volume += len * g.ray_area(2, r);
             for (a, c) in [(0, x), (1, y)] {
                 lo[a] = lo[a].min(c - h / 2.0);
                 hi[a] = hi[a].max(c + h / 2.0);

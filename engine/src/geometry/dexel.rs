@@ -3,8 +3,13 @@
 //!
 //! Family `a` runs along axis `a`; its rays sit at the cell centres of the two other
 //! axes `u = (a+1)%3`, `v = (a+2)%3`, ray index `iu + nu·iv`. A ray stands for an
-//! `h × h` column, so the volume seen by one family is Σ length · h²; the stock volume
-//! is the mean over the three families.
+//! column `h × h` wide, so the volume seen by one family is Σ length · h²; the stock
+//! volume is the mean over the three families.
+//!
+//! The stock's extents are seldom whole cells. The grid covers the stock and the columns
+//! at its edges are as wide as the stock reaches into them (`edges`): each family then
+//! holds a block's exact volume, the faces of the stock stay where they are, and nothing
+//! is lost to the last fraction of a cell.
 
 use rayon::prelude::*;
 use smallvec::SmallVec;
@@ -77,6 +82,9 @@ pub struct DexelGrid {
     pub cell: f64,
     /// Cells per axis.
     pub n: [usize; 3],
+    /// Per axis, the `n + 1` boundaries of the columns the rays stand for: `origin + i·h`
+    /// inside, the stock's faces at its ends (see [`DexelGrid::set_extent`]).
+    pub edges: [Vec<f64>; 3],
     pub families: [Family; 3],
 }
 
@@ -143,12 +151,39 @@ impl DexelGrid {
                 rays: vec![Intervals::new(); n[u] * n[v]],
             }
         };
-        Ok(DexelGrid {
+        let mut grid = DexelGrid {
             origin: min,
             cell,
             n,
+            edges: Default::default(),
             families: [fam(0), fam(1), fam(2)],
-        })
+        };
+        grid.set_extent(min, max);
+        Ok(grid)
+    }
+
+    /// The columns at the grid's edges as wide as the extent `[lo, hi]` (the stock's
+    /// bounds, within the grid) reaches into them. A ray whose centre lies outside the
+    /// extent sees no material of it, so its share goes to the next ray inward, whose
+    /// centre is inside (the grid overhangs the extent by less than a cell).
+    pub fn set_extent(&mut self, lo: [f64; 3], hi: [f64; 3]) {
+        for a in 0..3 {
+            self.edges[a] = column_edges(self.origin[a], self.cell, self.n[a], lo[a], hi[a]);
+        }
+    }
+
+    /// Width of column `i` along axis `a`, mm.
+    #[inline]
+    pub fn width(&self, a: usize, i: usize) -> f64 {
+        self.edges[a][i + 1] - self.edges[a][i]
+    }
+
+    /// Cross-section of ray `k` of family `a`, mm².
+    #[inline]
+    pub fn ray_area(&self, a: usize, k: usize) -> f64 {
+        let (u, v) = other_axes(a);
+        let nu = self.families[a].nu.max(1);
+        self.width(u, k % nu) * self.width(v, k / nu)
     }
 
     /// Upper corner of the grid.
@@ -185,25 +220,34 @@ impl DexelGrid {
 
     /// Volume seen by each family, mm³.
     pub fn family_volumes(&self) -> [f64; 3] {
-        let h2 = self.cell * self.cell;
         let mut out = [0.0; 3];
         for (a, f) in self.families.iter().enumerate() {
+            let (u, v) = other_axes(a);
+            let (wu, wv) = (&self.edges[u], &self.edges[v]);
             // Sum per row (rows in parallel), then rows in order: the same sum whatever the
             // thread count.
             let rows: Vec<f64> = f
                 .rays
                 .par_chunks(f.nu.max(1))
-                .map(|row| row.iter().map(interval_length).sum::<f64>())
+                .enumerate()
+                .map(|(iv, row)| {
+                    let along: f64 = row
+                        .iter()
+                        .enumerate()
+                        .map(|(iu, r)| interval_length(r) * (wu[iu + 1] - wu[iu]))
+                        .sum();
+                    along * (wv[iv + 1] - wv[iv])
+                })
                 .collect();
-            out[a] = rows.iter().sum::<f64>() * h2;
+            out[a] = rows.iter().sum::<f64>();
         }
         out
     }
 
-    /// Stock volume: the mean of the three families' volumes, mm³.
+    /// Stock volume, mm³: the three families read together voxel by voxel, each where it
+    /// is exact (see `voxel_volume`).
     pub fn volume(&self) -> f64 {
-        let v = self.family_volumes();
-        (v[0] + v[1] + v[2]) / 3.0
+        super::voxel_volume::stock_volume(self)
     }
 
     /// Whether material is present at point `p`, read from the Z family (nearest ray).
@@ -248,6 +292,7 @@ impl DexelGrid {
             origin: self.origin,
             cell: self.cell,
             n: self.n,
+            edges: self.edges.clone(),
             families,
         }
     }
@@ -345,6 +390,33 @@ impl RaySummaries {
         let rays = grid.families[fam].rays.iter().map(RaySummary::of).collect();
         RaySummaries { rays }
     }
+}
+
+/// The `n + 1` column boundaries along one axis for an extent `[lo, hi]`: the cell
+/// boundaries clamped to the extent, and a column whose ray lies outside it given to its
+/// neighbour inward (so the widths of the rays that see the extent add up to it).
+pub fn column_edges(origin: f64, cell: f64, n: usize, lo: f64, hi: f64) -> Vec<f64> {
+    let center = |i: usize| origin + (i as f64 + 0.5) * cell;
+    let mut e: Vec<f64> = (0..=n)
+        .map(|i| (origin + i as f64 * cell).clamp(lo, hi))
+        .collect();
+    // First and last rays inside the extent; the columns beyond them have no width. A ray
+    // on the face itself counts as outside: whether it holds the face's material depends
+    // on rounding.
+    let eps = 1e-9 * cell;
+    let first = (0..n).find(|&i| center(i) > lo + eps);
+    let last = (0..n).rev().find(|&i| center(i) < hi - eps);
+    if let (Some(first), Some(last)) = (first, last) {
+        if first <= last {
+            for x in &mut e[..=first] {
+                *x = lo.max(origin);
+            }
+            for x in &mut e[last + 1..] {
+                *x = hi.min(origin + n as f64 * cell);
+            }
+        }
+    }
+    e
 }
 
 /// Index range of cell centres `origin + (i + ½)·cell`, i < n, within `[lo, hi]`.

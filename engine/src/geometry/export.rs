@@ -108,7 +108,7 @@ fn export_in_bands(
     let g = &stock.grid;
     let [nx, ny, _] = g.n;
     let mut count = 0u64;
-    let mut voxels = 0u64;
+    let mut volume = 0.0;
     let mut j0 = 0;
     while j0 <= ny {
         let j1 = (j0 + band).min(ny + 1);
@@ -138,13 +138,13 @@ fn export_in_bands(
             sink(&bytes)?;
             count += n;
         }
-        voxels += vox.count_rows(j0, j1.min(ny));
+        vox.add_volume_rows(j0, j1.min(ny), &mut volume);
         j0 = j1;
     }
     triangle_count(count)?;
     Ok(ExportStats {
         triangles: count,
-        volume: voxels as f64 * g.cell * g.cell * g.cell,
+        volume,
     })
 }
 
@@ -159,8 +159,8 @@ struct Voxels {
     words: usize,
     bits: Vec<u64>,
     row0: usize,
-    origin: [f64; 3],
-    cell: f64,
+    /// Column boundaries per axis (`DexelGrid::edges`): the stock's faces at the ends.
+    edges: [Vec<f64>; 3],
 }
 
 impl Voxels {
@@ -170,19 +170,35 @@ impl Voxels {
         let words = (nz + 1).div_ceil(64);
         let mut bits = vec![0u64; nx * hi.saturating_sub(lo) * words];
         let fam = &g.families[2];
+        // Columns and layers of no width (outside the stock's extent) stay empty: their
+        // faces would have no area.
+        let layers = (0..nz).find(|&k| g.width(2, k) > 0.0).unwrap_or(nz)
+            ..(0..nz)
+                .rev()
+                .find(|&k| g.width(2, k) > 0.0)
+                .map_or(0, |k| k + 1);
         bits.par_chunks_mut((nx * words).max(1))
             .enumerate()
             .for_each(|(r, row)| {
                 let j = lo + r;
+                if g.width(1, j) <= 0.0 {
+                    return;
+                }
                 for (i, col) in row.chunks_mut(words).enumerate() {
+                    if g.width(0, i) <= 0.0 {
+                        continue;
+                    }
                     for iv in fam.rays[i + fam.nu * j].iter() {
                         let k0 = ((iv[0] - g.origin[2]) / g.cell - 0.5).ceil().max(0.0) as usize;
                         let k1 = ((iv[1] - g.origin[2]) / g.cell - 0.5).floor();
                         if k1 < 0.0 {
                             continue;
                         }
-                        let k1 = (k1 as usize).min(nz - 1);
-                        set_bits(col, k0, k1 + 1);
+                        let k0 = k0.max(layers.start);
+                        let k1 = (k1 as usize + 1).min(layers.end);
+                        if k0 < k1 {
+                            set_bits(col, k0, k1);
+                        }
                     }
                 }
             });
@@ -191,16 +207,24 @@ impl Voxels {
             words,
             bits,
             row0: lo,
-            origin: g.origin,
-            cell: g.cell,
+            edges: g.edges.clone(),
         }
     }
 
-    /// Voxels set in rows `lo..hi` (held rows).
-    fn count_rows(&self, lo: usize, hi: usize) -> u64 {
-        let row = self.n[0] * self.words;
-        let (a, b) = ((lo - self.row0) * row, (hi - self.row0) * row);
-        self.bits[a..b].iter().map(|w| w.count_ones() as u64).sum()
+    /// Adds the volume of the voxels set in rows `lo..hi` (held rows) to `volume`, mm³,
+    /// row by row (the same sum whatever the band).
+    fn add_volume_rows(&self, lo: usize, hi: usize, volume: &mut f64) {
+        let width = |a: usize, i: usize| self.edges[a][i + 1] - self.edges[a][i];
+        for j in lo..hi {
+            let mut row = 0.0;
+            for i in 0..self.n[0] {
+                let at = ((j - self.row0) * self.n[0] + i) * self.words;
+                let mut column = 0.0;
+                for_bits(&self.bits[at..at + self.words], |k| column += width(2, k));
+                row += column * width(0, i);
+            }
+            *volume += row * width(1, j);
+        }
     }
 
     /// Word `w` of column (i, j), 0 outside the grid.
@@ -254,11 +278,7 @@ impl Voxels {
     /// Grid corner (i, j, k).
     #[inline]
     fn corner(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
-        [
-            self.origin[0] + i as f64 * self.cell,
-            self.origin[1] + j as f64 * self.cell,
-            self.origin[2] + k as f64 * self.cell,
-        ]
+        [self.edges[0][i], self.edges[1][j], self.edges[2][k]]
     }
 
     /// Faces on the plane x = x_i in row j, merged along z.

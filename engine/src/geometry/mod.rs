@@ -31,7 +31,8 @@
 //! Modules: `dexel` (grid, intervals, memory estimate), `stock` (block, cylinder),
 //! `stl` (STL import), `path` (segments, arcs, 5-axis sub-steps), `sweep` (swept volume
 //! per ray, removal), `engagement` (per step), `checks` (rapid, flutes, shank, holder,
-//! fixture), `compare` (gouge and allowance against a design part), `export` (STL).
+//! fixture), `compare` (gouge and allowance against a design part), `export` (STL),
+//! `voxel_volume` (the stock volume from the three families together).
 
 pub mod checks;
 pub mod compare;
@@ -46,6 +47,7 @@ pub mod stl;
 pub mod stl_read;
 pub mod stock;
 pub mod sweep;
+mod voxel_volume;
 
 pub use checks::CheckFlags;
 pub use compare::{compare_with_part, GougeRegion, PartComparison, MAX_GOUGE_REGIONS};

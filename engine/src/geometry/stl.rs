@@ -300,8 +300,10 @@ impl Stock {
         }
         // As for parametric stock: the top of the mesh on a cell boundary.
         let nz = DexelGrid::estimate(lo, hi, cell)?.cells[2];
+        let extent = lo;
         lo[2] = hi[2] - nz as f64 * cell;
         let mut grid = DexelGrid::new(lo, hi, cell, opts.memory_limit)?;
+        grid.set_extent(extent, hi);
         fill_grid(&mut grid, &mesh)?;
         Ok(Stock { grid, frame })
     }

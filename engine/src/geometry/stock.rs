@@ -237,13 +237,15 @@ impl Stock {
         let cell = opts
             .cell
             .ok_or_else(|| GeometryError::InvalidGrid("no cell size given".into()))?;
-        let (mut min, max) = shape.bounds_in(&frame)?;
+        let (lo, max) = shape.bounds_in(&frame)?;
         // The top face on a cell boundary: depths are cut from the top, so the X and Y
         // rays then sample a cut's depth from a boundary rather than from a stray
         // fraction of a cell (the bottom takes the fraction instead).
-        let nz = DexelGrid::estimate(min, max, cell)?.cells[2];
+        let nz = DexelGrid::estimate(lo, max, cell)?.cells[2];
+        let mut min = lo;
         min[2] = max[2] - nz as f64 * cell;
         let mut grid = DexelGrid::new(min, max, cell, opts.memory_limit)?;
+        grid.set_extent(lo, max);
         for a in 0..3 {
             let (ua, va) = other_axes(a);
             let nu = grid.families[a].nu;

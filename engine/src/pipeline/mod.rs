@@ -145,6 +145,15 @@ fn run(
             added
         },
     )?;
+    // The rows' volumes are the three families' mean, batch by batch; the stock read voxel
+    // by voxel before and after gives the program's total (see `voxel_scale`).
+    let volume_after = stock.volume();
+    let removed: f64 = rows.iter().map(|r| r.removed_volume).sum();
+    let scale = geometry::removal::voxel_scale(volume_before - volume_after, removed);
+    for row in rows.iter_mut() {
+        row.removed_volume *= scale;
+        row.max_mrr *= scale;
+    }
     timings.removal_and_engagement_s = plan_s + clock.elapsed().as_secs_f64() - batch_forces_s;
 
     let clock = Instant::now();
@@ -215,7 +224,6 @@ fn run(
         row.set_axis_rates();
     }
 
-    let volume_after = stock.volume();
     let part = match &spec.part {
         Some(source) => {
             let mesh = source.mesh().map_err(geometry::GeometryError::from)?;

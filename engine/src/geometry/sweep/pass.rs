@@ -21,8 +21,9 @@ pub struct SubMove {
 /// What one sweep did to the grid.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RemovalStats {
-    /// Length removed per family (mm of ray).
-    pub removed_length: [f64; 3],
+    /// Volume removed as each family sees it, mm³ (removed ray length × the ray's
+    /// column area).
+    pub removed_volume: [f64; 3],
     /// (Ray, sub-move) pairs visited: rays within a sweep's bounding box (the analogue of
     /// a Z-map's cell updates).
     pub rays_tested: u64,
@@ -35,14 +36,12 @@ pub struct RemovalStats {
 
 impl RemovalStats {
     /// Removed volume, mm³ (mean of the three families).
-    pub fn volume(&self, cell: f64) -> f64 {
-        (self.removed_length[0] + self.removed_length[1] + self.removed_length[2]) / 3.0
-            * cell
-            * cell
+    pub fn volume(&self) -> f64 {
+        (self.removed_volume[0] + self.removed_volume[1] + self.removed_volume[2]) / 3.0
     }
     pub fn add(&mut self, o: &RemovalStats) {
         for a in 0..3 {
-            self.removed_length[a] += o.removed_length[a];
+            self.removed_volume[a] += o.removed_volume[a];
         }
         self.rays_tested += o.rays_tested;
         self.rays_intersected += o.rays_intersected;
@@ -137,6 +136,7 @@ impl RemovalPass {
             max: grid.max_corner(),
             cell: grid.cell,
             n: grid.n,
+            edges: &grid.edges,
         };
         let sweeps = &sweeps;
         let frame = &frame;
@@ -201,11 +201,13 @@ struct PlacedSweep<'a> {
 }
 
 /// The grid's placement, shared read-only by the family tasks.
-struct Frame {
+struct Frame<'g> {
     origin: [f64; 3],
     max: [f64; 3],
     cell: f64,
     n: [usize; 3],
+    /// Column boundaries per axis (`DexelGrid::edges`).
+    edges: &'g [Vec<f64>; 3],
 }
 
 /// A sub-move's index box on one family: rows `v0..v1`, rays `u0..u1` in each row.
@@ -282,7 +284,7 @@ fn remove_family(
     let rows = &mut f.rays[v0 * nu..v1 * nu];
     let summary_rows = &mut summaries.rays[v0 * nu..v1 * nu];
     let boxes = &boxes;
-    // Per row and group: removed length, exact intersections, rays changed.
+    // Per row and group: removed volume, exact intersections, rays changed.
     per_row.clear();
     per_row.resize((v1 - v0) * n_groups, (0.0, 0, 0));
     type Row<'r> = (
@@ -290,9 +292,11 @@ fn remove_family(
         &'r mut [RaySummary],
         &'r mut [(f64, u64, u64)],
     );
+    let (wu, wv) = (&g.edges[ua], &g.edges[va]);
     let do_row = |(k, (row, row_summaries, out)): (usize, Row)| {
         let iv = v0 + k;
         let v = ov + (iv as f64 + 0.5) * h;
+        let row_width = wv[iv + 1] - wv[iv];
         for bx in boxes.iter() {
             if iv < bx.v0 || iv >= bx.v1 {
                 continue;
@@ -375,7 +379,7 @@ fn remove_family(
                     if let Some((a, b)) = hit {
                         let r = subtract(ray, a, b);
                         if r > 0.0 {
-                            *removed += r;
+                            *removed += r * (wu[iu + 1] - wu[iu]) * row_width;
                             *changed += 1;
                             row_summaries[iu] = RaySummary::after_removal(ray, b);
                         }
@@ -403,7 +407,7 @@ fn remove_family(
     }
     for row in per_row.chunks(n_groups) {
         for (s, &(r, e, c)) in stats.iter_mut().zip(row) {
-            s.removed_length[fam] += r;
+            s.removed_volume[fam] += r;
             s.rays_intersected += e;
             s.rays_changed += c;
         }
