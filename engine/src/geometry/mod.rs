@@ -39,6 +39,7 @@ pub mod dexel;
 mod end_engagement;
 pub mod engagement;
 pub mod export;
+pub mod fixture;
 pub mod frame;
 pub mod path;
 pub mod removal;
@@ -52,6 +53,7 @@ pub use compare::{compare_with_part, GougeRegion, PartComparison, MAX_GOUGE_REGI
 pub use dexel::{default_cell, DexelGrid, GridEstimate, GridOptions, DEFAULT_MEMORY_LIMIT};
 pub use engagement::{EngagementOptions, StepMetrics};
 pub use export::{export_stl, export_stl_vec, stl_bytes, ExportStats};
+pub use fixture::{Fixture, FixtureError, FixtureSpec, MAX_FIXTURE_BODIES};
 pub use frame::GridFrame;
 pub use path::{PathShape, Segment};
 pub use removal::{
