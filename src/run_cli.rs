@@ -404,9 +404,10 @@ pub fn run(args: RunArgs) -> Result<(), String> {
 /// Errors name the file and the field (`fixture.json: bodies[2].max: ...`).
 fn fixture_document(path: &Path, inputs: &mut LoadedInputs) -> Result<Value, String> {
     let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-    let mut doc: Value = serde_json::from_slice(crate::problem::without_bom(&read(path)?))
-        .map_err(|e| at(&e))?;
-    let spec = millsim_engine::geometry::FixtureSpec::from_json(&doc, "path").map_err(|e| at(&e))?;
+    let mut doc: Value =
+        serde_json::from_slice(crate::problem::without_bom(&read(path)?)).map_err(|e| at(&e))?;
+    let spec =
+        millsim_engine::geometry::FixtureSpec::from_json(&doc, "path").map_err(|e| at(&e))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     for (i, file) in spec.stl_references() {
         let name = format!("fixture/{i}");
@@ -524,7 +525,9 @@ pub fn run_report(summary: &Value) -> String {
         let _ = writeln!(
             out,
             "FIXTURE COLLISIONS: {}",
-            fixture["collision_moves"].as_u64().unwrap_or(list.len() as u64)
+            fixture["collision_moves"]
+                .as_u64()
+                .unwrap_or(list.len() as u64)
         );
         for c in list.iter().take(20) {
             let _ = writeln!(

@@ -31,7 +31,13 @@ async fn a_rapid_through_a_clamp_is_named_in_the_summary_and_the_rows() {
     assert_eq!(st, 201, "{stock}");
     let tool = post_slot_tool(&c, &s).await;
     // A jaw as an STL stock resource: x 60..70, y −32..−22, up to z 6.
-    let (st, jaw) = post_stl(&c, &s, "/v1/stocks", box_stl([60.0, -32.0, -10.0], [70.0, -22.0, 6.0])).await;
+    let (st, jaw) = post_stl(
+        &c,
+        &s,
+        "/v1/stocks",
+        box_stl([60.0, -32.0, -10.0], [70.0, -22.0, 6.0]),
+    )
+    .await;
     assert_eq!(st, 201, "{jaw}");
     // Line 4 rapids along y 27 at z 5 through clamp 1 (x 40..50, y 22..32, up to z 8);
     // line 6 along y −27 through the jaw; line 10 feeds along y 16, 1 mm from clamp 1.
@@ -53,18 +59,41 @@ async fn a_rapid_through_a_clamp_is_named_in_the_summary_and_the_rows() {
     assert_eq!(fx["collision_moves"], 2, "{fx}");
     let first = &fx["collisions"][0];
     assert_eq!(
-        (&first["body"], &first["line"], &first["kind"], &first["part"]),
-        (&json!("clamp 1"), &json!(4), &json!("rapid"), &json!("flutes")),
+        (
+            &first["body"],
+            &first["line"],
+            &first["kind"],
+            &first["part"]
+        ),
+        (
+            &json!("clamp 1"),
+            &json!(4),
+            &json!("rapid"),
+            &json!("flutes")
+        ),
         "{first}"
     );
     // The slot tool is a flat Ø10: its edge (x + 5) reaches the clamp's face x 40 at x 35.
     let tip: Vec<f64> = serde_json::from_value(first["tip"].clone()).unwrap();
-    assert!((tip[0] - 35.0).abs() < 1e-6 && (tip[1] - 27.0).abs() < 1e-9, "{first}");
-    assert!((first["point"][0].as_f64().unwrap() - 40.0).abs() < 1e-6, "{first}");
+    assert!(
+        (tip[0] - 35.0).abs() < 1e-6 && (tip[1] - 27.0).abs() < 1e-9,
+        "{first}"
+    );
+    assert!(
+        (first["point"][0].as_f64().unwrap() - 40.0).abs() < 1e-6,
+        "{first}"
+    );
     // Back along y −27 from x 120: the edge (x − 5) meets the jaw's face x 70 at x 75.
     let second = &fx["collisions"][1];
-    assert_eq!((&second["body"], &second["line"]), (&json!("jaw"), &json!(6)), "{second}");
-    assert!((second["tip"][0].as_f64().unwrap() - 75.0).abs() < 1e-6, "{second}");
+    assert_eq!(
+        (&second["body"], &second["line"]),
+        (&json!("jaw"), &json!(6)),
+        "{second}"
+    );
+    assert!(
+        (second["tip"][0].as_f64().unwrap() - 75.0).abs() < 1e-6,
+        "{second}"
+    );
     assert!(done["summary"]["collisions"]
         .as_array()
         .unwrap()
@@ -78,7 +107,11 @@ async fn a_rapid_through_a_clamp_is_named_in_the_summary_and_the_rows() {
         assert!(r.get("fixture_body").is_some(), "{r}");
         let flagged = r["flags"].as_str().unwrap().contains("fixture_contact");
         match r["line"].as_u64().unwrap() {
-            4 => assert_eq!((flagged, &r["fixture_body"]), (true, &json!("clamp 1")), "{r}"),
+            4 => assert_eq!(
+                (flagged, &r["fixture_body"]),
+                (true, &json!("clamp 1")),
+                "{r}"
+            ),
             6 => assert_eq!((flagged, &r["fixture_body"]), (true, &json!("jaw")), "{r}"),
             _ => assert_eq!((flagged, &r["fixture_body"]), (false, &Value::Null), "{r}"),
         }
@@ -99,7 +132,13 @@ async fn a_bad_fixture_is_refused_at_submission_naming_the_field() {
     .await;
     let tool = post_slot_tool(&c, &s).await;
     let prog = post_program(&c, &s, "p.nc", "G0 X0 Y0 Z5\nM30\n").await;
-    let (_, jaw) = post_stl(&c, &s, "/v1/stocks", box_stl([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])).await;
+    let (_, jaw) = post_stl(
+        &c,
+        &s,
+        "/v1/stocks",
+        box_stl([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]),
+    )
+    .await;
     let block = json!({"kind":"block","min":[0,0,0],"max":[1,1,1]});
     let submit = |fixture: Value, extra: Option<(&str, &Value)>| {
         let mut inputs = json!({"program":prog,"stock":stock["id"],"tool":tool});
@@ -119,7 +158,10 @@ async fn a_bad_fixture_is_refused_at_submission_naming_the_field() {
             "options.fixture.bodies[2].max",
         ),
         (
-            submit(json!({"bodies":[{"kind":"stl","input":"fixture/jaw"}]}), None),
+            submit(
+                json!({"bodies":[{"kind":"stl","input":"fixture/jaw"}]}),
+                None,
+            ),
             "options.fixture.bodies[0].input",
         ),
         (

@@ -47,7 +47,10 @@ fn a_rapid_through_a_clamp_is_caught_where_the_flutes_first_touch_it() {
     let env = ToolEnvelope::new(&tool());
     // Along x at y 20, the tip at z 5: the flutes' leading edge (x + 5) reaches x 30.
     let c = f
-        .first_contact(&env, &Segment::rapid(3, [-20.0, 20.0, 5.0], [80.0, 20.0, 5.0]))
+        .first_contact(
+            &env,
+            &Segment::rapid(3, [-20.0, 20.0, 5.0], [80.0, 20.0, 5.0]),
+        )
         .unwrap()
         .expect("the rapid crosses the clamp");
     assert_eq!(c.name, "clamp 1");
@@ -57,12 +60,19 @@ fn a_rapid_through_a_clamp_is_caught_where_the_flutes_first_touch_it() {
     // The point is on the clamp's face x = 30, where the flutes are (z 5..15 of the clamp).
     assert!((c.point[0] - 30.0).abs() < 1e-6, "{:?}", c.point);
     assert!((c.point[1] - 20.0).abs() < 1e-6, "{:?}", c.point);
-    assert!((5.0 - 1e-6..=15.0 + 1e-6).contains(&c.point[2]), "{:?}", c.point);
+    assert!(
+        (5.0 - 1e-6..=15.0 + 1e-6).contains(&c.point[2]),
+        "{:?}",
+        c.point
+    );
     // The same rapid 0.5 mm above the clamp's top meets nothing below the holder... but
     // the holder is above too: nothing at all.
     assert_eq!(
-        f.first_contact(&env, &Segment::rapid(3, [-20.0, 20.0, 15.5], [80.0, 20.0, 15.5]))
-            .unwrap(),
+        f.first_contact(
+            &env,
+            &Segment::rapid(3, [-20.0, 20.0, 15.5], [80.0, 20.0, 15.5])
+        )
+        .unwrap(),
         None
     );
 }
@@ -74,7 +84,10 @@ fn a_feed_beside_a_clamp_with_1_mm_clearance_is_not_flagged_and_0_01_mm_into_it_
     let beside = Segment::linear(7, [24.0, -10.0, -2.0], [24.0, 50.0, -2.0], 800.0, 8000.0);
     assert_eq!(f.first_contact(&env, &beside).unwrap(), None);
     let into = Segment::linear(7, [25.01, -10.0, -2.0], [25.01, 50.0, -2.0], 800.0, 8000.0);
-    let c = f.first_contact(&env, &into).unwrap().expect("0.01 mm into the clamp");
+    let c = f
+        .first_contact(&env, &into)
+        .unwrap()
+        .expect("0.01 mm into the clamp");
     // The edge at x 30.01 meets the face y = 10 when the tip is a chord's half-width
     // short of it: √(5² − 4.99²).
     let half = (25.0f64 - 4.99 * 4.99).sqrt();
@@ -95,13 +108,28 @@ fn the_holder_meets_a_tall_clamp_while_the_flutes_pass_clear() {
     assert_eq!(c.part, ToolPart::Holder);
     // The holder's circle (radius 16 about x 20) crosses x 30 ±√(16² − 10²) from its
     // centre in y: it reaches the face y 10 with the tip at y 10 − √156.
-    assert!((c.tip[1] - (10.0 - 156f64.sqrt())).abs() < 1e-6, "{:?}", c.tip);
-    assert!(close(c.point, [30.0, 10.0, c.point[2]], 1e-6), "{:?}", c.point);
-    assert!((38.0 - 1e-6..=45.0 + 1e-6).contains(&c.point[2]), "{:?}", c.point);
+    assert!(
+        (c.tip[1] - (10.0 - 156f64.sqrt())).abs() < 1e-6,
+        "{:?}",
+        c.tip
+    );
+    assert!(
+        close(c.point, [30.0, 10.0, c.point[2]], 1e-6),
+        "{:?}",
+        c.point
+    );
+    assert!(
+        (38.0 - 1e-6..=45.0 + 1e-6).contains(&c.point[2]),
+        "{:?}",
+        c.point
+    );
     // Without the holder the same move is clear: it was the holder, not the flutes.
     let mut bare = tool();
     bare.holder.clear();
-    assert_eq!(f.first_contact(&ToolEnvelope::new(&bare), &path).unwrap(), None);
+    assert_eq!(
+        f.first_contact(&ToolEnvelope::new(&bare), &path).unwrap(),
+        None
+    );
 }
 
 #[test]
@@ -124,7 +152,10 @@ fn an_arc_around_a_round_clamp_is_checked_on_its_true_path() {
         )
     };
     assert_eq!(f.first_contact(&env, &circle(10.01)).unwrap(), None);
-    let c = f.first_contact(&env, &circle(9.99)).unwrap().expect("into the post");
+    let c = f
+        .first_contact(&env, &circle(9.99))
+        .unwrap()
+        .expect("into the post");
     assert_eq!(c.name, "post");
     // It touches from the start: the point is on the post's side facing the tool.
     assert!(c.u < 1e-9, "{}", c.u);
@@ -134,7 +165,12 @@ fn an_arc_around_a_round_clamp_is_checked_on_its_true_path() {
 /// An ASCII STL of a ramp: x 30..40, y 10..30, the top rising from z 0 at x 30 to z 10 at
 /// x 40 (a wedge: bottom, back wall at x 40, sloped top, two triangular sides).
 fn ramp_stl() -> String {
-    let (a, b, c, d) = ([30.0, 10.0, 0.0], [40.0, 10.0, 0.0], [40.0, 30.0, 0.0], [30.0, 30.0, 0.0]);
+    let (a, b, c, d) = (
+        [30.0, 10.0, 0.0],
+        [40.0, 10.0, 0.0],
+        [40.0, 30.0, 0.0],
+        [30.0, 30.0, 0.0],
+    );
     let (e, g) = ([40.0, 10.0, 10.0], [40.0, 30.0, 10.0]);
     let tris: [[[f64; 3]; 3]; 8] = [
         [a, c, b],
@@ -172,7 +208,10 @@ fn an_stl_body_is_met_on_its_sloped_face() {
     // The tip at z 5 along x: the slope is at height 5 at x 35, so the flutes' bottom edge
     // (x + 5) meets it with the tip at x 30.
     let c = f
-        .first_contact(&env, &Segment::rapid(2, [0.0, 20.0, 5.0], [60.0, 20.0, 5.0]))
+        .first_contact(
+            &env,
+            &Segment::rapid(2, [0.0, 20.0, 5.0], [60.0, 20.0, 5.0]),
+        )
         .unwrap()
         .expect("the rapid meets the ramp");
     assert_eq!(c.name, "ramp");
@@ -180,8 +219,11 @@ fn an_stl_body_is_met_on_its_sloped_face() {
     assert!((c.point[0] - 35.0).abs() < 1e-6 && (c.point[2] - 5.0).abs() < 1e-6);
     // 0.5 mm above the ramp's top edge: clear.
     assert_eq!(
-        f.first_contact(&env, &Segment::rapid(2, [0.0, 20.0, 10.5], [60.0, 20.0, 10.5]))
-            .unwrap(),
+        f.first_contact(
+            &env,
+            &Segment::rapid(2, [0.0, 20.0, 10.5], [60.0, 20.0, 10.5])
+        )
+        .unwrap(),
         None
     );
     // A tool short enough to sit wholly inside the wedge crosses none of its triangles but
@@ -209,7 +251,10 @@ fn bodies_are_bounded_and_every_error_names_its_field() {
     let too_many: Vec<Value> = (0..=MAX_FIXTURE_BODIES).map(block).collect();
     let e = FixtureSpec::from_json(&json!({ "bodies": too_many }), "path").unwrap_err();
     assert_eq!(e.field, "bodies");
-    assert!(e.message.contains("65 bodies") && e.message.contains("64"), "{e}");
+    assert!(
+        e.message.contains("65 bodies") && e.message.contains("64"),
+        "{e}"
+    );
 
     let err = |doc: Value| FixtureSpec::from_json(&doc, "input").unwrap_err();
     let e = err(json!({"bodies":[block(0), block(1),
@@ -222,16 +267,23 @@ fn bodies_are_bounded_and_every_error_names_its_field() {
             .field,
         "bodies[0].radius"
     );
-    assert_eq!(err(json!({"bodies":[{"kind":"sphere"}]})).field, "bodies[0].kind");
-    assert_eq!(err(json!({"bodies":[{"kind":"stl"}]})).field, "bodies[0].input");
     assert_eq!(
-        err(json!({"bodies":[{"kind":"block","min":[0,0,0],"max":[1,1,1],"colour":"red"}]}))
-            .field,
+        err(json!({"bodies":[{"kind":"sphere"}]})).field,
+        "bodies[0].kind"
+    );
+    assert_eq!(
+        err(json!({"bodies":[{"kind":"stl"}]})).field,
+        "bodies[0].input"
+    );
+    assert_eq!(
+        err(json!({"bodies":[{"kind":"block","min":[0,0,0],"max":[1,1,1],"colour":"red"}]})).field,
         "bodies[0].colour"
     );
     assert_eq!(
-        err(json!({"bodies":[{"name":"a","kind":"block","min":[0,0,0],"max":[1,1,1]},
-            {"name":"a","kind":"block","min":[2,0,0],"max":[3,1,1]}]}))
+        err(
+            json!({"bodies":[{"name":"a","kind":"block","min":[0,0,0],"max":[1,1,1]},
+            {"name":"a","kind":"block","min":[2,0,0],"max":[3,1,1]}]})
+        )
         .field,
         "bodies[1].name"
     );
@@ -269,7 +321,11 @@ fn a_simulation_flags_the_rapid_through_the_clamp_at_its_line() {
     let row = flagged[0];
     assert_eq!((row.line, row.kind), (4, "rapid"));
     assert_eq!(row.fixture_body.as_deref(), Some("clamp 1"));
-    assert!(row.flags.split('|').any(|f| f == "fixture_contact"), "{}", row.flags);
+    assert!(
+        row.flags.split('|').any(|f| f == "fixture_contact"),
+        "{}",
+        row.flags
+    );
     // The feed pass along y 16 (edge at y 21, the clamp from y 22) is clear.
     let pass = out.rows.iter().find(|r| r.line == 8).unwrap();
     assert!(!pass.fixture_contact && pass.removed_volume > 0.0);
@@ -278,7 +334,10 @@ fn a_simulation_flags_the_rapid_through_the_clamp_at_its_line() {
     assert_eq!(fx.bodies, ["clamp 1", "clamp 2"]);
     assert_eq!(fx.collision_moves, 1);
     let c = &fx.collisions[0];
-    assert_eq!((c.body.as_str(), c.line, c.kind, c.part), ("clamp 1", 4, "rapid", ToolPart::Flutes));
+    assert_eq!(
+        (c.body.as_str(), c.line, c.kind, c.part),
+        ("clamp 1", 4, "rapid", ToolPart::Flutes)
+    );
     // The flutes' edge (x + 5) reaches the clamp's face x 40 at the tip's x 35.
     assert!(close(c.tip, [35.0, 27.0, 5.0], 1e-6), "{:?}", c.tip);
     assert!((c.point[0] - 40.0).abs() < 1e-6, "{:?}", c.point);
@@ -288,7 +347,10 @@ fn a_simulation_flags_the_rapid_through_the_clamp_at_its_line() {
         .iter()
         .any(|k| k.kind == "fixture_contact" && k.line == 4));
     assert!(
-        out.summary.warnings.iter().any(|w| w.contains("line 4") && w.contains("clamp 1")),
+        out.summary
+            .warnings
+            .iter()
+            .any(|w| w.contains("line 4") && w.contains("clamp 1")),
         "{:?}",
         out.summary.warnings
     );

@@ -147,13 +147,17 @@ pub fn check_fixture_inputs<'a>(
     names: impl Iterator<Item = &'a String> + Clone,
 ) -> Result<(), FieldError> {
     let spec = opts.fixture_spec()?;
-    let refs: Vec<(usize, &str)> = spec.as_ref().map_or(Vec::new(), |s| s.stl_references().collect());
+    let refs: Vec<(usize, &str)> = spec
+        .as_ref()
+        .map_or(Vec::new(), |s| s.stl_references().collect());
     for (i, r) in &refs {
         let field = format!("options.fixture.bodies[{i}].{FIXTURE_STL_KEY}");
         if !fixture_input(r) {
             return Err(FieldError::new(
                 field,
-                format!("`{r}`: an STL body names a job input `fixture/<name>` (an uploaded STL stock)"),
+                format!(
+                    "`{r}`: an STL body names a job input `fixture/<name>` (an uploaded STL stock)"
+                ),
             ));
         }
         if !names.clone().any(|n| n.as_str() == *r) {
@@ -461,10 +465,14 @@ pub(super) fn spec_from_inputs(
                     .remove(name)
                     .ok_or_else(|| format!("the job has no input `{name}`"))?;
                 if input.media_type == "application/json" {
-                    return Err("a fixture body's mesh must be an STL, not a parametric stock".into());
+                    return Err(
+                        "a fixture body's mesh must be an STL, not a parametric stock".into(),
+                    );
                 }
                 let stl = input.stl().map_err(|e| e.to_string())?;
-                stl.mesh().map(|m| m.into_owned()).map_err(|e| e.to_string())
+                stl.mesh()
+                    .map(|m| m.into_owned())
+                    .map_err(|e| e.to_string())
             })
             .map_err(|e| invalid("Invalid fixture", e.prefixed("options.fixture").to_string()))?,
         )),

@@ -31,7 +31,9 @@
 //! Modules: `dexel` (grid, intervals, memory estimate), `stock` (block, cylinder),
 //! `stl` (STL import), `path` (segments, arcs, 5-axis sub-steps), `sweep` (swept volume
 //! per ray, removal), `engagement` (per step), `checks` (rapid, flutes, shank, holder,
-//! fixture), `compare` (gouge and allowance against a design part), `export` (STL).
+//! fixture grid), `fixture` (clamps and vices as bodies, checked analytically against the
+//! whole tool along each move), `compare` (gouge and allowance against a design part),
+//! `export` (STL).
 
 pub mod checks;
 pub mod compare;
