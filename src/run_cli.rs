@@ -27,6 +27,11 @@ pub struct RunArgs {
     /// allowance left.
     #[arg(long)]
     part: Option<PathBuf>,
+    /// Clamps and vices in the part frame (JSON: {"bodies":[{"name":"clamp 1","kind":
+    /// "block","min":[..],"max":[..]}, {"kind":"stl","path":"vice.stl"}, ...]}; STL paths
+    /// relative to the file): every move is checked against them with the whole tool.
+    #[arg(long, value_name = "FILE")]
+    fixture: Option<PathBuf>,
     /// A tool, as `T1=tool.json` (the tool of T1) or `tool.json`; repeat for each tool
     /// number the program uses (JSON as POST /v1/tools takes it).
     #[arg(long)]
@@ -242,11 +247,15 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         );
     }
     crate::jobs::check_tool_inputs(JobKind::Simulate, inputs.keys()).map_err(|e| e.message)?;
+    let mut options = Map::new();
     if let Some(path) = &args.part {
         let part = file_input(path, "model/stl")?;
         crate::validate::stl(&part.content, &path.display().to_string())
             .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
         inputs.insert("part".into(), part);
+    }
+    if let Some(path) = &args.fixture {
+        options.insert("fixture".into(), fixture_document(path, &mut inputs)?);
     }
     if let Some(path) = &args.machine {
         let m = file_input(path, "application/json")?;
@@ -254,7 +263,6 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
         inputs.insert("machine".into(), m);
     }
-    let mut options = Map::new();
     if Path::new(&args.material).is_file() {
         let m = file_input(Path::new(&args.material), "application/json")?;
         crate::validate::material(&m.content)
@@ -391,6 +399,32 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// The fixture file as the job's `options.fixture`: each STL body's `path` (relative to
+/// the file) read into a job input `fixture/<body index>` that the body names instead.
+/// Errors name the file and the field (`fixture.json: bodies[2].max: ...`).
+fn fixture_document(path: &Path, inputs: &mut LoadedInputs) -> Result<Value, String> {
+    let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let mut doc: Value =
+        serde_json::from_slice(crate::problem::without_bom(&read(path)?)).map_err(|e| at(&e))?;
+    let spec =
+        millsim_engine::geometry::FixtureSpec::from_json(&doc, "path").map_err(|e| at(&e))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    for (i, file) in spec.stl_references() {
+        let name = format!("fixture/{i}");
+        let stl = file_input(&dir.join(file), "model/stl")
+            .map_err(|e| at(&format!("bodies[{i}].path: {e}")))?;
+        crate::validate::stl(&stl.content, file)
+            .map_err(|e| at(&format!("bodies[{i}].path: {file}: {}", e.detail)))?;
+        inputs.insert(name.clone(), stl);
+        let body = doc["bodies"][i]
+            .as_object_mut()
+            .expect("a body the reader took");
+        body.remove("path");
+        body.insert("input".into(), Value::String(name));
+    }
+    Ok(doc)
+}
+
 /// `NAME=VALUE,...` of option `flag` as (name, value) pairs, each value a number or
 /// `true`/`false` (`tool_guards=false`); errors name the flag and pair.
 fn name_values(flag: &str, list: &str) -> Result<Vec<(String, Value)>, String> {
@@ -475,6 +509,37 @@ pub fn run_report(summary: &Value) -> String {
                 "  line {}: {}",
                 c["line"],
                 c["kind"].as_str().unwrap_or("?")
+            );
+        }
+        if list.len() > 20 {
+            let _ = writeln!(out, "  ... {} more in summary.json", list.len() - 20);
+        }
+    }
+    // Each move that meets the fixture: the body, the tool's part and where.
+    let fixture = &summary["fixture"];
+    if let Some(list) = fixture["collisions"].as_array().filter(|c| !c.is_empty()) {
+        let xyz = |v: &Value| {
+            let n = |k: usize| v[k].as_f64().unwrap_or(f64::NAN);
+            format!("X{:.3} Y{:.3} Z{:.3}", n(0), n(1), n(2))
+        };
+        let _ = writeln!(
+            out,
+            "FIXTURE COLLISIONS: {}",
+            fixture["collision_moves"]
+                .as_u64()
+                .unwrap_or(list.len() as u64)
+        );
+        for c in list.iter().take(20) {
+            let _ = writeln!(
+                out,
+                "  line {}: {} of T{} meets `{}` ({} move), tip at {}, contact at {}",
+                c["line"],
+                c["part"].as_str().unwrap_or("?"),
+                c["tool"],
+                c["body"].as_str().unwrap_or("?"),
+                c["kind"].as_str().unwrap_or("?"),
+                xyz(&c["tip"]),
+                xyz(&c["point"]),
             );
         }
         if list.len() > 20 {

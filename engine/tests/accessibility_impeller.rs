@@ -324,6 +324,7 @@ fn simulate_program(
         workpiece: None,
         chatter: None,
         part: Some(stl_bytes(part).into()),
+        fixture: None,
     };
     simulate(&spec, &CancelFlag::new(), &NoProgress).unwrap()
 }

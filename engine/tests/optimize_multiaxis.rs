@@ -79,6 +79,7 @@ fn spec_at(program: &str, cell: f64) -> SimulateSpec {
         workpiece: None,
         chatter: None,
         part: None,
+        fixture: None,
     }
 }
 

@@ -149,6 +149,7 @@ fn batches_split_the_pieces_of_a_rotary_move_without_changing_it() {
         workpiece: None,
         chatter: None,
         part: None,
+        fixture: None,
     };
     let whole = run(&spec, usize::MAX);
     assert!(whole.rows.iter().any(|r| r.removed_volume > 100.0));
@@ -188,6 +189,7 @@ fn the_adaptive_example_gives_the_same_blocks_in_small_batches() {
         workpiece: None,
         chatter: None,
         part: None,
+        fixture: None,
     };
     let whole = run(&spec, usize::MAX);
     assert!(

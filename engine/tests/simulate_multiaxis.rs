@@ -45,6 +45,7 @@ fn spec(program: &str, kinematics: Kinematics, tool_diameter: f64) -> SimulateSp
         workpiece: None,
         chatter: None,
         part: None,
+        fixture: None,
     }
 }
 

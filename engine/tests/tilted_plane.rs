@@ -278,6 +278,7 @@ fn spec(program: &str) -> SimulateSpec {
         workpiece: None,
         chatter: None,
         part: None,
+        fixture: None,
     }
 }
 

@@ -217,6 +217,7 @@ fn adaptive_spec(tools: BTreeMap<u32, Tool>) -> Option<SimulateSpec> {
         workpiece: None,
         chatter: None,
         part: None,
+        fixture: None,
     })
 }
 

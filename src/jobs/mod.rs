@@ -130,13 +130,18 @@ impl JobKind {
         ) && inputs::library_file_name(name).is_some()
     }
 
-    /// An input a request names beyond the kind's fixed ones: a per-number tool or a
-    /// library program, with its resource kind.
+    /// An input a request names beyond the kind's fixed ones: a per-number tool, a
+    /// library program, or a fixture body's STL (`fixture/<name>`, a stock resource), with
+    /// its resource kind.
     pub fn named_input(self, name: &str) -> Option<ResourceKind> {
         if self.tool_number_input(name).is_some() {
             Some(ResourceKind::Tool)
         } else if self.library_input(name) {
             Some(ResourceKind::Program)
+        } else if matches!(self, JobKind::Simulate | JobKind::Optimize)
+            && simulate::fixture_input(name)
+        {
+            Some(ResourceKind::Stock)
         } else {
             None
         }
@@ -182,10 +187,11 @@ impl JobKind {
                 .map(|_| ())
                 .map_err(FieldError::into_problem),
             JobKind::Simulate | JobKind::Optimize => {
-                check_tool_inputs(self, input_names).map_err(FieldError::into_problem)?;
+                check_tool_inputs(self, input_names.clone()).map_err(FieldError::into_problem)?;
                 let o: SimulateOptions = crate::problem::parse_options(options)?;
                 o.check(self == JobKind::Optimize, has_material_input)
-                    .map_err(FieldError::into_problem)
+                    .map_err(FieldError::into_problem)?;
+                simulate::check_fixture_inputs(&o, input_names).map_err(FieldError::into_problem)
             }
             JobKind::Identify => identify::check(options),
             JobKind::Accessibility => accessibility::check(options),

@@ -123,6 +123,75 @@ pub struct SimulateOptions {
     /// "modes_y":[..]}]}: its static give adds to the form error.
     #[serde(default)]
     pub workpiece: Option<millsim_engine::physics::deflection::WorkpieceModes>,
+    /// Clamps and vices in the part frame, checked against the whole tool on every move:
+    /// {"bodies":[{"name":"clamp 1","kind":"block","min":[..],"max":[..]}, {"kind":
+    /// "cylinder",..}, {"kind":"stl","input":"fixture/vice"}]} (an STL body names a job
+    /// input `fixture/<name>`, an uploaded STL stock resource).
+    #[serde(default)]
+    pub fixture: Option<Value>,
+}
+
+/// The field an STL fixture body names its job input with.
+const FIXTURE_STL_KEY: &str = "input";
+
+/// An input named `fixture/<name>` is the STL of a fixture body that names it.
+pub fn fixture_input(name: &str) -> bool {
+    name.strip_prefix("fixture/")
+        .is_some_and(|n| !n.is_empty() && n.len() <= 255)
+}
+
+/// Checks that every STL body of `options.fixture` names a `fixture/<name>` input the job
+/// gives, and that every such input is named by a body.
+pub fn check_fixture_inputs<'a>(
+    opts: &SimulateOptions,
+    names: impl Iterator<Item = &'a String> + Clone,
+) -> Result<(), FieldError> {
+    let spec = opts.fixture_spec()?;
+    let refs: Vec<(usize, &str)> = spec
+        .as_ref()
+        .map_or(Vec::new(), |s| s.stl_references().collect());
+    for (i, r) in &refs {
+        let field = format!("options.fixture.bodies[{i}].{FIXTURE_STL_KEY}");
+        if !fixture_input(r) {
+            return Err(FieldError::new(
+                field,
+                format!(
+                    "`{r}`: an STL body names a job input `fixture/<name>` (an uploaded STL stock)"
+                ),
+            ));
+        }
+        if !names.clone().any(|n| n.as_str() == *r) {
+            return Err(FieldError::new(
+                field,
+                format!("names input `{r}`, which the job does not give"),
+            ));
+        }
+    }
+    if let Some(n) = names
+        .filter(|n| fixture_input(n))
+        .find(|n| !refs.iter().any(|(_, r)| *r == n.as_str()))
+    {
+        return Err(FieldError::new(
+            format!("inputs.{n}"),
+            "no body of options.fixture names this input",
+        ));
+    }
+    Ok(())
+}
+
+impl SimulateOptions {
+    /// `options.fixture` read, each error naming its field under `options.fixture`.
+    pub fn fixture_spec(&self) -> Result<Option<geometry::FixtureSpec>, FieldError> {
+        self.fixture
+            .as_ref()
+            .map(|v| {
+                geometry::FixtureSpec::from_json(v, FIXTURE_STL_KEY).map_err(|e| {
+                    let e = e.prefixed("options.fixture");
+                    FieldError::new(e.field, e.message)
+                })
+            })
+            .transpose()
+    }
 }
 
 fn default_positions() -> usize {
@@ -216,6 +285,7 @@ impl SimulateOptions {
                 FieldError::new(format!("options.workpiece.{}", e.field()), e.to_string())
             })?;
         }
+        self.fixture_spec()?;
         if !(1..=16384).contains(&self.max_grid_mib) {
             return Err(FieldError::new(
                 "options.max_grid_mib",
@@ -384,6 +454,31 @@ pub(super) fn spec_from_inputs(
         }
         None => None,
     };
+    // The fixture's STL bodies from their `fixture/<name>` inputs (checked at submission).
+    let fixture = match opts
+        .fixture_spec()
+        .map_err(|e| invalid("Invalid fixture", e.to_string()))?
+    {
+        Some(spec) => Some(std::sync::Arc::new(
+            spec.build(FIXTURE_STL_KEY, |name| {
+                let input = inputs
+                    .remove(name)
+                    .ok_or_else(|| format!("the job has no input `{name}`"))?;
+                if input.media_type == "application/json" {
+                    return Err(
+                        "a fixture body's mesh must be an STL, not a parametric stock".into(),
+                    );
+                }
+                let stl = input.stl().map_err(|e| e.to_string())?;
+                stl.mesh()
+                    .map(|m| m.into_owned())
+                    .map_err(|e| e.to_string())
+            })
+            .map_err(|e| invalid("Invalid fixture", e.prefixed("options.fixture").to_string()))?,
+        )),
+        None => None,
+    };
+    let fixture_triangles: u64 = fixture.as_ref().map_or(0, |f| f.triangles());
     // Travel and memory budget, before the pipeline allocates anything.
     let check = SimulationCheck {
         file: &file,
@@ -395,12 +490,13 @@ pub(super) fn spec_from_inputs(
         tools: &tools,
         cell: opts.cell_mm,
         optimize: keeps_steps,
+        // The fixture's meshes are held as a part's is (a mesh and its BVH each).
         part_triangles: match &part {
             Some(StlSource::Mesh(mesh)) => mesh.triangles.len() as u64,
             // Not read yet: the binary size's count (an ASCII file's is lower).
             Some(StlSource::Bytes(bytes)) => bytes.len() as u64 / 50,
             None => 0,
-        },
+        } + fixture_triangles,
     };
     let estimate = check_simulation(&check, limits).map_err(|r| match r {
         Refusal::Program(d) => program_failure(cancel, &file, &d),
@@ -421,6 +517,7 @@ pub(super) fn spec_from_inputs(
         chatter: opts.chatter.clone(),
         workpiece: opts.workpiece.clone(),
         part,
+        fixture,
     };
     Ok(BuiltSpec {
         file,

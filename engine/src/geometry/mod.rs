@@ -31,8 +31,9 @@
 //! Modules: `dexel` (grid, intervals, memory estimate), `stock` (block, cylinder),
 //! `stl` (STL import), `path` (segments, arcs, 5-axis sub-steps), `sweep` (swept volume
 //! per ray, removal), `engagement` (per step), `checks` (rapid, flutes, shank, holder,
-//! fixture), `compare` (gouge and allowance against a design part), `export` (STL),
-//! `voxel_volume` (the stock volume from the three families together).
+//! fixture grid), `fixture` (clamps and vices as bodies, checked analytically against the
+//! whole tool along each move), `compare` (gouge and allowance against a design part),
+//! `export` (STL), `voxel_volume` (the stock volume from the three families together).
 
 pub mod checks;
 pub mod compare;
@@ -40,6 +41,7 @@ pub mod dexel;
 mod end_engagement;
 pub mod engagement;
 pub mod export;
+pub mod fixture;
 pub mod frame;
 pub mod path;
 pub mod removal;
@@ -54,6 +56,7 @@ pub use compare::{compare_with_part, GougeRegion, PartComparison, MAX_GOUGE_REGI
 pub use dexel::{default_cell, DexelGrid, GridEstimate, GridOptions, DEFAULT_MEMORY_LIMIT};
 pub use engagement::{EngagementOptions, StepMetrics};
 pub use export::{export_stl, export_stl_vec, stl_bytes, ExportStats};
+pub use fixture::{Fixture, FixtureError, FixtureSpec, MAX_FIXTURE_BODIES};
 pub use frame::GridFrame;
 pub use path::{PathShape, Segment};
 pub use removal::{

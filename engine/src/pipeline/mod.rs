@@ -11,6 +11,7 @@
 //! move in the part frame (several where rotary axes turn); a *step* is where the removal
 //! takes the engagement along a piece.
 
+mod fixture_stage;
 mod forces;
 mod frame;
 mod line_forces;
@@ -24,6 +25,7 @@ mod stages;
 mod step_totals;
 mod tools;
 
+pub use fixture_stage::{FixtureCollision, FixtureSummary};
 pub use line_forces::{simulate_for_identification, LineForce, ProgramCuts, MAX_LINES};
 pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
@@ -108,6 +110,16 @@ fn run(
     let clock = Instant::now();
     let plan = removal::plan_removal(spec, moves, &tools, cell, &mut rows)?;
     let plan_s = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
+    let fixture = match &spec.fixture {
+        Some(f) => Some(fixture_stage::check_fixture(
+            f, &plan, moves, &tools, &mut rows,
+        )?),
+        None => None,
+    };
+    let mut warnings = warnings;
+    warnings.extend(fixture.as_ref().and_then(fixture_stage::warning));
+    timings.fixture_s = clock.elapsed().as_secs_f64();
 
     // The grid's frame follows the plan's pieces (along a 3+2 program's tool axis).
     let clock = Instant::now();
@@ -245,6 +257,7 @@ fn run(
             warnings,
             chatter,
             part,
+            fixture,
         },
     );
     let kept_cuts = match (keep_steps, kept) {

@@ -70,6 +70,14 @@ pub(super) struct RemovalPlan {
 }
 
 impl RemovalPlan {
+    /// Every planned piece in program order: its move's index and its path in the part frame.
+    pub(super) fn pieces(&self) -> impl Iterator<Item = (usize, &Segment)> {
+        self.runs
+            .iter()
+            .flat_map(|(_, pieces)| pieces)
+            .map(|p| (p.move_index, &p.piece.segment))
+    }
+
     /// The grid frame for this plan: along the tool axis of a 3+2 program, where a tilted
     /// axis that stays fixed over pieces carries at least half of the cutting path (a
     /// tilted tool then cuts as fast as a vertical one, see `geometry::frame`); else, for

@@ -120,8 +120,8 @@ pub struct MoveRow {
     pub chatter_margin: Option<f64>,
     pub critical_depth_mm: Option<f64>,
     /// What to look at, `|`-separated: air, rapid_in_material, flute_length_exceeded,
-    /// shank_contact, holder_contact, spindle_stopped_in_material, non_center_cutting_plunge,
-    /// chatter.
+    /// shank_contact, holder_contact, fixture_contact, spindle_stopped_in_material,
+    /// non_center_cutting_plunge, chatter.
     pub flags: String,
     pub steps: usize,
     #[serde(skip)]
@@ -132,6 +132,9 @@ pub struct MoveRow {
     pub shank_contact: bool,
     #[serde(skip)]
     pub holder_contact: bool,
+    /// The tool (flutes, shank or holder) meets a fixture body on this move.
+    #[serde(skip)]
+    pub fixture_contact: bool,
     /// Material removed while the spindle is stopped.
     #[serde(skip)]
     pub spindle_stopped_in_material: bool,
@@ -178,6 +181,9 @@ pub struct MoveRow {
     /// The move was written as this many blocks, each at its own feed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub split_parts: Option<usize>,
+    /// With a fixture: the first body the tool meets on this move.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fixture_body: Option<String>,
 }
 
 /// The row columns of a run: every field any of its rows has, in the rows' field order. A
@@ -198,6 +204,9 @@ pub fn row_columns(rows: &[MoveRow]) -> Vec<String> {
         t.mean_power_after = t.mean_power_after.or(r.mean_power_after);
         t.peak_power_after = t.peak_power_after.or(r.peak_power_after);
         t.split_parts = t.split_parts.or(r.split_parts);
+        if t.fixture_body.is_none() {
+            t.fixture_body.clone_from(&r.fixture_body);
+        }
         if t.governing.is_none() {
             t.governing.clone_from(&r.governing);
         }
@@ -218,7 +227,7 @@ pub struct RowJson {
     present: [bool; OPTIONAL_COLUMNS],
 }
 
-const OPTIONAL_COLUMNS: usize = 12;
+const OPTIONAL_COLUMNS: usize = 13;
 
 impl RowJson {
     pub fn new(rows: &[MoveRow]) -> RowJson {
@@ -280,6 +289,7 @@ impl MoveRow {
             ("power_peak_opt_w", self.peak_power_after.is_some()),
             ("governing", self.governing.is_some()),
             ("split_parts", self.split_parts.is_some()),
+            ("fixture_body", self.fixture_body.is_some()),
         ]
     }
 
@@ -312,6 +322,7 @@ impl MoveRow {
             (self.flute_length_exceeded, "flute_length_exceeded"),
             (self.shank_contact, "shank_contact"),
             (self.holder_contact, "holder_contact"),
+            (self.fixture_contact, "fixture_contact"),
             (
                 self.spindle_stopped_in_material,
                 "spindle_stopped_in_material",
@@ -329,8 +340,8 @@ impl MoveRow {
 pub struct Collision {
     pub block: usize,
     pub line: u32,
-    /// rapid_in_material, shank_contact, holder_contact, flute_length_exceeded,
-    /// spindle_stopped_in_material or non_center_cutting_plunge.
+    /// rapid_in_material, shank_contact, holder_contact, fixture_contact,
+    /// flute_length_exceeded, spindle_stopped_in_material or non_center_cutting_plunge.
     pub kind: &'static str,
 }
 
@@ -399,6 +410,9 @@ pub struct SimulationSummary {
     /// allowance left on it (min/mean/max), mm³ and mm.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub part: Option<geometry::PartComparison>,
+    /// With a fixture: its bodies, and the moves whose tool meets one (body, line, point).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fixture: Option<super::fixture_stage::FixtureSummary>,
 }
 
 /// The life one tool uses over the program.
@@ -462,6 +476,8 @@ pub struct StageTimings {
     pub optimize_schedule_s: f64,
     pub optimize_rewrite_s: f64,
     pub optimize_forces_after_s: f64,
+    /// The fixture check (part of no other stage).
+    pub fixture_s: f64,
 }
 
 /// The force at one engaged step, for plotting along a move.
@@ -585,6 +601,7 @@ pub(super) fn collisions(rows: &[MoveRow]) -> Vec<Collision> {
                 (r.rapid_in_material, "rapid_in_material"),
                 (r.shank_contact, "shank_contact"),
                 (r.holder_contact, "holder_contact"),
+                (r.fixture_contact, "fixture_contact"),
                 (r.flute_length_exceeded, "flute_length_exceeded"),
                 (r.spindle_stopped_in_material, "spindle_stopped_in_material"),
                 (r.non_center_cutting_plunge, "non_center_cutting_plunge"),
@@ -609,6 +626,7 @@ pub(super) struct SummaryExtras {
     pub(super) warnings: Vec<String>,
     pub(super) chatter: Option<(usize, f64)>,
     pub(super) part: Option<geometry::PartComparison>,
+    pub(super) fixture: Option<super::fixture_stage::FixtureSummary>,
 }
 
 /// The program's summary from its rows: (moves, blocks) counted, the stock volume before
@@ -674,6 +692,7 @@ pub(super) fn summarize(
         chatter_moves: extras.chatter.map(|(n, _)| n),
         chatter_margin_max: extras.chatter.map(|(_, m)| m),
         part: extras.part,
+        fixture: extras.fixture,
     }
 }
 

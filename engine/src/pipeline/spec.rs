@@ -84,6 +84,8 @@ pub struct SimulateSpec {
     pub workpiece: Option<crate::physics::deflection::WorkpieceModes>,
     /// The design part (STL, in the stock's frame): gouges and the allowance left.
     pub part: Option<StlSource>,
+    /// Clamps and vices in the part frame, checked against the whole tool on every move.
+    pub fixture: Option<std::sync::Arc<geometry::Fixture>>,
 }
 
 impl SimulateSpec {

@@ -31,5 +31,6 @@ pub fn block_spec(program: &str, tool: Tool, cell: f64) -> SimulateSpec {
         workpiece: None,
         chatter: None,
         part: None,
+        fixture: None,
     }
 }
