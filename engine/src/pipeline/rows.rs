@@ -399,6 +399,10 @@ pub struct SimulationSummary {
     /// allowance left on it (min/mean/max), mm³ and mm.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub part: Option<geometry::PartComparison>,
+    /// With `options.spindle`: the speed chosen out of chatter, why, and the margins before
+    /// and after (see `spindle_stage`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spindle: Option<super::spindle_stage::SpindleSummary>,
 }
 
 /// The life one tool uses over the program.
@@ -674,6 +678,7 @@ pub(super) fn summarize(
         chatter_moves: extras.chatter.map(|(n, _)| n),
         chatter_margin_max: extras.chatter.map(|(_, m)| m),
         part: extras.part,
+        spindle: None,
     }
 }
 
