@@ -228,6 +228,12 @@ pub fn choose_spindle_speed(input: &ChoiceInput) -> Result<SpindleChoice, Spindl
             "the program's cutting moves have no spindle speed",
         ));
     }
+    if o.objective == Objective::MinEnergy && input.machine.energy.is_none() {
+        return Err(SpindleError::new(
+            "objective",
+            "min_energy needs the machine's energy model (the machine's `energy`: idle spindle power and auxiliary power); give it or use min_time",
+        ));
+    }
     let speeds = o.candidates(input.machine.spindle_min_rpm, input.machine.spindle_max_rpm)?;
     if speeds.len() * conds.len() > MAX_EVALUATIONS {
         return Err(SpindleError::new(
@@ -457,6 +463,57 @@ mod tests {
         // Feed time 60 s at 10,000 rpm scales as 10,000/n.
         let expect = 5.0 + 60.0 * 10_000.0 / c.chosen_rpm;
         assert!((c.estimated_time_chosen_s - expect).abs() < 1e-9);
+    }
+
+    #[test]
+    fn min_energy_takes_the_least_energy_in_the_pocket() {
+        use crate::physics::energy::EnergyModel;
+        let models = benchmark();
+        let options: SpindleOptions = serde_json::from_str(
+            r#"{"rpm":{"from":5000,"to":25000},"speeds":81,"objective":"min_energy"}"#,
+        )
+        .unwrap();
+        let blocks = [CuttingBlock {
+            line: 7,
+            teeth: 2,
+            axial_depth_mm: 1.0,
+            immersion: 1.0,
+            milling: Milling::Down,
+        }];
+        let feeds = [FeedMove {
+            time_s: 60.0,
+            feed_mm_min: 1000.0,
+            peak_power_w: 100.0,
+            peak_torque_nm: 0.1,
+        }];
+        let mut machine = Machine::generic();
+        machine.spindle_max_rpm = 30_000.0;
+        machine.max_feed = 1e6;
+        let cancel = CancelFlag::new();
+        let e = choose_spindle_speed(&input(
+            &options, &models, &blocks, &feeds, &machine, &cancel,
+        ))
+        .unwrap_err();
+        assert_eq!(e.field(), "objective");
+        machine.energy = Some(EnergyModel::reference_example());
+        let inp = input(&options, &models, &blocks, &feeds, &machine, &cancel);
+        let c = choose_spindle_speed(&inp).unwrap();
+        // (P_idle(n) + P_aux)·(5 + 60·10⁴/n) + 1000 J with the reference fit above 3000
+        // rpm: least near n where the idle power's rise offsets the time saved, below the
+        // pocket's top (min_time's choice).
+        let e =
+            |n: f64| 1000.0 + (3e-6 * n * n - 0.0034 * n + 881.5 + 804.0) * (5.0 + 60.0 * 1e4 / n);
+        assert!((c.estimated_energy_chosen_j.unwrap() - e(c.chosen_rpm)).abs() < 1e-6);
+        let (from, to) = (c.pocket_from_rpm.unwrap(), c.pocket_to_rpm.unwrap());
+        for m in c.margins.iter().filter(|m| m.rpm > from && m.rpm < to) {
+            assert!(
+                e(m.rpm) >= e(c.chosen_rpm) - 1e-9,
+                "{} beats {}",
+                m.rpm,
+                c.chosen_rpm
+            );
+        }
+        assert!(c.chosen_rpm < to - 250.0, "{c:?}");
     }
 
     #[test]
