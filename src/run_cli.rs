@@ -445,9 +445,15 @@ pub fn run_report(summary: &Value) -> String {
         } else {
             0.0
         };
+        // With a chosen spindle speed the feeds were scheduled from the program at that speed.
+        let from = if summary["spindle"].is_object() {
+            "at the chosen speed"
+        } else {
+            "programmed"
+        };
         let _ = writeln!(
             out,
-            "cycle time: {before:.1} s programmed, {after:.1} s optimized ({change:+.1} %); best constant feed {:.1} s",
+            "cycle time: {before:.1} s {from}, {after:.1} s optimized ({change:+.1} %); best constant feed {:.1} s",
             num(&opt["cycle_time_constant_feed_s"])
         );
     } else {

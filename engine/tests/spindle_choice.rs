@@ -65,6 +65,21 @@ fn an_unstable_slot_is_moved_into_a_stable_pocket_and_resimulated_stable() {
         "{}",
         sp.chatter_margin_max_before
     );
+    // The margins behind the choice are the benchmark's lobes: 1 mm over the critical depth
+    // of docs/reference.md's first-order semi-discretization (slot, k = 40) within 3 %.
+    for (rpm, critical) in [
+        (10_000.0, 0.335),
+        (15_000.0, 0.393),
+        (20_000.0, 1.428),
+        (25_000.0, 3.938),
+    ] {
+        let m = sp.choice.margins.iter().find(|m| m.rpm == rpm).unwrap();
+        let got = 1.0 / m.worst_margin;
+        assert!(
+            (got - critical).abs() <= 0.03 * critical,
+            "{rpm} rpm: {got} mm vs {critical}"
+        );
+    }
     assert!(sp.stable && sp.choice.within_max_margin, "{}", sp.reason);
     let (from, to) = (
         sp.choice.pocket_from_rpm.unwrap(),
