@@ -222,7 +222,8 @@ pub fn choose_spindle_speed(input: &ChoiceInput) -> Result<SpindleChoice, Spindl
             "no block of the program removes material with the spindle turning: there is no cut to choose a speed for",
         ));
     }
-    if !(input.programmed_rpm >= 1.0) {
+    // Also refuses NaN.
+    if input.programmed_rpm.is_nan() || input.programmed_rpm < 1.0 {
         return Err(SpindleError::new(
             "choose",
             "the program's cutting moves have no spindle speed",

@@ -84,7 +84,7 @@ impl SpindleOptions {
     pub fn validate(&self) -> Result<(), SpindleError> {
         let RpmBounds { from, to } = self.rpm;
         for (field, v) in [("rpm.from", from), ("rpm.to", to)] {
-            if !v.is_finite() || v < 1.0 || v > MAX_RPM {
+            if !(1.0..=MAX_RPM).contains(&v) {
                 return Err(SpindleError::new(
                     field,
                     format!("must be a speed from 1 to {MAX_RPM} rpm, got {v}"),

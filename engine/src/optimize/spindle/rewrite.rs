@@ -46,10 +46,10 @@ pub fn at_spindle_speed(
         // Modal words first: a block's own G20/G95 applies to its own F.
         for w in b.words.iter().filter(|w| w.letter == 'G') {
             match literal(&w.value) {
-                Some(v) if v == 20.0 => unit = 25.4,
-                Some(v) if v == 21.0 => unit = 1.0,
+                Some(20.0) => unit = 25.4,
+                Some(21.0) => unit = 1.0,
                 Some(v) if v == 93.0 || v == 94.0 || v == 95.0 => mode = v as i32,
-                Some(v) if v == 96.0 => {
+                Some(96.0) => {
                     return Err(SpindleError::new(
                         "choose",
                         format!("line {}: G96 (constant surface speed) sets the speed from the diameter; choose a speed only for a program in G97 (S in rpm)", b.line),
