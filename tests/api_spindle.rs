@@ -113,3 +113,52 @@ async fn the_spindle_speed_is_chosen_out_of_chatter_and_bad_values_are_refused()
         assert!(v.to_string().contains(field), "{field}: {v}");
     }
 }
+
+/// `millsim run --spindle` on examples/spindle (the benchmark slot): the report prints the
+/// choice and the program at the chosen speed is written beside the summary.
+#[test]
+fn millsim_run_prints_the_chosen_speed() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/spindle");
+    let out = std::process::Command::new(BIN)
+        .arg("run")
+        .arg("--stock")
+        .arg(ex.join("stock.json"))
+        .arg("--program")
+        .arg(ex.join("slot.nc"))
+        .arg("--tool")
+        .arg(format!("T1={}", ex.join("tool.json").display()))
+        .arg("--material")
+        .arg(ex.join("material.json"))
+        .arg("--machine")
+        .arg(ex.join("machine.json"))
+        .arg("--spindle")
+        .arg(ex.join("spindle.json"))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let report = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{report}");
+    assert!(
+        report.contains("spindle: 24750 rpm chosen (10000 programmed), stable"),
+        "{report}"
+    );
+    let summary: Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("summary.json")).unwrap()).unwrap();
+    assert!(
+        summary["spindle"]["chatter_margin_max_after"]
+            .as_f64()
+            .unwrap()
+            < 1.0
+    );
+    let text = std::fs::read_to_string(dir.path().join("slot.opt.nc")).unwrap();
+    let original = std::fs::read_to_string(ex.join("slot.nc")).unwrap();
+    assert_eq!(
+        text,
+        original
+            .replace("S10000", "S24750")
+            .replace("F500", "F1237.5")
+            .replace("F1000", "F2475")
+    );
+}
