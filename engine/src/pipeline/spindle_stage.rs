@@ -246,6 +246,19 @@ pub fn simulate_choosing_spindle(
         },
         false,
     )?;
+    // Every cut at the chosen speed: an S word the rewrite could not reach (in a program of
+    // the program library: another file) would leave cuts at the old speed.
+    if let Some(r) = out.rows.iter().find(|r| {
+        r.removed_volume > 0.0 && r.spindle > 0.0 && r.spindle.round() != choice.chosen_rpm
+    }) {
+        return Err(spindle_error(SpindleError::new(
+            "choose",
+            format!(
+                "line {} still cuts at S{} after every S word of the program was set to {}: its speed is set elsewhere (a program of the program library?), which is not rewritten",
+                r.line, r.spindle, choice.chosen_rpm
+            ),
+        )));
+    }
     let s = &out.summary;
     let after = s.chatter_margin_max.unwrap_or(0.0);
     let summary = SpindleSummary {
