@@ -3,11 +3,12 @@
 //!
 //! F words are scaled in the mode in force where they stand (source order, as the feed
 //! rewrite reads units): per minute (G94) and inverse time (G93) by chosen/programmed, per
-//! revolution (G95) not at all. A per-minute F the machine's max feed would cut is written at
-//! the max feed (counted). A program without an S word is refused rather than given one: the
-//! feed per tooth it means is unknown, so there is nothing to hold (the choice needs the
-//! programmed speed). F or S words written as expressions (`F#1`) are refused: their value
-//! is not the program's text to scale.
+//! revolution (G95) not at all. A per-minute F that would pass the machine's max feed is
+//! written at the max feed (counted; one already over it as programmed stays as it was). A
+//! program without an S word is refused rather than given one: the feed per tooth it means is
+//! unknown, so there is nothing to hold (the choice needs the programmed speed). F words written
+//! as expressions (`F#1`) are refused: their value is not the program's text to scale; an S
+//! word, whatever it was written as, is set to the chosen speed.
 
 use super::SpindleError;
 use crate::nc::{Expr, Program};
@@ -80,9 +81,14 @@ pub fn at_spindle_speed(
                     }
                     let mut v = f * ratio;
                     let cap = max_feed_mm_min / unit;
-                    if mode == 94 && max_feed_mm_min > 0.0 && v > cap && cap >= f {
-                        v = cap;
-                        capped += 1;
+                    // Never above the machine's max feed, nor above the programmed feed where
+                    // that already was (the control clamps it; the rewrite does not raise it).
+                    if mode == 94 && max_feed_mm_min > 0.0 && v > cap {
+                        let held = cap.max(v.min(f));
+                        if held < v {
+                            v = held;
+                            capped += 1;
+                        }
                     }
                     // Down to 4 decimals, as the feed rewrite writes them.
                     let v = ((v * 1e4) * (1.0 + 1e-12)).floor() / 1e4;
@@ -140,6 +146,21 @@ mod tests {
         let r = at_spindle_speed(&p, 10_000.0, 15_000.0, 1500.0).unwrap();
         assert!(r.text.contains("F1500."), "{}", r.text);
         assert_eq!(r.f_words_at_max_feed, 1);
+        // A feed already over the max stays as programmed; a slower speed lowers it.
+        let r = at_spindle_speed(&p, 10_000.0, 15_000.0, 1000.0).unwrap();
+        assert!(r.text.contains("F1200."), "{}", r.text);
+        let r = at_spindle_speed(&p, 10_000.0, 5_000.0, 1000.0).unwrap();
+        assert!(
+            r.text.contains("F600.") && r.text.contains("F300\n"),
+            "{}",
+            r.text
+        );
+        // Inch programs: the cap in inches per minute.
+        let p = Program::parse("G20 G94 S1000 M3\nG1 X1 F50\n").unwrap();
+        let r = at_spindle_speed(&p, 1000.0, 2000.0, 2540.0).unwrap();
+        assert!(r.text.ends_with("F100\n"), "{}", r.text);
+        let r = at_spindle_speed(&p, 1000.0, 2000.0, 1270.0).unwrap();
+        assert!(r.text.ends_with("F50\n"), "{}", r.text);
     }
 
     #[test]
