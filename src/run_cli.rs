@@ -68,6 +68,12 @@ pub struct RunArgs {
     /// (tool-centre-point control: X Y Z are the tool tip in the part frame).
     #[arg(long, default_value = "machine")]
     axes: String,
+    /// Choose the spindle speed out of chatter: the job's options.spindle as a JSON file or
+    /// inline JSON, e.g. `{"rpm":{"from":5000,"to":25000},"modes_x":[{"freq_hz":922,
+    /// "damping":0.011,"mass_kg":0.03993}],"objective":"min_time"}`. Writes the program at
+    /// the chosen speed (its feeds optimized with --optimize).
+    #[arg(long, value_name = "FILE|JSON")]
+    spindle: Option<String>,
     /// The program's options, as `millsim interpret` and the jobs take them.
     #[command(flatten)]
     program_options: crate::program_args::ProgramArgs,
@@ -310,6 +316,15 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         }
         options.insert("limits".into(), Value::Object(limits));
     }
+    if let Some(spindle) = &args.spindle {
+        let text = if spindle.trim_start().starts_with('{') {
+            spindle.clone()
+        } else {
+            String::from_utf8(read(Path::new(spindle))?).map_err(|e| format!("{spindle}: {e}"))?
+        };
+        let value: Value = serde_json::from_str(&text).map_err(|e| format!("--spindle: {e}"))?;
+        options.insert("spindle".into(), value);
+    }
     let kind = if args.optimize.is_some() {
         JobKind::Optimize
     } else {
@@ -317,7 +332,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     };
     let options = Value::Object(options);
     let parsed: SimulateOptions = serde_json::from_value(options.clone())
-        .map_err(|e| format!("--optimize or --axes: {e}"))?;
+        .map_err(|e| format!("--optimize, --spindle or --axes: {e}"))?;
     parsed
         .check(kind == JobKind::Optimize, inputs.contains_key("material"))
         .map_err(|e| e.to_string())?;
@@ -464,13 +479,34 @@ pub fn run_report(summary: &Value) -> String {
         } else {
             0.0
         };
+        // With a chosen spindle speed the feeds were scheduled from the program at that speed.
+        let from = if summary["spindle"].is_object() {
+            "at the chosen speed"
+        } else {
+            "programmed"
+        };
         let _ = writeln!(
             out,
-            "cycle time: {before:.1} s programmed, {after:.1} s optimized ({change:+.1} %); best constant feed {:.1} s",
+            "cycle time: {before:.1} s {from}, {after:.1} s optimized ({change:+.1} %); best constant feed {:.1} s",
             num(&opt["cycle_time_constant_feed_s"])
         );
     } else {
         let _ = writeln!(out, "cycle time: {:.1} s", num(&summary["cycle_time_s"]));
+    }
+    let sp = &summary["spindle"];
+    if sp.is_object() {
+        let _ = writeln!(
+            out,
+            "spindle: {:.0} rpm chosen ({:.0} programmed){}; chatter margin max {:.2} before, {:.2} after; cycle time {:.1} s at the programmed speed, {:.1} s at the chosen",
+            num(&sp["chosen_rpm"]),
+            num(&sp["programmed_rpm"]),
+            if sp["stable"].as_bool() == Some(true) { ", stable" } else { ", NOT STABLE" },
+            num(&sp["chatter_margin_max_before"]),
+            num(&sp["chatter_margin_max_after"]),
+            num(&sp["cycle_time_programmed_s"]),
+            num(&sp["cycle_time_at_chosen_s"]),
+        );
+        let _ = writeln!(out, "spindle: {}", sp["reason"].as_str().unwrap_or(""));
     }
     match summary["force_peak_line"].as_u64() {
         Some(line) => {

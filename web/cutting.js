@@ -41,6 +41,13 @@ function summaryCards(s, opt) {
     cards.append(card('T' + t.tool + ' form error', fmt(t.form_error_um, 1) + ' µm',
       'line ' + (t.form_error_line ?? '–') + ' · deflection ' + fmt(t.deflection_peak_um, 1) + ' µm (line ' + (t.deflection_line ?? '–') + ') · ' + fmt(t.bending_stress_mpa, 0) + ' MPa'));
   }
+  // The speed chosen out of chatter (options.spindle) and what it changed.
+  if (s.spindle) {
+    const sp = s.spindle;
+    cards.append(card('Spindle speed', fmt(sp.chosen_rpm, 0) + ' rpm',
+      'programmed ' + fmt(sp.programmed_rpm, 0) + ' rpm · chatter margin ' + fmt(sp.chatter_margin_max_before, 2) + ' → ' + fmt(sp.chatter_margin_max_after, 2) +
+      (sp.stable ? '' : ' · not stable') + ' · ' + fmtTime(sp.cycle_time_programmed_s) + ' → ' + fmtTime(sp.cycle_time_at_chosen_s), sp.stable ? '' : 'bad'));
+  }
   if (s.cutting_energy_j != null) cards.append(card('Cutting energy', fmt(s.cutting_energy_j / 1000, 2) + ' kJ'));
   if (s.part) cards.append(card('Gouge', fmt(s.part.gouge_volume, 2) + ' mm³', 'deepest ' + fmt(s.part.max_gouge_depth, 3) + ' mm · allowance ' + fmt(s.part.allowance_min, 2) + '–' + fmt(s.part.allowance_max, 2) + ' mm', s.part.gouge_volume > 0 ? 'bad' : ''));
   return cards;
@@ -76,6 +83,7 @@ export async function renderCutting(job, s, summarySlot) {
   const base = '/v1/jobs/' + encodeURIComponent(job.id);
   const opt = s.optimization || null;
   summarySlot.append(el('h2', {}, 'Summary'), summaryCards(s, opt));
+  if (s.spindle) summarySlot.append(el('p', { class: 'muted', id: 'spindle-reason' }, 'Spindle speed: ' + s.spindle.reason));
   performance.mark('cards-shown');
   if (s.collisions && s.collisions.length) {
     app.append(el('h2', {}, 'Collisions'), el('table', { class: 'jobs', id: 'collisions' },
@@ -125,9 +133,10 @@ export async function renderCutting(job, s, summarySlot) {
   plots.append(samplesBox);
   setRange = samplesPanel(samplesBox, base, rows);
   performance.mark('plots-drawn');
-  if (source && job.kind === 'optimize') {
+  // A simulate job with a chosen spindle speed has the program at that speed to compare.
+  if (source && (job.kind === 'optimize' || s.spindle)) {
     const view = el('div', { id: 'programs' });
-    app.append(el('h2', {}, 'Program and optimized program'), view);
+    app.append(el('h2', {}, job.kind === 'optimize' ? 'Program and optimized program' : 'Program and program at the chosen speed'), view);
     try {
       const optimized = (await (await api(base + '/program')).text()).split(/\r?\n/);
       programView = programDiff(view, source, optimized);

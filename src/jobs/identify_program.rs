@@ -134,6 +134,12 @@ pub fn simulation_options(value: Option<&Value>) -> Result<SimulateOptions, Prob
             e.inner().to_string(),
         )
     })?;
+    if o.spindle.is_some() {
+        return Err(Problem::invalid_field(
+            "options.simulation.spindle",
+            "the fit reads the program as written: choosing its spindle speed does not apply",
+        ));
+    }
     if o.material.is_some() || o.limits.is_some() {
         return Err(Problem::invalid_field(
             "options.simulation",

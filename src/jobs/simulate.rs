@@ -129,6 +129,11 @@ pub struct SimulateOptions {
     /// input `fixture/<name>`, an uploaded STL stock resource).
     #[serde(default)]
     pub fixture: Option<Value>,
+    /// The spindle speed chosen out of chatter: {"choose":true,"rpm":{"from":..,"to":..},
+    /// "modes_x":[..],"modes_y":[..],"objective":"min_time"} (see
+    /// `millsim_engine::optimize::spindle`).
+    #[serde(default)]
+    pub spindle: Option<millsim_engine::optimize::spindle::SpindleOptions>,
 }
 
 /// The field an STL fixture body names its job input with.
@@ -280,6 +285,9 @@ impl SimulateOptions {
                 FieldError::new(format!("options.chatter.{}", e.field()), e.to_string())
             })?;
         }
+        if let Some(sp) = &self.spindle {
+            self.check_spindle(sp)?;
+        }
         if let Some(w) = &self.workpiece {
             w.compliance().map_err(|e| {
                 FieldError::new(format!("options.workpiece.{}", e.field()), e.to_string())
@@ -292,6 +300,62 @@ impl SimulateOptions {
                 "must be in [1, 16384]",
             ));
         }
+        Ok(())
+    }
+}
+
+impl SimulateOptions {
+    /// The spindle option's numbers, and its modes (its own or `chatter`'s, given once) as
+    /// the chatter model will check them.
+    fn check_spindle(
+        &self,
+        sp: &millsim_engine::optimize::spindle::SpindleOptions,
+    ) -> Result<(), FieldError> {
+        let field = |f: &str| format!("options.spindle.{f}");
+        sp.validate()
+            .map_err(|e| FieldError::new(field(e.field()), e.to_string()))?;
+        let own = !(sp.modes_x.is_empty() && sp.modes_y.is_empty());
+        let chatter = self
+            .chatter
+            .as_ref()
+            .filter(|c| !(c.modes_x.is_empty() && c.modes_y.is_empty()));
+        let (modes_x, modes_y) = match (own, chatter) {
+            (true, Some(_)) => {
+                return Err(FieldError::new(
+                    field("modes_x"),
+                    "the modes are given in options.chatter too: give them once",
+                ))
+            }
+            (true, None) => (&sp.modes_x, &sp.modes_y),
+            (false, Some(c)) => (&c.modes_x, &c.modes_y),
+            (false, None) => {
+                return Err(FieldError::new(
+                    field("modes_x"),
+                    "give the tool's modes (modes_x and/or modes_y, or options.chatter): the speed is chosen from the stability lobes",
+                ))
+            }
+        };
+        millsim_engine::physics::chatter::ChatterModel::new(
+            modes_x.clone(),
+            modes_y.clone(),
+            2,
+            600.0,
+            200.0,
+            sp.method
+                .or(self.chatter.as_ref().map(|c| c.method))
+                .unwrap_or(millsim_engine::physics::stability::Method::Sdm),
+            sp.steps_per_period
+                .or(self.chatter.as_ref().map(|c| c.steps_per_period))
+                .unwrap_or(40),
+        )
+        .map_err(|e| {
+            let at = if own {
+                "options.spindle"
+            } else {
+                "options.chatter"
+            };
+            FieldError::new(format!("{at}.{}", e.field()), e.to_string())
+        })?;
         Ok(())
     }
 }
@@ -554,9 +618,14 @@ pub fn run(
         estimate,
         library,
     } = spec_from_inputs(&opts, optimize, &mut inputs, limits, cancel)?;
-    let mut out = pipeline::simulate(&spec, cancel, progress).map_err(|e| match e {
+    let result = match &opts.spindle {
+        Some(sp) => pipeline::simulate_choosing_spindle(&spec, sp, cancel, progress),
+        None => pipeline::simulate(&spec, cancel, progress),
+    };
+    let mut out = result.map_err(|e| match e {
         SimulateError::Cancelled => JobFailure::Cancelled,
         SimulateError::Program(d) => program_failure(cancel, &file, &d),
+        SimulateError::Spindle(e) => invalid("Invalid options", e.to_string()),
         other => invalid("Simulation refused", format!("{file}: {other}")),
     })?;
     // The stock mesh and the rows' JSON are independent: both at once.

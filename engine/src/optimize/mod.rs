@@ -35,6 +35,7 @@ pub mod energy;
 pub use energy as energy_search;
 pub mod guards;
 pub mod rewrite;
+pub mod spindle;
 
 mod engagement;
 mod limits;

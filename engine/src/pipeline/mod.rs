@@ -21,6 +21,7 @@ mod removal;
 mod rows;
 mod setup;
 mod spec;
+mod spindle_stage;
 mod stages;
 mod step_totals;
 mod tools;
@@ -34,6 +35,7 @@ pub use rows::{
     ToolDeflection, ToolLife, ToolOptimization,
 };
 pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StlSource, StockSource};
+pub use spindle_stage::{simulate_choosing_spindle, SpindleSummary};
 
 use std::time::Instant;
 
@@ -61,19 +63,27 @@ pub fn simulate_in_batches(
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<SimulationOutput, SimulateError> {
-    run(spec, batch_steps, cancel, progress, false).map(|(out, _)| out)
+    run(spec, batch_steps, cancel, progress, false).map(|(out, _, _)| out)
 }
 
 /// The pipeline; with `keep_steps` it also gives every cutting step (where, at what
 /// conditions, its engagement and its time weight) and the force models, for
-/// identification.
+/// identification; with chatter modes, the chatter models and every cutting row's
+/// conditions (for the spindle speed choice).
 fn run(
     spec: &SimulateSpec,
     batch_steps: usize,
     cancel: &CancelFlag,
     progress: &dyn Progress,
     keep_steps: bool,
-) -> Result<(SimulationOutput, Option<line_forces::KeptCuts>), SimulateError> {
+) -> Result<
+    (
+        SimulationOutput,
+        Option<line_forces::KeptCuts>,
+        Option<stages::ChatterSetup>,
+    ),
+    SimulateError,
+> {
     let mut timings = StageTimings::default();
     // The STL stock read once, for its bounds (where the machine starts) and its grid.
     let mesh = match &spec.stock {
@@ -183,9 +193,12 @@ fn run(
         Some(model) => Some(stages::block_energy(model, moves, &mut rows)?),
         None => None,
     };
-    let chatter = match &spec.chatter {
-        Some(c) => Some(stages::chatter_margins(c, spec, moves, &mut rows, &tools)?),
-        None => None,
+    let (chatter, chatter_setup) = match &spec.chatter {
+        Some(c) => {
+            let (margins, setup) = stages::chatter_margins(c, spec, moves, &mut rows, &tools)?;
+            (Some(margins), Some(setup))
+        }
+        None => (None, None),
     };
     // The scallop beside a neighbouring pass from the path's spacing where the path has one.
     let mut scallops = scallops;
@@ -280,7 +293,7 @@ fn run(
         rays_tested,
         tool_numbers: tools.numbers,
     };
-    Ok((output, kept_cuts))
+    Ok((output, kept_cuts, chatter_setup))
 }
 
 /// What can be refused before any work: rotary axes on a 3-axis machine, tools and

@@ -413,6 +413,10 @@ pub struct SimulationSummary {
     /// With a fixture: its bodies, and the moves whose tool meets one (body, line, point).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fixture: Option<super::fixture_stage::FixtureSummary>,
+    /// With `options.spindle`: the speed chosen out of chatter, why, and the margins before
+    /// and after (see `spindle_stage`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spindle: Option<super::spindle_stage::SpindleSummary>,
 }
 
 /// The life one tool uses over the program.
@@ -693,6 +697,7 @@ pub(super) fn summarize(
         chatter_margin_max: extras.chatter.map(|(_, m)| m),
         part: extras.part,
         fixture: extras.fixture,
+        spindle: None,
     }
 }
 

@@ -13,6 +13,7 @@ use crate::physics::Material;
 use crate::tool::Tool;
 
 /// Where the stock comes from.
+#[derive(Clone)]
 pub enum StockSource {
     Shape(StockShape),
     Stl(StlSource),
@@ -20,6 +21,7 @@ pub enum StockSource {
 
 /// An STL mesh as given: the file's bytes (read when the simulation starts), or the
 /// mesh already read (from a stream, so that the file was never whole in memory).
+#[derive(Clone)]
 pub enum StlSource {
     Bytes(Vec<u8>),
     Mesh(std::sync::Arc<geometry::Mesh>),
@@ -57,6 +59,7 @@ pub enum AxisReading {
     ToolTip,
 }
 
+#[derive(Clone)]
 pub struct SimulateSpec {
     pub program: String,
     pub interpret: nc::InterpretOptions,
@@ -161,6 +164,8 @@ pub enum SimulateError {
     Optimize(#[from] optimize::OptimizeError),
     #[error("rewriting the program: {0}")]
     Rewrite(String),
+    #[error("{0}")]
+    Spindle(crate::optimize::spindle::SpindleError),
     #[error("cancelled")]
     Cancelled,
 }

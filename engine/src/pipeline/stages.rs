@@ -39,15 +39,34 @@ pub(super) fn block_energy(
     })
 }
 
+/// The chatter model of each tooth count and the conditions of every row that cuts.
+pub(crate) struct ChatterSetup {
+    pub models: BTreeMap<u32, crate::physics::chatter::ChatterModel>,
+    pub cutting: Vec<CuttingCondition>,
+}
+
+/// A row that cuts with the spindle turning: the tooth count of its tool, its speed, and
+/// the immersion and direction of its engagement.
+#[derive(Clone, Copy)]
+pub(crate) struct CuttingCondition {
+    pub row: usize,
+    pub teeth: u32,
+    pub rpm: f64,
+    pub immersion: f64,
+    pub milling: crate::physics::stability::Milling,
+}
+
 /// Chatter margin of every move that cuts, at its spindle speed and the immersion and
-/// direction of its engagement; returns the number of moves over 1 and the largest margin.
+/// direction of its engagement; returns the number of moves over 1 and the largest margin,
+/// and the models and conditions (with which the spindle speed choice evaluates the same
+/// margins at other speeds).
 pub(super) fn chatter_margins(
     c: &ChatterSpec,
     spec: &SimulateSpec,
     moves: &[Move],
     rows: &mut [MoveRow],
     tools: &ToolLookup,
-) -> Result<(usize, f64), SimulateError> {
+) -> Result<((usize, f64), ChatterSetup), SimulateError> {
     use crate::physics::chatter::{arc_immersion, ChatterModel};
     let k = spec.material.coefficients;
     // With a size effect the lobes take the coefficients linearized at the operating chip:
@@ -69,7 +88,7 @@ pub(super) fn chatter_margins(
     let mut models: BTreeMap<u32, ChatterModel> = BTreeMap::new();
     let mut conditions: BTreeMap<u32, Vec<(f64, f64, crate::physics::stability::Milling)>> =
         BTreeMap::new();
-    let mut cutting: Vec<(usize, u32, f64, f64, crate::physics::stability::Milling)> = Vec::new();
+    let mut cutting: Vec<CuttingCondition> = Vec::new();
     for (i, (m, row)) in moves.iter().zip(rows.iter()).enumerate() {
         let (Some(entry), Some(exit)) = (row.entry_angle_deg, row.exit_angle_deg) else {
             continue;
@@ -97,13 +116,26 @@ pub(super) fn chatter_margins(
             .entry(tool.flutes)
             .or_default()
             .push((rpm, immersion, milling));
-        cutting.push((i, tool.flutes, rpm, immersion, milling));
+        cutting.push(CuttingCondition {
+            row: i,
+            teeth: tool.flutes,
+            rpm,
+            immersion,
+            milling,
+        });
     }
     for (teeth, list) in &conditions {
         models[teeth].prefetch(list)?;
     }
     let (mut over, mut max) = (0, 0.0f64);
-    for (i, teeth, rpm, immersion, milling) in cutting {
+    for &CuttingCondition {
+        row: i,
+        teeth,
+        rpm,
+        immersion,
+        milling,
+    } in &cutting
+    {
         let row = &mut rows[i];
         let m = models[&teeth].margin(row.max_axial_depth, rpm, immersion, milling)?;
         row.chatter_margin = Some(m.margin);
@@ -116,7 +148,7 @@ pub(super) fn chatter_margins(
         }
         max = max.max(m.margin);
     }
-    Ok((over, max))
+    Ok(((over, max), ChatterSetup { models, cutting }))
 }
 
 /// Tool life used per move with the material's extended Taylor constants (each tool starts
