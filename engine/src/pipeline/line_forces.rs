@@ -113,7 +113,14 @@ pub fn simulate_for_identification(
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<ProgramCuts, SimulateError> {
-    let (output, kept, _) = super::run(spec, super::DEFAULT_BATCH_STEPS, cancel, progress, true)?;
+    let (output, kept, _) = super::run(
+        spec,
+        super::DEFAULT_BATCH_STEPS,
+        cancel,
+        progress,
+        true,
+        None,
+    )?;
     let kept = kept.expect("steps kept when asked");
     Ok(ProgramCuts {
         output,

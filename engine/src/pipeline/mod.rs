@@ -17,6 +17,7 @@ mod frame;
 mod line_forces;
 mod optimize_stage;
 mod pass_spacing;
+mod process;
 mod removal;
 mod rows;
 mod setup;
@@ -28,6 +29,10 @@ mod tools;
 
 pub use fixture_stage::{FixtureCollision, FixtureSummary};
 pub use line_forces::{simulate_for_identification, LineForce, ProgramCuts, MAX_LINES};
+pub use process::{
+    run_process, Operation, OperationOutput, ProcessError, ProcessOutput, ProcessSpec,
+    MAX_OPERATIONS,
+};
 pub use removal::DEFAULT_BATCH_STEPS;
 pub use rows::{
     row_columns, Collision, EnergyTotals, LimitCount, MoveRow, OptimizationSummary,
@@ -35,7 +40,7 @@ pub use rows::{
     ToolDeflection, ToolLife, ToolOptimization,
 };
 pub use spec::{AxisReading, ChatterSpec, SimulateError, SimulateSpec, StlSource, StockSource};
-pub use spindle_stage::{simulate_choosing_spindle, SpindleSummary};
+pub use spindle_stage::{simulate_choosing_spindle, simulate_choosing_spindle_on, SpindleSummary};
 
 use std::time::Instant;
 
@@ -63,7 +68,28 @@ pub fn simulate_in_batches(
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<SimulationOutput, SimulateError> {
-    run(spec, batch_steps, cancel, progress, false).map(|(out, _, _)| out)
+    run(spec, batch_steps, cancel, progress, false, None).map(|(out, _, _)| out)
+}
+
+/// [`simulate`] on a grid handed over (the stock a previous operation left): `spec.stock`
+/// is not read, the grid is cut as it is (no re-meshing) and comes back in the output's
+/// `stock`. The grid's cell is the simulation's (`spec.cell` must be unset or the same),
+/// and its frame must be the identity (a turned grid belongs to one operation's tool axis).
+pub fn simulate_on(
+    spec: &SimulateSpec,
+    stock: Stock,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<SimulationOutput, SimulateError> {
+    run(
+        spec,
+        DEFAULT_BATCH_STEPS,
+        cancel,
+        progress,
+        false,
+        Some(stock),
+    )
+    .map(|(out, _, _)| out)
 }
 
 /// The pipeline; with `keep_steps` it also gives every cutting step (where, at what
@@ -76,6 +102,7 @@ fn run(
     cancel: &CancelFlag,
     progress: &dyn Progress,
     keep_steps: bool,
+    given: Option<Stock>,
 ) -> Result<
     (
         SimulationOutput,
@@ -86,11 +113,20 @@ fn run(
 > {
     let mut timings = StageTimings::default();
     // The STL stock read once, for its bounds (where the machine starts) and its grid.
-    let mesh = match &spec.stock {
-        StockSource::Shape(_) => None,
-        StockSource::Stl(source) => Some(source.mesh().map_err(geometry::GeometryError::from)?),
+    // A grid handed over is cut as it is: its cell is the simulation's, its frame the part's.
+    if let Some(g) = &given {
+        setup::check_given_grid(spec, g)?;
+    }
+    let mesh = match (&spec.stock, &given) {
+        (_, Some(_)) | (StockSource::Shape(_), None) => None,
+        (StockSource::Stl(source), None) => {
+            Some(source.mesh().map_err(geometry::GeometryError::from)?)
+        }
     };
-    let bounds = setup::stock_bounds(spec, mesh.as_deref(), &GridFrame::IDENTITY)?;
+    let bounds = match &given {
+        Some(g) => setup::grid_bounds(g),
+        None => setup::stock_bounds(spec, mesh.as_deref(), &GridFrame::IDENTITY)?,
+    };
     let interpret = spec.interpret_options(setup::start_positions(&spec.machine, bounds.1[2]));
     let clock = Instant::now();
     let interpretation =
@@ -104,7 +140,10 @@ fn run(
     check_inputs(spec, moves, &tools)?;
 
     let radii: Vec<f64> = tools.all().map(Tool::radius).collect();
-    let cell = spec.cell.unwrap_or_else(|| geometry::default_cell(&radii));
+    let cell = match &given {
+        Some(g) => g.grid.cell,
+        None => spec.cell.unwrap_or_else(|| geometry::default_cell(&radii)),
+    };
     let times = cycle_time(moves, &spec.machine, None)?;
     let mut rows = rows::initial_rows(
         &spec.program,
@@ -133,7 +172,10 @@ fn run(
 
     // The grid's frame follows the plan's pieces (along a 3+2 program's tool axis).
     let clock = Instant::now();
-    let mut stock = stock(spec, mesh.as_deref(), cell, plan.grid_frame(moves))?;
+    let mut stock = match given {
+        Some(g) => g,
+        None => stock(spec, mesh.as_deref(), cell, plan.grid_frame(moves))?,
+    };
     let volume_before = stock.volume();
     timings.stock_s = clock.elapsed().as_secs_f64();
 
@@ -352,4 +394,24 @@ fn stock(
         }
     }
     Ok(build(GridFrame::IDENTITY)?)
+}
+
+/// The radii of every tool the spec's program cuts with (as the simulation will look them
+/// up), for a cell size shared by several operations.
+pub(super) fn tool_radii(spec: &SimulateSpec) -> Result<Vec<f64>, SimulateError> {
+    let interpretation = nc::interpret(&spec.program, &spec.interpret_options((None, None)))
+        .map_err(SimulateError::Program)?;
+    let tools =
+        tools::ToolLookup::new(spec, &interpretation.moves, &interpretation.selected_tools)?;
+    Ok(tools.all().map(Tool::radius).collect())
+}
+
+/// The stock of `spec` as a grid in the part frame at cell `cell`, for operations that
+/// hand it on.
+pub(super) fn part_frame_stock(spec: &SimulateSpec, cell: f64) -> Result<Stock, SimulateError> {
+    let mesh = match &spec.stock {
+        StockSource::Shape(_) => None,
+        StockSource::Stl(source) => Some(source.mesh().map_err(geometry::GeometryError::from)?),
+    };
+    stock(spec, mesh.as_deref(), cell, GridFrame::IDENTITY)
 }

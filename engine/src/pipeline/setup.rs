@@ -82,3 +82,39 @@ pub(super) fn size_mismatch_warning(
         None
     }
 }
+
+/// A grid handed over by a previous operation: in the part frame, and at the cell this
+/// simulation asks for (when it asks for one).
+pub(super) fn check_given_grid(
+    spec: &SimulateSpec,
+    stock: &geometry::Stock,
+) -> Result<(), SimulateError> {
+    if !stock.frame.is_identity() {
+        return Err(SimulateError::GivenGrid(
+            "the stock handed over is turned (a 3+2 operation's grid); only a grid in the part frame can be cut on".into(),
+        ));
+    }
+    if let Some(cell) = spec.cell {
+        if (cell - stock.grid.cell).abs() > 1e-12 * cell.max(1.0) {
+            return Err(SimulateError::GivenGrid(format!(
+                "the stock handed over has cells of {} mm, the simulation asks for {cell} mm: every operation on one stock uses one cell size",
+                stock.grid.cell
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The bounds of a grid's stock as its next operation starts: its faces across, and its
+/// highest material on top (where the machine starts above it, as above a stock read
+/// from the previous operation's exported STL).
+pub(super) fn grid_bounds(stock: &geometry::Stock) -> ([f64; 3], [f64; 3]) {
+    let g = &stock.grid;
+    let lo = [0, 1, 2].map(|a| g.edges[a][0]);
+    let mut hi = [0, 1, 2].map(|a| g.edges[a][g.n[a]]);
+    let top = g.max_z();
+    if top.is_finite() {
+        hi[2] = top;
+    }
+    (lo, hi)
+}

@@ -166,6 +166,8 @@ pub enum SimulateError {
     Rewrite(String),
     #[error("{0}")]
     Spindle(crate::optimize::spindle::SpindleError),
+    #[error("stock: {0}")]
+    GivenGrid(String),
     #[error("cancelled")]
     Cancelled,
 }

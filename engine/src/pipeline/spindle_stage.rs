@@ -12,6 +12,7 @@ use serde::Serialize;
 
 use super::spec::{ChatterSpec, SimulateError, SimulateSpec};
 use super::{run, SimulationOutput, DEFAULT_BATCH_STEPS};
+use crate::geometry::Stock;
 use crate::job::{CancelFlag, Progress};
 use crate::optimize::spindle::{
     at_spindle_speed, choose_spindle_speed, ChoiceInput, CuttingBlock, FeedMove, SpindleChoice,
@@ -118,12 +119,25 @@ pub fn simulate_choosing_spindle(
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<SimulationOutput, SimulateError> {
+    simulate_choosing_spindle_on(spec, options, None, cancel, progress)
+}
+
+/// [`simulate_choosing_spindle`] on a grid handed over (see [`super::simulate_on`]); the
+/// first pass cuts a copy of it, so two grids are held while it runs.
+pub fn simulate_choosing_spindle_on(
+    spec: &SimulateSpec,
+    options: &SpindleOptions,
+    given: Option<Stock>,
+    cancel: &CancelFlag,
+    progress: &dyn Progress,
+) -> Result<SimulationOutput, SimulateError> {
     options.validate().map_err(spindle_error)?;
     let chatter = chatter_spec(options, spec.chatter.as_ref()).map_err(spindle_error)?;
     if !options.choose {
         let mut plain = spec.clone();
         plain.chatter = Some(chatter);
-        return super::simulate(&plain, cancel, progress);
+        return run(&plain, DEFAULT_BATCH_STEPS, cancel, progress, false, given)
+            .map(|(out, _, _)| out);
     }
     let clock = std::time::Instant::now();
     let mut first = spec.clone();
@@ -139,6 +153,7 @@ pub fn simulate_choosing_spindle(
             second: false,
         },
         false,
+        given.clone(),
     )?;
     drop(first);
     let setup = setup.expect("the first pass has chatter modes");
@@ -245,6 +260,7 @@ pub fn simulate_choosing_spindle(
             second: true,
         },
         false,
+        given,
     )?;
     // Every cut at the chosen speed: an S word the rewrite could not reach (in a program of
     // the program library: another file) would leave cuts at the old speed.
