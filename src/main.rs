@@ -11,6 +11,7 @@ mod job_limits;
 mod jobs;
 mod metrics;
 mod problem;
+mod process_cli;
 mod program_args;
 mod queue;
 mod run_cli;
@@ -67,6 +68,10 @@ enum Command {
     Interpret(InterpretArgs),
     /// Simulate a program offline: writes summary.json, blocks.csv and stock.stl.
     Run(run_cli::RunArgs),
+    /// Run a process offline (operations in order on one stock) from PROCESS.json, the
+    /// service's `process` job request with file paths: writes summary.json, blocks.csv,
+    /// each operation's program and stock.stl.
+    Process(process_cli::ProcessArgs),
     /// Stability lobes: prints CSV rpm,depth_mm for INPUT.json (the `stability` job's options:
     /// with `recommend` the recommended speed on stderr; with `allowance` and
     /// `allowances_mm` the 3-D lobes as allowance_mm,rpm,depth_mm).
@@ -331,6 +336,13 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("millsim run: {e}");
+                ExitCode::FAILURE
+            }
+        },
+        Command::Process(args) => match process_cli::run(args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("millsim process: {e}");
                 ExitCode::FAILURE
             }
         },

@@ -86,7 +86,7 @@ fn read(path: &Path) -> Result<Vec<u8>, String> {
     std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-fn file_input(path: &Path, media_type: &str) -> Result<LoadedInput, String> {
+pub(crate) fn file_input(path: &Path, media_type: &str) -> Result<LoadedInput, String> {
     Ok(LoadedInput {
         file_name: path.file_name().map(|n| n.to_string_lossy().to_string()),
         media_type: media_type.into(),
@@ -97,14 +97,14 @@ fn file_input(path: &Path, media_type: &str) -> Result<LoadedInput, String> {
 
 /// Progress on stderr: a bar redrawn in place on a terminal (each whole percent), a line
 /// every 10% otherwise (logs, CI).
-struct StderrProgress {
+pub(crate) struct StderrProgress {
     /// Last step shown, plus one (0: nothing shown yet).
     shown: AtomicU64,
     terminal: bool,
 }
 
 impl StderrProgress {
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         use std::io::IsTerminal;
         StderrProgress {
             shown: AtomicU64::new(0),
@@ -113,7 +113,7 @@ impl StderrProgress {
     }
 
     /// Ends the bar's line.
-    fn finish(&self) {
+    pub(crate) fn finish(&self) {
         if self.terminal && self.shown.load(Ordering::Relaxed) > 0 {
             eprintln!();
         }
@@ -360,9 +360,27 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     })?;
     let wall = started.elapsed().as_secs_f64();
 
-    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
+    let (summary, rows) = write_outputs(&args.out, out, wall)?;
+    eprint!("{}", run_report(&summary));
+    eprintln!(
+        "millsim run: {rows} moves in {wall:.2} s; wrote {}",
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// A job's results into folder `dir`: summary.json (with `wall_s`), blocks.csv (the
+/// summary's `row_columns`), and its files in memory (a program under its file name, the
+/// others under their result names; a stock streamed to its file is there already).
+/// Returns the summary and the row count.
+pub(crate) fn write_outputs(
+    dir: &Path,
+    out: crate::jobs::JobOutput,
+    wall: f64,
+) -> Result<(Value, usize), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let write = |name: &str, bytes: &[u8]| {
-        let p = args.out.join(name);
+        let p = dir.join(name);
         std::fs::write(&p, bytes).map_err(|e| format!("{}: {e}", p.display()))
     };
     let mut summary = out.summary;
@@ -395,35 +413,37 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         let ArtifactContent::Bytes(content) = &f.content else {
             continue;
         };
-        // The rewritten program keeps the input's name with .opt before the extension.
-        write(
-            if f.name == "program" {
-                &f.file_name
-            } else {
-                &f.name
-            },
-            content,
-        )?;
+        // A rewritten program keeps the input's name with .opt before the extension (a
+        // process's: with its operation, `rough.op1.opt.nc`).
+        let by_file_name = f.name == "program"
+            || (summary["operation_count"].is_u64() && f.name.starts_with("program."));
+        write(if by_file_name { &f.file_name } else { &f.name }, content)?;
     }
-    eprint!("{}", run_report(&summary));
-    eprintln!(
-        "millsim run: {} moves in {wall:.2} s; wrote {}",
-        rows.len(),
-        args.out.display()
-    );
-    Ok(())
+    Ok((summary, rows.len()))
 }
 
 /// The fixture file as the job's `options.fixture`: each STL body's `path` (relative to
 /// the file) read into a job input `fixture/<body index>` that the body names instead.
 /// Errors name the file and the field (`fixture.json: bodies[2].max: ...`).
 fn fixture_document(path: &Path, inputs: &mut LoadedInputs) -> Result<Value, String> {
-    let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-    let mut doc: Value =
-        serde_json::from_slice(crate::problem::without_bom(&read(path)?)).map_err(|e| at(&e))?;
+    let doc: Value = serde_json::from_slice(crate::problem::without_bom(&read(path)?))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    fixture_with_paths(doc, dir, &path.display().to_string(), inputs)
+}
+
+/// A fixture document whose STL bodies give a `path` (relative to `dir`) as the job's
+/// `options.fixture`: each such body's file read into a job input `fixture/<body index>`
+/// that the body names instead. Errors start with `label` and name the field.
+pub(crate) fn fixture_with_paths(
+    mut doc: Value,
+    dir: &Path,
+    label: &str,
+    inputs: &mut LoadedInputs,
+) -> Result<Value, String> {
+    let at = |e: &dyn std::fmt::Display| format!("{label}: {e}");
     let spec =
         millsim_engine::geometry::FixtureSpec::from_json(&doc, "path").map_err(|e| at(&e))?;
-    let dir = path.parent().unwrap_or(Path::new("."));
     for (i, file) in spec.stl_references() {
         let name = format!("fixture/{i}");
         let stl = file_input(&dir.join(file), "model/stl")

@@ -68,7 +68,9 @@ export async function renderJob(id) {
   if (job.kind === 'accessibility' && typeof s.program === 'object' && s.program && !s.program.none) downloads.append(dl('Roughing program (G-code)', base + '/program'));
   if (Array.isArray(s.operations)) for (const o of s.operations) downloads.append(dl('Operation ' + o.operation + ' (G-code)', base + '/program?operation=' + o.operation, o.file_name));
   downloads.append(dl('Rows (CSV)', base + '/blocks?format=csv', 'job-' + job.id + '.csv'));
-  if (job.kind === 'simulate' || job.kind === 'optimize') downloads.append(dl('Stock after machining (STL)', base + '/stock.stl', 'stock-' + job.id + '.stl'));
+  if (job.kind === 'simulate' || job.kind === 'optimize' || job.kind === 'process') downloads.append(dl('Stock after machining (STL)', base + '/stock.stl', 'stock-' + job.id + '.stl'));
+  // A process kept with keep_stocks: the stock after each operation but the last (the final one above).
+  if (job.kind === 'process' && s.keep_stocks) for (const o of (s.operations || []).slice(0, -1)) downloads.append(dl('Stock after operation ' + o.operation + ' (STL)', base + '/stock.stl?operation=' + o.operation, 'stock-' + job.id + '-op' + o.operation + '.stl'));
   downloads.append(dl('Summary (JSON)', base + '/summary', 'summary-' + job.id + '.json'));
 
   // Each kind's view is its own module, loaded when a job of that kind is shown.
@@ -78,6 +80,7 @@ export async function renderJob(id) {
   else if (job.kind === 'interpret') (await import('/ui/interpret.js')).renderInterpret(job, s, summarySlot);
   else if (job.kind === 'rotary-feed') (await import('/ui/rotaryfeed.js')).renderRotaryFeed(job, s, summarySlot);
   else if (job.kind === 'identify') (await import('/ui/identify.js')).renderIdentify(job, s, summarySlot);
+  else if (job.kind === 'process' && Array.isArray(s.operations)) (await import('/ui/process.js')).renderProcess(job, s, summarySlot);
   else if (job.kind === 'accessibility') (await import('/ui/accessibility.js')).renderAccessibility(job, s, summarySlot);
   else app.append(el('h2', {}, 'Summary (JSON)'), el('pre', {}, JSON.stringify(s, null, 2)));
 }

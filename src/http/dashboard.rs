@@ -33,7 +33,7 @@ const fn content_type(name: &str) -> &'static str {
 }
 
 // The dashboard's own modules, one view or concern each, then the vendored libraries.
-const FILES: [(&str, &str, &[u8]); 31] = embed![
+const FILES: [(&str, &str, &[u8]); 32] = embed![
     "app.js" => "app.js",
     "util.js" => "util.js",
     "api.js" => "api.js",
@@ -55,6 +55,7 @@ const FILES: [(&str, &str, &[u8]); 31] = embed![
     "rotaryfeed.js" => "rotaryfeed.js",
     "identify.js" => "identify.js",
     "accessibility.js" => "accessibility.js",
+    "process.js" => "process.js",
     "stock3d.js" => "stock3d.js",
     "dashboard.css" => "dashboard.css",
     "uPlot.iife.min.js" => "vendor/uplot/uPlot.iife.min.js",

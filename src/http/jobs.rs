@@ -64,7 +64,10 @@ async fn check_memory_budget(
     (inputs, inline_program): (&Map<String, Value>, Option<u64>),
     options: &Value,
 ) -> Result<(), ApiError> {
-    if !matches!(kind, JobKind::Simulate | JobKind::Optimize) {
+    if !matches!(
+        kind,
+        JobKind::Simulate | JobKind::Optimize | JobKind::Process
+    ) {
         // The other kinds by their options and the program's size.
         // An accessibility job scales with its part (an STL), the others with the program.
         let (input, resource) = if kind == JobKind::Accessibility {
@@ -85,8 +88,14 @@ async fn check_memory_budget(
         )
         .map_err(ApiError::over_budget);
     }
-    let Ok(o) = serde_json::from_value::<SimulateOptions>(options.clone()) else {
-        return Ok(());
+    // A process's options are its own (operations, keep_stocks) with the cell shared.
+    let cell_mm = if kind == JobKind::Process {
+        options.get("cell_mm").and_then(Value::as_f64)
+    } else {
+        let Ok(o) = serde_json::from_value::<SimulateOptions>(options.clone()) else {
+            return Ok(());
+        };
+        o.cell_mm
     };
     let Some(stock) = inputs.get("stock").and_then(Value::as_str) else {
         return Ok(());
@@ -103,7 +112,12 @@ async fn check_memory_budget(
     };
     let mut diameters = Vec::new();
     for (name, id) in inputs {
-        if name != "tool" && kind.tool_number_input(name).is_none() {
+        // A process's operations' tools (`op2.T1`): the finest sets the one cell.
+        let name = match name.split_once('.') {
+            Some((op, tool)) if kind == JobKind::Process && op.starts_with("op") => tool,
+            _ => name.as_str(),
+        };
+        if name != "tool" && JobKind::Simulate.tool_number_input(name).is_none() {
             continue;
         }
         let Some(id) = id.as_str() else { continue };
@@ -115,7 +129,7 @@ async fn check_memory_budget(
     match job_limits::submission_estimate(
         bounds,
         stock.summary["triangles"].as_u64().unwrap_or(0),
-        o.cell_mm,
+        cell_mm,
         &diameters,
         limits,
     ) {
@@ -187,7 +201,7 @@ async fn resolve_inputs(
     let mut inline = Vec::new();
     let wanted = job_kind.wanted_inputs(given.keys())?;
     for (name, kind, required) in wanted {
-        let field = format!("inputs.{name}");
+        let field = job_kind.input_field(name);
         match given.get(name) {
             None if required => {
                 return Err(ApiError::invalid_field(
@@ -278,8 +292,20 @@ pub async fn create(
         ));
     }
 
-    let (inputs, inline) = resolve_inputs(&state, &owner, job_kind, &request.inputs).await?;
-    job_kind.check(request.inputs.keys(), &options)?;
+    // A process's operations are stored flat (see `jobs::process`).
+    let mut given = request.inputs.clone();
+    let mut options = options;
+    if let Some(operations) = job_kind.flatten_operations(&mut given)? {
+        if options.get("operations").is_some() {
+            return Err(ApiError::invalid_field(
+                "options.operations",
+                "give the operations under inputs.operations, each with its own options",
+            ));
+        }
+        options["operations"] = Value::Array(operations);
+    }
+    let (inputs, inline) = resolve_inputs(&state, &owner, job_kind, &given).await?;
+    job_kind.check(given.keys(), &options)?;
     if job_kind == JobKind::Accessibility {
         check_accessibility_part(&state, &owner, &inputs, &options).await?;
     }
@@ -668,12 +694,64 @@ pub async fn program(
     }
 }
 
+/// `/stock.stl`: the final stock; of a process job kept with `keep_stocks`,
+/// `?operation=N` the stock after operation N (the last one's is the final stock).
 pub async fn stock_stl(
     State(state): State<AppState>,
     Owner(owner): Owner,
     Path(id): Path<String>,
+    req: Request,
 ) -> Result<Response, ApiError> {
-    artifact(&state, &owner, &id, "stock.stl", "final stock").await
+    let q: ProgramQuery = parse_query(req.uri().query())?;
+    let Some(n) = q.operation else {
+        return artifact(&state, &owner, &id, "stock.stl", "final stock").await;
+    };
+    let job = succeeded(&state.db, &owner, &id).await?;
+    let count = job
+        .summary
+        .as_ref()
+        .and_then(|s| s["operation_count"].as_u64())
+        .ok_or_else(|| {
+            ApiError::invalid_field(
+                "operation",
+                format!(
+                    "job {id} ({}) has no operations: only process jobs do",
+                    job.kind
+                ),
+            )
+        })?;
+    if n == 0 || u64::from(n) > count {
+        return Err(ApiError::new(
+            StatusCode::NOT_FOUND,
+            "no-result",
+            "No such result",
+            format!("job {id} has operations 1 to {count}, not {n}"),
+        ));
+    }
+    if u64::from(n) == count {
+        return artifact(&state, &owner, &id, "stock.stl", "final stock").await;
+    }
+    let kept = job
+        .summary
+        .as_ref()
+        .is_some_and(|s| s["keep_stocks"] == Value::Bool(true));
+    if !kept {
+        return Err(ApiError::new(
+            StatusCode::NOT_FOUND,
+            "no-result",
+            "No such result",
+            format!("job {id} kept only its final stock (operation {count}); submit it with options.keep_stocks true for the stock after each operation"),
+        ));
+    }
+    let name = format!("stock.op{n}.stl");
+    artifact(
+        &state,
+        &owner,
+        &id,
+        &name,
+        &format!("stock after operation {n}"),
+    )
+    .await
 }
 
 pub async fn free_region_svg(

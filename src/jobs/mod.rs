@@ -12,6 +12,7 @@ mod identify_cuts;
 mod identify_program;
 mod inputs;
 mod interpret;
+mod process;
 mod rotary_feed;
 mod simulate;
 pub(crate) mod stability;
@@ -51,11 +52,12 @@ pub enum JobKind {
     RotaryFeed,
     Identify,
     Accessibility,
+    Process,
 }
 
 impl JobKind {
     /// Every kind, in the order error messages list them.
-    pub const ALL: [JobKind; 8] = [
+    pub const ALL: [JobKind; 9] = [
         JobKind::Interpret,
         JobKind::Simulate,
         JobKind::Optimize,
@@ -64,6 +66,7 @@ impl JobKind {
         JobKind::RotaryFeed,
         JobKind::Identify,
         JobKind::Accessibility,
+        JobKind::Process,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -76,6 +79,7 @@ impl JobKind {
             JobKind::RotaryFeed => "rotary-feed",
             JobKind::Identify => "identify",
             JobKind::Accessibility => "accessibility",
+            JobKind::Process => "process",
         }
     }
 
@@ -104,6 +108,7 @@ impl JobKind {
             JobKind::Simulate | JobKind::Optimize => &simulate::INPUTS,
             JobKind::Identify => &identify::INPUTS,
             JobKind::Accessibility => &accessibility::INPUTS,
+            JobKind::Process => &process::INPUTS,
             JobKind::Stability => &[],
         }
     }
@@ -134,6 +139,9 @@ impl JobKind {
     /// library program, or a fixture body's STL (`fixture/<name>`, a stock resource), with
     /// its resource kind.
     pub fn named_input(self, name: &str) -> Option<ResourceKind> {
+        if self == JobKind::Process {
+            return process::named_input(name);
+        }
         if self.tool_number_input(name).is_some() {
             Some(ResourceKind::Tool)
         } else if self.library_input(name) {
@@ -158,7 +166,7 @@ impl JobKind {
         for name in given.clone() {
             if !specs.iter().any(|s| s.name == name) && self.named_input(name).is_none() {
                 return Err(Problem::invalid_field(
-                    format!("inputs.{name}"),
+                    self.input_field(name),
                     format!("a `{}` job takes no input `{name}`", self.as_str()),
                 ));
             }
@@ -167,6 +175,30 @@ impl JobKind {
             specs.iter().map(|s| (s.name, s.kind, s.required)).collect();
         wanted.extend(given.filter_map(|n| self.named_input(n).map(|k| (n.as_str(), k, true))));
         Ok(wanted)
+    }
+
+    /// The request's field of a stored input name (`inputs.T1`; a process operation's
+    /// `op2.program` is `inputs.operations[1].program`).
+    pub fn input_field(self, name: &str) -> String {
+        match self {
+            JobKind::Process => process::input_field(name),
+            _ => format!("inputs.{name}"),
+        }
+    }
+
+    /// For `process`: the request's `inputs.operations` flattened as the job stores them
+    /// (see `jobs::process`), the operations' names and options returned for
+    /// `options.operations`.
+    pub fn flatten_operations(
+        self,
+        inputs: &mut serde_json::Map<String, Value>,
+    ) -> Result<Option<Vec<Value>>, Problem> {
+        match self {
+            JobKind::Process => process::flatten_operations(inputs)
+                .map(Some)
+                .map_err(FieldError::into_problem),
+            _ => Ok(None),
+        }
     }
 
     /// What can be checked before the job runs, once its inputs are known to exist: how
@@ -195,6 +227,9 @@ impl JobKind {
             }
             JobKind::Identify => identify::check(options),
             JobKind::Accessibility => accessibility::check(options),
+            JobKind::Process => {
+                process::check(input_names, options).map_err(FieldError::into_problem)
+            }
         }
     }
 
@@ -226,6 +261,7 @@ impl JobKind {
             JobKind::Energy => energy::run(options, inputs, cancel),
             JobKind::Identify => identify::run(options, inputs, limits, cancel, progress),
             JobKind::Accessibility => accessibility::run(options, inputs, cancel),
+            JobKind::Process => process::run(options, inputs, limits, cancel, progress, stock_file),
         }
     }
 }

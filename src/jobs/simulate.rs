@@ -361,34 +361,37 @@ impl SimulateOptions {
 }
 
 #[derive(Serialize)]
-struct SimulateSummary<'a> {
-    file: &'a str,
+pub(super) struct SimulateSummary<'a> {
+    pub(super) file: &'a str,
     #[serde(flatten)]
-    simulation: &'a pipeline::SimulationSummary,
+    pub(super) simulation: &'a pipeline::SimulationSummary,
     /// Wall time per stage on the worker, seconds.
-    timings: &'a pipeline::StageTimings,
-    stock_export_s: f64,
-    dexel_updates: u64,
+    pub(super) timings: &'a pipeline::StageTimings,
+    pub(super) stock_export_s: f64,
+    pub(super) dexel_updates: u64,
     /// The optimized program's cycle time and peak |F| (optimize jobs), also inside
     /// `optimization` with the benchmarks they are judged against.
     #[serde(skip_serializing_if = "Option::is_none")]
-    cycle_time_opt_s: Option<f64>,
+    pub(super) cycle_time_opt_s: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    force_peak_opt_n: Option<f64>,
+    pub(super) force_peak_opt_n: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    optimization: Option<&'a pipeline::OptimizationSummary>,
+    pub(super) optimization: Option<&'a pipeline::OptimizationSummary>,
     /// The job's memory budget and the estimate it was held to (MiB; by buffer, bytes).
     #[serde(skip_serializing_if = "Option::is_none")]
-    memory: Option<Value>,
+    pub(super) memory: Option<Value>,
     /// With a `tool_library` input: its file and format, the T numbers it gave that cut,
     /// and its import report's notes on them.
     #[serde(skip_serializing_if = "Option::is_none")]
-    tool_library: Option<Value>,
-    row_columns: Vec<String>,
+    pub(super) tool_library: Option<Value>,
+    pub(super) row_columns: Vec<String>,
 }
 
 /// The stock as a binary STL into the file at `path`; its length.
-fn stream_stl(stock: &geometry::Stock, path: &std::path::Path) -> Result<u64, ExportError> {
+pub(super) fn stream_stl(
+    stock: &geometry::Stock,
+    path: &std::path::Path,
+) -> Result<u64, ExportError> {
     use std::io::Seek;
     let at = |e: std::io::Error| ExportError::Io(path.to_path_buf(), e);
     let file = std::fs::File::create(path).map_err(at)?;
@@ -403,7 +406,7 @@ fn stream_stl(stock: &geometry::Stock, path: &std::path::Path) -> Result<u64, Ex
 
 /// Why the machined stock could not be exported.
 #[derive(Debug)]
-enum ExportError {
+pub(super) enum ExportError {
     /// Writing the job's file failed.
     Io(std::path::PathBuf, std::io::Error),
     Other(String),
@@ -412,7 +415,7 @@ enum ExportError {
 impl ExportError {
     /// The job's failure: a full disk is the server's (507, try again later), anything
     /// else the export's own.
-    fn into_failure(self) -> JobFailure {
+    pub(super) fn into_failure(self) -> JobFailure {
         match self {
             ExportError::Io(path, e)
                 if matches!(
@@ -716,7 +719,7 @@ pub fn run(
 /// tool tip at its move's start and end, mm. Only on a 3-axis machine (the tip is then the
 /// programmed X, Y, Z); the program is read again, which costs an interpretation, only when
 /// there are collisions.
-fn place_collisions(spec: &SimulateSpec, summary: &mut Value) {
+pub(super) fn place_collisions(spec: &SimulateSpec, summary: &mut Value) {
     let Some(list) = summary.get_mut("collisions").and_then(Value::as_array_mut) else {
         return;
     };

@@ -1,0 +1,76 @@
+%
+(process example, operation 2: finishing contour of the adaptive example's part)
+(T2  D=2 CR=0 - flat end mill)
+(the rough's last contour, 1055_utab_265bit.nc: a D2.65 tool round the part, 1.325 mm)
+(from it; here a D2 tool 1 mm from it: lines moved 0.325 mm nearer the part, arcs on the)
+(same centres. Full outline at three depths, the holding tabs the rough left cut through)
+G90 G94 G17 G21
+T2 M6
+S10000 M3
+G54
+G0 X19 Y-2
+Z5
+G1 Z-4.2 F300
+G1 Y-1 F600
+G1 X0 Y-1
+G2 X-1 Y0 I0 J1
+G1 X-1 Y50
+G2 X0 Y51 I1 J0
+G1 X20 Y51
+G2 X21 Y50 I0 J-1
+G1 X21 Y40.356
+G3 X22.342 Y39.417 I1 J0
+G1 X30.974 Y42.559
+G2 X35 Y39.739 I1.026 J-2.819
+G1 X35 Y10.261
+G2 X30.974 Y7.441 I-3 J0
+G1 X22.342 Y10.583
+G3 X21 Y9.644 I-0.342 J-0.939
+G1 X21 Y0
+G2 X20 Y-1 I-1 J0
+G1 X19
+Y-2
+G1 Z-8.4 F300
+G1 Y-1 F600
+G1 X0 Y-1
+G2 X-1 Y0 I0 J1
+G1 X-1 Y50
+G2 X0 Y51 I1 J0
+G1 X20 Y51
+G2 X21 Y50 I0 J-1
+G1 X21 Y40.356
+G3 X22.342 Y39.417 I1 J0
+G1 X30.974 Y42.559
+G2 X35 Y39.739 I1.026 J-2.819
+G1 X35 Y10.261
+G2 X30.974 Y7.441 I-3 J0
+G1 X22.342 Y10.583
+G3 X21 Y9.644 I-0.342 J-0.939
+G1 X21 Y0
+G2 X20 Y-1 I-1 J0
+G1 X19
+Y-2
+G1 Z-12.55 F300
+G1 Y-1 F600
+G1 X0 Y-1
+G2 X-1 Y0 I0 J1
+G1 X-1 Y50
+G2 X0 Y51 I1 J0
+G1 X20 Y51
+G2 X21 Y50 I0 J-1
+G1 X21 Y40.356
+G3 X22.342 Y39.417 I1 J0
+G1 X30.974 Y42.559
+G2 X35 Y39.739 I1.026 J-2.819
+G1 X35 Y10.261
+G2 X30.974 Y7.441 I-3 J0
+G1 X22.342 Y10.583
+G3 X21 Y9.644 I-0.342 J-0.939
+G1 X21 Y0
+G2 X20 Y-1 I-1 J0
+G1 X19
+Y-2
+G0 Z10
+M5
+M30
+%

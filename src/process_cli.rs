@@ -1,0 +1,180 @@
+//! `millsim process process.json --out DIR`: a process job offline. The document is the
+//! one the service takes (`{"kind":"process","inputs":{"stock":..,"operations":[..]},
+//! "options":{..}}`) with file paths, relative to the document, where the service takes
+//! resource ids; `options.fixture` is a fixture document (STL bodies by `path`) or the
+//! path of one. Same job code as the service's workers; writes summary.json, blocks.csv
+//! (every row with its `operation`), each operation's program and stock.stl (and
+//! stock.op<n>.stl with `keep_stocks`).
+
+use std::path::{Path, PathBuf};
+
+use serde_json::{Map, Value};
+
+use millsim_engine::job::CancelFlag;
+
+use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs};
+use crate::run_cli::{file_input, fixture_with_paths, write_outputs, StderrProgress};
+use crate::store::ResourceKind;
+
+#[derive(clap::Args)]
+pub struct ProcessArgs {
+    /// The process document (the service's job request with file paths).
+    document: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Input `name` (a field of the document, for errors) read from `path` as a resource of
+/// `kind`: a stock is an STL, or a parametric stock when the file is JSON.
+fn load(dir: &Path, field: &str, path: &str, kind: ResourceKind) -> Result<LoadedInput, String> {
+    let at = |e: String| format!("{field}: {e}");
+    let full = dir.join(path);
+    let media = match kind {
+        ResourceKind::Program | ResourceKind::ToolLibrary => "text/plain",
+        ResourceKind::Stock => "model/stl",
+        _ => "application/json",
+    };
+    let mut input = file_input(&full, media).map_err(at)?;
+    let check = match kind {
+        ResourceKind::Stock if input.content.trim_ascii_start().starts_with(b"{") => {
+            input.media_type = "application/json".into();
+            crate::validate::stock_json(&input.content).map(|_| ())
+        }
+        ResourceKind::Stock => crate::validate::stl(&input.content, path).map(|_| ()),
+        ResourceKind::Tool => crate::validate::tool(&input.content).map(|_| ()),
+        ResourceKind::Machine => crate::validate::machine(&input.content).map(|_| ()),
+        ResourceKind::Material => crate::validate::material(&input.content).map(|_| ()),
+        _ => Ok(()),
+    };
+    check.map_err(|e| at(format!("{path}: {}", e.detail)))?;
+    Ok(input)
+}
+
+pub fn run(args: ProcessArgs) -> Result<(), String> {
+    let label = args.document.display().to_string();
+    let text = std::fs::read(&args.document).map_err(|e| format!("{label}: {e}"))?;
+    let doc: Value = serde_json::from_slice(crate::problem::without_bom(&text))
+        .map_err(|e| format!("{label}: {e}"))?;
+    let dir = args.document.parent().unwrap_or(Path::new("."));
+    if let Some(kind) = doc.get("kind").and_then(Value::as_str) {
+        if kind != "process" {
+            return Err(format!(
+                "{label}: kind: `{kind}`; this command runs `process` documents"
+            ));
+        }
+    }
+    let mut given: Map<String, Value> = match doc.get("inputs") {
+        Some(Value::Object(o)) => o.clone(),
+        _ => {
+            return Err(format!(
+                "{label}: inputs: an object with stock and operations"
+            ))
+        }
+    };
+    let mut options = match doc.get("options") {
+        None => Value::Object(Map::new()),
+        Some(o @ Value::Object(_)) => o.clone(),
+        Some(_) => return Err(format!("{label}: options: must be an object")),
+    };
+    let kind = JobKind::Process;
+    let problem = |p: crate::problem::Problem| {
+        let field = p
+            .extensions
+            .get("field")
+            .and_then(Value::as_str)
+            .unwrap_or("");
+        format!("{label}: {field}: {}", p.detail)
+    };
+    let operations = kind
+        .flatten_operations(&mut given)
+        .map_err(problem)?
+        .expect("a process has operations");
+    options["operations"] = Value::Array(operations);
+    let mut inputs = LoadedInputs::new();
+    if let Some(fixture) = options.get("fixture").cloned() {
+        let (doc, fixture_dir, fixture_label) = match fixture {
+            Value::String(path) => {
+                let path = dir.join(path);
+                let bytes = std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+                let doc: Value = serde_json::from_slice(crate::problem::without_bom(&bytes))
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+                let parent = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+                (doc, parent, path.display().to_string())
+            }
+            doc => (doc, dir.to_path_buf(), format!("{label}: options.fixture")),
+        };
+        options["fixture"] = fixture_with_paths(doc, &fixture_dir, &fixture_label, &mut inputs)?;
+    }
+    let wanted = kind.wanted_inputs(given.keys()).map_err(problem)?;
+    for (name, resource, required) in wanted {
+        let field = format!("{label}: {}", kind.input_field(name));
+        match given.get(name) {
+            None if required => return Err(format!("{field}: a process needs it")),
+            None => {}
+            Some(Value::String(path)) => {
+                inputs.insert(name.to_string(), load(dir, &field, path, resource)?);
+            }
+            Some(_) => return Err(format!("{field}: a file path (a string)")),
+        }
+    }
+    // A material named in options (TC6) or given as a file under inputs.
+    let names: Vec<String> = inputs.keys().cloned().collect();
+    kind.check(names.iter(), &options).map_err(problem)?;
+
+    let started = std::time::Instant::now();
+    let progress = StderrProgress::new();
+    // Offline, the job may use the machine's memory (as one worker would).
+    let limits = crate::job_limits::JobLimits {
+        memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
+    };
+    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
+    let result = kind.run(
+        &options,
+        inputs,
+        &limits,
+        &CancelFlag::new(),
+        &progress,
+        Some(&args.out.join("stock.stl")),
+    );
+    progress.finish();
+    let out = result.map_err(|f| match f {
+        JobFailure::Invalid(problem) => problem.detail,
+        JobFailure::Cancelled => "cancelled".into(),
+    })?;
+    let wall = started.elapsed().as_secs_f64();
+    let (summary, rows) = write_outputs(&args.out, out, wall)?;
+    eprint!("{}", process_report(&summary));
+    eprintln!(
+        "millsim process: {rows} moves in {wall:.2} s; wrote {}",
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// One line per operation and the total: cycle time before → after, removed volume.
+fn process_report(summary: &Value) -> String {
+    let mut s = String::new();
+    let f = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
+    for op in summary["operations"].as_array().into_iter().flatten() {
+        let after = op["cycle_time_opt_s"].as_f64();
+        s.push_str(&format!(
+            "operation {} ({}): {}: cycle time {:.1} s{}, removed {:.1} mm³, peak force {:.0} N\n",
+            op["operation"],
+            op["name"].as_str().unwrap_or(""),
+            op["file"].as_str().unwrap_or(""),
+            f(&op["cycle_time_s"]),
+            after.map_or(String::new(), |a| format!(" → {a:.1} s optimized")),
+            f(&op["removed_volume_mm3"]),
+            f(&op["force_peak_n"]),
+        ));
+    }
+    s.push_str(&format!(
+        "process: cycle time {:.1} s → {:.1} s, removed {:.1} mm³ of {:.1} mm³\n",
+        f(&summary["cycle_time_s"]),
+        f(&summary["cycle_time_opt_s"]),
+        f(&summary["removed_volume_mm3"]),
+        f(&summary["stock_volume_before"]),
+    ));
+    s
+}
