@@ -123,7 +123,8 @@ pub fn run(args: ProcessArgs) -> Result<(), String> {
     kind.check(names.iter(), &options).map_err(problem)?;
 
     let started = std::time::Instant::now();
-    let progress = StderrProgress::new();
+    // Each operation an equal share, counted in thousandths of it.
+    let progress = StderrProgress::new("millsim process", "· 1000 per operation");
     // Offline, the job may use the machine's memory (as one worker would).
     let limits = crate::job_limits::JobLimits {
         memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,

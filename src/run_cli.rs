@@ -101,14 +101,19 @@ pub(crate) struct StderrProgress {
     /// Last step shown, plus one (0: nothing shown yet).
     shown: AtomicU64,
     terminal: bool,
+    /// The command, and what the progress counts.
+    command: &'static str,
+    unit: &'static str,
 }
 
 impl StderrProgress {
-    pub(crate) fn new() -> Self {
+    pub(crate) fn new(command: &'static str, unit: &'static str) -> Self {
         use std::io::IsTerminal;
         StderrProgress {
             shown: AtomicU64::new(0),
             terminal: std::io::stderr().is_terminal(),
+            command,
+            unit,
         }
     }
 
@@ -138,12 +143,17 @@ impl Progress for StderrProgress {
         if self.terminal {
             let filled = (percent / 4) as usize;
             eprint!(
-                "\rmillsim run: [{}{}] {percent:3}% ({done}/{total} moves)",
+                "\r{}: [{}{}] {percent:3}% ({done}/{total} {})",
+                self.command,
                 "#".repeat(filled),
-                " ".repeat(25 - filled)
+                " ".repeat(25 - filled),
+                self.unit
             );
         } else {
-            eprintln!("millsim run: {percent}% ({done}/{total} moves)");
+            eprintln!(
+                "{}: {percent}% ({done}/{total} {})",
+                self.command, self.unit
+            );
         }
     }
 }
@@ -338,7 +348,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         .map_err(|e| e.to_string())?;
 
     let started = std::time::Instant::now();
-    let progress = StderrProgress::new();
+    let progress = StderrProgress::new("millsim run", "moves");
     // Offline, the job may use the machine's memory (as one worker would).
     let limits = crate::job_limits::JobLimits {
         memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
