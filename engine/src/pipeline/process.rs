@@ -94,11 +94,7 @@ const SHARE: u64 = 1000;
 
 impl Progress for Share<'_> {
     fn report(&self, done: u64, total: u64) {
-        let part = if total == 0 {
-            0
-        } else {
-            done.min(total) * SHARE / total
-        };
+        let part = (done.min(total) * SHARE).checked_div(total).unwrap_or(0);
         self.inner
             .report(self.index * SHARE + part, self.count * SHARE);
     }
