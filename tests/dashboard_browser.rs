@@ -79,6 +79,12 @@ fn every_job_kind_in_chromium() {
     run_script("kinds.mjs");
 }
 
+/// A process job: a card per operation and the plots coloured by operation.
+#[test]
+fn process_job_in_chromium() {
+    run_script("process.mjs");
+}
+
 /// A job of 10^5 blocks: first paint, and zooming and panning its plots without a stall
 /// (prints the redraw and frame times).
 #[test]
