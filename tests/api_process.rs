@@ -288,3 +288,32 @@ async fn bad_operations_are_refused_naming_the_field() {
         "{v}"
     );
 }
+
+#[tokio::test]
+async fn an_operation_reads_its_program_in_its_setups_work_offsets() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let stock = create(
+        &c,
+        &s,
+        "/v1/stocks",
+        json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
+    )
+    .await;
+    let d10 = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 10, "flutes": 3, "helix_deg": 30, "flute_length_mm": 20})).await;
+    let d6 = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 6, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20})).await;
+    // FINISH moved to its own zero: Y0 in G55, the setup's G55 at Y3.
+    let finish = "G90 G21\nG55\nS8000 M3\nG0 X-10 Y0 Z5\nG1 Z-5 F400\nG1 X110 F600\nG0 Z5\nM30\n";
+    let job = run_job(&c, &s, &json!({"kind": "process",
+        "inputs": {"stock": stock, "operations": [
+            {"program": {"name": "rough.nc", "content": ROUGH}, "tool": d10},
+            {"program": {"name": "finish.nc", "content": finish}, "tool": d6, "options": {"work_offsets": {"G55": [0, 3, 0]}}}]},
+        "options": {"material": "Al7075-T6", "cell_mm": 0.5}}), Duration::from_secs(300)).await;
+    let ops = job["summary"]["operations"].as_array().unwrap();
+    assert!(
+        rel(&ops[1]["removed_volume_mm3"], &json!(1500.0)) < 0.01,
+        "{}",
+        ops[1]
+    );
+}

@@ -258,3 +258,41 @@ fn an_operation_that_fails_is_named_and_too_many_are_refused() {
         Err(ProcessError::TooManyOperations { count }) if count == MAX_OPERATIONS + 1
     ));
 }
+
+#[test]
+fn each_operation_reads_its_program_in_the_work_offsets_its_setup_defines() {
+    // The finish written from its own zero (Y0 in G55), the setup's G55 3 mm over in Y:
+    // the same cut as `finish()` at Y3 in G54.
+    let mut offset = finish();
+    offset.program =
+        "G90 G21\nG55\nS8000 M3\nG0 X-10 Y0 Z5\nG1 Z-5 F400\nG1 X110 F600\nG0 Z5\nM30\n".into();
+    offset.interpret.work_offsets = vec![(1, [0.0, 3.0, 0.0])];
+    let run = |second: SimulateSpec| {
+        run_process(
+            &process(vec![rough(), second]),
+            &CancelFlag::new(),
+            &NoProgress,
+            &mut |_, _| {},
+        )
+        .unwrap()
+    };
+    let (a, b) = (run(finish()), run(offset));
+    let (fa, fb) = (&a.operations[1].summary, &b.operations[1].summary);
+    assert!(
+        rel(fb.removed_volume, 1500.0) < 0.01,
+        "{}",
+        fb.removed_volume
+    );
+    assert!(rel(fb.removed_volume, fa.removed_volume) < 1e-9);
+    assert!(rel(fb.peak_force, fa.peak_force) < 1e-9);
+    // Without the offset the same program cuts at Y0: the slot's floor only, 6 × 2 × 100 + 0.
+    let mut plain = finish();
+    plain.program =
+        "G90 G21\nS8000 M3\nG0 X-10 Y0 Z5\nG1 Z-5 F400\nG1 X110 F600\nG0 Z5\nM30\n".into();
+    let c = run(plain);
+    assert!(
+        rel(c.operations[1].summary.removed_volume, 1200.0) < 0.01,
+        "{}",
+        c.operations[1].summary.removed_volume
+    );
+}

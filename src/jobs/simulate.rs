@@ -134,6 +134,11 @@ pub struct SimulateOptions {
     /// `millsim_engine::optimize::spindle`).
     #[serde(default)]
     pub spindle: Option<millsim_engine::optimize::spindle::SpindleOptions>,
+    /// The setup's work offsets, machine frame, mm: {"G54": [x, y, z], "G55": [..], ...}
+    /// (G54 ... G59, G59.1 ... G59.3), set before the program runs as the control's offset
+    /// table holds them; unlisted ones are zero.
+    #[serde(default)]
+    pub work_offsets: Option<BTreeMap<String, [f64; 3]>>,
 }
 
 /// The field an STL fixture body names its job input with.
@@ -185,6 +190,37 @@ pub fn check_fixture_inputs<'a>(
 }
 
 impl SimulateOptions {
+    /// `options.work_offsets` as the interpreter takes them, each error naming its field.
+    pub fn work_offsets(&self) -> Result<Vec<(usize, [f64; 3])>, FieldError> {
+        let mut out = Vec::new();
+        for (name, v) in self.work_offsets.iter().flatten() {
+            let field = format!("options.work_offsets.{name}");
+            let k = nc::work_offset_index(name).ok_or_else(|| {
+                FieldError::new(
+                    &field,
+                    format!(
+                        "`{name}` is not a work offset; one of {}",
+                        nc::WORK_OFFSET_NAMES.join(", ")
+                    ),
+                )
+            })?;
+            if !v
+                .iter()
+                .all(|x| x.is_finite() && x.abs() <= geometry::stock::MAX_STOCK_SIZE)
+            {
+                return Err(FieldError::new(
+                    field,
+                    format!(
+                        "[x, y, z] in mm within ±{} mm, got {v:?}",
+                        geometry::stock::MAX_STOCK_SIZE
+                    ),
+                ));
+            }
+            out.push((k, *v));
+        }
+        Ok(out)
+    }
+
     /// `options.fixture` read, each error naming its field under `options.fixture`.
     pub fn fixture_spec(&self) -> Result<Option<geometry::FixtureSpec>, FieldError> {
         self.fixture
@@ -294,6 +330,7 @@ impl SimulateOptions {
             })?;
         }
         self.fixture_spec()?;
+        self.work_offsets()?;
         if !(1..=16384).contains(&self.max_grid_mib) {
             return Err(FieldError::new(
                 "options.max_grid_mib",
@@ -500,6 +537,9 @@ pub(super) fn spec_from_inputs(
         kinematics: (machine.kinematics != millsim_engine::machine::Kinematics::Xyz)
             .then(|| millsim_engine::machine::MachineKinematics::of(&machine)),
         tool_tip_reading: opts.axes == pipeline::AxisReading::ToolTip,
+        work_offsets: opts
+            .work_offsets()
+            .map_err(|e| invalid("Invalid options", e.to_string()))?,
         ..opts.program_options().engine_options().map_err(|d| {
             let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
             invalid("Invalid options", format!("options.tool_table: {first}"))

@@ -179,6 +179,22 @@ pub struct InterpretOptions {
     /// G43.4/G68.2. Decides whether G69 with the rotary axes turned has to hand the position
     /// back as machine axes.
     pub tool_tip_reading: bool,
+    /// The setup's work offsets before the program starts (what the control's offset table
+    /// holds: where each work coordinate system's zero is in the machine frame), mm, by
+    /// [`work_offset_index`] (G54 = 0 ... G59.3 = 8). Unlisted systems start at zero; the
+    /// program's own G10 L2 / L20 still change them.
+    pub work_offsets: Vec<(usize, [f64; 3])>,
+}
+
+/// The work offsets a setup can define: G54 ... G59, G59.1, G59.2, G59.3.
+pub const WORK_OFFSET_NAMES: [&str; 9] = [
+    "G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3",
+];
+
+/// The index of work offset `name` (`G54` = 0 ... `G59.3` = 8) for
+/// [`InterpretOptions::work_offsets`].
+pub fn work_offset_index(name: &str) -> Option<usize> {
+    WORK_OFFSET_NAMES.iter().position(|n| *n == name)
 }
 
 /// Where a tool change leaves the tool tip, machine frame, mm.
@@ -210,6 +226,7 @@ impl Default for InterpretOptions {
             tool_change: None,
             kinematics: None,
             tool_tip_reading: false,
+            work_offsets: Vec::new(),
         }
     }
 }

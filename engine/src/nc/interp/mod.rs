@@ -320,8 +320,15 @@ fn run_units(
     if fanuc {
         it.params.init_fanuc();
     }
+    // The setup's offsets are there before the first block (and before the start position
+    // is read in the active G54 system), as on the control.
+    for &(k, [x, y, z]) in &options.work_offsets {
+        if k < 9 {
+            it.g5x[k][..3].copy_from_slice(&[x, y, z]);
+        }
+    }
     if let Some([x, y, z]) = options.start_position {
-        // No offsets are active yet: the machine frame is the program's (in mm).
+        // Only the setup's work offsets can be active yet (the program's have not run).
         it.cur = it.from_machine([x, y, z, 0.0, 0.0, 0.0]);
     }
     match it.run() {
