@@ -296,3 +296,53 @@ fn each_operation_reads_its_program_in_the_work_offsets_its_setup_defines() {
         c.operations[1].summary.removed_volume
     );
 }
+
+#[test]
+fn the_processs_fixture_stands_for_every_operation() {
+    // A clamp beside the block's left end, from y 5.5: the rough's Ø10 at y 0 (to y 5)
+    // passes it, the finish's Ø6 plunging at X−10 Y3 (to y 6) meets it.
+    let clamp = millsim_engine::geometry::FixtureSpec::from_json(
+        &serde_json::json!({"bodies":[{"name":"clamp","kind":"block","min":[-20.0,5.5,-10.0],"max":[-8.0,10.0,2.0]}]}),
+        "path",
+    )
+    .unwrap()
+    .build("path", |r| Err(format!("no mesh {r}")))
+    .unwrap();
+    let mut p = process(vec![rough(), finish()]);
+    p.fixture = Some(std::sync::Arc::new(clamp));
+    let out = run_process(&p, &CancelFlag::new(), &NoProgress, &mut |_, _| {}).unwrap();
+    let fixture = |i: usize| out.operations[i].summary.fixture.as_ref().expect("checked");
+    assert_eq!(fixture(0).collision_moves, 0);
+    assert!(fixture(1).collision_moves >= 1);
+    assert_eq!(fixture(1).collisions[0].body, "clamp");
+    // The plunge at line 4 of the finish.
+    assert_eq!(fixture(1).collisions[0].line, 4);
+}
+
+#[test]
+fn an_operation_that_chooses_its_spindle_speed_cuts_what_the_last_left_once() {
+    // Both passes of the choice (as written, then at the chosen speed) cut the stock the
+    // rough left: the first a copy of it.
+    let spindle: millsim_engine::optimize::spindle::SpindleOptions =
+        serde_json::from_value(serde_json::json!({
+        "choose": true, "rpm": {"from": 5000, "to": 25000}, "speeds": 21,
+        "modes_x": [{"freq_hz": 922, "damping": 0.011, "mass_kg": 0.03993}], "method": "zoa"}))
+        .unwrap();
+    let mut p = process(vec![rough(), finish()]);
+    p.operations[1].spindle = Some(spindle);
+    let out = run_process(&p, &CancelFlag::new(), &NoProgress, &mut |_, _| {}).unwrap();
+    let s = &out.operations[1].summary;
+    let sp = s.spindle.as_ref().expect("a speed chosen");
+    assert!(
+        sp.chosen_rpm >= 5000.0 && sp.chosen_rpm <= 25000.0,
+        "{}",
+        sp.chosen_rpm
+    );
+    assert!(rel(s.removed_volume, 1500.0) < 0.01, "{}", s.removed_volume);
+    assert!(rel(out.stock.volume(), 40000.0 - 4500.0) < 1e-3);
+    assert!(out.operations[1]
+        .optimized_program
+        .as_deref()
+        .unwrap()
+        .contains(&format!("S{}", sp.chosen_rpm as i64)));
+}
