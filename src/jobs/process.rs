@@ -398,14 +398,34 @@ pub fn run(
         .filter(|n| super::simulate::fixture_input(n))
         .cloned()
         .collect();
+    // Every operation cuts at the process's one cell (the engine takes the finest tool's
+    // default): each operation's memory is estimated at it, from the tools given by id (a
+    // tool library's or a header comment's finer tool is not seen here).
+    let shared_cell = o.shared.get("cell_mm").and_then(Value::as_f64);
+    let radii: Vec<f64> = inputs
+        .iter()
+        .filter(|(n, _)| {
+            operation_input(n)
+                .is_some_and(|(_, i)| i == "tool" || super::simulate::tool_number(i).is_some())
+        })
+        .filter_map(|(_, x)| {
+            serde_json::from_slice::<millsim_engine::tool::Tool>(crate::problem::without_bom(
+                &x.content,
+            ))
+            .ok()
+        })
+        .map(|t| t.radius())
+        .collect();
+    let estimate_cell = shared_cell.or((!radii.is_empty()).then(|| geometry::default_cell(&radii)));
     let mut operations = Vec::with_capacity(o.operations.len());
     let mut files = Vec::with_capacity(o.operations.len());
     let mut estimates = Vec::new();
     let mut libraries = Vec::new();
     for (i, op) in o.operations.iter().enumerate() {
-        let (opts, optimize) = operation_options(&o.shared, op, i).map_err(bad)?;
+        let (mut opts, optimize) = operation_options(&o.shared, op, i).map_err(bad)?;
         opts.check(optimize, has_material_input)
             .map_err(|e| bad(operation_field(e, op, i)))?;
+        opts.cell_mm = opts.cell_mm.or(estimate_cell);
         let prefix = format!("op{}.", i + 1);
         let mut own: LoadedInputs = shared.iter().map(|(n, x)| (n.clone(), share(x))).collect();
         let names: Vec<String> = inputs
@@ -670,6 +690,7 @@ fn output(
         "force_peak_n": ops.iter().map(|o| o.summary.peak_force).fold(0.0, f64::max),
         "moves": all.len(),
         "keep_stocks": keep_stocks,
+        "grid_s": out.grid_s,
         "stock_export_s": export_s,
         "memory": memory.map(|m| json!({
             "budget_mb": limits.memory_mb(),

@@ -63,6 +63,8 @@ pub struct ProcessOutput {
     /// The stock after the last operation.
     pub stock: Stock,
     pub cell: f64,
+    /// Wall time of filling the blank's grid (before the first operation), s.
+    pub grid_s: f64,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -137,10 +139,12 @@ pub fn run_process(
             geometry::default_cell(&radii)
         }
     };
+    let clock = std::time::Instant::now();
     let mut first = ops[0].spec.clone();
     first.stock = process.stock.clone();
     let mut stock = Some(part_frame_stock(&first, cell).map_err(failed(0))?);
     drop(first);
+    let grid_s = clock.elapsed().as_secs_f64();
 
     let mut outputs = Vec::with_capacity(ops.len());
     for (i, op) in ops.iter().enumerate() {
@@ -179,5 +183,6 @@ pub fn run_process(
         operations: outputs,
         stock: stock.expect("the last operation's stock"),
         cell,
+        grid_s,
     })
 }
