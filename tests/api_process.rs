@@ -317,3 +317,77 @@ async fn an_operation_reads_its_program_in_its_setups_work_offsets() {
         ops[1]
     );
 }
+
+/// The 100 × 40 × 10 block, a Ø10 and a Ø6 flat end mill: their ids.
+async fn block_and_tools(c: &reqwest::Client, s: &Server) -> (String, String, String) {
+    let stock = create(
+        c,
+        s,
+        "/v1/stocks",
+        json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
+    )
+    .await;
+    let d10 = create(c, s, "/v1/tools", json!({"type": "flat", "diameter_mm": 10, "flutes": 3, "helix_deg": 30, "flute_length_mm": 20})).await;
+    let d6 = create(c, s, "/v1/tools", json!({"type": "flat", "diameter_mm": 6, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20})).await;
+    (stock, d10, d6)
+}
+
+#[tokio::test]
+async fn the_stocks_kept_count_in_the_memory_estimate() {
+    let job = |stock: &str, d10: &str, d6: &str, keep: bool| {
+        json!({"kind": "process",
+            "inputs": {"stock": stock, "operations": [
+                {"program": {"name": "rough.nc", "content": ROUGH}, "tool": d10},
+                {"program": {"name": "finish.nc", "content": FINISH}, "tool": d6}]},
+            "options": {"material": "Al7075-T6", "cell_mm": 0.1, "keep_stocks": keep}})
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let c = client();
+    // The estimate with the stock after the rough kept, on a server with room for it.
+    let roomy = Server::start(&dir.path().join("a.db"), &["--workers", "1"]);
+    let (stock, d10, d6) = block_and_tools(&c, &roomy).await;
+    let done = run_job(
+        &c,
+        &roomy,
+        &job(&stock, &d10, &d6, true),
+        Duration::from_secs(300),
+    )
+    .await;
+    let e = &done["summary"]["memory"]["estimate"];
+    let (total, kept) = (
+        e["peak_bytes"].as_u64().unwrap(),
+        e["kept_stocks_bytes"].as_u64().unwrap(),
+    );
+    assert!(kept > 4 << 20, "the kept stock's export is counted: {e}");
+    drop(roomy);
+    // A budget between the process without the kept stock and with it.
+    let budget = ((total - kept) >> 20) + 2;
+    assert!(budget << 20 < total, "{e}");
+    let tight = Server::start(
+        &dir.path().join("b.db"),
+        &["--workers", "1", "--job-memory-mb", &budget.to_string()],
+    );
+    let (stock, d10, d6) = block_and_tools(&c, &tight).await;
+    run_job(
+        &c,
+        &tight,
+        &job(&stock, &d10, &d6, false),
+        Duration::from_secs(300),
+    )
+    .await;
+    let (st, v) = post_json(&c, &tight, "/v1/jobs", &job(&stock, &d10, &d6, true)).await;
+    assert_eq!(st, 202, "{v}");
+    let failed = wait_job(
+        &c,
+        &tight,
+        v["id"].as_str().unwrap(),
+        Duration::from_secs(300),
+    )
+    .await;
+    assert_eq!(failed["status"], "failed", "{failed}");
+    let detail = failed["error"]["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("the stocks kept") && detail.contains("keep_stocks false"),
+        "{detail}"
+    );
+}
