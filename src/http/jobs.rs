@@ -82,8 +82,7 @@ async fn check_memory_budget(
             options,
             program.unwrap_or(0),
             &state.job_limits,
-        )
-        .map_err(ApiError::over_budget);
+        );
     }
     let Ok(o) = serde_json::from_value::<SimulateOptions>(options.clone()) else {
         return Ok(());
@@ -120,9 +119,7 @@ async fn check_memory_budget(
         limits,
     ) {
         None => Ok(()),
-        Some(estimate) => Err(ApiError::over_budget(job_limits::over_budget_problem(
-            None, &estimate, limits,
-        ))),
+        Some(estimate) => Err(job_limits::over_budget_problem(None, &estimate, limits)),
     }
 }
 
