@@ -28,7 +28,6 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use axum::http::StatusCode;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
@@ -650,13 +649,11 @@ async fn read_outcome(
         received += payload.len() as u64;
         if received > budget {
             return Some(Err(JobFailure::Invalid(
-                Problem::new(
-                    StatusCode::UNPROCESSABLE_ENTITY,
-                    "resource-limit",
+                Problem::resource_limit(
                     "Results over the job's memory budget",
                     format!("the job's results (rows, samples, files) exceed its memory budget of {} MiB (job_memory_mb)", budget >> 20),
+                    "job_memory_mb",
                 )
-                .with("limit_name", "job_memory_mb")
                 .with("limit", budget >> 20),
             )));
         }
@@ -738,16 +735,14 @@ fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Problem {
         .unwrap_or("")
         .trim()
         .to_string();
-    Problem::new(
-        StatusCode::UNPROCESSABLE_ENTITY,
-        "resource-limit",
+    Problem::resource_limit(
         if out_of_memory { "Job ran out of memory" } else { "Job's process died" },
         format!(
             "the process running this job {how}{}; its memory budget is {memory_mb} MiB (job_memory_mb). The job is not retried: it would die again",
             if last_line.is_empty() { String::new() } else { format!(" after: {last_line}") },
         ),
+        "job_memory_mb",
     )
-    .with("limit_name", "job_memory_mb")
     .with("limit", memory_mb)
 }
 

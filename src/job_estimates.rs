@@ -4,9 +4,10 @@
 //! their rows; a stability or energy job the transition matrices of its lobes.
 
 use serde::Serialize;
-use serde_json::{json, Value};
+use serde_json::Value;
 
 use crate::job_limits::JobLimits;
+use crate::problem::Problem;
 
 /// What a job's process holds whatever the job (code, runtime, buffers): measured 11.7 to
 /// 13.7 MB peak RSS for `millsim stability` on one mode and `millsim interpret` on a
@@ -160,7 +161,7 @@ pub fn check(
     options: &Value,
     program_bytes: u64,
     limits: &JobLimits,
-) -> Result<(), Value> {
+) -> Result<(), Problem> {
     let Some(e) = estimate(kind, options, program_bytes, lobe_workers()) else {
         return Ok(());
     };
@@ -168,11 +169,9 @@ pub fn check(
         return Ok(());
     }
     let mib = |b: u64| b.div_ceil(1 << 20);
-    Err(json!({
-        "type": "https://millsim.dev/problems/resource-limit",
-        "title": "Over the job's memory budget",
-        "status": 422,
-        "detail": format!(
+    Err(Problem::resource_limit(
+        "Over the job's memory budget",
+        format!(
             "the {kind} job needs about {} MiB (program and moves {} MiB, lobe matrices {} MiB, rows {} MiB), over the job memory budget of {} MiB (job_memory_mb); {}",
             mib(e.peak_bytes),
             mib(e.program_bytes),
@@ -185,16 +184,17 @@ pub fn check(
                 _ => "use fewer modes or steps_per_period, or the zoa method",
             },
         ),
-        "limit_name": "job_memory_mb",
-        "limit": limits.memory_mb(),
-        "estimate_mb": mib(e.peak_bytes),
-        "estimate": e,
-    }))
+        "job_memory_mb",
+    )
+    .with("limit", limits.memory_mb())
+    .with("estimate_mb", mib(e.peak_bytes))
+    .with("estimate", serde_json::to_value(&e).unwrap_or_default()))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::json;
 
     fn mode() -> Value {
         json!({"freq_hz": 900, "damping": 0.02, "stiffness_n_m": 2e7})
@@ -221,7 +221,9 @@ mod tests {
         let many: Vec<Value> = (0..100).map(|_| mode()).collect();
         let heavy = json!({"method": "sdm", "modes_x": many, "modes_y": many,
             "rpm": {"from": 5000, "to": 6000, "step": 100}, "steps_per_period": 40});
-        let p = check("stability", &heavy, 0, &limits).unwrap_err();
+        let p = check("stability", &heavy, 0, &limits)
+            .unwrap_err()
+            .to_json();
         assert_eq!(
             (p["status"].as_u64(), p["limit"].as_u64()),
             (Some(422), Some(256))

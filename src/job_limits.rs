@@ -16,6 +16,8 @@ use millsim_engine::pipeline::{AxisReading, StockSource};
 use millsim_engine::tool::Tool;
 use millsim_engine::tool_library::tools_from_header;
 
+use crate::problem::Problem;
+
 /// What the server holds each job to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct JobLimits {
@@ -142,13 +144,11 @@ pub fn over_budget_problem(
     file: Option<&str>,
     estimate: &MemoryEstimate,
     limits: &JobLimits,
-) -> Value {
+) -> Problem {
     let mib = |b: u64| b.div_ceil(1 << 20);
-    let mut problem = json!({
-        "type": "https://millsim.dev/problems/resource-limit",
-        "title": "Over the job's memory budget",
-        "status": 422,
-        "detail": format!(
+    let problem = Problem::resource_limit(
+        "Over the job's memory budget",
+        format!(
             "{}the simulation needs about {} MiB (grid {} MiB, step records held at once {} MiB, what the steps keep {} MiB, rows {} MiB, stock export {} MiB, STL mesh read {} MiB), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, a smaller stock or shorter moves",
             file.map(|f| format!("{f}: ")).unwrap_or_default(),
             mib(estimate.peak_bytes),
@@ -160,29 +160,29 @@ pub fn over_budget_problem(
             mib(estimate.mesh_bytes),
             limits.memory_mb(),
         ),
-        "limit_name": "job_memory_mb",
-        "limit": limits.memory_mb(),
-        "estimate_mb": mib(estimate.peak_bytes),
-        "estimate": estimate,
-    });
-    if let Some(f) = file {
-        problem["file"] = json!(f);
+        "job_memory_mb",
+    )
+    .with("limit", limits.memory_mb())
+    .with("estimate_mb", mib(estimate.peak_bytes))
+    .with("estimate", serde_json::to_value(estimate).unwrap_or_default());
+    match file {
+        Some(f) => problem.with("file", f),
+        None => problem,
     }
-    problem
 }
 
-fn travel_problem(file: &str, e: &budget::TravelError, travel: [[f64; 2]; 3]) -> Value {
-    json!({
-        "type": "https://millsim.dev/problems/out-of-travel",
-        "title": "Move outside the machine's travel",
-        "status": 422,
-        "detail": format!("{file}:{e}"),
-        "file": file,
-        "line": e.line,
-        "axis": e.axis.to_string(),
-        "value": e.value,
-        "travel_mm": travel,
-    })
+fn travel_problem(file: &str, e: &budget::TravelError, travel: [[f64; 2]; 3]) -> Problem {
+    Problem::new(
+        axum::http::StatusCode::UNPROCESSABLE_ENTITY,
+        "out-of-travel",
+        "Move outside the machine's travel",
+        format!("{file}:{e}"),
+    )
+    .with("file", file)
+    .with("line", e.line)
+    .with("axis", e.axis.to_string())
+    .with("value", e.value)
+    .with("travel_mm", json!(travel))
 }
 
 /// The grid spacing a simulation will use: the one asked for, else the engine's default
@@ -250,8 +250,8 @@ pub struct SimulationCheck<'a> {
 pub enum Refusal {
     /// The program does not interpret (the pipeline would say the same).
     Program(nc::Diagnostics),
-    /// A problem document: out of travel, or over the memory budget.
-    Problem(Value),
+    /// A problem: out of travel, or over the memory budget.
+    Problem(Problem),
 }
 
 /// Interprets the program and checks its moves against the machine's travel (under
@@ -424,7 +424,7 @@ mod tests {
         };
         let cube = ([0.0; 3], [27.0; 3]);
         let e = submission_estimate(cube, 0, Some(0.005), &[], &limits).unwrap();
-        let p = over_budget_problem(None, &e, &limits);
+        let p = over_budget_problem(None, &e, &limits).to_json();
         assert_eq!(p["limit"], 2048);
         // The grid alone is 4 GB (5400 rays a side, three families); the stock file
         // goes to disk, a band of its triangles at a time.

@@ -187,23 +187,20 @@ impl Problem {
         )
     }
 
-    /// A job over the server's job memory budget, from the same problem document a job
-    /// refused at run time carries (its detail and extensions: limit, estimate).
-    pub fn over_budget(problem: Value) -> Self {
-        let mut err = Self::new(
+    /// A job held to one of the server's limits (its memory budget, its isolation): the one
+    /// `resource-limit` problem, naming the limit's setting.
+    pub fn resource_limit(
+        title: impl Into<Cow<'static, str>>,
+        detail: impl Into<String>,
+        limit_name: &str,
+    ) -> Self {
+        Self::new(
             StatusCode::UNPROCESSABLE_ENTITY,
             "resource-limit",
-            "Over the job's memory budget",
-            problem["detail"].as_str().unwrap_or_default(),
-        );
-        if let Value::Object(members) = problem {
-            for (k, v) in members {
-                if !matches!(k.as_str(), "type" | "title" | "status" | "detail") {
-                    err.extensions.insert(k, v);
-                }
-            }
-        }
-        err
+            title,
+            detail,
+        )
+        .with("limit_name", limit_name)
     }
 
     /// A request body that stalled (see `body::body_timeout`).

@@ -5,7 +5,7 @@ mod common;
 use std::time::Duration;
 
 use common::*;
-use serde_json::json;
+use serde_json::{json, Value};
 
 #[tokio::test]
 async fn interpret_job_runs_and_serves_its_rows_as_json_pages_and_csv() {
@@ -69,6 +69,17 @@ async fn interpret_job_runs_and_serves_its_rows_as_json_pages_and_csv() {
     assert!(rows
         .iter()
         .any(|r| r["kind"] == "arc" && r["center"].is_array()));
+    // Every row has every column: a straight move's centre is there, null.
+    let columns = done["summary"]["row_columns"].as_array().unwrap();
+    for r in &rows {
+        for c in columns {
+            let c = c.as_str().unwrap();
+            assert!(r.get(c).is_some(), "row {r} lacks {c}");
+        }
+    }
+    assert!(rows
+        .iter()
+        .any(|r| r["kind"] == "linear" && r.get("center") == Some(&Value::Null)));
     assert!(rows
         .windows(2)
         .all(|w| w[0]["line"].as_u64() <= w[1]["line"].as_u64()));

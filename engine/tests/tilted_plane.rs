@@ -195,6 +195,43 @@ fn g68_2_after_rotary_words_starts_from_the_tip_on_the_part() {
 }
 
 #[test]
+fn g43_4_after_rotary_words_starts_from_the_tip_and_g49_hands_back_machine_axes() {
+    // As G68.2 and G69: read as machine axes, X0 Y0 Z50 at A−30 is the tip at
+    // Rx(30)·(0, 0, 50) on the part, where the first move under G43.4 starts; at G49 the
+    // tip (0, −10, 17.32) (Z20 along the turned tool) is machine Y0 Z20 again, where the
+    // retract starts.
+    let m = machine(None);
+    let prog = "G21 G90\nG0 X0 Y0 Z50\nG0 A-30 C0\nG43.4 H0\nG0 X0 Y-10 Z17.320508075688775\nG49\nG91 G0 Z10\nM30\n";
+    let out = run(prog, &m);
+    let (s, c) = 30f64.to_radians().sin_cos();
+    let mv = out.moves.iter().find(|mv| mv.line == 5).unwrap();
+    assert!(mv.tool_tip);
+    assert!(
+        close(&mv.start[..3], &[0.0, -50.0 * s, 50.0 * c], 1e-9),
+        "{:?}",
+        mv.start
+    );
+    let retract = out.moves.iter().find(|mv| mv.line == 7).unwrap();
+    assert!(!retract.tool_tip);
+    let k = MachineKinematics::of(&m);
+    assert!(close(&k.forward(&retract.start).tip, &mv.end[..3], 1e-9));
+    assert!(
+        close(&retract.start[..3], &[0.0, 0.0, 20.0], 1e-9),
+        "{:?}",
+        retract.start
+    );
+    assert!(close(&retract.end[..3], &[0.0, 0.0, 30.0], 1e-9));
+    // With the table at zero the two readings agree: nothing is handed over.
+    let flat = run(
+        "G21 G90\nG0 X1 Y2 Z50\nG43.4 H0\nG0 X3\nG49\nG0 Z60\nM30\n",
+        &m,
+    );
+    let moves: Vec<_> = flat.moves.iter().filter(|m| m.line >= 4).collect();
+    assert!(close(&moves[0].start[..3], &[1.0, 2.0, 50.0], 1e-12));
+    assert!(close(&moves[1].start[..3], &[3.0, 2.0, 50.0], 1e-12));
+}
+
+#[test]
 fn a_g2_circle_on_a_tilted_plane_is_cut_as_chords_on_the_circle() {
     let m = machine(None);
     let prog = "G21 G90 G94\nG68.2 X0 Y0 Z0 I0 J30 K0\nG53.1\nG0 X10 Y0 Z-1\nG2 X10 Y0 I-10 J0 F300\nG69\nM30\n";

@@ -85,8 +85,7 @@ async fn check_memory_budget(
             options,
             program.unwrap_or(0),
             &state.job_limits,
-        )
-        .map_err(ApiError::over_budget);
+        );
     }
     // A process's options are its own (operations, keep_stocks) with the cell shared.
     let cell_mm = if kind == JobKind::Process {
@@ -134,9 +133,7 @@ async fn check_memory_budget(
         limits,
     ) {
         None => Ok(()),
-        Some(estimate) => Err(ApiError::over_budget(job_limits::over_budget_problem(
-            None, &estimate, limits,
-        ))),
+        Some(estimate) => Err(job_limits::over_budget_problem(None, &estimate, limits)),
     }
 }
 

@@ -109,14 +109,25 @@ pub fn run(
     }
     let total = result.moves.len() as u64;
     let mut rows = Vec::with_capacity(result.moves.len());
-    // Rows differ (arcs carry a centre, dwells seconds): the CSV needs every column.
+    // Rows differ (arcs carry a centre, dwells seconds): every row carries every column
+    // of the job's rows, null where its move has none, so that a page and the CSV header
+    // do not depend on which move came first. One pass for the columns, one for the rows.
     let mut columns: Vec<String> = Vec::new();
-    for (i, m) in result.moves.iter().enumerate() {
-        let row = serde_json::to_value(m).expect("moves serialize");
-        if let Value::Object(o) = &row {
+    for m in &result.moves {
+        if let Value::Object(o) = serde_json::to_value(m).expect("moves serialize") {
             for k in o.keys() {
                 if !columns.iter().any(|c| c == k) {
                     columns.push(k.clone());
+                }
+            }
+        }
+    }
+    for (i, m) in result.moves.iter().enumerate() {
+        let mut row = serde_json::to_value(m).expect("moves serialize");
+        if let Value::Object(o) = &mut row {
+            for c in &columns {
+                if !o.contains_key(c) {
+                    o.insert(c.clone(), Value::Null);
                 }
             }
         }

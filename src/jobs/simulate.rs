@@ -607,7 +607,7 @@ pub(super) fn spec_from_inputs(
     };
     let estimate = check_simulation(&check, limits).map_err(|r| match r {
         Refusal::Program(d) => program_failure(cancel, &file, &d),
-        Refusal::Problem(p) => JobFailure::Invalid(Problem::from_json(p)),
+        Refusal::Problem(p) => JobFailure::Invalid(p),
     })?;
     let spec = SimulateSpec {
         program: text,

@@ -486,21 +486,23 @@ impl Db {
         }
         // A job whose worker ran it inside the server process (thread isolation) and was
         // lost with it may have brought the server down: failed, not run again.
-        let error = tx.backend().json_object(
-            "'type', 'https://millsim.dev/problems/resource-limit',
-                    'title', 'Job lost with its server', 'status', 422,
-                    'detail', 'the server running this job inside its own process (job isolation `thread`) stopped while the job ran; the job may have brought it down (out of memory, a crash), so it is not retried',
-                    'limit_name', 'job_isolation'",
-        );
+        let error = crate::problem::Problem::resource_limit(
+            "Job lost with its server",
+            "the server running this job inside its own process (job isolation `thread`) stopped while the job ran; the job may have brought it down (out of memory, a crash), so it is not retried",
+            "job_isolation",
+        )
+        .to_json()
+        .to_string();
         let crashed: Vec<(String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
             "UPDATE jobs SET status = 'failed', finished_at = $1, updated_at = $1, lease_owner = NULL,
-                error = {error}
+                error = $3
              WHERE id IN (SELECT id FROM jobs
                           WHERE status = 'running' AND lease_expires_at < $1 AND lease_owner LIKE $2{skip_locked})
              RETURNING id, attempts",
         ))
         .bind(now)
         .bind(format!("%{IN_PROCESS_MARK}%"))
+        .bind(error)
         .fetch_all(&mut *c)
         .await?);
         for (id, attempt) in &crashed {

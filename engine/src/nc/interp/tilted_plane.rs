@@ -154,6 +154,13 @@ impl Interp<'_> {
         if self.tcp || self.opts.tool_tip_reading {
             return None;
         }
+        self.machine_to_tip()
+    }
+
+    /// The current position read as machine axes, as the part-frame tip with the same
+    /// rotary angles; None without kinematics or with the rotary axes at zero (the two
+    /// readings agree).
+    fn machine_to_tip(&self) -> Option<[f64; 6]> {
         let k = self.opts.kinematics.as_ref()?;
         let mut here = self.to_machine(self.cur);
         if k.rotary_slots().iter().all(|&s| here[s] == 0.0) {
@@ -173,15 +180,38 @@ impl Interp<'_> {
         if self.tcp || self.opts.tool_tip_reading {
             return;
         }
-        let Some(k) = self.opts.kinematics.as_ref() else {
-            return;
-        };
+        if let Some(axes) = self.tip_to_machine() {
+            self.cur = self.from_machine(axes);
+        }
+    }
+
+    /// The current position read as the part-frame tip, as the machine axes that hold the
+    /// tip there; None without kinematics or with the rotary axes at zero.
+    fn tip_to_machine(&self) -> Option<[f64; 6]> {
+        let k = self.opts.kinematics.as_ref()?;
         let here = self.to_machine(self.cur);
         if k.rotary_slots().iter().all(|&s| here[s] == 0.0) {
+            return None;
+        }
+        Some(k.machine_axes([here[0], here[1], here[2]], &here))
+    }
+
+    /// G43.4/G43.5 switched on or off (G43, G43.1, G49) where plain moves are read as
+    /// machine axes and no tilted plane is active: the position handed over between the two
+    /// readings as G68.2 and G69 do, so that the next move starts where the tool is (with
+    /// the table turned, the machine axes are not the tip's part coordinates).
+    pub(super) fn tool_tip_control_changed(&mut self, on: bool) {
+        if self.opts.tool_tip_reading || self.tilt.is_some() {
             return;
         }
-        let axes = k.machine_axes([here[0], here[1], here[2]], &here);
-        self.cur = self.from_machine(axes);
+        let handed = if on {
+            self.machine_to_tip()
+        } else {
+            self.tip_to_machine()
+        };
+        if let Some(p) = handed {
+            self.cur = self.from_machine(p);
+        }
     }
 
     /// G53.1: the rotary axes turn (a rapid, the tip held on the part) so that the tool is

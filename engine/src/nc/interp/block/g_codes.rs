@@ -92,6 +92,7 @@ impl Interp<'_> {
         // 18. tool length offset; G43.4/G43.5 (tool-centre-point control) take it as G43
         // does and make X Y Z the tool tip on the part from here to G43/G43.1/G49.
         let tcp = w.g(434).or(w.g(435));
+        let was_tcp = self.tcp;
         if let Some(i) = w.g(435) {
             if ['I', 'J', 'K'].iter().any(|&c| w.has(c)) {
                 return Err(self.err_at(
@@ -149,6 +150,9 @@ impl Interp<'_> {
         if w.g(490).is_some() {
             self.tcp = false;
             self.set_tlo(None);
+        }
+        if self.tcp != was_tcp {
+            self.tool_tip_control_changed(self.tcp);
         }
         Ok(())
     }
