@@ -459,20 +459,24 @@ pub fn run(
         });
     }
     let memory = process_estimate(&estimates, o.keep_stocks);
-    if let Some((bytes, _)) = &memory {
+    if let Some((bytes, estimate)) = &memory {
         if *bytes > limits.memory_bytes {
-            return Err(JobFailure::Invalid(Problem::new(
-                axum::http::StatusCode::UNPROCESSABLE_ENTITY,
-                "over-budget",
-                "Over the job memory budget",
-                format!(
-                    "the process needs about {} MiB (its largest operation, the rows of the others{}), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, fewer operations{}",
-                    bytes.div_ceil(1 << 20),
-                    if o.keep_stocks { " and the stocks kept" } else { "" },
-                    limits.memory_mb(),
-                    if o.keep_stocks { " or keep_stocks false" } else { "" },
-                ),
-            )));
+            let mib = bytes.div_ceil(1 << 20);
+            return Err(JobFailure::Invalid(
+                Problem::resource_limit(
+                    "Over the job's memory budget",
+                    format!(
+                        "the process needs about {mib} MiB (its largest operation, the rows of the others{}), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, fewer operations{}",
+                        if o.keep_stocks { " and the stocks kept" } else { "" },
+                        limits.memory_mb(),
+                        if o.keep_stocks { " or keep_stocks false" } else { "" },
+                    ),
+                    "job_memory_mb",
+                )
+                .with("limit", limits.memory_mb())
+                .with("estimate_mb", mib)
+                .with("estimate", estimate.clone()),
+            ));
         }
     }
     let process = ProcessSpec {
