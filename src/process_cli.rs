@@ -10,10 +10,8 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{Map, Value};
 
-use millsim_engine::job::CancelFlag;
-
-use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs};
-use crate::run_cli::{file_input, fixture_with_paths, write_outputs, StderrProgress};
+use crate::jobs::{JobKind, LoadedInput, LoadedInputs};
+use crate::run_cli::{file_input, fixture_with_paths, run_offline, StderrProgress};
 use crate::store::ResourceKind;
 
 #[derive(clap::Args)]
@@ -122,29 +120,14 @@ pub fn run(args: ProcessArgs) -> Result<(), String> {
     let names: Vec<String> = inputs.keys().cloned().collect();
     kind.check(names.iter(), &options).map_err(problem)?;
 
-    let started = std::time::Instant::now();
     // Each operation an equal share, counted in thousandths of it.
-    let progress = StderrProgress::new("millsim process", "· 1000 per operation");
-    // Offline, the job may use the machine's memory (as one worker would).
-    let limits = crate::job_limits::JobLimits {
-        memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
-    };
-    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
-    let result = kind.run(
+    let (summary, rows, wall) = run_offline(
+        kind,
         &options,
         inputs,
-        &limits,
-        &CancelFlag::new(),
-        &progress,
-        Some(&args.out.join("stock.stl")),
-    );
-    progress.finish();
-    let out = result.map_err(|f| match f {
-        JobFailure::Invalid(problem) => problem.detail,
-        JobFailure::Cancelled => "cancelled".into(),
-    })?;
-    let wall = started.elapsed().as_secs_f64();
-    let (summary, rows) = write_outputs(&args.out, out, wall)?;
+        &args.out,
+        StderrProgress::new("millsim process", "· 1000 per operation"),
+    )?;
     eprint!("{}", process_report(&summary));
     eprintln!(
         "millsim process: {rows} moves in {wall:.2} s; wrote {}",

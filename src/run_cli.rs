@@ -347,30 +347,13 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         .check(kind == JobKind::Optimize, inputs.contains_key("material"))
         .map_err(|e| e.to_string())?;
 
-    let started = std::time::Instant::now();
-    let progress = StderrProgress::new("millsim run", "moves");
-    // Offline, the job may use the machine's memory (as one worker would).
-    let limits = crate::job_limits::JobLimits {
-        memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
-    };
-    // The stock goes straight to its file: at fine cells it is the largest output.
-    std::fs::create_dir_all(&args.out).map_err(|e| format!("{}: {e}", args.out.display()))?;
-    let result = kind.run(
+    let (summary, rows, wall) = run_offline(
+        kind,
         &options,
         inputs,
-        &limits,
-        &CancelFlag::new(),
-        &progress,
-        Some(&args.out.join("stock.stl")),
-    );
-    progress.finish();
-    let out = result.map_err(|f| match f {
-        JobFailure::Invalid(problem) => problem.detail,
-        JobFailure::Cancelled => "cancelled".into(),
-    })?;
-    let wall = started.elapsed().as_secs_f64();
-
-    let (summary, rows) = write_outputs(&args.out, out, wall)?;
+        &args.out,
+        StderrProgress::new("millsim run", "moves"),
+    )?;
     eprint!("{}", run_report(&summary));
     eprintln!(
         "millsim run: {rows} moves in {wall:.2} s; wrote {}",
@@ -383,6 +366,40 @@ pub fn run(args: RunArgs) -> Result<(), String> {
 /// summary's `row_columns`), and its files in memory (a program under its file name, the
 /// others under their result names; a stock streamed to its file is there already).
 /// Returns the summary and the row count.
+/// Runs a job offline, its stock streamed straight to `out/stock.stl` (at fine cells it is
+/// the largest output) and its other results written there: its summary, its row count
+/// and the wall time.
+pub(crate) fn run_offline(
+    kind: JobKind,
+    options: &Value,
+    inputs: LoadedInputs,
+    out: &Path,
+    progress: StderrProgress,
+) -> Result<(Value, usize, f64), String> {
+    let started = std::time::Instant::now();
+    // Offline, the job may use the machine's memory (as one worker would).
+    let limits = crate::job_limits::JobLimits {
+        memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
+    };
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let result = kind.run(
+        options,
+        inputs,
+        &limits,
+        &CancelFlag::new(),
+        &progress,
+        Some(&out.join("stock.stl")),
+    );
+    progress.finish();
+    let done = result.map_err(|f| match f {
+        JobFailure::Invalid(problem) => problem.detail,
+        JobFailure::Cancelled => "cancelled".into(),
+    })?;
+    let wall = started.elapsed().as_secs_f64();
+    let (summary, rows) = write_outputs(out, done, wall)?;
+    Ok((summary, rows, wall))
+}
+
 pub(crate) fn write_outputs(
     dir: &Path,
     out: crate::jobs::JobOutput,
