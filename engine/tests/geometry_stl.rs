@@ -9,6 +9,8 @@ use millsim_engine::geometry::{
 use millsim_engine::job::CancelFlag;
 use millsim_engine::tool::Tool;
 
+use common::mesh::box_mesh;
+
 const CORPUS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/corpus/stl/");
 
 fn corpus(name: &str) -> Vec<u8> {
@@ -199,36 +201,6 @@ fn exported_stock_is_a_closed_mesh_with_the_stock_volume() {
         stats.triangles
     );
     assert!(((mv - sv) / sv).abs() < 0.01);
-}
-
-/// A closed, outward-oriented box mesh.
-fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
-    let v = |i: usize| {
-        [
-            if i & 1 == 0 { lo[0] } else { hi[0] },
-            if i & 2 == 0 { lo[1] } else { hi[1] },
-            if i & 4 == 0 { lo[2] } else { hi[2] },
-        ]
-    };
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let mut triangles = Vec::new();
-    for q in quads {
-        triangles.push([q[0], q[1], q[2]]);
-        triangles.push([q[0], q[2], q[3]]);
-    }
-    let mesh = Mesh {
-        vertices: (0..8).map(v).collect(),
-        triangles,
-    };
-    assert!(mesh.volume() > 0.0, "outward orientation");
-    mesh
 }
 
 #[test]

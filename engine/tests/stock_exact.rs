@@ -2,6 +2,8 @@
 //! keeps its volume, for blocks, cylinders and STL stocks, and the exported STL keeps every
 //! face the tool did not touch where it was.
 
+mod common;
+
 use std::f64::consts::PI;
 
 use millsim_engine::geometry::{
@@ -9,6 +11,8 @@ use millsim_engine::geometry::{
 };
 use millsim_engine::job::CancelFlag;
 use millsim_engine::tool::Tool;
+
+use common::mesh::box_mesh;
 
 fn opts(cell: f64) -> GridOptions {
     GridOptions {
@@ -64,34 +68,6 @@ fn a_cylinder_keeps_its_volume() {
             .filter(|r| !r.is_empty())
             .all(|r| r.len() == 1 && (r[0][1] - r[0][0] - h).abs() < 1e-9);
         assert!(full, "a Z ray lost part of the height");
-    }
-}
-
-/// A closed, outward-oriented box mesh.
-fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> Mesh {
-    let v = |i: usize| {
-        [
-            if i & 1 == 0 { lo[0] } else { hi[0] },
-            if i & 2 == 0 { lo[1] } else { hi[1] },
-            if i & 4 == 0 { lo[2] } else { hi[2] },
-        ]
-    };
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let mut triangles = Vec::new();
-    for q in quads {
-        triangles.push([q[0], q[1], q[2]]);
-        triangles.push([q[0], q[2], q[3]]);
-    }
-    Mesh {
-        vertices: (0..8).map(v).collect(),
-        triangles,
     }
 }
 

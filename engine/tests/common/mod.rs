@@ -3,6 +3,7 @@
 //! project does not have it: tests that read it skip, saying so, when it is absent.
 #![allow(dead_code)]
 
+pub mod mesh;
 pub mod nc;
 pub mod simulate;
 
