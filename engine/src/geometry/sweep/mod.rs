@@ -744,12 +744,13 @@ mod tests {
     }
 
     #[test]
-    fn horizontal_rays_through_the_full_section_are_the_solids_exact_intervals() {
-        // X and Y rays whose plane cuts only the top cylinder all along a tilted move: the
-        // elliptic stadium must give what the solids give, hits and misses alike.
+    fn rays_through_the_full_section_are_the_solids_exact_intervals() {
+        // Rays of every family whose section plane cuts only the top cylinder all along a
+        // tilted move: the elliptic stadium must give what the solids give, hits and misses
+        // alike.
         let mut rnd = uniform(23);
         let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
-        let (mut hits, mut misses) = (0, 0);
+        let (mut hits, mut misses, mut z_hits) = (0, 0, 0);
         let tools = [
             Tool::flat(6.0, 2),
             Tool::ball(6.0, 2),
@@ -771,9 +772,13 @@ mod tests {
                         axis,
                     },
                 );
-                let fam = (rnd() * 2.0) as usize;
+                let fam = (rnd() * 3.0) as usize % 3;
                 let (z, across) = (rnd() * 12.0, rnd() * 30.0 - 15.0);
-                let (u, v) = if fam == 0 { (across, z) } else { (z, across) };
+                let (u, v) = match fam {
+                    0 => (across, z),
+                    1 => (z, across),
+                    _ => (rnd() * 16.0 - 8.0, rnd() * 16.0 - 8.0),
+                };
                 let Some(fast) = sw.full_section_ray(fam, u, v) else {
                     continue;
                 };
@@ -790,6 +795,7 @@ mod tests {
                             "{fam} {u} {v} {axis:?} {p1:?}: {f:?} vs {e:?}"
                         );
                         hits += 1;
+                        z_hits += (fam == 2) as usize;
                     }
                     (None, None) => misses += 1,
                     _ => panic!("{fam} {u} {v} {axis:?} {p1:?}: {fast:?} vs {exact:?}"),
@@ -797,6 +803,7 @@ mod tests {
             }
         }
         assert!(hits > 1000 && misses > 1000, "{hits} {misses}");
+        assert!(z_hits > 300, "{z_hits}");
     }
 
     #[test]

@@ -71,10 +71,8 @@ impl Sweep<'_> {
             return None;
         }
         o[fam] = start;
-        if fam != 2 {
-            if let Some(iv) = self.full_section_ray(fam, u, v) {
-                return iv;
-            }
+        if let Some(iv) = self.full_section_ray(fam, u, v) {
+            return iv;
         }
         self.solid_ray(fam, o, span, material)
     }
@@ -174,109 +172,124 @@ impl Sweep<'_> {
     }
 }
 
-/// A tilted sweep's horizontal sections where they are whole ellipses, prepared once per
-/// sweep for `Sweep::full_section_ray`: a plane at height z cuts the tool's top cylinder
-/// (radius R, the widest) in a whole ellipse when the axis crosses it at a height
-/// `t ∈ [band.0, band.1]` above the tip. Every part of the tool lies within R of its
-/// axis, so there the tool's section is that ellipse (semi-axes R across the tilt and
-/// R/a_z along it), translated linearly with the move: the union is an elliptic stadium.
-/// Squashing the plane by a_z along the tilt makes it a round one (`line_stadium`).
+/// A tilted sweep's sections where they are whole ellipses, prepared once per sweep for
+/// `Sweep::full_section_ray`. Each ray of a family lies in a plane that also holds the
+/// ray's direction e and the axis's part along it: the plane with normal n, the unit
+/// vector along a − (a·e)e (the plane the axis crosses most steeply). Such a plane cuts the
+/// tool's top cylinder (radius R, the widest) in an ellipse whose axes lie along the ray
+/// (semi-axis R/k, k = a·n = |a − (a·e)e|) and across it (R); its points lie within
+/// R·|a·e|/k of its centre's height on the axis. Where that centre is high enough up the
+/// axis all along the move, the ellipse is whole within the top cylinder, and every part of
+/// the tool lies within R of its axis, so the tool's section there is that ellipse,
+/// translated linearly with the move: the union is an elliptic stadium, and squashing the
+/// ray's coordinate by k makes it a round one (`line_stadium`).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct FullSection {
+    /// Per ray family; `None` where the axis lies within about 6° of the rays (an ellipse
+    /// too long to be worth it) or no height qualifies.
+    planes: [Option<SectionPlanes>; 3],
+}
+
+/// One family's section planes (see `FullSection`).
+#[derive(Clone, Copy, Debug)]
+struct SectionPlanes {
+    /// The planes' normal, and the direction across the rays within a plane.
+    n: [f64; 3],
+    w: [f64; 3],
+    /// a·n, the squash along the ray.
+    k: f64,
+    /// Heights of the ellipse's centre up the axis where it is whole within the top
+    /// cylinder.
     band: (f64, f64),
-    inv_az: f64,
-    /// The horizontal direction of the tilt, and a_z − 1 (the squash along it).
-    hat: [f64; 2],
-    squash: f64,
-    /// Per horizontal ray family: the squashed ray's direction and its normal, and the
-    /// squashed ray's length per unit of the ray's own coordinate.
-    along: [[f64; 2]; 2],
-    across: [[f64; 2]; 2],
-    stretch: [f64; 2],
+    /// A ball (see `ToolBody::ball_radius`): heights of the centre up to which the plane
+    /// meets only the sphere, where the ray's interval is the swept sphere's (a capsule);
+    /// −∞ for other tools.
+    ball_below: f64,
 }
 
 impl FullSection {
-    /// `None` where the tool has no top cylinder of its full radius, or its axis lies
-    /// within 6° of horizontal (an ellipse too long to be worth it).
+    /// `None` where the tool has no top cylinder of its full radius.
     pub(super) fn new(body: &ToolBody, axis: [f64; 3]) -> Option<FullSection> {
         let (h0, h1, r) = (body.profile_top(), body.length, body.radius);
-        let a = axis;
-        if !(h0 < h1 && body.top_radius == r && a[2] > 0.1) {
+        if !(h0 < h1 && body.top_radius == r) {
             return None;
         }
-        let axy = (a[0] * a[0] + a[1] * a[1]).sqrt();
-        // The ellipse's points sit within R·|a_xy|/a_z of its centre's height on the axis.
-        let margin = r * axy / a[2];
-        let hat = if axy > 1e-12 {
-            [a[0] / axy, a[1] / axy]
-        } else {
-            [1.0, 0.0]
-        };
-        let mut f = FullSection {
-            band: (h0 + margin, h1 - margin),
-            inv_az: 1.0 / a[2],
-            hat,
-            squash: a[2] - 1.0,
-            along: [[0.0; 2]; 2],
-            across: [[0.0; 2]; 2],
-            stretch: [0.0; 2],
-        };
-        for fam in 0..2 {
-            let e = f.squashed(if fam == 0 { [1.0, 0.0] } else { [0.0, 1.0] });
-            let el = (e[0] * e[0] + e[1] * e[1]).sqrt();
-            f.along[fam] = [e[0] / el, e[1] / el];
-            f.across[fam] = [-e[1] / el, e[0] / el];
-            f.stretch[fam] = el;
-        }
-        Some(f)
-    }
-
-    #[inline]
-    fn squashed(&self, p: [f64; 2]) -> [f64; 2] {
-        let t = (p[0] * self.hat[0] + p[1] * self.hat[1]) * self.squash;
-        [p[0] + t * self.hat[0], p[1] + t * self.hat[1]]
+        let planes = [0, 1, 2].map(|fam| {
+            let along = axis[fam];
+            let mut n = axis;
+            n[fam] -= along;
+            let k = norm(n);
+            if k < 0.1 {
+                return None;
+            }
+            let n = [n[0] / k, n[1] / k, n[2] / k];
+            let mut e = [0.0; 3];
+            e[fam] = 1.0;
+            let margin = r * along.abs() / k;
+            let band = (h0 + margin, h1 - margin);
+            let ball_below = body
+                .ball_radius()
+                .map_or(f64::NEG_INFINITY, |rc| rc - margin);
+            (band.0 < band.1 || ball_below > f64::NEG_INFINITY).then_some(SectionPlanes {
+                n,
+                w: cross(n, e),
+                k,
+                band,
+                ball_below,
+            })
+        });
+        planes
+            .iter()
+            .any(Option::is_some)
+            .then_some(FullSection { planes })
     }
 }
 
 impl Sweep<'_> {
-    /// A horizontal ray (X or Y family) in closed form where its plane cuts the tool in a
-    /// whole ellipse all along the move (see `FullSection`). `None` where this does not
-    /// apply (a plane near the tool's tip or top end): the caller takes the general path.
+    /// The ray of family `fam` at (u, v) in closed form where its section plane cuts the
+    /// tool in a whole ellipse all along the move (see `FullSection`). `None` where this
+    /// does not apply (a plane near the tool's tip or top end): the caller takes the general
+    /// path.
     pub(super) fn full_section_ray(
         &self,
         fam: usize,
         u: f64,
         v: f64,
     ) -> Option<Option<(f64, f64)>> {
-        let f = self.full_section.as_ref()?;
-        // fam 0: u = y, v = z; fam 1: u = z, v = x (see `other_axes`).
-        let (z, across) = if fam == 0 { (v, u) } else { (u, v) };
+        let sp = self.full_section.as_ref()?.planes[fam].as_ref()?;
+        let (ua, va) = other_axes(fam);
+        // The ray's point at its own coordinate 0.
+        let mut o = [0.0; 3];
+        o[ua] = u;
+        o[va] = v;
         let (a, p0, d) = (self.mv.axis, self.mv.p0, self.delta);
-        let (t0, t1) = ((z - p0[2]) * f.inv_az, (z - p0[2] - d[2]) * f.inv_az);
-        if t0.min(t1) < f.band.0 || t0.max(t1) > f.band.1 {
+        // Where the axis crosses the ray's plane, as heights up it at either end of the move.
+        let q = dot(sp.n, sub(o, p0));
+        let (t0, t1) = (q / sp.k, (q - dot(sp.n, d)) / sp.k);
+        if t0.max(t1) <= sp.ball_below {
+            let r = self.body.radius;
+            let mut e = [0.0; 3];
+            e[fam] = 1.0;
+            let c0 = [p0[0] + r * a[0], p0[1] + r * a[1], p0[2] + r * a[2]];
+            let c1 = [c0[0] + d[0], c0[1] + d[1], c0[2] + d[2]];
+            return Some(line_capsule(o, e, c0, c1, r));
+        }
+        if t0.min(t1) < sp.band.0 || t0.max(t1) > sp.band.1 {
             return None;
         }
-        // Centres relative to the ray's point at s = 0 (the ray's own coordinate is 0 there).
-        let base = if fam == 0 {
-            [0.0, across]
-        } else {
-            [across, 0.0]
+        // The ellipses' centres relative to o, squashed: (k·along the ray, across it).
+        let centre = |p: [f64; 3], t: f64| {
+            let c = [
+                p[0] + t * a[0] - o[0],
+                p[1] + t * a[1] - o[1],
+                p[2] + t * a[2] - o[2],
+            ];
+            [sp.k * c[fam], dot(sp.w, c)]
         };
-        let c0 = [p0[0] + t0 * a[0] - base[0], p0[1] + t0 * a[1] - base[1]];
-        let c1 = [
-            p0[0] + d[0] + t1 * a[0] - base[0],
-            p0[1] + d[1] + t1 * a[1] - base[1],
-        ];
-        // Squashed, in coordinates along the ray (x) and across it (y).
-        let (eh, nh) = (f.along[fam], f.across[fam]);
-        let turn = |p: [f64; 2]| {
-            let q = f.squashed(p);
-            [q[0] * eh[0] + q[1] * eh[1], q[0] * nh[0] + q[1] * nh[1]]
-        };
-        let el = f.stretch[fam];
+        let p1 = [p0[0] + d[0], p0[1] + d[1], p0[2] + d[2]];
         Some(
-            line_stadium(turn(c0), turn(c1), self.body.radius, 0.0)
-                .map(|(x0, x1)| (x0 / el, x1 / el)),
+            line_stadium(centre(p0, t0), centre(p1, t1), self.body.radius, 0.0)
+                .map(|(x0, x1)| (x0 / sp.k, x1 / sp.k)),
         )
     }
 }
