@@ -220,8 +220,6 @@ pub(crate) fn compute(
     if scratch.slice_hit.len() < nz {
         scratch.slice_hit.resize(nz, false);
     }
-    let bits = &mut scratch.bits;
-    let slice_hit = &mut scratch.slice_hit;
     if scratch.trig.len() != nb {
         scratch.trig = (0..nb)
             .map(|m| ((m as f64 + 0.5) * dphi).sin_cos())
@@ -230,231 +228,361 @@ pub(crate) fn compute(
             .map(|m| Spread::of_arc(m as f64 * dphi, (m + 1) as f64 * dphi))
             .collect();
     }
-    let trig = &scratch.trig;
-    let bin_spread = &scratch.bin_spread;
-    let ptop = body.profile_top();
-    let out = 0.5 * grid.cell;
+    let f = StepFrame {
+        grid,
+        tool,
+        pos: input.pos,
+        a,
+        v,
+        xf,
+        yf,
+        trig: &scratch.trig,
+        nb,
+        dz,
+        dphi,
+        out: 0.5 * grid.cell,
+        length,
+        vertical,
+    };
     // Slices below the first flank slice sample the corner's edge point by point.
     let jf0 = j0
-        .max(((ptop / dz) - 0.5).ceil().max(0.0) as usize)
+        .max(((body.profile_top() / dz) - 0.5).ceil().max(0.0) as usize)
         .min(j_end);
-    let radial_of = |m: usize| -> [f64; 3] {
-        [
-            trig[m].0 * xf[0] + trig[m].1 * yf[0],
-            trig[m].0 * xf[1] + trig[m].1 * yf[1],
-            trig[m].0 * xf[2] + trig[m].1 * yf[2],
-        ]
-    };
-    // Whether the corner's edge point at height z in bin m meets material: it must face
-    // the motion, and its test point lies half a cell out across the axis, at its own
-    // height (moved along the normal instead, a point near the tip would read material a
-    // third of a cell lower, and the depth of a shallow cut would come out that much too
-    // deep).
-    let corner_at = |ep: Option<EdgeNormal>, z: f64, m: usize| -> bool {
-        let Some(ep) = ep else {
-            return false;
-        };
-        let (sk, ck) = (ep.sin_kappa, ep.cos_kappa);
-        let radial = radial_of(m);
-        let n = [
-            sk * radial[0] - ck * a[0],
-            sk * radial[1] - ck * a[1],
-            sk * radial[2] - ck * a[2],
-        ];
-        if dot(n, v) <= 0.0 {
-            return false;
-        }
-        grid.material_at([
-            input.pos[0] + a[0] * z + radial[0] * (ep.radius + out),
-            input.pos[1] + a[1] * z + radial[1] * (ep.radius + out),
-            input.pos[2] + a[2] * z + radial[2] * (ep.radius + out),
-        ])
-    };
-    let corner_in = |z: f64, m: usize| corner_at(tool.edge_normal(z), z, m);
-    for j in j0..jf0 {
-        let z = (j as f64 + 0.5) * dz;
-        let Some(ep) = tool.edge_normal(z) else {
-            continue;
-        };
-        let (sk, ck) = (ep.sin_kappa, ep.cos_kappa);
-        for m in 0..nb {
-            let radial = radial_of(m);
-            let n = [
-                sk * radial[0] - ck * a[0],
-                sk * radial[1] - ck * a[1],
-                sk * radial[2] - ck * a[2],
-            ];
-            if dot(n, v) <= 0.0 {
-                continue;
-            }
-            let p = [
-                input.pos[0] + a[0] * z + radial[0] * (ep.radius + out),
-                input.pos[1] + a[1] * z + radial[1] * (ep.radius + out),
-                input.pos[2] + a[2] * z + radial[2] * (ep.radius + out),
-            ];
-            if grid.material_at(p) {
-                bits[(j - j0) * nb + m] = true;
-                slice_hit[j - j0] = true;
-            }
-        }
-    }
+    let bits = &mut scratch.bits;
+    let slice_hit = &mut scratch.slice_hit;
+    sample_corner(&f, j0, jf0, bits, slice_hit);
     // Per bin, the heights above the tip [lo, hi] where the edge meets material.
     let zranges = &mut scratch.zranges;
     zranges.clear();
-    // Corner: runs of slices whose centres are in material, their ends settled between
-    // the centres by bisection, so that a depth of cut need not be a whole number of
-    // slices.
     if j0 < jf0 {
-        let centre = |j: usize| (j as f64 + 0.5) * dz;
-        // On a vertical tool the end is most often where the Z ray under the point in
-        // material ends (a level stock top or floor): tried first, and kept when the
-        // points just either side of it agree.
-        let from_ray = |z_in: f64, z_out: f64, m: usize| -> Option<f64> {
-            let ep = tool.edge_normal(z_in)?;
-            let radial = radial_of(m);
-            let ray = grid.z_ray(
-                input.pos[0] + radial[0] * (ep.radius + out),
-                input.pos[1] + radial[1] * (ep.radius + out),
-            )?;
-            let zi = input.pos[2] + z_in;
-            let iv = ray.iter().find(|iv| iv[0] <= zi && zi <= iv[1])?;
-            let end = if z_out > z_in { iv[1] } else { iv[0] } - input.pos[2];
-            let eps = (z_out - z_in) / 256.0;
-            let inside = (end - z_in) * (z_out - end) > 0.0;
-            (inside && corner_in(end - eps, m) && !corner_in(end + eps, m)).then_some(end)
-        };
-        let settle = |z_in: f64, z_out: f64, m: usize| {
-            if vertical {
-                if let Some(end) = from_ray(z_in, z_out, m) {
-                    return end;
-                }
-            }
-            bisect(z_in, z_out, |z| corner_in(z, m))
-        };
-        let top = (jf0 as f64 * dz).min(length);
-        let zp = (j0 as f64 + 1.0 / 16.0) * dz;
-        let probe = tool.edge_normal(zp);
-        for m in 0..nb {
-            let bit = |j: usize| bits[(j - j0) * nb + m];
-            // A layer thinner than half a slice, under the first centre.
-            if !bit(j0) && corner_at(probe, zp, m) {
-                zranges.push((m, j0 as f64 * dz, settle(zp, centre(j0), m)));
-            }
-            let mut j = j0;
-            while j < jf0 {
-                if !bit(j) {
-                    j += 1;
-                    continue;
-                }
-                let ja = j;
-                while j < jf0 && bit(j) {
-                    j += 1;
-                }
-                let lo = if ja == j0 {
-                    ja as f64 * dz
-                } else {
-                    settle(centre(ja), centre(ja - 1), m)
-                };
-                let hi = if j < jf0 {
-                    settle(centre(j - 1), centre(j), m)
-                } else if corner_in(top, m) {
-                    top
-                } else {
-                    settle(centre(j - 1), top, m)
-                };
-                zranges.push((m, lo, hi));
-            }
-        }
+        corner_ranges(&f, j0, jf0, bits, zranges);
     }
-    // Flank slices (κ = 90°, radius R).
-    let ranges = &mut scratch.ranges;
-    ranges.clear();
-    let flank_lo = jf0 as f64 * dz;
     if jf0 < j_end && !vertical {
-        // A tilted flank: the test points of one bin lie on a straight line (the edge
-        // generator moved out half a cell), which crosses a few Z rays (see `FlankLine`).
-        let r = body.radius;
-        // Runs' ends are settled between slice centres, as on a corner: the test point of
-        // bin m at height z lies on its line.
-        let flank_in = |z: f64, m: usize| {
-            let radial = radial_of(m);
-            grid.material_at([
-                input.pos[0] + radial[0] * (r + out) + a[0] * z,
-                input.pos[1] + radial[1] * (r + out) + a[1] * z,
-                input.pos[2] + radial[2] * (r + out) + a[2] * z,
-            ])
-        };
-        let settle = |z_in: f64, z_out: f64, m: usize| bisect(z_in, z_out, |z| flank_in(z, m));
-        let centre = |j: usize| (j as f64 + 0.5) * dz;
-        for m in 0..nb {
-            let radial = radial_of(m);
-            if dot(radial, v) <= 0.0 {
-                continue;
-            }
-            let base = [
-                input.pos[0] + radial[0] * (r + out),
-                input.pos[1] + radial[1] * (r + out),
-                input.pos[2] + radial[2] * (r + out),
-            ];
-            let line = FlankLine { base, axis: a, dz };
-            ranges.clear();
-            if a[2] > 0.5 && line.crossings(grid, jf0, j_end) * 4 < j_end - jf0 {
-                line.ranges_by_rays(grid, m, jf0, j_end, ranges);
-            } else {
-                line.ranges_by_slices(grid, m, jf0, j_end, ranges);
-            }
-            // A layer thinner than half a slice, under the first centre.
-            if ranges.first().is_none_or(|run| run.1 > jf0) {
-                let zp = (jf0 as f64 + 1.0 / 16.0) * dz;
-                if flank_in(zp, m) {
-                    zranges.push((m, jf0 as f64 * dz, settle(zp, centre(jf0), m)));
-                }
-            }
-            for &(m, lo, hi) in ranges.iter() {
-                let zlo = if lo > jf0 {
-                    settle(centre(lo), centre(lo - 1), m)
-                } else {
-                    lo as f64 * dz
-                };
-                let zhi = if hi < j_end {
-                    settle(centre(hi - 1), centre(hi), m)
-                } else {
-                    hi as f64 * dz
-                };
-                zranges.push((m, zlo, zhi.min(length)));
-            }
-        }
+        tilted_flank_ranges(&f, body.radius, jf0, j_end, &mut scratch.ranges, zranges);
     }
     if jf0 < j_end && vertical {
-        // A vertical flank reads one Z ray per bin: its material intervals are the heights
-        // in contact, exactly.
-        let r = body.radius;
-        for m in 0..nb {
-            let radial = radial_of(m);
-            let nv = radial[0] * v[0] + radial[1] * v[1];
-            if nv <= 0.0 {
-                continue;
-            }
-            let Some(ray) = grid.z_ray(
-                input.pos[0] + radial[0] * (r + out),
-                input.pos[1] + radial[1] * (r + out),
-            ) else {
-                continue;
-            };
-            for iv in ray.iter() {
-                let lo = (iv[0] - input.pos[2]).max(flank_lo);
-                let hi = (iv[1] - input.pos[2]).min(length);
-                if lo < hi {
-                    zranges.push((m, lo, hi));
-                }
-            }
-        }
+        vertical_flank_ranges(&f, body.radius, jf0, zranges);
     }
     let mut met = StepMetrics {
         entry_angle: f64::INFINITY,
         exit_angle: f64::NEG_INFINITY,
         ..Default::default()
     };
+    let assembly = Assembly {
+        full: &mut scratch.full,
+        parts: &mut scratch.parts,
+        cuts: &mut scratch.cuts,
+        row: &mut scratch.row,
+        sub: &mut scratch.sub,
+        bin_spread: &scratch.bin_spread,
+    };
+    slices_of_ranges(&f, body, zranges, assembly, &mut eng.slices, &mut met);
+    for (k, hit) in slice_hit[..nz].iter_mut().enumerate() {
+        if std::mem::take(hit) {
+            bits[k * nb..(k + 1) * nb].fill(false);
+        }
+    }
+    // The flat end, when the step feeds toward the tip.
+    if dot(v, a) < 0.0 {
+        let radial: Vec<[f64; 3]> = (0..nb).map(|m| f.radial(m)).collect();
+        eng.end =
+            super::end_engagement::end_rings(grid, tool, input.pos, a, input.motion, &radial, dphi);
+        for ring in &eng.end {
+            let sp = Spread::of_arcs(&ring.arcs);
+            met.entry_angle = met.entry_angle.min(sp.entry);
+            met.exit_angle = met.exit_angle.max(sp.exit);
+            met.radial_width = met.radial_width.max(ring.r1 * (sp.cmax - sp.cmin));
+            met.engaged_edge_length += ring.r1 - ring.r0;
+        }
+    }
+    if eng.slices.is_empty() && eng.end.is_empty() {
+        return (eng, StepMetrics::default());
+    }
+    met.axial_depth = eng.axial_depth();
+    (eng, met)
+}
+
+/// One step's tool frame and sampling, shared by the parts of the engagement.
+struct StepFrame<'a> {
+    grid: &'a DexelGrid,
+    tool: &'a Tool,
+    /// The tip, the axis, the unit motion, and the feed frame across the axis.
+    pos: [f64; 3],
+    a: [f64; 3],
+    v: [f64; 3],
+    xf: [f64; 3],
+    yf: [f64; 3],
+    /// sin and cos of the bin centres.
+    trig: &'a [(f64, f64)],
+    nb: usize,
+    dz: f64,
+    dphi: f64,
+    /// How far out across the axis a test point lies from its edge point.
+    out: f64,
+    /// The cutting length taken.
+    length: f64,
+    vertical: bool,
+}
+
+impl StepFrame<'_> {
+    /// Bin m's direction across the axis.
+    fn radial(&self, m: usize) -> [f64; 3] {
+        let (s, c) = self.trig[m];
+        let (xf, yf) = (self.xf, self.yf);
+        [
+            s * xf[0] + c * yf[0],
+            s * xf[1] + c * yf[1],
+            s * xf[2] + c * yf[2],
+        ]
+    }
+
+    /// Slice j's centre height above the tip.
+    fn centre(&self, j: usize) -> f64 {
+        (j as f64 + 0.5) * self.dz
+    }
+
+    /// The test point of bin m at height z on an edge of radius `r`.
+    fn test_point(&self, radial: [f64; 3], z: f64, r: f64) -> [f64; 3] {
+        let (p, a, out) = (self.pos, self.a, self.out);
+        [
+            p[0] + a[0] * z + radial[0] * (r + out),
+            p[1] + a[1] * z + radial[1] * (r + out),
+            p[2] + a[2] * z + radial[2] * (r + out),
+        ]
+    }
+
+    /// Whether the corner's edge point at height z in bin m meets material: it must face
+    /// the motion, and its test point lies half a cell out across the axis, at its own
+    /// height (moved along the normal instead, a point near the tip would read material a
+    /// third of a cell lower, and the depth of a shallow cut would come out that much too
+    /// deep).
+    fn corner_at(&self, ep: Option<EdgeNormal>, z: f64, m: usize) -> bool {
+        let Some(ep) = ep else {
+            return false;
+        };
+        let (sk, ck, a) = (ep.sin_kappa, ep.cos_kappa, self.a);
+        let radial = self.radial(m);
+        let n = [
+            sk * radial[0] - ck * a[0],
+            sk * radial[1] - ck * a[1],
+            sk * radial[2] - ck * a[2],
+        ];
+        dot(n, self.v) > 0.0 && self.grid.material_at(self.test_point(radial, z, ep.radius))
+    }
+
+    fn corner_in(&self, z: f64, m: usize) -> bool {
+        self.corner_at(self.tool.edge_normal(z), z, m)
+    }
+}
+
+/// Marks the corner's bins in material at the centres of slices `j0..jf0` (bit
+/// (j − j0)·nb + m), and the slices with any.
+fn sample_corner(f: &StepFrame, j0: usize, jf0: usize, bits: &mut [bool], slice_hit: &mut [bool]) {
+    for j in j0..jf0 {
+        let z = f.centre(j);
+        let ep = f.tool.edge_normal(z);
+        if ep.is_none() {
+            continue;
+        }
+        for m in 0..f.nb {
+            if f.corner_at(ep, z, m) {
+                bits[(j - j0) * f.nb + m] = true;
+                slice_hit[j - j0] = true;
+            }
+        }
+    }
+}
+
+/// The corner's heights in material per bin: runs of slices whose centres are in
+/// material, their ends settled between the centres by bisection, so that a depth of cut
+/// need not be a whole number of slices.
+fn corner_ranges(
+    f: &StepFrame,
+    j0: usize,
+    jf0: usize,
+    bits: &[bool],
+    zranges: &mut Vec<(usize, f64, f64)>,
+) {
+    let (dz, pos) = (f.dz, f.pos);
+    // On a vertical tool the end is most often where the Z ray under the point in
+    // material ends (a level stock top or floor): tried first, and kept when the
+    // points just either side of it agree.
+    let from_ray = |z_in: f64, z_out: f64, m: usize| -> Option<f64> {
+        let ep = f.tool.edge_normal(z_in)?;
+        let radial = f.radial(m);
+        let ray = f.grid.z_ray(
+            pos[0] + radial[0] * (ep.radius + f.out),
+            pos[1] + radial[1] * (ep.radius + f.out),
+        )?;
+        let zi = pos[2] + z_in;
+        let iv = ray.iter().find(|iv| iv[0] <= zi && zi <= iv[1])?;
+        let end = if z_out > z_in { iv[1] } else { iv[0] } - pos[2];
+        let eps = (z_out - z_in) / 256.0;
+        let inside = (end - z_in) * (z_out - end) > 0.0;
+        (inside && f.corner_in(end - eps, m) && !f.corner_in(end + eps, m)).then_some(end)
+    };
+    let settle = |z_in: f64, z_out: f64, m: usize| {
+        if f.vertical {
+            if let Some(end) = from_ray(z_in, z_out, m) {
+                return end;
+            }
+        }
+        bisect(z_in, z_out, |z| f.corner_in(z, m))
+    };
+    let top = (jf0 as f64 * dz).min(f.length);
+    let zp = (j0 as f64 + 1.0 / 16.0) * dz;
+    let probe = f.tool.edge_normal(zp);
+    for m in 0..f.nb {
+        let bit = |j: usize| bits[(j - j0) * f.nb + m];
+        // A layer thinner than half a slice, under the first centre.
+        if !bit(j0) && f.corner_at(probe, zp, m) {
+            zranges.push((m, j0 as f64 * dz, settle(zp, f.centre(j0), m)));
+        }
+        let mut j = j0;
+        while j < jf0 {
+            if !bit(j) {
+                j += 1;
+                continue;
+            }
+            let ja = j;
+            while j < jf0 && bit(j) {
+                j += 1;
+            }
+            let lo = if ja == j0 {
+                ja as f64 * dz
+            } else {
+                settle(f.centre(ja), f.centre(ja - 1), m)
+            };
+            let hi = if j < jf0 {
+                settle(f.centre(j - 1), f.centre(j), m)
+            } else if f.corner_in(top, m) {
+                top
+            } else {
+                settle(f.centre(j - 1), top, m)
+            };
+            zranges.push((m, lo, hi));
+        }
+    }
+}
+
+/// A tilted flank's heights in material per bin (κ = 90°, radius `r`, slices
+/// `jf0..j_end`): the test points of one bin lie on a straight line (the edge generator
+/// moved out half a cell), which crosses a few Z rays (see `FlankLine`).
+fn tilted_flank_ranges(
+    f: &StepFrame,
+    r: f64,
+    jf0: usize,
+    j_end: usize,
+    ranges: &mut Vec<(usize, usize, usize)>,
+    zranges: &mut Vec<(usize, f64, f64)>,
+) {
+    let (dz, a) = (f.dz, f.a);
+    // Runs' ends are settled between slice centres, as on a corner: the test point of
+    // bin m at height z lies on its line.
+    let flank_in = |z: f64, m: usize| {
+        let (radial, p, out) = (f.radial(m), f.pos, f.out);
+        f.grid.material_at([
+            p[0] + radial[0] * (r + out) + a[0] * z,
+            p[1] + radial[1] * (r + out) + a[1] * z,
+            p[2] + radial[2] * (r + out) + a[2] * z,
+        ])
+    };
+    let settle = |z_in: f64, z_out: f64, m: usize| bisect(z_in, z_out, |z| flank_in(z, m));
+    for m in 0..f.nb {
+        let radial = f.radial(m);
+        if dot(radial, f.v) <= 0.0 {
+            continue;
+        }
+        let base = f.test_point(radial, 0.0, r);
+        let line = FlankLine { base, axis: a, dz };
+        ranges.clear();
+        if a[2] > 0.5 && line.crossings(f.grid, jf0, j_end) * 4 < j_end - jf0 {
+            line.ranges_by_rays(f.grid, m, jf0, j_end, ranges);
+        } else {
+            line.ranges_by_slices(f.grid, m, jf0, j_end, ranges);
+        }
+        // A layer thinner than half a slice, under the first centre.
+        if ranges.first().is_none_or(|run| run.1 > jf0) {
+            let zp = (jf0 as f64 + 1.0 / 16.0) * dz;
+            if flank_in(zp, m) {
+                zranges.push((m, jf0 as f64 * dz, settle(zp, f.centre(jf0), m)));
+            }
+        }
+        for &(m, lo, hi) in ranges.iter() {
+            let zlo = if lo > jf0 {
+                settle(f.centre(lo), f.centre(lo - 1), m)
+            } else {
+                lo as f64 * dz
+            };
+            let zhi = if hi < j_end {
+                settle(f.centre(hi - 1), f.centre(hi), m)
+            } else {
+                hi as f64 * dz
+            };
+            zranges.push((m, zlo, zhi.min(f.length)));
+        }
+    }
+}
+
+/// A vertical flank's heights in material per bin (radius `r`, from slice `jf0` up): one
+/// Z ray per bin, whose material intervals are the heights in contact, exactly.
+fn vertical_flank_ranges(f: &StepFrame, r: f64, jf0: usize, zranges: &mut Vec<(usize, f64, f64)>) {
+    let (pos, v) = (f.pos, f.v);
+    let flank_lo = jf0 as f64 * f.dz;
+    for m in 0..f.nb {
+        let radial = f.radial(m);
+        let nv = radial[0] * v[0] + radial[1] * v[1];
+        if nv <= 0.0 {
+            continue;
+        }
+        let Some(ray) = f.grid.z_ray(
+            pos[0] + radial[0] * (r + f.out),
+            pos[1] + radial[1] * (r + f.out),
+        ) else {
+            continue;
+        };
+        for iv in ray.iter() {
+            let lo = (iv[0] - pos[2]).max(flank_lo);
+            let hi = (iv[1] - pos[2]).min(f.length);
+            if lo < hi {
+                zranges.push((m, lo, hi));
+            }
+        }
+    }
+}
+
+/// The buffers `slices_of_ranges` works in (see `Scratch`).
+struct Assembly<'s> {
+    full: &'s mut Vec<(usize, usize, usize)>,
+    parts: &'s mut Vec<(usize, usize, f64, f64)>,
+    cuts: &'s mut Vec<usize>,
+    row: &'s mut Vec<bool>,
+    sub: &'s mut Vec<f64>,
+    bin_spread: &'s [Spread],
+}
+
+/// The engaged slices of the heights in material per bin, and the step's metrics from
+/// them. Each height range is the whole slices it covers and the parts of at most two
+/// slices it covers in part. Slices of a range share their arcs with their neighbours
+/// except where some bin's range starts or ends, so runs of whole slices between those
+/// breaks share arcs found once per run.
+fn slices_of_ranges(
+    f: &StepFrame,
+    body: &ToolBody,
+    zranges: &[(usize, f64, f64)],
+    buf: Assembly,
+    slices: &mut Vec<EngagedSlice>,
+    met: &mut StepMetrics,
+) {
+    let (nb, dz, dphi, tool) = (f.nb, f.dz, f.dphi, f.tool);
+    let Assembly {
+        full,
+        parts,
+        cuts,
+        row,
+        sub,
+        bin_spread,
+    } = buf;
     // The arcs of a row of bins.
     let arcs_in = |row: &[bool]| arcs_of_bins(&row[..nb], dphi);
     // A slice's metrics from the spread of all its engaged arcs: entry, exit, radial
@@ -469,15 +597,9 @@ pub(crate) fn compute(
     };
     let mut push = |z: f64, h: f64, arcs: Arcs| {
         if tool.edge_normal(z).is_some() {
-            eng.slices.push(EngagedSlice { z, dz: h, arcs });
+            slices.push(EngagedSlice { z, dz: h, arcs });
         }
     };
-    // Each height range as the whole slices it covers and the parts of at most two slices
-    // it covers in part. Slices of a range share their arcs with their neighbours except
-    // where some bin's range starts or ends, so runs of whole slices between those breaks
-    // share arcs found once per run.
-    let full = &mut scratch.full;
-    let parts = &mut scratch.parts;
     full.clear();
     parts.clear();
     for &(m, lo, hi) in zranges.iter() {
@@ -496,130 +618,106 @@ pub(crate) fn compute(
             parts.push((jh as usize, m, jh * dz, hi));
         }
     }
-    if !full.is_empty() || !parts.is_empty() {
-        // By slice, and in a slice by the heights covered, so that bins covering the same
-        // heights are neighbours.
-        parts.sort_unstable_by(|p, q| {
-            (p.0.cmp(&q.0))
-                .then(p.2.total_cmp(&q.2))
-                .then(p.3.total_cmp(&q.3))
-                .then(p.1.cmp(&q.1))
-        });
-        let cuts = &mut scratch.cuts;
-        cuts.clear();
-        cuts.extend(full.iter().flat_map(|&(_, lo, hi)| [lo, hi]));
-        cuts.extend(parts.iter().flat_map(|p| [p.0, p.0 + 1]));
-        cuts.sort_unstable();
-        cuts.dedup();
-        let (row, sub) = (&mut scratch.row, &mut scratch.sub);
-        row.clear();
-        row.resize(nb, false);
-        let mut next_part = 0;
-        for w in cuts.windows(2) {
-            let (ja, jb) = (w[0], w[1]);
-            row.fill(false);
-            let mut any = false;
-            for &(m, lo, hi) in full.iter() {
-                if lo <= ja && ja < hi {
-                    row[m] = true;
-                    any = true;
-                }
+    if full.is_empty() && parts.is_empty() {
+        return;
+    }
+    // By slice, and in a slice by the heights covered, so that bins covering the same
+    // heights are neighbours.
+    parts.sort_unstable_by(|p, q| {
+        (p.0.cmp(&q.0))
+            .then(p.2.total_cmp(&q.2))
+            .then(p.3.total_cmp(&q.3))
+            .then(p.1.cmp(&q.1))
+    });
+    cuts.clear();
+    cuts.extend(full.iter().flat_map(|&(_, lo, hi)| [lo, hi]));
+    cuts.extend(parts.iter().flat_map(|p| [p.0, p.0 + 1]));
+    cuts.sort_unstable();
+    cuts.dedup();
+    row.clear();
+    row.resize(nb, false);
+    let mut next_part = 0;
+    for w in cuts.windows(2) {
+        let (ja, jb) = (w[0], w[1]);
+        row.fill(false);
+        let mut any = false;
+        for &(m, lo, hi) in full.iter() {
+            if lo <= ja && ja < hi {
+                row[m] = true;
+                any = true;
             }
-            let first_part = next_part;
-            while next_part < parts.len() && parts[next_part].0 == ja {
-                next_part += 1;
-            }
-            if first_part == next_part {
-                if !any {
-                    continue;
-                }
-                let arcs = arcs_in(row);
-                let spread = Spread::of_arcs(&arcs);
-                for j in ja..jb {
-                    let z = (j as f64 + 0.5) * dz;
-                    measure(spread, z, z - 0.5 * dz, z + 0.5 * dz, &mut met);
-                    push(z, dz, arcs.clone());
-                }
+        }
+        let first_part = next_part;
+        while next_part < parts.len() && parts[next_part].0 == ja {
+            next_part += 1;
+        }
+        if first_part == next_part {
+            if !any {
                 continue;
             }
-            // A slice covered in part (the cuts hold its index and the next). Each bin is
-            // cut over its own heights, bins covering the same heights together: the force
-            // model then samples each bin once in the slice, as in a whole slice, rather
-            // than once per height where some other bin's range ends.
-            let (z0, z1) = (ja as f64 * dz, (ja + 1) as f64 * dz);
-            let in_slice = &parts[first_part..next_part];
-            let row_arcs = any.then(|| arcs_in(row));
-            let row_spread = row_arcs.as_ref().map_or(Spread::NONE, Spread::of_arcs);
-            // The slice's metrics: at each height between the ends of its bins' ranges,
-            // from all the bins in material there.
-            sub.clear();
-            sub.extend([z0, z1]);
-            for p in in_slice {
-                sub.extend([p.2, p.3]);
+            let arcs = arcs_in(row);
+            let spread = Spread::of_arcs(&arcs);
+            for j in ja..jb {
+                let z = f.centre(j);
+                measure(spread, z, z - 0.5 * dz, z + 0.5 * dz, met);
+                push(z, dz, arcs.clone());
             }
-            sub.sort_unstable_by(f64::total_cmp);
-            sub.dedup();
-            for c in sub.windows(2) {
-                let (c0, c1) = (c[0], c[1]);
-                if c1 - c0 <= 1e-9 * dz {
-                    continue;
-                }
-                let (spread, hit) = in_slice
-                    .iter()
-                    .filter(|p| p.2 <= c0 && c1 <= p.3)
-                    .fold((row_spread, any), |(sp, _), p| {
-                        (sp.join(bin_spread[p.1]), true)
-                    });
-                if hit {
-                    measure(spread, 0.5 * (c0 + c1), c0, c1, &mut met);
-                }
+            continue;
+        }
+        // A slice covered in part (the cuts hold its index and the next). Each bin is
+        // cut over its own heights, bins covering the same heights together: the force
+        // model then samples each bin once in the slice, as in a whole slice, rather
+        // than once per height where some other bin's range ends.
+        let (z0, z1) = (ja as f64 * dz, (ja + 1) as f64 * dz);
+        let in_slice = &parts[first_part..next_part];
+        let row_arcs = any.then(|| arcs_in(row));
+        let row_spread = row_arcs.as_ref().map_or(Spread::NONE, Spread::of_arcs);
+        // The slice's metrics: at each height between the ends of its bins' ranges,
+        // from all the bins in material there.
+        sub.clear();
+        sub.extend([z0, z1]);
+        for p in in_slice {
+            sub.extend([p.2, p.3]);
+        }
+        sub.sort_unstable_by(f64::total_cmp);
+        sub.dedup();
+        for c in sub.windows(2) {
+            let (c0, c1) = (c[0], c[1]);
+            if c1 - c0 <= 1e-9 * dz {
+                continue;
             }
-            if let Some(arcs) = row_arcs {
-                push((ja as f64 + 0.5) * dz, dz, arcs);
+            let (spread, hit) = in_slice
+                .iter()
+                .filter(|p| p.2 <= c0 && c1 <= p.3)
+                .fold((row_spread, any), |(sp, _), p| {
+                    (sp.join(bin_spread[p.1]), true)
+                });
+            if hit {
+                measure(spread, 0.5 * (c0 + c1), c0, c1, met);
             }
-            // Bins covering the same heights are neighbours in `in_slice`, in bin order.
-            let mut g = 0;
-            while g < in_slice.len() {
-                let (lo, hi) = (in_slice[g].2, in_slice[g].3);
-                let mut arcs = Arcs::new();
-                while g < in_slice.len() && in_slice[g].2 == lo && in_slice[g].3 == hi {
-                    let m = in_slice[g].1;
-                    let (s, e) = (m as f64 * dphi, (m + 1) as f64 * dphi);
-                    match arcs.last_mut() {
-                        Some(last) if last.1 == s => last.1 = e,
-                        _ => arcs.push((s, e)),
-                    }
-                    g += 1;
+        }
+        if let Some(arcs) = row_arcs {
+            push(f.centre(ja), dz, arcs);
+        }
+        // Bins covering the same heights are neighbours in `in_slice`, in bin order.
+        let mut g = 0;
+        while g < in_slice.len() {
+            let (lo, hi) = (in_slice[g].2, in_slice[g].3);
+            let mut arcs = Arcs::new();
+            while g < in_slice.len() && in_slice[g].2 == lo && in_slice[g].3 == hi {
+                let m = in_slice[g].1;
+                let (s, e) = (m as f64 * dphi, (m + 1) as f64 * dphi);
+                match arcs.last_mut() {
+                    Some(last) if last.1 == s => last.1 = e,
+                    _ => arcs.push((s, e)),
                 }
-                if hi - lo > 1e-9 * dz {
-                    push(0.5 * (lo + hi), hi - lo, arcs);
-                }
+                g += 1;
+            }
+            if hi - lo > 1e-9 * dz {
+                push(0.5 * (lo + hi), hi - lo, arcs);
             }
         }
     }
-    for (k, hit) in slice_hit[..nz].iter_mut().enumerate() {
-        if std::mem::take(hit) {
-            bits[k * nb..(k + 1) * nb].fill(false);
-        }
-    }
-    // The flat end, when the step feeds toward the tip.
-    if dot(v, a) < 0.0 {
-        let radial: Vec<[f64; 3]> = (0..nb).map(radial_of).collect();
-        eng.end =
-            super::end_engagement::end_rings(grid, tool, input.pos, a, input.motion, &radial, dphi);
-        for ring in &eng.end {
-            let sp = Spread::of_arcs(&ring.arcs);
-            met.entry_angle = met.entry_angle.min(sp.entry);
-            met.exit_angle = met.exit_angle.max(sp.exit);
-            met.radial_width = met.radial_width.max(ring.r1 * (sp.cmax - sp.cmin));
-            met.engaged_edge_length += ring.r1 - ring.r0;
-        }
-    }
-    if eng.slices.is_empty() && eng.end.is_empty() {
-        return (eng, StepMetrics::default());
-    }
-    met.axial_depth = eng.axial_depth();
-    (eng, met)
 }
 
 /// The arcs of a row of bins (bin m spans [m, m + 1)·dphi): one per run of set bins.
