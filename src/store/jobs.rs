@@ -255,6 +255,7 @@ impl Db {
                 media_type: inline.media_type,
                 summary: inline.summary.clone(),
                 content: &inline.content,
+                view: None,
             };
             let rid = insert_resource(&mut tx, owner, &resource).await?;
             new.inputs
@@ -773,6 +774,7 @@ impl Db {
                     media_type: &r.media_type,
                     summary: r.summary.clone(),
                     content: &r.content,
+                    view: None,
                 };
                 insert_with_id(&mut tx, &r.id, &owner, &new).await?;
             }
