@@ -833,6 +833,27 @@ impl Db {
         Ok(true)
     }
 
+    /// Counts a failed start of the job's process, stored with the job (every server
+    /// and worker sharing the database counts the same tries), while `worker` holds its
+    /// lease: the tries so far, None when it no longer holds it.
+    pub async fn count_start_failure(
+        &self,
+        job: &ClaimedJob,
+        worker: &str,
+    ) -> Result<Option<i64>, StoreError> {
+        Ok(on_pool!(&self.pool, p => sqlx::query_scalar(
+            "UPDATE jobs SET start_failures = start_failures + 1, updated_at = $1
+             WHERE id = $2 AND lease_owner = $3 AND status = 'running' AND attempts = $4
+             RETURNING start_failures",
+        )
+        .bind(now_ms())
+        .bind(&job.id)
+        .bind(worker)
+        .bind(job.attempt)
+        .fetch_optional(p)
+        .await?))
+    }
+
     /// One page of a finished job's per-block rows, raw JSON text, from `from` on.
     pub async fn job_rows(
         &self,
