@@ -7,8 +7,9 @@
 #
 # The library has TOOLS flat end mills (default 10,000) with FIELDS geometry fields millsim
 # does not model (default 700): about 60 MB. DATABASE_URL defaults to a SQLite file in a
-# temporary folder (removed after). The peaks are VmHWM, reset between the phases
-# (/proc/PID/clear_refs); the last line is /usr/bin/time's maximum for the whole run.
+# temporary folder (removed after). The peaks are VmHWM, reset before each phase
+# (/proc/PID/clear_refs, which resets /usr/bin/time's maximum too: its last line is the
+# GETs' phase).
 set -eu
 bin=$1; tools=${2:-10000}; fields=${3:-700}
 dir=$(mktemp -d)
@@ -17,7 +18,7 @@ trap 'kill $timer 2>/dev/null || true; rm -rf "$dir"' EXIT
 python3 - "$dir/lib.json" "$tools" "$fields" <<'PY'
 import sys
 path, tools, fields = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-unknown = ",".join(f'"x{k}":{k}' for k in range(fields))
+unknown = ",".join(f'"x{k}":1' for k in range(fields))
 with open(path, "w") as f:
     f.write('{"data":[')
     for n in range(1, tools + 1):
@@ -32,13 +33,16 @@ echo "library: $tools tools x $fields unknown fields, $(stat -c %s "$dir/lib.jso
 timer=$!
 for _ in $(seq 100); do grep -q listening "$dir/api.out" 2>/dev/null && break; sleep 0.1; done
 base=$(sed -n 's/^millsim listening on //p' "$dir/api.out")
-api=$(pgrep -P "$timer" -x millsim)
+api=$(pgrep -P "$timer")
 hwm() { grep VmHWM "/proc/$api/status" | awk '{printf "%.0f MB", $2/1024}'; }
+rss() { grep VmRSS "/proc/$api/status" | awk '{printf "%.0f MB", $2/1024}'; }
+echo "before the upload: RSS $(rss)"
 echo 5 >"/proc/$api/clear_refs"
 up=$(curl -sS -X POST "$base/v1/tool-libraries?name=big.json" --data-binary "@$dir/lib.json" \
   -o "$dir/up.json" -w 'HTTP %{http_code} in %{time_total} s')
 echo "upload: $up, peak RSS $(hwm)"
 id=$(jq -r .id "$dir/up.json")
+echo "before the GETs: RSS $(rss)"
 echo 5 >"/proc/$api/clear_refs"
 pids=()
 for i in 1 2 3; do

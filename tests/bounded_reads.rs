@@ -49,7 +49,10 @@ async fn concurrent_reads_of_a_large_program_stay_within_a_few_megabytes() {
     let clock = Instant::now();
     let mut reads = Vec::new();
     for id in [&uploaded, &inline] {
-        for path in [format!("/v1/programs/{id}"), format!("/v1/programs/{id}/content")] {
+        for path in [
+            format!("/v1/programs/{id}"),
+            format!("/v1/programs/{id}/content"),
+        ] {
             for _ in 0..8 {
                 let (c, url) = (c.clone(), s.url(&path));
                 reads.push(tokio::spawn(async move {
@@ -67,7 +70,10 @@ async fn concurrent_reads_of_a_large_program_stay_within_a_few_megabytes() {
             let record: serde_json::Value = serde_json::from_slice(&body).unwrap();
             assert_eq!(record["size"], program.len(), "{record}");
         } else {
-            assert!(body == program.as_bytes(), "content differs from the upload");
+            assert!(
+                body == program.as_bytes(),
+                "content differs from the upload"
+            );
         }
     }
     let secs = clock.elapsed().as_secs_f64();
@@ -76,7 +82,10 @@ async fn concurrent_reads_of_a_large_program_stay_within_a_few_megabytes() {
         "32 concurrent GETs of a {} MB program's record and content: {secs:.2} s, peak +{peak_mb:.1} MB",
         program.len() >> 20
     );
-    assert!(peak_mb < 64.0, "the reads took the peak {peak_mb:.1} MB higher");
+    assert!(
+        peak_mb < 64.0,
+        "the reads took the peak {peak_mb:.1} MB higher"
+    );
     // Bounded time too: a reader is never held behind another's whole file.
     assert!(secs < 120.0, "{secs} s");
 }

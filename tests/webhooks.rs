@@ -1036,7 +1036,10 @@ async fn a_dead_webhook_does_not_delay_its_own_keys_healthy_webhook() {
         "the healthy webhook's delivery came {latency} ms after its job ended; the tarpit held {} connections",
         held.lock().unwrap()
     );
-    assert!(latency < 5_000, "the healthy webhook's delivery came {latency} ms late");
+    assert!(
+        latency < 5_000,
+        "the healthy webhook's delivery came {latency} ms late"
+    );
 }
 
 /// An address whose connections never complete: a listener that accepts none, its accept

@@ -201,8 +201,16 @@ pub async fn create(
                 })
                 .await?;
             let name = query.name.or(name);
-            return store(&state, &owner, kind, name.as_deref(), checked, bytes, Some(&view))
-                .await;
+            return store(
+                &state,
+                &owner,
+                kind,
+                name.as_deref(),
+                checked,
+                bytes,
+                Some(&view),
+            )
+            .await;
         }
         ResourceKind::Tool | ResourceKind::Material | ResourceKind::Machine => {
             if !(mt == "application/json" || mt.is_empty()) {
@@ -311,18 +319,59 @@ pub async fn get_one(
 /// past the server's memory.
 static LIBRARY_READS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(1);
 
+/// This request's turn at reading a tool library (see [`LIBRARY_READS`]).
+async fn library_turn() -> Result<tokio::sync::SemaphorePermit<'static>, ApiError> {
+    LIBRARY_READS
+        .acquire()
+        .await
+        .map_err(|_| ApiError::internal("the tool library reader is closed"))
+}
+
 /// One tool library read at a time (see [`LIBRARY_READS`]).
 async fn read_library_serially<T: Send + 'static>(
     what: &'static str,
     read: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
 ) -> Result<T, ApiError> {
-    let _turn = LIBRARY_READS
-        .acquire()
-        .await
-        .map_err(|_| ApiError::internal("the tool library reader is closed"))?;
+    let _turn = library_turn().await?;
+    read_library(what, read).await
+}
+
+/// Reads a library on a blocking thread (the caller holds its turn).
+async fn read_library<T: Send + 'static>(
+    what: &'static str,
+    read: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
     Ok(tokio::task::spawn_blocking(read)
         .await
         .map_err(|e| ApiError::blocking_failed(e, what))??)
+}
+
+/// The view of a library stored before views were: read from its file (the file is taken
+/// from the database only once this request's turn has come, so that GETs waiting for
+/// theirs do not each hold one) and stored for the next GET.
+async fn legacy_view(state: &AppState, owner: &str, id: &str) -> Result<String, ApiError> {
+    let _turn = library_turn().await?;
+    // Made by a GET that had the turn before this one.
+    if let Some(view) = state.db.resource_view(id).await? {
+        return Ok(view);
+    }
+    let (name, _, bytes) = state
+        .db
+        .resource_content(owner, ResourceKind::ToolLibrary, id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(ResourceKind::ToolLibrary.as_str(), id))?;
+    let file = name.unwrap_or_else(|| "tools".into());
+    let view = read_library("the tool library reader", move || {
+        let lib = validate::read_tool_library(&bytes, &file)?;
+        Ok(validate::library_view(lib)?)
+    })
+    .await?;
+    // The answer does not depend on it: a failure (the library deleted meanwhile) only
+    // means the next GET makes it again.
+    if let Err(e) = state.db.store_resource_view(id, &view).await {
+        tracing::warn!(library = %id, error = %e, "could not store a tool library's view");
+    }
+    Ok(view)
 }
 
 /// A tool library's record with what it holds (its format, tools by T number and import
@@ -336,27 +385,7 @@ async fn library_view(
 ) -> Result<Response, ApiError> {
     let view = match state.db.resource_view(&record.id).await? {
         Some(view) => view,
-        None => {
-            let (name, _, bytes) = state
-                .db
-                .resource_content(owner, ResourceKind::ToolLibrary, &record.id)
-                .await?
-                .ok_or_else(|| {
-                    ApiError::not_found(ResourceKind::ToolLibrary.as_str(), &record.id)
-                })?;
-            let file = name.unwrap_or_else(|| "tools".into());
-            let view = read_library_serially("the tool library reader", move || {
-                let lib = validate::read_tool_library(&bytes, &file)?;
-                Ok(validate::library_view(lib)?)
-            })
-            .await?;
-            // The answer does not depend on it: a failure (the library deleted meanwhile)
-            // only means the next GET makes it again.
-            if let Err(e) = state.db.store_resource_view(&record.id, &view).await {
-                tracing::warn!(library = %record.id, error = %e, "could not store a tool library's view");
-            }
-            view
-        }
+        None => legacy_view(state, owner, &record.id).await?,
     };
     let mut head = serde_json::to_vec(&record)
         .map_err(|e| ApiError::internal(format!("the library's record: {e}")))?;
@@ -365,10 +394,8 @@ async fn library_view(
     head.pop();
     head.push(b',');
     let tail = bytes::Bytes::from(view).slice(1..);
-    let body = futures_util::stream::iter([
-        Ok::<_, std::io::Error>(bytes::Bytes::from(head)),
-        Ok(tail),
-    ]);
+    let body =
+        futures_util::stream::iter([Ok::<_, std::io::Error>(bytes::Bytes::from(head)), Ok(tail)]);
     Ok((
         [(header::CONTENT_TYPE, "application/json")],
         axum::body::Body::from_stream(body),

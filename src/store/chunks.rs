@@ -220,15 +220,24 @@ mod tests {
     }
 
     async fn moved_into_chunks(db: &Db, big: &[u8], small: &[u8]) {
-        let body = db.resource_body("o", ResourceKind::Program, "big").await.unwrap();
-        assert!(matches!(body.unwrap().3, ResourceBody::Chunked { chunks: 4, .. }));
+        let body = db
+            .resource_body("o", ResourceKind::Program, "big")
+            .await
+            .unwrap();
+        assert!(matches!(
+            body.unwrap().3,
+            ResourceBody::Chunked { chunks: 4, .. }
+        ));
         let (_, _, read) = db
             .resource_content("o", ResourceKind::Program, "big")
             .await
             .unwrap()
             .unwrap();
         assert!(read == big, "the content changed");
-        let body = db.resource_body("o", ResourceKind::Program, "small").await.unwrap();
+        let body = db
+            .resource_body("o", ResourceKind::Program, "small")
+            .await
+            .unwrap();
         assert!(matches!(body.unwrap().3, ResourceBody::Inline(b) if b == small));
     }
 
@@ -238,7 +247,9 @@ mod tests {
     #[tokio::test]
     async fn large_content_in_a_row_is_moved_into_chunks() {
         use sqlx::Connection;
-        let big: Vec<u8> = (0..(3 << 20) + 12_345u32).map(|i| (i * 7 % 251) as u8).collect();
+        let big: Vec<u8> = (0..(3 << 20) + 12_345u32)
+            .map(|i| (i * 7 % 251) as u8)
+            .collect();
         let small = b"G0 X1\n".to_vec();
         let dir = tempfile::tempdir().unwrap();
         let url = format!("sqlite://{}", dir.path().join("old.db").display());

@@ -102,8 +102,7 @@ fn record(kind: ResourceKind, row: &impl RowGet) -> Result<ResourceRecord, Store
 /// tool library's JSON is Fusion's file, not a definition in the API's terms: its tools
 /// are served read, by T number, instead.
 fn has_definition(r: &ResourceRecord) -> bool {
-    r.media_type == "application/json"
-        && !matches!(r.kind, "tool_library" | "program")
+    r.media_type == "application/json" && !matches!(r.kind, "tool_library" | "program")
 }
 
 /// The content of a JSON resource as its definition, read in `c`'s transaction or pool.
@@ -111,10 +110,11 @@ macro_rules! with_definition {
     ($exec:expr, $record:expr) => {{
         let mut r: ResourceRecord = $record;
         if has_definition(&r) {
-            let content: Vec<u8> = sqlx::query_scalar("SELECT content FROM resources WHERE id = $1")
-                .bind(&r.id)
-                .fetch_one($exec)
-                .await?;
+            let content: Vec<u8> =
+                sqlx::query_scalar("SELECT content FROM resources WHERE id = $1")
+                    .bind(&r.id)
+                    .fetch_one($exec)
+                    .await?;
             r.definition = Some(serde_json::from_slice(&content)?);
         }
         r
@@ -282,7 +282,6 @@ impl Db {
         };
         let bytes = match body {
             ResourceBody::Inline(bytes) => bytes,
-
             ResourceBody::Chunked { id, chunks } => {
                 let mut out = Vec::with_capacity(size as usize);
                 for seq in 0..chunks {

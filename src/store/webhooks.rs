@@ -806,7 +806,11 @@ mod tests {
         // The dead webhook's eleven are older than the live one's, yet it gets two slots
         // and the live one its delivery at once.
         let first = db.claim_deliveries("d1", 30_000, 16, 4, 2).await.unwrap();
-        assert_eq!((to(&first, "dead"), to(&first, "live")), (2, 1), "{first:?}");
+        assert_eq!(
+            (to(&first, "dead"), to(&first, "live")),
+            (2, 1),
+            "{first:?}"
+        );
         // The dead webhook's two are in flight (leased): none more of its own.
         let second = db.claim_deliveries("d2", 30_000, 16, 4, 2).await.unwrap();
         assert!(second.is_empty(), "{second:?}");

@@ -479,12 +479,18 @@ pub async fn sql_i64(db_url: &str, query: &str) -> i64 {
     use sqlx::Connection;
     if db_url.starts_with("sqlite:") {
         let mut conn = sqlx::SqliteConnection::connect(db_url).await.unwrap();
-        let n = sqlx::query_scalar(query).fetch_one(&mut conn).await.unwrap();
+        let n = sqlx::query_scalar(query)
+            .fetch_one(&mut conn)
+            .await
+            .unwrap();
         conn.close().await.unwrap();
         n
     } else {
         let mut conn = sqlx::PgConnection::connect(db_url).await.unwrap();
-        let n = sqlx::query_scalar(query).fetch_one(&mut conn).await.unwrap();
+        let n = sqlx::query_scalar(query)
+            .fetch_one(&mut conn)
+            .await
+            .unwrap();
         conn.close().await.unwrap();
         n
     }

@@ -118,7 +118,9 @@ impl<'de> serde::de::Visitor<'de> for Data<'_> {
         while let Some(t) = seq.next_element::<Value>()? {
             if let Err(e) = read_tool(self.lib, i, &t) {
                 *self.failed = Some(e);
-                return Err(serde::de::Error::custom("stopped at a tool that does not read"));
+                return Err(serde::de::Error::custom(
+                    "stopped at a tool that does not read",
+                ));
             }
             i += 1;
         }
