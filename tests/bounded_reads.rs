@@ -89,3 +89,52 @@ async fn concurrent_reads_of_a_large_program_stay_within_a_few_megabytes() {
     // Bounded time too: a reader is never held behind another's whole file.
     assert!(secs < 120.0, "{secs} s");
 }
+
+/// A program over a chunk is stored in chunks and a job reads it whole: an interpret job
+/// on a 3 MB upload (three chunks and a part) and on the same program inline in the job
+/// counts every move, and the content reads back byte for byte.
+#[tokio::test]
+async fn a_job_runs_on_a_program_stored_in_chunks() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
+    let c = client();
+    let mut program = String::from("G21 G90 G0 X0 Y0 Z5\n");
+    let moves = 300_000;
+    for k in 0..moves {
+        program.push_str(&format!("G1 X{} F500\n", k % 2));
+    }
+    program.push_str("M30\n");
+    assert!(program.len() > 3 << 20, "{}", program.len());
+    let id = post_program(&c, &s, "long.nc", program.clone()).await;
+    let content = c
+        .get(s.url(&format!("/v1/programs/{id}/content")))
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    assert!(
+        content == program.as_bytes(),
+        "content differs from the upload"
+    );
+    let mut counted = Vec::new();
+    for input in [json!(id), json!({"name": "inline.nc", "content": program})] {
+        let job = run_job(
+            &c,
+            &s,
+            &json!({"kind": "interpret", "inputs": {"program": input}}),
+            std::time::Duration::from_secs(120),
+        )
+        .await;
+        let summary = get_json(
+            &c,
+            &s,
+            &format!("/v1/jobs/{}/summary", job["id"].as_str().unwrap()),
+        )
+        .await;
+        counted.push(summary["moves"].as_u64().unwrap());
+    }
+    assert!(counted[0] >= moves, "{counted:?}");
+    assert_eq!(counted[0], counted[1]);
+}
