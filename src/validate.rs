@@ -65,6 +65,9 @@ fn utf8<'a>(
     })
 }
 
+/// Syntax errors a program's summary lists (the rest are counted).
+const MAX_LISTED_ERRORS: usize = 100;
+
 /// NC program text: UTF-8 (or plain ASCII), then the syntax of G-code or CLS.
 pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
     let text = utf8(bytes, file, "invalid-program", "Program is not text")?;
@@ -96,8 +99,11 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
             &nc::Diagnostics(deferred),
         ));
     }
+    // The summary is read with every GET and listing of the program: its first errors
+    // and how many there are, not one entry per line of a 64 MB file.
     let if_executed: Vec<Value> = deferred
         .iter()
+        .take(MAX_LISTED_ERRORS)
         .map(|d| json!({ "line": d.line, "column": d.col, "message": d.message }))
         .collect();
     Ok(Validated {
@@ -107,6 +113,7 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
             "lines": lines,
             "blocks": parsed.blocks().len(),
             "syntax_errors_if_executed": if_executed,
+            "syntax_errors_if_executed_count": deferred.len(),
         }),
     })
 }
@@ -197,10 +204,11 @@ pub fn read_tool_library(bytes: &[u8], file: &str) -> Result<ToolLibrary, Proble
     })
 }
 
-/// A tool library to store: its media type follows the format read.
-pub fn tool_library(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
+/// A tool library to store: its media type follows the format read; and its view, the
+/// members its GET adds to the record (see [`library_view`]).
+pub fn tool_library(bytes: &[u8], file: &str) -> Result<(Validated, String), Problem> {
     let lib = read_tool_library(bytes, file)?;
-    Ok(Validated {
+    let checked = Validated {
         media_type: match lib.format {
             "fusion360" => "application/json",
             "csv" => "text/csv",
@@ -212,7 +220,31 @@ pub fn tool_library(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
             "unmodelled": lib.report.unmodelled.len() + lib.report.unmodelled_omitted,
             "assumed": lib.report.assumed.len() + lib.report.assumed_omitted,
         }),
-    })
+    };
+    Ok((checked, library_view(lib)?))
+}
+
+/// What a tool library's GET adds to its record, as a JSON object: its format, its tools
+/// by T number (`"T1"`, each as POST /v1/tools takes a tool) and the import report (at most
+/// 500 notes of each kind and the counts per field). At most 10,000 tools: a few MB
+/// whatever the file's size.
+pub fn library_view(lib: ToolLibrary) -> Result<String, Problem> {
+    #[derive(serde::Serialize)]
+    struct View {
+        format: &'static str,
+        tools: std::collections::BTreeMap<String, Tool>,
+        report: millsim_engine::tool_library::ImportReport,
+    }
+    let view = View {
+        format: lib.format,
+        tools: lib
+            .tools
+            .into_iter()
+            .map(|(n, t)| (format!("T{n}"), t))
+            .collect(),
+        report: lib.report,
+    };
+    serde_json::to_string(&view).map_err(|e| Problem::internal(format!("the library's view: {e}")))
 }
 
 pub fn tool(bytes: &[u8]) -> Result<Validated, Problem> {

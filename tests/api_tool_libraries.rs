@@ -5,7 +5,7 @@
 
 mod common;
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use common::*;
 use serde_json::{json, Value};
@@ -692,4 +692,133 @@ async fn explicit_tools_win_over_the_library_and_an_unknown_number_is_refused_by
         );
         assert_eq!(failed["error"]["status"], 422);
     }
+}
+
+/// A Fusion 360 library of `tools` flat end mills, each with `fields` geometry fields
+/// millsim does not model (`x0`, `x1`, ...): the shape of the library that killed the
+/// server in issue 34 (10,000 tools × 700 fields, 60 MB).
+fn big_fusion_library(tools: usize, fields: usize) -> String {
+    let unknown: Vec<String> = (0..fields).map(|k| format!(r#""x{k}":{k}"#)).collect();
+    let unknown = unknown.join(",");
+    let mut out = String::from(r#"{"data":["#);
+    for n in 1..=tools {
+        if n > 1 {
+            out.push(',');
+        }
+        out.push_str(&format!(
+            r#"{{"type":"flat end mill","unit":"millimeters","geometry":{{"DC":6,"NOF":3,"LCF":18,{unknown}}},"post-process":{{"number":{n}}}}}"#
+        ));
+    }
+    out.push_str("]}");
+    out
+}
+
+/// Issue 34: a library's GET answers from what its upload read (stored beside the file),
+/// never reading the file again: with the stored file cut short under the server, the
+/// GET answers as before. A library stored before that (no stored view) is read at its
+/// first GET, under the one-at-a-time reader, and its view stored then.
+#[tokio::test]
+async fn a_librarys_get_answers_from_what_its_upload_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
+    let c = client();
+    let (st, lib) = upload(&c, &s, "shop.json", "application/json", FUSION).await;
+    assert_eq!(st, 201, "{lib}");
+    let id = lib["id"].as_str().unwrap();
+    let url = format!("/v1/tool-libraries/{id}");
+    let before = get_json(&c, &s, &url).await;
+    assert_eq!(before["tools"].as_object().unwrap().len(), 5, "{before}");
+    // Every note counted by its field.
+    assert_eq!(
+        before["report"]["unmodelled_by_field"]["geometry.OAL"], 1,
+        "{before}"
+    );
+
+    // A library as stored before views were: read at its GET, the same answer, and its
+    // view stored for the next.
+    sql(&s.db_url, "DELETE FROM resource_views").await;
+    assert_eq!(get_json(&c, &s, &url).await, before);
+    let views = sql_i64(&s.db_url, "SELECT COUNT(*) FROM resource_views").await;
+    assert_eq!(views, 1);
+
+    // The file cut short: it no longer reads, and the GET does not read it.
+    sql(
+        &s.db_url,
+        &format!("UPDATE resources SET content = substr(content, 1, 5) WHERE id = '{id}'"),
+    )
+    .await;
+    assert_eq!(get_json(&c, &s, &url).await, before);
+    // The listing carries the summary only, as before.
+    let list = get_json(&c, &s, "/v1/tool-libraries").await;
+    assert_eq!(list["items"][0]["summary"], lib["summary"], "{list}");
+    assert!(list["items"][0].get("tools").is_none(), "{list}");
+}
+
+/// Issue 34: three concurrent GETs of a large Fusion library (3,000 tools × 700 fields
+/// millsim does not model, 21 MB) add a few MB to the server's peak memory, not the
+/// library's parse tree each (hundreds of MB before; 2.9 GB a GET at 60 MB, and three
+/// killed the server); the upload reads the tools one at a time (its whole tree before).
+#[tokio::test]
+async fn concurrent_reads_of_a_large_library_stay_within_a_few_megabytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("t.db"), &["--workers", "0"]);
+    let pid = s.child.id();
+    let c = client();
+    let (tools, fields) = (3_000, 700);
+    let body = big_fusion_library(tools, fields);
+    let mb = |kb: u64| kb as f64 / 1024.0;
+
+    reset_peak_rss(pid);
+    let rss = proc_kb(pid, "VmRSS");
+    let clock = Instant::now();
+    let (st, lib) = upload(&c, &s, "big.json", "application/json", &body).await;
+    assert_eq!(st, 201, "{lib}");
+    let upload_s = clock.elapsed().as_secs_f64();
+    let upload_peak = proc_kb(pid, "VmHWM").saturating_sub(rss);
+    assert_eq!(lib["summary"]["unmodelled"], tools * fields, "{lib}");
+    let id = lib["id"].as_str().unwrap().to_string();
+
+    reset_peak_rss(pid);
+    let rss = proc_kb(pid, "VmRSS");
+    let clock = Instant::now();
+    let reads = (0..3).map(|_| {
+        let (c, url) = (c.clone(), s.url(&format!("/v1/tool-libraries/{id}")));
+        tokio::spawn(async move {
+            let started = Instant::now();
+            let (st, v) = json(c.get(url).send().await.unwrap()).await;
+            (st, v, started.elapsed().as_secs_f64())
+        })
+    });
+    let mut latencies = Vec::new();
+    for read in reads.collect::<Vec<_>>() {
+        let (st, v, secs) = read.await.unwrap();
+        assert_eq!(st, 200, "{v}");
+        assert_eq!(v["tools"].as_object().unwrap().len(), tools);
+        let report = &v["report"];
+        assert_eq!(report["unmodelled"].as_array().unwrap().len(), 500);
+        assert_eq!(report["unmodelled_omitted"], tools * fields - 500);
+        // The first 500 fields by name, the other 200 together.
+        let by_field = &report["unmodelled_by_field"];
+        assert_eq!(by_field["geometry.x0"], tools);
+        assert_eq!(by_field["(other fields)"], tools * (fields - 500));
+        latencies.push(secs);
+    }
+    let reads_s = clock.elapsed().as_secs_f64();
+    let reads_peak = proc_kb(pid, "VmHWM").saturating_sub(rss);
+    println!(
+        "{} MB library: upload {upload_s:.2} s, peak +{:.1} MB; 3 concurrent GETs {reads_s:.2} s (each {latencies:.2?} s), peak +{:.1} MB",
+        body.len() >> 20,
+        mb(upload_peak),
+        mb(reads_peak)
+    );
+    assert!(
+        reads_peak < 32 * 1024,
+        "3 GETs took the server's peak {:.1} MB higher",
+        mb(reads_peak)
+    );
+    assert!(
+        upload_peak < 100 * 1024,
+        "the upload took the server's peak {:.1} MB higher",
+        mb(upload_peak)
+    );
 }

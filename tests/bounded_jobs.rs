@@ -627,6 +627,40 @@ fn a_budget_above_the_inherited_address_space_limit_is_refused_at_start() {
     assert!(stdout.is_empty(), "it must not have listened: {stdout}");
 }
 
+/// The tries are counted with the job, not per server: a job two other servers (or this
+/// one before a restart) already failed to start fails at this server's first try, with
+/// no give-back in between.
+#[tokio::test]
+async fn start_tries_are_counted_with_the_job_across_servers() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("t.db");
+    let c = client();
+    let s = Server::start(&db, &["--workers", "0"]);
+    let ok = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F500\nG1 X40\nM30\n";
+    let id = submit(&c, &s, &simulate_body(&c, &s, "ok.nc", ok).await).await;
+    // As two failed starts elsewhere left it.
+    sql(
+        &s.db_url,
+        &format!("UPDATE jobs SET start_failures = 2 WHERE id = '{id}'"),
+    )
+    .await;
+    assert!(s.terminate());
+    let exe = dir.path().join("millsim-copy");
+    std::fs::copy(BIN, &exe).unwrap();
+    let s = Server::start_exe(&exe, &db, &["--workers", "1"]);
+    std::fs::remove_file(&exe).unwrap();
+    let started = Instant::now();
+    let job = wait_job(&c, &s, &id, Duration::from_secs(15)).await;
+    assert_eq!(job["status"], "failed", "{job}");
+    assert_eq!(job["error"]["tries"], 3, "{job}");
+    // Failed at its first try here: three tries take two 0.5 s give-backs.
+    assert!(
+        started.elapsed() < Duration::from_millis(900),
+        "failed after {:?}",
+        started.elapsed()
+    );
+}
+
 #[tokio::test]
 async fn a_job_whose_process_cannot_be_started_fails_after_three_tries_saying_why() {
     // The server's executable removed under it (an upgrade in place): its `job-exec` cannot

@@ -8,19 +8,6 @@ use std::time::{Duration, Instant};
 
 use common::*;
 use serde_json::json;
-use sqlx::Connection;
-
-async fn sql(db_url: &str, statement: &str) {
-    if db_url.starts_with("sqlite:") {
-        let mut conn = sqlx::SqliteConnection::connect(db_url).await.unwrap();
-        sqlx::query(statement).execute(&mut conn).await.unwrap();
-        conn.close().await.unwrap();
-    } else {
-        let mut conn = sqlx::PgConnection::connect(db_url).await.unwrap();
-        sqlx::query(statement).execute(&mut conn).await.unwrap();
-        conn.close().await.unwrap();
-    }
-}
 
 fn inline_job() -> serde_json::Value {
     json!({"kind": "interpret", "inputs": {"program": {"name": "a.nc", "content": "G21 G90\nG0 X0 Y0 Z5\nG1 X10 F500\n"}}})

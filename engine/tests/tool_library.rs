@@ -328,4 +328,24 @@ fn a_library_with_many_unknown_fields_keeps_a_bounded_report() {
         "{}",
         &json[json.len() - 100..]
     );
+    // Every note is counted by its field, the omitted ones too.
+    assert_eq!(r.unmodelled_by_field["geometry.vendor-a"], 600);
+    assert_eq!(r.unmodelled_by_field["geometry.vendor-b"], 600);
+}
+
+#[test]
+fn a_report_counts_at_most_500_fields_by_name() {
+    use millsim_engine::tool_library::{MAX_FIELDS, OTHER_FIELDS};
+    // One tool naming 600 fields millsim does not model: 500 counted by name, the other
+    // 100 under one key, so that the counts are bounded whatever the file names.
+    let fields: Vec<String> = (0..600).map(|k| format!(r#""f{k:03}":1"#)).collect();
+    let lib = ToolLibrary::read(&format!(
+        r#"{{"data":[{{"type":"flat end mill","geometry":{{"DC":6,{}}},"post-process":{{"number":1}}}}]}}"#,
+        fields.join(",")
+    ))
+    .unwrap();
+    let counts = &lib.report.unmodelled_by_field;
+    assert_eq!(counts.len(), MAX_FIELDS + 1);
+    assert_eq!(counts[OTHER_FIELDS], 100);
+    assert_eq!(counts.values().sum::<usize>(), 600);
 }

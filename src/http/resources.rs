@@ -1,17 +1,11 @@
 //! Inputs: stocks, tools, materials, machines, programs, tool libraries. Stored unchanged
 //! after the engine's readers validated them.
 
-use std::collections::BTreeMap;
-
 use axum::extract::{FromRequest, Multipart, Path, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
-use serde::Serialize;
 use serde_json::json;
-
-use millsim_engine::tool::Tool;
-use millsim_engine::tool_library::ImportReport;
 
 use super::body::{
     collect_limited, content_length, media_type, read_limited, BodySink, SinkPlan, Spooled,
@@ -165,6 +159,7 @@ pub async fn create(
                         media_type: checked.media_type,
                         summary: checked.summary,
                         content: &[],
+                        view: None,
                     },
                     spooled.reader()?,
                     len,
@@ -181,12 +176,13 @@ pub async fn create(
                 .clone()
                 .or(name.clone())
                 .unwrap_or_else(|| "program.nc".into());
-            let v = tokio::task::spawn_blocking(move || {
+            let (bytes, checked) = tokio::task::spawn_blocking(move || {
                 validate::program(&bytes, &file).map(|v| (bytes, v))
             })
             .await
             .map_err(|e| ApiError::blocking_failed(e, "the program reader"))??;
-            (v.0, name, v.1)
+            let name = query.name.or(name);
+            return store(&state, &owner, kind, name.as_deref(), checked, bytes, None).await;
         }
         ResourceKind::ToolLibrary => {
             // Any media type: the engine tells the format from the content, as offline.
@@ -198,11 +194,23 @@ pub async fn create(
                 .clone()
                 .or(name.clone())
                 .unwrap_or_else(|| "tools".into());
-            let v = read_library_serially("the tool library reader", move || {
-                validate::tool_library(&bytes, &file).map(|v| (bytes, v))
-            })
-            .await?;
-            (v.0, name, v.1)
+            // Read once, here: the GET answers from the view stored beside the file.
+            let (bytes, (checked, view)) =
+                read_library_serially("the tool library reader", move || {
+                    validate::tool_library(&bytes, &file).map(|v| (bytes, v))
+                })
+                .await?;
+            let name = query.name.or(name);
+            return store(
+                &state,
+                &owner,
+                kind,
+                name.as_deref(),
+                checked,
+                bytes,
+                Some(&view),
+            )
+            .await;
         }
         ResourceKind::Tool | ResourceKind::Material | ResourceKind::Machine => {
             if !(mt == "application/json" || mt.is_empty()) {
@@ -231,19 +239,29 @@ pub async fn create(
         }
     };
     let name = query.name.or(file_name);
-    let record = state
-        .db
-        .create_resource(
-            &owner,
-            &NewResource {
-                kind,
-                name: name.as_deref(),
-                media_type: checked.media_type,
-                summary: checked.summary,
-                content: &bytes,
-            },
-        )
-        .await?;
+    store(&state, &owner, kind, name.as_deref(), checked, bytes, None).await
+}
+
+/// Stores a checked upload held in memory (over a chunk, in chunks: see
+/// `store::resources::insert_with_id`); answers 201 with its record.
+async fn store(
+    state: &AppState,
+    owner: &str,
+    kind: ResourceKind,
+    name: Option<&str>,
+    checked: Validated,
+    bytes: Vec<u8>,
+    view: Option<&str>,
+) -> Result<Response, ApiError> {
+    let new = NewResource {
+        kind,
+        name,
+        media_type: checked.media_type,
+        summary: checked.summary,
+        content: &bytes,
+        view,
+    };
+    let record = state.db.create_resource(owner, &new).await?;
     Ok(created(kind, record))
 }
 
@@ -295,64 +313,94 @@ pub async fn get_one(
     Ok(Json(r).into_response())
 }
 
-/// A tool library's record with what it holds: its format, its tools by T number (`"T1"`,
-/// each as POST /v1/tools takes a tool) and the import report (fields not modelled,
-/// values assumed).
-#[derive(Serialize)]
-struct LibraryView {
-    #[serde(flatten)]
-    record: ResourceRecord,
-    format: &'static str,
-    tools: BTreeMap<String, Tool>,
-    report: ImportReport,
-}
-
-/// Tool libraries are parsed in the API process (on upload and on every view), and a large
-/// one takes a few hundred MB while it is read: one read at a time, so that concurrent reads
-/// of a big library wait for each other instead of adding up past the server's memory.
+/// Tool libraries are parsed in the API process at upload (and at the first GET of one
+/// stored before views were), and a large one takes a few hundred MB while it is read:
+/// one read at a time, so that concurrent reads wait for each other instead of adding up
+/// past the server's memory.
 static LIBRARY_READS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(1);
+
+/// This request's turn at reading a tool library (see [`LIBRARY_READS`]).
+async fn library_turn() -> Result<tokio::sync::SemaphorePermit<'static>, ApiError> {
+    LIBRARY_READS
+        .acquire()
+        .await
+        .map_err(|_| ApiError::internal("the tool library reader is closed"))
+}
 
 /// One tool library read at a time (see [`LIBRARY_READS`]).
 async fn read_library_serially<T: Send + 'static>(
     what: &'static str,
     read: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
 ) -> Result<T, ApiError> {
-    let _turn = LIBRARY_READS
-        .acquire()
-        .await
-        .map_err(|_| ApiError::internal("the tool library reader is closed"))?;
+    let _turn = library_turn().await?;
+    read_library(what, read).await
+}
+
+/// Reads a library on a blocking thread (the caller holds its turn).
+async fn read_library<T: Send + 'static>(
+    what: &'static str,
+    read: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
     Ok(tokio::task::spawn_blocking(read)
         .await
         .map_err(|e| ApiError::blocking_failed(e, what))??)
 }
 
-/// The library read again from the stored file (the reader is cheap; the file is the truth).
+/// The view of a library stored before views were: read from its file (the file is taken
+/// from the database only once this request's turn has come, so that GETs waiting for
+/// theirs do not each hold one) and stored for the next GET.
+async fn legacy_view(state: &AppState, owner: &str, id: &str) -> Result<String, ApiError> {
+    let _turn = library_turn().await?;
+    // Made by a GET that had the turn before this one.
+    if let Some(view) = state.db.resource_view(id).await? {
+        return Ok(view);
+    }
+    let (name, _, bytes) = state
+        .db
+        .resource_content(owner, ResourceKind::ToolLibrary, id)
+        .await?
+        .ok_or_else(|| ApiError::not_found(ResourceKind::ToolLibrary.as_str(), id))?;
+    let file = name.unwrap_or_else(|| "tools".into());
+    let view = read_library("the tool library reader", move || {
+        let lib = validate::read_tool_library(&bytes, &file)?;
+        Ok(validate::library_view(lib)?)
+    })
+    .await?;
+    // The answer does not depend on it: a failure (the library deleted meanwhile) only
+    // means the next GET makes it again.
+    if let Err(e) = state.db.store_resource_view(id, &view).await {
+        tracing::warn!(library = %id, error = %e, "could not store a tool library's view");
+    }
+    Ok(view)
+}
+
+/// A tool library's record with what it holds (its format, tools by T number and import
+/// report: the view stored at upload, see `validate::library_view`), sent as the record's
+/// JSON with the view's members after its own, never parsing the file again. A library
+/// stored before views has its view made now, once, and stored.
 async fn library_view(
     state: &AppState,
     owner: &str,
     record: ResourceRecord,
 ) -> Result<Response, ApiError> {
-    let (name, _, bytes) = state
-        .db
-        .resource_content(owner, ResourceKind::ToolLibrary, &record.id)
-        .await?
-        .ok_or_else(|| ApiError::not_found(ResourceKind::ToolLibrary.as_str(), &record.id))?;
-    let file = name.unwrap_or_else(|| "tools".into());
-    let lib = read_library_serially("the tool library reader", move || {
-        validate::read_tool_library(&bytes, &file)
-    })
-    .await?;
-    Ok(Json(LibraryView {
-        record,
-        format: lib.format,
-        tools: lib
-            .tools
-            .into_iter()
-            .map(|(n, t)| (format!("T{n}"), t))
-            .collect(),
-        report: lib.report,
-    })
-    .into_response())
+    let view = match state.db.resource_view(&record.id).await? {
+        Some(view) => view,
+        None => legacy_view(state, owner, &record.id).await?,
+    };
+    let mut head = serde_json::to_vec(&record)
+        .map_err(|e| ApiError::internal(format!("the library's record: {e}")))?;
+    // `{..record..}` + `{..view..}` → `{..record.., ..view..}`: both are JSON objects,
+    // the record never empty.
+    head.pop();
+    head.push(b',');
+    let tail = bytes::Bytes::from(view).slice(1..);
+    let body =
+        futures_util::stream::iter([Ok::<_, std::io::Error>(bytes::Bytes::from(head)), Ok(tail)]);
+    Ok((
+        [(header::CONTENT_TYPE, "application/json")],
+        axum::body::Body::from_stream(body),
+    )
+        .into_response())
 }
 
 pub async fn content(

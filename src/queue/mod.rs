@@ -3,7 +3,6 @@
 //! the lease while it runs, then commit the outcome with the results (only while holding the
 //! lease). N workers run at most N jobs: the pool is bounded by construction.
 
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -163,7 +162,6 @@ pub async fn run_workers(
     }
     let mut handles = Vec::new();
     let mut reported = Vec::new();
-    let start_failures = Arc::new(std::sync::Mutex::new(HashMap::new()));
     for i in 0..config.workers {
         let counts = Arc::new(WorkerCounts::default());
         let id = match config.isolation {
@@ -179,7 +177,6 @@ pub async fn run_workers(
             metrics: metrics.clone(),
             wake: wake.clone(),
             shutdown: shutdown.clone(),
-            start_failures: start_failures.clone(),
         };
         handles.push(tokio::spawn(worker.run()));
     }
@@ -272,10 +269,10 @@ impl JobEnded {
 /// How long a worker waits after giving a job back for a storage error.
 const STORAGE_BACKOFF_MS: u64 = 500;
 
-/// Tries at starting a job's process (in this server process) before the job is failed:
+/// Tries at starting a job's process (by any server) before the job is failed:
 /// a passing shortage (descriptors, processes) gets a second chance, a lasting one (the
 /// executable gone, a limit it cannot be given) does not loop for ever.
-const START_TRIES: u32 = 3;
+const START_TRIES: i64 = 3;
 
 struct Worker {
     id: String,
@@ -285,9 +282,6 @@ struct Worker {
     metrics: Arc<Metrics>,
     wake: Arc<Notify>,
     shutdown: watch::Receiver<bool>,
-    /// Failed tries at starting each job's process, shared by this process's workers (a
-    /// given-back job is claimed again by any of them); removed once the job starts or fails.
-    start_failures: Arc<std::sync::Mutex<HashMap<String, u32>>>,
 }
 
 impl Worker {
@@ -511,36 +505,28 @@ impl Worker {
         work_dir: &std::path::Path,
     ) -> Option<Finish> {
         let progress = Arc::new(SharedProgress::default());
-        let started = self.start_engine(job, kind, inputs, progress.clone(), work_dir);
-        let tries = {
-            let mut failures = self
-                .start_failures
-                .lock()
-                .unwrap_or_else(|p| p.into_inner());
-            match &started {
-                Ok(_) => failures.remove(&job.id).unwrap_or(0),
-                Err(_) => {
-                    let n = failures.entry(job.id.clone()).or_insert(0);
-                    *n += 1;
-                    let tries = *n;
-                    if tries >= START_TRIES {
-                        failures.remove(&job.id);
-                    }
-                    tries
-                }
-            }
-        };
-        let mut engine = match started {
+        let mut engine = match self.start_engine(job, kind, inputs, progress.clone(), work_dir) {
             Ok(e) => e,
-            Err(e) if tries >= START_TRIES => {
-                tracing::error!(worker = %self.id, job = %job.id, error = %e, tries, "could not start the job's process; the job fails");
-                return Some(Finish::Failed {
-                    error: start_failed_problem(&e, tries).to_json(),
-                });
-            }
             Err(e) => {
-                // Cannot start a process (descriptors, fork): not the job's fault, and
-                // perhaps passing. Given back: tried again, up to START_TRIES times.
+                // Cannot start a process (descriptors, fork, the executable gone): not the
+                // job's fault, and perhaps passing. Counted with the job, so that every
+                // server sharing the database counts the same tries: given back up to
+                // START_TRIES times, then failed.
+                let tries = match self.db.count_start_failure(job, &self.id).await {
+                    Ok(Some(tries)) => tries,
+                    Ok(None) => return None,
+                    Err(se) => {
+                        tracing::error!(worker = %self.id, job = %job.id, error = %e, storage_error = %se, "could not start the job's process nor count it; giving the job back");
+                        self.give_back(job).await;
+                        return None;
+                    }
+                };
+                if tries >= START_TRIES {
+                    tracing::error!(worker = %self.id, job = %job.id, error = %e, tries, "could not start the job's process; the job fails");
+                    return Some(Finish::Failed {
+                        error: start_failed_problem(&e, tries).to_json(),
+                    });
+                }
                 tracing::error!(worker = %self.id, job = %job.id, error = %e, tries, "could not start the job's process; giving the job back");
                 self.give_back(job).await;
                 return None;
@@ -695,7 +681,7 @@ impl Worker {
 }
 
 /// The problem of a job whose process could not be started `tries` times.
-fn start_failed_problem(e: &std::io::Error, tries: u32) -> Problem {
+fn start_failed_problem(e: &std::io::Error, tries: i64) -> Problem {
     let exe = std::env::current_exe()
         .map(|p| p.display().to_string())
         .unwrap_or_else(|e| format!("(unknown: {e})"));

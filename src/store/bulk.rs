@@ -163,24 +163,6 @@ mod tests {
         took
     }
 
-    /// The migrations of `backend` (a folder under migrations/) before the row groups,
-    /// copied to a folder of their own so that a database can be left at that version.
-    fn migrations_before_groups(backend: &str, last: i64) -> tempfile::TempDir {
-        let dir = tempfile::tempdir().unwrap();
-        let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("migrations")
-            .join(backend);
-        for e in std::fs::read_dir(src).unwrap() {
-            let e = e.unwrap();
-            let name = e.file_name().into_string().unwrap();
-            let version: i64 = name[..4].parse().unwrap();
-            if version <= last {
-                std::fs::copy(e.path(), dir.path().join(name)).unwrap();
-            }
-        }
-        dir
-    }
-
     const OLD_ROWS: [&str; 3] = [r#"{"block":0,"é":"a"}"#, r#"{"block":1}"#, r#"{"block":2}"#];
 
     /// Rows and samples as one row each (before groups), for a database at that version.
@@ -211,7 +193,7 @@ mod tests {
     /// to `$last`, the last before groups, holding rows stored one by one; closes `$c`.
     macro_rules! migrate_before_groups_and_seed {
         ($c:ident, $backend:literal, $last:literal) => {
-            let old = migrations_before_groups($backend, $last);
+            let old = crate::store::scratch::migrations_up_to($backend, $last);
             sqlx::migrate::Migrator::new(old.path())
                 .await
                 .unwrap()

@@ -84,29 +84,50 @@ pub async fn write_chunks<R: Read + Send + 'static>(
             ))));
         }
         written += buf.len() as u64;
-        match key {
-            ChunkKey::Resource { id } => on_tx!(tx, c => sqlx::query(
-                "INSERT INTO resource_chunks (resource_id, seq, data) VALUES ($1, $2, $3)",
-            )
-            .bind(id)
-            .bind(seq)
-            .bind(&buf)
-            .execute(&mut *c)
-            .await?
-            .rows_affected()),
-            ChunkKey::Artifact { job_id, name } => on_tx!(tx, c => sqlx::query(
-                "INSERT INTO job_artifact_chunks (job_id, name, seq, data) VALUES ($1, $2, $3, $4)",
-            )
-            .bind(job_id)
-            .bind(name)
-            .bind(seq)
-            .bind(&buf)
-            .execute(&mut *c)
-            .await?
-            .rows_affected()),
-        };
+        insert_chunk(tx, key, seq, &buf).await?;
     }
     Ok(chunks)
+}
+
+/// Writes `content` as chunk rows of `key` inside the caller's transaction (content
+/// already in memory: a program or tool library upload, a job's inline program).
+pub async fn write_slice_chunks(
+    tx: &mut Tx,
+    key: &ChunkKey,
+    content: &[u8],
+) -> Result<i64, StoreError> {
+    let mut chunks = 0;
+    for (seq, buf) in content.chunks(CHUNK_BYTES).enumerate() {
+        insert_chunk(tx, key, seq as i64, buf).await?;
+        chunks += 1;
+    }
+    Ok(chunks)
+}
+
+/// One chunk row.
+async fn insert_chunk(tx: &mut Tx, key: &ChunkKey, seq: i64, buf: &[u8]) -> Result<(), StoreError> {
+    match key {
+        ChunkKey::Resource { id } => on_tx!(tx, c => sqlx::query(
+            "INSERT INTO resource_chunks (resource_id, seq, data) VALUES ($1, $2, $3)",
+        )
+        .bind(id)
+        .bind(seq)
+        .bind(buf)
+        .execute(&mut *c)
+        .await?
+        .rows_affected()),
+        ChunkKey::Artifact { job_id, name } => on_tx!(tx, c => sqlx::query(
+            "INSERT INTO job_artifact_chunks (job_id, name, seq, data) VALUES ($1, $2, $3, $4)",
+        )
+        .bind(job_id)
+        .bind(name)
+        .bind(seq)
+        .bind(buf)
+        .execute(&mut *c)
+        .await?
+        .rows_affected()),
+    };
+    Ok(())
 }
 
 /// Chunks of `len` bytes.
@@ -168,6 +189,95 @@ impl Db {
 #[cfg(test)]
 mod tests {
     use std::io::Write;
+
+    use crate::store::scratch::migrations_up_to;
+    use crate::store::ResourceKind;
+
+    use super::ResourceBody;
+
+    /// A program stored whole in its row, as before programs were chunked.
+    macro_rules! seed_row_content {
+        ($c:ident, $backend:literal, $last:literal, $id:expr, $content:expr) => {
+            let old = migrations_up_to($backend, $last);
+            sqlx::migrate::Migrator::new(old.path())
+                .await
+                .unwrap()
+                .run(&mut $c)
+                .await
+                .unwrap();
+            let content: &[u8] = $content;
+            sqlx::query(
+                "INSERT INTO resources (id, owner, kind, name, media_type, size, summary, content, created_at)
+                 VALUES ($1, 'o', 'program', 'a.nc', 'text/plain', $2, '{}', $3, 0)",
+            )
+            .bind($id)
+            .bind(content.len() as i64)
+            .bind(content)
+            .execute(&mut $c)
+            .await
+            .unwrap();
+        };
+    }
+
+    async fn moved_into_chunks(db: &Db, big: &[u8], small: &[u8]) {
+        let body = db
+            .resource_body("o", ResourceKind::Program, "big")
+            .await
+            .unwrap();
+        assert!(matches!(
+            body.unwrap().3,
+            ResourceBody::Chunked { chunks: 4, .. }
+        ));
+        let (_, _, read) = db
+            .resource_content("o", ResourceKind::Program, "big")
+            .await
+            .unwrap()
+            .unwrap();
+        assert!(read == big, "the content changed");
+        let body = db
+            .resource_body("o", ResourceKind::Program, "small")
+            .await
+            .unwrap();
+        assert!(matches!(body.unwrap().3, ResourceBody::Inline(b) if b == small));
+    }
+
+    /// Content over a chunk that an older version stored in its row (a 64 MB program was
+    /// read whole by every GET) is moved into chunk rows by the migration and reads back
+    /// byte for byte; content of a chunk or less stays in its row.
+    #[tokio::test]
+    async fn large_content_in_a_row_is_moved_into_chunks() {
+        use sqlx::Connection;
+        let big: Vec<u8> = (0..(3 << 20) + 12_345u32)
+            .map(|i| (i * 7 % 251) as u8)
+            .collect();
+        let small = b"G0 X1\n".to_vec();
+        let dir = tempfile::tempdir().unwrap();
+        let url = format!("sqlite://{}", dir.path().join("old.db").display());
+        {
+            let opts: sqlx::sqlite::SqliteConnectOptions = url.parse().unwrap();
+            let mut c = sqlx::SqliteConnection::connect_with(&opts.create_if_missing(true))
+                .await
+                .unwrap();
+            seed_row_content!(c, "sqlite", 11, "big", &big);
+            seed_row_content!(c, "sqlite", 11, "small", &small);
+            c.close().await.unwrap();
+        }
+        moved_into_chunks(&Db::open(&url).await.unwrap(), &big, &small).await;
+
+        let Some(scratch) = ScratchPostgres::create().await else {
+            return;
+        };
+        {
+            let mut c = sqlx::PgConnection::connect(&scratch.url).await.unwrap();
+            seed_row_content!(c, "postgres", 8, "big", &big);
+            seed_row_content!(c, "postgres", 8, "small", &small);
+            c.close().await.unwrap();
+        }
+        let pg = Db::open(&scratch.url).await.unwrap();
+        moved_into_chunks(&pg, &big, &small).await;
+        drop(pg);
+        scratch.remove().await;
+    }
 
     use crate::store::artifacts::{Artifact, ArtifactBody, ArtifactContent};
     use crate::store::jobs::Finish;

@@ -255,6 +255,7 @@ impl Db {
                 media_type: inline.media_type,
                 summary: inline.summary.clone(),
                 content: &inline.content,
+                view: None,
             };
             let rid = insert_resource(&mut tx, owner, &resource).await?;
             new.inputs
@@ -773,6 +774,7 @@ impl Db {
                     media_type: &r.media_type,
                     summary: r.summary.clone(),
                     content: &r.content,
+                    view: None,
                 };
                 insert_with_id(&mut tx, &r.id, &owner, &new).await?;
             }
@@ -829,6 +831,27 @@ impl Db {
             .rows_affected());
         tx.commit().await?;
         Ok(true)
+    }
+
+    /// Counts a failed start of the job's process, stored with the job (every server
+    /// and worker sharing the database counts the same tries), while `worker` holds its
+    /// lease: the tries so far, None when it no longer holds it.
+    pub async fn count_start_failure(
+        &self,
+        job: &ClaimedJob,
+        worker: &str,
+    ) -> Result<Option<i64>, StoreError> {
+        Ok(on_pool!(&self.pool, p => sqlx::query_scalar(
+            "UPDATE jobs SET start_failures = start_failures + 1, updated_at = $1
+             WHERE id = $2 AND lease_owner = $3 AND status = 'running' AND attempts = $4
+             RETURNING start_failures",
+        )
+        .bind(now_ms())
+        .bind(&job.id)
+        .bind(worker)
+        .bind(job.attempt)
+        .fetch_optional(p)
+        .await?))
     }
 
     /// One page of a finished job's per-block rows, raw JSON text, from `from` on.

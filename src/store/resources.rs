@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::backend::{on_pool, on_tx, RowGet, Tx};
-use super::chunks::ResourceBody;
+use super::chunks::{chunk_count, write_slice_chunks, ChunkKey, ResourceBody, CHUNK_BYTES};
 use super::{rfc3339, Db, StoreError};
 
 /// Serialized as [`as_str`](Self::as_str) names it (a job's process sends the kind of a
@@ -75,34 +75,50 @@ pub struct NewResource<'a> {
     pub media_type: &'a str,
     pub summary: serde_json::Value,
     pub content: &'a [u8],
+    /// The JSON object whose members the resource's GET adds to its record (a tool
+    /// library's tools and report), stored beside it (`resource_views`).
+    pub view: Option<&'a str>,
 }
 
-fn record(
-    kind: ResourceKind,
-    row: &impl RowGet,
-    with_definition: bool,
-) -> Result<ResourceRecord, StoreError> {
-    let media_type: String = row.col("media_type")?;
-    // A tool library's JSON is Fusion's file, not a definition in the API's terms: its
-    // tools are served read, by T number, instead.
-    let definition =
-        if with_definition && media_type == "application/json" && kind != ResourceKind::ToolLibrary
-        {
-            let content: Vec<u8> = row.col("content")?;
-            Some(serde_json::from_slice(&content)?)
-        } else {
-            None
-        };
+/// The columns of a resource's record: all but its content, which may be 64 MB.
+const RECORD_COLUMNS: &str = "id, kind, name, media_type, size, summary, created_at";
+
+/// A record from a row of [`RECORD_COLUMNS`], without its definition (see [`with_definition`]).
+fn record(kind: ResourceKind, row: &impl RowGet) -> Result<ResourceRecord, StoreError> {
     Ok(ResourceRecord {
         id: row.col("id")?,
         kind: kind.as_str(),
         name: row.col("name")?,
-        media_type,
+        media_type: row.col("media_type")?,
         size: row.col("size")?,
         created_at: rfc3339(row.col("created_at")?),
         summary: serde_json::from_str(&row.col::<String>("summary")?)?,
-        definition,
+        definition: None,
     })
+}
+
+/// Whether a record carries its content as its definition: the JSON resources (tool,
+/// material, machine, parametric stock), whose bodies are at most `--max-json-bytes`. A
+/// tool library's JSON is Fusion's file, not a definition in the API's terms: its tools
+/// are served read, by T number, instead.
+fn has_definition(r: &ResourceRecord) -> bool {
+    r.media_type == "application/json" && !matches!(r.kind, "tool_library" | "program")
+}
+
+/// The content of a JSON resource as its definition, read in `c`'s transaction or pool.
+macro_rules! with_definition {
+    ($exec:expr, $record:expr) => {{
+        let mut r: ResourceRecord = $record;
+        if has_definition(&r) {
+            let content: Vec<u8> =
+                sqlx::query_scalar("SELECT content FROM resources WHERE id = $1")
+                    .bind(&r.id)
+                    .fetch_one($exec)
+                    .await?;
+            r.definition = Some(serde_json::from_slice(&content)?);
+        }
+        r
+    }};
 }
 
 /// Inserts a resource inside an open transaction.
@@ -120,7 +136,16 @@ pub async fn insert_with_id(
     owner: &str,
     new: &NewResource<'_>,
 ) -> Result<(), StoreError> {
-    insert_row(tx, id, owner, new, new.content.len() as i64, 0).await
+    let len = new.content.len();
+    if len <= CHUNK_BYTES {
+        return insert_row(tx, id, owner, new, len as i64, 0).await;
+    }
+    // Over a chunk (a program or tool library of up to 64 MB): in chunk rows, as a
+    // streamed upload is, so that its GET and the jobs read it a chunk at a time.
+    insert_row(tx, id, owner, new, len as i64, chunk_count(len as u64)).await?;
+    let key = ChunkKey::Resource { id: id.to_string() };
+    write_slice_chunks(tx, &key, new.content).await?;
+    Ok(())
 }
 
 /// The resource's row: with `new.content` when `chunks` is 0, else with no content in
@@ -151,6 +176,23 @@ pub(super) async fn insert_row(
     .execute(&mut *c)
     .await?
     .rows_affected());
+    if let Some(view) = new.view {
+        insert_view(tx, id, view).await?;
+    }
+    Ok(())
+}
+
+/// Stores a resource's view (see [`NewResource::view`]); a view already there stays (two
+/// first GETs of an old library may both write it: it is the same).
+async fn insert_view(tx: &mut Tx, id: &str, view: &str) -> Result<(), StoreError> {
+    on_tx!(tx, c => sqlx::query(
+        "INSERT INTO resource_views (resource_id, members) VALUES ($1, $2) ON CONFLICT (resource_id) DO NOTHING",
+    )
+    .bind(id)
+    .bind(view)
+    .execute(&mut *c)
+    .await?
+    .rows_affected());
     Ok(())
 }
 
@@ -163,14 +205,14 @@ pub(super) async fn read_back(
     id: &str,
 ) -> Result<ResourceRecord, StoreError> {
     Ok(on_tx!(tx, c => {
-        let row = sqlx::query("SELECT * FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
+        let row = sqlx::query(&format!("SELECT {RECORD_COLUMNS} FROM resources WHERE owner = $1 AND kind = $2 AND id = $3"))
             .bind(owner)
             .bind(kind.as_str())
             .bind(id)
             .fetch_optional(&mut *c)
             .await?
             .ok_or_else(|| StoreError::Vanished(format!("{} {id}", kind.as_str())))?;
-        record(kind, &row, true)?
+        with_definition!(&mut *c, record(kind, &row)?)
     }))
 }
 
@@ -193,15 +235,36 @@ impl Db {
         kind: ResourceKind,
         id: &str,
     ) -> Result<Option<ResourceRecord>, StoreError> {
-        on_pool!(&self.pool, p => {
-            let row = sqlx::query("SELECT * FROM resources WHERE owner = $1 AND kind = $2 AND id = $3")
+        Ok(on_pool!(&self.pool, p => {
+            let row = sqlx::query(&format!("SELECT {RECORD_COLUMNS} FROM resources WHERE owner = $1 AND kind = $2 AND id = $3"))
                 .bind(owner)
                 .bind(kind.as_str())
                 .bind(id)
                 .fetch_optional(p)
                 .await?;
-            row.map(|r| record(kind, &r, true)).transpose()
-        })
+            match row {
+                Some(row) => Some(with_definition!(p, record(kind, &row)?)),
+                None => None,
+            }
+        }))
+    }
+
+    /// The stored view of a resource (see [`NewResource::view`]); None when it has none
+    /// (a tool library uploaded before views were stored).
+    pub async fn resource_view(&self, id: &str) -> Result<Option<String>, StoreError> {
+        Ok(on_pool!(&self.pool, p => sqlx::query_scalar(
+            "SELECT members FROM resource_views WHERE resource_id = $1",
+        )
+        .bind(id)
+        .fetch_optional(p)
+        .await?))
+    }
+
+    /// Stores the view of a resource that had none (computed at its first GET).
+    pub async fn store_resource_view(&self, id: &str, view: &str) -> Result<(), StoreError> {
+        let mut tx = self.begin().await?;
+        insert_view(&mut tx, id, view).await?;
+        tx.commit().await
     }
 
     /// The stored bytes and media type of a resource, unchanged, whole in memory (a
@@ -243,6 +306,8 @@ impl Db {
         id: &str,
     ) -> Result<Option<(Option<String>, String, i64, ResourceBody)>, StoreError> {
         type Row = (Option<String>, String, i64, Vec<u8>, i64);
+        // Content in the row is at most a chunk: larger content is in chunk rows (see
+        // `insert_with_id`, and the migration that moved older content there).
         let row: Option<Row> = on_pool!(&self.pool, p => sqlx::query_as(
             "SELECT name, media_type, size, content, chunks FROM resources WHERE owner = $1 AND kind = $2 AND id = $3",
         )
@@ -273,10 +338,10 @@ impl Db {
         limit: u32,
     ) -> Result<(Vec<ResourceRecord>, Option<String>), StoreError> {
         let mut items = on_pool!(&self.pool, p => {
-            let rows = sqlx::query(
-                "SELECT id, name, media_type, size, summary, created_at FROM resources
+            let rows = sqlx::query(&format!(
+                "SELECT {RECORD_COLUMNS} FROM resources
                  WHERE owner = $1 AND kind = $2 AND id > $3 ORDER BY id LIMIT $4",
-            )
+            ))
             .bind(owner)
             .bind(kind.as_str())
             .bind(cursor.unwrap_or(""))
@@ -284,7 +349,7 @@ impl Db {
             .fetch_all(p)
             .await?;
             rows.iter()
-                .map(|r| record(kind, r, false))
+                .map(|r| record(kind, r))
                 .collect::<Result<Vec<_>, _>>()?
         });
         let next = if items.len() > limit as usize {

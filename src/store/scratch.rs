@@ -57,3 +57,22 @@ pub fn new_job() -> NewJob {
         max_queued: 10,
     }
 }
+
+/// The migrations of `backend` (a folder under migrations/) up to version `last`, copied
+/// to a folder of their own so that a database can be left at that version (to test what
+/// a later migration does to what it holds).
+pub fn migrations_up_to(backend: &str, last: i64) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("migrations")
+        .join(backend);
+    for e in std::fs::read_dir(src).unwrap() {
+        let e = e.unwrap();
+        let name = e.file_name().into_string().unwrap();
+        let version: i64 = name[..4].parse().unwrap();
+        if version <= last {
+            std::fs::copy(e.path(), dir.path().join(name)).unwrap();
+        }
+    }
+    dir
+}

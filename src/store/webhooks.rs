@@ -536,13 +536,16 @@ impl Db {
     /// Fair between API keys: the keys take turns (each key's oldest due delivery, then
     /// each key's second, ...), and a key has at most `per_key` deliveries in flight over
     /// all dispatchers (its unexpired leases), so receivers that hold every attempt for
-    /// the whole timeout stall only their own key's deliveries.
+    /// the whole timeout stall only their own key's deliveries. Fair between one key's
+    /// webhooks too: a webhook has at most `per_webhook` in flight, and within a key the
+    /// webhooks take turns, so one dead receiver cannot hold all of its key's slots.
     pub async fn claim_deliveries(
         &self,
         dispatcher: &str,
         lease_ms: i64,
         limit: i64,
         per_key: i64,
+        per_webhook: i64,
     ) -> Result<Vec<DueDelivery>, StoreError> {
         let now = now_ms();
         let skip_locked = self.backend().skip_locked();
@@ -553,14 +556,23 @@ impl Db {
             "UPDATE webhook_deliveries SET lease_owner = $1, lease_expires_at = $2, attempts = attempts + 1, updated_at = $3
              WHERE id IN (SELECT id FROM webhook_deliveries WHERE id IN (
                  SELECT id FROM (
-                     SELECT d.id, d.next_attempt_at, COALESCE(f.n, 0) AS in_flight,
-                            ROW_NUMBER() OVER (PARTITION BY d.owner ORDER BY d.next_attempt_at, d.id) AS turn
-                     FROM webhook_deliveries d
-                     LEFT JOIN (SELECT owner, COUNT(*) AS n FROM webhook_deliveries
-                                WHERE status = 'pending' AND lease_expires_at >= $3 GROUP BY owner) f
-                       ON f.owner = d.owner
-                     WHERE d.status = 'pending' AND d.next_attempt_at <= $3
-                       AND (d.lease_expires_at IS NULL OR d.lease_expires_at < $3)
+                     SELECT id, next_attempt_at, in_flight,
+                            ROW_NUMBER() OVER (PARTITION BY owner ORDER BY hook_turn, next_attempt_at, id) AS turn
+                     FROM (
+                         SELECT d.id, d.owner, d.next_attempt_at, COALESCE(f.n, 0) AS in_flight,
+                                ROW_NUMBER() OVER (PARTITION BY d.webhook_id ORDER BY d.next_attempt_at, d.id)
+                                  + COALESCE(w.n, 0) AS hook_turn
+                         FROM webhook_deliveries d
+                         LEFT JOIN (SELECT owner, COUNT(*) AS n FROM webhook_deliveries
+                                    WHERE status = 'pending' AND lease_expires_at >= $3 GROUP BY owner) f
+                           ON f.owner = d.owner
+                         LEFT JOIN (SELECT webhook_id, COUNT(*) AS n FROM webhook_deliveries
+                                    WHERE status = 'pending' AND lease_expires_at >= $3 GROUP BY webhook_id) w
+                           ON w.webhook_id = d.webhook_id
+                         WHERE d.status = 'pending' AND d.next_attempt_at <= $3
+                           AND (d.lease_expires_at IS NULL OR d.lease_expires_at < $3)
+                     ) by_hook
+                     WHERE hook_turn <= $6
                  ) ranked
                  WHERE turn + in_flight <= $5
                  ORDER BY turn, next_attempt_at LIMIT $4
@@ -572,6 +584,7 @@ impl Db {
         .bind(now)
         .bind(limit)
         .bind(per_key)
+        .bind(per_webhook)
         .fetch_all(p)
         .await?);
         let mut due = Vec::with_capacity(rows.len());
@@ -750,12 +763,12 @@ mod tests {
             .unwrap();
         event(db, &job(db, "a", 0).await, "job.succeeded").await;
         event(db, &job(db, "b", 0).await, "job.succeeded").await;
-        let first = db.claim_deliveries("d1", 30_000, 16, 4).await.unwrap();
+        let first = db.claim_deliveries("d1", 30_000, 16, 4, 2).await.unwrap();
         let to = |d: &[DueDelivery], host: &str| d.iter().filter(|d| d.url.contains(host)).count();
         // b's one delivery, queued after a's fifty, is claimed at once; a gets 4.
         assert_eq!((to(&first, "a.example"), to(&first, "b.example")), (4, 1));
         // a's four are in flight (leased, another dispatcher too): no more of a's.
-        let second = db.claim_deliveries("d2", 30_000, 16, 4).await.unwrap();
+        let second = db.claim_deliveries("d2", 30_000, 16, 4, 2).await.unwrap();
         assert!(second.is_empty(), "{second:?}");
         // One of a's ends: a gets one slot back.
         let outcome = AttemptOutcome {
@@ -768,8 +781,39 @@ mod tests {
         };
         let a_one = first.iter().find(|d| d.url.contains("a.example")).unwrap();
         assert!(db.record_attempt(a_one, "d1", &outcome).await.unwrap());
-        let third = db.claim_deliveries("d2", 30_000, 16, 4).await.unwrap();
+        let third = db.claim_deliveries("d2", 30_000, 16, 4, 2).await.unwrap();
         assert_eq!(to(&third, "a.example"), 1);
+    }
+
+    #[tokio::test]
+    async fn a_keys_webhooks_take_turns_and_each_has_two_in_flight_at_most() {
+        on_both!(fairness_within_a_key);
+    }
+
+    async fn fairness_within_a_key(db: &Db) {
+        let events = vec!["job.succeeded".to_string()];
+        db.create_webhook("a", "http://dead.example/", &events, "s")
+            .await
+            .unwrap();
+        for _ in 0..10 {
+            event(db, &job(db, "a", 0).await, "job.succeeded").await;
+        }
+        db.create_webhook("a", "http://live.example/", &events, "s")
+            .await
+            .unwrap();
+        event(db, &job(db, "a", 0).await, "job.succeeded").await;
+        let to = |d: &[DueDelivery], host: &str| d.iter().filter(|d| d.url.contains(host)).count();
+        // The dead webhook's eleven are older than the live one's, yet it gets two slots
+        // and the live one its delivery at once.
+        let first = db.claim_deliveries("d1", 30_000, 16, 4, 2).await.unwrap();
+        assert_eq!(
+            (to(&first, "dead"), to(&first, "live")),
+            (2, 1),
+            "{first:?}"
+        );
+        // The dead webhook's two are in flight (leased): none more of its own.
+        let second = db.claim_deliveries("d2", 30_000, 16, 4, 2).await.unwrap();
+        assert!(second.is_empty(), "{second:?}");
     }
 
     #[tokio::test]
@@ -794,7 +838,7 @@ mod tests {
         assert_eq!(got[0].1["job"]["progress"]["done"], 30);
         assert_eq!(got[1].1["job"]["id"], json!(other));
         // In flight, a delivery keeps what it sends; the next progress queues behind it.
-        let claimed = db.claim_deliveries("d", 30_000, 16, 4).await.unwrap();
+        let claimed = db.claim_deliveries("d", 30_000, 16, 4, 2).await.unwrap();
         assert_eq!(claimed.len(), 2);
         set_done(db, &j, 40).await;
         event(db, &j, "job.progress").await;

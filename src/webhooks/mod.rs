@@ -3,7 +3,8 @@
 //! attempt, records it, and schedules a retry with exponential backoff. A receiver that
 //! answers slowly holds one of the dispatcher's bounded delivery slots for at most the
 //! request timeout, never a job worker, and one API key holds at most
-//! `MAX_IN_FLIGHT_PER_KEY` of them: the keys take turns at the free ones.
+//! `MAX_IN_FLIGHT_PER_KEY` of them: the keys take turns at the free ones, and within a
+//! key its webhooks take turns, each at most `MAX_IN_FLIGHT_PER_WEBHOOK`.
 
 pub mod signature;
 pub mod target;
@@ -41,6 +42,10 @@ const MAX_IN_FLIGHT: usize = 16;
 /// receivers never answer holds this many slots, the others stay free for other keys.
 const MAX_IN_FLIGHT_PER_KEY: i64 = 4;
 
+/// Deliveries of one webhook in flight at once: a key's dead receiver holds two of its
+/// key's slots, and the key's other webhooks take turns at the rest.
+const MAX_IN_FLIGHT_PER_WEBHOOK: i64 = 2;
+
 /// How often an idle dispatcher looks for due deliveries: the first attempt follows a
 /// job's state change within about this.
 const POLL: Duration = Duration::from_millis(100);
@@ -72,7 +77,13 @@ pub async fn run_dispatcher(db: Db, config: WebhookConfig, mut shutdown: watch::
             match db.delivery_due().await {
                 Ok(false) => Vec::new(),
                 Ok(true) => match db
-                    .claim_deliveries(&id, LEASE_MS, free as i64, MAX_IN_FLIGHT_PER_KEY)
+                    .claim_deliveries(
+                        &id,
+                        LEASE_MS,
+                        free as i64,
+                        MAX_IN_FLIGHT_PER_KEY,
+                        MAX_IN_FLIGHT_PER_WEBHOOK,
+                    )
                     .await
                 {
                     Ok(due) => due,

@@ -458,3 +458,57 @@ pub async fn get_text(c: &reqwest::Client, s: &Server, path: &str) -> String {
         .await
         .unwrap()
 }
+
+/// Runs one SQL statement on a test server's database (SQLite file or PostgreSQL), from a
+/// connection of its own: for tests that change what is stored under a running server.
+pub async fn sql(db_url: &str, statement: &str) {
+    use sqlx::Connection;
+    if db_url.starts_with("sqlite:") {
+        let mut conn = sqlx::SqliteConnection::connect(db_url).await.unwrap();
+        sqlx::query(statement).execute(&mut conn).await.unwrap();
+        conn.close().await.unwrap();
+    } else {
+        let mut conn = sqlx::PgConnection::connect(db_url).await.unwrap();
+        sqlx::query(statement).execute(&mut conn).await.unwrap();
+        conn.close().await.unwrap();
+    }
+}
+
+/// The one integer a query on a test server's database answers (`SELECT COUNT(*) ...`).
+pub async fn sql_i64(db_url: &str, query: &str) -> i64 {
+    use sqlx::Connection;
+    if db_url.starts_with("sqlite:") {
+        let mut conn = sqlx::SqliteConnection::connect(db_url).await.unwrap();
+        let n = sqlx::query_scalar(query)
+            .fetch_one(&mut conn)
+            .await
+            .unwrap();
+        conn.close().await.unwrap();
+        n
+    } else {
+        let mut conn = sqlx::PgConnection::connect(db_url).await.unwrap();
+        let n = sqlx::query_scalar(query)
+            .fetch_one(&mut conn)
+            .await
+            .unwrap();
+        conn.close().await.unwrap();
+        n
+    }
+}
+
+/// A memory figure of a process from /proc/PID/status, kB (`VmRSS`, `VmHWM`: its peak).
+pub fn proc_kb(pid: u32, field: &str) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    status
+        .lines()
+        .find(|l| l.starts_with(field) && l[field.len()..].starts_with(':'))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0)
+}
+
+/// Resets a process's peak resident memory (VmHWM) to its current one (Linux
+/// `clear_refs` 5), so that a test measures the peak of what it does next.
+pub fn reset_peak_rss(pid: u32) {
+    std::fs::write(format!("/proc/{pid}/clear_refs"), "5").unwrap();
+}

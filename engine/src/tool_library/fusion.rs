@@ -22,20 +22,115 @@ const MODELLED: &[&str] = &[
 ];
 
 pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
-    let root: Value = serde_json::from_str(text)
-        .map_err(|e| ToolLibraryError::new("-", "json", format!("not JSON: {e}")))?;
-    let data = root.get("data").and_then(Value::as_array).ok_or_else(|| {
-        ToolLibraryError::new(
-            "-",
-            "data",
-            "a Fusion 360 library has a `data` array of tools",
-        )
-    })?;
     let mut lib = ToolLibrary {
         format: "fusion360",
         ..ToolLibrary::default()
     };
-    for (i, t) in data.iter().enumerate() {
+    // The tools are read one at a time as the text is parsed, never the whole document
+    // as a tree: a library of 10,000 tools with 700 fields each is a 60 MB file, and its
+    // tree took over 2 GB.
+    let mut failed = None;
+    let mut seen_data = false;
+    let mut de = serde_json::Deserializer::from_str(text);
+    let root = Root {
+        lib: &mut lib,
+        failed: &mut failed,
+        seen_data: &mut seen_data,
+    };
+    let parsed = serde::de::DeserializeSeed::deserialize(root, &mut de).and_then(|()| de.end());
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    match parsed {
+        Err(e) if e.classify() == serde_json::error::Category::Data => {
+            return Err(ToolLibraryError::new("-", "data", e.to_string()))
+        }
+        Err(e) => return Err(ToolLibraryError::new("-", "json", format!("not JSON: {e}"))),
+        Ok(()) => {}
+    }
+    if !seen_data {
+        return Err(ToolLibraryError::new(
+            "-",
+            "data",
+            "a Fusion 360 library has a `data` array of tools",
+        ));
+    }
+    Ok(lib)
+}
+
+/// The document's root object: its `data` array read tool by tool, the other members
+/// skipped. A tool's error is kept in `failed` and stops the parse.
+struct Root<'a> {
+    lib: &'a mut ToolLibrary,
+    failed: &'a mut Option<ToolLibraryError>,
+    seen_data: &'a mut bool,
+}
+
+impl<'de> serde::de::DeserializeSeed<'de> for Root<'_> {
+    type Value = ();
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for Root<'_> {
+    type Value = ();
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a Fusion 360 library: an object with a `data` array of tools")
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        while let Some(key) = map.next_key::<std::borrow::Cow<'de, str>>()? {
+            if key == "data" {
+                *self.seen_data = true;
+                map.next_value_seed(Data {
+                    lib: &mut *self.lib,
+                    failed: &mut *self.failed,
+                })?;
+            } else {
+                map.next_value::<serde::de::IgnoredAny>()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The `data` array: each tool parsed alone and read into the library.
+struct Data<'a> {
+    lib: &'a mut ToolLibrary,
+    failed: &'a mut Option<ToolLibraryError>,
+}
+
+impl<'de> serde::de::DeserializeSeed<'de> for Data<'_> {
+    type Value = ();
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_seq(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for Data<'_> {
+    type Value = ();
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a Fusion 360 library's `data` array of tools")
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        // Bounded: `read_tool` refuses the tool past MAX_TOOLS.
+        let mut i = 0;
+        while let Some(t) = seq.next_element::<Value>()? {
+            if let Err(e) = read_tool(self.lib, i, &t) {
+                *self.failed = Some(e);
+                return Err(serde::de::Error::custom(
+                    "stopped at a tool that does not read",
+                ));
+            }
+            i += 1;
+        }
+        Ok(())
+    }
+}
+
+/// Tool `i` of the `data` array into the library.
+fn read_tool(lib: &mut ToolLibrary, i: usize, t: &Value) -> Result<(), ToolLibraryError> {
+    {
         let place = format!("data[{i}]");
         let number = t
             .pointer("/post-process/number")
@@ -184,11 +279,11 @@ pub(super) fn read(text: &str) -> Result<ToolLibrary, ToolLibraryError> {
                 "a drill is cut as a cone of its point angle; its chisel edge is not modelled",
             );
         }
-        tool.feed_per_tooth = preset_feed_per_tooth(&mut lib, &name, t, unit)?;
-        super::note_defaults(&mut lib, &name, &tool, &given);
+        tool.feed_per_tooth = preset_feed_per_tooth(lib, &name, t, unit)?;
+        super::note_defaults(lib, &name, &tool, &given);
         lib.insert(number, tool, &name)?;
     }
-    Ok(lib)
+    Ok(())
 }
 
 /// The feed per tooth of the tool's presets (`start-values.presets[].f_z`, in the tool's

@@ -38,6 +38,28 @@ pub struct ImportReport {
     pub unmodelled_omitted: usize,
     #[serde(skip_serializing_if = "is_zero")]
     pub assumed_omitted: usize,
+    /// Notes of each kind per field, every note counted (kept or omitted), for the first
+    /// [`MAX_FIELDS`] fields named; notes on further fields are counted under
+    /// [`OTHER_FIELDS`] (a file may name a million fields).
+    pub unmodelled_by_field: BTreeMap<String, usize>,
+    pub assumed_by_field: BTreeMap<String, usize>,
+}
+
+/// Fields counted by name in a report's `*_by_field`.
+pub const MAX_FIELDS: usize = 500;
+
+/// The `*_by_field` key of the notes on fields past the first [`MAX_FIELDS`].
+pub const OTHER_FIELDS: &str = "(other fields)";
+
+/// Counts one note on `field`, by name while fewer than [`MAX_FIELDS`] are named.
+fn count_field(counts: &mut BTreeMap<String, usize>, field: &str) {
+    if let Some(n) = counts.get_mut(field) {
+        *n += 1;
+    } else if counts.len() < MAX_FIELDS {
+        counts.insert(field.to_string(), 1);
+    } else {
+        *counts.entry(OTHER_FIELDS.to_string()).or_default() += 1;
+    }
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -129,6 +151,7 @@ impl ToolLibrary {
     }
 
     fn unmodelled(&mut self, tool: &str, field: &str, note: impl Into<String>) {
+        count_field(&mut self.report.unmodelled_by_field, field);
         if self.report.unmodelled.len() >= MAX_NOTES {
             self.report.unmodelled_omitted += 1;
             return;
@@ -141,6 +164,7 @@ impl ToolLibrary {
     }
 
     fn assumed(&mut self, tool: &str, field: &str, note: impl Into<String>) {
+        count_field(&mut self.report.assumed_by_field, field);
         if self.report.assumed.len() >= MAX_NOTES {
             self.report.assumed_omitted += 1;
             return;
