@@ -346,3 +346,47 @@ fn an_operation_that_chooses_its_spindle_speed_cuts_what_the_last_left_once() {
         .unwrap()
         .contains(&format!("S{}", sp.chosen_rpm as i64)));
 }
+
+/// Records the last progress report.
+#[derive(Default)]
+struct Last(std::sync::Mutex<(u64, u64)>);
+
+impl Progress for Last {
+    fn report(&self, done: u64, total: u64) {
+        *self.0.lock().unwrap() = (done, total);
+    }
+}
+
+#[test]
+fn progress_gives_each_operation_its_programs_share() {
+    // A finish whose program is five times the rough's: when the rough is done, a sixth of
+    // the process is (an equal share would say half).
+    let rough = rough();
+    let mut finish = finish();
+    let moves = "G1 X-10 F600\nG1 X110\n".repeat(5 * rough.program.len() / 22 + 1);
+    finish.program = format!("G90 G21\nS8000 M3\nG0 X-10 Y3 Z5\nG1 Z-5 F400\n{moves}G0 Z5\nM30\n");
+    let (l0, l1) = (rough.program.len() as f64, finish.program.len() as f64);
+    assert!(l1 > 4.0 * l0, "{l0} {l1}");
+    let progress = Last::default();
+    let mut at_first = None;
+    run_process(
+        &process(vec![rough, finish]),
+        &CancelFlag::new(),
+        &progress,
+        &mut |i, _| {
+            if i == 0 {
+                at_first = Some(*progress.0.lock().unwrap());
+            }
+        },
+    )
+    .expect("the process runs");
+    let (done, total) = at_first.expect("operation 1 finished");
+    let share = done as f64 / total as f64;
+    assert!(
+        (share - l0 / (l0 + l1)).abs() < 1e-3,
+        "{share} vs {}",
+        l0 / (l0 + l1)
+    );
+    let (done, total) = *progress.0.lock().unwrap();
+    assert_eq!(done, total, "the whole process is done at its end");
+}
