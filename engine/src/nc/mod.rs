@@ -397,9 +397,36 @@ pub struct Interpretation {
     pub library_files: Vec<String>,
 }
 
-/// Parse and interpret a program. Same result as [`Program::parse`] then
+/// Parse and interpret a program (a program without control flow or calls a window of
+/// blocks at a time, see [`interpret_each`]). Same result as [`Program::parse`] then
 /// [`interpret_program`], without building the lossless tree the interpreter does not need.
 pub fn interpret(source: &str, options: &InterpretOptions) -> Result<Interpretation, Diagnostics> {
-    let program = view::CompactProgram::parse(source)?;
-    interp::interpret_view(&program.view(source), options)
+    let mut moves = Vec::new();
+    let mut out = interpret_each(source, options, &mut |m| moves.push(m))?;
+    out.moves = moves;
+    Ok(out)
+}
+
+/// [`interpret`], handing each move to `on_move` in program order as soon as it is final
+/// (the result's `moves` is empty). A program without control flow or calls is read a
+/// window of blocks at a time, so the interpreter's memory does not grow with its length;
+/// on an error, the moves before it have been handed out.
+pub fn interpret_each(
+    source: &str,
+    options: &InterpretOptions,
+    on_move: &mut dyn FnMut(Move),
+) -> Result<Interpretation, Diagnostics> {
+    match interp::scan(source)? {
+        interp::Scan::Straight(summary, lines) => {
+            interp::interpret_streamed(source, &summary, lines, options, on_move)
+        }
+        interp::Scan::Jumps => {
+            let program = view::CompactProgram::parse(source)?;
+            let mut out = interp::interpret_view(&program.view(source), options)?;
+            for m in out.moves.drain(..) {
+                on_move(m);
+            }
+            Ok(out)
+        }
+    }
 }

@@ -254,7 +254,7 @@ impl Interp<'_> {
     }
 
     fn enqueue(&mut self, mv: Move, kind: QueuedKind) -> R<()> {
-        if self.moves.len() + self.comp_mut().queue.len() >= self.opts.max_moves {
+        if self.moves_sent + self.moves.len() + self.comp_mut().queue.len() >= self.opts.max_moves {
             return self.push_now(mv);
         }
         self.comp_mut().queue.push(Queued { mv, kind });
