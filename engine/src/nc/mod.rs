@@ -59,6 +59,9 @@
 //!   line itself, with a corner to the next move), so `G41 X-r` into a `G3 I r` helical hole
 //!   works. Types B and C (parameters SUP/SUV) and Fanuc's cancel types are not modelled:
 //!   the exit is LinuxCNC's (a line from the compensated point to the programmed end).
+//!   The Fanuc dialect's gouge check on compensated arcs is the control's interference check:
+//!   refused when the compensated arc turns more than 180 degrees from the programmed one
+//!   (LinuxCNC refuses one longer than programmed, and runs one that goes round the other way).
 //!
 //! * Coordinate transforms (`interp/transforms.rs`, `interp/polar.rs`): LinuxCNC's G10 L2 R
 //!   rotation of a coordinate system, G52 (LinuxCNC: the G92 offsets; Fanuc: a local offset of
