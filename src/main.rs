@@ -10,6 +10,7 @@ mod job_library;
 mod job_limits;
 mod jobs;
 mod metrics;
+mod move_rows;
 mod problem;
 mod process_cli;
 mod program_args;
@@ -64,7 +65,8 @@ enum Command {
     Serve(ServeArgs),
     /// Run workers only, against the same database as a `serve`.
     Worker(WorkerArgs),
-    /// Interpret an NC program (G-code or APT/CLS) and print one JSON object per move.
+    /// Interpret an NC program (G-code or APT/CLS) and print one JSON object per move, as
+    /// the moves are made: on an error while running, the moves before it have been printed.
     Interpret(InterpretArgs),
     /// Simulate a program offline: writes summary.json, blocks.csv and stock.stl.
     Run(run_cli::RunArgs),
@@ -629,11 +631,33 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             }
         }
     }
-    let result = if validate::looks_like_cls(&text) {
-        millsim_engine::cl::read_cls(&text)
-    } else {
-        nc::interpret(&text, &options)
+    let stdout = std::io::stdout();
+    let mut w = stdout.lock();
+    // Moves are printed as they are made, so that memory stays bounded whatever the
+    // program's length, in blocks of about 64 KiB; the first write error stops the printing.
+    let mut rows = Vec::with_capacity(1 << 17);
+    let mut write_failed = false;
+    let mut print = |m: nc::Move| {
+        if write_failed {
+            return;
+        }
+        move_rows::write_row(&mut rows, &m);
+        if rows.len() >= 1 << 16 {
+            write_failed = w.write_all(&rows).is_err();
+            rows.clear();
+        }
     };
+    let result = if validate::looks_like_cls(&text) {
+        millsim_engine::cl::read_cls(&text).map(|mut out| {
+            out.moves.drain(..).for_each(&mut print);
+            out
+        })
+    } else {
+        nc::interpret_each(&text, &options, &mut print)
+    };
+    if write_failed || w.write_all(&rows).is_err() || w.flush().is_err() {
+        return ExitCode::FAILURE;
+    }
     match result {
         Ok(out) => {
             for (i, f) in out.library_files.iter().enumerate() {
@@ -641,16 +665,6 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             }
             for w in &out.warnings {
                 eprintln!("{file}:{w} (warning)");
-            }
-            let stdout = std::io::stdout();
-            let mut w = std::io::BufWriter::new(stdout.lock());
-            for m in &out.moves {
-                if serde_json::to_writer(&mut w, m).is_err() || w.write_all(b"\n").is_err() {
-                    return ExitCode::FAILURE;
-                }
-            }
-            if w.flush().is_err() {
-                return ExitCode::FAILURE;
             }
             ExitCode::SUCCESS
         }

@@ -21,6 +21,11 @@ pub struct ProcessArgs {
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
+    /// The programs' options, as `millsim interpret` and `run` take them: added to the
+    /// document's options (a field the document gives otherwise is refused); `--library`
+    /// serves every operation.
+    #[command(flatten)]
+    program_options: crate::program_args::ProgramArgs,
 }
 
 /// Input `name` (a field of the document, for errors) read from `path` as a resource of
@@ -75,6 +80,36 @@ pub fn run(args: ProcessArgs) -> Result<(), String> {
         Some(o @ Value::Object(_)) => o.clone(),
         Some(_) => return Err(format!("{label}: options: must be an object")),
     };
+    // The command line's program options join the document's; a contradiction is refused.
+    let mut flags = Map::new();
+    args.program_options.insert_into(&mut flags)?;
+    if let Value::Object(o) = &mut options {
+        for (k, v) in flags {
+            match o.get(&k) {
+                Some(d) if *d != v => {
+                    return Err(format!(
+                        "{label}: options.{k} is {d} and the command line gives {v}"
+                    ))
+                }
+                _ => {
+                    o.insert(k, v);
+                }
+            }
+        }
+    }
+    if let Some(library) = &args.program_options.library {
+        let files = millsim_engine::nc::ProgramLibrary::from_dir(library)
+            .map_err(|e| format!("--library {e}"))?;
+        if let Some(Value::Array(ops)) = given.get_mut("operations") {
+            for op in ops.iter_mut().filter_map(Value::as_object_mut) {
+                for f in files.files() {
+                    let path = library.join(&f.name).display().to_string();
+                    op.entry(format!("library/{}", f.name))
+                        .or_insert(Value::String(path));
+                }
+            }
+        }
+    }
     let kind = JobKind::Process;
     let problem = |p: crate::problem::Problem| {
         let field = p

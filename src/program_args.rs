@@ -1,4 +1,5 @@
-//! The program options every command that reads an NC program takes (`interpret`, `run`),
+//! The program options every command that reads an NC program takes (`interpret`, `run`,
+//! `process`; `post` reads APT/CLS, which they do not concern),
 //! defined once: the same set the jobs take ([`jobs::InterpretOptions`]), so a program that
 //! runs offline runs the same way through the service.
 

@@ -126,3 +126,62 @@ fn a_bad_document_names_the_field_and_the_file() {
         "{stderr}"
     );
 }
+
+/// `millsim process` takes the program options `interpret` and `run` take: `--block-delete`
+/// skips the rough program's `/` line (its row is gone), and an option the document
+/// contradicts is refused naming both.
+#[test]
+fn program_options_reach_the_process() {
+    let dir = tempfile::tempdir().unwrap();
+    write_inputs(dir.path());
+    std::fs::write(
+        dir.path().join("rough.nc"),
+        "G90 G21\nS8000 M3\nG0 X-10 Y0 Z5\nG1 Z-3 F500\n/G1 X20 F800\nG1 X110 F800\nG0 Z5\nM30\n",
+    )
+    .unwrap();
+    let doc = json!({"kind": "process",
+        "inputs": {"stock": "stock.json", "operations": [
+            {"name": "rough", "program": "rough.nc", "tool": "tools/d10.json"}]},
+        "options": {"material": "Al7075-T6", "cell_mm": 1.0}});
+    let lines = |with: &[&str]| -> Vec<String> {
+        let out_dir = dir.path().join(format!("out{}", with.len()));
+        let path = dir.path().join("process.json");
+        std::fs::write(&path, doc.to_string()).unwrap();
+        let out = Command::new(BIN)
+            .arg("process")
+            .arg(&path)
+            .arg("--out")
+            .arg(&out_dir)
+            .args(with)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let csv = std::fs::read_to_string(out_dir.join("blocks.csv")).unwrap();
+        let mut rows = csv.lines();
+        let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+        let at = header.iter().position(|h| *h == "line").expect("a line column");
+        rows.map(|r| r.split(',').nth(at).unwrap().to_string()).collect()
+    };
+    assert!(lines(&[]).contains(&"5".to_string()));
+    assert!(!lines(&["--block-delete"]).contains(&"5".to_string()));
+    let contradicted = json!({"kind": "process",
+        "inputs": {"stock": "stock.json", "operations": [
+            {"program": "rough.nc", "tool": "tools/d10.json"}]},
+        "options": {"material": "Al7075-T6", "dialect": "linuxcnc"}});
+    let path = dir.path().join("process.json");
+    std::fs::write(&path, contradicted.to_string()).unwrap();
+    let out = Command::new(BIN)
+        .arg("process")
+        .arg(&path)
+        .arg("--out")
+        .arg(dir.path().join("out9"))
+        .args(["--dialect", "fanuc"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("options.dialect is \"linuxcnc\"") && stderr.contains("\"fanuc\""),
+        "{stderr}"
+    );
+}

@@ -592,6 +592,65 @@ fn cutter_compensation_start_up_type_a() {
     assert!(msg.contains("gouging"), "{msg}");
 }
 
+/// The Fanuc interference check on compensated arcs (the operator's manual, cutter
+/// compensation "interference check"): an inside corner from a line into an arc larger than
+/// the tool runs to the intersection of the offset line and the offset arc; an arc smaller
+/// than the tool on the inside alarms; a compensated arc turning more than 180 degrees away
+/// from the programmed one (round the other way) alarms, which LinuxCNC runs as a near full
+/// circle.
+#[test]
+fn compensated_arcs_follow_the_fanuc_interference_check() {
+    let opts = |d: Dialect| InterpretOptions {
+        tool_diameters: [(1, 10.0)].into_iter().collect(),
+        ..dialect(d)
+    };
+    // G41 along +X to (50, 0), then G3 R20 about (30, 0) up to (30, 20): an inside corner
+    // (the arc starts along +Y). Tool radius 5: the offset line is y = 5 and the offset arc
+    // has radius 15 about (30, 0); they meet at x = 30 + sqrt(15^2 - 5^2) = 44.1421.
+    let src = "O1\nG21 G90 G17 G0 X-20. Y-20.\nG41 D1 G1 X0 Y0 F500\nG1 X50.\n\
+               G3 X30. Y20. I-20. J0\nG1 X0\nG40 G0 X-20. Y30.\nM30\n";
+    let i = run_with(src, &opts(Dialect::Fanuc));
+    let m = motions(&i);
+    let x = 30.0 + (15.0f64 * 15.0 - 5.0 * 5.0).sqrt();
+    let line4 = m.iter().find(|m| m.line == 4).expect("line 4's move");
+    assert!(
+        (line4.end[0] - x).abs() < 1e-9 && (line4.end[1] - 5.0).abs() < 1e-9,
+        "{:?}",
+        line4.end
+    );
+    // The arc runs from there about the programmed centre to 5 below its end, (30, 15).
+    let arc = m.iter().find(|m| m.line == 5).expect("line 5's arc");
+    assert_eq!(arc.kind, MoveKind::Arc);
+    assert!((arc.start[0] - x).abs() < 1e-9 && (arc.start[1] - 5.0).abs() < 1e-9);
+    assert!((arc.end[0] - 30.0).abs() < 1e-9 && (arc.end[1] - 15.0).abs() < 1e-9);
+    let c = arc.center.expect("centre");
+    assert!((c[0] - 30.0).abs() < 1e-9 && c[1].abs() < 1e-9, "{c:?}");
+    // The same corner into an R2 arc with the 5 mm radius tool: the tool does not fit.
+    let small = "O1\nG21 G90 G17 G0 X-20. Y-20.\nG41 D1 G1 X0 Y0 F500\nG1 X50.\n\
+                 G3 X48. Y2. R2.\nG1 X0\nG40 G0 X-20. Y30.\nM30\n";
+    let (line, _, msg) = fail(small, &opts(Dialect::Fanuc));
+    assert_eq!(line, 5);
+    assert!(msg.contains("arc on line 5") && msg.contains("does not fit"), "{msg}");
+    // G42 into a 12.5 degree G2 arc whose offset arc the corner before it cuts past its end:
+    // the compensated arc would run 357.6 degrees round the other way. Fanuc alarms;
+    // LinuxCNC (rs274 gives the same arc) runs it.
+    let reversed = "O1\nG21 G90 G17 G0 X-20. Y20.\nG42 D1 G1 X0 Y0 F500\nG1 X50. Y0\n\
+                    G2 X50.5831 Y-4.1377 I-18.6610 J-4.7395\nG1 X53.7092 Y-104.0888\n\
+                    G40 G0 X55.2723 Y-154.0643\nM30\n";
+    let (_, _, msg) = fail(reversed, &opts(Dialect::Fanuc));
+    assert!(
+        msg.contains("compensated arc of line 5") && msg.contains("interference"),
+        "{msg}"
+    );
+    let l = run_with(&reversed.replacen("O1\n", "", 1).replace("M30", "M2"), &opts(Dialect::LinuxCnc));
+    let arc = motions(&l)
+        .into_iter()
+        .find(|m| m.line == 4)
+        .expect("the arc, in LinuxCNC");
+    let sweep = arc.arc.as_ref().expect("arc geometry").sweep;
+    assert!(sweep.abs().to_degrees() > 350.0, "{sweep}");
+}
+
 /// A macro run on its own divides by its vacant arguments: the error names the variable.
 #[test]
 fn division_by_a_vacant_argument_names_it() {

@@ -59,6 +59,9 @@
 //!   line itself, with a corner to the next move), so `G41 X-r` into a `G3 I r` helical hole
 //!   works. Types B and C (parameters SUP/SUV) and Fanuc's cancel types are not modelled:
 //!   the exit is LinuxCNC's (a line from the compensated point to the programmed end).
+//!   The Fanuc dialect's gouge check on compensated arcs is the control's interference check:
+//!   refused when the compensated arc turns more than 180 degrees from the programmed one
+//!   (LinuxCNC refuses one longer than programmed, and runs one that goes round the other way).
 //!
 //! * Coordinate transforms (`interp/transforms.rs`, `interp/polar.rs`): LinuxCNC's G10 L2 R
 //!   rotation of a coordinate system, G52 (LinuxCNC: the G92 offsets; Fanuc: a local offset of
@@ -397,9 +400,36 @@ pub struct Interpretation {
     pub library_files: Vec<String>,
 }
 
-/// Parse and interpret a program. Same result as [`Program::parse`] then
+/// Parse and interpret a program (a program without control flow or calls a window of
+/// blocks at a time, see [`interpret_each`]). Same result as [`Program::parse`] then
 /// [`interpret_program`], without building the lossless tree the interpreter does not need.
 pub fn interpret(source: &str, options: &InterpretOptions) -> Result<Interpretation, Diagnostics> {
-    let program = view::CompactProgram::parse(source)?;
-    interp::interpret_view(&program.view(source), options)
+    let mut moves = Vec::new();
+    let mut out = interpret_each(source, options, &mut |m| moves.push(m))?;
+    out.moves = moves;
+    Ok(out)
+}
+
+/// [`interpret`], handing each move to `on_move` in program order as soon as it is final
+/// (the result's `moves` is empty). A program without control flow or calls is read a
+/// window of blocks at a time, so the interpreter's memory does not grow with its length;
+/// on an error, the moves before it have been handed out.
+pub fn interpret_each(
+    source: &str,
+    options: &InterpretOptions,
+    on_move: &mut dyn FnMut(Move),
+) -> Result<Interpretation, Diagnostics> {
+    match interp::scan(source)? {
+        interp::Scan::Straight(summary, lines) => {
+            interp::interpret_streamed(source, &summary, lines, options, on_move)
+        }
+        interp::Scan::Jumps => {
+            let program = view::CompactProgram::parse(source)?;
+            let mut out = interp::interpret_view(&program.view(source), options)?;
+            for m in out.moves.drain(..) {
+                on_move(m);
+            }
+            Ok(out)
+        }
+    }
 }

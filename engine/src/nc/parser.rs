@@ -482,13 +482,45 @@ pub(crate) fn line_count(source: &str) -> usize {
 /// [`Summary::deferred`], raised only if the line is executed: rs274 parses a line when it
 /// runs it, so a typo in a branch never taken does not stop the program.
 pub(crate) fn parse_blocks(source: &str, sink: &mut impl BlockSink) -> (Summary, Vec<Diagnostic>) {
+    parse_lines(source, &mut LineCursor::default(), usize::MAX, sink)
+}
+
+/// Where a parse of part of a source stopped: the next line's byte, index, and the `%`
+/// lines seen (after the second, every line is after the end).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct LineCursor {
+    pub start: usize,
+    pub index: usize,
+    pub percents: u32,
+}
+
+impl LineCursor {
+    /// No line is left.
+    pub fn at_end(&self, source: &str) -> bool {
+        self.start >= source.len()
+    }
+}
+
+/// [`parse_blocks`] of at most `max_lines` lines from `cursor`, which is left at the next
+/// line: a program is parsed a window at a time (see `view::CompactProgram::parse_window`).
+/// Block indices, lines and spans are those of the whole source.
+pub(crate) fn parse_lines(
+    source: &str,
+    cursor: &mut LineCursor,
+    max_lines: usize,
+    sink: &mut impl BlockSink,
+) -> (Summary, Vec<Diagnostic>) {
     let mut errors = Vec::new();
     let mut summary = Summary::default();
     let bytes = source.as_bytes();
-    let mut start = 0;
-    let mut index = 0;
-    let mut percents = 0;
-    while start < source.len() {
+    let LineCursor {
+        mut start,
+        mut index,
+        mut percents,
+    } = *cursor;
+    let mut lines = 0;
+    while start < source.len() && lines < max_lines {
+        lines += 1;
         // A plain loop: G-code lines are short, shorter than memchr's set-up pays for.
         let nl = bytes[start..].iter().position(|&b| b == b'\n');
         let (content_end, end) = match nl {
@@ -536,6 +568,11 @@ pub(crate) fn parse_blocks(source: &str, sink: &mut impl BlockSink) -> (Summary,
         start = end;
         index += 1;
     }
+    *cursor = LineCursor {
+        start,
+        index,
+        percents,
+    };
     (summary, errors)
 }
 

@@ -406,6 +406,11 @@ pub(crate) struct Summary {
     /// Syntax errors of lines raised only when the line is executed (block index, error),
     /// in block order; see `parser::parse_blocks`.
     pub deferred: Vec<(usize, Diagnostic)>,
+    /// A word that calls or returns (M98, M99, G65, G66) or an M or G word whose number is
+    /// computed (it might be one).
+    pub calls: bool,
+    /// An O word other than a program number (`O1234`): LinuxCNC control flow or calls.
+    pub control_o_words: bool,
 }
 
 impl Summary {
@@ -421,12 +426,44 @@ impl Summary {
             .map(|k| &self.deferred[k].1)
     }
 
+    /// The program runs front to back: no control flow, no calls and at most one program
+    /// number (where the main program starts), so the interpreter may read it a window of
+    /// blocks at a time (see `interp::interpret_streamed`).
+    pub fn straight_line(&self) -> bool {
+        self.macro_blocks.is_empty()
+            && !self.calls
+            && !self.control_o_words
+            && self.o_word_blocks.len() <= 1
+    }
+
+    /// Adds the summary of the lines parsed after this one's.
+    pub fn merge(&mut self, later: Summary) {
+        self.o_word_blocks.extend(later.o_word_blocks);
+        self.macro_blocks.extend(later.macro_blocks);
+        let (d, e) = (&mut self.dialect, later.dialect);
+        d.fanuc |= e.fanuc;
+        d.linuxcnc |= e.linuxcnc;
+        d.fanuc_strong |= e.fanuc_strong;
+        d.linuxcnc_strong |= e.linuxcnc_strong;
+        self.deferred.extend(later.deferred);
+        self.calls |= later.calls;
+        self.control_o_words |= later.control_o_words;
+    }
+
     /// Adds block `index`, whose words are `words` (they may not be in `block.words` yet).
     #[inline]
     pub fn add(&mut self, index: usize, block: &Block, words: &[Word]) {
-        if block.o_word.is_some() {
+        if let Some(o) = &block.o_word {
             self.o_word_blocks.push(index);
+            self.control_o_words |= o.keyword != OKeyword::ProgramNumber;
         }
+        self.calls |= words.iter().any(|w| match w.value {
+            Expr::Number { value, .. } => {
+                (w.letter == 'M' && (value == 98.0 || value == 99.0))
+                    || (w.letter == 'G' && (value == 65.0 || value == 66.0 || value == 66.1))
+            }
+            _ => matches!(w.letter, 'M' | 'G'),
+        });
         if block.macro_line.is_some() {
             self.macro_blocks.push(index);
         }

@@ -60,7 +60,7 @@ impl<'a> ProgramView<'a> {
     pub fn len(&self) -> usize {
         match self.blocks {
             Blocks::Tree(blocks) => blocks.len(),
-            Blocks::Compact(p) => p.blocks.len(),
+            Blocks::Compact(p) => p.base + p.blocks.len(),
         }
     }
 
@@ -81,7 +81,7 @@ impl<'a> ProgramView<'a> {
                 }
             }
             Blocks::Compact(p) => {
-                let b = &p.blocks[index];
+                let b = &p.blocks[index - p.base];
                 let range = |r: &Range<u32>| r.start as usize..r.end as usize;
                 BlockView {
                     line: b.line,
@@ -101,7 +101,16 @@ impl<'a> ProgramView<'a> {
     fn span(&self, index: usize) -> Span {
         match self.blocks {
             Blocks::Tree(blocks) => blocks[index].span,
-            Blocks::Compact(p) => p.blocks[index].span,
+            Blocks::Compact(p) => p.blocks[index - p.base].span,
+        }
+    }
+
+    /// The first block held: 0, or the start of the window a streamed program holds.
+    #[inline]
+    fn first(&self) -> usize {
+        match self.blocks {
+            Blocks::Tree(_) => 0,
+            Blocks::Compact(p) => p.base,
         }
     }
 
@@ -153,12 +162,26 @@ impl<'a> ProgramView<'a> {
 
     /// A diagnostic at a byte offset, at the position [`Program::position`] gives.
     pub fn diag(&self, byte: usize, message: impl Into<String>) -> Diagnostic {
+        let first = self.first();
+        let held = self.len() - first;
         // The block starting at or before `byte` (the first block if none does).
-        let first_after = partition_point(self.len(), |i| self.span(i).start <= byte);
-        let (line, col) = if self.len() == 0 {
+        let first_after = first + partition_point(held, |i| self.span(first + i).start <= byte);
+        let (line, col) = if first > 0 && (held == 0 || first_after == first) {
+            // Before the window a streamed program holds (rare: errors are found on the
+            // blocks being run): counted in the source.
+            let byte = byte.min(self.source.len());
+            let before = &self.source.as_bytes()[..byte];
+            let line_start = before
+                .iter()
+                .rposition(|&b| b == b'\n')
+                .map_or(0, |i| i + 1);
+            let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+            let col = self.source[line_start..byte].chars().count() + 1;
+            (u32::try_from(line).unwrap_or(u32::MAX), col as u32)
+        } else if held == 0 {
             (1, 1)
         } else {
-            let idx = first_after.saturating_sub(1);
+            let idx = first_after.saturating_sub(1).max(first);
             let b = self.block(idx);
             let end = byte.min(self.source.len()).max(b.span.start);
             let col = self.source[b.span.start..end].chars().count() as u32 + 1;
@@ -198,6 +221,9 @@ struct CompactBlock {
 
 /// The parsed program without the lossless tree: what [`ProgramView`] needs, in a few vectors.
 pub(crate) struct CompactProgram {
+    /// Index of `blocks[0]` in the whole program: 0, or where a window starts (a streamed
+    /// program is held a window of blocks at a time).
+    base: usize,
     blocks: Vec<CompactBlock>,
     words: Vec<Word>,
     assignments: Vec<Assignment>,
@@ -213,6 +239,7 @@ impl CompactProgram {
     pub fn parse(source: &str) -> Result<CompactProgram, Diagnostics> {
         let lines = parser::line_count(source);
         let mut program = CompactProgram {
+            base: 0,
             blocks: Vec::with_capacity(lines),
             // CAM output has one or two words per line; the vector grows if not.
             words: Vec::with_capacity(2 * lines),
@@ -228,6 +255,50 @@ impl CompactProgram {
         }
         program.summary = summary;
         Ok(program)
+    }
+
+    /// No blocks: a window before its first parse.
+    pub fn empty() -> CompactProgram {
+        CompactProgram {
+            base: 0,
+            blocks: Vec::new(),
+            words: Vec::new(),
+            assignments: Vec::new(),
+            o_words: Vec::new(),
+            macro_lines: Vec::new(),
+            summary: Summary::default(),
+            line_words: 0,
+        }
+    }
+
+    /// Parse up to `max_lines` lines of `source` from `cursor` (left at the next line), in
+    /// place of the blocks held (their vectors reused) or, with `append`, after them. The
+    /// syntax errors that fail a whole program are returned (a streamed program was checked
+    /// for them before it runs); deferred ones are in the window's summary.
+    pub fn parse_window(
+        &mut self,
+        source: &str,
+        cursor: &mut parser::LineCursor,
+        max_lines: usize,
+        append: bool,
+    ) -> Result<(), Diagnostics> {
+        if !append || self.blocks.is_empty() {
+            self.base = cursor.index;
+            self.blocks.clear();
+            self.words.clear();
+            self.assignments.clear();
+            self.o_words.clear();
+            self.macro_lines.clear();
+            self.summary = Summary::default();
+            self.line_words = 0;
+        }
+        let (summary, errors) = parser::parse_lines(source, cursor, max_lines, self);
+        self.summary.merge(summary);
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(Diagnostics(errors))
+        }
     }
 
     /// The view of this program; `source` is the text it was parsed from.

@@ -11,7 +11,9 @@
 //!   (convex) corner gets an arc around the programmed corner (a rapid gets a straight), an
 //!   inside (concave) corner moves the waiting move's end back to where the tool touches both
 //!   sides. A move whose end would have to go back past its start would gouge: refused, naming
-//!   the line.
+//!   the line. A compensated arc: LinuxCNC refuses it longer than programmed; the Fanuc
+//!   dialect refuses it more than 180 degrees from the programmed sweep (the control's
+//!   interference check), also where no corner moved its end.
 //! * G40 flushes the queue; the next move (a line) goes from the compensated position to its
 //!   programmed end. Offsets, cycles, G28/G30/G53 and tool changes are refused while it is on.
 
@@ -243,6 +245,24 @@ impl Interp<'_> {
         let c = self.comp_mut();
         c.endpoint = None;
         let queue = std::mem::take(&mut c.queue);
+        if self.fanuc {
+            // Fanuc checks every compensated arc, also one whose ends no corner moved (a
+            // start moved by the corner before it past its end).
+            for q in &queue {
+                if let QueuedKind::Arc {
+                    center,
+                    turn,
+                    sweep,
+                } = q.kind
+                {
+                    let from = self.xy(&self.from_machine(q.mv.start));
+                    let to = self.xy(&self.from_machine(q.mv.end));
+                    if sweep != 0.0 {
+                        self.fanuc_arc_check(q.mv.line, find_turn(from, center, turn, to), sweep)?;
+                    }
+                }
+            }
+        }
         for q in queue {
             self.push_now(q.mv)?;
         }
@@ -254,7 +274,7 @@ impl Interp<'_> {
     }
 
     fn enqueue(&mut self, mv: Move, kind: QueuedKind) -> R<()> {
-        if self.moves.len() + self.comp_mut().queue.len() >= self.opts.max_moves {
+        if self.moves_sent + self.moves.len() + self.comp_mut().queue.len() >= self.opts.max_moves {
             return self.push_now(mv);
         }
         self.comp_mut().queue.push(Queued { mv, kind });
@@ -299,8 +319,12 @@ impl Interp<'_> {
                     let start_prog = self.from_machine(q.mv.start);
                     let from = endpoint.unwrap_or(self.xy(&start_prog));
                     let l2 = find_turn(from, *center, *turn, p);
-                    if *sweep != 0.0 && endpoint.is_some() && l2.abs() > sweep.abs() + 0.001 {
-                        return Err(self.comp_gouge(line, format!("the compensated arc of line {line} cannot reach this inside corner without gouging")));
+                    if *sweep != 0.0 && endpoint.is_some() {
+                        if self.fanuc {
+                            self.fanuc_arc_check(line, l2, *sweep)?;
+                        } else if l2.abs() > sweep.abs() + 0.001 {
+                            return Err(self.comp_gouge(line, format!("the compensated arc of line {line} cannot reach this inside corner without gouging")));
+                        }
                     }
                     // The arc again with its new end (through the transforms, if any).
                     let moved = self.arc_move(
@@ -372,7 +396,23 @@ impl Interp<'_> {
     fn check_tool_fits(&self, radius: f64, arc_radius: f64) -> R<()> {
         if arc_radius <= radius {
             return Err(self.err_block(format!(
-                "cutter radius compensation: the tool radius ({radius}) is not less than the arc radius ({arc_radius:.4}): the tool does not fit inside this arc"
+                "cutter radius compensation: the tool radius ({radius}) is not less than the radius ({arc_radius:.4}) of the arc on line {}: the tool does not fit inside this arc",
+                self.cur_line
+            )));
+        }
+        Ok(())
+    }
+
+    /// Fanuc's interference check on a compensated arc (the control's alarm): its sweep `l2`
+    /// more than 180 degrees from the programmed `sweep` (the tool would go round the other
+    /// way). A compensated arc longer or shorter than programmed is run otherwise; LinuxCNC
+    /// refuses any compensated arc longer than its programmed one.
+    fn fanuc_arc_check(&self, line: u32, l2: f64, sweep: f64) -> R<()> {
+        if (l2 - sweep).abs() > PI {
+            return Err(self.comp_gouge(line, format!(
+                "the compensated arc of line {line} would turn {:.1} degrees where the program turns {:.1} (more than 180 apart: interference, the tool would gouge)",
+                l2.to_degrees(),
+                sweep.to_degrees()
             )));
         }
         Ok(())

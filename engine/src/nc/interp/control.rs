@@ -95,6 +95,19 @@ pub(super) struct ControlMap {
     pub(super) program_starts: Vec<usize>,
 }
 
+impl ControlMap {
+    /// The map of a program whose only O word is its program number, on block `at` (the
+    /// pre-scan's for it, without the blocks).
+    pub(super) fn program_number_only(at: Option<usize>) -> ControlMap {
+        ControlMap {
+            links: at.map(|i| (i, Link::ProgramNumber)).into_iter().collect(),
+            subs: HashMap::new(),
+            programs: HashMap::new(),
+            program_starts: at.into_iter().collect(),
+        }
+    }
+}
+
 pub(super) fn prescan(prog: &ProgramView) -> Result<ControlMap, Diagnostics> {
     #[derive(Clone)]
     struct Open {

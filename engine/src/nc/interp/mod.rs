@@ -24,6 +24,7 @@ mod modal;
 mod params;
 mod polar;
 mod splines;
+mod stream;
 mod subprograms;
 mod tilted_plane;
 mod transforms;
@@ -31,6 +32,7 @@ mod units;
 mod words;
 
 use control::{prescan, ControlMap, Frame};
+pub(crate) use stream::{interpret_streamed, scan, Scan};
 use corners::PendingCorner;
 use modal::{Modal, Motion, Plane};
 use words::{letter_index, Words};
@@ -136,6 +138,8 @@ struct Interp<'p> {
     frames: Vec<Frame>,
     repeat_counts: HashMap<(usize, usize), f64>,
     moves: Vec<Move>,
+    /// Moves already handed out of `moves` (a streamed program's, see `stream.rs`).
+    moves_sent: usize,
     warnings: Vec<Diagnostic>,
     pending_corner: Option<PendingCorner>,
     /// M70 saved state.
@@ -177,6 +181,13 @@ struct Interp<'p> {
 
 type R<T> = Result<T, Diagnostic>;
 
+/// Where a run stands: the next block and the blocks run so far (`max_blocks`).
+#[derive(Clone, Copy, Debug, Default)]
+struct RunPosition {
+    pc: usize,
+    steps: usize,
+}
+
 /// Interpret a parsed program.
 pub fn interpret_program(
     prog: &Program,
@@ -193,7 +204,7 @@ pub(crate) fn interpret_view(
     let fanuc = match options.dialect {
         Dialect::Fanuc => true,
         Dialect::LinuxCnc => false,
-        Dialect::Auto => detect_fanuc(prog),
+        Dialect::Auto => detect_fanuc(prog.summary()),
     };
     let Some(library) = options.library.as_deref().filter(|l| !l.is_empty()) else {
         return run_units(prog, &control, &[], fanuc, options).map_err(|(d, _)| d);
@@ -228,143 +239,177 @@ fn run_units(
     fanuc: bool,
     options: &InterpretOptions,
 ) -> Result<Interpretation, (Diagnostics, Option<usize>)> {
-    let mut it = Interp {
+    let mut it = Interp::new(
         prog,
-        deferred_here: !prog.summary().deferred.is_empty(),
         control,
-        main: prog,
-        main_control: control,
         lib,
-        unit: 0,
-        next_unit: None,
-        site: None,
-        missing: None,
-        opts: options,
         fanuc,
-        corners_without_comma: options.fanuc_corners_without_comma,
-        modal: Modal {
-            metric: true,
-            absolute: true,
-            arc_absolute: false,
-            feed_mode: FeedMode::PerMin,
-            plane: Plane::XY,
-            // LinuxCNC starts in G99 (rs274 retracts to R); a Fanuc control powers up in G98.
-            retract_r_plane: !fanuc,
-            cs: 0,
-            feed_word: 0.0,
-            feed_factor: 1.0,
-            speed: 0.0,
-            spindle: SpindleDir::Off,
-        },
-        // A Fanuc (or Haas) control powers up in G00 (parameter 3402#0 clear): `G43 H1 Z50.`
-        // before any G0 moves at rapid. LinuxCNC starts with no motion mode.
-        motion: fanuc.then_some(Motion::Rapid),
-        motion_prev: None,
-        motion_01: fanuc.then_some(Motion::Rapid),
-        cur: [0.0; 6],
-        g5x: [[0.0; 6]; CS_COUNT],
-        g92: [0.0; 6],
-        g92_applied: true,
-        g52: [0.0; 6],
-        rot_xy: [0.0; CS_COUNT],
-        prog_xf: Default::default(),
-        tilt: None,
-        modal_calls: Vec::new(),
-        nurbs: None,
-        polar_mode: false,
-        polar_last: Default::default(),
-        plain: true,
-        g28: [0.0; 6],
-        g30: [0.0; 6],
-        tlo: None,
-        tcp: false,
-        tool: 0,
-        radius_offset: None,
-        selected_tool: None,
-        selected_tools: Vec::new(),
-        cycle_r: 0.0,
-        cycle_cc: 0.0,
-        cycle_p: 0.0,
-        cycle_q: 0.0,
-        cycle_i: 0.0,
-        cycle_j: 0.0,
-        cycle_k: 0.0,
-        cycle_il: None,
-        params: Params::new(),
-        frames: Vec::new(),
-        repeat_counts: HashMap::new(),
+        options,
+        !prog.summary().deferred.is_empty(),
         // Most programs make about one move per block.
-        moves: Vec::with_capacity(prog.len().min(options.max_moves)),
-        warnings: Vec::new(),
-        pending_corner: None,
-        saved_modal: None,
-        ended: false,
-        cur_block: 0,
-        cur_line: 1,
-        warned_tools: Default::default(),
-        warned_m_codes: Default::default(),
-        tool_lengths: HashMap::new(),
-        tool_length_wear: HashMap::new(),
-        tool_radii: HashMap::new(),
-        tool_radius_wear: HashMap::new(),
-        comp: None,
-        comp_plane: Plane::XY,
-        exit_start: None,
-        jump: None,
-        main_program: None,
-        sequences: HashMap::new(),
-        last_jump: None,
-        spare_gs: Vec::new(),
-        spare_ms: Vec::new(),
-    };
-    if fanuc {
-        it.params.init_fanuc();
-    }
-    // The setup's offsets are there before the first block (and before the start position
-    // is read in the active G54 system), as on the control.
-    for &(k, [x, y, z]) in &options.work_offsets {
-        if k < 9 {
-            it.g5x[k][..3].copy_from_slice(&[x, y, z]);
-        }
-    }
-    if let Some([x, y, z]) = options.start_position {
-        // Only the setup's work offsets can be active yet (the program's have not run).
-        it.cur = it.from_machine([x, y, z, 0.0, 0.0, 0.0]);
-    }
+        prog.len(),
+    );
     match it.run() {
-        Ok(()) => {
-            // The lines with a syntax error the run never reached: the user should know.
-            it.warnings
-                .extend(prog.summary().deferred.iter().map(|(_, d)| {
-                    Diagnostic::new(
-                        d.line,
-                        d.col,
-                        format!(
-                            "{} (this line is never executed, so it does not stop the program)",
-                            d.message
-                        ),
-                    )
-                }));
-            Ok(Interpretation {
-                moves: it.moves,
-                warnings: it.warnings,
-                block_count: prog.len(),
-                selected_tools: it.selected_tools,
-                library_files: lib.iter().map(|u| u.name.to_string()).collect(),
-            })
-        }
+        Ok(()) => Ok(it.into_interpretation(prog.summary(), prog.len())),
         Err(d) => Err((Diagnostics(vec![d]), it.missing)),
+    }
+}
+
+impl<'p> Interp<'p> {
+    /// The interpreter at the program's start: power-up modal state, the setup's work
+    /// offsets and start position. `deferred_here`: the program has lines whose syntax
+    /// error is raised when they run; `move_capacity`: moves expected.
+    fn new(
+        prog: &'p ProgramView<'p>,
+        control: &'p ControlMap,
+        lib: &'p [units::LibUnit<'p>],
+        fanuc: bool,
+        options: &'p InterpretOptions,
+        deferred_here: bool,
+        move_capacity: usize,
+    ) -> Interp<'p> {
+        let mut it = Interp {
+            prog,
+            deferred_here,
+            control,
+            main: prog,
+            main_control: control,
+            lib,
+            unit: 0,
+            next_unit: None,
+            site: None,
+            missing: None,
+            opts: options,
+            fanuc,
+            corners_without_comma: options.fanuc_corners_without_comma,
+            modal: Modal {
+                metric: true,
+                absolute: true,
+                arc_absolute: false,
+                feed_mode: FeedMode::PerMin,
+                plane: Plane::XY,
+                // LinuxCNC starts in G99 (rs274 retracts to R); a Fanuc control powers up in G98.
+                retract_r_plane: !fanuc,
+                cs: 0,
+                feed_word: 0.0,
+                feed_factor: 1.0,
+                speed: 0.0,
+                spindle: SpindleDir::Off,
+            },
+            // A Fanuc (or Haas) control powers up in G00 (parameter 3402#0 clear): `G43 H1 Z50.`
+            // before any G0 moves at rapid. LinuxCNC starts with no motion mode.
+            motion: fanuc.then_some(Motion::Rapid),
+            motion_prev: None,
+            motion_01: fanuc.then_some(Motion::Rapid),
+            cur: [0.0; 6],
+            g5x: [[0.0; 6]; CS_COUNT],
+            g92: [0.0; 6],
+            g92_applied: true,
+            g52: [0.0; 6],
+            rot_xy: [0.0; CS_COUNT],
+            prog_xf: Default::default(),
+            tilt: None,
+            modal_calls: Vec::new(),
+            nurbs: None,
+            polar_mode: false,
+            polar_last: Default::default(),
+            plain: true,
+            g28: [0.0; 6],
+            g30: [0.0; 6],
+            tlo: None,
+            tcp: false,
+            tool: 0,
+            radius_offset: None,
+            selected_tool: None,
+            selected_tools: Vec::new(),
+            cycle_r: 0.0,
+            cycle_cc: 0.0,
+            cycle_p: 0.0,
+            cycle_q: 0.0,
+            cycle_i: 0.0,
+            cycle_j: 0.0,
+            cycle_k: 0.0,
+            cycle_il: None,
+            params: Params::new(),
+            frames: Vec::new(),
+            repeat_counts: HashMap::new(),
+            // Most programs make about one move per block.
+            moves: Vec::with_capacity(move_capacity.min(options.max_moves)),
+            moves_sent: 0,
+            warnings: Vec::new(),
+            pending_corner: None,
+            saved_modal: None,
+            ended: false,
+            cur_block: 0,
+            cur_line: 1,
+            warned_tools: Default::default(),
+            warned_m_codes: Default::default(),
+            tool_lengths: HashMap::new(),
+            tool_length_wear: HashMap::new(),
+            tool_radii: HashMap::new(),
+            tool_radius_wear: HashMap::new(),
+            comp: None,
+            comp_plane: Plane::XY,
+            exit_start: None,
+            jump: None,
+            main_program: None,
+            sequences: HashMap::new(),
+            last_jump: None,
+            spare_gs: Vec::new(),
+            spare_ms: Vec::new(),
+        };
+        if fanuc {
+            it.params.init_fanuc();
+        }
+        // The setup's offsets are there before the first block (and before the start position
+        // is read in the active G54 system), as on the control.
+        for &(k, [x, y, z]) in &options.work_offsets {
+            if k < 9 {
+                it.g5x[k][..3].copy_from_slice(&[x, y, z]);
+            }
+        }
+        if let Some([x, y, z]) = options.start_position {
+            // Only the setup's work offsets can be active yet (the program's have not run).
+            it.cur = it.from_machine([x, y, z, 0.0, 0.0, 0.0]);
+        }
+        it
     }
 }
 
 /// Fanuc macro B or subprogram syntax and no LinuxCNC control lines or named parameters;
 /// or, without either, Fanuc-only syntax (program number, `,R`) and no LinuxCNC-only syntax.
-fn detect_fanuc(prog: &ProgramView) -> bool {
-    let d = &prog.summary().dialect;
+fn detect_fanuc(summary: &super::program::Summary) -> bool {
+    let d = &summary.dialect;
     (d.fanuc_strong && !d.linuxcnc_strong) || (d.fanuc && !d.linuxcnc)
 }
 
 impl Interp<'_> {
+    /// The result of a run that ended well; `summary` is the whole program's.
+    fn into_interpretation(
+        mut self,
+        summary: &super::program::Summary,
+        block_count: usize,
+    ) -> Interpretation {
+        // The lines with a syntax error the run never reached: the user should know.
+        self.warnings.extend(summary.deferred.iter().map(|(_, d)| {
+            Diagnostic::new(
+                d.line,
+                d.col,
+                format!(
+                    "{} (this line is never executed, so it does not stop the program)",
+                    d.message
+                ),
+            )
+        }));
+        Interpretation {
+            moves: self.moves,
+            warnings: self.warnings,
+            block_count,
+            selected_tools: self.selected_tools,
+            library_files: self.lib.iter().map(|u| u.name.to_string()).collect(),
+        }
+    }
+
     fn unit(&self) -> f64 {
         if self.modal.metric {
             1.0
@@ -455,7 +500,7 @@ impl Interp<'_> {
     }
 
     fn push_now(&mut self, m: Move) -> R<()> {
-        if self.moves.len() >= self.opts.max_moves {
+        if self.moves_sent + self.moves.len() >= self.opts.max_moves {
             return Err(self.err_block(format!(
                 "program makes more than {} moves (runaway loop?); interpretation stopped",
                 self.opts.max_moves
@@ -519,8 +564,15 @@ impl Interp<'_> {
     // ----- main loop -----
 
     fn run(&mut self) -> R<()> {
-        let mut pc = 0usize;
-        let mut steps = 0usize;
+        self.run_blocks(&mut RunPosition::default())?;
+        self.finish()
+    }
+
+    /// Runs blocks from `at` on while they are held, and leaves `at` at the next block to
+    /// run. True when the program stopped (M2/M30, past its end `%`), false when it ran past
+    /// the last block held (a streamed program's window, see `stream.rs`).
+    fn run_blocks(&mut self, at: &mut RunPosition) -> R<bool> {
+        let RunPosition { mut pc, mut steps } = *at;
         while pc < self.prog.len() && !self.ended {
             steps += 1;
             let b = self.prog.block(pc);
@@ -542,7 +594,8 @@ impl Interp<'_> {
                 )));
             }
             if b.after_end {
-                break;
+                *at = RunPosition { pc, steps };
+                return Ok(true);
             }
             if b.block_delete && self.opts.block_delete {
                 pc += 1;
@@ -574,6 +627,12 @@ impl Interp<'_> {
                 self.enter_unit(u)?;
             }
         }
+        *at = RunPosition { pc, steps };
+        Ok(self.ended)
+    }
+
+    /// The checks at the end of the program, and the moves compensation still holds.
+    fn finish(&mut self) -> R<()> {
         if self.unit != 0 && !self.ended {
             return Err(self.err_block(
                 "the library program ends without M99 (or endsub) returning to its caller",
