@@ -205,6 +205,11 @@ struct SectionPlanes {
     /// meets only the sphere, where the ray's interval is the swept sphere's (a capsule);
     /// −∞ for other tools.
     ball_below: f64,
+    /// A ball: the highest centre for which the plane stays below the tool's top end (the
+    /// flute length), where `ball_transition` applies; −∞ for other tools.
+    ball_top: f64,
+    /// The axis's part along the rays (a·e).
+    along: f64,
 }
 
 impl FullSection {
@@ -227,15 +232,17 @@ impl FullSection {
             e[fam] = 1.0;
             let margin = r * along.abs() / k;
             let band = (h0 + margin, h1 - margin);
-            let ball_below = body
-                .ball_radius()
-                .map_or(f64::NEG_INFINITY, |rc| rc - margin);
-            (band.0 < band.1 || ball_below > f64::NEG_INFINITY).then_some(SectionPlanes {
+            let ball = body.ball_radius();
+            let ball_below = ball.map_or(f64::NEG_INFINITY, |rc| rc - margin);
+            let ball_top = ball.map_or(f64::NEG_INFINITY, |_| h1 - margin);
+            (band.0 < band.1 || ball.is_some()).then_some(SectionPlanes {
                 n,
                 w: cross(n, e),
                 k,
                 band,
                 ball_below,
+                ball_top,
+                along,
             })
         });
         planes
@@ -266,32 +273,146 @@ impl Sweep<'_> {
         // Where the axis crosses the ray's plane, as heights up it at either end of the move.
         let q = dot(sp.n, sub(o, p0));
         let (t0, t1) = (q / sp.k, (q - dot(sp.n, d)) / sp.k);
-        if t0.max(t1) <= sp.ball_below {
-            let r = self.body.radius;
+        let r = self.body.radius;
+        let p1 = [p0[0] + d[0], p0[1] + d[1], p0[2] + d[2]];
+        let swept_sphere = || {
             let mut e = [0.0; 3];
             e[fam] = 1.0;
             let c0 = [p0[0] + r * a[0], p0[1] + r * a[1], p0[2] + r * a[2]];
             let c1 = [c0[0] + d[0], c0[1] + d[1], c0[2] + d[2]];
-            return Some(line_capsule(o, e, c0, c1, r));
+            line_capsule(o, e, c0, c1, r)
+        };
+        if t0.max(t1) <= sp.ball_below {
+            return Some(swept_sphere());
         }
-        if t0.min(t1) < sp.band.0 || t0.max(t1) > sp.band.1 {
-            return None;
-        }
-        // The ellipses' centres relative to o, squashed: (k·along the ray, across it).
+        // The ellipses' centres relative to o: (along the ray, across it).
         let centre = |p: [f64; 3], t: f64| {
             let c = [
                 p[0] + t * a[0] - o[0],
                 p[1] + t * a[1] - o[1],
                 p[2] + t * a[2] - o[2],
             ];
-            [sp.k * c[fam], dot(sp.w, c)]
+            [c[fam], dot(sp.w, c)]
         };
-        let p1 = [p0[0] + d[0], p0[1] + d[1], p0[2] + d[2]];
-        Some(
-            line_stadium(centre(p0, t0), centre(p1, t1), self.body.radius, 0.0)
-                .map(|(x0, x1)| (x0 / sp.k, x1 / sp.k)),
-        )
+        let (c0, c1) = (centre(p0, t0), centre(p1, t1));
+        if t0.min(t1) < sp.band.0 || t0.max(t1) > sp.band.1 {
+            // A ball whose plane cuts the sphere and the cylinder above it, below the top.
+            if t0.max(t1) <= sp.ball_top && sp.along.abs() > 1e-9 {
+                let rc = r;
+                let cut = ((rc - t0) / sp.along, (rc - t1) / sp.along);
+                return Some(hull(
+                    swept_sphere(),
+                    half_ellipse_ray(c0, c1, cut, sp.along > 0.0, r, sp.k),
+                ));
+            }
+            return None;
+        }
+        let (c0, c1) = ([sp.k * c0[0], c0[1]], [sp.k * c1[0], c1[1]]);
+        Some(line_stadium(c0, c1, r, 0.0).map(|(x0, x1)| (x0 / sp.k, x1 / sp.k)))
     }
+}
+
+/// The line ω = 0 (coordinate σ) against the union over β ∈ [0, 1] of the half-ellipses
+/// {(k·(σ − σ_c))² + (ω − ω_c)² ≤ R², σ − σ_c ≥ γ} (`upper`; ≤ γ otherwise), whose
+/// centre (σ_c, ω_c) = c0 + β·(c1 − c0) and offset γ = γ0 + β·(γ1 − γ0) move linearly: the
+/// part of a ball's section plane above the sphere's centre, swept (see
+/// `Sweep::full_section_ray`). The union is convex (a section of a convex swept body), so
+/// its interval is [min of the lower ends, max of the upper ends] over the β where the
+/// half-ellipse meets the line; the lower end max(σ_c − ρ/k, σ_c + γ) is convex in β and the
+/// upper end σ_c + ρ/k concave (ρ = √(R² − ω_c²)), so each extreme lies at an end of that
+/// β range, where a derivative vanishes, or where the two lower ends cross.
+fn half_ellipse_ray(
+    c0: [f64; 2],
+    c1: [f64; 2],
+    cut: (f64, f64),
+    upper: bool,
+    r: f64,
+    k: f64,
+) -> Option<(f64, f64)> {
+    // The lower side is the upper one with σ mirrored.
+    if !upper {
+        let m = |c: [f64; 2]| [-c[0], c[1]];
+        return half_ellipse_ray(m(c0), m(c1), (-cut.0, -cut.1), true, r, k)
+            .map(|(lo, hi)| (-hi, -lo));
+    }
+    let (s0, s1) = (c0[0], c1[0] - c0[0]);
+    let (w0, w1) = (c0[1], c1[1] - c0[1]);
+    let (g0, g1) = (cut.0, cut.1 - cut.0);
+    let rho = |b: f64| (r * r - (w0 + b * w1).powi(2)).max(0.0).sqrt();
+    // β where the line meets the ellipse at all: |ω_c| ≤ R.
+    let (mut ba, mut bb) = (0.0f64, 1.0f64);
+    if w1.abs() > 1e-15 {
+        let (x, y) = ((-r - w0) / w1, (r - w0) / w1);
+        ba = ba.max(x.min(y));
+        bb = bb.min(x.max(y));
+    } else if w0.abs() > r {
+        return None;
+    }
+    if ba > bb {
+        return None;
+    }
+    // ... and where the cut leaves some of the chord: γ ≤ 0, or (kγ)² + ω_c² ≤ R².
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let mut take = |x: f64, y: f64| {
+        let (x, y) = (x.max(ba), y.min(bb));
+        if x <= y {
+            lo = lo.min(x);
+            hi = hi.max(y);
+        }
+    };
+    if g1.abs() > 1e-15 {
+        let b = -g0 / g1;
+        if g1 > 0.0 {
+            take(f64::NEG_INFINITY, b);
+        } else {
+            take(b, f64::INFINITY);
+        }
+    } else if g0 <= 0.0 {
+        take(f64::NEG_INFINITY, f64::INFINITY);
+    }
+    let (qa, qb, qc) = (
+        k * k * g1 * g1 + w1 * w1,
+        2.0 * (k * k * g0 * g1 + w0 * w1),
+        k * k * g0 * g0 + w0 * w0 - r * r,
+    );
+    if qa > 1e-15 {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            take((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa));
+        }
+    } else if qc <= 0.0 {
+        take(f64::NEG_INFINITY, f64::INFINITY);
+    }
+    let (ba, bb) = (lo, hi);
+    if !(ba <= bb) {
+        return None;
+    }
+    // Candidate β: the ends, the stationary points of σ_c ± ρ/k (ω_c/ρ = ∓k·s1/w1), and
+    // where σ_c − ρ/k = σ_c + γ (ρ = −kγ, on the quadratic's roots).
+    let mut cands = [ba, bb, ba, ba, ba, ba];
+    if w1.abs() > 1e-15 {
+        for (i, m) in [k * s1 / w1, -k * s1 / w1].into_iter().enumerate() {
+            let w = r * m / (1.0 + m * m).sqrt();
+            cands[2 + i] = ((w - w0) / w1).clamp(ba, bb);
+        }
+    }
+    if qa > 1e-15 {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            cands[4] = ((-qb - sq) / (2.0 * qa)).clamp(ba, bb);
+            cands[5] = ((-qb + sq) / (2.0 * qa)).clamp(ba, bb);
+        }
+    }
+    let mut out = (f64::INFINITY, f64::NEG_INFINITY);
+    for b in cands {
+        let (sc, half, g) = (s0 + b * s1, rho(b) / k, g0 + b * g1);
+        out.0 = out.0.min(sc + (-half).max(g));
+        out.1 = out.1.max(sc + half);
+    }
+    (out.0 <= out.1).then_some(out)
 }
 
 /// A ray running up the axis's way (within 60° of it) that crosses the tool's bottom disk
@@ -345,4 +466,85 @@ fn through_the_bottom(
     let s_lb = exit(0.0).max(exit(1.0));
     let top = material.last()?[1];
     (s_lb > s_in && top <= start + s_lb).then_some((start + s_in, start + s_lb))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::sweep::SubMove;
+    use crate::tool::Tool;
+
+    #[test]
+    fn ball_rays_whose_plane_cuts_the_sphere_and_the_cylinder_are_exact() {
+        // A steeply tilted ball, every family: rays whose section plane crosses the axis
+        // within a margin of the sphere's centre (the plane cuts both pieces) against the
+        // solids, hits and misses alike, and enough of them to exercise both sides of the
+        // cut (the axis along the ray and against it).
+        let mut seed = 41u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut t = Tool::ball(6.0, 2);
+        t.flute_length = 20.0;
+        let body = ToolBody::cutting_part(&t);
+        let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
+        let (mut checked, mut along_pos, mut along_neg) = (0, 0, 0);
+        for _ in 0..20_000 {
+            let th = 0.2 + rnd() * 1.2;
+            let ph = rnd() * std::f64::consts::TAU;
+            let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+            let p1 = [rnd() * 2.0 - 1.0, rnd() * 2.0 - 1.0, rnd() - 0.5];
+            let sw = Sweep::new(
+                &body,
+                SubMove {
+                    p0: [0.0; 3],
+                    p1,
+                    axis,
+                },
+            );
+            let fam = (rnd() * 3.0) as usize % 3;
+            let Some(sp) = sw.full_section.as_ref().and_then(|f| f.planes[fam]) else {
+                continue;
+            };
+            // A point near the sphere's centre, 3 mm up the axis.
+            let c = [3.0 * axis[0], 3.0 * axis[1], 3.0 * axis[2]];
+            let (ua, va) = other_axes(fam);
+            let (u, v) = (c[ua] + rnd() * 8.0 - 4.0, c[va] + rnd() * 8.0 - 4.0);
+            let mut o = [0.0; 3];
+            o[ua] = u;
+            o[va] = v;
+            let q = dot(sp.n, o);
+            let (t0, t1) = (q / sp.k, (q - dot(sp.n, p1)) / sp.k);
+            let margin = 3.0 * sp.along.abs() / sp.k;
+            if !(t0.max(t1) > 3.0 - margin && t0.min(t1) < 3.0 + margin) {
+                continue;
+            }
+            let Some(fast) = sw.full_section_ray(fam, u, v) else {
+                continue;
+            };
+            o[fam] = -100.0;
+            let exact = sw.solid_ray(fam, o, 200.0, &full);
+            match (fast, exact) {
+                (Some(f), Some(e)) => assert!(
+                    (f.0 - e.0).abs() < 1e-7 && (f.1 - e.1).abs() < 1e-7,
+                    "{fam} {u} {v} {axis:?} {p1:?}: {f:?} vs {e:?}"
+                ),
+                (None, None) => {}
+                _ => panic!("{fam} {u} {v} {axis:?} {p1:?}: {fast:?} vs {exact:?}"),
+            }
+            checked += 1;
+            if sp.along > 0.0 {
+                along_pos += 1;
+            } else {
+                along_neg += 1;
+            }
+        }
+        assert!(
+            along_pos > 300 && along_neg > 300,
+            "{checked}: {along_pos} {along_neg}"
+        );
+    }
 }
