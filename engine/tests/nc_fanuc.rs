@@ -630,7 +630,10 @@ fn compensated_arcs_follow_the_fanuc_interference_check() {
                  G3 X48. Y2. R2.\nG1 X0\nG40 G0 X-20. Y30.\nM30\n";
     let (line, _, msg) = fail(small, &opts(Dialect::Fanuc));
     assert_eq!(line, 5);
-    assert!(msg.contains("arc on line 5") && msg.contains("does not fit"), "{msg}");
+    assert!(
+        msg.contains("arc on line 5") && msg.contains("does not fit"),
+        "{msg}"
+    );
     // G42 into a 12.5 degree G2 arc whose offset arc the corner before it cuts past its end:
     // the compensated arc would run 357.6 degrees round the other way. Fanuc alarms;
     // LinuxCNC (rs274 gives the same arc) runs it.
@@ -642,7 +645,10 @@ fn compensated_arcs_follow_the_fanuc_interference_check() {
         msg.contains("compensated arc of line 5") && msg.contains("interference"),
         "{msg}"
     );
-    let l = run_with(&reversed.replacen("O1\n", "", 1).replace("M30", "M2"), &opts(Dialect::LinuxCnc));
+    let l = run_with(
+        &reversed.replacen("O1\n", "", 1).replace("M30", "M2"),
+        &opts(Dialect::LinuxCnc),
+    );
     let arc = motions(&l)
         .into_iter()
         .find(|m| m.line == 4)

@@ -32,9 +32,9 @@ mod units;
 mod words;
 
 use control::{prescan, ControlMap, Frame};
-pub(crate) use stream::{interpret_streamed, scan, Scan};
 use corners::PendingCorner;
 use modal::{Modal, Motion, Plane};
+pub(crate) use stream::{interpret_streamed, scan, Scan};
 use words::{letter_index, Words};
 
 /// Executed blocks between two looks at the cancel flag: an atomic load is cheap, but not

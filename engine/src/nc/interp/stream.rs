@@ -80,7 +80,15 @@ pub(crate) fn interpret_streamed(
     let parked = CompactProgram::empty();
     let parked_view = parked.view(source);
     let deferred = !summary.deferred.is_empty();
-    let mut it = Interp::new(&parked_view, &control, &[], fanuc, options, deferred, WINDOW_LINES);
+    let mut it = Interp::new(
+        &parked_view,
+        &control,
+        &[],
+        fanuc,
+        options,
+        deferred,
+        WINDOW_LINES,
+    );
     let mut window = CompactProgram::empty();
     let mut cursor = LineCursor::default();
     let mut at = RunPosition::default();

@@ -230,7 +230,8 @@ impl ForceModel {
 fn covers(p: f64, q: f64, phi_g: f64) -> bool {
     let t = GENERATING_TOLERANCE;
     if phi_g == 0.0 {
-        p <= t || q >= TAU - t || (p <= TAU + t && q >= TAU - t)
+        // At 0 or, the same immersion, at 2π.
+        p <= t || q >= TAU - t
     } else {
         p <= phi_g + t && q >= phi_g - t
     }
