@@ -172,8 +172,8 @@ impl Sweep<'_> {
     }
 }
 
-/// A tilted sweep's sections where they are whole ellipses, prepared once per sweep for
-/// `Sweep::full_section_ray`. Each ray of a family lies in a plane that also holds the
+/// A tilted sweep's sections where they are whole ellipses (and, on a ball, where they cut
+/// the sphere), prepared once per sweep for `Sweep::full_section_ray`. Each ray of a family lies in a plane that also holds the
 /// ray's direction e and the axis's part along it: the plane with normal n, the unit
 /// vector along a − (a·e)e (the plane the axis crosses most steeply). Such a plane cuts the
 /// tool's top cylinder (radius R, the widest) in an ellipse whose axes lie along the ray
@@ -254,9 +254,10 @@ impl FullSection {
 
 impl Sweep<'_> {
     /// The ray of family `fam` at (u, v) in closed form where its section plane cuts the
-    /// tool in a whole ellipse all along the move (see `FullSection`). `None` where this
-    /// does not apply (a plane near the tool's tip or top end): the caller takes the general
-    /// path.
+    /// tool in a whole ellipse all along the move (see `FullSection`), and on a ball where
+    /// the plane cuts only the sphere (its capsule) or the sphere and the cylinder above its
+    /// centre (`half_ellipse_ray`). `None` where none applies (a plane near the tool's tip
+    /// or top end): the caller takes the general path.
     pub(super) fn full_section_ray(
         &self,
         fam: usize,
@@ -298,8 +299,9 @@ impl Sweep<'_> {
         if t0.min(t1) < sp.band.0 || t0.max(t1) > sp.band.1 {
             // A ball whose plane cuts the sphere and the cylinder above it, below the top.
             if t0.max(t1) <= sp.ball_top && sp.along.abs() > 1e-9 {
-                let rc = r;
-                let cut = ((rc - t0) / sp.along, (rc - t1) / sp.along);
+                // The cut at the sphere's centre, one radius up the axis, as an offset along
+                // the ray from the ellipse's centre.
+                let cut = ((r - t0) / sp.along, (r - t1) / sp.along);
                 return Some(hull(
                     swept_sphere(),
                     half_ellipse_ray(c0, c1, cut, sp.along > 0.0, r, sp.k),
@@ -376,13 +378,18 @@ fn half_ellipse_ray(
         2.0 * (k * k * g0 * g1 + w0 * w1),
         k * k * g0 * g0 + w0 * w0 - r * r,
     );
-    if qa > 1e-15 {
-        let disc = qb * qb - 4.0 * qa * qc;
-        if disc >= 0.0 {
-            let sq = disc.sqrt();
-            take((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa));
-        }
-    } else if qc <= 0.0 {
+    let roots = (qa > 1e-15)
+        .then(|| {
+            let disc = qb * qb - 4.0 * qa * qc;
+            (disc >= 0.0).then(|| {
+                let sq = disc.sqrt();
+                ((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa))
+            })
+        })
+        .flatten();
+    if let Some((x, y)) = roots {
+        take(x, y);
+    } else if qa <= 1e-15 && qc <= 0.0 {
         take(f64::NEG_INFINITY, f64::INFINITY);
     }
     let (ba, bb) = (lo, hi);
@@ -398,13 +405,9 @@ fn half_ellipse_ray(
             cands[2 + i] = ((w - w0) / w1).clamp(ba, bb);
         }
     }
-    if qa > 1e-15 {
-        let disc = qb * qb - 4.0 * qa * qc;
-        if disc >= 0.0 {
-            let sq = disc.sqrt();
-            cands[4] = ((-qb - sq) / (2.0 * qa)).clamp(ba, bb);
-            cands[5] = ((-qb + sq) / (2.0 * qa)).clamp(ba, bb);
-        }
+    if let Some((x, y)) = roots {
+        cands[4] = x.clamp(ba, bb);
+        cands[5] = y.clamp(ba, bb);
     }
     let mut out = (f64::INFINITY, f64::NEG_INFINITY);
     for b in cands {
