@@ -138,11 +138,16 @@ mod tests {
         );
         match std::fs::read_to_string(corpus) {
             Ok(text) => {
-                for m in interpret(&text, &InterpretOptions::default()).unwrap().moves {
+                for m in interpret(&text, &InterpretOptions::default())
+                    .unwrap()
+                    .moves
+                {
                     assert_as_serde(&m);
                 }
             }
-            Err(e) => eprintln!("SKIPPED: the corpus part of rows_are_the_bytes_serde_writes needs {corpus} ({e})"),
+            Err(e) => eprintln!(
+                "SKIPPED: the corpus part of rows_are_the_bytes_serde_writes needs {corpus} ({e})"
+            ),
         }
     }
 }

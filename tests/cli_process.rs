@@ -155,12 +155,20 @@ fn program_options_reach_the_process() {
             .args(with)
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let csv = std::fs::read_to_string(out_dir.join("blocks.csv")).unwrap();
         let mut rows = csv.lines();
         let header: Vec<&str> = rows.next().unwrap().split(',').collect();
-        let at = header.iter().position(|h| *h == "line").expect("a line column");
-        rows.map(|r| r.split(',').nth(at).unwrap().to_string()).collect()
+        let at = header
+            .iter()
+            .position(|h| *h == "line")
+            .expect("a line column");
+        rows.map(|r| r.split(',').nth(at).unwrap().to_string())
+            .collect()
     };
     assert!(lines(&[]).contains(&"5".to_string()));
     assert!(!lines(&["--block-delete"]).contains(&"5".to_string()));
