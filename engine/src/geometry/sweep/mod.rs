@@ -341,7 +341,7 @@ mod tests {
     use crate::tool::Tool;
 
     /// A deterministic stream of numbers in [0, 1) (a 64-bit LCG) for the random cases.
-    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    pub(super) fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
         move || {
             seed = seed
                 .wrapping_mul(6364136223846793005)

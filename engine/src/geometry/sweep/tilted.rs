@@ -483,13 +483,7 @@ mod tests {
         // within a margin of the sphere's centre (the plane cuts both pieces) against the
         // solids, hits and misses alike, and enough of them to exercise both sides of the
         // cut (the axis along the ray and against it).
-        let mut seed = 41u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::geometry::sweep::tests::uniform(41);
         let mut t = Tool::ball(6.0, 2);
         t.flute_length = 20.0;
         let body = ToolBody::cutting_part(&t);
