@@ -254,13 +254,22 @@ pub enum Refusal {
     Problem(Problem),
 }
 
+/// What [`check_simulation`] found.
+pub struct Checked {
+    /// The memory estimate (None for a stock or grid the pipeline itself reports).
+    pub estimate: Option<MemoryEstimate>,
+    /// The radii of the tools the program cuts with, given by id, from a tool library or
+    /// from its header comments: the finest sets the default cell.
+    pub tool_radii: Vec<f64>,
+    /// The cell the estimate is at: the check's, else the tools' default.
+    pub cell: f64,
+}
+
 /// Interprets the program and checks its moves against the machine's travel (under
 /// tool-tip reading, X Y Z are the tip in the part frame: the generic travel then) and
-/// the simulation's memory estimate against the budget. Returns the estimate.
-pub fn check_simulation(
-    c: &SimulationCheck,
-    limits: &JobLimits,
-) -> Result<Option<MemoryEstimate>, Refusal> {
+/// the simulation's memory estimate against the budget. Returns the estimate and the
+/// tools it was made for.
+pub fn check_simulation(c: &SimulationCheck, limits: &JobLimits) -> Result<Checked, Refusal> {
     let interpretation = nc::interpret(c.program, c.interpret).map_err(Refusal::Program)?;
     let moves = &interpretation.moves;
     let travel = match c.axes {
@@ -269,11 +278,16 @@ pub fn check_simulation(
     };
     budget::check_travel(moves, travel)
         .map_err(|e| Refusal::Problem(travel_problem(c.file, &e, travel)))?;
+    let (cell, tools) = cell_and_tools(c.cell, c.program, moves, c.tools);
+    let mut checked = Checked {
+        estimate: None,
+        tool_radii: tools.iter().map(Tool::radius).collect(),
+        cell,
+    };
     let Some((stock_min, stock_max, stock_triangles)) = stock_bounds(c.stock) else {
         // The pipeline reports an unreadable stock.
-        return Ok(None);
+        return Ok(checked);
     };
-    let (cell, tools) = cell_and_tools(c.cell, c.program, moves, c.tools);
     let size = SimulationSize {
         stock_min,
         stock_max,
@@ -285,7 +299,7 @@ pub fn check_simulation(
     };
     let Ok(estimate) = budget::estimate_simulation(&size) else {
         // An absurd grid: the pipeline's own grid check names it.
-        return Ok(None);
+        return Ok(checked);
     };
     if estimate.peak_bytes > limits.memory_bytes {
         return Err(Refusal::Problem(over_budget_problem(
@@ -294,7 +308,8 @@ pub fn check_simulation(
             limits,
         )));
     }
-    Ok(Some(estimate))
+    checked.estimate = Some(estimate);
+    Ok(checked)
 }
 
 /// At submission, without the program: the grid and the stock export alone, for a stock

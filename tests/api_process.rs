@@ -391,3 +391,138 @@ async fn the_stocks_kept_count_in_the_memory_estimate() {
         "{detail}"
     );
 }
+
+/// A Ø2 cut along the slot the rough left, T2 loaded: its tool from a library or a header.
+const FINE: &str =
+    "G90 G21\nT2 M6\nS12000 M3\nG0 X-10 Y3 Z5\nG1 Z-4 F300\nG1 X110 F600\nG0 Z5\nM30\n";
+
+/// The finest tool of a process comes from a tool library (or a program's header comment),
+/// not from a tool given by id: the process's one cell is that tool's default (Ø2: 0.05 mm,
+/// where the Ø10 alone would take 0.25), and every operation's memory is estimated at it,
+/// so a budget the coarse estimate fits refuses the process.
+#[tokio::test]
+async fn a_library_or_header_tool_sets_the_cell_the_memory_is_estimated_at() {
+    let process = |stock: &str, d10: &str, fine: Value, cell: Option<f64>| {
+        let mut options = json!({"material": "Al7075-T6"});
+        if let Some(c) = cell {
+            options["cell_mm"] = json!(c);
+        }
+        let mut finish = fine;
+        finish["name"] = json!("fine");
+        json!({"kind": "process",
+            "inputs": {"stock": stock, "operations": [
+                {"name": "rough", "program": {"name": "rough.nc", "content": ROUGH}, "tool": d10},
+                finish]},
+            "options": options})
+    };
+    let library = |c: &reqwest::Client, s: &Server| {
+        let req = c
+            .post(s.url("/v1/tool-libraries?name=shop.tbl"))
+            .header("content-type", "text/plain")
+            .body("T2 P2 D2 Z0 ;flat end mill\n");
+        async move {
+            let (st, v) = json(req.send().await.unwrap()).await;
+            assert_eq!(st, 201, "{v}");
+            v["id"].as_str().unwrap().to_string()
+        }
+    };
+    let by_library =
+        |lib: &str| json!({"program": {"name": "fine.nc", "content": FINE}, "tool_library": lib});
+    let dir = tempfile::tempdir().unwrap();
+    let c = client();
+    let roomy = Server::start(&dir.path().join("a.db"), &["--workers", "1"]);
+    let (stock, d10, _) = block_and_tools(&c, &roomy).await;
+    let lib = library(&c, &roomy).await;
+    let wait = Duration::from_secs(300);
+    let done = run_job(
+        &c,
+        &roomy,
+        &process(&stock, &d10, by_library(&lib), None),
+        wait,
+    )
+    .await;
+    let s = &done["summary"];
+    assert_eq!(s["cell_mm"], json!(0.05), "{s}");
+    let estimate = &s["memory"]["estimate"];
+    // The fine operation alone, as a simulate job, is estimated at the same cell.
+    let alone = run_job(
+        &c,
+        &roomy,
+        &json!({"kind": "simulate",
+            "inputs": {"stock": stock, "program": {"name": "fine.nc", "content": FINE}, "tool_library": lib},
+            "options": {"material": "Al7075-T6"}}),
+        wait,
+    )
+    .await;
+    assert_eq!(
+        estimate["operations"][1], alone["summary"]["memory"]["estimate"],
+        "{estimate}"
+    );
+    // The same tool from the program's header comment: the same cell and estimate.
+    let header = format!("(T2 D=2. CR=0. - ZMIN=-4. - flat end mill)\n{FINE}");
+    let done = run_job(
+        &c,
+        &roomy,
+        &process(
+            &stock,
+            &d10,
+            json!({"program": {"name": "fine.nc", "content": header}}),
+            None,
+        ),
+        wait,
+    )
+    .await;
+    assert_eq!(
+        done["summary"]["cell_mm"],
+        json!(0.05),
+        "{}",
+        done["summary"]
+    );
+    let by_header = &done["summary"]["memory"]["estimate"];
+    assert_eq!(
+        by_header["peak_bytes"], estimate["peak_bytes"],
+        "{by_header}"
+    );
+    // What the process would have been estimated at with the Ø10's cell.
+    let coarse = run_job(
+        &c,
+        &roomy,
+        &process(&stock, &d10, by_library(&lib), Some(0.25)),
+        wait,
+    )
+    .await;
+    let coarse = coarse["summary"]["memory"]["estimate"]["peak_bytes"]
+        .as_u64()
+        .unwrap();
+    let fine = estimate["peak_bytes"].as_u64().unwrap();
+    let budget = (coarse >> 20) + 2;
+    assert!(budget << 20 < fine, "coarse {coarse}, fine {fine}");
+    drop(roomy);
+    // A budget the coarse estimate fits: admitted at submission (the tools given by id),
+    // refused by the job's check, naming the budget.
+    let tight = Server::start(
+        &dir.path().join("b.db"),
+        &["--workers", "1", "--job-memory-mb", &budget.to_string()],
+    );
+    let (stock, d10, _) = block_and_tools(&c, &tight).await;
+    let lib = library(&c, &tight).await;
+    let (st, v) = post_json(
+        &c,
+        &tight,
+        "/v1/jobs",
+        &process(&stock, &d10, by_library(&lib), None),
+    )
+    .await;
+    assert_eq!(st, 202, "{v}");
+    let failed = wait_job(&c, &tight, v["id"].as_str().unwrap(), wait).await;
+    assert_eq!(failed["status"], "failed", "{failed}");
+    let error = &failed["error"];
+    assert_eq!(error["limit"], json!(budget), "{error}");
+    assert!(
+        error["detail"]
+            .as_str()
+            .unwrap()
+            .contains("over the job memory budget"),
+        "{error}"
+    );
+}

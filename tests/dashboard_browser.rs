@@ -79,7 +79,8 @@ fn every_job_kind_in_chromium() {
     run_script("kinds.mjs");
 }
 
-/// A process job: a card per operation and the plots coloured by operation.
+/// A process job: a card per operation and the plots coloured by operation; the same
+/// process submitted through the new-job form.
 #[test]
 fn process_job_in_chromium() {
     run_script("process.mjs");

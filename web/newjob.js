@@ -1,27 +1,48 @@
 // The new-job form (/?new=1): a program, a stock (STL or block) and a design part, tools (a new one, a stored
 // one, or a tool library, stored or uploaded), material and machine (built-in, stored or
-// uploaded), limits; submits simulate or optimize and then follows the job's page.
+// uploaded), limits; submits simulate or optimize and then follows the job's page. A process
+// (/?new=1&kind=process: operations in order on one stock) has its own form, processform.js.
 import { el, problemView } from './util.js';
 import { app, getJson, postJson, handleError } from './api.js';
 
-const BUILT_IN_MATERIALS = ['Al7075-T6', 'Al6082-T6', 'TC6'];
+export const BUILT_IN_MATERIALS = ['Al7075-T6', 'Al6082-T6', 'TC6'];
 
 // Up to 100 stored resources of a collection, newest first (the form lists them to pick).
-async function stored(collection) {
+export async function stored(collection) {
   try { return (await getJson('/v1/' + collection + '?limit=100')).items; } catch (_) { return []; }
 }
-const short = (id) => id.slice(0, 8);
+export const short = (id) => id.slice(0, 8);
+
+// The kind of job; choosing a process (or leaving it) shows the other form.
+export function kindSelect(current, route) {
+  const kinds = [['optimize', 'optimize (simulate, then schedule the feeds)'], ['simulate', 'simulate'], ['process', 'process (operations in order on one stock)']];
+  const select = el('select', {
+    name: 'kind',
+    onchange: () => {
+      if ((select.value === 'process') === (current === 'process')) return;
+      history.pushState(null, '', '/?new=1&kind=' + select.value);
+      route();
+    },
+  }, kinds.map(([k, label]) => el('option', { value: k, selected: k === current }, label)));
+  return select;
+}
+
 // What the upload's validation found (shape, diameter, flutes; a machine's name and axes).
-function toolLabel(r) {
+export function toolLabel(r) {
   const d = r.summary || {};
   return (r.name ? r.name + ' · ' : '') + (d.shape || 'tool') + (d.diameter ? ' Ø' + d.diameter : '') + (d.flutes ? ' ' + d.flutes + ' flutes' : '') + ' · ' + short(r.id);
 }
-function machineLabel(r) {
+export function machineLabel(r) {
   const d = r.summary || {};
   return (r.name || d.name || 'machine') + (d.kinematics ? ' (' + d.kinematics + ')' : '') + ' · ' + short(r.id);
 }
 
 export async function renderNewJob(route) {
+  const kind = new URLSearchParams(location.search).get('kind');
+  if (kind === 'process') {
+    (await import('/ui/processform.js')).renderProcessForm(route);
+    return;
+  }
   const [tools, libraries, materials, machines] = await Promise.all(['tools', 'tool-libraries', 'materials', 'machines'].map(stored));
   const num = (name, value, attrs) => el('input', { name, type: 'number', step: 'any', value, ...(attrs || {}) });
   const field = (label, ...input) => el('label', { class: 'field' }, el('span', {}, label), ...input);
@@ -36,7 +57,7 @@ export async function renderNewJob(route) {
     el('option', { value: 'none' }, 'none: the tool library gives every T number'));
   const form = el('form', { id: 'new-job', class: 'newjob' },
     el('fieldset', {}, el('legend', {}, 'Job'),
-      field('Kind', el('select', { name: 'kind' }, el('option', { value: 'optimize' }, 'optimize (simulate, then schedule the feeds)'), el('option', { value: 'simulate' }, 'simulate'))),
+      field('Kind', kindSelect(kind === 'simulate' ? 'simulate' : 'optimize', route)),
       field('NC program', el('input', { name: 'program', type: 'file', required: true }))),
     el('fieldset', {}, el('legend', {}, 'Stock'),
       field('STL file (optional)', el('input', { name: 'stock_stl', type: 'file', accept: '.stl' })),

@@ -33,13 +33,14 @@ const fn content_type(name: &str) -> &'static str {
 }
 
 // The dashboard's own modules, one view or concern each, then the vendored libraries.
-const FILES: [(&str, &str, &[u8]); 32] = embed![
+const FILES: [(&str, &str, &[u8]); 33] = embed![
     "app.js" => "app.js",
     "util.js" => "util.js",
     "api.js" => "api.js",
     "list.js" => "list.js",
     "job.js" => "job.js",
     "newjob.js" => "newjob.js",
+    "processform.js" => "processform.js",
     "cutting.js" => "cutting.js",
     "rows.js" => "rows.js",
     "blockplots.js" => "blockplots.js",

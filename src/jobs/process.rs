@@ -18,7 +18,8 @@ use millsim_engine::pipeline::{self, Operation, ProcessError, ProcessSpec, Simul
 
 use super::inputs::{invalid, program_failure, stem_and_ext};
 use super::simulate::{
-    spec_from_inputs, stream_stl, BuiltSpec, ExportError, SimulateOptions, SimulateSummary,
+    check_spec, spec_from_inputs, stream_stl, BuiltSpec, ExportError, SimulateOptions,
+    SimulateSummary,
 };
 use super::{
     input, FieldError, InputSpec, JobFailure, JobOutput, LoadedInput, LoadedInputs, OutputFile,
@@ -398,9 +399,11 @@ pub fn run(
         .filter(|n| super::simulate::fixture_input(n))
         .cloned()
         .collect();
-    // Every operation cuts at the process's one cell (the engine takes the finest tool's
-    // default): each operation's memory is estimated at it, from the tools given by id (a
-    // tool library's or a header comment's finer tool is not seen here).
+    // Every operation cuts at the process's one cell (the engine takes the finest default
+    // of every operation's tools). A first guess from the tools given by id; an operation
+    // whose check finds a finer tool (from a tool library or its program's header
+    // comments) sets the cell, and the operations checked at a coarser one are estimated
+    // again at it (below).
     let shared_cell = o.shared.get("cell_mm").and_then(Value::as_f64);
     let radii: Vec<f64> = inputs
         .iter()
@@ -420,6 +423,8 @@ pub fn run(
     let mut operations = Vec::with_capacity(o.operations.len());
     let mut files = Vec::with_capacity(o.operations.len());
     let mut estimates = Vec::new();
+    let mut estimate_cells = Vec::new();
+    let mut all_radii = Vec::new();
     let mut libraries = Vec::new();
     for (i, op) in o.operations.iter().enumerate() {
         let (mut opts, optimize) = operation_options(&o.shared, op, i).map_err(bad)?;
@@ -446,11 +451,15 @@ pub fn run(
             file,
             spec,
             estimate,
+            tool_radii,
+            estimate_cell,
             library,
         } = spec_from_inputs(&opts, optimize, &mut own, limits, cancel)
             .map_err(|f| in_operation(f, i, &op.name))?;
         files.push(file);
-        estimates.push(estimate);
+        estimates.push((estimate, optimize));
+        estimate_cells.push(estimate_cell);
+        all_radii.extend(tool_radii);
         libraries.push(library);
         operations.push(Operation {
             name: op.name.clone(),
@@ -458,6 +467,21 @@ pub fn run(
             spindle: opts.spindle.clone(),
         });
     }
+    // The cell the engine will take: the process's, else the finest default of all the
+    // tools the operations cut with, however each was given.
+    let cell = shared_cell.unwrap_or_else(|| geometry::default_cell(&all_radii));
+    let mut checked = Vec::with_capacity(estimates.len());
+    for (i, ((estimate, optimize), at)) in estimates.into_iter().zip(estimate_cells).enumerate() {
+        checked.push(if at == cell {
+            estimate
+        } else {
+            let op = &operations[i];
+            check_spec(&files[i], &op.spec, optimize, Some(cell), limits, cancel)
+                .map_err(|f| in_operation(f, i, &op.name))?
+                .estimate
+        });
+    }
+    let estimates = checked;
     let memory = process_estimate(&estimates, o.keep_stocks);
     if let Some((bytes, estimate)) = &memory {
         if *bytes > limits.memory_bytes {

@@ -23,7 +23,7 @@ use super::{
     input, FieldError, InputSpec, JobFailure, JobKind, JobOutput, LoadedInputs, OutputFile,
 };
 use crate::job_library::JobLibrary;
-use crate::job_limits::{check_simulation, JobLimits, Refusal, SimulationCheck};
+use crate::job_limits::{check_simulation, Checked, JobLimits, Refusal, SimulationCheck};
 use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -585,30 +585,6 @@ pub(super) fn spec_from_inputs(
         )),
         None => None,
     };
-    let fixture_triangles: u64 = fixture.as_ref().map_or(0, |f| f.triangles());
-    // Travel and memory budget, before the pipeline allocates anything.
-    let check = SimulationCheck {
-        file: &file,
-        program: &text,
-        interpret: &interpret,
-        machine: &machine,
-        axes: opts.axes,
-        stock: &stock,
-        tools: &tools,
-        cell: opts.cell_mm,
-        optimize: keeps_steps,
-        // The fixture's meshes are held as a part's is (a mesh and its BVH each).
-        part_triangles: match &part {
-            Some(StlSource::Mesh(mesh)) => mesh.triangles.len() as u64,
-            // Not read yet: the binary size's count (an ASCII file's is lower).
-            Some(StlSource::Bytes(bytes)) => bytes.len() as u64 / 50,
-            None => 0,
-        } + fixture_triangles,
-    };
-    let estimate = check_simulation(&check, limits).map_err(|r| match r {
-        Refusal::Program(d) => program_failure(cancel, &file, &d),
-        Refusal::Problem(p) => JobFailure::Invalid(p),
-    })?;
     let spec = SimulateSpec {
         program: text,
         interpret,
@@ -626,11 +602,49 @@ pub(super) fn spec_from_inputs(
         part,
         fixture,
     };
+    // Travel and memory budget, before the pipeline allocates anything.
+    let checked = check_spec(&file, &spec, keeps_steps, opts.cell_mm, limits, cancel)?;
     Ok(BuiltSpec {
         file,
         spec,
-        estimate,
+        estimate: checked.estimate,
+        tool_radii: checked.tool_radii,
+        estimate_cell: checked.cell,
         library,
+    })
+}
+
+/// The travel and memory check of a built simulation, its estimate at `cell` (else at the
+/// default cell of the tools its program cuts with).
+pub(super) fn check_spec(
+    file: &str,
+    spec: &SimulateSpec,
+    keeps_steps: bool,
+    cell: Option<f64>,
+    limits: &JobLimits,
+    cancel: &CancelFlag,
+) -> Result<Checked, JobFailure> {
+    let check = SimulationCheck {
+        file,
+        program: &spec.program,
+        interpret: &spec.interpret,
+        machine: &spec.machine,
+        axes: spec.axes,
+        stock: &spec.stock,
+        tools: &spec.tools,
+        cell,
+        optimize: keeps_steps,
+        // The fixture's meshes are held as a part's is (a mesh and its BVH each).
+        part_triangles: match &spec.part {
+            Some(StlSource::Mesh(mesh)) => mesh.triangles.len() as u64,
+            // Not read yet: the binary size's count (an ASCII file's is lower).
+            Some(StlSource::Bytes(bytes)) => bytes.len() as u64 / 50,
+            None => 0,
+        } + spec.fixture.as_ref().map_or(0, |f| f.triangles()),
+    };
+    check_simulation(&check, limits).map_err(|r| match r {
+        Refusal::Program(d) => program_failure(cancel, file, &d),
+        Refusal::Problem(p) => JobFailure::Invalid(p),
     })
 }
 
@@ -639,6 +653,10 @@ pub(super) struct BuiltSpec {
     pub file: String,
     pub spec: SimulateSpec,
     pub estimate: Option<millsim_engine::budget::MemoryEstimate>,
+    /// The radii of the tools the program cuts with (given, a library's, its header's).
+    pub tool_radii: Vec<f64>,
+    /// The cell `estimate` is at.
+    pub estimate_cell: f64,
     pub library: Option<JobLibrary>,
 }
 
@@ -660,6 +678,7 @@ pub fn run(
         spec,
         estimate,
         library,
+        ..
     } = spec_from_inputs(&opts, optimize, &mut inputs, limits, cancel)?;
     let result = match &opts.spindle {
         Some(sp) => pipeline::simulate_choosing_spindle(&spec, sp, cancel, progress),

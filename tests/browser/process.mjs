@@ -1,7 +1,9 @@
 // A process job's page in a real browser: a card per operation (cycle time before → after,
 // removed volume, governing limits), the downloads of each operation's program and kept
 // stock, and the per-block plots drawn in each operation's colour. The README's adaptive
-// example as rough + the Ø2 finishing contour (examples/process). Run by
+// example as rough + the Ø2 finishing contour (examples/process); then the same two
+// operations through the new-job form (refused first naming the field of the one without a
+// program, then run: a card per operation). Run by
 // tests/dashboard_browser.rs, or:
 //   MILLSIM_BIN=$CARGO_TARGET_DIR/debug/millsim node tests/browser/process.mjs
 import { join } from 'node:path';
@@ -55,6 +57,78 @@ async function main() {
   const legend = await page.$$eval('[data-plot^="Feed"] .u-legend .u-series', (s) => s.map((e) => e.textContent));
   assert.ok(legend.some((t) => t.includes('1 · rough')) && legend.some((t) => t.includes('2 · finish')), legend.join('|'));
   await page.screenshot({ path: join(ARTIFACTS, 'process.png'), fullPage: true });
+
+  // The new-job form: the same two operations picked in order (the rough's program stored,
+  // the finish's uploaded, each tool by its T number), first without the finish's program
+  // (the server's problem names the field), then submitted; the page follows the job.
+  await page.goto(base + '/?new=1');
+  await page.selectOption('form#new-job select[name=kind]', 'process');
+  await page.waitForSelector('form#new-job .operation[data-operation="1"]');
+  await page.selectOption('form#new-job select[name=stock_choice]', ex.stock.id);
+  await page.selectOption('form#new-job select[name=machine_choice]', ex.machine.id);
+  await page.selectOption('form#new-job select[name=material]', 'builtin:Al7075-T6');
+  const op = (n, what) => 'form#new-job .operation[data-operation="' + n + '"] ' + what;
+  await page.fill(op(1, 'input[name=op_name]'), 'rough');
+  await page.selectOption(op(1, 'select[name=program_choice]'), ex.program.id);
+  await page.click(op(1, 'button.add-tnumber'));
+  await page.fill(op(1, 'input[name=t_number]'), '1');
+  await page.selectOption(op(1, 'select[name=t_tool]'), ex.tool.id);
+  await page.fill(op(1, 'input[name=max_force]'), '400');
+  await page.fill(op(1, 'input[name=max_feed]'), '5000');
+  await page.click('#add-operation');
+  await page.fill(op(2, 'input[name=op_name]'), 'finish');
+  await page.click(op(2, 'button.add-tnumber'));
+  await page.fill(op(2, 'input[name=t_number]'), '2');
+  await page.selectOption(op(2, 'select[name=t_tool]'), d2.id);
+  await page.selectOption(op(2, 'select[name=mode]'), 'simulate');
+  assert.ok(!(await page.isVisible(op(2, 'input[name=max_force]'))), 'a simulated operation shows no limits');
+  // A fixture block well clear of the paths (one setup: options.fixture), after a look at
+  // the cylinder's fields.
+  await page.click('#add-fixture-body');
+  await page.selectOption('#fixture-bodies select[name=body_kind]', 'cylinder');
+  assert.ok(await page.isVisible('#fixture-bodies input[name=radius]'));
+  assert.ok(!(await page.isVisible('#fixture-bodies input[name=body_min_x]')));
+  await page.selectOption('#fixture-bodies select[name=body_kind]', 'block');
+  await page.fill('#fixture-bodies input[name=body_name]', 'vise');
+  for (const [k, v] of Object.entries({ body_min_x: 300, body_min_y: 300, body_min_z: -60, body_max_x: 310, body_max_y: 310, body_max_z: -50 })) {
+    await page.fill('#fixture-bodies input[name=' + k + ']', String(v));
+  }
+  await page.click('form#new-job button[type=submit]');
+  await page.waitForSelector('#form-result #problem');
+  assert.equal(await page.textContent('#form-result #problem dd[data-field="field"]'), 'inputs.operations[1].program');
+  // That refusal's 422 is the one console error the page may log (the browser's own line).
+  const refused = consoleErrors.findIndex((e) => /status of 422 .* at .*\/v1\/jobs$/.test(e));
+  assert.ok(refused >= 0, consoleErrors.join(' | '));
+  consoleErrors.splice(refused, 1);
+  await page.screenshot({ path: join(ARTIFACTS, 'process-form-refused.png'), fullPage: true });
+  await page.setInputFiles(op(2, 'input[name=program]'), { name: 'finish_d2.nc', mimeType: 'text/plain', buffer: readFileSync(join(dir, 'finish_d2.nc')) });
+  await page.screenshot({ path: join(ARTIFACTS, 'process-form.png'), fullPage: true });
+  await page.click('form#new-job button[type=submit]');
+  await page.waitForURL(/\/jobs\/[^/]+$/, { timeout: 60000 });
+  const formId = decodeURIComponent(new URL(page.url()).pathname.split('/').pop());
+  const formJob = await waitJob(base, formId, 300);
+  assert.equal(formJob.status, 'succeeded', JSON.stringify(formJob.error));
+  assert.equal(formJob.kind, 'process');
+  // What the form sent, as the job record stores it.
+  assert.equal(formJob.inputs['op1.program'], ex.program.id, JSON.stringify(formJob.inputs));
+  assert.equal(formJob.inputs['op1.T1'], ex.tool.id);
+  assert.equal(formJob.inputs['op2.T2'], d2.id);
+  assert.ok(formJob.inputs['op2.program'], JSON.stringify(formJob.inputs));
+  assert.deepEqual(formJob.options.operations.map((o) => o.name), ['rough', 'finish']);
+  assert.deepEqual(formJob.options.fixture, { bodies: [{ name: 'vise', kind: 'block', min: [300, 300, -60], max: [310, 310, -50] }] });
+  assert.equal(formJob.options.material, 'Al7075-T6');
+  assert.equal(formJob.inputs.machine, ex.machine.id);
+  assert.deepEqual(formJob.options.operations[0].options.limits, { max_force: 400, air_feed: 5000, max_feed: 5000 });
+  const formOps = formJob.summary.operations;
+  assert.deepEqual(formOps.map((o) => [o.name, o.optimized]), [['rough', true], ['finish', false]]);
+  // The rough as the API's (same inputs, same limits); the finish simulated, not optimized.
+  assert.equal(formOps[0].cycle_time_opt_s, ops[0].cycle_time_opt_s);
+  assert.equal(formOps[1].cycle_time_s, ops[1].cycle_time_s);
+  await page.waitForSelector('#operations [data-operation="2"]', { timeout: 60000 });
+  assert.ok((await page.textContent('#operations [data-operation="1"]')).includes('1 · rough'));
+  const finishCard = await page.textContent('#operations [data-operation="2"]');
+  assert.ok(finishCard.includes('2 · finish') && finishCard.includes('simulated (no limits)'), finishCard);
+  log('form process', formId, formOps.map((o) => o.name + (o.optimized ? ' optimized' : ' simulated')).join(', '));
 
   assert.deepEqual(consoleErrors, [], 'console errors');
   assert.deepEqual(foreign, [], 'requests that left the server origin');
