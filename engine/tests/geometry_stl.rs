@@ -187,7 +187,7 @@ fn exported_stock_is_a_closed_mesh_with_the_stock_volume() {
     .unwrap();
     let (out, stats) = export_stl_vec(&stock).unwrap();
     assert_eq!(out.len() as u64, 84 + 50 * stats.triangles);
-    // Read back: closed, and its volume is the voxel volume.
+    // Read back: closed, and its volume is the one the export summed (in f64).
     let mesh = Mesh::from_stl_bytes(&out).unwrap();
     let mv = mesh.volume();
     assert!(
