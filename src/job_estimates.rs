@@ -6,7 +6,11 @@
 use serde::Serialize;
 use serde_json::Value;
 
+use millsim_engine::optimize::energy::DEFAULT_SEARCH_STEPS;
+use millsim_engine::physics::stability::DEFAULT_STEPS_PER_PERIOD;
+
 use crate::job_limits::JobLimits;
+use crate::jobs::JobKind;
 use crate::problem::Problem;
 
 /// What a job's process holds whatever the job (code, runtime, buffers): measured 11.7 to
@@ -62,26 +66,26 @@ pub struct KindEstimate {
 /// when the kind is one this module knows (not simulate/optimize); `workers` lobe
 /// workers run at once (the job process's thread pool).
 pub fn estimate(
-    kind: &str,
+    kind: JobKind,
     options: &Value,
     program_bytes: u64,
     workers: u64,
 ) -> Option<KindEstimate> {
     let mut e = KindEstimate::default();
     match kind {
-        "interpret" => {
+        JobKind::Interpret => {
             e.program_bytes = program_bytes.saturating_mul(INTERPRET_BYTES_PER_PROGRAM_BYTE)
         }
-        "accessibility" => {
+        JobKind::Accessibility => {
             // `program_bytes` is the part's size for this kind.
             e.program_bytes = program_bytes
                 .saturating_mul(ACCESSIBILITY_BYTES_PER_PART_BYTE)
                 .saturating_add(ACCESSIBILITY_RASTER_BYTES)
         }
-        "rotary-feed" => {
+        JobKind::RotaryFeed => {
             e.program_bytes = program_bytes.saturating_mul(ROTARY_FEED_BYTES_PER_PROGRAM_BYTE)
         }
-        "stability" => {
+        JobKind::Stability => {
             let mut modes = count(&options["modes_x"]) + count(&options["modes_y"]);
             let mut rows = speeds(&options["rpm"]);
             if let Some(entries) = options["allowance"].as_array() {
@@ -94,19 +98,25 @@ pub fn estimate(
                 rows = rows.saturating_mul(count(&options["allowances_mm"]).max(1));
             }
             let method = options["method"].as_str().unwrap_or("sdm");
-            let steps = options["steps_per_period"].as_u64().unwrap_or(40);
+            let steps = options["steps_per_period"]
+                .as_u64()
+                .unwrap_or(DEFAULT_STEPS_PER_PERIOD.into());
             e.lobe_matrices_bytes = lobe_matrices_bytes(method, modes, steps, workers);
             e.rows_bytes = rows.saturating_mul(LOBE_ROW_BYTES);
         }
-        "energy" => {
+        JobKind::Energy => {
             let modes = count(&options["modes_x"]) + count(&options["modes_y"]);
             if modes > 0 {
                 let method = options["stability_method"].as_str().unwrap_or("sdm");
-                let steps = options["steps_per_period"].as_u64().unwrap_or(20);
+                let steps = options["steps_per_period"]
+                    .as_u64()
+                    .unwrap_or(DEFAULT_SEARCH_STEPS.into());
                 e.lobe_matrices_bytes = lobe_matrices_bytes(method, modes, steps, workers);
             }
         }
-        _ => return None,
+        JobKind::Simulate | JobKind::Optimize | JobKind::Process | JobKind::Identify => {
+            return None
+        }
     }
     e.peak_bytes = PROCESS_BYTES
         .saturating_add(e.program_bytes)
@@ -157,7 +167,7 @@ pub fn lobe_workers() -> u64 {
 /// Checks a `kind` job against the budget: Err(problem) when its estimate is over it (a
 /// 422 resource-limit problem naming the budget and the estimate).
 pub fn check(
-    kind: &str,
+    kind: JobKind,
     options: &Value,
     program_bytes: u64,
     limits: &JobLimits,
@@ -172,15 +182,16 @@ pub fn check(
     Err(Problem::resource_limit(
         "Over the job's memory budget",
         format!(
-            "the {kind} job needs about {} MiB (program and moves {} MiB, lobe matrices {} MiB, rows {} MiB), over the job memory budget of {} MiB (job_memory_mb); {}",
+            "the {} job needs about {} MiB (program and moves {} MiB, lobe matrices {} MiB, rows {} MiB), over the job memory budget of {} MiB (job_memory_mb); {}",
+            kind.as_str(),
             mib(e.peak_bytes),
             mib(e.program_bytes),
             mib(e.lobe_matrices_bytes),
             mib(e.rows_bytes),
             limits.memory_mb(),
             match kind {
-                "interpret" | "rotary-feed" => "split the program",
-                "accessibility" => "decimate the part's mesh",
+                JobKind::Interpret | JobKind::RotaryFeed => "split the program",
+                JobKind::Accessibility => "decimate the part's mesh",
                 _ => "use fewer modes or steps_per_period, or the zoa method",
             },
         ),
@@ -221,7 +232,7 @@ mod tests {
         let many: Vec<Value> = (0..100).map(|_| mode()).collect();
         let heavy = json!({"method": "sdm", "modes_x": many, "modes_y": many,
             "rpm": {"from": 5000, "to": 6000, "step": 100}, "steps_per_period": 40});
-        let p = check("stability", &heavy, 0, &limits)
+        let p = check(JobKind::Stability, &heavy, 0, &limits)
             .unwrap_err()
             .to_json();
         assert_eq!(
@@ -231,17 +242,17 @@ mod tests {
         assert!(p["estimate_mb"].as_u64().unwrap() > 2_000, "{p}");
         let light = json!({"method": "sdm", "modes_x": [mode()], "modes_y": [mode()],
             "rpm": {"from": 5000, "to": 25000, "step": 1}, "steps_per_period": 40});
-        assert!(check("stability", &light, 0, &limits).is_ok());
+        assert!(check(JobKind::Stability, &light, 0, &limits).is_ok());
         let energy = json!({"modes_x": many, "modes_y": [], "steps_per_period": 100});
-        assert!(check("energy", &energy, 0, &limits).is_err());
-        assert!(check("energy", &json!({}), 0, &limits).is_ok());
+        assert!(check(JobKind::Energy, &energy, 0, &limits).is_err());
+        assert!(check(JobKind::Energy, &json!({}), 0, &limits).is_ok());
         // 10 MB of G-code: about 400 MB parsed with its moves and rows.
-        assert!(check("interpret", &json!({}), 10 << 20, &limits).is_err());
-        assert!(check("rotary-feed", &json!({}), 10 << 20, &limits).is_err());
-        assert!(check("interpret", &json!({}), 1 << 20, &limits).is_ok());
-        assert!(check("simulate", &json!({}), 1 << 30, &limits).is_ok());
+        assert!(check(JobKind::Interpret, &json!({}), 10 << 20, &limits).is_err());
+        assert!(check(JobKind::RotaryFeed, &json!({}), 10 << 20, &limits).is_err());
+        assert!(check(JobKind::Interpret, &json!({}), 1 << 20, &limits).is_ok());
+        assert!(check(JobKind::Simulate, &json!({}), 1 << 30, &limits).is_ok());
         // A 200k-triangle binary part (10 MB) fits; a 5M-triangle one (250 MB) does not.
-        assert!(check("accessibility", &json!({}), 10 << 20, &limits).is_ok());
-        assert!(check("accessibility", &json!({}), 250 << 20, &limits).is_err());
+        assert!(check(JobKind::Accessibility, &json!({}), 10 << 20, &limits).is_ok());
+        assert!(check(JobKind::Accessibility, &json!({}), 250 << 20, &limits).is_err());
     }
 }

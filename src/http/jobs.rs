@@ -80,12 +80,7 @@ async fn check_memory_budget(
             None => None,
         };
         let program = inline_program.or(stored.map(|r| r.size.max(0) as u64));
-        return crate::job_estimates::check(
-            kind.as_str(),
-            options,
-            program.unwrap_or(0),
-            &state.job_limits,
-        );
+        return crate::job_estimates::check(kind, options, program.unwrap_or(0), &state.job_limits);
     }
     // A process's options are its own (operations, keep_stocks) with the cell shared.
     let cell_mm = if kind == JobKind::Process {
