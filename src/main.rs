@@ -109,15 +109,27 @@ struct QueueArgs {
     /// Worker count (engine threads); default: the number of cores.
     #[arg(long, env = "MILLSIM_WORKERS")]
     workers: Option<usize>,
-    /// Lease a worker holds on a job between heartbeats, seconds.
-    #[arg(long, env = "MILLSIM_LEASE_SECS", default_value_t = 30.0)]
-    lease_secs: f64,
+    /// Lease a worker holds on a job between heartbeats, seconds (`--lease-secs`, the old
+    /// spelling, is still read).
+    #[arg(
+        long = "lease-s",
+        alias = "lease-secs",
+        env = "MILLSIM_LEASE_S",
+        default_value_t = 30.0
+    )]
+    lease_s: f64,
     /// Attempts before a job whose worker keeps dying is failed.
     #[arg(long, env = "MILLSIM_MAX_ATTEMPTS", default_value_t = 3)]
     max_attempts: i64,
-    /// On SIGTERM/SIGINT, how long running jobs may finish before their leases are given back, seconds.
-    #[arg(long, env = "MILLSIM_SHUTDOWN_GRACE_SECS", default_value_t = 30.0)]
-    shutdown_grace_secs: f64,
+    /// On SIGTERM/SIGINT, how long running jobs may finish before their leases are given back,
+    /// seconds (`--shutdown-grace-secs`, the old spelling, is still read).
+    #[arg(
+        long = "shutdown-grace-s",
+        alias = "shutdown-grace-secs",
+        env = "MILLSIM_SHUTDOWN_GRACE_S",
+        default_value_t = 30.0
+    )]
+    shutdown_grace_s: f64,
     /// Memory budget of one job, MiB; default: the smaller of the machine's memory and the
     /// cgroup's memory.max, / workers (512 MiB to 16 GiB), never above what an inherited
     /// address-space limit (ulimit -v) leaves a job. Jobs estimated over it are refused; a
@@ -147,10 +159,10 @@ impl QueueArgs {
     }
 
     fn config(&self, default_workers: usize) -> Result<QueueConfig, String> {
-        if !(self.lease_secs >= 0.2 && self.lease_secs <= 3600.0) {
+        if !(self.lease_s >= 0.2 && self.lease_s <= 3600.0) {
             return Err(format!(
-                "--lease-secs must be in [0.2, 3600], got {}",
-                self.lease_secs
+                "--lease-s must be in [0.2, 3600], got {}",
+                self.lease_s
             ));
         }
         if !(1..=100).contains(&self.max_attempts) {
@@ -159,10 +171,10 @@ impl QueueArgs {
                 self.max_attempts
             ));
         }
-        if !(self.shutdown_grace_secs >= 0.0 && self.shutdown_grace_secs <= 86_400.0) {
+        if !(self.shutdown_grace_s >= 0.0 && self.shutdown_grace_s <= 86_400.0) {
             return Err(format!(
-                "--shutdown-grace-secs must be in [0, 86400], got {}",
-                self.shutdown_grace_secs
+                "--shutdown-grace-s must be in [0, 86400], got {}",
+                self.shutdown_grace_s
             ));
         }
         let workers = self.workers.unwrap_or(default_workers);
@@ -188,10 +200,10 @@ impl QueueArgs {
         }
         Ok(QueueConfig {
             workers,
-            lease_ms: (self.lease_secs * 1000.0) as i64,
+            lease_ms: (self.lease_s * 1000.0) as i64,
             max_attempts: self.max_attempts,
             poll_ms: 250,
-            shutdown_grace_ms: (self.shutdown_grace_secs * 1000.0) as u64,
+            shutdown_grace_ms: (self.shutdown_grace_s * 1000.0) as u64,
             isolation: self.job_isolation,
             limits: job_limits::JobLimits {
                 memory_bytes: memory_mb << 20,
@@ -300,7 +312,20 @@ fn init_logs(format: LogFormat) {
     }
 }
 
+/// Environment names of settings renamed to the `_S` (seconds) spelling the other
+/// settings use: an old name still set is read when the new one is not.
+const RENAMED_ENV: [(&str, &str); 2] = [
+    ("MILLSIM_LEASE_SECS", "MILLSIM_LEASE_S"),
+    ("MILLSIM_SHUTDOWN_GRACE_SECS", "MILLSIM_SHUTDOWN_GRACE_S"),
+];
+
 fn main() -> ExitCode {
+    for (old, new) in RENAMED_ENV {
+        if let (Some(v), None) = (std::env::var_os(old), std::env::var_os(new)) {
+            // Before any thread starts: nothing else reads the environment yet.
+            std::env::set_var(new, v);
+        }
+    }
     let cli = Cli::parse();
     match cli.command {
         Command::Interpret(args) => interpret(args),

@@ -379,7 +379,7 @@ async fn cancel_a_running_job_stops_it() {
     // One worker; a long program keeps it busy while we cancel.
     let s = Server::start(
         &dir.path().join("t.db"),
-        &["--workers", "1", "--lease-secs", "0.6"],
+        &["--workers", "1", "--lease-s", "0.6"],
     );
     let c = client();
     // A simulation that takes seconds on any build (a 10 mm tool zigzagging over a block on

@@ -288,7 +288,7 @@ async fn a_job_lost_with_a_server_that_ran_it_in_process_is_failed_not_retried()
     let args = [
         "--workers",
         "1",
-        "--lease-secs",
+        "--lease-s",
         "0.5",
         "--job-isolation",
         "thread",
@@ -428,7 +428,7 @@ async fn a_long_energy_job_is_cancelled_within_a_second_in_either_isolation() {
 async fn sigterm_exits_within_the_grace_period_with_a_long_job_running() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("t.db");
-    let s = Server::start(&db, &["--workers", "1", "--shutdown-grace-secs", "1"]);
+    let s = Server::start(&db, &["--workers", "1", "--shutdown-grace-s", "1"]);
     let c = client();
     let (tool, machine) = energy_inputs(&c, &s).await;
     let id = submit(&c, &s, &long_energy_job(&tool, &machine)).await;

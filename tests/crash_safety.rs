@@ -12,7 +12,7 @@ use common::*;
 async fn sigkill_loses_no_job_and_completes_none_twice() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("crash.db");
-    let args = ["--workers", "1", "--lease-secs", "1"];
+    let args = ["--workers", "1", "--lease-s", "1"];
     let c = client();
     let mut server = Server::start(&db, &args);
     let program = upload_program(&c, &server, &adaptive_program()).await;
@@ -162,7 +162,7 @@ async fn a_job_that_keeps_killing_its_worker_fails_after_max_attempts() {
     let args = [
         "--workers",
         "1",
-        "--lease-secs",
+        "--lease-s",
         "0.5",
         "--max-attempts",
         "2",
@@ -206,7 +206,7 @@ async fn sigterm_gives_a_running_job_back_and_exits_cleanly() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("term.db");
     let c = client();
-    let server = Server::start(&db, &["--workers", "1", "--shutdown-grace-secs", "0"]);
+    let server = Server::start(&db, &["--workers", "1", "--shutdown-grace-s", "0"]);
     let program = upload_program(
         &c,
         &server,
@@ -256,7 +256,7 @@ async fn sigterm_gives_a_running_job_back_and_exits_cleanly() {
         drop(s);
         server = Some(Server::start(
             &db,
-            &["--workers", "1", "--shutdown-grace-secs", "0"],
+            &["--workers", "1", "--shutdown-grace-s", "0"],
         ));
     }
     assert!(gave_back, "SIGTERM never caught a running job");
@@ -271,7 +271,7 @@ async fn a_job_cancelled_while_its_worker_is_dead_closes_its_attempt() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("t.db");
     let c = client();
-    let mut server = Server::start(&db, &["--workers", "1", "--lease-secs", "0.5"]);
+    let mut server = Server::start(&db, &["--workers", "1", "--lease-s", "0.5"]);
     let body = serde_json::json!({"kind": "interpret", "inputs": {"program": {"name": "loop.ngc", "content": RUNAWAY}}});
     let (st, job) = post_json(&c, &server, "/v1/jobs", &body).await;
     assert_eq!(st, 202, "{job}");

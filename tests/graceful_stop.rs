@@ -34,7 +34,8 @@ async fn wait_for_successes(db_url: &str, n: usize) {
 }
 
 fn start_worker(db_url: &str) -> Worker {
-    // A long lease: a job left running by the stopped worker would stay visibly so.
+    // A long lease: a job left running by the stopped worker would stay visibly so. The
+    // flags' old spellings (`-secs`) are kept here on purpose: they must still be read.
     KilledOnDrop(
         Command::new(BIN)
             .args(["worker", "--database", db_url, "--workers", "2"])
@@ -174,9 +175,9 @@ async fn sigterm_to_serve_commits_every_result_in_flight() {
         &[
             "--workers",
             "2",
-            "--lease-secs",
+            "--lease-s",
             "60",
-            "--shutdown-grace-secs",
+            "--shutdown-grace-s",
             "30",
         ],
     );

@@ -29,7 +29,7 @@ fn start_worker(db_url: &str) -> Worker {
                 db_url,
                 "--workers",
                 "1",
-                "--lease-secs",
+                "--lease-s",
                 "1",
             ])
             .env("RUST_LOG", "warn")

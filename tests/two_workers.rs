@@ -38,7 +38,7 @@ async fn two_worker_processes_never_share_a_job() {
                 &s.db_url,
                 "--workers",
                 "2",
-                "--lease-secs",
+                "--lease-s",
                 "5",
             ])
             .env("RUST_LOG", "warn")
