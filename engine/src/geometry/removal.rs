@@ -279,7 +279,7 @@ impl XyRemoval {
 }
 
 /// Blocks walked so far and their steps' removal statistics.
-struct Pass {
+struct Walked {
     blocks: Vec<BlockGeometry>,
     step_stats: Vec<Vec<RemovalStats>>,
 }
@@ -296,7 +296,7 @@ fn run_segments(
     cancel: &CancelFlag,
     on_segment: &mut (dyn FnMut(usize) + Send),
     (pass, xy): (&mut RemovalPass, &XyRemoval),
-    out: &mut Pass,
+    out: &mut Walked,
 ) -> Result<(), GeometryError> {
     let mut checks = ToolChecks::new(tool);
     let h = grid.cell;
@@ -309,7 +309,7 @@ fn run_segments(
     let threaded = matches!(xy, XyRemoval::Threads(_));
     let mut deferred = DeferredXY::default();
     let mut scratch = Scratch::default();
-    let Pass { blocks, step_stats } = out;
+    let Walked { blocks, step_stats } = out;
     let mut sub_moves = Vec::new();
     let (slice_dz, arc_bin) = grid_steps(h, &opts.engagement);
     for (index, seg) in segments.iter().enumerate() {
@@ -655,7 +655,7 @@ fn simulate_inner(
         f64::NAN
     };
     let mut pass = RemovalPass::new(&stock.grid);
-    let mut out = Pass {
+    let mut out = Walked {
         blocks: Vec::with_capacity(segments.len()),
         step_stats: Vec::with_capacity(segments.len()),
     };
@@ -745,7 +745,7 @@ fn simulate_inner(
         )
     };
     run?;
-    let Pass {
+    let Walked {
         mut blocks,
         step_stats,
     } = out;

@@ -327,7 +327,7 @@ struct Skip {
 }
 
 /// One pass over the file: bounds, kept triangles, volume, edges.
-struct Pass {
+struct FileScan {
     lo: [f64; 3],
     hi: [f64; 3],
     read: usize,
@@ -341,8 +341,8 @@ fn pass<R: Read>(
     len: u64,
     mut prints: Option<&mut Vec<u64>>,
     mut skip: Option<&mut Skip>,
-) -> Result<Pass, StlError> {
-    let mut p = Pass {
+) -> Result<FileScan, StlError> {
+    let mut p = FileScan {
         lo: [f64::INFINITY; 3],
         hi: [f64::NEG_INFINITY; 3],
         read: 0,

@@ -82,7 +82,7 @@ pub enum FeedLimit {
 
 /// The correction of one move.
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct MoveFeed {
+pub struct RotaryMoveFeed {
     pub move_index: usize,
     pub block: usize,
     pub line: u32,
@@ -107,7 +107,7 @@ pub struct MoveFeed {
 
 /// The F of one block (the slowest of its moves: safe for every execution).
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct BlockFeed {
+pub struct RotaryBlockFeed {
     pub block: usize,
     pub line: u32,
     pub feed: f64,
@@ -117,8 +117,8 @@ pub struct BlockFeed {
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct RotaryFeedReport {
-    pub moves: Vec<MoveFeed>,
-    pub blocks: Vec<BlockFeed>,
+    pub moves: Vec<RotaryMoveFeed>,
+    pub blocks: Vec<RotaryBlockFeed>,
     /// Feed moves left as they were, with the reason (move index, line, reason).
     pub skipped: Vec<(usize, u32, String)>,
 }
@@ -293,7 +293,7 @@ pub fn correct_moves(
         let uncorrected = reading
             .programmed_time_min(m)
             .map_or(f64::NAN, |tc| i_sum / tc);
-        report.moves.push(MoveFeed {
+        report.moves.push(RotaryMoveFeed {
             move_index: idx,
             block: m.block,
             line: m.line,
@@ -314,8 +314,8 @@ pub fn correct_moves(
 }
 
 /// One F per block: the slowest of its moves.
-pub fn block_feeds(moves: &[MoveFeed]) -> Vec<BlockFeed> {
-    let mut blocks: Vec<BlockFeed> = Vec::new();
+pub fn block_feeds(moves: &[RotaryMoveFeed]) -> Vec<RotaryBlockFeed> {
+    let mut blocks: Vec<RotaryBlockFeed> = Vec::new();
     let mut at: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
     for mf in moves {
         match at.get(&mf.block) {
@@ -326,7 +326,7 @@ pub fn block_feeds(moves: &[MoveFeed]) -> Vec<BlockFeed> {
             }
             None => {
                 at.insert(mf.block, blocks.len());
-                blocks.push(BlockFeed {
+                blocks.push(RotaryBlockFeed {
                     block: mf.block,
                     line: mf.line,
                     feed: mf.feed,

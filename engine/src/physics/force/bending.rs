@@ -5,7 +5,7 @@
 use std::f64::consts::{PI, TAU};
 
 use super::frame::ToolFrame;
-use super::kernel::{tooth_totals, Accumulated, Pass};
+use super::kernel::{tooth_totals, Accumulated, SliceConstants};
 use super::model::ForceModel;
 use super::stats::ForceResult;
 use super::{CHIP_EPS, CHIP_EPS_PER_FEED};
@@ -179,9 +179,9 @@ impl ForceModel {
             }
         };
         // One pass per slice: the tooth's angle (sa, ca) only serves the kernel's sample runs.
-        let passes: Vec<Pass> = loads
+        let passes: Vec<SliceConstants> = loads
             .iter()
-            .map(|(g, _, _)| Pass::new(g, k, (0.0, 1.0), ch, cv, eps))
+            .map(|(g, _, _)| SliceConstants::new(g, k, (0.0, 1.0), ch, cv, eps))
             .collect();
         let wall = self
             .wall

@@ -1,4 +1,4 @@
-//! The inner loop: per (slice, tooth) constants (`Pass`), one tooth's forces over a run of
+//! The inner loop: per (slice, tooth) constants (`SliceConstants`), one tooth's forces over a run of
 //! sample positions (`run_segment`), the sample-angle helpers, and the per-tooth buffers'
 //! helpers of the accumulation.
 
@@ -15,7 +15,7 @@ use crate::physics::material::CuttingCoefficients;
 /// The axial force enters with the generalized transformation's sign (see the module doc of
 /// `force`): −dFa·cos κ outward in the plane, −dFa·sin κ along the axis.
 #[derive(Clone, Copy)]
-pub(super) struct Pass {
+pub(super) struct SliceConstants {
     /// A chip thinner than −eps is no cut.
     eps: f64,
     pub(super) sa: f64,
@@ -42,7 +42,7 @@ struct SizeParts {
 /// goes to 0 with h, only the factor would overflow.
 const SIZE_EFFECT_MIN_CHIP: f64 = 1e-6;
 
-impl Pass {
+impl SliceConstants {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         g: &EdgeSlice,
@@ -51,7 +51,7 @@ impl Pass {
         ch: f64,
         cv: f64,
         eps: f64,
-    ) -> Pass {
+    ) -> SliceConstants {
         let sized = k.has_size_effect().then(|| SizeParts {
             m: k.exponents(),
             a: [
@@ -65,7 +65,7 @@ impl Pass {
                 [0.0, k.kac * g.int_cos2_sin, k.kac * g.int_cos, 0.0],
             ],
         });
-        Pass {
+        SliceConstants {
             sized,
             eps,
             sa,
@@ -161,7 +161,7 @@ impl Pass {
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run_segment(
-    p: &Pass,
+    p: &SliceConstants,
     steps: &[f64],
     st: &[f64],
     ct: &[f64],
