@@ -42,7 +42,11 @@ impl Interp<'_> {
             }
             sweep += tau * (turns - 1) as f64;
         }
-        if self.tilt.is_some_and(|t| !t.keeps_axis(plane.axes()[2])) {
+        if self
+            .coords
+            .tilt
+            .is_some_and(|t| !t.keeps_axis(plane.axes()[2]))
+        {
             self.tilted_arc_as_chords(plane, start, end, [cx, cy], sweep, turns)?;
             self.cur = end;
             return Ok(());
@@ -65,7 +69,7 @@ impl Interp<'_> {
             None => Ok(()),
             Some(v) if v == 0.0 => {
                 w.take(bad);
-                self.warnings.push(self.err_block(format!(
+                self.out.warnings.push(self.err_block(format!(
                     "{bad}0 in a {} arc ignored (the plane's normal axis has no centre offset; grbl ignores it, LinuxCNC and Fanuc alarm)",
                     plane.name()
                 )));

@@ -17,6 +17,7 @@
 //! * G40 flushes the queue; the next move (a line) goes from the compensated position to its
 //!   programmed end. Offsets, cycles, G28/G30/G53 and tool changes are refused while it is on.
 
+use super::modal::Plane;
 use super::words::Words;
 use super::{Interp, R};
 use crate::nc::{Move, MoveKind};
@@ -48,6 +49,17 @@ pub(super) enum QueuedKind {
     },
     /// Anything else (a dwell): kept in order, never moved.
     Other,
+}
+
+/// Cutter radius compensation: whether it is on, in which plane, and where it left the tool.
+pub(super) struct CompState {
+    /// Cutter radius compensation, while G41/G42 is on.
+    pub(super) active: Option<Comp>,
+    /// The plane of the last G41/G42 (G17 or G18).
+    pub(super) plane: Plane,
+    /// After G40: where the tool is (machine frame), the start of the next move, which must
+    /// be a line (LinuxCNC).
+    pub(super) exit_start: Option<[f64; 6]>,
 }
 
 /// Compensation state while G41/G42 is on.
@@ -105,13 +117,13 @@ fn inside(side: Side, turn: i32) -> bool {
 impl Interp<'_> {
     /// A point's two coordinates in the compensation plane (X Y in G17, Z X in G18).
     fn xy(&self, p: &[f64; 6]) -> [f64; 2] {
-        let [a, b, _] = self.comp_plane.axes();
+        let [a, b, _] = self.comp.plane.axes();
         [p[a], p[b]]
     }
 
     /// `p` with its two coordinates in the compensation plane replaced.
     fn with_xy(&self, p: &[f64; 6], x: f64, y: f64) -> [f64; 6] {
-        let [a, b, _] = self.comp_plane.axes();
+        let [a, b, _] = self.comp.plane.axes();
         let mut q = *p;
         q[a] = x;
         q[b] = y;
@@ -134,8 +146,8 @@ impl Interp<'_> {
                 ),
             ));
         }
-        self.comp_plane = self.modal.plane;
-        if self.comp.is_some() {
+        self.comp.plane = self.modal.plane;
+        if self.comp.active.is_some() {
             return Err(self.err_at(
                 at,
                 format!("{name}: cutter radius compensation is already on (G40 first)"),
@@ -159,11 +171,11 @@ impl Interp<'_> {
                 }
                 Some(d) => {
                     if self.fanuc {
-                        self.radius_offset = Some(d as u32);
+                        self.tool.radius_offset = Some(d as u32);
                     }
                     d as u32
                 }
-                None => self.radius_offset.unwrap_or(self.tool),
+                None => self.tool.radius_offset.unwrap_or(self.tool.current),
             };
             match self.tool_radius(number) {
                 Some(r) => r / u,
@@ -187,7 +199,7 @@ impl Interp<'_> {
         if radius == 0.0 {
             return Ok(());
         }
-        self.comp = Some(Comp {
+        self.comp.active = Some(Comp {
             side,
             radius,
             first: true,
@@ -202,7 +214,7 @@ impl Interp<'_> {
     /// Radius (mm) of tool/offset number `n`: a G10 radius (plus Fanuc wear), else half the
     /// tool table's diameter, else half the diameter of the caller's tool of that number.
     pub(super) fn tool_radius(&self, n: u32) -> Option<f64> {
-        let geometry = self.tool_radii.get(&n).copied().or_else(|| {
+        let geometry = self.tool.radii.get(&n).copied().or_else(|| {
             self.opts
                 .tool_table
                 .get(n)
@@ -210,27 +222,27 @@ impl Interp<'_> {
                 .or_else(|| self.opts.tool_diameters.get(&n).copied())
                 .map(|d| d / 2.0)
         })?;
-        Some(geometry + self.tool_radius_wear.get(&n).copied().unwrap_or(0.0))
+        Some(geometry + self.tool.radius_wear.get(&n).copied().unwrap_or(0.0))
     }
 
     /// G40: the waiting moves go out; the next move starts where the tool is and goes to its
     /// programmed end.
     pub(super) fn comp_off(&mut self) -> R<()> {
-        let Some(c) = self.comp.as_ref() else {
+        let Some(c) = self.comp.active.as_ref() else {
             return Ok(());
         };
         let prog = c.prog;
         let here = self.xy(&self.cur);
         self.move_endpoint_and_flush(here)?;
-        self.exit_start = Some(self.to_machine(self.cur));
+        self.comp.exit_start = Some(self.to_machine(self.cur));
         self.cur = prog;
-        self.comp = None;
+        self.comp.active = None;
         Ok(())
     }
 
     /// Moves still queued at the end of the program.
     pub(super) fn comp_finish(&mut self) -> R<()> {
-        if self.comp.is_some() {
+        if self.comp.active.is_some() {
             let here = self.xy(&self.cur);
             self.move_endpoint_and_flush(here)?;
         }
@@ -238,7 +250,7 @@ impl Interp<'_> {
     }
 
     fn comp_mut(&mut self) -> &mut Comp {
-        self.comp.as_mut().expect("compensation on")
+        self.comp.active.as_mut().expect("compensation on")
     }
 
     fn dequeue(&mut self) -> R<()> {
@@ -274,7 +286,9 @@ impl Interp<'_> {
     }
 
     fn enqueue(&mut self, mv: Move, kind: QueuedKind) -> R<()> {
-        if self.moves_sent + self.moves.len() + self.comp_mut().queue.len() >= self.opts.max_moves {
+        if self.out.moves_sent + self.out.moves.len() + self.comp_mut().queue.len()
+            >= self.opts.max_moves
+        {
             return self.push_now(mv);
         }
         self.comp_mut().queue.push(Queued { mv, kind });
@@ -424,7 +438,7 @@ impl Interp<'_> {
     }
 
     fn front_arc(&self) -> Option<([f64; 2], i32, [f64; 2])> {
-        let c = self.comp.as_ref()?;
+        let c = self.comp.active.as_ref()?;
         let q = c.queue.first()?;
         match q.kind {
             QueuedKind::Arc { center, turn, .. } => {
@@ -447,7 +461,7 @@ impl Interp<'_> {
     fn arc_move(&self, from: [f64; 6], to: [f64; 6], center: [f64; 2], turn: i32) -> R<Move> {
         let sweep = find_turn(self.xy(&from), center, turn, self.xy(&to));
         self.arc_move_machine(
-            self.comp_plane,
+            self.comp.plane,
             from,
             to,
             center,
@@ -461,13 +475,19 @@ impl Interp<'_> {
         if !rapid {
             self.check_feed()?;
         }
-        if let Some(op) = self.comp.as_ref().filter(|c| c.startup).map(|c| c.prog) {
+        if let Some(op) = self
+            .comp
+            .active
+            .as_ref()
+            .filter(|c| c.startup)
+            .map(|c| c.prog)
+        {
             let ([px, py], [ox, oy]) = (self.xy(&to), self.xy(&op));
             if px != ox || py != oy {
                 self.fanuc_startup([px - ox, py - oy]);
             }
         }
-        let c = self.comp.as_ref().expect("compensation on");
+        let c = self.comp.active.as_ref().expect("compensation on");
         let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
         let cur = self.cur;
         let [px, py] = self.xy(&to);
@@ -627,9 +647,9 @@ impl Interp<'_> {
     /// A G2/G3 move with compensation on (not the entry move).
     pub(super) fn comp_arc(&mut self, w: &mut Words, cw: bool) -> R<()> {
         self.check_feed()?;
-        let c = self.comp.as_ref().expect("compensation on");
+        let c = self.comp.active.as_ref().expect("compensation on");
         let (side, radius, first, op) = (c.side, c.radius, c.first, c.prog);
-        let plane = self.comp_plane;
+        let plane = self.comp.plane;
         self.off_plane_centre_word(w, plane)?;
         let target = self.comp_target(w)?;
         let turns = match w.take('P') {
@@ -649,7 +669,7 @@ impl Interp<'_> {
         }
         let (ccx, ccy) = self.arc_center(w, cw, &op, &target)?;
         let center = [ccx, ccy];
-        if self.comp.as_ref().is_some_and(|c| c.startup) {
+        if self.comp.active.as_ref().is_some_and(|c| c.startup) {
             // The arc's start tangent.
             let [ox, oy] = self.xy(&op);
             let (rx, ry) = (ox - ccx, oy - ccy);
@@ -781,7 +801,7 @@ impl Interp<'_> {
     /// The first move after G41/G42 as an arc: an arc through the programmed end that the
     /// tool, where it is now, touches; the tool ends offset from the programmed end.
     fn comp_entry_arc(&mut self, w: &mut Words, cw: bool, turn: i32, target: [f64; 6]) -> R<()> {
-        let c = self.comp.as_ref().expect("compensation on");
+        let c = self.comp.active.as_ref().expect("compensation on");
         let (side, radius) = (c.side, c.radius);
         let cur = self.cur;
         let [cx, cy] = self.xy(&cur);
@@ -842,7 +862,7 @@ impl Interp<'_> {
     /// The programmed end of a move with compensation on: absent and incremental words count
     /// from the programmed position, not the compensated one.
     pub(super) fn comp_target(&self, w: &mut Words) -> R<[f64; 6]> {
-        let c = self.comp.as_ref().expect("compensation on");
+        let c = self.comp.active.as_ref().expect("compensation on");
         let base = if c.first { self.cur } else { c.prog };
         let mut t = base;
         for (ai, &l) in super::words::AXES.iter().enumerate() {

@@ -1,12 +1,35 @@
 //! Control flow: LinuxCNC O-word subroutines, loops and branches (the pre-scan links every
 //! control line to its partners; the run loop follows the links).
 
+use super::macro_b::ModalCall;
 use super::modal::Modal;
 use super::{Interp, MAX_CALL_DEPTH, R};
 use crate::nc::program::{MacroStatement, OKeyword, OName, OWord};
 use crate::nc::view::ProgramView;
 use crate::nc::Diagnostics;
 use std::collections::HashMap;
+
+/// Program flow: the call stack, loop counts, jumps, G66 modal calls and the program's end.
+#[derive(Default)]
+pub(super) struct Flow {
+    pub(super) frames: Vec<Frame>,
+    pub(super) repeat_counts: HashMap<(usize, usize), f64>,
+    /// G66: the macro called after each moving block, until G67.
+    /// Nested G66: the last one is called after the setting level's moves, each earlier one
+    /// after the moves of the macro of the one after it.
+    pub(super) modal_calls: Vec<ModalCall>,
+    /// Where the run loop goes after the current block, when not to the next one (M98, M99,
+    /// G65).
+    pub(super) jump: Option<usize>,
+    /// The `O` line of the main program (the first one run).
+    pub(super) main_program: Option<usize>,
+    /// Sequence numbers (N) of each Fanuc program searched so far, by the program's first
+    /// block: number -> block.
+    pub(super) sequences: HashMap<(u32, usize), HashMap<u32, usize>>,
+    /// The last jump backwards (line, what), named when a runaway loop is stopped.
+    pub(super) last_jump: Option<(u32, &'static str)>,
+    pub(super) ended: bool,
+}
 
 pub(super) struct Frame {
     pub(super) return_pc: usize,
@@ -28,7 +51,7 @@ pub(super) struct FanucCall {
     pub(super) repeats_left: u32,
     /// G65: the caller's local variables #1-#33, restored on return (M98 shares them).
     pub(super) locals: Option<Vec<f64>>,
-    /// A G66 modal call's macro: its index in `Interp::modal_calls`.
+    /// A G66 modal call's macro: its index in `Flow::modal_calls`.
     pub(super) modal_level: Option<usize>,
 }
 
@@ -425,7 +448,7 @@ impl Interp<'_> {
                 "O-word is not part of a complete control structure",
             )
         })?;
-        let depth = self.frames.len();
+        let depth = self.flow.frames.len();
         Ok(match link {
             Link::ProgramNumber => {
                 if !self.fanuc {
@@ -442,7 +465,7 @@ impl Interp<'_> {
                     Some(e) => Some(self.eval(e, o.span.start)?),
                     None => None,
                 };
-                if let Some(f) = self.frames.last().filter(|f| f.fanuc.is_some()) {
+                if let Some(f) = self.flow.frames.last().filter(|f| f.fanuc.is_some()) {
                     return Err(self.err_at(
                         o.span.start,
                         format!(
@@ -453,7 +476,7 @@ impl Interp<'_> {
                         ),
                     ));
                 }
-                let Some(frame) = self.frames.pop() else {
+                let Some(frame) = self.flow.frames.pop() else {
                     return Err(self.err_at(o.span.start, "endsub/return reached outside a call"));
                 };
                 if o.keyword == OKeyword::EndSub && frame.sub != o.name {
@@ -472,7 +495,9 @@ impl Interp<'_> {
                     self.restore_modal(m);
                 }
                 self.params.locals.pop();
-                self.repeat_counts.retain(|k, _| k.0 <= self.frames.len());
+                self.flow
+                    .repeat_counts
+                    .retain(|k, _| k.0 <= self.flow.frames.len());
                 match value {
                     Some(v) => {
                         self.params.globals.insert("_value".into(), v);
@@ -483,14 +508,14 @@ impl Interp<'_> {
                         self.params.globals.insert("_value_returned".into(), 0.0);
                     }
                 }
-                if frame.return_unit != self.unit {
-                    self.next_unit = Some(frame.return_unit);
+                if frame.return_unit != self.units.unit {
+                    self.units.next_unit = Some(frame.return_unit);
                 }
                 frame.return_pc + 1
             }
             Link::Call => {
                 let (unit, start) = match control.subs.get(&o.name) {
-                    Some(&start) => (self.unit, start),
+                    Some(&start) => (self.units.unit, start),
                     None => self.sub_elsewhere(&o.name, o.span.start)?.ok_or_else(|| {
                         self.err_at(
                             o.span.start,
@@ -498,7 +523,7 @@ impl Interp<'_> {
                         )
                     })?,
                 };
-                if self.frames.len() >= MAX_CALL_DEPTH {
+                if self.flow.frames.len() >= MAX_CALL_DEPTH {
                     return Err(self.err_at(
                         o.span.start,
                         format!("calls nested deeper than {MAX_CALL_DEPTH}"),
@@ -516,17 +541,17 @@ impl Interp<'_> {
                     self.params.numbered[i + 1] = args.get(i).copied().unwrap_or(0.0);
                 }
                 self.params.locals.push(HashMap::new());
-                self.frames.push(Frame {
+                self.flow.frames.push(Frame {
                     return_pc: pc,
-                    return_unit: self.unit,
+                    return_unit: self.units.unit,
                     saved,
                     sub: o.name.clone(),
                     auto_restore: None,
                     fanuc: None,
                 });
                 self.params.globals.insert("_value_returned".into(), 0.0);
-                if unit != self.unit {
-                    self.next_unit = Some(unit);
+                if unit != self.units.unit {
+                    self.units.next_unit = Some(unit);
                 }
                 start + 1
             }
@@ -578,7 +603,7 @@ impl Interp<'_> {
             Link::Repeat { end } => {
                 let n = self.cond(o)?;
                 if n.round() >= 1.0 {
-                    self.repeat_counts.insert((depth, pc), n.round());
+                    self.flow.repeat_counts.insert((depth, pc), n.round());
                     pc + 1
                 } else {
                     end + 1
@@ -586,21 +611,22 @@ impl Interp<'_> {
             }
             Link::EndRepeat { start } => {
                 let left = self
+                    .flow
                     .repeat_counts
                     .get(&(depth, start))
                     .copied()
                     .unwrap_or(1.0)
                     - 1.0;
                 if left >= 1.0 {
-                    self.repeat_counts.insert((depth, start), left);
+                    self.flow.repeat_counts.insert((depth, start), left);
                     start + 1
                 } else {
-                    self.repeat_counts.remove(&(depth, start));
+                    self.flow.repeat_counts.remove(&(depth, start));
                     pc + 1
                 }
             }
             Link::Break { start, end } => {
-                self.repeat_counts.remove(&(depth, start));
+                self.flow.repeat_counts.remove(&(depth, start));
                 end + 1
             }
             Link::MacroLoop { .. } | Link::MacroEnd { .. } => {

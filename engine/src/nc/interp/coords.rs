@@ -1,15 +1,39 @@
 //! Coordinate systems: program <-> machine frame, work offsets (G10, G54..G59.3), G92, G28/G30
 //! home positions, G53, the tool length offset.
 
+use super::tilted_plane::TiltedPlane;
+use super::transforms::ProgramTransforms;
 use super::words::{Words, AXES};
-use super::{Interp, R};
+use super::{Interp, CS_COUNT, R};
+
+/// Where program coordinates are in the machine frame (work offsets, G92, G52, rotation,
+/// Fanuc transforms, the tilted plane) and the G28/G30 home positions.
+pub(super) struct Coords {
+    /// Work offsets, mm/deg: G54..G59.3 (0..8), then the extended sets P1..P99 (Fanuc
+    /// G54.1 Pn, Haas G154 Pn) at 8 + n.
+    pub(super) g5x: [[f64; 6]; CS_COUNT],
+    pub(super) g92: [f64; 6],
+    pub(super) g92_applied: bool,
+    /// Fanuc G52 local offset, mm/deg (LinuxCNC's G52 writes the G92 offset instead).
+    pub(super) g52: [f64; 6],
+    /// LinuxCNC G10 L2 R: rotation of each coordinate system in XY, degrees.
+    pub(super) rot_xy: [f64; CS_COUNT],
+    /// Fanuc mirror image, scaling and rotation.
+    pub(super) prog_xf: ProgramTransforms,
+    /// G68.2: the feature coordinate system program X Y Z are in, until G69.
+    pub(super) tilt: Option<TiltedPlane>,
+    /// No rotation, mirror or scaling active: `to_machine` is per-axis offsets only.
+    pub(super) plain: bool,
+    pub(super) g28: [f64; 6],
+    pub(super) g30: [f64; 6],
+}
 
 impl Interp<'_> {
     // ----- frames -----
 
     pub(super) fn g92_eff(&self) -> [f64; 6] {
-        if self.g92_applied {
-            self.g92
+        if self.coords.g92_applied {
+            self.coords.g92
         } else {
             [0.0; 6]
         }
@@ -43,20 +67,20 @@ impl Interp<'_> {
         }
         let k = 8 + p as usize;
         let u = self.unit();
-        let mut new = self.g5x[k];
+        let mut new = self.coords.g5x[k];
         for (ai, &c) in AXES.iter().enumerate() {
             if let Some(v) = w.take(c) {
                 let v = if ai < 3 { v * u } else { v };
                 new[ai] = if self.modal.absolute { v } else { new[ai] + v };
             }
         }
-        self.change_offsets(|st| st.g5x[k] = new);
+        self.change_offsets(|st| st.coords.g5x[k] = new);
         Ok(())
     }
 
     /// Selects work coordinate system `k` (the G code is word `i`).
     pub(super) fn select_cs(&mut self, k: usize, i: usize) -> R<()> {
-        if self.comp.is_some() && self.modal.cs != k {
+        if self.comp.active.is_some() && self.modal.cs != k {
             return Err(self.err_at(
                 self.word_pos(i),
                 "coordinate system change with cutter radius compensation on (G40 first)",
@@ -100,10 +124,10 @@ impl Interp<'_> {
 
     pub(super) fn set_tlo(&mut self, tlo: Option<f64>) {
         // The spindle does not move; the controlled point (tool tip) is now elsewhere.
-        let old = self.tlo.unwrap_or(0.0);
+        let old = self.tool.tlo.unwrap_or(0.0);
         let new = tlo.unwrap_or(0.0);
         self.cur[2] += (old - new) / self.unit();
-        self.tlo = tlo;
+        self.tool.tlo = tlo;
     }
 
     pub(super) fn exec_group0(&mut self, w: &mut Words, g: u16, i: usize) -> R<()> {
@@ -147,7 +171,7 @@ impl Interp<'_> {
                 } else {
                     p as usize - 1
                 };
-                if l == 20.0 && self.rot_xy[k] != 0.0 {
+                if l == 20.0 && self.coords.rot_xy[k] != 0.0 {
                     return Err(self.err_at(
                         self.word_pos(i),
                         "G10 L20 on a rotated coordinate system (G10 L2 R) is not supported",
@@ -161,7 +185,7 @@ impl Interp<'_> {
                 }
                 let phys = self.to_machine(self.cur);
                 let g92 = self.local_offset();
-                let mut new = self.g5x[k];
+                let mut new = self.coords.g5x[k];
                 for (ai, &c) in AXES.iter().enumerate() {
                     if let Some(v) = w.take(c) {
                         let s = if ai < 3 { u } else { 1.0 };
@@ -173,13 +197,17 @@ impl Interp<'_> {
                     }
                 }
                 let rot = w.take('R');
-                self.change_offsets(|st| st.g5x[k] = new);
+                self.change_offsets(|st| st.coords.g5x[k] = new);
                 if let Some(r) = rot {
                     self.set_cs_rotation(k, r);
                 }
             }
             280 | 300 => {
-                let home = if g == 280 { self.g28 } else { self.g30 };
+                let home = if g == 280 {
+                    self.coords.g28
+                } else {
+                    self.coords.g30
+                };
                 if w.has_axis() {
                     let mut mid = self.cur;
                     let mut which = [false; 6];
@@ -220,14 +248,14 @@ impl Interp<'_> {
                         which[ai] = true;
                     }
                 }
-                let hp = self.from_machine(self.g28);
+                let hp = self.from_machine(self.coords.g28);
                 let mut end = self.cur;
                 for ai in 0..6 {
                     if which[ai] {
                         end[ai] = hp[ai];
                     }
                 }
-                self.warnings.push(self.err_at(
+                self.out.warnings.push(self.err_at(
                     self.word_pos(i),
                     "G28.2 (homing cycle) simulated as a rapid of the named axes to the G28 home position",
                 ));
@@ -236,9 +264,9 @@ impl Interp<'_> {
             281 | 301 => {
                 let m = self.to_machine(self.cur);
                 if g == 281 {
-                    self.g28 = m;
+                    self.coords.g28 = m;
                 } else {
-                    self.g30 = m;
+                    self.coords.g30 = m;
                 }
             }
             920 => {
@@ -258,20 +286,20 @@ impl Interp<'_> {
                 for (ai, &c) in AXES.iter().enumerate() {
                     if let Some(v) = w.take(c) {
                         let s = if ai < 3 { u } else { 1.0 };
-                        new[ai] = self.cur[ai] * s + local[ai] - self.g52[ai] - v * s;
+                        new[ai] = self.cur[ai] * s + local[ai] - self.coords.g52[ai] - v * s;
                     }
                 }
                 self.change_offsets(|st| {
-                    st.g92 = new;
-                    st.g92_applied = true;
+                    st.coords.g92 = new;
+                    st.coords.g92_applied = true;
                 });
             }
             921 => self.change_offsets(|st| {
-                st.g92 = [0.0; 6];
-                st.g92_applied = true;
+                st.coords.g92 = [0.0; 6];
+                st.coords.g92_applied = true;
             }),
-            922 => self.change_offsets(|st| st.g92_applied = false),
-            923 => self.change_offsets(|st| st.g92_applied = true),
+            922 => self.change_offsets(|st| st.coords.g92_applied = false),
+            923 => self.change_offsets(|st| st.coords.g92_applied = true),
             520 => self.g52(w, self.word_pos(i))?,
             531 => self.turn_tool_to_plane(self.word_pos(i))?,
             _ => {}
@@ -281,7 +309,7 @@ impl Interp<'_> {
 
     /// Target of a straight or arc move in program coordinates.
     pub(super) fn target(&self, w: &mut Words, g53: bool) -> R<[f64; 6]> {
-        if self.tilt.is_some() {
+        if self.coords.tilt.is_some() {
             self.refuse_rotary_under_tilt(w)?;
         }
         let mut t = self.cur;
@@ -323,7 +351,7 @@ impl Interp<'_> {
         for (ai, &c) in AXES.iter().enumerate() {
             if let Some(v) = w.take(c) {
                 let s = if ai < 3 { self.unit() } else { 1.0 };
-                t[ai] = (v * s - self.g5x[self.modal.cs][ai] - self.local_offset()[ai]) / s;
+                t[ai] = (v * s - self.coords.g5x[self.modal.cs][ai] - self.local_offset()[ai]) / s;
             }
         }
         Ok(t)
@@ -346,19 +374,19 @@ impl Interp<'_> {
             };
             let (map, base) = match l as u32 {
                 10 => (
-                    &mut self.tool_lengths,
+                    &mut self.tool.lengths,
                     self.opts.tool_table.get(t).map(|e| e.z_offset),
                 ),
-                11 => (&mut self.tool_length_wear, None),
+                11 => (&mut self.tool.length_wear, None),
                 12 => (
-                    &mut self.tool_radii,
+                    &mut self.tool.radii,
                     self.opts
                         .tool_table
                         .get(t)
                         .and_then(|e| e.diameter)
                         .map(|d| d / 2.0),
                 ),
-                _ => (&mut self.tool_radius_wear, None),
+                _ => (&mut self.tool.radius_wear, None),
             };
             let old = map.get(&t).copied().or(base).unwrap_or(0.0);
             let new = if self.modal.absolute {
@@ -370,7 +398,7 @@ impl Interp<'_> {
             return Ok(());
         }
         if let Some(r) = w.take('R') {
-            self.tool_radii.insert(t, r * u);
+            self.tool.radii.insert(t, r * u);
         }
         let Some(z) = w.take('Z') else {
             if l == 1.0 {
@@ -382,15 +410,15 @@ impl Interp<'_> {
             z * u
         } else {
             // Where the spindle is: the controlled point plus the active length offset.
-            let spindle = self.to_machine(self.cur)[2] + self.tlo.unwrap_or(0.0);
+            let spindle = self.to_machine(self.cur)[2] + self.tool.tlo.unwrap_or(0.0);
             let origin = if l == 10.0 {
-                self.g5x[self.modal.cs][2] + self.g92_eff()[2]
+                self.coords.g5x[self.modal.cs][2] + self.g92_eff()[2]
             } else {
-                self.g5x[8][2]
+                self.coords.g5x[8][2]
             };
             spindle - origin - z * u
         };
-        self.tool_lengths.insert(t, length);
+        self.tool.lengths.insert(t, length);
         Ok(())
     }
 
@@ -398,11 +426,12 @@ impl Interp<'_> {
     /// neither), plus any Fanuc wear.
     pub(super) fn tool_length(&self, h: u32) -> Option<f64> {
         let geometry = self
-            .tool_lengths
+            .tool
+            .lengths
             .get(&h)
             .copied()
             .or_else(|| self.opts.tool_table.get(h).map(|t| t.z_offset))?;
-        Some(geometry + self.tool_length_wear.get(&h).copied().unwrap_or(0.0))
+        Some(geometry + self.tool.length_wear.get(&h).copied().unwrap_or(0.0))
     }
 
     /// Fanuc H without G43: the new offset number of the active length compensation (none
@@ -414,7 +443,7 @@ impl Interp<'_> {
         if h < 0.0 || h.fract() != 0.0 || h > u32::MAX as f64 {
             return Err(self.err_word(w, 'H', format!("H{h} is not an offset number")));
         }
-        if self.tlo.is_some() {
+        if self.tool.tlo.is_some() {
             let length = if h == 0.0 {
                 0.0
             } else {

@@ -24,7 +24,7 @@ impl Interp<'_> {
     /// Shorten the pending corner's move and add the fillet arc or chamfer line.
     pub(super) fn resolve_corner(&mut self, p: PendingCorner, next_end: [f64; 6]) -> R<()> {
         let [a, b, _] = p.plane.axes();
-        let prev_start_m = self.moves[p.move_index].start;
+        let prev_start_m = self.out.moves[p.move_index].start;
         let prev_start = self.from_machine(prev_start_m);
         let c = p.corner;
         let fail = |s: &Self, m: &str| s.err_at(p.word_pos, m.to_string());
@@ -83,7 +83,7 @@ impl Interp<'_> {
         // Shorten the corner block's line; its end becomes T1.
         let t1m = self.to_machine(t1);
         let t2m = self.to_machine(t2);
-        self.moves[p.move_index].end = t1m;
+        self.out.moves[p.move_index].end = t1m;
         let (blk, line) = (self.cur_block, self.cur_line);
         self.cur_block = p.block;
         self.cur_line = self.prog.block(p.block).line;
@@ -103,7 +103,7 @@ impl Interp<'_> {
             }
         };
         // The corner belongs to the corner block, at the corner block's feed.
-        let corner_move = &self.moves[p.move_index];
+        let corner_move = &self.out.moves[p.move_index];
         m.feed = corner_move.feed;
         m.feed_mode = corner_move.feed_mode;
         m.spindle = corner_move.spindle;

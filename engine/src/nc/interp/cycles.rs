@@ -5,6 +5,19 @@ use super::words::{Words, AXES};
 use super::{Interp, G83_RAPID_DELTA_INCH, MM_PER_INCH, R};
 use crate::nc::{FeedMode, SpindleDir};
 
+/// Canned cycle sticky values (program units), kept from one cycle block to the next.
+#[derive(Default)]
+pub(super) struct CycleState {
+    pub(super) r: f64,
+    pub(super) cc: f64,
+    pub(super) p: f64,
+    pub(super) q: f64,
+    pub(super) i: f64,
+    pub(super) j: f64,
+    pub(super) k: f64,
+    pub(super) il: Option<f64>,
+}
+
 impl Interp<'_> {
     /// G33.1: feed to the target synchronized with the spindle (K = pitch), then back out.
     pub(super) fn rigid_tap(&mut self, w: &mut Words) -> R<()> {
@@ -49,7 +62,7 @@ impl Interp<'_> {
         let same = self.motion_was_cycle(g);
         // Fanuc keeps the cycle data (R, hole bottom, P, Q) from one cycle code to the next
         // until G80 or G00-G03 clears it; LinuxCNC only while the same cycle repeats.
-        let kept = same || (self.fanuc && matches!(self.motion_prev, Some(Motion::Cycle(_))));
+        let kept = same || (self.fanuc && matches!(self.motion.prev, Some(Motion::Cycle(_))));
         let plane = self.modal.plane;
         let [ia, ib, ic] = plane.axes();
         let (la, lb, lc) = (AXES[ia], AXES[ib], AXES[ic]);
@@ -62,15 +75,15 @@ impl Interp<'_> {
         let r_word = w.take('R');
         let r_num = match r_word {
             Some(r) => r,
-            None if kept => self.cycle_r,
+            None if kept => self.cycle.r,
             // Fanuc: G80 clears R, which the manual defines as R = 0 incremental: the R point
             // is then the initial level.
             None if self.fanuc => {
-                self.warnings.push(self.err_block(format!(
+                self.out.warnings.push(self.err_block(format!(
                     "G{g} without R and no R since the last G80: the R point is the initial level, as a Fanuc control clears R to 0 incremental at G80"
                 )));
                 if self.modal.absolute {
-                    self.cycle_il.unwrap_or(self.cur[ic])
+                    self.cycle.il.unwrap_or(self.cur[ic])
                 } else {
                     0.0
                 }
@@ -121,13 +134,13 @@ impl Interp<'_> {
             )));
         }
         w.take(lc);
-        let cc_num = cc_word.unwrap_or(self.cycle_cc);
+        let cc_num = cc_word.unwrap_or(self.cycle.cc);
         let current_cc0 = self.cur[ic];
         let mut current_cc = current_cc0;
-        let mut old_cc = match self.cycle_il {
+        let mut old_cc = match self.cycle.il {
             Some(v) => v,
             None => {
-                self.cycle_il = Some(current_cc0);
+                self.cycle.il = Some(current_cc0);
                 current_cc0
             }
         };
@@ -165,20 +178,20 @@ impl Interp<'_> {
                     // Fanuc: the dwell in ms, as G04 P.
                     Some(v) if self.fanuc => v / 1000.0,
                     Some(v) => v,
-                    None if kept => self.cycle_p,
+                    None if kept => self.cycle.p,
                     // Fanuc: G80 clears P, so no dwell.
                     None if self.fanuc => 0.0,
                     None => return Err(self.err_block(format!("G{g} needs a P word (dwell)"))),
                 };
-                self.cycle_p = p;
+                self.cycle.p = p;
             }
             74 | 84 => {
                 p = match w.take('P') {
                     Some(v) if self.fanuc => v / 1000.0,
                     Some(v) => v,
-                    None => self.cycle_p,
+                    None => self.cycle.p,
                 };
-                self.cycle_p = p;
+                self.cycle.p = p;
                 let (need, m) = if g == 84 {
                     (SpindleDir::Cw, "clockwise (M3)")
                 } else {
@@ -191,13 +204,13 @@ impl Interp<'_> {
             73 | 83 => {
                 q = match w.take('Q') {
                     Some(v) => v,
-                    None if kept => self.cycle_q,
+                    None if kept => self.cycle.q,
                     None => return Err(self.err_block(format!("G{g} needs a Q word (peck depth)"))),
                 };
                 if q <= 0.0 {
                     return Err(self.err_block(format!("G{g} peck depth Q must be positive")));
                 }
-                self.cycle_q = q;
+                self.cycle.q = q;
             }
             87 => {
                 // I J K of the XY plane; in other planes the letters follow the plane's axes.
@@ -212,12 +225,12 @@ impl Interp<'_> {
                         }
                     }
                 }
-                ci = w.take(li).unwrap_or(self.cycle_i);
-                cj = w.take(lj).unwrap_or(self.cycle_j);
-                ck = w.take(lk).unwrap_or(self.cycle_k);
-                self.cycle_i = ci;
-                self.cycle_j = cj;
-                self.cycle_k = ck;
+                ci = w.take(li).unwrap_or(self.cycle.i);
+                cj = w.take(lj).unwrap_or(self.cycle.j);
+                ck = w.take(lk).unwrap_or(self.cycle.k);
+                self.cycle.i = ci;
+                self.cycle.j = cj;
+                self.cycle.k = ck;
                 if !self.modal.absolute {
                     ck += cc;
                 }
@@ -339,7 +352,7 @@ impl Interp<'_> {
                     self.cyc_move(false, plane, aa, bb, cc)?;
                     self.dwell(p)?;
                     self.modal.spindle = SpindleDir::Off;
-                    self.warnings.push(self.err_block(
+                    self.out.warnings.push(self.err_block(
                         "G88: program stop at the hole bottom; the operator's manual retract is modelled as a rapid to the clearance height",
                     ));
                     self.cyc_move(true, plane, aa, bb, clear)?;
@@ -361,13 +374,13 @@ impl Interp<'_> {
         self.cur[ia] = aa;
         self.cur[ib] = bb;
         self.cur[ic] = clear;
-        self.cycle_cc = cc_num;
-        self.cycle_r = r_num;
+        self.cycle.cc = cc_num;
+        self.cycle.r = r_num;
         Ok(())
     }
 
     pub(super) fn motion_was_cycle(&self, g: u16) -> bool {
-        self.motion_prev == Some(Motion::Cycle(g))
+        self.motion.prev == Some(Motion::Cycle(g))
     }
 
     pub(super) fn cyc_move(
@@ -403,7 +416,7 @@ impl Interp<'_> {
                 "{name}: start point too close to the probe point (under 0.254 mm)"
             )));
         }
-        self.warnings.push(self.err_block(format!(
+        self.out.warnings.push(self.err_block(format!(
             "{name} probing: no probe contact is modelled; the move goes to its programmed end point"
         )));
         self.straight(false, to)

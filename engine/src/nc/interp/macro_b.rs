@@ -108,7 +108,7 @@ impl<'p> Interp<'p> {
                 let Some(&Link::MacroEnd { start }) = link() else {
                     return Err(self.err_at(at, format!("END{id} without its DO{id}")));
                 };
-                self.last_jump = Some((self.cur_line, "a WHILE/DO loop's END"));
+                self.flow.last_jump = Some((self.cur_line, "a WHILE/DO loop's END"));
                 // A WHILE line tests its condition again; a bare DO loops for ever.
                 match self.prog.block(start).macro_line.map(|m| &m.statement) {
                     Some(MacroStatement::While { .. }) => start,
@@ -116,7 +116,7 @@ impl<'p> Interp<'p> {
                 }
             }
             MacroStatement::Output(keyword) => {
-                self.warnings.push(self.err_at(
+                self.out.warnings.push(self.err_at(
                     at,
                     format!("{keyword}: external output is not simulated (no motion)"),
                 ));
@@ -138,14 +138,14 @@ impl<'p> Interp<'p> {
             ));
         }
         let n = v as u32;
-        let to = self.find_sequence(self.unit, pc, n).ok_or_else(|| {
+        let to = self.find_sequence(self.units.unit, pc, n).ok_or_else(|| {
             self.err_at(
                 at,
                 format!("GOTO {n}: no block N{n} in this program (sequence search failed)"),
             )
         })?;
         if to <= pc {
-            self.last_jump = Some((self.cur_line, "GOTO"));
+            self.flow.last_jump = Some((self.cur_line, "GOTO"));
         }
         Ok(to)
     }
@@ -174,15 +174,15 @@ impl<'p> Interp<'p> {
         }
         let call = self.call_arguments(b, what)?;
         if modal {
-            if self.modal_calls.len() >= MAX_MODAL_CALLS {
+            if self.flow.modal_calls.len() >= MAX_MODAL_CALLS {
                 return Err(self.err_at(
                     at,
                     format!("G66 nested more than {MAX_MODAL_CALLS} deep (the control's limit; G67 first)"),
                 ));
             }
-            self.modal_calls.push(ModalCall {
+            self.flow.modal_calls.push(ModalCall {
                 call,
-                depth: self.frames.len(),
+                depth: self.flow.frames.len(),
                 at,
             });
             return Ok(());
@@ -195,10 +195,11 @@ impl<'p> Interp<'p> {
     /// manual's G66 P9100 .. G66 P9200), a move in a modal macro calls the macro of the G66
     /// before its own; the first G66's macro calls none (its moves do not call it again).
     pub(super) fn modal_macro_after_move(&mut self) -> R<()> {
-        if self.jump.is_some() {
+        if self.flow.jump.is_some() {
             return Ok(());
         }
         let in_modal = self
+            .flow
             .frames
             .last()
             .and_then(|f| f.fanuc.as_ref())
@@ -209,14 +210,14 @@ impl<'p> Interp<'p> {
                 None => return Ok(()),
             },
             None => {
-                let top = self.modal_calls.len() - 1;
-                if self.modal_calls[top].depth != self.frames.len() {
+                let top = self.flow.modal_calls.len() - 1;
+                if self.flow.modal_calls[top].depth != self.flow.frames.len() {
                     return Ok(());
                 }
                 top
             }
         };
-        let Some(mc) = self.modal_calls.get(level) else {
+        let Some(mc) = self.flow.modal_calls.get(level) else {
             return Ok(());
         };
         let (call, at) = (mc.call.clone(), mc.at);
@@ -297,7 +298,7 @@ impl<'p> Interp<'p> {
     }
 
     /// Calls the macro program: a new level of local variables from the arguments.
-    /// `modal_level`: the G66 (index in `modal_calls`) whose macro this is.
+    /// `modal_level`: the G66 (index in `flow.modal_calls`) whose macro this is.
     fn enter_macro(&mut self, call: &MacroCall, at: usize, modal_level: Option<usize>) -> R<()> {
         if call.repeats == 0 {
             return Ok(());
@@ -314,7 +315,7 @@ impl<'p> Interp<'p> {
         for (k, arg) in call.args.iter().enumerate().skip(1) {
             self.params.numbered[k] = arg.unwrap_or_else(vacant);
         }
-        if let Some(c) = self.frames.last_mut().and_then(|f| f.fanuc.as_mut()) {
+        if let Some(c) = self.flow.frames.last_mut().and_then(|f| f.fanuc.as_mut()) {
             c.modal_level = modal_level;
         }
         Ok(())

@@ -10,7 +10,6 @@ use super::{
     Diagnostic, Diagnostics, Dialect, FeedMode, InterpretOptions, Interpretation, Move, MoveKind,
     SpindleDir,
 };
-use std::collections::HashMap;
 
 mod arcs;
 mod block;
@@ -27,11 +26,12 @@ mod splines;
 mod stream;
 mod subprograms;
 mod tilted_plane;
+mod tool;
 mod transforms;
 mod units;
 mod words;
 
-use control::{prescan, ControlMap, Frame};
+use control::{prescan, ControlMap};
 use corners::PendingCorner;
 use modal::{Modal, Motion, Plane};
 pub(crate) use stream::{interpret_streamed, scan, Scan};
@@ -53,7 +53,7 @@ const CS_COUNT: usize = 9 + EXTENDED_CS;
 const MAX_ARC_TURNS: f64 = 10_000.0;
 
 struct Interp<'p> {
-    /// The file being run: the program itself or a library file (`unit`).
+    /// The file being run: the program itself or a library file (`units.unit`).
     prog: &'p ProgramView<'p>,
     /// `prog` has lines with a syntax error raised when executed (one flag read per block).
     deferred_here: bool,
@@ -64,119 +64,53 @@ struct Interp<'p> {
     main_control: &'p ControlMap,
     /// Library files loaded for this run: unit k is `lib[k - 1]`.
     lib: &'p [units::LibUnit<'p>],
-    /// Which file runs (0: the program itself), and the one to run from the next block on
-    /// (a call into or a return from another file).
-    unit: u32,
-    next_unit: Option<u32>,
-    /// While a library file runs: the block and line of the outermost call in the program,
-    /// to which its moves are attributed.
-    site: Option<(usize, u32)>,
-    /// A library file that a call needs and this run did not load (the run is made again
-    /// with it).
-    missing: Option<usize>,
+    /// Which file runs, and where its moves are attributed.
+    units: units::UnitState,
     opts: &'p InterpretOptions,
     fanuc: bool,
     corners_without_comma: bool,
     /// Modal state that M70/M72 save and restore (units, distance and feed modes, plane,
     /// retract mode, coordinate system, F, S and spindle).
     modal: Modal,
-    motion: Option<Motion>,
-    /// Motion mode before the current block (decides whether a cycle's words are sticky).
-    motion_prev: Option<Motion>,
-    /// The last G0/G1/G2/G3 mode: a Fanuc G80 returns to it.
-    motion_01: Option<Motion>,
+    /// M70 saved state.
+    saved_modal: Option<Modal>,
+    /// The motion mode, the one before the current block and the last G0/G1/G2/G3 mode.
+    motion: modal::MotionModes,
     /// Current position, program coordinates in program units (as LinuxCNC keeps it).
     cur: [f64; 6],
-    /// Work offsets, mm/deg.
-    /// Work offsets: G54..G59.3 (0..8), then the extended sets P1..P99 (Fanuc G54.1 Pn,
-    /// Haas G154 Pn) at 8 + n.
-    g5x: [[f64; 6]; CS_COUNT],
-    g92: [f64; 6],
-    g92_applied: bool,
-    /// Fanuc G52 local offset, mm/deg (LinuxCNC's G52 writes the G92 offset instead).
-    g52: [f64; 6],
-    /// LinuxCNC G10 L2 R: rotation of each coordinate system in XY, degrees.
-    rot_xy: [f64; CS_COUNT],
-    /// Fanuc mirror image, scaling and rotation.
-    prog_xf: transforms::ProgramTransforms,
-    /// G68.2: the feature coordinate system program X Y Z are in, until G69.
-    tilt: Option<tilted_plane::TiltedPlane>,
-    /// G66: the macro called after each moving block, until G67.
-    /// Nested G66: the last one is called after the setting level's moves, each earlier one
-    /// after the moves of the macro of the one after it.
-    modal_calls: Vec<macro_b::ModalCall>,
+    /// Where program coordinates are in the machine frame, and the home positions.
+    coords: coords::Coords,
+    /// Fanuc G16 polar mode.
+    polar: polar::PolarState,
     /// A G5.2 NURBS being defined.
     nurbs: Option<splines::NurbsInProgress>,
-    /// Fanuc G16 polar mode, and the last polar radius and angle (degrees) it went to.
-    polar_mode: bool,
-    polar_last: std::cell::Cell<Option<(f64, f64)>>,
-    /// No rotation, mirror or scaling active: `to_machine` is per-axis offsets only.
-    plain: bool,
-    g28: [f64; 6],
-    g30: [f64; 6],
-    /// Active tool length offset (mm), None: G49.
-    tlo: Option<f64>,
-    /// G43.4/G43.5 tool-centre-point control in force (G43, G43.1 and G49 end it).
-    tcp: bool,
-    tool: u32,
-    /// Fanuc's modal D: the radius offset number a G41/G42 without D takes (set by D on a
-    /// G41/G42 block or on a G43 block, as Fanuc posts write `G43 H1 D1`).
-    radius_offset: Option<u32>,
-    selected_tool: Option<u32>,
-    /// Each T number selected, with the line of its first selection.
-    selected_tools: Vec<(u32, u32)>,
-    // Canned cycle sticky values (program units).
-    cycle_r: f64,
-    cycle_cc: f64,
-    cycle_p: f64,
-    cycle_q: f64,
-    cycle_i: f64,
-    cycle_j: f64,
-    cycle_k: f64,
-    cycle_il: Option<f64>,
+    /// The tool in the spindle, the ones selected, its offsets and the offsets' table.
+    tool: tool::ToolState,
+    /// Cutter radius compensation (G41/G42, G40).
+    comp: comp::CompState,
+    /// Canned cycle values kept between blocks.
+    cycle: cycles::CycleState,
     params: Params,
-    frames: Vec<Frame>,
-    repeat_counts: HashMap<(usize, usize), f64>,
+    /// Calls, loops, jumps and the program's end.
+    flow: control::Flow,
+    /// The moves and warnings made so far.
+    out: Output,
+    pending_corner: Option<PendingCorner>,
+    /// Block being executed (index, line) for moves and errors.
+    cur_block: usize,
+    cur_line: u32,
+    /// Storage for the next block's G and M lists.
+    spare: block::SpareLists,
+}
+
+/// What a run makes: moves and warnings.
+struct Output {
     moves: Vec<Move>,
     /// Moves already handed out of `moves` (a streamed program's, see `stream.rs`).
     moves_sent: usize,
     warnings: Vec<Diagnostic>,
-    pending_corner: Option<PendingCorner>,
-    /// M70 saved state.
-    saved_modal: Option<Modal>,
-    ended: bool,
-    /// Block being executed (index, line) for moves and errors.
-    cur_block: usize,
-    cur_line: u32,
-    warned_tools: std::collections::HashSet<u32>,
-    /// Tool offsets written by G10 (mm), by tool/offset number: length, Fanuc length wear,
-    /// radius, Fanuc radius wear. They take precedence over the tool table.
-    tool_lengths: HashMap<u32, f64>,
-    tool_length_wear: HashMap<u32, f64>,
-    tool_radii: HashMap<u32, f64>,
-    tool_radius_wear: HashMap<u32, f64>,
     /// Non-standard M codes already warned about.
     warned_m_codes: std::collections::HashSet<u32>,
-    /// Cutter radius compensation, while G41/G42 is on.
-    comp: Option<comp::Comp>,
-    /// The plane of the last G41/G42 (G17 or G18).
-    comp_plane: Plane,
-    /// After G40: where the tool is (machine frame), the start of the next move, which must
-    /// be a line (LinuxCNC).
-    exit_start: Option<[f64; 6]>,
-    /// Where the run loop goes after the current block, when not to the next one (M98, M99,
-    /// G65).
-    jump: Option<usize>,
-    /// The `O` line of the main program (the first one run).
-    main_program: Option<usize>,
-    /// Sequence numbers (N) of each Fanuc program searched so far, by the program's first
-    /// block: number -> block.
-    sequences: HashMap<(u32, usize), HashMap<u32, usize>>,
-    /// The last jump backwards (line, what), named when a runaway loop is stopped.
-    last_jump: Option<(u32, &'static str)>,
-    /// Storage for the next block's G and M lists.
-    spare_gs: Vec<(u16, usize)>,
-    spare_ms: Vec<(u32, usize)>,
 }
 
 type R<T> = Result<T, Diagnostic>;
@@ -251,7 +185,7 @@ fn run_units(
     );
     match it.run() {
         Ok(()) => Ok(it.into_interpretation(prog.summary(), prog.len())),
-        Err(d) => Err((Diagnostics(vec![d]), it.missing)),
+        Err(d) => Err((Diagnostics(vec![d]), it.units.missing)),
     }
 }
 
@@ -275,10 +209,7 @@ impl<'p> Interp<'p> {
             main: prog,
             main_control: control,
             lib,
-            unit: 0,
-            next_unit: None,
-            site: None,
-            missing: None,
+            units: Default::default(),
             opts: options,
             fanuc,
             corners_without_comma: options.fanuc_corners_without_comma,
@@ -296,67 +227,49 @@ impl<'p> Interp<'p> {
                 speed: 0.0,
                 spindle: SpindleDir::Off,
             },
+            saved_modal: None,
             // A Fanuc (or Haas) control powers up in G00 (parameter 3402#0 clear): `G43 H1 Z50.`
             // before any G0 moves at rapid. LinuxCNC starts with no motion mode.
-            motion: fanuc.then_some(Motion::Rapid),
-            motion_prev: None,
-            motion_01: fanuc.then_some(Motion::Rapid),
+            motion: modal::MotionModes {
+                mode: fanuc.then_some(Motion::Rapid),
+                prev: None,
+                mode_01: fanuc.then_some(Motion::Rapid),
+            },
             cur: [0.0; 6],
-            g5x: [[0.0; 6]; CS_COUNT],
-            g92: [0.0; 6],
-            g92_applied: true,
-            g52: [0.0; 6],
-            rot_xy: [0.0; CS_COUNT],
-            prog_xf: Default::default(),
-            tilt: None,
-            modal_calls: Vec::new(),
+            coords: coords::Coords {
+                g5x: [[0.0; 6]; CS_COUNT],
+                g92: [0.0; 6],
+                g92_applied: true,
+                g52: [0.0; 6],
+                rot_xy: [0.0; CS_COUNT],
+                prog_xf: Default::default(),
+                tilt: None,
+                plain: true,
+                g28: [0.0; 6],
+                g30: [0.0; 6],
+            },
+            polar: Default::default(),
             nurbs: None,
-            polar_mode: false,
-            polar_last: Default::default(),
-            plain: true,
-            g28: [0.0; 6],
-            g30: [0.0; 6],
-            tlo: None,
-            tcp: false,
-            tool: 0,
-            radius_offset: None,
-            selected_tool: None,
-            selected_tools: Vec::new(),
-            cycle_r: 0.0,
-            cycle_cc: 0.0,
-            cycle_p: 0.0,
-            cycle_q: 0.0,
-            cycle_i: 0.0,
-            cycle_j: 0.0,
-            cycle_k: 0.0,
-            cycle_il: None,
+            tool: Default::default(),
+            comp: comp::CompState {
+                active: None,
+                plane: Plane::XY,
+                exit_start: None,
+            },
+            cycle: Default::default(),
             params: Params::new(),
-            frames: Vec::new(),
-            repeat_counts: HashMap::new(),
-            // Most programs make about one move per block.
-            moves: Vec::with_capacity(move_capacity.min(options.max_moves)),
-            moves_sent: 0,
-            warnings: Vec::new(),
+            flow: Default::default(),
+            out: Output {
+                // Most programs make about one move per block.
+                moves: Vec::with_capacity(move_capacity.min(options.max_moves)),
+                moves_sent: 0,
+                warnings: Vec::new(),
+                warned_m_codes: Default::default(),
+            },
             pending_corner: None,
-            saved_modal: None,
-            ended: false,
             cur_block: 0,
             cur_line: 1,
-            warned_tools: Default::default(),
-            warned_m_codes: Default::default(),
-            tool_lengths: HashMap::new(),
-            tool_length_wear: HashMap::new(),
-            tool_radii: HashMap::new(),
-            tool_radius_wear: HashMap::new(),
-            comp: None,
-            comp_plane: Plane::XY,
-            exit_start: None,
-            jump: None,
-            main_program: None,
-            sequences: HashMap::new(),
-            last_jump: None,
-            spare_gs: Vec::new(),
-            spare_ms: Vec::new(),
+            spare: Default::default(),
         };
         if fanuc {
             it.params.init_fanuc();
@@ -365,7 +278,7 @@ impl<'p> Interp<'p> {
         // is read in the active G54 system), as on the control.
         for &(k, [x, y, z]) in &options.work_offsets {
             if k < 9 {
-                it.g5x[k][..3].copy_from_slice(&[x, y, z]);
+                it.coords.g5x[k][..3].copy_from_slice(&[x, y, z]);
             }
         }
         if let Some([x, y, z]) = options.start_position {
@@ -391,21 +304,23 @@ impl Interp<'_> {
         block_count: usize,
     ) -> Interpretation {
         // The lines with a syntax error the run never reached: the user should know.
-        self.warnings.extend(summary.deferred.iter().map(|(_, d)| {
-            Diagnostic::new(
-                d.line,
-                d.col,
-                format!(
-                    "{} (this line is never executed, so it does not stop the program)",
-                    d.message
-                ),
-            )
-        }));
+        self.out
+            .warnings
+            .extend(summary.deferred.iter().map(|(_, d)| {
+                Diagnostic::new(
+                    d.line,
+                    d.col,
+                    format!(
+                        "{} (this line is never executed, so it does not stop the program)",
+                        d.message
+                    ),
+                )
+            }));
         Interpretation {
-            moves: self.moves,
-            warnings: self.warnings,
+            moves: self.out.moves,
+            warnings: self.out.warnings,
             block_count,
-            selected_tools: self.selected_tools,
+            selected_tools: self.tool.selected_tools,
             library_files: self.lib.iter().map(|u| u.name.to_string()).collect(),
         }
     }
@@ -422,7 +337,7 @@ impl Interp<'_> {
     /// in the program, naming the file, line and column.
     fn err_at(&self, byte: usize, msg: impl Into<String>) -> Diagnostic {
         let d = self.prog.diag(byte, msg);
-        if self.unit == 0 {
+        if self.units.unit == 0 {
             d
         } else {
             self.in_library(d)
@@ -464,22 +379,22 @@ impl Interp<'_> {
             feed: self.out_feed(),
             feed_mode: self.modal.feed_mode,
             spindle: self.modal.speed,
-            tool: self.tool,
+            tool: self.tool.current,
             center: None,
             normal: None,
             clockwise: None,
-            tool_length: self.tlo,
+            tool_length: self.tool.tlo,
             seconds: None,
             tool_axis: None,
             // Under G68.2 the tip is placed in the feature frame whatever the angles.
-            tool_tip: self.tcp || self.tilt.is_some(),
+            tool_tip: self.tool.tcp || self.coords.tilt.is_some(),
             start,
             spindle_dir: self.modal.spindle,
             arc: None,
             source: None,
         };
         // One return path, so the move is built in place (it is large).
-        if self.unit != 0 {
+        if self.units.unit != 0 {
             self.attribute(&mut m);
         }
         m
@@ -487,7 +402,7 @@ impl Interp<'_> {
 
     /// Adds a move; with cutter compensation waiting on a move, after it (in order).
     fn push(&mut self, m: Move) -> R<()> {
-        if let Some(c) = self.comp.as_mut() {
+        if let Some(c) = self.comp.active.as_mut() {
             if !c.queue.is_empty() {
                 c.queue.push(comp::Queued {
                     mv: m,
@@ -500,20 +415,20 @@ impl Interp<'_> {
     }
 
     fn push_now(&mut self, m: Move) -> R<()> {
-        if self.moves_sent + self.moves.len() >= self.opts.max_moves {
+        if self.out.moves_sent + self.out.moves.len() >= self.opts.max_moves {
             return Err(self.err_block(format!(
                 "program makes more than {} moves (runaway loop?); interpretation stopped",
                 self.opts.max_moves
             )));
         }
-        self.moves.push(m);
+        self.out.moves.push(m);
         Ok(())
     }
 
     /// The first move after G40 starts where compensation left the tool.
     #[cold]
     fn take_exit_start(&mut self) -> [f64; 6] {
-        self.exit_start.take().expect("checked")
+        self.comp.exit_start.take().expect("checked")
     }
 
     /// Straight move to `to` (program coordinates).
@@ -522,7 +437,7 @@ impl Interp<'_> {
             self.check_feed()?;
         }
         // After G40 the tool is still where compensation left it.
-        let start = if self.exit_start.is_some() {
+        let start = if self.comp.exit_start.is_some() {
             self.take_exit_start()
         } else {
             self.to_machine(self.cur)
@@ -573,7 +488,7 @@ impl Interp<'_> {
     /// the last block held (a streamed program's window, see `stream.rs`).
     fn run_blocks(&mut self, at: &mut RunPosition) -> R<bool> {
         let RunPosition { mut pc, mut steps } = *at;
-        while pc < self.prog.len() && !self.ended {
+        while pc < self.prog.len() && !self.flow.ended {
             steps += 1;
             let b = self.prog.block(pc);
             self.cur_block = pc;
@@ -584,7 +499,7 @@ impl Interp<'_> {
                 return Err(self.err_block("interpretation cancelled"));
             }
             if steps > self.opts.max_blocks {
-                let last = match self.last_jump {
+                let last = match self.flow.last_jump {
                     Some((line, what)) => format!("; the last jump back was {what} on line {line}"),
                     None => String::new(),
                 };
@@ -603,7 +518,7 @@ impl Interp<'_> {
             }
             if self.deferred_here {
                 if let Some(d) = self.prog.summary().deferred_error(pc) {
-                    return Err(if self.unit == 0 {
+                    return Err(if self.units.unit == 0 {
                         d.clone()
                     } else {
                         self.in_library(d.clone())
@@ -618,22 +533,22 @@ impl Interp<'_> {
                 if !b.is_empty() {
                     self.exec_block(&b)?;
                 }
-                pc = match self.jump.take() {
+                pc = match self.flow.jump.take() {
                     Some(to) => to,
                     None => pc + 1,
                 };
             }
-            if let Some(u) = self.next_unit.take() {
+            if let Some(u) = self.units.next_unit.take() {
                 self.enter_unit(u)?;
             }
         }
         *at = RunPosition { pc, steps };
-        Ok(self.ended)
+        Ok(self.flow.ended)
     }
 
     /// The checks at the end of the program, and the moves compensation still holds.
     fn finish(&mut self) -> R<()> {
-        if self.unit != 0 && !self.ended {
+        if self.units.unit != 0 && !self.flow.ended {
             return Err(self.err_block(
                 "the library program ends without M99 (or endsub) returning to its caller",
             ));

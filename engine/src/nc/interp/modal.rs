@@ -72,6 +72,16 @@ pub(super) enum Motion {
     Nurbs,
 }
 
+/// The motion modes (group 1) the interpreter keeps.
+pub(super) struct MotionModes {
+    /// The motion mode in force.
+    pub(super) mode: Option<Motion>,
+    /// Motion mode before the current block (decides whether a cycle's words are sticky).
+    pub(super) prev: Option<Motion>,
+    /// The last G0/G1/G2/G3 mode: a Fanuc G80 returns to it.
+    pub(super) mode_01: Option<Motion>,
+}
+
 /// Modal group of a G code (times ten), LinuxCNC numbering; None: unsupported.
 pub(super) fn g_group(code: u16) -> Option<u8> {
     Some(match code {

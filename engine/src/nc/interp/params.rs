@@ -59,20 +59,20 @@ impl Interp<'_> {
             }
         };
         if let Some(i) = axis(5160) {
-            return self.offset_param(self.g28[i], i < 3);
+            return self.offset_param(self.coords.g28[i], i < 3);
         }
         if let Some(i) = axis(5180) {
-            return self.offset_param(self.g30[i], i < 3);
+            return self.offset_param(self.coords.g30[i], i < 3);
         }
         if n == 5210 {
-            return if self.g92_applied && self.g92.iter().any(|&v| v != 0.0) {
+            return if self.coords.g92_applied && self.coords.g92.iter().any(|&v| v != 0.0) {
                 1.0
             } else {
                 0.0
             };
         }
         if let Some(i) = axis(5210) {
-            return self.offset_param(self.g92[i], i < 3);
+            return self.offset_param(self.coords.g92[i], i < 3);
         }
         if n == 5220 {
             return (self.modal.cs + 1) as f64;
@@ -81,17 +81,17 @@ impl Interp<'_> {
             let k = (n - 5221) / 20;
             let i = (n - 5221) % 20;
             if k < 9 && i < 6 {
-                return self.offset_param(self.g5x[k][i], i < 3);
+                return self.offset_param(self.coords.g5x[k][i], i < 3);
             }
             if k < 9 && i == 9 {
-                return self.rot_xy[k];
+                return self.coords.rot_xy[k];
             }
         }
         if n == 5400 {
-            return self.tool as f64;
+            return self.tool.current as f64;
         }
         if n == 5403 {
-            return self.tlo.unwrap_or(0.0) / self.unit();
+            return self.tool.tlo.unwrap_or(0.0) / self.unit();
         }
         // #5420-#5428: the current position, X first (#5420 is X, not an offset count).
         if let Some(i) = axis(5419) {
@@ -107,7 +107,7 @@ impl Interp<'_> {
         let m = &self.modal;
         let b = |c: bool, yes: f64, no: f64| if c { yes } else { no };
         Some(match n {
-            4001 => match self.motion {
+            4001 => match self.motion.mode {
                 None => 80.0,
                 Some(Motion::Rapid) => 0.0,
                 Some(Motion::Linear) => 1.0,
@@ -132,7 +132,7 @@ impl Interp<'_> {
                 FeedMode::PerRev => 95.0,
             },
             4006 => b(m.metric, 21.0, 20.0),
-            4008 => b(self.tlo.is_some(), 43.0, 49.0),
+            4008 => b(self.tool.tlo.is_some(), 43.0, 49.0),
             4010 => b(m.retract_r_plane, 99.0, 98.0),
             4014 => [54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 59.1, 59.2, 59.3]
                 .get(m.cs)
@@ -142,7 +142,7 @@ impl Interp<'_> {
             4130 => m.cs.saturating_sub(8) as f64,
             4109 => m.feed_word,
             4119 => m.speed,
-            4120 => f64::from(self.tool),
+            4120 => f64::from(self.tool.current),
             5001..=5006 | 5041..=5046 => self.cur[(n - 1) % 20],
             5021..=5026 => {
                 let i = n - 5021;
@@ -171,8 +171,8 @@ impl Interp<'_> {
             "_units_per_rev" => b(self.modal.feed_mode == FeedMode::PerRev),
             "_feed" => self.modal.feed_word,
             "_rpm" => self.modal.speed,
-            "_current_tool" => self.tool as f64,
-            "_selected_tool" => self.selected_tool.map(|t| t as f64).unwrap_or(-1.0),
+            "_current_tool" => self.tool.current as f64,
+            "_selected_tool" => self.tool.selected.map(|t| t as f64).unwrap_or(-1.0),
             "_coord_system" => [
                 540.0, 550.0, 560.0, 570.0, 580.0, 590.0, 591.0, 592.0, 593.0,
             ][self.modal.cs],
@@ -186,7 +186,7 @@ impl Interp<'_> {
                 Plane::XZ => 180.0,
                 Plane::YZ => 190.0,
             },
-            "_motion_mode" => match self.motion {
+            "_motion_mode" => match self.motion.mode {
                 None => 800.0,
                 Some(Motion::Rapid) => 0.0,
                 Some(Motion::Linear) => 10.0,
@@ -263,7 +263,7 @@ impl Interp<'_> {
             }
             3006 => {
                 let message = self.block_comment();
-                self.warnings.push(self.err_at(
+                self.out.warnings.push(self.err_at(
                     at,
                     format!("#3006 program stop{message}: simulated as going on"),
                 ));

@@ -8,11 +8,18 @@ use super::modal::Motion;
 use super::words::{Words, AXES};
 use super::{Interp, R};
 
+/// Fanuc G16 polar mode, and the last polar radius and angle (degrees) it went to.
+#[derive(Default)]
+pub(super) struct PolarState {
+    pub(super) mode: bool,
+    pub(super) last: std::cell::Cell<Option<(f64, f64)>>,
+}
+
 impl Interp<'_> {
     /// G16 (on) / G15 (off).
     pub(super) fn set_polar_mode(&mut self, on: bool) {
-        self.polar_mode = on;
-        self.polar_last.set(None);
+        self.polar.mode = on;
+        self.polar.last.set(None);
     }
 
     /// LinuxCNC's checks on `@`/`^` words before anything in the block runs (its
@@ -49,7 +56,7 @@ impl Interp<'_> {
     /// Fanuc G16: a motion block's words for the plane's two axes become the radius and the
     /// angle. Blocks that use axis words as data (G10, G52, G92, G28/G30, G53) keep them.
     pub(super) fn fanuc_polar_words(&mut self, w: &mut Words) {
-        if !self.polar_mode {
+        if !self.polar.mode {
             return;
         }
         let data = w.gs.iter().any(|g| {
@@ -58,7 +65,7 @@ impl Interp<'_> {
                 100 | 280 | 300 | 520 | 530 | 920 | 510 | 511 | 501 | 680
             )
         });
-        let moving = self.motion.is_some()
+        let moving = self.motion.mode.is_some()
             || w.gs
                 .iter()
                 .any(|g| super::modal::g_group(g.0) == Some(1) && g.0 != 800);
@@ -94,7 +101,8 @@ impl Interp<'_> {
         let (x, y) = (t[a], t[b]);
         if self.fanuc {
             let (last_r, last_th) = self
-                .polar_last
+                .polar
+                .last
                 .get()
                 .unwrap_or((x.hypot(y), y.atan2(x).to_degrees()));
             let (cx, cy, r, th) = if self.modal.absolute {
@@ -102,7 +110,7 @@ impl Interp<'_> {
             } else {
                 (x, y, r.unwrap_or(last_r), last_th + th.unwrap_or(0.0))
             };
-            self.polar_last.set(Some((r, th)));
+            self.polar.last.set(Some((r, th)));
             let (s, c) = th.to_radians().sin_cos();
             t[a] = cx + r * c;
             t[b] = cy + r * s;
@@ -206,7 +214,7 @@ impl Interp<'_> {
             *bb = r * th.sin();
             if self.fanuc {
                 // The next G16 block counts from this hole.
-                self.polar_last.set(Some((r, th.to_degrees())));
+                self.polar.last.set(Some((r, th.to_degrees())));
             }
         }
         Ok(())
@@ -217,7 +225,7 @@ impl Interp<'_> {
         match w.polar_r.or(w.polar_a) {
             Some((_, i)) if w.polar_open => Err(self.err_at(
                 self.word_pos(i),
-                match self.motion {
+                match self.motion.mode {
                     Some(Motion::Cycle(_))
                     | Some(Motion::Rapid | Motion::Linear | Motion::Arc { .. }) => {
                         "polar words with a code that does not take them"

@@ -107,7 +107,7 @@ impl<'a> Nurbs<'a> {
 
 impl Interp<'_> {
     fn spline_checks(&self, w: &Words, name: &str) -> R<()> {
-        if self.comp.is_some() {
+        if self.comp.active.is_some() {
             return Err(self.err_block(format!(
                 "{name} with cutter radius compensation on (G40 first)"
             )));
@@ -140,7 +140,7 @@ impl Interp<'_> {
         let start = self.cur;
         let first = match (i, j) {
             (Some(i), Some(j)) => [start[0] + i, start[1] + j],
-            (None, None) if cubic => [start[0] + self.cycle_i, start[1] + self.cycle_j],
+            (None, None) if cubic => [start[0] + self.cycle.i, start[1] + self.cycle.j],
             _ if cubic => {
                 return Err(self.err_block("G5: give both I and J, or neither"));
             }
@@ -169,8 +169,8 @@ impl Interp<'_> {
                 w: 1.0,
             });
             // The next G5 without I J continues tangentially.
-            self.cycle_i = -p;
-            self.cycle_j = -q;
+            self.cycle.i = -p;
+            self.cycle.j = -q;
         }
         pts.push(ControlPoint {
             x: end[0],
@@ -241,7 +241,7 @@ impl Interp<'_> {
 
     /// G5.3: the NURBS defined since G5.2, to its last control point.
     pub(super) fn nurbs_end(&mut self, at: usize) -> R<()> {
-        let defining = self.motion_prev == Some(super::Motion::Nurbs);
+        let defining = self.motion.prev == Some(super::Motion::Nurbs);
         let Some(n) = self.nurbs.take().filter(|_| defining) else {
             return Err(self.err_at(at, "G5.3 without G5.2 first"));
         };

@@ -41,7 +41,7 @@ impl Interp<'_> {
         what: &str,
     ) -> R<(u32, usize)> {
         if let Some(&start) = self.control.programs.get(&number) {
-            return Ok((self.unit, start + 1));
+            return Ok((self.units.unit, start + 1));
         }
         match self.program_elsewhere(number, at, what)? {
             Some(found) => Ok(found),
@@ -68,7 +68,7 @@ impl Interp<'_> {
     pub(super) fn find_sequence(&mut self, unit: u32, pc: usize, n: u32) -> Option<usize> {
         let (start, end) = self.program_range(unit, pc);
         let prog = self.unit_files(unit).0;
-        let map = self.sequences.entry((unit, start)).or_insert_with(|| {
+        let map = self.flow.sequences.entry((unit, start)).or_insert_with(|| {
             let mut m = HashMap::new();
             for i in start..end {
                 if let Some(n) = prog.sequence_number(i) {
@@ -82,11 +82,11 @@ impl Interp<'_> {
 
     /// The run reaches an `O1234` line.
     pub(super) fn reach_program_start(&mut self, pc: usize, o: &OWord) -> R<usize> {
-        if self.main_program.is_none() && self.frames.is_empty() {
-            self.main_program = Some(pc);
+        if self.flow.main_program.is_none() && self.flow.frames.is_empty() {
+            self.flow.main_program = Some(pc);
             return Ok(pc + 1);
         }
-        if let Some(f) = self.frames.last().filter(|f| f.fanuc.is_some()) {
+        if let Some(f) = self.flow.frames.last().filter(|f| f.fanuc.is_some()) {
             return Err(self.err_at(
                 o.span.start,
                 format!(
@@ -97,15 +97,15 @@ impl Interp<'_> {
                 ),
             ));
         }
-        if self.frames.is_empty() {
-            self.warnings.push(self.err_at(
+        if self.flow.frames.is_empty() {
+            self.out.warnings.push(self.err_at(
                 o.span.start,
                 format!(
                     "the main program ends where {} starts (no M30/M02 before it)",
                     o.name.to_string().to_uppercase()
                 ),
             ));
-            self.ended = true;
+            self.flow.ended = true;
         }
         Ok(pc + 1)
     }
@@ -164,12 +164,12 @@ impl Interp<'_> {
         if repeats == 0 {
             return Ok(());
         }
-        if self.frames.len() >= MAX_CALL_DEPTH {
+        if self.flow.frames.len() >= MAX_CALL_DEPTH {
             return Err(self.err_at(at, format!("calls nested deeper than {MAX_CALL_DEPTH}")));
         }
-        self.frames.push(Frame {
+        self.flow.frames.push(Frame {
             return_pc: self.cur_block,
-            return_unit: self.unit,
+            return_unit: self.units.unit,
             saved: Vec::new(),
             sub: OName::Number(number),
             auto_restore: None,
@@ -180,9 +180,9 @@ impl Interp<'_> {
                 modal_level: None,
             }),
         });
-        self.jump = Some(body);
-        if unit != self.unit {
-            self.next_unit = Some(unit);
+        self.flow.jump = Some(body);
+        if unit != self.units.unit {
+            self.units.next_unit = Some(unit);
         }
         Ok(())
     }
@@ -192,12 +192,12 @@ impl Interp<'_> {
     pub(super) fn return_subprogram(&mut self, w: &mut Words, m99: usize) -> R<()> {
         let at = self.word_pos(m99);
         let p = w.take('P');
-        let Some(frame) = self.frames.last_mut() else {
-            self.warnings.push(self.err_at(
+        let Some(frame) = self.flow.frames.last_mut() else {
+            self.out.warnings.push(self.err_at(
                 at,
                 "M99 in the main program: a Fanuc control would restart it from the top (an endless loop); simulated once, as the program end",
             ));
-            self.ended = true;
+            self.flow.ended = true;
             return Ok(());
         };
         let Some(call) = frame.fanuc.as_mut() else {
@@ -209,18 +209,18 @@ impl Interp<'_> {
         };
         if call.repeats_left > 0 {
             call.repeats_left -= 1;
-            self.jump = Some(call.body);
-            self.last_jump = Some((self.cur_line, "M99 (repeated subprogram)"));
+            self.flow.jump = Some(call.body);
+            self.flow.last_jump = Some((self.cur_line, "M99 (repeated subprogram)"));
             return Ok(());
         }
-        let frame = self.frames.pop().expect("checked");
+        let frame = self.flow.frames.pop().expect("checked");
         if let Some(locals) = frame.fanuc.and_then(|c| c.locals) {
             self.params.numbered[1..=locals.len()].copy_from_slice(&locals);
         }
-        if frame.return_unit != self.unit {
-            self.next_unit = Some(frame.return_unit);
+        if frame.return_unit != self.units.unit {
+            self.units.next_unit = Some(frame.return_unit);
         }
-        self.jump = Some(match p {
+        self.flow.jump = Some(match p {
             None => frame.return_pc + 1,
             Some(p) => {
                 let n = self.program_number(p, at, "M99")?;

@@ -93,11 +93,11 @@ impl Interp<'_> {
                 self.tilted_plane_on(w, at)?;
                 Ok(true)
             }
-            690 if self.tilt.is_some() => {
+            690 if self.coords.tilt.is_some() => {
                 self.tilted_plane_off();
                 Ok(true)
             }
-            680 | 510 | 511 if self.tilt.is_some() => Err(self.err_at(
+            680 | 510 | 511 if self.coords.tilt.is_some() => Err(self.err_at(
                 at,
                 format!(
                     "{} while a tilted working plane (G68.2) is active is not supported: G69 first",
@@ -109,16 +109,16 @@ impl Interp<'_> {
     }
 
     fn tilted_plane_on(&mut self, w: &mut Words, at: usize) -> R<()> {
-        if self.comp.is_some() {
+        if self.comp.active.is_some() {
             return Err(self.err_at(at, "G68.2 with cutter radius compensation on (G40 first)"));
         }
-        if self.tilt.is_some() {
+        if self.coords.tilt.is_some() {
             return Err(self.err_at(
                 at,
                 "G68.2 while a tilted working plane is already active: G69 first",
             ));
         }
-        if self.program_transform_on() || self.rot_xy[self.modal.cs] != 0.0 {
+        if self.program_transform_on() || self.coords.rot_xy[self.modal.cs] != 0.0 {
             return Err(self.err_at(
                 at,
                 "G68.2 with scaling, mirror image or a coordinate rotation on (G50/G50.1/G69, or a G10 L2 R rotation): not supported together",
@@ -143,7 +143,7 @@ impl Interp<'_> {
         if let Some(tip) = self.machine_position_as_tip() {
             self.cur = self.from_machine(tip);
         }
-        self.change_offsets(|s| s.tilt = Some(plane));
+        self.change_offsets(|s| s.coords.tilt = Some(plane));
         Ok(())
     }
 
@@ -151,7 +151,7 @@ impl Interp<'_> {
     /// that positions A/C before G68.2): the current machine position as the part-frame tip
     /// the tool-tip moves under G68.2 start from. None where the two readings agree.
     fn machine_position_as_tip(&self) -> Option<[f64; 6]> {
-        if self.tcp || self.opts.tool_tip_reading {
+        if self.tool.tcp || self.opts.tool_tip_reading {
             return None;
         }
         self.machine_to_tip()
@@ -176,8 +176,8 @@ impl Interp<'_> {
     /// handed back as the machine axes that hold the tip where it is, so the next move starts
     /// there and not at the tip's part coordinates read as axes.
     fn tilted_plane_off(&mut self) {
-        self.change_offsets(|s| s.tilt = None);
-        if self.tcp || self.opts.tool_tip_reading {
+        self.change_offsets(|s| s.coords.tilt = None);
+        if self.tool.tcp || self.opts.tool_tip_reading {
             return;
         }
         if let Some(axes) = self.tip_to_machine() {
@@ -201,7 +201,7 @@ impl Interp<'_> {
     /// readings as G68.2 and G69 do, so that the next move starts where the tool is (with
     /// the table turned, the machine axes are not the tip's part coordinates).
     pub(super) fn tool_tip_control_changed(&mut self, on: bool) {
-        if self.opts.tool_tip_reading || self.tilt.is_some() {
+        if self.opts.tool_tip_reading || self.coords.tilt.is_some() {
             return;
         }
         let handed = if on {
@@ -217,7 +217,7 @@ impl Interp<'_> {
     /// G53.1: the rotary axes turn (a rapid, the tip held on the part) so that the tool is
     /// normal to the G68.2 plane.
     pub(super) fn turn_tool_to_plane(&mut self, at: usize) -> R<()> {
-        if self.tilt.is_none() {
+        if self.coords.tilt.is_none() {
             return Err(self.err_at(
                 at,
                 "G53.1 without a tilted working plane: define it with G68.2 first",

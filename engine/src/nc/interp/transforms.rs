@@ -95,18 +95,21 @@ impl Interp<'_> {
     /// No rotation, mirror or scaling, no G52 and G92 not suspended: the machine position is
     /// the G5x and G92 offsets added, axis by axis (the common case, kept fast).
     pub(super) fn update_plain(&mut self) {
-        self.plain = self.only_offsets() && self.g92_applied && self.g52 == [0.0; 6];
+        self.coords.plain =
+            self.only_offsets() && self.coords.g92_applied && self.coords.g52 == [0.0; 6];
     }
 
     /// No rotation, mirror or scaling: the transform is a translation (per-axis offsets).
     pub(super) fn only_offsets(&self) -> bool {
-        self.prog_xf.is_identity() && self.rot_xy[self.modal.cs] == 0.0 && self.tilt.is_none()
+        self.coords.prog_xf.is_identity()
+            && self.coords.rot_xy[self.modal.cs] == 0.0
+            && self.coords.tilt.is_none()
     }
 
     /// The G92 offset as applied, plus the Fanuc G52 local offset (mm/deg).
     pub(super) fn local_offset(&self) -> [f64; 6] {
         let mut o = self.g92_eff();
-        for (o, l) in o.iter_mut().zip(self.g52) {
+        for (o, l) in o.iter_mut().zip(self.coords.g52) {
             *o += l;
         }
         o
@@ -115,15 +118,15 @@ impl Interp<'_> {
     /// Program coordinates -> machine frame, mm/deg.
     #[inline(always)]
     pub(super) fn to_machine(&self, p: [f64; 6]) -> [f64; 6] {
-        if !self.plain {
+        if !self.coords.plain {
             return self.to_machine_transformed(p);
         }
         let u = self.unit();
-        let g5x = &self.g5x[self.modal.cs];
+        let g5x = &self.coords.g5x[self.modal.cs];
         let mut m = [0.0; 6];
         for i in 0..6 {
             let s = if i < 3 { u } else { 1.0 };
-            m[i] = p[i] * s + g5x[i] + self.g92[i];
+            m[i] = p[i] * s + g5x[i] + self.coords.g92[i];
         }
         m
     }
@@ -133,7 +136,7 @@ impl Interp<'_> {
     #[inline(never)]
     fn to_machine_transformed(&self, p: [f64; 6]) -> [f64; 6] {
         let u = self.unit();
-        let g5x = &self.g5x[self.modal.cs];
+        let g5x = &self.coords.g5x[self.modal.cs];
         let mut m = [0.0; 6];
         let local = self.local_offset();
         if self.only_offsets() {
@@ -146,14 +149,14 @@ impl Interp<'_> {
         for i in 0..6 {
             m[i] = if i < 3 { p[i] * u } else { p[i] };
         }
-        if let Some(t) = &self.tilt {
+        if let Some(t) = &self.coords.tilt {
             t.apply(&mut m);
         }
-        self.prog_xf.apply(&mut m);
+        self.coords.prog_xf.apply(&mut m);
         for i in 0..6 {
             m[i] += local[i];
         }
-        rotate_xy(&mut m, self.rot_xy[self.modal.cs]);
+        rotate_xy(&mut m, self.coords.rot_xy[self.modal.cs]);
         for i in 0..6 {
             m[i] += g5x[i];
         }
@@ -164,7 +167,7 @@ impl Interp<'_> {
     pub(super) fn from_machine(&self, m: [f64; 6]) -> [f64; 6] {
         let u = self.unit();
         let local = self.local_offset();
-        let g5x = &self.g5x[self.modal.cs];
+        let g5x = &self.coords.g5x[self.modal.cs];
         let mut p = [0.0; 6];
         if self.only_offsets() {
             for i in 0..6 {
@@ -176,12 +179,12 @@ impl Interp<'_> {
         for i in 0..6 {
             p[i] = m[i] - g5x[i];
         }
-        rotate_xy(&mut p, -self.rot_xy[self.modal.cs]);
+        rotate_xy(&mut p, -self.coords.rot_xy[self.modal.cs]);
         for i in 0..6 {
             p[i] -= local[i];
         }
-        self.prog_xf.invert(&mut p);
-        if let Some(t) = &self.tilt {
+        self.coords.prog_xf.invert(&mut p);
+        if let Some(t) = &self.coords.tilt {
             t.invert(&mut p);
         }
         for v in &mut p[..3] {
@@ -230,7 +233,7 @@ impl Interp<'_> {
             let tol = 1e-9 * la.max(lb);
             let dot = va[0] * vb[0] + va[1] * vb[1];
             if va[2].abs() > tol || vb[2].abs() > tol {
-                let hint = if self.tilt.is_some() {
+                let hint = if self.coords.tilt.is_some() {
                     " (a tilted G68.2 plane: its G2/G3 are cut as chords, but not with cutter compensation or corner rounding)"
                 } else {
                     ""
@@ -274,13 +277,13 @@ impl Interp<'_> {
 
     /// Whether one of Fanuc's program transforms is on (offset setting refuses then).
     pub(super) fn program_transform_on(&self) -> bool {
-        !self.prog_xf.is_identity() || self.tilt.is_some()
+        !self.coords.prog_xf.is_identity() || self.coords.tilt.is_some()
     }
 
     /// LinuxCNC G10 L2 R: the rotation (degrees, about the coordinate system's origin in XY)
     /// of coordinate system `k`.
     pub(super) fn set_cs_rotation(&mut self, k: usize, deg: f64) {
-        self.change_offsets(|s| s.rot_xy[k] = deg);
+        self.change_offsets(|s| s.coords.rot_xy[k] = deg);
     }
 
     /// G52: LinuxCNC sets the G92 offsets to the given values (axes not given keep theirs);
@@ -305,14 +308,14 @@ impl Interp<'_> {
             for (ai, v) in vals.iter().enumerate() {
                 if let Some(v) = v {
                     if fanuc {
-                        s.g52[ai] = *v;
+                        s.coords.g52[ai] = *v;
                     } else {
-                        s.g92[ai] = *v;
+                        s.coords.g92[ai] = *v;
                     }
                 }
             }
             if !fanuc {
-                s.g92_applied = true;
+                s.coords.g92_applied = true;
             }
         });
         Ok(())
@@ -333,7 +336,7 @@ impl Interp<'_> {
 
     /// The transform-setting codes of group 0 and 16/22: G51/G50, G51.1/G50.1, G68/G69.
     pub(super) fn exec_transform(&mut self, w: &mut Words, code: u16, at: usize) -> R<()> {
-        if self.comp.is_some() {
+        if self.comp.active.is_some() {
             return Err(self.err_at(
                 at,
                 format!(
@@ -387,9 +390,9 @@ impl Interp<'_> {
                 {
                     return Err(self.err_at(at, format!("G51 magnification {k:?} out of range")));
                 }
-                self.change_offsets(|s| s.prog_xf.scale = Some((c, k)));
+                self.change_offsets(|s| s.coords.prog_xf.scale = Some((c, k)));
             }
-            500 => self.change_offsets(|s| s.prog_xf.scale = None),
+            500 => self.change_offsets(|s| s.coords.prog_xf.scale = None),
             511 | 501 => {
                 if !(0..3).any(|ai| w.has(AXES[ai])) {
                     return Err(self.err_at(
@@ -400,7 +403,7 @@ impl Interp<'_> {
                         ),
                     ));
                 }
-                let mut m = self.prog_xf.mirror;
+                let mut m = self.coords.prog_xf.mirror;
                 for (ai, slot) in m.iter_mut().enumerate() {
                     if !w.has(AXES[ai]) {
                         continue;
@@ -408,7 +411,7 @@ impl Interp<'_> {
                     let c = centre(self, w, ai);
                     *slot = if code == 511 { Some(c) } else { None };
                 }
-                self.change_offsets(|s| s.prog_xf.mirror = m);
+                self.change_offsets(|s| s.coords.prog_xf.mirror = m);
             }
             680 => {
                 let plane = self.modal.plane;
@@ -427,9 +430,9 @@ impl Interp<'_> {
                     cos,
                     sin,
                 };
-                self.change_offsets(|s| s.prog_xf.rotation = Some(rot));
+                self.change_offsets(|s| s.coords.prog_xf.rotation = Some(rot));
             }
-            690 => self.change_offsets(|s| s.prog_xf.rotation = None),
+            690 => self.change_offsets(|s| s.coords.prog_xf.rotation = None),
             _ => unreachable!("not a transform code"),
         }
         Ok(())

@@ -13,6 +13,21 @@ use crate::nc::program::OName;
 use crate::nc::view::{CompactProgram, ProgramView};
 use crate::nc::{Diagnostic, Diagnostics, Expr, Move, MoveSource, ProgramLibrary};
 
+/// Which file runs and where its moves go (see the module's doc).
+#[derive(Default)]
+pub(super) struct UnitState {
+    /// Which file runs (0: the program itself), and the one to run from the next block on
+    /// (a call into or a return from another file).
+    pub(super) unit: u32,
+    pub(super) next_unit: Option<u32>,
+    /// While a library file runs: the block and line of the outermost call in the program,
+    /// to which its moves are attributed.
+    pub(super) site: Option<(usize, u32)>,
+    /// A library file that a call needs and this run did not load (the run is made again
+    /// with it).
+    pub(super) missing: Option<usize>,
+}
+
 /// A library file loaded for a run: its blocks and links, or why it does not read (an error
 /// only when a call reaches it).
 pub(super) struct LibUnit<'p> {
@@ -153,7 +168,7 @@ impl<'p> Interp<'p> {
 
     /// Runs unit `u` from the next block on.
     pub(super) fn enter_unit(&mut self, u: u32) -> R<()> {
-        if u == self.unit {
+        if u == self.units.unit {
             return Ok(());
         }
         if self.pending_corner.is_some() {
@@ -161,13 +176,13 @@ impl<'p> Interp<'p> {
                 "corner rounding/chamfer before a call to or a return from another file: it needs its next move in the same file",
             ));
         }
-        if self.unit == 0 {
-            self.site = Some((self.cur_block, self.cur_line));
+        if self.units.unit == 0 {
+            self.units.site = Some((self.cur_block, self.cur_line));
         }
         if u == 0 {
-            self.site = None;
+            self.units.site = None;
         }
-        self.unit = u;
+        self.units.unit = u;
         (self.prog, self.control) = self.unit_files(u);
         self.deferred_here = !self.prog.summary().deferred.is_empty();
         Ok(())
@@ -176,8 +191,8 @@ impl<'p> Interp<'p> {
     /// A diagnostic made in a library file, placed at the program's call.
     #[cold]
     pub(super) fn in_library(&self, d: Diagnostic) -> Diagnostic {
-        let (block, _) = self.site.expect("a library file runs from a call");
-        let name = self.lib[self.unit as usize - 1].name;
+        let (block, _) = self.units.site.expect("a library file runs from a call");
+        let name = self.lib[self.units.unit as usize - 1].name;
         let at = self.main.block(block).span.start;
         self.main.diag(
             at,
@@ -191,9 +206,9 @@ impl<'p> Interp<'p> {
     /// A move made in a library file: on the call's block, with its own file and line.
     #[cold]
     pub(super) fn attribute(&self, m: &mut Move) {
-        let (block, line) = self.site.expect("a library file runs from a call");
+        let (block, line) = self.units.site.expect("a library file runs from a call");
         m.source = Some(MoveSource {
-            file: self.unit - 1,
+            file: self.units.unit - 1,
             line: m.line,
         });
         m.block = block;
@@ -202,8 +217,8 @@ impl<'p> Interp<'p> {
 
     /// The program's line of the running block (the call's line in a library file).
     pub(super) fn program_line(&self) -> u32 {
-        match self.site {
-            Some((_, line)) if self.unit != 0 => line,
+        match self.units.site {
+            Some((_, line)) if self.units.unit != 0 => line,
             _ => self.cur_line,
         }
     }
@@ -216,7 +231,7 @@ impl<'p> Interp<'p> {
         at: usize,
         what: &str,
     ) -> R<Option<(u32, usize)>> {
-        if self.unit != 0 {
+        if self.units.unit != 0 {
             if let Some(&s) = self.main_control.programs.get(&number) {
                 return Ok(Some((0, s + 1)));
             }
@@ -248,7 +263,7 @@ impl<'p> Interp<'p> {
     /// LinuxCNC subroutine `name` outside the running file: in the program itself or in its
     /// library file `name.ngc`. The block of its `sub` line.
     pub(super) fn sub_elsewhere(&mut self, name: &OName, at: usize) -> R<Option<(u32, usize)>> {
-        if self.unit != 0 {
+        if self.units.unit != 0 {
             if let Some(&s) = self.main_control.subs.get(name) {
                 return Ok(Some((0, s)));
             }
@@ -283,7 +298,7 @@ impl<'p> Interp<'p> {
             .expect("a library file was found");
         let name = &library.files()[file].name;
         let Some(k) = self.lib.iter().position(|u| u.file == file) else {
-            self.missing = Some(file);
+            self.units.missing = Some(file);
             return Err(self.err_at(at, format!("{what}: library file \"{name}\" is not loaded")));
         };
         match &self.lib[k].loaded {

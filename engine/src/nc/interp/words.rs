@@ -146,8 +146,8 @@ impl<'p> Interp<'p> {
                     {
                         // Warned once per code: the path is as programmed, only the control's
                         // smoothing/look-ahead differs.
-                        if self.warned_m_codes.insert(100_000 + u32::from(code)) {
-                            self.warnings.push(self.err_at(
+                        if self.out.warned_m_codes.insert(100_000 + u32::from(code)) {
+                            self.out.warnings.push(self.err_at(
                                 pos,
                                 format!("{} ({what}) makes no motion: ignored; the path is simulated as programmed", g_name(code)),
                             ));
@@ -205,8 +205,8 @@ impl<'p> Interp<'p> {
                         None => {
                             // A machine's own M code (coolant variants, clamps, outputs, user
                             // macros): assumed to move nothing, said once per code.
-                            if self.warned_m_codes.insert(code) {
-                                self.warnings.push(self.err_at(
+                            if self.out.warned_m_codes.insert(code) {
+                                self.out.warnings.push(self.err_at(
                                     pos,
                                     format!("M{code} is not a standard M code: assumed to make no motion and ignored (strict_m_codes refuses it; passthrough_m_codes silences this)"),
                                 ));

@@ -41,7 +41,7 @@ impl Interp<'_> {
     pub(super) fn set_plane(&mut self, w: &Words) -> R<()> {
         for (code, plane) in [(170, Plane::XY), (180, Plane::XZ), (190, Plane::YZ)] {
             if let Some(i) = w.g(code) {
-                if self.comp.is_some() && plane != self.modal.plane {
+                if self.comp.active.is_some() && plane != self.modal.plane {
                     return Err(self.err_at(
                         self.word_pos(i),
                         "plane change with cutter radius compensation on (G40 first)",
@@ -92,7 +92,7 @@ impl Interp<'_> {
         // 18. tool length offset; G43.4/G43.5 (tool-centre-point control) take it as G43
         // does and make X Y Z the tool tip on the part from here to G43/G43.1/G49.
         let tcp = w.g(434).or(w.g(435));
-        let was_tcp = self.tcp;
+        let was_tcp = self.tool.tcp;
         if let Some(i) = w.g(435) {
             if ['I', 'J', 'K'].iter().any(|&c| w.has(c)) {
                 return Err(self.err_at(
@@ -109,7 +109,7 @@ impl Interp<'_> {
                     }
                     h as u32
                 }
-                None => self.tool,
+                None => self.tool.current,
             };
             // Fanuc: a D here is the radius offset number later G41/G42 take.
             if self.fanuc {
@@ -117,14 +117,14 @@ impl Interp<'_> {
                     if d < 0.0 || d.fract() != 0.0 || d > u32::MAX as f64 {
                         return Err(self.err_word(w, 'D', format!("D{d} is not an offset number")));
                     }
-                    self.radius_offset = Some(d as u32);
+                    self.tool.radius_offset = Some(d as u32);
                 }
             }
             let off = match self.tool_length(h) {
                 Some(z) => z,
                 None => {
-                    if self.warned_tools.insert(h) {
-                        self.warnings.push(self.err_at(
+                    if self.tool.warned.insert(h) {
+                        self.out.warnings.push(self.err_at(
                             self.word_pos(i),
                             format!("G43: tool {h} is not in the tool table; tool length 0 used"),
                         ));
@@ -133,10 +133,10 @@ impl Interp<'_> {
                 }
             };
             self.set_tlo(Some(off));
-            self.tcp = tcp.is_some();
+            self.tool.tcp = tcp.is_some();
         }
         if w.g(431).is_some() {
-            self.tcp = false;
+            self.tool.tcp = false;
             // G43.1: the offset comes from the Z word (program units).
             let Some(z) = w.take('Z') else {
                 return Err(self.err_block("G43.1 needs a Z word (tool length)"));
@@ -148,11 +148,11 @@ impl Interp<'_> {
             self.set_tlo(Some(z));
         }
         if w.g(490).is_some() {
-            self.tcp = false;
+            self.tool.tcp = false;
             self.set_tlo(None);
         }
-        if self.tcp != was_tcp {
-            self.tool_tip_control_changed(self.tcp);
+        if self.tool.tcp != was_tcp {
+            self.tool_tip_control_changed(self.tool.tcp);
         }
         Ok(())
     }
@@ -236,7 +236,7 @@ impl Interp<'_> {
                 }
             }
         }
-        if self.polar_mode {
+        if self.polar.mode {
             self.fanuc_polar_words(w);
         }
         Ok(())

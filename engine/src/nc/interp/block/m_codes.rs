@@ -8,15 +8,15 @@ use crate::nc::{MoveKind, SpindleDir, ToolChangeTo};
 impl Interp<'_> {
     /// 8. M6 and M61.
     pub(super) fn change_tool(&mut self, w: &mut Words) -> R<()> {
-        if let Some(i) = w.m(6).filter(|_| self.comp.is_some()) {
+        if let Some(i) = w.m(6).filter(|_| self.comp.active.is_some()) {
             return Err(self.err_at(
                 self.word_pos(i),
                 "tool change with cutter radius compensation on (G40 first)",
             ));
         }
         if w.m(6).is_some() {
-            let t = self.selected_tool.unwrap_or(self.tool);
-            self.tool = t;
+            let t = self.tool.selected.unwrap_or(self.tool.current);
+            self.tool.current = t;
             let p = self.to_machine(self.cur);
             let m = self.base_move(MoveKind::ToolChange, p, p);
             self.push(m)?;
@@ -42,7 +42,7 @@ impl Interp<'_> {
             if q < 0.0 || q.fract() != 0.0 || q > u32::MAX as f64 {
                 return Err(self.err_word(w, 'Q', format!("Q{q} is not a tool number")));
             }
-            self.tool = q as u32;
+            self.tool.current = q as u32;
         }
         Ok(())
     }
@@ -77,7 +77,7 @@ impl Interp<'_> {
         }
         if let Some(i) = w.m(73) {
             let m = self.modal.clone();
-            let Some(f) = self.frames.last_mut() else {
+            let Some(f) = self.flow.frames.last_mut() else {
                 return Err(self.err_at(self.word_pos(i), "M73 outside a subroutine"));
             };
             f.auto_restore = Some(m);
@@ -98,7 +98,7 @@ impl Interp<'_> {
     /// modal macro runs after a block that `moved`.
     pub(super) fn stop_and_calls(&mut self, w: &mut Words, moved: bool) -> R<()> {
         if w.m(2).is_some() || w.m(30).is_some() {
-            self.ended = true;
+            self.flow.ended = true;
         }
         if !w.ms.is_empty() {
             if let Some(i) = w.m(98) {
@@ -116,8 +116,8 @@ impl Interp<'_> {
                 ));
             }
             // The last G66 first (nested modal calls end in reverse order).
-            self.modal_calls.pop();
-        } else if moved && !self.modal_calls.is_empty() {
+            self.flow.modal_calls.pop();
+        } else if moved && !self.flow.modal_calls.is_empty() {
             self.modal_macro_after_move()?;
         }
         if w.m(60).is_some() {

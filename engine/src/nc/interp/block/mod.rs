@@ -15,6 +15,13 @@ use super::words::{letter_index, Words};
 use super::{Interp, R};
 use crate::nc::view::BlockView;
 
+/// Storage for the next block's G and M lists, kept between blocks.
+#[derive(Default)]
+pub(super) struct SpareLists {
+    pub(super) gs: Vec<(u16, usize)>,
+    pub(super) ms: Vec<(u32, usize)>,
+}
+
 impl<'p> Interp<'p> {
     pub(super) fn exec_block(&mut self, b: &BlockView<'p>) -> R<()> {
         if self.is_macro_call(b) {
@@ -24,8 +31,8 @@ impl<'p> Interp<'p> {
         let mut w = Words {
             vals: [None; 26],
             used: [false; 26],
-            gs: std::mem::take(&mut self.spare_gs),
-            ms: std::mem::take(&mut self.spare_ms),
+            gs: std::mem::take(&mut self.spare.gs),
+            ms: std::mem::take(&mut self.spare.ms),
             corner_r: None,
             corner_c: None,
             polar_r: None,
@@ -38,8 +45,8 @@ impl<'p> Interp<'p> {
         w.gs.clear();
         w.ms.clear();
         let result = self.exec_words(b, &mut w);
-        self.spare_gs = w.gs;
-        self.spare_ms = w.ms;
+        self.spare.gs = w.gs;
+        self.spare.ms = w.ms;
         result
     }
 
@@ -79,7 +86,7 @@ impl<'p> Interp<'p> {
 
     /// Steps 1-2: the words and parameter assignments, then the polar and the corner words.
     fn read_block(&mut self, b: &BlockView<'p>, w: &mut Words) -> R<()> {
-        self.motion_prev = self.motion;
+        self.motion.prev = self.motion.mode;
         let avals = self.read_words(b, w)?;
         for (a, v) in b.assignments.iter().zip(avals) {
             self.assign(a, v)?;
@@ -103,7 +110,7 @@ impl<'p> Interp<'p> {
 
     fn comma_less_corners(&mut self, w: &mut Words) -> R<()> {
         let g1 = w.g(10).is_some()
-            || (self.motion == Some(Motion::Linear)
+            || (self.motion.mode == Some(Motion::Linear)
                 && !w.gs.iter().any(|g| g_group(g.0) == Some(1)));
         if g1 {
             for c in ['R', 'C'] {
@@ -142,7 +149,7 @@ impl<'p> Interp<'p> {
                 if d < 0.0 || d.fract() != 0.0 || d > u32::MAX as f64 {
                     return Err(self.err_word(w, 'D', format!("D{d} is not an offset number")));
                 }
-                self.radius_offset = Some(d as u32);
+                self.tool.radius_offset = Some(d as u32);
             }
         }
         // Every word must have been used by something; P and Q go with a machine's own M code
@@ -161,7 +168,7 @@ impl<'p> Interp<'p> {
             if let Some((v, i)) = w.vals[li] {
                 if !w.used[li] {
                     let c = (b'A' + li as u8) as char;
-                    let hint = if c == 'R' && self.motion == Some(Motion::Linear) {
+                    let hint = if c == 'R' && self.motion.mode == Some(Motion::Linear) {
                         " (Fanuc corner rounding is written ,R; for controls that take R/C without the comma set fanuc_corners_without_comma)"
                     } else {
                         ""

@@ -18,8 +18,8 @@ impl Interp<'_> {
         // G80: LinuxCNC cancels the motion mode; on a Fanuc control canned cycles are a group
         // of their own, so the G0/G1/G2/G3 mode from before the cycle is back.
         if w.g(800).is_some() {
-            self.motion = self.after_g80();
-            self.cycle_il = None;
+            self.motion.mode = self.after_g80();
+            self.cycle.il = None;
         }
         let block_motion =
             w.gs.iter()
@@ -36,7 +36,7 @@ impl Interp<'_> {
             }
         }
         if let Some((g0, i0)) = group0 {
-            if self.comp.is_some()
+            if self.comp.active.is_some()
                 && matches!(g0, 100 | 280 | 282 | 300 | 520 | 920 | 921 | 922 | 923)
             {
                 return Err(self.err_at(
@@ -57,7 +57,7 @@ impl Interp<'_> {
 
     /// 24. The block's motion code (group 1, or G80) sets the motion mode from here on.
     fn set_motion_mode(&mut self, w: &Words, gm: u16, group0: Option<(u16, usize)>) -> R<()> {
-        self.motion = match gm {
+        self.motion.mode = match gm {
             0 => Some(Motion::Rapid),
             10 => Some(Motion::Linear),
             20 => Some(Motion::Arc { cw: true }),
@@ -75,12 +75,12 @@ impl Interp<'_> {
             g => Some(Motion::Cycle(g / 10)),
         };
         if matches!(gm, 0 | 10 | 20 | 30) {
-            self.motion_01 = self.motion;
+            self.motion.mode_01 = self.motion.mode;
         }
         if gm == 800 {
-            self.cycle_il = None;
+            self.cycle.il = None;
             if w.has_axis()
-                && self.motion.is_none()
+                && self.motion.mode.is_none()
                 && !matches!(group0, Some((100 | 280 | 282 | 300 | 520 | 920, _)))
             {
                 return Err(self.err_block("axis words with G80 (motion cancelled)"));
@@ -105,7 +105,7 @@ impl Interp<'_> {
             .or(w.corner_c)
             .map(|(v, i)| (v, i, w.corner_c.is_some()));
         if w.has_axis() && !axis_users {
-            let motion = match self.motion {
+            let motion = match self.motion.mode {
                 Some(m) => m,
                 None => self.motion_after_g80()?,
             };
@@ -125,7 +125,7 @@ impl Interp<'_> {
         {
             // LinuxCNC: an explicit G0/G1 without axis words still makes a (zero-length) move,
             // and G2/G3 with only a centre makes a full circle.
-            let motion = self.motion.expect("set above");
+            let motion = self.motion.mode.expect("set above");
             self.exec_motion(w, motion, g53.is_some(), None)?;
         } else if let Some(i) = g53 {
             if !axis_users {
@@ -148,7 +148,7 @@ impl Interp<'_> {
         corner: Option<(f64, usize, bool)>,
     ) -> R<()> {
         if !matches!(motion, Motion::Cycle(_)) {
-            self.cycle_il = None;
+            self.cycle.il = None;
         }
         if self.modal.feed_mode == FeedMode::InverseTime
             && matches!(motion, Motion::Linear | Motion::Arc { .. })
@@ -158,7 +158,7 @@ impl Interp<'_> {
                 "G1/G2/G3 in inverse time mode (G93) needs an F word in the same block",
             ));
         }
-        if self.comp.is_some() {
+        if self.comp.active.is_some() {
             if g53 {
                 return Err(self.err_block("G53 with cutter radius compensation on"));
             }
@@ -179,7 +179,7 @@ impl Interp<'_> {
                 )),
             };
         }
-        if self.exit_start.is_some() && matches!(motion, Motion::Arc { .. }) {
+        if self.comp.exit_start.is_some() && matches!(motion, Motion::Arc { .. }) {
             return Err(self.err_block(
                 "the move just after G40 (cutter compensation off) must be a line, not an arc",
             ));
@@ -214,7 +214,7 @@ impl Interp<'_> {
                     }
                     self.straight(false, to)?;
                     self.pending_corner = Some(PendingCorner {
-                        move_index: self.moves.len() - 1,
+                        move_index: self.out.moves.len() - 1,
                         block: self.cur_block,
                         word_pos: self.word_pos(i),
                         chamfer,
@@ -232,7 +232,7 @@ impl Interp<'_> {
             Motion::Cycle(g) => self.cycle(w, g),
             Motion::Spline { cubic } => self.spline(w, cubic),
             Motion::Nurbs => {
-                let starts = self.motion_prev != Some(Motion::Nurbs);
+                let starts = self.motion.prev != Some(Motion::Nurbs);
                 self.nurbs_point(w, starts)
             }
         }
@@ -244,13 +244,13 @@ impl Interp<'_> {
     /// applies, with a warning.
     #[cold]
     fn motion_after_g80(&mut self) -> R<Motion> {
-        match self.motion_01 {
+        match self.motion.mode_01 {
             Some(m) if self.opts.dialect == Dialect::Auto => {
-                self.warnings.push(self.err_block(format!(
+                self.out.warnings.push(self.err_block(format!(
                     "axis words after G80 with no motion mode: the Fanuc rule is applied (G80 keeps the {} of before the cycle); LinuxCNC refuses this block (set the dialect to choose)",
                     motion_name(m)
                 )));
-                self.motion = Some(m);
+                self.motion.mode = Some(m);
                 Ok(m)
             }
             _ => Err(self.err_block(
@@ -263,7 +263,7 @@ impl Interp<'_> {
     /// cycle (Fanuc: canned cycles are a modal group of their own).
     fn after_g80(&self) -> Option<Motion> {
         if self.fanuc {
-            self.motion_01
+            self.motion.mode_01
         } else {
             None
         }

@@ -58,9 +58,11 @@ impl Interp<'_> {
             if t < 0.0 || t.fract() != 0.0 || t > u32::MAX as f64 {
                 return Err(self.err_word(w, 'T', format!("T{t} is not a tool number")));
             }
-            self.selected_tool = Some(t as u32);
-            if !self.selected_tools.iter().any(|&(n, _)| n == t as u32) {
-                self.selected_tools.push((t as u32, self.program_line()));
+            self.tool.selected = Some(t as u32);
+            if !self.tool.selected_tools.iter().any(|&(n, _)| n == t as u32) {
+                self.tool
+                    .selected_tools
+                    .push((t as u32, self.program_line()));
             }
         }
         Ok(())
