@@ -28,6 +28,20 @@ export function kindSelect(current, route) {
 }
 
 // What the upload's validation found (shape, diameter, flutes; a machine's name and axes).
+/** Posts a job and follows it to its page. */
+export async function submitJob(body, route) {
+  const job = await postJson('/v1/jobs', body);
+  history.pushState(null, '', '/jobs/' + job.id);
+  route();
+}
+
+/** Shows why a submission failed: the server's problem document, naming the field, or the error. */
+export function showRefusal(err, out) {
+  out.replaceChildren();
+  if (err.problem) out.append(el('h2', {}, 'The server refused it'), problemView(err.problem));
+  else handleError(err, out);
+}
+
 export function toolLabel(r) {
   const d = r.summary || {};
   return (r.name ? r.name + ' · ' : '') + (d.shape || 'tool') + (d.diameter ? ' Ø' + d.diameter : '') + (d.flutes ? ' ' + d.flutes + ' flutes' : '') + ' · ' + short(r.id);
@@ -110,13 +124,9 @@ export async function renderNewJob(route) {
         options.limits = {};
         for (const k of ['max_force', 'air_feed', 'max_feed']) if (f[k].value !== '') options.limits[k] = +f[k].value;
       }
-      const job = await postJson('/v1/jobs', { kind: f.kind.value, inputs, options });
-      history.pushState(null, '', '/jobs/' + job.id);
-      route();
+      await submitJob({ kind: f.kind.value, inputs, options }, route);
     } catch (err) {
-      out.replaceChildren();
-      if (err.problem) out.append(el('h2', {}, 'The server refused it'), problemView(err.problem));
-      else handleError(err, out);
+      showRefusal(err, out);
     }
   });
   app.replaceChildren(el('div', {}, el('a', { href: '/' }, '← all jobs')), el('h1', {}, 'New job'), form);

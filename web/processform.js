@@ -4,9 +4,9 @@
 // stored tool, a tool library) and simulate or optimize with its limits. Submits the
 // document the API takes ({kind: 'process', inputs: {stock, operations: [...]}, options})
 // and follows the job's page; a refusal shows the server's problem with its field.
-import { el, problemView } from './util.js';
-import { app, postJson, handleError } from './api.js';
-import { BUILT_IN_MATERIALS, stored, short, toolLabel, machineLabel, kindSelect } from './newjob.js';
+import { el } from './util.js';
+import { app, postJson } from './api.js';
+import { BUILT_IN_MATERIALS, stored, short, toolLabel, machineLabel, kindSelect, submitJob, showRefusal } from './newjob.js';
 
 const num = (name, value, attrs) => el('input', { name, type: 'number', step: 'any', value, ...(attrs || {}) });
 const field = (label, ...input) => el('label', { class: 'field' }, el('span', {}, label), ...input);
@@ -151,13 +151,9 @@ export async function renderProcessForm(route) {
       if (fixture) options.fixture = fixture;
       inputs.operations = [];
       for (const box of operations.children) inputs.operations.push(await box.read());
-      const job = await postJson('/v1/jobs', { kind: 'process', inputs, options });
-      history.pushState(null, '', '/jobs/' + job.id);
-      route();
+      await submitJob({ kind: 'process', inputs, options }, route);
     } catch (err) {
-      out.replaceChildren();
-      if (err.problem) out.append(el('h2', {}, 'The server refused it'), problemView(err.problem));
-      else handleError(err, out);
+      showRefusal(err, out);
     }
   });
   app.replaceChildren(el('div', {}, el('a', { href: '/' }, '← all jobs')), el('h1', {}, 'New process'), form);
