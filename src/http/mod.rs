@@ -8,6 +8,7 @@ pub mod download;
 pub mod guard;
 pub mod jobs;
 pub mod ops;
+pub mod parsing;
 pub mod problem;
 pub mod resources;
 pub mod rows_csv;

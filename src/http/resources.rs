@@ -176,11 +176,8 @@ pub async fn create(
                 .clone()
                 .or(name.clone())
                 .unwrap_or_else(|| "program.nc".into());
-            let (bytes, checked) = tokio::task::spawn_blocking(move || {
-                validate::program(&bytes, &file).map(|v| (bytes, v))
-            })
-            .await
-            .map_err(|e| ApiError::blocking_failed(e, "the program reader"))??;
+            let (bytes, _, checked) =
+                super::parsing::program(bytes, file, limits.max_program_bytes).await?;
             let name = query.name.or(name);
             return store(&state, &owner, kind, name.as_deref(), checked, bytes, None).await;
         }
