@@ -18,7 +18,7 @@ use millsim_engine::machine::Machine;
 use millsim_engine::tool::{HolderSegment, Tool};
 
 use super::inputs::{invalid, json_input};
-use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
+use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile, SubmittedInputs};
 use crate::problem::{parse_options, Problem};
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -175,8 +175,26 @@ pub fn check(options: &Value) -> Result<(), Problem> {
     request(&o, "options.").map(|_| ())
 }
 
-/// At submission, once the part is known: entry and target inside its bounds.
-pub fn check_points(options: &Value, lo: [f64; 3], hi: [f64; 3]) -> Result<(), Problem> {
+/// At submission, once the part is known: it is an STL, and the entry and target lie
+/// inside its bounds (422 naming the field otherwise).
+pub fn check_part(options: &Value, inputs: &SubmittedInputs) -> Result<(), Problem> {
+    let Some(part) = inputs.stored("part") else {
+        return Ok(());
+    };
+    if part.summary["format"] != "stl" {
+        return Err(Problem::invalid_field(
+            "inputs.part",
+            "the part must be an STL mesh, not a parametric stock",
+        ));
+    }
+    if let Some((lo, hi)) = crate::job_limits::summary_bounds(&part.summary) {
+        check_points(options, lo, hi)?;
+    }
+    Ok(())
+}
+
+/// Entry and target inside the part's bounds.
+fn check_points(options: &Value, lo: [f64; 3], hi: [f64; 3]) -> Result<(), Problem> {
     let o: AccessibilityOptions = parse_options(options)?;
     let r = request(&o, "options.")?;
     accessibility::check_points(&r, lo, hi).map_err(|e| engine_problem(e, "options."))

@@ -32,10 +32,7 @@ use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
-pub use accessibility::{
-    analyze as accessibility_analyze, check_points as accessibility_check_points,
-    AccessibilityOptions,
-};
+pub use accessibility::{analyze as accessibility_analyze, AccessibilityOptions};
 pub use interpret::InterpretOptions;
 pub use simulate::{check_tool_inputs, SimulateOptions};
 
@@ -233,6 +230,58 @@ impl JobKind {
         }
     }
 
+    /// Everything a submission checks once its inputs are resolved, in order: [`check`]
+    /// (how the tools are named, the options), what the kind checks against its stored
+    /// inputs (an accessibility job's part), and the job memory budget. Names the field
+    /// (or the budget) on error.
+    ///
+    /// [`check`]: Self::check
+    pub fn check_submission<'a>(
+        self,
+        input_names: impl Iterator<Item = &'a String> + Clone,
+        options: &Value,
+        inputs: &SubmittedInputs,
+        limits: &JobLimits,
+    ) -> Result<(), Problem> {
+        self.check(input_names, options)?;
+        if self == JobKind::Accessibility {
+            accessibility::check_part(options, inputs)?;
+        }
+        self.check_memory_budget(options, inputs, limits)
+    }
+
+    /// A job that cannot fit the job memory budget is refused at submission (422 naming
+    /// the budget and the estimate) rather than failed later. A simulation (and a
+    /// process) by its grid and stock export alone, what needs the program (step records,
+    /// rows) being checked when the job runs; the other kinds by their options and the
+    /// size of their program (an accessibility job: of its part), see `job_estimates`.
+    pub fn check_memory_budget(
+        self,
+        options: &Value,
+        inputs: &SubmittedInputs,
+        limits: &JobLimits,
+    ) -> Result<(), Problem> {
+        match self {
+            JobKind::Simulate | JobKind::Optimize => {
+                simulate::check_memory_budget(options, inputs, limits)
+            }
+            JobKind::Process => process::check_memory_budget(options, inputs, limits),
+            _ => {
+                // An accessibility job scales with its part (an STL), the others with the
+                // program.
+                let input = if self == JobKind::Accessibility {
+                    "part"
+                } else {
+                    "program"
+                };
+                let program = inputs
+                    .inline_program
+                    .or(inputs.stored(input).map(|r| r.size));
+                crate::job_estimates::check(self, options, program.unwrap_or(0), limits)
+            }
+        }
+    }
+
     /// Runs the job. With `stock_file`, the machined stock of a simulate or optimize job is
     /// streamed into that file (a file the size of the stock's surface is then never held
     /// in memory) instead of being returned among the output files.
@@ -279,6 +328,30 @@ const fn input(name: &'static str, kind: ResourceKind, required: bool) -> InputS
         name,
         kind,
         required,
+    }
+}
+
+/// A stored resource a submission names, as the submission checks see it.
+#[derive(Clone, Debug)]
+pub struct StoredInput {
+    /// Bytes of its content.
+    pub size: u64,
+    /// What validation found (bounds, triangles, diameter, format, ...).
+    pub summary: Value,
+}
+
+/// The inputs of a submission once resolved: the stored resources it names, by input
+/// name in the request's order, and the size of an inline program.
+#[derive(Clone, Debug, Default)]
+pub struct SubmittedInputs {
+    pub stored: Vec<(String, StoredInput)>,
+    pub inline_program: Option<u64>,
+}
+
+impl SubmittedInputs {
+    /// The stored resource given as input `name`.
+    pub fn stored(&self, name: &str) -> Option<&StoredInput> {
+        self.stored.iter().find(|(n, _)| n == name).map(|(_, r)| r)
     }
 }
 

@@ -23,6 +23,7 @@ use super::simulate::{
 };
 use super::{
     input, FieldError, InputSpec, JobFailure, JobOutput, LoadedInput, LoadedInputs, OutputFile,
+    SubmittedInputs,
 };
 use crate::job_limits::JobLimits;
 use crate::problem::Problem;
@@ -283,6 +284,24 @@ fn stored_options(options: &Value) -> Result<ProcessOptions, FieldError> {
         ));
     }
     Ok(o)
+}
+
+/// At submission: the grid and stock export against the job memory budget, with the
+/// cell of `options.cell_mm` (shared by the operations) or of the finest tool of all the
+/// operations (`op2.T1`).
+pub fn check_memory_budget(
+    options: &Value,
+    inputs: &SubmittedInputs,
+    limits: &JobLimits,
+) -> Result<(), Problem> {
+    let cell_mm = options.get("cell_mm").and_then(Value::as_f64);
+    fn tool_name(name: &str) -> &str {
+        match name.split_once('.') {
+            Some((op, tool)) if op.starts_with("op") => tool,
+            _ => name,
+        }
+    }
+    super::simulate::grid_budget(cell_mm, inputs, tool_name, limits)
 }
 
 /// At submission: every operation's options, and how each names its tools; the fixture's
