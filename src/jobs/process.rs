@@ -186,7 +186,7 @@ struct StoredOperation {
 /// The process's options as stored: the shared ones, `keep_stocks`, and the operations'
 /// names and options (from `inputs.operations`).
 #[derive(Debug, Deserialize)]
-struct ProcessOptions {
+pub struct ProcessOptions {
     #[serde(default)]
     keep_stocks: bool,
     #[serde(default)]
@@ -274,7 +274,8 @@ fn operation_field(e: FieldError, op: &StoredOperation, i: usize) -> FieldError 
     }
 }
 
-fn stored_options(options: &Value) -> Result<ProcessOptions, FieldError> {
+/// The options read as a submission and the job read them (errors name the field).
+pub fn stored_options(options: &Value) -> Result<ProcessOptions, FieldError> {
     let o: ProcessOptions = serde_json::from_value(options.clone())
         .map_err(|e| FieldError::new("options", e.to_string()))?;
     if o.operations.is_empty() {
@@ -308,9 +309,8 @@ pub fn check_memory_budget(
 /// STL inputs against `options.fixture`.
 pub fn check<'a>(
     input_names: impl Iterator<Item = &'a String> + Clone,
-    options: &Value,
+    o: &ProcessOptions,
 ) -> Result<(), FieldError> {
-    let o = stored_options(options)?;
     let has_material_input = input_names.clone().any(|n| n == "material");
     for (i, op) in o.operations.iter().enumerate() {
         let (opts, optimize) = operation_options(&o.shared, op, i)?;
@@ -389,7 +389,7 @@ fn process_estimate(
 }
 
 pub fn run(
-    options: &Value,
+    o: ProcessOptions,
     mut inputs: LoadedInputs,
     limits: &JobLimits,
     cancel: &CancelFlag,
@@ -397,7 +397,6 @@ pub fn run(
     stock_file: Option<&std::path::Path>,
 ) -> Result<JobOutput, JobFailure> {
     let bad = |e: FieldError| invalid("Invalid options", e.to_string());
-    let o = stored_options(options).map_err(bad)?;
     let has_material_input = inputs.contains_key("material");
     // The shared inputs every operation reads; the stock, read once, is shared too.
     let mut shared: Vec<(String, LoadedInput)> = Vec::new();

@@ -154,13 +154,10 @@ pub fn fixture_input(name: &str) -> bool {
 /// At submission: a simulation whose grid and stock export alone cannot fit the job
 /// memory budget (422 naming the budget and the estimate).
 pub fn check_memory_budget(
-    options: &Value,
+    o: &SimulateOptions,
     inputs: &SubmittedInputs,
     limits: &JobLimits,
 ) -> Result<(), Problem> {
-    let Ok(o) = serde_json::from_value::<SimulateOptions>(options.clone()) else {
-        return Ok(());
-    };
     fn tool_name(name: &str) -> &str {
         name
     }
@@ -716,15 +713,13 @@ pub(super) struct BuiltSpec {
 
 pub fn run(
     optimize: bool,
-    options: &Value,
+    opts: &SimulateOptions,
     mut inputs: LoadedInputs,
     limits: &JobLimits,
     cancel: &CancelFlag,
     progress: &dyn Progress,
     stock_file: Option<&std::path::Path>,
 ) -> Result<JobOutput, JobFailure> {
-    let opts: SimulateOptions = serde_json::from_value(options.clone())
-        .map_err(|e| invalid("Invalid options", e.to_string()))?;
     opts.check(optimize, inputs.contains_key("material"))
         .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let BuiltSpec {
@@ -733,7 +728,7 @@ pub fn run(
         estimate,
         library,
         ..
-    } = spec_from_inputs(&opts, optimize, &mut inputs, limits, cancel)?;
+    } = spec_from_inputs(opts, optimize, &mut inputs, limits, cancel)?;
     let result = match &opts.spindle {
         Some(sp) => pipeline::simulate_choosing_spindle(&spec, sp, cancel, progress),
         None => pipeline::simulate(&spec, cancel, progress),
