@@ -401,7 +401,7 @@ impl JobOptions {
                 let program = inputs
                     .inline_program
                     .or(inputs.stored(input).map(|r| r.size));
-                crate::job_estimates::check(kind, options, program.unwrap_or(0), limits)
+                crate::job_estimates::check(self, program.unwrap_or(0), limits)
             }
         }
     }
