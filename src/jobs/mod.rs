@@ -232,7 +232,7 @@ impl JobKind {
         if let JobOptions::Accessibility(o) = &spec {
             accessibility::check_part(o, inputs)?;
         }
-        spec.check_memory_budget(options, inputs, limits)
+        spec.check_memory_budget(inputs, limits)
     }
 
     /// Runs the job. With `stock_file`, the machined stock of a simulate or optimize job is
@@ -375,12 +375,10 @@ impl JobOptions {
     /// A job that cannot fit the job memory budget is refused at submission (422 naming
     /// the budget and the estimate) rather than failed later. A simulation (and a
     /// process) by its grid and stock export alone, what needs the program (step records,
-    /// rows) being checked when the job runs; the other kinds by their options (`options`,
-    /// as given) and the size of their program (an accessibility job: of its part), see
-    /// `job_estimates`.
+    /// rows) being checked when the job runs; the other kinds by their options and the size
+    /// of their program (an accessibility job: of its part), see `job_estimates`.
     pub fn check_memory_budget(
         &self,
-        options: &Value,
         inputs: &SubmittedInputs,
         limits: &JobLimits,
     ) -> Result<(), Problem> {
@@ -388,7 +386,7 @@ impl JobOptions {
             JobOptions::Simulate(o) | JobOptions::Optimize(o) => {
                 simulate::check_memory_budget(o, inputs, limits)
             }
-            JobOptions::Process(_) => process::check_memory_budget(options, inputs, limits),
+            JobOptions::Process(o) => process::check_memory_budget(o, inputs, limits),
             _ => {
                 // An accessibility job scales with its part (an STL), the others with the
                 // program.

@@ -291,11 +291,11 @@ pub fn stored_options(options: &Value) -> Result<ProcessOptions, FieldError> {
 /// cell of `options.cell_mm` (shared by the operations) or of the finest tool of all the
 /// operations (`op2.T1`).
 pub fn check_memory_budget(
-    options: &Value,
+    o: &ProcessOptions,
     inputs: &SubmittedInputs,
     limits: &JobLimits,
 ) -> Result<(), Problem> {
-    let cell_mm = options.get("cell_mm").and_then(Value::as_f64);
+    let cell_mm = o.shared.get("cell_mm").and_then(Value::as_f64);
     fn tool_name(name: &str) -> &str {
         match name.split_once('.') {
             Some((op, tool)) if op.starts_with("op") => tool,
