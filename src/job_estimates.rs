@@ -4,13 +4,13 @@
 //! their rows; a stability or energy job the transition matrices of its lobes.
 
 use serde::Serialize;
-use serde_json::Value;
 
 use millsim_engine::optimize::energy::DEFAULT_SEARCH_STEPS;
-use millsim_engine::physics::stability::DEFAULT_STEPS_PER_PERIOD;
+use millsim_engine::physics::stability::{Method, RpmRange, DEFAULT_STEPS_PER_PERIOD};
 
 use crate::job_limits::JobLimits;
-use crate::jobs::JobKind;
+use crate::jobs::stability::StabilityRequest;
+use crate::jobs::{JobKind, JobOptions};
 use crate::problem::Problem;
 
 /// What a job's process holds whatever the job (code, runtime, buffers): measured 11.7 to
@@ -62,67 +62,89 @@ pub struct KindEstimate {
     pub peak_bytes: u64,
 }
 
-/// The estimate of a `kind` job with `options` and a program of `program_bytes` bytes,
-/// when the kind is one this module knows (not simulate/optimize); `workers` lobe
-/// workers run at once (the job process's thread pool).
-pub fn estimate(
-    kind: JobKind,
-    options: &Value,
-    program_bytes: u64,
-    workers: u64,
-) -> Option<KindEstimate> {
+/// The estimate of a job with these options and a program of `program_bytes` bytes, when
+/// its kind is one this module knows (not simulate/optimize, process or identify);
+/// `workers` lobe workers run at once (the job process's thread pool).
+pub fn estimate(options: &JobOptions, program_bytes: u64, workers: u64) -> Option<KindEstimate> {
     let mut e = KindEstimate::default();
-    match kind {
-        JobKind::Interpret => {
+    match options {
+        JobOptions::Interpret(_) => {
             e.program_bytes = program_bytes.saturating_mul(INTERPRET_BYTES_PER_PROGRAM_BYTE)
         }
-        JobKind::Accessibility => {
+        JobOptions::Accessibility(_) => {
             // `program_bytes` is the part's size for this kind.
             e.program_bytes = program_bytes
                 .saturating_mul(ACCESSIBILITY_BYTES_PER_PART_BYTE)
                 .saturating_add(ACCESSIBILITY_RASTER_BYTES)
         }
-        JobKind::RotaryFeed => {
+        JobOptions::RotaryFeed(_) => {
             e.program_bytes = program_bytes.saturating_mul(ROTARY_FEED_BYTES_PER_PROGRAM_BYTE)
         }
-        JobKind::Stability => {
-            let mut modes = count(&options["modes_x"]) + count(&options["modes_y"]);
-            let mut rows = speeds(&options["rpm"]);
-            if let Some(entries) = options["allowance"].as_array() {
+        JobOptions::Stability(request) => {
+            let (method, mut modes, steps, mut rows) = match request.as_ref() {
+                StabilityRequest::Lobes(i, _) => (
+                    i.method,
+                    i.modes_x.len() + i.modes_y.len(),
+                    i.steps_per_period,
+                    speeds(&i.rpm),
+                ),
+                StabilityRequest::Surface(i) => (
+                    i.method,
+                    i.modes_x.len() + i.modes_y.len(),
+                    i.steps_per_period,
+                    speeds(&i.rpm),
+                ),
+            };
+            if let StabilityRequest::Surface(i) = request.as_ref() {
                 // A 3-D surface: the workpiece's modes join the tool's, per allowance.
-                modes += entries
+                modes += i
+                    .allowance
                     .iter()
-                    .map(|a| count(&a["modes_x"]) + count(&a["modes_y"]))
+                    .map(|a| a.modes_x.len() + a.modes_y.len())
                     .max()
                     .unwrap_or(0);
-                rows = rows.saturating_mul(count(&options["allowances_mm"]).max(1));
+                rows = rows.saturating_mul((i.allowances_mm.len() as u64).max(1));
             }
-            let method = options["method"].as_str().unwrap_or("sdm");
-            let steps = options["steps_per_period"]
-                .as_u64()
-                .unwrap_or(DEFAULT_STEPS_PER_PERIOD.into());
-            e.lobe_matrices_bytes = lobe_matrices_bytes(method, modes, steps, workers);
+            let steps = steps.unwrap_or(DEFAULT_STEPS_PER_PERIOD).into();
+            e.lobe_matrices_bytes =
+                lobe_matrices_bytes(method_name(method), modes as u64, steps, workers);
             e.rows_bytes = rows.saturating_mul(LOBE_ROW_BYTES);
         }
-        JobKind::Energy => {
-            let modes = count(&options["modes_x"]) + count(&options["modes_y"]);
+        JobOptions::Energy(energy) => {
+            let search = &energy.0;
+            let modes = (search.modes_x.len() + search.modes_y.len()) as u64;
             if modes > 0 {
-                let method = options["stability_method"].as_str().unwrap_or("sdm");
-                let steps = options["steps_per_period"]
-                    .as_u64()
-                    .unwrap_or(DEFAULT_SEARCH_STEPS.into());
-                e.lobe_matrices_bytes = lobe_matrices_bytes(method, modes, steps, workers);
+                let steps = search
+                    .steps_per_period
+                    .unwrap_or(DEFAULT_SEARCH_STEPS)
+                    .into();
+                e.lobe_matrices_bytes = lobe_matrices_bytes(
+                    method_name(search.stability_method),
+                    modes,
+                    steps,
+                    workers,
+                );
             }
         }
-        JobKind::Simulate | JobKind::Optimize | JobKind::Process | JobKind::Identify => {
-            return None
-        }
+        JobOptions::Simulate(_)
+        | JobOptions::Optimize(_)
+        | JobOptions::Process(_)
+        | JobOptions::Identify(_) => return None,
     }
     e.peak_bytes = PROCESS_BYTES
         .saturating_add(e.program_bytes)
         .saturating_add(e.lobe_matrices_bytes)
         .saturating_add(e.rows_bytes);
     Some(e)
+}
+
+/// A lobe method as the options name it.
+fn method_name(method: Method) -> &'static str {
+    match method {
+        Method::Zoa => "zoa",
+        Method::Sdm => "sdm",
+        Method::Fdm => "fdm",
+    }
 }
 
 /// Transition matrices of the time-domain lobe methods: dimension 2n + steps·n for n
@@ -138,20 +160,9 @@ pub fn lobe_matrices_bytes(method: &str, modes: u64, steps: u64, workers: u64) -
         .saturating_mul(workers.max(1))
 }
 
-fn count(v: &Value) -> u64 {
-    v.as_array().map_or(0, |a| a.len() as u64)
-}
-
-/// Speeds of an rpm range `{from, to, step}` (its own check bounds them).
-fn speeds(rpm: &Value) -> u64 {
-    let (Some(from), Some(to), Some(step)) = (
-        rpm["from"].as_f64(),
-        rpm["to"].as_f64(),
-        rpm["step"].as_f64(),
-    ) else {
-        return 0;
-    };
-    let n = ((to - from) / step).floor() + 1.0;
+/// Speeds of an rpm range (its own check bounds them).
+fn speeds(rpm: &RpmRange) -> u64 {
+    let n = ((rpm.to - rpm.from) / rpm.step).floor() + 1.0;
     if n.is_finite() && n > 0.0 {
         n.min(1e12) as u64
     } else {
@@ -164,17 +175,13 @@ pub fn lobe_workers() -> u64 {
     std::thread::available_parallelism().map_or(1, |n| n.get() as u64)
 }
 
-/// Checks a `kind` job against the budget: Err(problem) when its estimate is over it (a
-/// 422 resource-limit problem naming the budget and the estimate).
-pub fn check(
-    kind: JobKind,
-    options: &Value,
-    program_bytes: u64,
-    limits: &JobLimits,
-) -> Result<(), Problem> {
-    let Some(e) = estimate(kind, options, program_bytes, lobe_workers()) else {
+/// Checks a job with these options against the budget: Err(problem) when its estimate is
+/// over it (a 422 resource-limit problem naming the budget and the estimate).
+pub fn check(options: &JobOptions, program_bytes: u64, limits: &JobLimits) -> Result<(), Problem> {
+    let Some(e) = estimate(options, program_bytes, lobe_workers()) else {
         return Ok(());
     };
+    let kind = options.kind();
     if e.peak_bytes <= limits.memory_bytes {
         return Ok(());
     }
@@ -205,7 +212,7 @@ pub fn check(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use serde_json::json;
+    use serde_json::{json, Value};
 
     fn mode() -> Value {
         json!({"freq_hz": 900, "damping": 0.02, "stiffness_n_m": 2e7})
@@ -223,6 +230,30 @@ mod tests {
         assert_eq!(lobe_matrices_bytes("zoa", 16, 60, 2), 0);
     }
 
+    /// The options of a `kind` job read as a submission reads them (no inputs given).
+    fn spec(kind: JobKind, options: Value) -> JobOptions {
+        JobOptions::parse(kind, &options, std::iter::empty()).unwrap()
+    }
+
+    /// A stability job's options with these modes a direction, speeds and steps.
+    fn stability(modes: &[Value], rpm: Value) -> Value {
+        json!({"method": "sdm", "teeth": 2, "ktc_n_mm2": 600, "krc_n_mm2": 200,
+            "radial_immersion": 0.5, "milling": "down", "modes_x": modes, "modes_y": modes,
+            "rpm": rpm, "steps_per_period": 40})
+    }
+
+    /// An energy job's options with these modes in x and steps a period.
+    fn energy(modes_x: &[Value], steps: Option<u32>) -> Value {
+        let mut o = json!({"material": "Al7075-T6", "length_mm": 200, "width_mm": 8,
+            "depth_mm": 12, "cutting_speed_m_min": {"min": 100, "max": 300},
+            "feed_per_tooth_mm": {"min": 0.02, "max": 0.2}, "objective": "min_energy",
+            "modes_x": modes_x, "modes_y": []});
+        if let Some(steps) = steps {
+            o["steps_per_period"] = json!(steps);
+        }
+        o
+    }
+
     #[test]
     fn each_kind_is_refused_over_a_small_budget_and_runs_under_it() {
         let limits = JobLimits {
@@ -230,9 +261,8 @@ mod tests {
         };
         // The stability job: 100 modes a direction, 40 steps a period.
         let many: Vec<Value> = (0..100).map(|_| mode()).collect();
-        let heavy = json!({"method": "sdm", "modes_x": many, "modes_y": many,
-            "rpm": {"from": 5000, "to": 6000, "step": 100}, "steps_per_period": 40});
-        let p = check(JobKind::Stability, &heavy, 0, &limits)
+        let heavy = stability(&many, json!({"from": 5000, "to": 6000, "step": 100}));
+        let p = check(&spec(JobKind::Stability, heavy), 0, &limits)
             .unwrap_err()
             .to_json();
         assert_eq!(
@@ -240,19 +270,24 @@ mod tests {
             (Some(422), Some(256))
         );
         assert!(p["estimate_mb"].as_u64().unwrap() > 2_000, "{p}");
-        let light = json!({"method": "sdm", "modes_x": [mode()], "modes_y": [mode()],
-            "rpm": {"from": 5000, "to": 25000, "step": 1}, "steps_per_period": 40});
-        assert!(check(JobKind::Stability, &light, 0, &limits).is_ok());
-        let energy = json!({"modes_x": many, "modes_y": [], "steps_per_period": 100});
-        assert!(check(JobKind::Energy, &energy, 0, &limits).is_err());
-        assert!(check(JobKind::Energy, &json!({}), 0, &limits).is_ok());
+        let light = stability(&[mode()], json!({"from": 5000, "to": 25000, "step": 1}));
+        assert!(check(&spec(JobKind::Stability, light), 0, &limits).is_ok());
+        let heavy_energy = spec(JobKind::Energy, energy(&many, Some(100)));
+        assert!(check(&heavy_energy, 0, &limits).is_err());
+        assert!(check(&spec(JobKind::Energy, energy(&[], None)), 0, &limits).is_ok());
         // 10 MB of G-code: about 400 MB parsed with its moves and rows.
-        assert!(check(JobKind::Interpret, &json!({}), 10 << 20, &limits).is_err());
-        assert!(check(JobKind::RotaryFeed, &json!({}), 10 << 20, &limits).is_err());
-        assert!(check(JobKind::Interpret, &json!({}), 1 << 20, &limits).is_ok());
-        assert!(check(JobKind::Simulate, &json!({}), 1 << 30, &limits).is_ok());
+        let interpret = spec(JobKind::Interpret, json!({}));
+        assert!(check(&interpret, 10 << 20, &limits).is_err());
+        let rotary_feed = spec(JobKind::RotaryFeed, json!({}));
+        assert!(check(&rotary_feed, 10 << 20, &limits).is_err());
+        assert!(check(&interpret, 1 << 20, &limits).is_ok());
+        assert!(check(&spec(JobKind::Simulate, json!({})), 1 << 30, &limits).is_ok());
         // A 200k-triangle binary part (10 MB) fits; a 5M-triangle one (250 MB) does not.
-        assert!(check(JobKind::Accessibility, &json!({}), 10 << 20, &limits).is_ok());
-        assert!(check(JobKind::Accessibility, &json!({}), 250 << 20, &limits).is_err());
+        let accessibility = spec(
+            JobKind::Accessibility,
+            json!({"entry": [0, 0, 10], "target": [0, 0, 0]}),
+        );
+        assert!(check(&accessibility, 10 << 20, &limits).is_ok());
+        assert!(check(&accessibility, 250 << 20, &limits).is_err());
     }
 }

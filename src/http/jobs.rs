@@ -17,8 +17,7 @@ use super::auth::hex;
 use super::body::read_limited;
 use super::problem::{parse_json, ApiError};
 use super::{parse_query, AppState, Owner, PageQuery};
-use crate::job_limits;
-use crate::jobs::{JobKind, SimulateOptions};
+use crate::jobs::{JobKind, StoredInput, SubmittedInputs};
 use crate::store::artifacts::ArtifactBody;
 use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
@@ -53,115 +52,6 @@ fn job_response(status: StatusCode, job: &JobRecord, replayed: bool) -> Response
     res
 }
 
-/// A simulation whose grid and stock export alone cannot fit the job memory budget is
-/// refused now (422 naming the budget and the estimate) rather than failed later; what
-/// needs the program (step records, rows) is checked when the job runs. The other kinds
-/// are estimated from their options and program size (`job_estimates`).
-async fn check_memory_budget(
-    state: &AppState,
-    owner: &str,
-    kind: JobKind,
-    (inputs, inline_program): (&Map<String, Value>, Option<u64>),
-    options: &Value,
-) -> Result<(), ApiError> {
-    if !matches!(
-        kind,
-        JobKind::Simulate | JobKind::Optimize | JobKind::Process
-    ) {
-        // The other kinds by their options and the program's size.
-        // An accessibility job scales with its part (an STL), the others with the program.
-        let (input, resource) = if kind == JobKind::Accessibility {
-            ("part", ResourceKind::Stock)
-        } else {
-            ("program", ResourceKind::Program)
-        };
-        let stored = match inputs.get(input).and_then(Value::as_str) {
-            Some(id) => state.db.get_resource(owner, resource, id).await?,
-            None => None,
-        };
-        let program = inline_program.or(stored.map(|r| r.size.max(0) as u64));
-        return crate::job_estimates::check(kind, options, program.unwrap_or(0), &state.job_limits);
-    }
-    // A process's options are its own (operations, keep_stocks) with the cell shared.
-    let cell_mm = if kind == JobKind::Process {
-        options.get("cell_mm").and_then(Value::as_f64)
-    } else {
-        let Ok(o) = serde_json::from_value::<SimulateOptions>(options.clone()) else {
-            return Ok(());
-        };
-        o.cell_mm
-    };
-    let Some(stock) = inputs.get("stock").and_then(Value::as_str) else {
-        return Ok(());
-    };
-    let Some(stock) = state
-        .db
-        .get_resource(owner, ResourceKind::Stock, stock)
-        .await?
-    else {
-        return Ok(());
-    };
-    let Some(bounds) = job_limits::summary_bounds(&stock.summary) else {
-        return Ok(());
-    };
-    let mut diameters = Vec::new();
-    for (name, id) in inputs {
-        // A process's operations' tools (`op2.T1`): the finest sets the one cell.
-        let name = match name.split_once('.') {
-            Some((op, tool)) if kind == JobKind::Process && op.starts_with("op") => tool,
-            _ => name.as_str(),
-        };
-        if name != "tool" && JobKind::Simulate.tool_number_input(name).is_none() {
-            continue;
-        }
-        let Some(id) = id.as_str() else { continue };
-        if let Some(tool) = state.db.get_resource(owner, ResourceKind::Tool, id).await? {
-            diameters.extend(tool.summary["diameter"].as_f64());
-        }
-    }
-    let limits = &state.job_limits;
-    match job_limits::submission_estimate(
-        bounds,
-        stock.summary["triangles"].as_u64().unwrap_or(0),
-        cell_mm,
-        &diameters,
-        limits,
-    ) {
-        None => Ok(()),
-        Some(estimate) => Err(job_limits::over_budget_problem(None, &estimate, limits)),
-    }
-}
-
-/// An accessibility job's part is an STL, and its entry and target lie inside its bounds
-/// (422 naming the field otherwise).
-async fn check_accessibility_part(
-    state: &AppState,
-    owner: &str,
-    inputs: &Map<String, Value>,
-    options: &Value,
-) -> Result<(), ApiError> {
-    let Some(id) = inputs.get("part").and_then(Value::as_str) else {
-        return Ok(());
-    };
-    let Some(part) = state
-        .db
-        .get_resource(owner, ResourceKind::Stock, id)
-        .await?
-    else {
-        return Ok(());
-    };
-    if part.summary["format"] != "stl" {
-        return Err(ApiError::invalid_field(
-            "inputs.part",
-            "the part must be an STL mesh, not a parametric stock",
-        ));
-    }
-    if let Some((lo, hi)) = job_limits::summary_bounds(&part.summary) {
-        crate::jobs::accessibility_check_points(options, lo, hi)?;
-    }
-    Ok(())
-}
-
 /// The `Idempotency-Key` header, if given: 1 to 255 visible ASCII characters.
 fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
     Ok(match headers.get("idempotency-key") {
@@ -182,15 +72,17 @@ fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
 }
 
 /// Each input the kind wants, as given: the id of a stored resource of the owner's
-/// (checked to exist), or an inline program (read and stored with the job).
+/// (checked to exist, and its size and summary kept for the submission's checks), or an
+/// inline program (read and stored with the job).
 async fn resolve_inputs(
     state: &AppState,
     owner: &str,
     job_kind: JobKind,
     given: &Map<String, Value>,
-) -> Result<(Map<String, Value>, Vec<InlineInput>), ApiError> {
+) -> Result<(Map<String, Value>, Vec<InlineInput>, SubmittedInputs), ApiError> {
     let mut inputs = Map::new();
     let mut inline = Vec::new();
+    let mut submitted = SubmittedInputs::default();
     let wanted = job_kind.wanted_inputs(given.keys())?;
     for (name, kind, required) in wanted {
         let field = job_kind.input_field(name);
@@ -203,13 +95,20 @@ async fn resolve_inputs(
             }
             None => {}
             Some(Value::String(id)) => {
-                if state.db.get_resource(owner, kind, id).await?.is_none() {
+                let Some(record) = state.db.get_resource(owner, kind, id).await? else {
                     return Err(ApiError::invalid_field(
                         field,
                         format!("no {} with id `{id}`", kind.as_str()),
                     )
                     .with("id", id.clone()));
-                }
+                };
+                submitted.stored.push((
+                    name.to_string(),
+                    StoredInput {
+                        size: record.size.max(0) as u64,
+                        summary: record.summary,
+                    },
+                ));
                 inputs.insert(name.to_string(), Value::String(id.clone()));
             }
             Some(Value::Object(o)) if kind == ResourceKind::Program => {
@@ -253,7 +152,11 @@ async fn resolve_inputs(
             }
         }
     }
-    Ok((inputs, inline))
+    submitted.inline_program = inline
+        .iter()
+        .find(|i| i.input == "program")
+        .map(|i| i.content.len() as u64);
+    Ok((inputs, inline, submitted))
 }
 
 pub async fn create(
@@ -296,23 +199,8 @@ pub async fn create(
         }
         options["operations"] = Value::Array(operations);
     }
-    let (inputs, inline) = resolve_inputs(&state, &owner, job_kind, &given).await?;
-    job_kind.check(given.keys(), &options)?;
-    if job_kind == JobKind::Accessibility {
-        check_accessibility_part(&state, &owner, &inputs, &options).await?;
-    }
-    let inline_program = inline
-        .iter()
-        .find(|i| i.input == "program")
-        .map(|i| i.content.len() as u64);
-    check_memory_budget(
-        &state,
-        &owner,
-        job_kind,
-        (&inputs, inline_program),
-        &options,
-    )
-    .await?;
+    let (inputs, inline, submitted) = resolve_inputs(&state, &owner, job_kind, &given).await?;
+    job_kind.check_submission(given.keys(), &options, &submitted, &state.job_limits)?;
     let outcome = state
         .db
         .create_job(

@@ -18,7 +18,7 @@ use millsim_engine::machine::Machine;
 use millsim_engine::tool::{HolderSegment, Tool};
 
 use super::inputs::{invalid, json_input};
-use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
+use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile, SubmittedInputs};
 use crate::problem::{parse_options, Problem};
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -169,16 +169,37 @@ pub fn engine_problem(e: AccessError, prefix: &str) -> Problem {
     }
 }
 
-/// At submission: the options read and are in range.
-pub fn check(options: &Value) -> Result<(), Problem> {
-    let o: AccessibilityOptions = parse_options(options)?;
-    request(&o, "options.").map(|_| ())
+/// The options read as a submission reads them (errors name the field).
+pub fn parse(options: &Value) -> Result<AccessibilityOptions, Problem> {
+    parse_options(options)
 }
 
-/// At submission, once the part is known: entry and target inside its bounds.
-pub fn check_points(options: &Value, lo: [f64; 3], hi: [f64; 3]) -> Result<(), Problem> {
-    let o: AccessibilityOptions = parse_options(options)?;
-    let r = request(&o, "options.")?;
+/// At submission: the options are in range.
+pub fn check(o: &AccessibilityOptions) -> Result<(), Problem> {
+    request(o, "options.").map(|_| ())
+}
+
+/// At submission, once the part is known: it is an STL, and the entry and target lie
+/// inside its bounds (422 naming the field otherwise).
+pub fn check_part(o: &AccessibilityOptions, inputs: &SubmittedInputs) -> Result<(), Problem> {
+    let Some(part) = inputs.stored("part") else {
+        return Ok(());
+    };
+    if part.summary["format"] != "stl" {
+        return Err(Problem::invalid_field(
+            "inputs.part",
+            "the part must be an STL mesh, not a parametric stock",
+        ));
+    }
+    if let Some((lo, hi)) = crate::job_limits::summary_bounds(&part.summary) {
+        check_points(o, lo, hi)?;
+    }
+    Ok(())
+}
+
+/// Entry and target inside the part's bounds.
+fn check_points(o: &AccessibilityOptions, lo: [f64; 3], hi: [f64; 3]) -> Result<(), Problem> {
+    let r = request(o, "options.")?;
     accessibility::check_points(&r, lo, hi).map_err(|e| engine_problem(e, "options."))
 }
 
@@ -314,12 +335,10 @@ pub fn analyze(
 }
 
 pub fn run(
-    options: &Value,
+    o: &AccessibilityOptions,
     mut inputs: LoadedInputs,
     cancel: &CancelFlag,
 ) -> Result<JobOutput, JobFailure> {
-    let o: AccessibilityOptions = serde_json::from_value(options.clone())
-        .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let part = inputs
         .remove("part")
         .ok_or_else(|| invalid("Missing input", "the job has no `part` input"))?;
@@ -339,7 +358,7 @@ pub fn run(
     let source = part.stl().map_err(unusable)?;
     let mesh = source.mesh().map_err(unusable)?;
     let machine: Option<Machine> = json_input(&mut inputs, "machine", "Invalid machine")?;
-    let out = match analyze(&mesh, &o, machine.as_ref(), "options.", cancel) {
+    let out = match analyze(&mesh, o, machine.as_ref(), "options.", cancel) {
         Ok(out) => out,
         Err(_) if cancel.is_cancelled() => return Err(JobFailure::Cancelled),
         Err(p) => return Err(JobFailure::Invalid(p)),

@@ -9,7 +9,7 @@ use millsim_engine::machine::Machine;
 use millsim_engine::optimize::energy_search::{run_energy_job_with, EnergySearchOptions};
 use millsim_engine::tool::Tool;
 
-use super::inputs::{check_material, invalid, job_material, json_input, required};
+use super::inputs::{check_material, job_material, json_input, required};
 use super::{input, FieldError, InputSpec, JobFailure, JobOutput, LoadedInputs};
 use crate::problem::Problem;
 use crate::store::ResourceKind;
@@ -22,12 +22,12 @@ pub const INPUTS: [InputSpec; 3] = [
     input("machine", ResourceKind::Machine, true),
 ];
 
+/// An `energy` job's options read: the search options and the built-in material named.
+pub type EnergyOptions = (EnergySearchOptions, Option<String>);
+
 /// Options of an `energy` job: the search options (`EnergySearchOptions`) plus `material`,
 /// a built-in material name when no `material` input is given. Names the field on error.
-pub fn options(
-    options: &Value,
-    has_material_input: bool,
-) -> Result<(EnergySearchOptions, Option<String>), FieldError> {
+pub fn options(options: &Value, has_material_input: bool) -> Result<EnergyOptions, FieldError> {
     let mut rest = options.as_object().cloned().unwrap_or_default();
     let material = match rest.remove("material") {
         None => None,
@@ -52,12 +52,10 @@ pub fn options(
 /// utilization or minimize energy or time under the machine's and the stability limits;
 /// the Pareto front of time against energy when asked. Rows: the front (or the best point).
 pub fn run(
-    options: &Value,
+    (search, material_name): EnergyOptions,
     mut inputs: LoadedInputs,
     cancel: &CancelFlag,
 ) -> Result<JobOutput, JobFailure> {
-    let (search, material_name) = self::options(options, inputs.contains_key("material"))
-        .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let tool: Tool = required(json_input(&mut inputs, "tool", "Invalid tool")?, "tool")?;
     let machine: Machine = required(
         json_input(&mut inputs, "machine", "Invalid machine")?,

@@ -40,7 +40,7 @@ pub const INPUTS: [InputSpec; 4] = [
 const MAX_MEASUREMENTS: usize = 10_000;
 
 /// Options of an `identify` job.
-#[derive(Debug, Deserialize)]
+#[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct IdentifyOptions {
     /// Axial depth of cut of the tests, mm (with `measurements`).
@@ -77,7 +77,7 @@ pub struct IdentifyOptions {
     pub create_material: Option<MaterialRequest>,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialRequest {
     pub name: String,
@@ -119,8 +119,12 @@ struct Request {
     lines: Option<Vec<millsim_engine::pipeline::LineForce>>,
 }
 
-fn read(options: &Value) -> Result<Request, Problem> {
-    let o: IdentifyOptions = parse_options(options)?;
+/// The options read as a submission reads them (errors name the field).
+pub fn parse(options: &Value) -> Result<IdentifyOptions, Problem> {
+    parse_options(options)
+}
+
+fn read(o: IdentifyOptions) -> Result<Request, Problem> {
     let field = |f: &str, m: String| Problem::invalid_field(format!("options.{f}"), m);
     if o.line_forces.is_some() && (o.cuts.is_some() || o.measurements.is_some()) {
         return Err(field(
@@ -428,8 +432,8 @@ pub(super) fn beyond_any_material(name: &str, value: f64, limit: f64, unit: &str
 /// The options at submission: they read, there are two feeds or more, every number is
 /// finite, and the fit is credible (its signs do not depend on the tool's flutes, which
 /// only scale the coefficients, so one flute stands in for the tool here).
-pub fn check(options: &Value) -> Result<(), Problem> {
-    let r = read(options)?;
+pub fn check(o: &IdentifyOptions) -> Result<(), Problem> {
+    let r = read(o.clone())?;
     if r.cuts.is_some() || r.lines.is_some() {
         // The least-squares fit needs the tool's geometry: it runs with the job.
         return Ok(());
@@ -454,13 +458,14 @@ fn fit_json(f: &AxisFit) -> Value {
 }
 
 pub fn run(
+    o: IdentifyOptions,
     options: &Value,
     mut inputs: LoadedInputs,
     limits: &JobLimits,
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<JobOutput, JobFailure> {
-    let r = read(options).map_err(JobFailure::Invalid)?;
+    let r = read(o).map_err(JobFailure::Invalid)?;
     if let Some(lines) = &r.lines {
         let (mut out, tests, coefficients) = identify_program::run(
             options,

@@ -6,7 +6,7 @@ use serde_json::{json, Value};
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::nc;
 
-use super::inputs::{invalid, json_input, program_failure, program_text};
+use super::inputs::{json_input, program_failure, program_text};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs};
 use crate::problem::{parse_options, Problem};
 use crate::store::ResourceKind;
@@ -63,9 +63,13 @@ impl InterpretOptions {
     }
 }
 
-/// The options at submission: they parse, and the tool table reads.
-pub fn check(options: &Value) -> Result<(), Problem> {
-    let o: InterpretOptions = parse_options(options)?;
+/// The options read as a submission reads them (errors name the field).
+pub fn parse(options: &Value) -> Result<InterpretOptions, Problem> {
+    parse_options(options)
+}
+
+/// The options at submission: the tool table reads.
+pub fn check(o: &InterpretOptions) -> Result<(), Problem> {
     o.engine_options().map_err(|d| {
         let first = d.0.first().map(|e| e.to_string()).unwrap_or_default();
         Problem::invalid_field("options.tool_table", format!("tool table: {first}"))
@@ -74,14 +78,12 @@ pub fn check(options: &Value) -> Result<(), Problem> {
 }
 
 pub fn run(
-    options: &Value,
+    opts: &InterpretOptions,
     mut inputs: LoadedInputs,
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<JobOutput, JobFailure> {
     let (file, text) = program_text(&mut inputs)?;
-    let opts: InterpretOptions = serde_json::from_value(options.clone())
-        .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let mut engine_opts = opts
         .engine_options()
         .map_err(|d| JobFailure::Invalid(Problem::program_failed("tool_table", &d)))?;

@@ -32,10 +32,7 @@ use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
-pub use accessibility::{
-    analyze as accessibility_analyze, check_points as accessibility_check_points,
-    AccessibilityOptions,
-};
+pub use accessibility::{analyze as accessibility_analyze, AccessibilityOptions};
 pub use interpret::InterpretOptions;
 pub use simulate::{check_tool_inputs, SimulateOptions};
 
@@ -202,35 +199,40 @@ impl JobKind {
     }
 
     /// What can be checked before the job runs, once its inputs are known to exist: how
-    /// the tools are named and the options. Names the field on error.
+    /// the tools are named and the options, read once into the job's [`JobOptions`].
+    /// Names the field on error.
     pub fn check<'a>(
         self,
         input_names: impl Iterator<Item = &'a String> + Clone,
         options: &Value,
-    ) -> Result<(), Problem> {
-        let has_material_input = input_names.clone().any(|n| n == "material");
-        match self {
-            JobKind::Interpret => interpret::check(options),
-            JobKind::RotaryFeed => rotary_feed::check(options),
-            JobKind::Energy => energy::options(options, has_material_input)
-                .map(|_| ())
-                .map_err(FieldError::into_problem),
-            JobKind::Stability => stability::options(options)
-                .map(|_| ())
-                .map_err(FieldError::into_problem),
-            JobKind::Simulate | JobKind::Optimize => {
-                check_tool_inputs(self, input_names.clone()).map_err(FieldError::into_problem)?;
-                let o: SimulateOptions = crate::problem::parse_options(options)?;
-                o.check(self == JobKind::Optimize, has_material_input)
-                    .map_err(FieldError::into_problem)?;
-                simulate::check_fixture_inputs(&o, input_names).map_err(FieldError::into_problem)
-            }
-            JobKind::Identify => identify::check(options),
-            JobKind::Accessibility => accessibility::check(options),
-            JobKind::Process => {
-                process::check(input_names, options).map_err(FieldError::into_problem)
-            }
+    ) -> Result<JobOptions, Problem> {
+        // How a simulation names its tools is checked before its options are read.
+        if matches!(self, JobKind::Simulate | JobKind::Optimize) {
+            check_tool_inputs(self, input_names.clone()).map_err(FieldError::into_problem)?;
         }
+        let spec = JobOptions::parse(self, options, input_names.clone())?;
+        spec.check(input_names)?;
+        Ok(spec)
+    }
+
+    /// Everything a submission checks once its inputs are resolved, in order: [`check`]
+    /// (how the tools are named, the options), what the kind checks against its stored
+    /// inputs (an accessibility job's part), and the job memory budget. Names the field
+    /// (or the budget) on error.
+    ///
+    /// [`check`]: Self::check
+    pub fn check_submission<'a>(
+        self,
+        input_names: impl Iterator<Item = &'a String> + Clone,
+        options: &Value,
+        inputs: &SubmittedInputs,
+        limits: &JobLimits,
+    ) -> Result<(), Problem> {
+        let spec = self.check(input_names, options)?;
+        if let JobOptions::Accessibility(o) = &spec {
+            accessibility::check_part(o, inputs)?;
+        }
+        spec.check_memory_budget(inputs, limits)
     }
 
     /// Runs the job. With `stock_file`, the machined stock of a simulate or optimize job is
@@ -245,23 +247,160 @@ impl JobKind {
         progress: &dyn Progress,
         stock_file: Option<&std::path::Path>,
     ) -> Result<JobOutput, JobFailure> {
-        match self {
-            JobKind::Interpret => interpret::run(options, inputs, cancel, progress),
-            JobKind::Simulate | JobKind::Optimize => simulate::run(
+        // The stored options, read as at submission.
+        let spec = match JobOptions::parse(self, options, inputs.keys()) {
+            Ok(spec) => spec,
+            // An identify job's options are refused as at submission.
+            Err(problem) if self == JobKind::Identify => return Err(JobFailure::Invalid(problem)),
+            Err(problem) => {
+                let field = problem.extensions.get("field").and_then(Value::as_str);
+                let detail = match (self, field) {
+                    // These kinds' readers name the field as `field: message`.
+                    (JobKind::Energy | JobKind::Stability | JobKind::Process, Some(field)) => {
+                        format!("{field}: {}", problem.detail)
+                    }
+                    _ => problem.detail,
+                };
+                return Err(inputs::invalid("Invalid options", detail));
+            }
+        };
+        match spec {
+            JobOptions::Interpret(o) => interpret::run(&o, inputs, cancel, progress),
+            JobOptions::Simulate(o) | JobOptions::Optimize(o) => simulate::run(
                 self == JobKind::Optimize,
-                options,
+                &o,
                 inputs,
                 limits,
                 cancel,
                 progress,
                 stock_file,
             ),
-            JobKind::Stability => stability::run(options, cancel, progress),
-            JobKind::RotaryFeed => rotary_feed::run(options, inputs),
-            JobKind::Energy => energy::run(options, inputs, cancel),
-            JobKind::Identify => identify::run(options, inputs, limits, cancel, progress),
-            JobKind::Accessibility => accessibility::run(options, inputs, cancel),
-            JobKind::Process => process::run(options, inputs, limits, cancel, progress, stock_file),
+            JobOptions::Stability(o) => stability::run(*o, cancel, progress),
+            JobOptions::RotaryFeed(o) => rotary_feed::run(&o, inputs),
+            JobOptions::Energy(o) => energy::run(*o, inputs, cancel),
+            JobOptions::Identify(o) => identify::run(o, options, inputs, limits, cancel, progress),
+            JobOptions::Accessibility(o) => accessibility::run(&o, inputs, cancel),
+            JobOptions::Process(o) => process::run(o, inputs, limits, cancel, progress, stock_file),
+        }
+    }
+}
+
+/// A job's options, typed by kind: read once at submission from the kind and the
+/// request's `options` (which the job stores as given, that JSON unchanged), with the
+/// problems a submission is told (the field named).
+pub enum JobOptions {
+    Interpret(InterpretOptions),
+    Simulate(SimulateOptions),
+    Optimize(SimulateOptions),
+    Stability(Box<stability::StabilityRequest>),
+    Energy(Box<energy::EnergyOptions>),
+    RotaryFeed(rotary_feed::RotaryFeedJobOptions),
+    Identify(identify::IdentifyOptions),
+    Accessibility(AccessibilityOptions),
+    Process(process::ProcessOptions),
+}
+
+impl JobOptions {
+    /// The options of a `kind` job read (an energy job's `material` option is read
+    /// against whether a `material` input is given). Names the field on error.
+    pub fn parse<'a>(
+        kind: JobKind,
+        options: &Value,
+        mut input_names: impl Iterator<Item = &'a String>,
+    ) -> Result<JobOptions, Problem> {
+        Ok(match kind {
+            JobKind::Interpret => JobOptions::Interpret(interpret::parse(options)?),
+            JobKind::Simulate => JobOptions::Simulate(crate::problem::parse_options(options)?),
+            JobKind::Optimize => JobOptions::Optimize(crate::problem::parse_options(options)?),
+            JobKind::Stability => JobOptions::Stability(Box::new(
+                stability::options(options).map_err(FieldError::into_problem)?,
+            )),
+            JobKind::Energy => {
+                let has_material_input = input_names.any(|n| n == "material");
+                JobOptions::Energy(Box::new(
+                    energy::options(options, has_material_input)
+                        .map_err(FieldError::into_problem)?,
+                ))
+            }
+            JobKind::RotaryFeed => JobOptions::RotaryFeed(rotary_feed::parse(options)?),
+            JobKind::Identify => JobOptions::Identify(identify::parse(options)?),
+            JobKind::Accessibility => JobOptions::Accessibility(accessibility::parse(options)?),
+            JobKind::Process => JobOptions::Process(
+                process::stored_options(options).map_err(FieldError::into_problem)?,
+            ),
+        })
+    }
+
+    /// The options' checks beyond reading them, and those against the inputs' names.
+    /// Names the field on error.
+    pub fn check<'a>(
+        &self,
+        input_names: impl Iterator<Item = &'a String> + Clone,
+    ) -> Result<(), Problem> {
+        let has_material_input = input_names.clone().any(|n| n == "material");
+        match self {
+            JobOptions::Interpret(o) => interpret::check(o),
+            JobOptions::RotaryFeed(o) => rotary_feed::check(o),
+            // Reading these checked them whole.
+            JobOptions::Energy(_) | JobOptions::Stability(_) => Ok(()),
+            JobOptions::Simulate(o) | JobOptions::Optimize(o) => {
+                let optimize = matches!(self, JobOptions::Optimize(_));
+                o.check(optimize, has_material_input)
+                    .map_err(FieldError::into_problem)?;
+                simulate::check_fixture_inputs(o, input_names).map_err(FieldError::into_problem)
+            }
+            JobOptions::Identify(o) => identify::check(o),
+            JobOptions::Accessibility(o) => accessibility::check(o),
+            JobOptions::Process(o) => {
+                process::check(input_names, o).map_err(FieldError::into_problem)
+            }
+        }
+    }
+
+    /// The kind these options are of.
+    pub fn kind(&self) -> JobKind {
+        match self {
+            JobOptions::Interpret(_) => JobKind::Interpret,
+            JobOptions::Simulate(_) => JobKind::Simulate,
+            JobOptions::Optimize(_) => JobKind::Optimize,
+            JobOptions::Stability(_) => JobKind::Stability,
+            JobOptions::Energy(_) => JobKind::Energy,
+            JobOptions::RotaryFeed(_) => JobKind::RotaryFeed,
+            JobOptions::Identify(_) => JobKind::Identify,
+            JobOptions::Accessibility(_) => JobKind::Accessibility,
+            JobOptions::Process(_) => JobKind::Process,
+        }
+    }
+
+    /// A job that cannot fit the job memory budget is refused at submission (422 naming
+    /// the budget and the estimate) rather than failed later. A simulation (and a
+    /// process) by its grid and stock export alone, what needs the program (step records,
+    /// rows) being checked when the job runs; the other kinds by their options and the size
+    /// of their program (an accessibility job: of its part), see `job_estimates`.
+    pub fn check_memory_budget(
+        &self,
+        inputs: &SubmittedInputs,
+        limits: &JobLimits,
+    ) -> Result<(), Problem> {
+        match self {
+            JobOptions::Simulate(o) | JobOptions::Optimize(o) => {
+                simulate::check_memory_budget(o, inputs, limits)
+            }
+            JobOptions::Process(o) => process::check_memory_budget(o, inputs, limits),
+            _ => {
+                // An accessibility job scales with its part (an STL), the others with the
+                // program.
+                let kind = self.kind();
+                let input = if kind == JobKind::Accessibility {
+                    "part"
+                } else {
+                    "program"
+                };
+                let program = inputs
+                    .inline_program
+                    .or(inputs.stored(input).map(|r| r.size));
+                crate::job_estimates::check(self, program.unwrap_or(0), limits)
+            }
         }
     }
 }
@@ -279,6 +418,30 @@ const fn input(name: &'static str, kind: ResourceKind, required: bool) -> InputS
         name,
         kind,
         required,
+    }
+}
+
+/// A stored resource a submission names, as the submission checks see it.
+#[derive(Clone, Debug)]
+pub struct StoredInput {
+    /// Bytes of its content.
+    pub size: u64,
+    /// What validation found (bounds, triangles, diameter, format, ...).
+    pub summary: Value,
+}
+
+/// The inputs of a submission once resolved: the stored resources it names, by input
+/// name in the request's order, and the size of an inline program.
+#[derive(Clone, Debug, Default)]
+pub struct SubmittedInputs {
+    pub stored: Vec<(String, StoredInput)>,
+    pub inline_program: Option<u64>,
+}
+
+impl SubmittedInputs {
+    /// The stored resource given as input `name`.
+    pub fn stored(&self, name: &str) -> Option<&StoredInput> {
+        self.stored.iter().find(|(n, _)| n == name).map(|(_, r)| r)
     }
 }
 

@@ -23,6 +23,7 @@ use super::simulate::{
 };
 use super::{
     input, FieldError, InputSpec, JobFailure, JobOutput, LoadedInput, LoadedInputs, OutputFile,
+    SubmittedInputs,
 };
 use crate::job_limits::JobLimits;
 use crate::problem::Problem;
@@ -185,7 +186,7 @@ struct StoredOperation {
 /// The process's options as stored: the shared ones, `keep_stocks`, and the operations'
 /// names and options (from `inputs.operations`).
 #[derive(Debug, Deserialize)]
-struct ProcessOptions {
+pub struct ProcessOptions {
     #[serde(default)]
     keep_stocks: bool,
     #[serde(default)]
@@ -273,7 +274,8 @@ fn operation_field(e: FieldError, op: &StoredOperation, i: usize) -> FieldError 
     }
 }
 
-fn stored_options(options: &Value) -> Result<ProcessOptions, FieldError> {
+/// The options read as a submission and the job read them (errors name the field).
+pub fn stored_options(options: &Value) -> Result<ProcessOptions, FieldError> {
     let o: ProcessOptions = serde_json::from_value(options.clone())
         .map_err(|e| FieldError::new("options", e.to_string()))?;
     if o.operations.is_empty() {
@@ -285,13 +287,30 @@ fn stored_options(options: &Value) -> Result<ProcessOptions, FieldError> {
     Ok(o)
 }
 
+/// At submission: the grid and stock export against the job memory budget, with the
+/// cell of `options.cell_mm` (shared by the operations) or of the finest tool of all the
+/// operations (`op2.T1`).
+pub fn check_memory_budget(
+    o: &ProcessOptions,
+    inputs: &SubmittedInputs,
+    limits: &JobLimits,
+) -> Result<(), Problem> {
+    let cell_mm = o.shared.get("cell_mm").and_then(Value::as_f64);
+    fn tool_name(name: &str) -> &str {
+        match name.split_once('.') {
+            Some((op, tool)) if op.starts_with("op") => tool,
+            _ => name,
+        }
+    }
+    super::simulate::grid_budget(cell_mm, inputs, tool_name, limits)
+}
+
 /// At submission: every operation's options, and how each names its tools; the fixture's
 /// STL inputs against `options.fixture`.
 pub fn check<'a>(
     input_names: impl Iterator<Item = &'a String> + Clone,
-    options: &Value,
+    o: &ProcessOptions,
 ) -> Result<(), FieldError> {
-    let o = stored_options(options)?;
     let has_material_input = input_names.clone().any(|n| n == "material");
     for (i, op) in o.operations.iter().enumerate() {
         let (opts, optimize) = operation_options(&o.shared, op, i)?;
@@ -370,7 +389,7 @@ fn process_estimate(
 }
 
 pub fn run(
-    options: &Value,
+    o: ProcessOptions,
     mut inputs: LoadedInputs,
     limits: &JobLimits,
     cancel: &CancelFlag,
@@ -378,7 +397,6 @@ pub fn run(
     stock_file: Option<&std::path::Path>,
 ) -> Result<JobOutput, JobFailure> {
     let bad = |e: FieldError| invalid("Invalid options", e.to_string());
-    let o = stored_options(options).map_err(bad)?;
     let has_material_input = inputs.contains_key("material");
     // The shared inputs every operation reads; the stock, read once, is shared too.
     let mut shared: Vec<(String, LoadedInput)> = Vec::new();

@@ -124,16 +124,14 @@ fn post_cls_job(
 
 /// Rotary-axis feed correction of a G-code program: F words rewritten so the tool tip moves
 /// at the programmed feed; rows are the corrected feed per block.
-pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
-    let opts: RotaryFeedJobOptions = serde_json::from_value(options.clone())
-        .map_err(|e| invalid("Invalid options", e.to_string()))?;
+pub fn run(opts: &RotaryFeedJobOptions, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
     let (file, text) = program_text(&mut inputs)?;
     let machine: Machine = required(
         json_input(&mut inputs, "machine", "Invalid machine")?,
         "machine",
     )?;
     if crate::validate::looks_like_cls(&text) {
-        return post_cls_job(&file, &text, &machine, &opts);
+        return post_cls_job(&file, &text, &machine, opts);
     }
     let interpret = nc::InterpretOptions {
         dialect: opts.dialect,
@@ -175,9 +173,13 @@ pub fn run(options: &Value, mut inputs: LoadedInputs) -> Result<JobOutput, JobFa
     })
 }
 
-/// The options at submission: they parse, and the decimals are in range.
-pub fn check(options: &Value) -> Result<(), Problem> {
-    let o: RotaryFeedJobOptions = parse_options(options)?;
+/// The options read as a submission reads them (errors name the field).
+pub fn parse(options: &Value) -> Result<RotaryFeedJobOptions, Problem> {
+    parse_options(options)
+}
+
+/// The options at submission: the decimals are in range.
+pub fn check(o: &RotaryFeedJobOptions) -> Result<(), Problem> {
     if !(1..=9).contains(&o.decimals) {
         return Err(Problem::invalid_field(
             "options.decimals",

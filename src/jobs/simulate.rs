@@ -21,6 +21,7 @@ use super::inputs::{
 use super::interpret::default_dialect;
 use super::{
     input, FieldError, InputSpec, JobFailure, JobKind, JobOutput, LoadedInputs, OutputFile,
+    SubmittedInputs,
 };
 use crate::job_library::JobLibrary;
 use crate::job_limits::{check_simulation, Checked, JobLimits, Refusal, SimulationCheck};
@@ -148,6 +149,56 @@ const FIXTURE_STL_KEY: &str = "input";
 pub fn fixture_input(name: &str) -> bool {
     name.strip_prefix("fixture/")
         .is_some_and(|n| !n.is_empty() && n.len() <= 255)
+}
+
+/// At submission: a simulation whose grid and stock export alone cannot fit the job
+/// memory budget (422 naming the budget and the estimate).
+pub fn check_memory_budget(
+    o: &SimulateOptions,
+    inputs: &SubmittedInputs,
+    limits: &JobLimits,
+) -> Result<(), Problem> {
+    fn tool_name(name: &str) -> &str {
+        name
+    }
+    grid_budget(o.cell_mm, inputs, tool_name, limits)
+}
+
+/// The grid and stock export of a job's `stock` input against the budget: the cell is
+/// `cell_mm`, or set by the finest of the tools given (`tool_name` reads an input's name
+/// as a single-job tool name, `tool` or `T<n>`).
+pub(super) fn grid_budget(
+    cell_mm: Option<f64>,
+    inputs: &SubmittedInputs,
+    tool_name: fn(&str) -> &str,
+    limits: &JobLimits,
+) -> Result<(), Problem> {
+    let Some(stock) = inputs.stored("stock") else {
+        return Ok(());
+    };
+    let Some(bounds) = crate::job_limits::summary_bounds(&stock.summary) else {
+        return Ok(());
+    };
+    let mut diameters = Vec::new();
+    for (name, tool) in &inputs.stored {
+        let name = tool_name(name);
+        if name != "tool" && tool_number(name).is_none() {
+            continue;
+        }
+        diameters.extend(tool.summary["diameter"].as_f64());
+    }
+    match crate::job_limits::submission_estimate(
+        bounds,
+        stock.summary["triangles"].as_u64().unwrap_or(0),
+        cell_mm,
+        &diameters,
+        limits,
+    ) {
+        None => Ok(()),
+        Some(estimate) => Err(crate::job_limits::over_budget_problem(
+            None, &estimate, limits,
+        )),
+    }
 }
 
 /// Checks that every STL body of `options.fixture` names a `fixture/<name>` input the job
@@ -662,15 +713,13 @@ pub(super) struct BuiltSpec {
 
 pub fn run(
     optimize: bool,
-    options: &Value,
+    opts: &SimulateOptions,
     mut inputs: LoadedInputs,
     limits: &JobLimits,
     cancel: &CancelFlag,
     progress: &dyn Progress,
     stock_file: Option<&std::path::Path>,
 ) -> Result<JobOutput, JobFailure> {
-    let opts: SimulateOptions = serde_json::from_value(options.clone())
-        .map_err(|e| invalid("Invalid options", e.to_string()))?;
     opts.check(optimize, inputs.contains_key("material"))
         .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let BuiltSpec {
@@ -679,7 +728,7 @@ pub fn run(
         estimate,
         library,
         ..
-    } = spec_from_inputs(&opts, optimize, &mut inputs, limits, cancel)?;
+    } = spec_from_inputs(opts, optimize, &mut inputs, limits, cancel)?;
     let result = match &opts.spindle {
         Some(sp) => pipeline::simulate_choosing_spindle(&spec, sp, cancel, progress),
         None => pipeline::simulate(&spec, cancel, progress),

@@ -92,11 +92,10 @@ pub fn options(options: &Value) -> Result<StabilityRequest, FieldError> {
 /// Lobes as rows (rpm, critical depth) — or (allowance_mm, rpm, depth_mm) for a 3-D surface:
 /// /blocks serves them as JSON pages and CSV.
 pub fn run(
-    options: &Value,
+    request: StabilityRequest,
     cancel: &CancelFlag,
     progress: &dyn Progress,
 ) -> Result<JobOutput, JobFailure> {
-    let request = self::options(options).map_err(|e| invalid("Invalid options", e.to_string()))?;
     let refused = |e: millsim_engine::physics::PhysicsError| match e {
         millsim_engine::physics::PhysicsError::Cancelled => JobFailure::Cancelled,
         e => invalid("Stability refused", e.to_string()),
