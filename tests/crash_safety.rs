@@ -159,14 +159,7 @@ async fn a_job_that_keeps_killing_its_worker_fails_after_max_attempts() {
     }
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("poison.db");
-    let args = [
-        "--workers",
-        "1",
-        "--lease-s",
-        "0.5",
-        "--max-attempts",
-        "2",
-    ];
+    let args = ["--workers", "1", "--lease-s", "0.5", "--max-attempts", "2"];
     let c = client();
     let mut server = Server::start(&db, &args);
     let program = upload_program(

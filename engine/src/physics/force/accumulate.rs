@@ -5,7 +5,9 @@ use std::f64::consts::TAU;
 
 use super::edge::EdgeSlice;
 use super::frame::ToolFrame;
-use super::kernel::{four_blocks, max_sin, run_segment, sample_sin_cos, Accumulated, SliceConstants};
+use super::kernel::{
+    four_blocks, max_sin, run_segment, sample_sin_cos, Accumulated, SliceConstants,
+};
 use super::model::ForceModel;
 use super::{BOUNDARY_EPS, CHIP_EPS, CHIP_EPS_PER_FEED};
 use crate::engagement::Engagement;
@@ -121,7 +123,8 @@ impl ForceModel {
             for j in 0..computed_teeth {
                 let alpha = j as f64 * self.table.pitch + g.lag;
                 let sc = alpha.sin_cos();
-                let passes = coefficients.map(|k| k.map(|k| SliceConstants::new(&g, k, sc, c_h, c_v, eps)));
+                let passes =
+                    coefficients.map(|k| k.map(|k| SliceConstants::new(&g, k, sc, c_h, c_v, eps)));
                 let bend_pass = bend.zip(weights).map(|((kb, fb), w)| {
                     let (ch, cv) = (fb * frame.feed_across, fb * frame.feed_along);
                     (
