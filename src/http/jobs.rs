@@ -21,7 +21,6 @@ use crate::jobs::{JobKind, StoredInput, SubmittedInputs};
 use crate::store::artifacts::ArtifactBody;
 use crate::store::jobs::{CreateOutcome, InlineInput, NewJob};
 use crate::store::{Db, JobRecord, JobStatus, ResourceKind};
-use crate::validate;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -123,15 +122,14 @@ async fn resolve_inputs(
                     .and_then(Value::as_str)
                     .unwrap_or("program.nc")
                     .to_string();
-                // Up to the body limit of G-code: parse it off the async runtime.
-                let (content, file, checked) = {
-                    let content = content.as_bytes().to_vec();
-                    tokio::task::spawn_blocking(move || {
-                        validate::program(&content, &file).map(|c| (content, file, c))
-                    })
-                    .await
-                    .map_err(|e| ApiError::blocking_failed(e, "the program reader"))??
-                };
+                // Up to the body limit of G-code: parsed off the async runtime, in turns
+                // with the uploads (`parsing`).
+                let (content, file, checked) = super::parsing::program(
+                    content.as_bytes().to_vec(),
+                    file,
+                    state.limits.max_program_bytes,
+                )
+                .await?;
                 inline.push(InlineInput {
                     input: name.to_string(),
                     kind,
