@@ -28,11 +28,13 @@ pub async fn program(
     let budget = mib(max_program_bytes).clamp(1, (u32::MAX >> 3) as u64) as u32;
     let parsing = PARSING.get_or_init(|| Semaphore::new(budget as usize));
     let want = (mib(bytes.len() as u64) as u32).clamp(1, budget);
-    let _turn = parsing
+    let turn = parsing
         .acquire_many(want)
         .await
         .map_err(|_| ApiError::internal("the program reader is closed"))?;
+    // The turn goes with the parse: a client that leaves mid-parse does not free it early.
     tokio::task::spawn_blocking(move || {
+        let _turn = turn;
         validate::program(&bytes, &file).map(|checked| (bytes, file, checked))
     })
     .await
