@@ -352,7 +352,7 @@ mod tests {
 
     /// A unit axis tilted from z by an angle uniform in [lo, lo + span] radians, in a
     /// uniform direction.
-    fn random_axis(rnd: &mut impl FnMut() -> f64, lo: f64, span: f64) -> [f64; 3] {
+    pub(super) fn random_axis(rnd: &mut impl FnMut() -> f64, lo: f64, span: f64) -> [f64; 3] {
         let th = rnd() * span + lo;
         let ph = rnd() * std::f64::consts::TAU;
         [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()]

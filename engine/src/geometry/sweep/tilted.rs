@@ -490,9 +490,7 @@ mod tests {
         let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
         let (mut checked, mut along_pos, mut along_neg) = (0, 0, 0);
         for _ in 0..20_000 {
-            let th = 0.2 + rnd() * 1.2;
-            let ph = rnd() * std::f64::consts::TAU;
-            let axis = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+            let axis = crate::geometry::sweep::tests::random_axis(&mut rnd, 0.2, 1.2);
             let p1 = [rnd() * 2.0 - 1.0, rnd() * 2.0 - 1.0, rnd() - 0.5];
             let sw = Sweep::new(
                 &body,
