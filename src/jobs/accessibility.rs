@@ -19,7 +19,7 @@ use millsim_engine::tool::{HolderSegment, Tool};
 
 use super::inputs::{invalid, json_input};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile, SubmittedInputs};
-use crate::problem::{parse_options, Problem};
+use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
@@ -167,11 +167,6 @@ pub fn engine_problem(e: AccessError, prefix: &str) -> Problem {
         }
         AccessError::Cancelled => Problem::invalid_input("Cancelled", "the job was cancelled"),
     }
-}
-
-/// The options read as a submission reads them (errors name the field).
-pub fn parse(options: &Value) -> Result<AccessibilityOptions, Problem> {
-    parse_options(options)
 }
 
 /// At submission: the options are in range.

@@ -22,7 +22,7 @@ use super::identify_program;
 use super::inputs::{invalid, json_input, required};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputResource};
 use crate::job_limits::JobLimits;
-use crate::problem::{parse_options, Problem};
+use crate::problem::Problem;
 use crate::store::ResourceKind;
 use millsim_engine::job::{CancelFlag, Progress};
 
@@ -117,11 +117,6 @@ struct Request {
     cuts: Option<Vec<IdentificationCut>>,
     /// The program form's measured lines.
     lines: Option<Vec<millsim_engine::pipeline::LineForce>>,
-}
-
-/// The options read as a submission reads them (errors name the field).
-pub fn parse(options: &Value) -> Result<IdentifyOptions, Problem> {
-    parse_options(options)
 }
 
 fn read(o: IdentifyOptions) -> Result<Request, Problem> {

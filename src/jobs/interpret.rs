@@ -8,7 +8,7 @@ use millsim_engine::nc;
 
 use super::inputs::{json_input, program_failure, program_text};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs};
-use crate::problem::{parse_options, Problem};
+use crate::problem::Problem;
 use crate::store::ResourceKind;
 
 pub const INPUTS: [InputSpec; 1] = [input("program", ResourceKind::Program, true)];
@@ -61,11 +61,6 @@ impl InterpretOptions {
         }
         Ok(o)
     }
-}
-
-/// The options read as a submission reads them (errors name the field).
-pub fn parse(options: &Value) -> Result<InterpretOptions, Problem> {
-    parse_options(options)
 }
 
 /// The options at submission: the tool table reads.

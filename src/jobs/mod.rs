@@ -28,7 +28,7 @@ use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::pipeline::StlSource;
 
 use crate::job_limits::JobLimits;
-use crate::problem::Problem;
+use crate::problem::{parse_options, Problem};
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
@@ -309,9 +309,9 @@ impl JobOptions {
         mut input_names: impl Iterator<Item = &'a String>,
     ) -> Result<JobOptions, Problem> {
         Ok(match kind {
-            JobKind::Interpret => JobOptions::Interpret(interpret::parse(options)?),
-            JobKind::Simulate => JobOptions::Simulate(crate::problem::parse_options(options)?),
-            JobKind::Optimize => JobOptions::Optimize(crate::problem::parse_options(options)?),
+            JobKind::Interpret => JobOptions::Interpret(parse_options(options)?),
+            JobKind::Simulate => JobOptions::Simulate(parse_options(options)?),
+            JobKind::Optimize => JobOptions::Optimize(parse_options(options)?),
             JobKind::Stability => JobOptions::Stability(Box::new(
                 stability::options(options).map_err(FieldError::into_problem)?,
             )),
@@ -322,9 +322,9 @@ impl JobOptions {
                         .map_err(FieldError::into_problem)?,
                 ))
             }
-            JobKind::RotaryFeed => JobOptions::RotaryFeed(rotary_feed::parse(options)?),
-            JobKind::Identify => JobOptions::Identify(identify::parse(options)?),
-            JobKind::Accessibility => JobOptions::Accessibility(accessibility::parse(options)?),
+            JobKind::RotaryFeed => JobOptions::RotaryFeed(parse_options(options)?),
+            JobKind::Identify => JobOptions::Identify(parse_options(options)?),
+            JobKind::Accessibility => JobOptions::Accessibility(parse_options(options)?),
             JobKind::Process => JobOptions::Process(
                 process::stored_options(options).map_err(FieldError::into_problem)?,
             ),

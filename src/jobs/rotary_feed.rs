@@ -3,7 +3,7 @@
 //! G-code for the machine with corrected feeds.
 
 use serde::Deserialize;
-use serde_json::{json, Value};
+use serde_json::json;
 
 use millsim_engine::machine::rotary_feed::{
     correct_program, FeedOutput, RotaryFeedError, RotaryFeedOptions,
@@ -14,7 +14,7 @@ use millsim_engine::nc;
 use super::inputs::{invalid, json_input, program_text, required, stem_and_ext};
 use super::interpret::default_dialect;
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
-use crate::problem::{parse_options, Problem};
+use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
 
@@ -171,11 +171,6 @@ pub fn run(opts: &RotaryFeedJobOptions, mut inputs: LoadedInputs) -> Result<JobO
         }],
         resources: Vec::new(),
     })
-}
-
-/// The options read as a submission reads them (errors name the field).
-pub fn parse(options: &Value) -> Result<RotaryFeedJobOptions, Problem> {
-    parse_options(options)
 }
 
 /// The options at submission: the decimals are in range.
