@@ -255,7 +255,7 @@ impl<'a> Sweep<'a> {
             ],
             slabs: [0, 1, 2].map(|fam| slabs_for(body, &mv, fam)),
             full_section: (!vertical)
-                .then(|| FullSection::new(body, mv.axis))
+                .then(|| FullSection::new(body, mv.p0, mv.axis, delta))
                 .flatten(),
         }
     }

@@ -8,7 +8,7 @@ use parry3d_f64::query::Ray;
 use parry3d_f64::shape::SupportMap;
 
 use super::profile::{Profile, ToolBody};
-use super::solvers::{hull, line_capsule, line_stadium, swept_cylinder, swept_frustum};
+use super::solvers::{hull, line_capsule, swept_cylinder, swept_frustum, Stadium};
 use super::Sweep;
 use crate::geometry::dexel::{other_axes, Intervals};
 use crate::vec3::{cross, dot, norm, sub};
@@ -56,10 +56,6 @@ impl Sweep<'_> {
         extent: (f64, f64),
         material: &Intervals,
     ) -> Option<(f64, f64)> {
-        let (ua, va) = other_axes(fam);
-        let mut o = [0.0; 3];
-        o[ua] = u;
-        o[va] = v;
         let (c_in, c_out) = extent;
         if !(c_in <= c_out) || !material.iter().any(|iv| iv[0] < c_out && c_in < iv[1]) {
             return None;
@@ -70,11 +66,10 @@ impl Sweep<'_> {
         if span <= 0.0 {
             return None;
         }
-        o[fam] = start;
         if let Some(iv) = self.full_section_ray(fam, u, v) {
             return iv;
         }
-        self.solid_ray(fam, o, span, material)
+        self.solid_ray(fam, ray_point(fam, u, v, start), span, material)
     }
 
     /// `general_ray` by the tool's solids (pieces, sphere and cylinder, or a GJK cast): the
@@ -193,9 +188,10 @@ pub(super) struct FullSection {
 /// One family's section planes (see `FullSection`).
 #[derive(Clone, Copy, Debug)]
 struct SectionPlanes {
-    /// The planes' normal, and the direction across the rays within a plane.
+    /// The planes' normal (the per-ray terms hold what the rays need of it and of the
+    /// direction across the rays within a plane, w = n × e).
+    #[cfg(test)]
     n: [f64; 3],
-    w: [f64; 3],
     /// a·n, the squash along the ray.
     k: f64,
     /// Heights of the ellipse's centre up the axis where it is whole within the top
@@ -210,11 +206,41 @@ struct SectionPlanes {
     ball_top: f64,
     /// The axis's part along the rays (a·e).
     along: f64,
+    /// The move's terms of each ray's quantities, affine in the ray's (u, v): prepared
+    /// once per sweep, so that a ray costs a few products (no division, no square root
+    /// beyond the stadium's end caps).
+    per_ray: RayTerms,
+}
+
+/// One family's per-ray terms of a sweep (see `Sweep::full_section_ray`): the axis's
+/// crossing height t0 = t_uv·(u, v) + t_c of the ray's plane at the move's start, t1 =
+/// t0 + dt at its end; the ellipse's centre (σ, ω) relative to the ray's point at its own
+/// coordinate 0 at the start, σ = σ_c + t0·a_e and ω = ω_c − ω_uv·(u, v) + t0·(w·a); its
+/// motion over the move (dσ, dω), constant; and the swept stadium's segment in the
+/// squashed plane from its start.
+#[derive(Clone, Copy, Debug)]
+struct RayTerms {
+    t_uv: [f64; 2],
+    t_c: f64,
+    dt: f64,
+    sigma_c: f64,
+    omega_c: f64,
+    omega_uv: [f64; 2],
+    wa: f64,
+    d_sigma: f64,
+    d_omega: f64,
+    inv_k: f64,
+    segment: Stadium,
 }
 
 impl FullSection {
     /// `None` where the tool has no top cylinder of its full radius.
-    pub(super) fn new(body: &ToolBody, axis: [f64; 3]) -> Option<FullSection> {
+    pub(super) fn new(
+        body: &ToolBody,
+        p0: [f64; 3],
+        axis: [f64; 3],
+        d: [f64; 3],
+    ) -> Option<FullSection> {
         let (h0, h1, r) = (body.profile_top(), body.length, body.radius);
         if !(h0 < h1 && body.top_radius == r) {
             return None;
@@ -235,14 +261,34 @@ impl FullSection {
             let ball = body.ball_radius();
             let ball_below = ball.map_or(f64::NEG_INFINITY, |rc| rc - margin);
             let ball_top = ball.map_or(f64::NEG_INFINITY, |_| h1 - margin);
+            let w = cross(n, e);
+            let (ua, va) = other_axes(fam);
+            let inv_k = 1.0 / k;
+            let dt = -dot(n, d) * inv_k;
+            let wa = dot(w, axis);
+            let (d_sigma, d_omega) = (d[fam] + dt * axis[fam], dot(w, d) + dt * wa);
+            let per_ray = RayTerms {
+                t_uv: [n[ua] * inv_k, n[va] * inv_k],
+                t_c: -dot(n, p0) * inv_k,
+                dt,
+                sigma_c: p0[fam],
+                omega_c: dot(w, p0),
+                omega_uv: [w[ua], w[va]],
+                wa,
+                d_sigma,
+                d_omega,
+                inv_k,
+                segment: Stadium::new([0.0, 0.0], [k * d_sigma, d_omega]),
+            };
             (band.0 < band.1 || ball.is_some()).then_some(SectionPlanes {
+                #[cfg(test)]
                 n,
-                w: cross(n, e),
                 k,
                 band,
                 ball_below,
                 ball_top,
                 along,
+                per_ray,
             })
         });
         planes
@@ -265,43 +311,33 @@ impl Sweep<'_> {
         v: f64,
     ) -> Option<Option<(f64, f64)>> {
         let sp = self.full_section.as_ref()?.planes[fam].as_ref()?;
-        let (ua, va) = other_axes(fam);
-        // The ray's point at its own coordinate 0.
-        let mut o = [0.0; 3];
-        o[ua] = u;
-        o[va] = v;
-        let (a, p0, d) = (self.mv.axis, self.mv.p0, self.delta);
+        let tr = &sp.per_ray;
         // Where the axis crosses the ray's plane, as heights up it at either end of the move.
-        let q = dot(sp.n, sub(o, p0));
-        let (t0, t1) = (q / sp.k, (q - dot(sp.n, d)) / sp.k);
+        let t0 = tr.t_uv[0] * u + tr.t_uv[1] * v + tr.t_c;
+        let t1 = t0 + tr.dt;
         let r = self.body.radius;
-        let p1 = [p0[0] + d[0], p0[1] + d[1], p0[2] + d[2]];
         let swept_sphere = || {
+            let (a, p0, d) = (self.mv.axis, self.mv.p0, self.delta);
             let mut e = [0.0; 3];
             e[fam] = 1.0;
             let c0 = [p0[0] + r * a[0], p0[1] + r * a[1], p0[2] + r * a[2]];
             let c1 = [c0[0] + d[0], c0[1] + d[1], c0[2] + d[2]];
-            line_capsule(o, e, c0, c1, r)
+            line_capsule(ray_point(fam, u, v, 0.0), e, c0, c1, r)
         };
         if t0.max(t1) <= sp.ball_below {
             return Some(swept_sphere());
         }
-        // The ellipses' centres relative to o: (along the ray, across it).
-        let centre = |p: [f64; 3], t: f64| {
-            let c = [
-                p[0] + t * a[0] - o[0],
-                p[1] + t * a[1] - o[1],
-                p[2] + t * a[2] - o[2],
-            ];
-            [c[fam], dot(sp.w, c)]
-        };
-        let (c0, c1) = (centre(p0, t0), centre(p1, t1));
+        // The ellipses' centres relative to the ray's point at its coordinate 0: (along the
+        // ray, across it).
+        let sigma = tr.sigma_c + t0 * self.mv.axis[fam];
+        let omega = tr.omega_c - tr.omega_uv[0] * u - tr.omega_uv[1] * v + t0 * tr.wa;
         if t0.min(t1) < sp.band.0 || t0.max(t1) > sp.band.1 {
             // A ball whose plane cuts the sphere and the cylinder above it, below the top.
             if t0.max(t1) <= sp.ball_top && sp.along.abs() > 1e-9 {
                 // The cut at the sphere's centre, one radius up the axis, as an offset along
                 // the ray from the ellipse's centre.
                 let cut = ((r - t0) / sp.along, (r - t1) / sp.along);
+                let (c0, c1) = ([sigma, omega], [sigma + tr.d_sigma, omega + tr.d_omega]);
                 return Some(hull(
                     swept_sphere(),
                     half_ellipse_ray(c0, c1, cut, sp.along > 0.0, r, sp.k),
@@ -309,8 +345,25 @@ impl Sweep<'_> {
             }
             return None;
         }
-        let (c0, c1) = ([sp.k * c0[0], c0[1]], [sp.k * c1[0], c1[1]]);
-        Some(line_stadium(c0, c1, r, 0.0).map(|(x0, x1)| (x0 / sp.k, x1 / sp.k)))
+        // The swept stadium in the plane squashed by k along the ray, from its start: the
+        // ray is the line ω = −omega there.
+        Some(
+            tr.segment
+                .line(r, -omega)
+                .map(|(x0, x1)| (sigma + x0 * tr.inv_k, sigma + x1 * tr.inv_k)),
+        )
+    }
+}
+
+/// The point of the ray of family `fam` at (u, v) whose own coordinate is `s` (built
+/// without indexing by `fam`, which kept it in memory rather than in registers).
+#[inline]
+pub(super) fn ray_point(fam: usize, u: f64, v: f64, s: f64) -> [f64; 3] {
+    // (u, v) along `other_axes(fam)`: (y, z) for X rays, (z, x) for Y rays, (x, y) for Z.
+    match fam {
+        0 => [s, u, v],
+        1 => [v, s, u],
+        _ => [u, v, s],
     }
 }
 
