@@ -35,7 +35,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 use millsim_engine::geometry::Mesh;
 use millsim_engine::job::{CancelFlag, Progress};
 
-use crate::job_limits::JobLimits;
+use crate::job_budget::JobLimits;
 use crate::jobs::{
     JobFailure, JobKind, JobOutput, LoadedInput, LoadedInputs, OutputFile, OutputResource,
 };

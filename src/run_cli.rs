@@ -378,8 +378,8 @@ pub(crate) fn run_offline(
 ) -> Result<(Value, usize, f64), String> {
     let started = std::time::Instant::now();
     // Offline, the job may use the machine's memory (as one worker would).
-    let limits = crate::job_limits::JobLimits {
-        memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
+    let limits = crate::job_budget::JobLimits {
+        memory_bytes: crate::job_budget::default_job_memory_mb(1) << 20,
     };
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let result = kind.run(

@@ -19,7 +19,7 @@ use millsim_engine::tool::{HolderSegment, Tool};
 
 use super::inputs::{invalid, json_input};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile, SubmittedInputs};
-use crate::job_estimates::KindEstimate;
+use crate::job_budget::KindEstimate;
 use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -187,7 +187,7 @@ pub fn check_part(o: &AccessibilityOptions, inputs: &SubmittedInputs) -> Result<
             "the part must be an STL mesh, not a parametric stock",
         ));
     }
-    if let Some((lo, hi)) = crate::job_limits::summary_bounds(&part.summary) {
+    if let Some((lo, hi)) = crate::job_budget::summary_bounds(&part.summary) {
         check_points(o, lo, hi)?;
     }
     Ok(())

@@ -12,7 +12,7 @@ use millsim_engine::tool::Tool;
 
 use super::inputs::{check_material, job_material, json_input, required};
 use super::{input, FieldError, InputSpec, JobFailure, JobOutput, LoadedInputs};
-use crate::job_estimates::{lobe_matrices_bytes, KindEstimate};
+use crate::job_budget::{lobe_matrices_bytes, KindEstimate};
 use crate::problem::Problem;
 use crate::store::ResourceKind;
 

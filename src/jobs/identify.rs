@@ -21,7 +21,7 @@ use super::identify_cuts;
 use super::identify_program;
 use super::inputs::{invalid, json_input, required};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputResource};
-use crate::job_limits::JobLimits;
+use crate::job_budget::JobLimits;
 use crate::problem::Problem;
 use crate::store::ResourceKind;
 use millsim_engine::job::{CancelFlag, Progress};

@@ -15,7 +15,7 @@ use super::identify_cuts;
 use super::inputs::{invalid, program_failure};
 use super::simulate::{spec_from_inputs, BuiltSpec, SimulateOptions};
 use super::{JobFailure, JobOutput, LoadedInputs};
-use crate::job_limits::JobLimits;
+use crate::job_budget::JobLimits;
 use crate::problem::Problem;
 
 /// One measured line as the API names its columns.

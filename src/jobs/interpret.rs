@@ -8,7 +8,7 @@ use millsim_engine::nc;
 
 use super::inputs::{json_input, program_failure, program_text};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs};
-use crate::job_estimates::KindEstimate;
+use crate::job_budget::KindEstimate;
 use crate::problem::Problem;
 use crate::store::ResourceKind;
 

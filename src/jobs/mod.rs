@@ -27,8 +27,7 @@ use millsim_engine::geometry::{Mesh, StlError};
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::pipeline::StlSource;
 
-use crate::job_estimates::{self, KindEstimate};
-use crate::job_limits::JobLimits;
+use crate::job_budget::{self, JobLimits, KindEstimate};
 use crate::problem::{parse_options, Problem};
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -421,8 +420,8 @@ impl JobOptions {
                 let program = inputs
                     .inline_program
                     .or(inputs.stored(input).map(|r| r.size));
-                match self.estimate(program.unwrap_or(0), job_estimates::lobe_workers()) {
-                    Some(e) => job_estimates::check(kind, &e, limits),
+                match self.estimate(program.unwrap_or(0), job_budget::lobe_workers()) {
+                    Some(e) => job_budget::kinds::check(kind, &e, limits),
                     None => Ok(()),
                 }
             }

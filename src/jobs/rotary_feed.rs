@@ -14,7 +14,7 @@ use millsim_engine::nc;
 use super::inputs::{invalid, json_input, program_text, required, stem_and_ext};
 use super::interpret::{default_dialect, INTERPRET_BYTES_PER_PROGRAM_BYTE};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
-use crate::job_estimates::KindEstimate;
+use crate::job_budget::KindEstimate;
 use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;

@@ -12,7 +12,7 @@ use millsim_engine::physics::stability::{
 
 use super::inputs::invalid;
 use super::{FieldError, JobFailure, JobOutput};
-use crate::job_estimates::{lobe_matrices_bytes, KindEstimate};
+use crate::job_budget::{lobe_matrices_bytes, KindEstimate};
 
 /// Where to look for a spindle speed: the widest stable pocket within `near_rpm ± window_rpm`
 /// at `depth_mm`.

@@ -10,7 +10,8 @@ use serde::Serialize;
 
 use millsim_engine::physics::stability::Method;
 
-use crate::job_limits::JobLimits;
+use super::problems::kind_over_budget_problem;
+use super::JobLimits;
 use crate::jobs::JobKind;
 use crate::problem::Problem;
 
@@ -78,28 +79,7 @@ pub fn check(kind: JobKind, e: &KindEstimate, limits: &JobLimits) -> Result<(), 
     if e.peak_bytes <= limits.memory_bytes {
         return Ok(());
     }
-    let mib = |b: u64| b.div_ceil(1 << 20);
-    Err(Problem::resource_limit(
-        "Over the job's memory budget",
-        format!(
-            "the {} job needs about {} MiB (program and moves {} MiB, lobe matrices {} MiB, rows {} MiB), over the job memory budget of {} MiB (job_memory_mb); {}",
-            kind.as_str(),
-            mib(e.peak_bytes),
-            mib(e.program_bytes),
-            mib(e.lobe_matrices_bytes),
-            mib(e.rows_bytes),
-            limits.memory_mb(),
-            match kind {
-                JobKind::Interpret | JobKind::RotaryFeed => "split the program",
-                JobKind::Accessibility => "decimate the part's mesh",
-                _ => "use fewer modes or steps_per_period, or the zoa method",
-            },
-        ),
-        "job_memory_mb",
-    )
-    .with("limit", limits.memory_mb())
-    .with("estimate_mb", mib(e.peak_bytes))
-    .with("estimate", serde_json::to_value(e).unwrap_or_default()))
+    Err(kind_over_budget_problem(kind, e, limits))
 }
 
 #[cfg(test)]
