@@ -9,8 +9,10 @@ use serde_json::{json, Map, Value};
 use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::csv;
-use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs, SimulateOptions};
+use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs};
+use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
+use crate::store::ResourceKind;
 
 #[derive(clap::Args)]
 pub struct RunArgs {
@@ -93,6 +95,45 @@ pub(crate) fn file_input(path: &Path, media_type: &str) -> Result<LoadedInput, S
         content: read(path)?,
         ..Default::default()
     })
+}
+
+/// A file read as a job input that is a resource of `kind`, checked as the service checks
+/// an upload of that kind: a stock is an STL, or a parametric stock when the file is JSON;
+/// a tool, a machine or a material JSON. Errors name the file (a check's: as `label`).
+pub(crate) fn resource_input(
+    path: &Path,
+    label: &str,
+    kind: ResourceKind,
+) -> Result<LoadedInput, String> {
+    let media = match kind {
+        ResourceKind::Program | ResourceKind::ToolLibrary => "text/plain",
+        ResourceKind::Stock => "model/stl",
+        _ => "application/json",
+    };
+    let mut input = file_input(path, media)?;
+    let check = match kind {
+        ResourceKind::Stock if input.content.trim_ascii_start().starts_with(b"{") => {
+            input.media_type = "application/json".into();
+            crate::validate::stock_json(&input.content).map(|_| ())
+        }
+        ResourceKind::Stock => crate::validate::stl(&input.content, label).map(|_| ()),
+        ResourceKind::Tool => crate::validate::tool(&input.content).map(|_| ()),
+        ResourceKind::Machine => crate::validate::machine(&input.content).map(|_| ()),
+        ResourceKind::Material => crate::validate::material(&input.content).map(|_| ()),
+        _ => Ok(()),
+    };
+    check.map_err(|e| format!("{label}: {}", e.detail))?;
+    Ok(input)
+}
+
+/// A problem of a job's checks as the commands print it: `field: detail`.
+pub(crate) fn field_message(p: &Problem) -> String {
+    let field = p
+        .extensions
+        .get("field")
+        .and_then(Value::as_str)
+        .unwrap_or("");
+    format!("{field}: {}", p.detail)
 }
 
 /// Progress on stderr: a bar redrawn in place on a terminal (each whole percent), a line
@@ -231,9 +272,10 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         if inputs.contains_key(&name) {
             return Err(format!("--tool: {name} is given twice"));
         }
-        let tool = file_input(Path::new(path), "application/json")?;
-        crate::validate::tool(&tool.content).map_err(|e| format!("{path}: {}", e.detail))?;
-        inputs.insert(name, tool);
+        inputs.insert(
+            name,
+            resource_input(Path::new(path), path, ResourceKind::Tool)?,
+        );
     }
     if let Some(path) = &args.tool_library {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -262,7 +304,6 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             },
         );
     }
-    crate::jobs::check_tool_inputs(JobKind::Simulate, inputs.keys()).map_err(|e| e.message)?;
     let mut options = Map::new();
     if let Some(path) = &args.part {
         let part = file_input(path, "model/stl")?;
@@ -274,16 +315,17 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         options.insert("fixture".into(), fixture_document(path, &mut inputs)?);
     }
     if let Some(path) = &args.machine {
-        let m = file_input(path, "application/json")?;
-        crate::validate::machine(&m.content)
-            .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
-        inputs.insert("machine".into(), m);
+        let label = path.display().to_string();
+        let machine = resource_input(path, &label, ResourceKind::Machine)?;
+        inputs.insert("machine".into(), machine);
     }
     if Path::new(&args.material).is_file() {
-        let m = file_input(Path::new(&args.material), "application/json")?;
-        crate::validate::material(&m.content)
-            .map_err(|e| format!("{}: {}", args.material, e.detail))?;
-        inputs.insert("material".into(), m);
+        let material = resource_input(
+            Path::new(&args.material),
+            &args.material,
+            ResourceKind::Material,
+        )?;
+        inputs.insert("material".into(), material);
     } else {
         options.insert("material".into(), Value::String(args.material.clone()));
     }
@@ -341,11 +383,10 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         JobKind::Simulate
     };
     let options = Value::Object(options);
-    let parsed: SimulateOptions = serde_json::from_value(options.clone())
-        .map_err(|e| format!("--optimize, --spindle or --axes: {e}"))?;
-    parsed
-        .check(kind == JobKind::Optimize, inputs.contains_key("material"))
-        .map_err(|e| e.to_string())?;
+    // As a submission checks the job: how the tools are named, the options read and
+    // checked (by the kind's own reader).
+    kind.check(inputs.keys(), &options)
+        .map_err(|p| field_message(&p))?;
 
     let (summary, rows, wall) = run_offline(
         kind,
