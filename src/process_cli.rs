@@ -11,9 +11,7 @@ use std::path::{Path, PathBuf};
 use serde_json::{Map, Value};
 
 use crate::jobs::{JobKind, LoadedInput, LoadedInputs};
-use crate::run_cli::{
-    field_message, fixture_with_paths, resource_input, run_offline, StderrProgress,
-};
+use crate::run_cli::{field_message, fixture_with_paths, resource_input, run_offline};
 use crate::store::ResourceKind;
 
 #[derive(clap::Args)]
@@ -131,19 +129,14 @@ pub fn run(args: ProcessArgs) -> Result<(), String> {
     kind.check(names.iter(), &options).map_err(problem)?;
 
     // Each operation an equal share, counted in thousandths of it.
-    let (summary, rows, wall) = run_offline(
+    run_offline(
         kind,
         &options,
         inputs,
         &args.out,
-        StderrProgress::new("millsim process", "· 1000 per operation"),
-    )?;
-    eprint!("{}", process_report(&summary));
-    eprintln!(
-        "millsim process: {rows} moves in {wall:.2} s; wrote {}",
-        args.out.display()
-    );
-    Ok(())
+        ("millsim process", "· 1000 per operation"),
+        process_report,
+    )
 }
 
 /// One line per operation and the total: cycle time before → after, removed volume.

@@ -388,19 +388,14 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     kind.check(inputs.keys(), &options)
         .map_err(|p| field_message(&p))?;
 
-    let (summary, rows, wall) = run_offline(
+    run_offline(
         kind,
         &options,
         inputs,
         &args.out,
-        StderrProgress::new("millsim run", "moves"),
-    )?;
-    eprint!("{}", run_report(&summary));
-    eprintln!(
-        "millsim run: {rows} moves in {wall:.2} s; wrote {}",
-        args.out.display()
-    );
-    Ok(())
+        ("millsim run", "moves"),
+        run_report,
+    )
 }
 
 /// A job's results into folder `dir`: summary.json (with `wall_s`), blocks.csv (the
@@ -408,16 +403,19 @@ pub fn run(args: RunArgs) -> Result<(), String> {
 /// others under their result names; a stock streamed to its file is there already).
 /// Returns the summary and the row count.
 /// Runs a job offline, its stock streamed straight to `out/stock.stl` (at fine cells it is
-/// the largest output) and its other results written there: its summary, its row count
-/// and the wall time.
+/// the largest output) and its other results written there; `command` shows its progress
+/// on stderr, counted in `unit` (see [`StderrProgress`]), then `report`'s lines of the
+/// summary and how many moves in how long.
 pub(crate) fn run_offline(
     kind: JobKind,
     options: &Value,
     inputs: LoadedInputs,
     out: &Path,
-    progress: StderrProgress,
-) -> Result<(Value, usize, f64), String> {
+    (command, unit): (&'static str, &'static str),
+    report: fn(&Value) -> String,
+) -> Result<(), String> {
     let started = std::time::Instant::now();
+    let progress = StderrProgress::new(command, unit);
     // Offline, the job may use the machine's memory (as one worker would).
     let limits = crate::job_budget::JobLimits {
         memory_bytes: crate::job_budget::default_job_memory_mb(1) << 20,
@@ -438,9 +436,18 @@ pub(crate) fn run_offline(
     })?;
     let wall = started.elapsed().as_secs_f64();
     let (summary, rows) = write_outputs(out, done, wall)?;
-    Ok((summary, rows, wall))
+    eprint!("{}", report(&summary));
+    eprintln!(
+        "{command}: {rows} moves in {wall:.2} s; wrote {}",
+        out.display()
+    );
+    Ok(())
 }
 
+/// A job's results into folder `dir`: summary.json (with `wall_s`), blocks.csv (the
+/// summary's `row_columns`), and its files in memory (a program under its file name, the
+/// others under their result names; a stock streamed to its file is there already).
+/// Returns the summary and the row count.
 pub(crate) fn write_outputs(
     dir: &Path,
     out: crate::jobs::JobOutput,
