@@ -202,7 +202,84 @@ impl Progress for StderrProgress {
 pub fn run(args: RunArgs) -> Result<(), String> {
     let mut inputs = LoadedInputs::new();
     inputs.insert("program".into(), file_input(&args.program, "text/plain")?);
-    let stock = match (&args.stock, &args.block) {
+    inputs.insert("stock".into(), stock_input(&args)?);
+    if let Some(dir) = &args.program_options.library {
+        let library = millsim_engine::nc::ProgramLibrary::from_dir(dir)
+            .map_err(|e| format!("--library {e}"))?;
+        for f in library.files() {
+            inputs.insert(
+                format!("library/{}", f.name),
+                LoadedInput {
+                    file_name: Some(f.name.clone()),
+                    media_type: "text/plain".into(),
+                    content: f.text.clone().into_bytes(),
+                    ..Default::default()
+                },
+            );
+        }
+    }
+    tool_inputs(&args, &mut inputs)?;
+    let mut options = Map::new();
+    if let Some(path) = &args.part {
+        let part = file_input(path, "model/stl")?;
+        crate::validate::stl(&part.content, &path.display().to_string())
+            .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
+        inputs.insert("part".into(), part);
+    }
+    if let Some(path) = &args.fixture {
+        options.insert("fixture".into(), fixture_document(path, &mut inputs)?);
+    }
+    if let Some(path) = &args.machine {
+        let label = path.display().to_string();
+        let machine = resource_input(path, &label, ResourceKind::Machine)?;
+        inputs.insert("machine".into(), machine);
+    }
+    if Path::new(&args.material).is_file() {
+        let material = resource_input(
+            Path::new(&args.material),
+            &args.material,
+            ResourceKind::Material,
+        )?;
+        inputs.insert("material".into(), material);
+    } else {
+        options.insert("material".into(), Value::String(args.material.clone()));
+    }
+    options.insert("axes".into(), Value::String(args.axes.clone()));
+    args.program_options.insert_into(&mut options)?;
+    if let Some(c) = args.resolution {
+        options.insert("cell_mm".into(), json!(c));
+    }
+    if let Some(spec) = &args.optimize {
+        options.insert("limits".into(), optimize_limits(spec, &args.optimize_tool)?);
+    }
+    if let Some(spindle) = &args.spindle {
+        options.insert("spindle".into(), spindle_option(spindle)?);
+    }
+    let kind = if args.optimize.is_some() {
+        JobKind::Optimize
+    } else {
+        JobKind::Simulate
+    };
+    let options = Value::Object(options);
+    // As a submission checks the job: how the tools are named, the options read and
+    // checked (by the kind's own reader).
+    kind.check(inputs.keys(), &options)
+        .map_err(|p| field_message(&p))?;
+
+    run_offline(
+        kind,
+        &options,
+        inputs,
+        &args.out,
+        ("millsim run", "moves"),
+        run_report,
+    )
+}
+
+/// The stock `--stock` (an STL, or a parametric stock when the file is JSON) or `--block`
+/// gives, as the job's `stock` input.
+fn stock_input(args: &RunArgs) -> Result<LoadedInput, String> {
+    Ok(match (&args.stock, &args.block) {
         (Some(path), _) => {
             // A JSON file is a parametric stock ({"kind":"block"|"cylinder",...}).
             let mut stock = file_input(path, "model/stl")?;
@@ -240,23 +317,12 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             }
         }
         (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
-    };
-    inputs.insert("stock".into(), stock);
-    if let Some(dir) = &args.program_options.library {
-        let library = millsim_engine::nc::ProgramLibrary::from_dir(dir)
-            .map_err(|e| format!("--library {e}"))?;
-        for f in library.files() {
-            inputs.insert(
-                format!("library/{}", f.name),
-                LoadedInput {
-                    file_name: Some(f.name.clone()),
-                    media_type: "text/plain".into(),
-                    content: f.text.clone().into_bytes(),
-                    ..Default::default()
-                },
-            );
-        }
-    }
+    })
+}
+
+/// The tools `--tool` gives (`T3=file.json`, or one file for every tool number) and the
+/// `--tool-library`, as the job's inputs; the library's notes on stderr.
+fn tool_inputs(args: &RunArgs, inputs: &mut LoadedInputs) -> Result<(), String> {
     for spec in &args.tool {
         // `T3=file.json` is the tool of T3; a bare file serves every tool number.
         let (name, path) = match spec.split_once('=') {
@@ -304,104 +370,56 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             },
         );
     }
-    let mut options = Map::new();
-    if let Some(path) = &args.part {
-        let part = file_input(path, "model/stl")?;
-        crate::validate::stl(&part.content, &path.display().to_string())
-            .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
-        inputs.insert("part".into(), part);
-    }
-    if let Some(path) = &args.fixture {
-        options.insert("fixture".into(), fixture_document(path, &mut inputs)?);
-    }
-    if let Some(path) = &args.machine {
-        let label = path.display().to_string();
-        let machine = resource_input(path, &label, ResourceKind::Machine)?;
-        inputs.insert("machine".into(), machine);
-    }
-    if Path::new(&args.material).is_file() {
-        let material = resource_input(
-            Path::new(&args.material),
-            &args.material,
-            ResourceKind::Material,
-        )?;
-        inputs.insert("material".into(), material);
-    } else {
-        options.insert("material".into(), Value::String(args.material.clone()));
-    }
-    options.insert("axes".into(), Value::String(args.axes.clone()));
-    args.program_options.insert_into(&mut options)?;
-    if let Some(c) = args.resolution {
-        options.insert("cell_mm".into(), json!(c));
-    }
-    if let Some(spec) = &args.optimize {
-        let mut limits = Map::new();
-        for (k, value) in name_values("--optimize", spec)? {
-            // Counts (max_iterations) are integers in the options.
-            let value = match value.as_f64() {
-                Some(v) if v.fract() == 0.0 && v.abs() < 1e15 => json!(v as i64),
-                _ => value,
-            };
-            // split_max_parts=4, split_min_length=2, split_min_saving=0.05: limits.split.
-            match k.strip_prefix("split_") {
-                Some(field) => {
-                    let split = limits.entry("split").or_insert_with(|| json!({}));
-                    split[field] = value;
-                }
-                None => {
-                    limits.insert(k, value);
-                }
-            }
-        }
-        let mut tools = Map::new();
-        for spec in &args.optimize_tool {
-            let (tool, pairs) = spec
-                .split_once(':')
-                .ok_or_else(|| format!("--optimize-tool: `{spec}` is not T<n>:NAME=VALUE,..."))?;
-            let own: Map<String, Value> = name_values(&format!("--optimize-tool {tool}"), pairs)?
-                .into_iter()
-                .collect();
-            tools.insert(tool.trim().to_ascii_uppercase(), Value::Object(own));
-        }
-        if !tools.is_empty() {
-            limits.insert("tools".into(), Value::Object(tools));
-        }
-        options.insert("limits".into(), Value::Object(limits));
-    }
-    if let Some(spindle) = &args.spindle {
-        let text = if spindle.trim_start().starts_with('{') {
-            spindle.clone()
-        } else {
-            String::from_utf8(read(Path::new(spindle))?).map_err(|e| format!("{spindle}: {e}"))?
-        };
-        let value: Value = serde_json::from_str(&text).map_err(|e| format!("--spindle: {e}"))?;
-        options.insert("spindle".into(), value);
-    }
-    let kind = if args.optimize.is_some() {
-        JobKind::Optimize
-    } else {
-        JobKind::Simulate
-    };
-    let options = Value::Object(options);
-    // As a submission checks the job: how the tools are named, the options read and
-    // checked (by the kind's own reader).
-    kind.check(inputs.keys(), &options)
-        .map_err(|p| field_message(&p))?;
-
-    run_offline(
-        kind,
-        &options,
-        inputs,
-        &args.out,
-        ("millsim run", "moves"),
-        run_report,
-    )
+    Ok(())
 }
 
-/// A job's results into folder `dir`: summary.json (with `wall_s`), blocks.csv (the
-/// summary's `row_columns`), and its files in memory (a program under its file name, the
-/// others under their result names; a stock streamed to its file is there already).
-/// Returns the summary and the row count.
+/// The job's `options.limits` of `--optimize`'s `NAME=VALUE,...` (`split_*` into
+/// `split`, counts as integers) and each `--optimize-tool T<n>:NAME=VALUE,...`.
+fn optimize_limits(spec: &str, tool_specs: &[String]) -> Result<Value, String> {
+    let mut limits = Map::new();
+    for (k, value) in name_values("--optimize", spec)? {
+        // Counts (max_iterations) are integers in the options.
+        let value = match value.as_f64() {
+            Some(v) if v.fract() == 0.0 && v.abs() < 1e15 => json!(v as i64),
+            _ => value,
+        };
+        // split_max_parts=4, split_min_length=2, split_min_saving=0.05: limits.split.
+        match k.strip_prefix("split_") {
+            Some(field) => {
+                let split = limits.entry("split").or_insert_with(|| json!({}));
+                split[field] = value;
+            }
+            None => {
+                limits.insert(k, value);
+            }
+        }
+    }
+    let mut tools = Map::new();
+    for spec in tool_specs {
+        let (tool, pairs) = spec
+            .split_once(':')
+            .ok_or_else(|| format!("--optimize-tool: `{spec}` is not T<n>:NAME=VALUE,..."))?;
+        let own: Map<String, Value> = name_values(&format!("--optimize-tool {tool}"), pairs)?
+            .into_iter()
+            .collect();
+        tools.insert(tool.trim().to_ascii_uppercase(), Value::Object(own));
+    }
+    if !tools.is_empty() {
+        limits.insert("tools".into(), Value::Object(tools));
+    }
+    Ok(Value::Object(limits))
+}
+
+/// The job's `options.spindle` of `--spindle`: inline JSON, or the file it names.
+fn spindle_option(spindle: &str) -> Result<Value, String> {
+    let text = if spindle.trim_start().starts_with('{') {
+        spindle.to_string()
+    } else {
+        String::from_utf8(read(Path::new(spindle))?).map_err(|e| format!("{spindle}: {e}"))?
+    };
+    serde_json::from_str(&text).map_err(|e| format!("--spindle: {e}"))
+}
+
 /// Runs a job offline, its stock streamed straight to `out/stock.stl` (at fine cells it is
 /// the largest output) and its other results written there; `command` shows its progress
 /// on stderr, counted in `unit` (see [`StderrProgress`]), then `report`'s lines of the
