@@ -1,6 +1,7 @@
 //! The problems a job over one of its limits is refused (at submission) or failed (when it
-//! runs) with: over the memory budget (a `resource-limit` problem naming `job_memory_mb`,
-//! the budget and the estimate), and a move outside the machine's travel.
+//! runs) with: over the memory budget by its estimate (a `resource-limit` problem naming
+//! `job_memory_mb`, the budget and the estimate), its results over it or its process dead
+//! (the job process's, see `isolate`), and a move outside the machine's travel.
 
 use serde_json::{json, Value};
 
@@ -103,4 +104,40 @@ pub(super) fn travel_problem(
     .with("axis", e.axis.to_string())
     .with("value", e.value)
     .with("travel_mm", json!(travel))
+}
+
+/// A job whose results (rows, samples, files) sent by its process exceed its budget of
+/// `budget_bytes`: the job fails.
+pub fn results_over_budget(budget_bytes: u64) -> Problem {
+    Problem::resource_limit(
+        "Results over the job's memory budget",
+        format!("the job's results (rows, samples, files) exceed its memory budget of {} MiB (job_memory_mb)", budget_bytes >> 20),
+        "job_memory_mb",
+    )
+    .with("limit", budget_bytes >> 20)
+}
+
+/// A job whose process died without a result (`how`: killed by which signal, or its exit
+/// status; `said`: what it wrote on stderr), with a budget of `memory_mb`: out of memory
+/// when it says so. The job is not retried.
+pub fn process_died(how: &str, said: &str, memory_mb: u64) -> Problem {
+    let out_of_memory = said.contains("memory allocation of") || said.contains("out of memory");
+    // What the process said that tells why: the failed allocation, a panic, else its last words.
+    let last_line = said
+        .lines()
+        .find(|l| l.contains("memory allocation of"))
+        .or_else(|| said.lines().find(|l| l.starts_with("thread '")))
+        .or_else(|| said.lines().last())
+        .unwrap_or("")
+        .trim()
+        .to_string();
+    Problem::resource_limit(
+        if out_of_memory { "Job ran out of memory" } else { "Job's process died" },
+        format!(
+            "the process running this job {how}{}; its memory budget is {memory_mb} MiB (job_memory_mb). The job is not retried: it would die again",
+            if last_line.is_empty() { String::new() } else { format!(" after: {last_line}") },
+        ),
+        "job_memory_mb",
+    )
+    .with("limit", memory_mb)
 }
