@@ -136,6 +136,42 @@ pub(crate) fn field_message(p: &Problem) -> String {
     format!("{field}: {}", p.detail)
 }
 
+/// The options' fields `millsim run` fills in from a flag, most specific first.
+const FIELD_FLAGS: [(&str, &str); 9] = [
+    ("options.limits.tools", "--optimize-tool"),
+    ("options.limits", "--optimize"),
+    ("options.spindle", "--spindle"),
+    ("options.axes", "--axes"),
+    ("options.cell_mm", "--resolution"),
+    ("options.material", "--material"),
+    ("options.fixture", "--fixture"),
+    ("inputs.tool", "--tool"),
+    ("inputs.T", "--tool"),
+];
+
+/// A check's problem as `millsim run` says it: the flag that gave the field, then the field
+/// and what is wrong. The options are JSON this command wrote, so a position in them
+/// (serde's "at line 1 column 62") would point at nothing the user wrote: it is left out.
+fn run_message(p: &Problem) -> String {
+    let field = p
+        .extensions
+        .get("field")
+        .and_then(Value::as_str)
+        .unwrap_or("");
+    let detail = match p.detail.rfind(" at line ") {
+        Some(i) if p.detail[i..].contains(" column ") => &p.detail[..i],
+        _ => p.detail.as_str(),
+    };
+    let flag = FIELD_FLAGS.iter().find_map(|(prefix, flag)| {
+        let rest = field.strip_prefix(prefix)?;
+        (rest.is_empty() || rest.starts_with(['.', '[']) || prefix.ends_with(".T")).then_some(*flag)
+    });
+    match flag {
+        Some(flag) => format!("{flag} ({field}): {detail}"),
+        None => format!("{field}: {detail}"),
+    }
+}
+
 /// Progress on stderr: a bar redrawn in place on a terminal (each whole percent), a line
 /// every 10% otherwise (logs, CI).
 pub(crate) struct StderrProgress {
@@ -264,7 +300,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     // As a submission checks the job: how the tools are named, the options read and
     // checked (by the kind's own reader).
     kind.check(inputs.keys(), &options)
-        .map_err(|p| field_message(&p))?;
+        .map_err(|p| run_message(&p))?;
 
     run_offline(
         kind,
