@@ -58,5 +58,5 @@ pub struct QueueConfig {
     pub shutdown_grace_ms: u64,
     pub isolation: Isolation,
     /// What each job is held to (memory budget).
-    pub limits: crate::job_limits::JobLimits,
+    pub limits: crate::job_budget::JobLimits,
 }

@@ -35,7 +35,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 use millsim_engine::geometry::Mesh;
 use millsim_engine::job::{CancelFlag, Progress};
 
-use crate::job_limits::JobLimits;
+use crate::job_budget::JobLimits;
 use crate::jobs::{
     JobFailure, JobKind, JobOutput, LoadedInput, LoadedInputs, OutputFile, OutputResource,
 };
@@ -557,7 +557,7 @@ pub fn spawn(
             None => match status {
                 Ok(s) if s.code() == Some(101) => Ended::Panicked(said),
                 Ok(s) => Ended::Died(died_problem(s, &said, memory_mb)),
-                Err(e) => Ended::Died(died_problem_text(
+                Err(e) => Ended::Died(crate::job_budget::problems::process_died(
                     &format!("could not be waited for: {e}"),
                     &said,
                     memory_mb,
@@ -649,12 +649,7 @@ async fn read_outcome(
         received += payload.len() as u64;
         if received > budget {
             return Some(Err(JobFailure::Invalid(
-                Problem::resource_limit(
-                    "Results over the job's memory budget",
-                    format!("the job's results (rows, samples, files) exceed its memory budget of {} MiB (job_memory_mb)", budget >> 20),
-                    "job_memory_mb",
-                )
-                .with("limit", budget >> 20),
+                crate::job_budget::problems::results_over_budget(budget),
             )));
         }
         match tag {
@@ -721,29 +716,7 @@ fn died_problem(status: std::process::ExitStatus, said: &str, memory_mb: u64) ->
             status.code().unwrap_or(-1)
         ),
     };
-    died_problem_text(&how, said, memory_mb)
-}
-
-fn died_problem_text(how: &str, said: &str, memory_mb: u64) -> Problem {
-    let out_of_memory = said.contains("memory allocation of") || said.contains("out of memory");
-    // What the process said that tells why: the failed allocation, a panic, else its last words.
-    let last_line = said
-        .lines()
-        .find(|l| l.contains("memory allocation of"))
-        .or_else(|| said.lines().find(|l| l.starts_with("thread '")))
-        .or_else(|| said.lines().last())
-        .unwrap_or("")
-        .trim()
-        .to_string();
-    Problem::resource_limit(
-        if out_of_memory { "Job ran out of memory" } else { "Job's process died" },
-        format!(
-            "the process running this job {how}{}; its memory budget is {memory_mb} MiB (job_memory_mb). The job is not retried: it would die again",
-            if last_line.is_empty() { String::new() } else { format!(" after: {last_line}") },
-        ),
-        "job_memory_mb",
-    )
-    .with("limit", memory_mb)
+    crate::job_budget::problems::process_died(&how, said, memory_mb)
 }
 
 fn signal_name(sig: i32) -> &'static str {

@@ -5,9 +5,8 @@ mod config;
 mod csv;
 mod http;
 mod isolate;
-mod job_estimates;
+mod job_budget;
 mod job_library;
-mod job_limits;
 mod jobs;
 mod metrics;
 mod move_rows;
@@ -181,14 +180,14 @@ impl QueueArgs {
         // The default fits what the process may use; a budget asked for that no job process
         // could be given is refused here rather than failing every job later.
         let memory_mb = match self.job_memory_mb {
-            None => job_limits::default_job_memory_mb(workers),
+            None => job_budget::default_job_memory_mb(workers),
             Some(mb) => {
                 let address_space = crate::isolate::inherited_address_space()
                     .map(|b| (b, crate::isolate::budget_under_address_space(b)));
-                job_limits::check_requested_budget(
+                job_budget::check_requested_budget(
                     mb,
                     address_space,
-                    job_limits::cgroup_memory_max(),
+                    job_budget::cgroup_memory_max(),
                 )?;
                 mb
             }
@@ -205,7 +204,7 @@ impl QueueArgs {
             poll_ms: 250,
             shutdown_grace_ms: (self.shutdown_grace_s * 1000.0) as u64,
             isolation: self.job_isolation,
-            limits: job_limits::JobLimits {
+            limits: job_budget::JobLimits {
                 memory_bytes: memory_mb << 20,
             },
         })

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use serde_json::{Map, Value};
 
 use crate::jobs::{JobKind, LoadedInput, LoadedInputs};
-use crate::run_cli::{file_input, fixture_with_paths, run_offline, StderrProgress};
+use crate::run_cli::{field_message, fixture_with_paths, resource_input, run_offline};
 use crate::store::ResourceKind;
 
 #[derive(clap::Args)]
@@ -28,30 +28,10 @@ pub struct ProcessArgs {
     program_options: crate::program_args::ProgramArgs,
 }
 
-/// Input `name` (a field of the document, for errors) read from `path` as a resource of
-/// `kind`: a stock is an STL, or a parametric stock when the file is JSON.
+/// Input `field` (of the document, for errors) read from `path`, relative to `dir`, as a
+/// resource of `kind` (see [`resource_input`]).
 fn load(dir: &Path, field: &str, path: &str, kind: ResourceKind) -> Result<LoadedInput, String> {
-    let at = |e: String| format!("{field}: {e}");
-    let full = dir.join(path);
-    let media = match kind {
-        ResourceKind::Program | ResourceKind::ToolLibrary => "text/plain",
-        ResourceKind::Stock => "model/stl",
-        _ => "application/json",
-    };
-    let mut input = file_input(&full, media).map_err(at)?;
-    let check = match kind {
-        ResourceKind::Stock if input.content.trim_ascii_start().starts_with(b"{") => {
-            input.media_type = "application/json".into();
-            crate::validate::stock_json(&input.content).map(|_| ())
-        }
-        ResourceKind::Stock => crate::validate::stl(&input.content, path).map(|_| ()),
-        ResourceKind::Tool => crate::validate::tool(&input.content).map(|_| ()),
-        ResourceKind::Machine => crate::validate::machine(&input.content).map(|_| ()),
-        ResourceKind::Material => crate::validate::material(&input.content).map(|_| ()),
-        _ => Ok(()),
-    };
-    check.map_err(|e| at(format!("{path}: {}", e.detail)))?;
-    Ok(input)
+    resource_input(&dir.join(path), path, kind).map_err(|e| format!("{field}: {e}"))
 }
 
 pub fn run(args: ProcessArgs) -> Result<(), String> {
@@ -111,14 +91,7 @@ pub fn run(args: ProcessArgs) -> Result<(), String> {
         }
     }
     let kind = JobKind::Process;
-    let problem = |p: crate::problem::Problem| {
-        let field = p
-            .extensions
-            .get("field")
-            .and_then(Value::as_str)
-            .unwrap_or("");
-        format!("{label}: {field}: {}", p.detail)
-    };
+    let problem = |p: crate::problem::Problem| format!("{label}: {}", field_message(&p));
     let operations = kind
         .flatten_operations(&mut given)
         .map_err(problem)?
@@ -156,19 +129,14 @@ pub fn run(args: ProcessArgs) -> Result<(), String> {
     kind.check(names.iter(), &options).map_err(problem)?;
 
     // Each operation an equal share, counted in thousandths of it.
-    let (summary, rows, wall) = run_offline(
+    run_offline(
         kind,
         &options,
         inputs,
         &args.out,
-        StderrProgress::new("millsim process", "· 1000 per operation"),
-    )?;
-    eprint!("{}", process_report(&summary));
-    eprintln!(
-        "millsim process: {rows} moves in {wall:.2} s; wrote {}",
-        args.out.display()
-    );
-    Ok(())
+        ("millsim process", "· 1000 per operation"),
+        process_report,
+    )
 }
 
 /// One line per operation and the total: cycle time before → after, removed volume.

@@ -9,8 +9,10 @@ use serde_json::{json, Map, Value};
 use millsim_engine::job::{CancelFlag, Progress};
 
 use crate::csv;
-use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs, SimulateOptions};
+use crate::jobs::{JobFailure, JobKind, LoadedInput, LoadedInputs};
+use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
+use crate::store::ResourceKind;
 
 #[derive(clap::Args)]
 pub struct RunArgs {
@@ -95,6 +97,81 @@ pub(crate) fn file_input(path: &Path, media_type: &str) -> Result<LoadedInput, S
     })
 }
 
+/// A file read as a job input that is a resource of `kind`, checked as the service checks
+/// an upload of that kind: a stock is an STL, or a parametric stock when the file is JSON;
+/// a tool, a machine or a material JSON. Errors name the file (a check's: as `label`).
+pub(crate) fn resource_input(
+    path: &Path,
+    label: &str,
+    kind: ResourceKind,
+) -> Result<LoadedInput, String> {
+    let media = match kind {
+        ResourceKind::Program | ResourceKind::ToolLibrary => "text/plain",
+        ResourceKind::Stock => "model/stl",
+        _ => "application/json",
+    };
+    let mut input = file_input(path, media)?;
+    let check = match kind {
+        ResourceKind::Stock if input.content.trim_ascii_start().starts_with(b"{") => {
+            input.media_type = "application/json".into();
+            crate::validate::stock_json(&input.content).map(|_| ())
+        }
+        ResourceKind::Stock => crate::validate::stl(&input.content, label).map(|_| ()),
+        ResourceKind::Tool => crate::validate::tool(&input.content).map(|_| ()),
+        ResourceKind::Machine => crate::validate::machine(&input.content).map(|_| ()),
+        ResourceKind::Material => crate::validate::material(&input.content).map(|_| ()),
+        _ => Ok(()),
+    };
+    check.map_err(|e| format!("{label}: {}", e.detail))?;
+    Ok(input)
+}
+
+/// A problem of a job's checks as the commands print it: `field: detail`.
+pub(crate) fn field_message(p: &Problem) -> String {
+    let field = p
+        .extensions
+        .get("field")
+        .and_then(Value::as_str)
+        .unwrap_or("");
+    format!("{field}: {}", p.detail)
+}
+
+/// The options' fields `millsim run` fills in from a flag, most specific first.
+const FIELD_FLAGS: [(&str, &str); 9] = [
+    ("options.limits.tools", "--optimize-tool"),
+    ("options.limits", "--optimize"),
+    ("options.spindle", "--spindle"),
+    ("options.axes", "--axes"),
+    ("options.cell_mm", "--resolution"),
+    ("options.material", "--material"),
+    ("options.fixture", "--fixture"),
+    ("inputs.tool", "--tool"),
+    ("inputs.T", "--tool"),
+];
+
+/// A check's problem as `millsim run` says it: the flag that gave the field, then the field
+/// and what is wrong. The options are JSON this command wrote, so a position in them
+/// (serde's "at line 1 column 62") would point at nothing the user wrote: it is left out.
+fn run_message(p: &Problem) -> String {
+    let field = p
+        .extensions
+        .get("field")
+        .and_then(Value::as_str)
+        .unwrap_or("");
+    let detail = match p.detail.rfind(" at line ") {
+        Some(i) if p.detail[i..].contains(" column ") => &p.detail[..i],
+        _ => p.detail.as_str(),
+    };
+    let flag = FIELD_FLAGS.iter().find_map(|(prefix, flag)| {
+        let rest = field.strip_prefix(prefix)?;
+        (rest.is_empty() || rest.starts_with(['.', '[']) || prefix.ends_with(".T")).then_some(*flag)
+    });
+    match flag {
+        Some(flag) => format!("{flag} ({field}): {detail}"),
+        None => format!("{field}: {detail}"),
+    }
+}
+
 /// Progress on stderr: a bar redrawn in place on a terminal (each whole percent), a line
 /// every 10% otherwise (logs, CI).
 pub(crate) struct StderrProgress {
@@ -161,7 +238,84 @@ impl Progress for StderrProgress {
 pub fn run(args: RunArgs) -> Result<(), String> {
     let mut inputs = LoadedInputs::new();
     inputs.insert("program".into(), file_input(&args.program, "text/plain")?);
-    let stock = match (&args.stock, &args.block) {
+    inputs.insert("stock".into(), stock_input(&args)?);
+    if let Some(dir) = &args.program_options.library {
+        let library = millsim_engine::nc::ProgramLibrary::from_dir(dir)
+            .map_err(|e| format!("--library {e}"))?;
+        for f in library.files() {
+            inputs.insert(
+                format!("library/{}", f.name),
+                LoadedInput {
+                    file_name: Some(f.name.clone()),
+                    media_type: "text/plain".into(),
+                    content: f.text.clone().into_bytes(),
+                    ..Default::default()
+                },
+            );
+        }
+    }
+    tool_inputs(&args, &mut inputs)?;
+    let mut options = Map::new();
+    if let Some(path) = &args.part {
+        let part = file_input(path, "model/stl")?;
+        crate::validate::stl(&part.content, &path.display().to_string())
+            .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
+        inputs.insert("part".into(), part);
+    }
+    if let Some(path) = &args.fixture {
+        options.insert("fixture".into(), fixture_document(path, &mut inputs)?);
+    }
+    if let Some(path) = &args.machine {
+        let label = path.display().to_string();
+        let machine = resource_input(path, &label, ResourceKind::Machine)?;
+        inputs.insert("machine".into(), machine);
+    }
+    if Path::new(&args.material).is_file() {
+        let material = resource_input(
+            Path::new(&args.material),
+            &args.material,
+            ResourceKind::Material,
+        )?;
+        inputs.insert("material".into(), material);
+    } else {
+        options.insert("material".into(), Value::String(args.material.clone()));
+    }
+    options.insert("axes".into(), Value::String(args.axes.clone()));
+    args.program_options.insert_into(&mut options)?;
+    if let Some(c) = args.resolution {
+        options.insert("cell_mm".into(), json!(c));
+    }
+    if let Some(spec) = &args.optimize {
+        options.insert("limits".into(), optimize_limits(spec, &args.optimize_tool)?);
+    }
+    if let Some(spindle) = &args.spindle {
+        options.insert("spindle".into(), spindle_option(spindle)?);
+    }
+    let kind = if args.optimize.is_some() {
+        JobKind::Optimize
+    } else {
+        JobKind::Simulate
+    };
+    let options = Value::Object(options);
+    // As a submission checks the job: how the tools are named, the options read and
+    // checked (by the kind's own reader).
+    kind.check(inputs.keys(), &options)
+        .map_err(|p| run_message(&p))?;
+
+    run_offline(
+        kind,
+        &options,
+        inputs,
+        &args.out,
+        ("millsim run", "moves"),
+        run_report,
+    )
+}
+
+/// The stock `--stock` (an STL, or a parametric stock when the file is JSON) or `--block`
+/// gives, as the job's `stock` input.
+fn stock_input(args: &RunArgs) -> Result<LoadedInput, String> {
+    Ok(match (&args.stock, &args.block) {
         (Some(path), _) => {
             // A JSON file is a parametric stock ({"kind":"block"|"cylinder",...}).
             let mut stock = file_input(path, "model/stl")?;
@@ -199,23 +353,12 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             }
         }
         (None, None) => return Err("give --stock FILE.stl or --block X,Y,Z,DX,DY,DZ".into()),
-    };
-    inputs.insert("stock".into(), stock);
-    if let Some(dir) = &args.program_options.library {
-        let library = millsim_engine::nc::ProgramLibrary::from_dir(dir)
-            .map_err(|e| format!("--library {e}"))?;
-        for f in library.files() {
-            inputs.insert(
-                format!("library/{}", f.name),
-                LoadedInput {
-                    file_name: Some(f.name.clone()),
-                    media_type: "text/plain".into(),
-                    content: f.text.clone().into_bytes(),
-                    ..Default::default()
-                },
-            );
-        }
-    }
+    })
+}
+
+/// The tools `--tool` gives (`T3=file.json`, or one file for every tool number) and the
+/// `--tool-library`, as the job's inputs; the library's notes on stderr.
+fn tool_inputs(args: &RunArgs, inputs: &mut LoadedInputs) -> Result<(), String> {
     for spec in &args.tool {
         // `T3=file.json` is the tool of T3; a bare file serves every tool number.
         let (name, path) = match spec.split_once('=') {
@@ -231,9 +374,10 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         if inputs.contains_key(&name) {
             return Err(format!("--tool: {name} is given twice"));
         }
-        let tool = file_input(Path::new(path), "application/json")?;
-        crate::validate::tool(&tool.content).map_err(|e| format!("{path}: {}", e.detail))?;
-        inputs.insert(name, tool);
+        inputs.insert(
+            name,
+            resource_input(Path::new(path), path, ResourceKind::Tool)?,
+        );
     }
     if let Some(path) = &args.tool_library {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -262,124 +406,73 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             },
         );
     }
-    crate::jobs::check_tool_inputs(JobKind::Simulate, inputs.keys()).map_err(|e| e.message)?;
-    let mut options = Map::new();
-    if let Some(path) = &args.part {
-        let part = file_input(path, "model/stl")?;
-        crate::validate::stl(&part.content, &path.display().to_string())
-            .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
-        inputs.insert("part".into(), part);
-    }
-    if let Some(path) = &args.fixture {
-        options.insert("fixture".into(), fixture_document(path, &mut inputs)?);
-    }
-    if let Some(path) = &args.machine {
-        let m = file_input(path, "application/json")?;
-        crate::validate::machine(&m.content)
-            .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
-        inputs.insert("machine".into(), m);
-    }
-    if Path::new(&args.material).is_file() {
-        let m = file_input(Path::new(&args.material), "application/json")?;
-        crate::validate::material(&m.content)
-            .map_err(|e| format!("{}: {}", args.material, e.detail))?;
-        inputs.insert("material".into(), m);
-    } else {
-        options.insert("material".into(), Value::String(args.material.clone()));
-    }
-    options.insert("axes".into(), Value::String(args.axes.clone()));
-    args.program_options.insert_into(&mut options)?;
-    if let Some(c) = args.resolution {
-        options.insert("cell_mm".into(), json!(c));
-    }
-    if let Some(spec) = &args.optimize {
-        let mut limits = Map::new();
-        for (k, value) in name_values("--optimize", spec)? {
-            // Counts (max_iterations) are integers in the options.
-            let value = match value.as_f64() {
-                Some(v) if v.fract() == 0.0 && v.abs() < 1e15 => json!(v as i64),
-                _ => value,
-            };
-            // split_max_parts=4, split_min_length=2, split_min_saving=0.05: limits.split.
-            match k.strip_prefix("split_") {
-                Some(field) => {
-                    let split = limits.entry("split").or_insert_with(|| json!({}));
-                    split[field] = value;
-                }
-                None => {
-                    limits.insert(k, value);
-                }
-            }
-        }
-        let mut tools = Map::new();
-        for spec in &args.optimize_tool {
-            let (tool, pairs) = spec
-                .split_once(':')
-                .ok_or_else(|| format!("--optimize-tool: `{spec}` is not T<n>:NAME=VALUE,..."))?;
-            let own: Map<String, Value> = name_values(&format!("--optimize-tool {tool}"), pairs)?
-                .into_iter()
-                .collect();
-            tools.insert(tool.trim().to_ascii_uppercase(), Value::Object(own));
-        }
-        if !tools.is_empty() {
-            limits.insert("tools".into(), Value::Object(tools));
-        }
-        options.insert("limits".into(), Value::Object(limits));
-    }
-    if let Some(spindle) = &args.spindle {
-        let text = if spindle.trim_start().starts_with('{') {
-            spindle.clone()
-        } else {
-            String::from_utf8(read(Path::new(spindle))?).map_err(|e| format!("{spindle}: {e}"))?
-        };
-        let value: Value = serde_json::from_str(&text).map_err(|e| format!("--spindle: {e}"))?;
-        options.insert("spindle".into(), value);
-    }
-    let kind = if args.optimize.is_some() {
-        JobKind::Optimize
-    } else {
-        JobKind::Simulate
-    };
-    let options = Value::Object(options);
-    let parsed: SimulateOptions = serde_json::from_value(options.clone())
-        .map_err(|e| format!("--optimize, --spindle or --axes: {e}"))?;
-    parsed
-        .check(kind == JobKind::Optimize, inputs.contains_key("material"))
-        .map_err(|e| e.to_string())?;
-
-    let (summary, rows, wall) = run_offline(
-        kind,
-        &options,
-        inputs,
-        &args.out,
-        StderrProgress::new("millsim run", "moves"),
-    )?;
-    eprint!("{}", run_report(&summary));
-    eprintln!(
-        "millsim run: {rows} moves in {wall:.2} s; wrote {}",
-        args.out.display()
-    );
     Ok(())
 }
 
-/// A job's results into folder `dir`: summary.json (with `wall_s`), blocks.csv (the
-/// summary's `row_columns`), and its files in memory (a program under its file name, the
-/// others under their result names; a stock streamed to its file is there already).
-/// Returns the summary and the row count.
+/// The job's `options.limits` of `--optimize`'s `NAME=VALUE,...` (`split_*` into
+/// `split`, counts as integers) and each `--optimize-tool T<n>:NAME=VALUE,...`.
+fn optimize_limits(spec: &str, tool_specs: &[String]) -> Result<Value, String> {
+    let mut limits = Map::new();
+    for (k, value) in name_values("--optimize", spec)? {
+        // Counts (max_iterations) are integers in the options.
+        let value = match value.as_f64() {
+            Some(v) if v.fract() == 0.0 && v.abs() < 1e15 => json!(v as i64),
+            _ => value,
+        };
+        // split_max_parts=4, split_min_length=2, split_min_saving=0.05: limits.split.
+        match k.strip_prefix("split_") {
+            Some(field) => {
+                let split = limits.entry("split").or_insert_with(|| json!({}));
+                split[field] = value;
+            }
+            None => {
+                limits.insert(k, value);
+            }
+        }
+    }
+    let mut tools = Map::new();
+    for spec in tool_specs {
+        let (tool, pairs) = spec
+            .split_once(':')
+            .ok_or_else(|| format!("--optimize-tool: `{spec}` is not T<n>:NAME=VALUE,..."))?;
+        let own: Map<String, Value> = name_values(&format!("--optimize-tool {tool}"), pairs)?
+            .into_iter()
+            .collect();
+        tools.insert(tool.trim().to_ascii_uppercase(), Value::Object(own));
+    }
+    if !tools.is_empty() {
+        limits.insert("tools".into(), Value::Object(tools));
+    }
+    Ok(Value::Object(limits))
+}
+
+/// The job's `options.spindle` of `--spindle`: inline JSON, or the file it names.
+fn spindle_option(spindle: &str) -> Result<Value, String> {
+    let text = if spindle.trim_start().starts_with('{') {
+        spindle.to_string()
+    } else {
+        String::from_utf8(read(Path::new(spindle))?).map_err(|e| format!("{spindle}: {e}"))?
+    };
+    serde_json::from_str(&text).map_err(|e| format!("--spindle: {e}"))
+}
+
 /// Runs a job offline, its stock streamed straight to `out/stock.stl` (at fine cells it is
-/// the largest output) and its other results written there: its summary, its row count
-/// and the wall time.
+/// the largest output) and its other results written there; `command` shows its progress
+/// on stderr, counted in `unit` (see [`StderrProgress`]), then `report`'s lines of the
+/// summary and how many moves in how long.
 pub(crate) fn run_offline(
     kind: JobKind,
     options: &Value,
     inputs: LoadedInputs,
     out: &Path,
-    progress: StderrProgress,
-) -> Result<(Value, usize, f64), String> {
+    (command, unit): (&'static str, &'static str),
+    report: fn(&Value) -> String,
+) -> Result<(), String> {
     let started = std::time::Instant::now();
+    let progress = StderrProgress::new(command, unit);
     // Offline, the job may use the machine's memory (as one worker would).
-    let limits = crate::job_limits::JobLimits {
-        memory_bytes: crate::job_limits::default_job_memory_mb(1) << 20,
+    let limits = crate::job_budget::JobLimits {
+        memory_bytes: crate::job_budget::default_job_memory_mb(1) << 20,
     };
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let result = kind.run(
@@ -397,9 +490,18 @@ pub(crate) fn run_offline(
     })?;
     let wall = started.elapsed().as_secs_f64();
     let (summary, rows) = write_outputs(out, done, wall)?;
-    Ok((summary, rows, wall))
+    eprint!("{}", report(&summary));
+    eprintln!(
+        "{command}: {rows} moves in {wall:.2} s; wrote {}",
+        out.display()
+    );
+    Ok(())
 }
 
+/// A job's results into folder `dir`: summary.json (with `wall_s`), blocks.csv (the
+/// summary's `row_columns`), and its files in memory (a program under its file name, the
+/// others under their result names; a stock streamed to its file is there already).
+/// Returns the summary and the row count.
 pub(crate) fn write_outputs(
     dir: &Path,
     out: crate::jobs::JobOutput,

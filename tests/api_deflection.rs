@@ -6,28 +6,16 @@ mod common;
 
 use std::time::Duration;
 
-use serde_json::{json, Value};
+use serde_json::json;
 
 use common::*;
-
-async fn create(c: &reqwest::Client, s: &Server, path: &str, body: Value) -> String {
-    let (st, v) = post_json(c, s, path, &body).await;
-    assert_eq!(st, 201, "{path}: {v}");
-    v["id"].as_str().unwrap().to_string()
-}
 
 #[tokio::test]
 async fn a_slender_tool_reports_its_deflection_and_is_held_to_a_limit() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let stock = create(
-        &c,
-        &s,
-        "/v1/stocks",
-        json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let stock = create(&c, &s, "/v1/stocks", slot_block()).await;
     let tool = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 10, "flutes": 2, "helix_deg": 0,
         "flute_length_mm": 1, "shank_diameter_mm": 10, "stickout_mm": 80, "young_modulus_gpa": 600, "tool_material": "carbide"})).await;
     // Half immersion, 0.5 mm deep, the material on −y.

@@ -21,13 +21,7 @@ async fn a_rapid_through_a_clamp_is_named_in_the_summary_and_the_rows() {
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
     let id = |v: &Value| v["id"].as_str().unwrap().to_string();
-    let (st, stock) = post_json(
-        &c,
-        &s,
-        "/v1/stocks",
-        &json!({"kind":"block","min":[0,-20,-10],"max":[100,20,0]}),
-    )
-    .await;
+    let (st, stock) = post_json(&c, &s, "/v1/stocks", &slot_block()).await;
     assert_eq!(st, 201, "{stock}");
     let tool = post_slot_tool(&c, &s).await;
     // A jaw as an STL stock resource: x 60..70, y −32..−22, up to z 6.
@@ -123,13 +117,7 @@ async fn a_bad_fixture_is_refused_at_submission_naming_the_field() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let (_, stock) = post_json(
-        &c,
-        &s,
-        "/v1/stocks",
-        &json!({"kind":"block","min":[0,-20,-10],"max":[100,20,0]}),
-    )
-    .await;
+    let (_, stock) = post_json(&c, &s, "/v1/stocks", &slot_block()).await;
     let tool = post_slot_tool(&c, &s).await;
     let prog = post_program(&c, &s, "p.nc", "G0 X0 Y0 Z5\nM30\n").await;
     let (_, jaw) = post_stl(

@@ -190,13 +190,7 @@ async fn synthesized_forces_give_the_coefficients_back_and_the_material_simulate
     assert!(from_csv["summary"].get("material").is_none());
 
     // A slot simulated with the identified material cuts with the forces of the original.
-    let (st, stock) = post_json(
-        &c,
-        &s,
-        "/v1/stocks",
-        &json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let (st, stock) = post_json(&c, &s, "/v1/stocks", &slot_block()).await;
     assert_eq!(st, 201, "{stock}");
     let program = "G21 G90 G17\nS3000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-2\nG1 X60 F960\nG0 Z5\nM30\n";
     let mut peaks = Vec::new();
@@ -483,13 +477,7 @@ async fn a_programs_measured_line_forces_give_the_coefficients_back() {
         json!({"type": "bull", "diameter_mm": 8.0, "corner_radius_mm": 1.0, "flutes": 4, "flute_length_mm": 20.0}),
     )
     .await;
-    let (st, stock) = post_json(
-        &c,
-        &s,
-        "/v1/stocks",
-        &json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let (st, stock) = post_json(&c, &s, "/v1/stocks", &slot_block()).await;
     assert_eq!(st, 201, "{stock}");
     // Slots at 1 and 2 mm at four feeds, then a side cut beside the deeper slot.
     let program = "G21 G90 G17\nS8000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-1\nG1 X30 F800\nG1 X60 F2400\nG0 Z5\nG0 X-10 Y-10\nG0 Z-2\nG1 X30 F1600\nG1 X60 F3200\nG0 Z5\nG0 X-10 Y-15\nG0 Z-2\nG1 X60 F2000\nG0 Z5\nM30\n";

@@ -11,12 +11,6 @@ use serde_json::{json, Value};
 
 use common::*;
 
-async fn create(c: &reqwest::Client, s: &Server, path: &str, body: Value) -> String {
-    let (st, v) = post_json(c, s, path, &body).await;
-    assert_eq!(st, 201, "{path}: {v}");
-    v["id"].as_str().unwrap().to_string()
-}
-
 async fn get_bytes(c: &reqwest::Client, s: &Server, path: &str) -> (u16, Vec<u8>) {
     let res = c.get(s.url(path)).send().await.unwrap();
     let status = res.status().as_u16();
@@ -38,13 +32,7 @@ async fn a_two_operation_process_equals_the_manual_chain() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let stock = create(
-        &c,
-        &s,
-        "/v1/stocks",
-        json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let stock = create(&c, &s, "/v1/stocks", slot_block()).await;
     let d10 = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 10, "flutes": 3, "helix_deg": 30, "flute_length_mm": 20})).await;
     let d6 = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 6, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20})).await;
     let rough = post_program(&c, &s, "rough.nc", ROUGH).await;
@@ -206,13 +194,7 @@ async fn bad_operations_are_refused_naming_the_field() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let stock = create(
-        &c,
-        &s,
-        "/v1/stocks",
-        json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let stock = create(&c, &s, "/v1/stocks", slot_block()).await;
     let d10 = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 10, "flutes": 3, "helix_deg": 30, "flute_length_mm": 20})).await;
     let rough = post_program(&c, &s, "rough.nc", ROUGH).await;
     let job = |ops: Value, options: Value| json!({"kind": "process", "inputs": {"stock": stock, "operations": ops}, "options": options});
@@ -294,13 +276,7 @@ async fn an_operation_reads_its_program_in_its_setups_work_offsets() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let stock = create(
-        &c,
-        &s,
-        "/v1/stocks",
-        json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let stock = create(&c, &s, "/v1/stocks", slot_block()).await;
     let d10 = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 10, "flutes": 3, "helix_deg": 30, "flute_length_mm": 20})).await;
     let d6 = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 6, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20})).await;
     // FINISH moved to its own zero: Y0 in G55, the setup's G55 at Y3.
@@ -320,13 +296,7 @@ async fn an_operation_reads_its_program_in_its_setups_work_offsets() {
 
 /// The 100 × 40 × 10 block, a Ø10 and a Ø6 flat end mill: their ids.
 async fn block_and_tools(c: &reqwest::Client, s: &Server) -> (String, String, String) {
-    let stock = create(
-        c,
-        s,
-        "/v1/stocks",
-        json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let stock = create(c, s, "/v1/stocks", slot_block()).await;
     let d10 = create(c, s, "/v1/tools", json!({"type": "flat", "diameter_mm": 10, "flutes": 3, "helix_deg": 30, "flute_length_mm": 20})).await;
     let d6 = create(c, s, "/v1/tools", json!({"type": "flat", "diameter_mm": 6, "flutes": 2, "helix_deg": 30, "flute_length_mm": 20})).await;
     (stock, d10, d6)

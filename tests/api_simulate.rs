@@ -14,7 +14,7 @@ const OPT_COLUMNS: &str = "feed_opt_mm_min,time_opt_s,force_peak_opt_n,force_mea
 /// The block stock (100 × 40 × 10 mm, top at z = 0) and flat D10 4-flute zero-helix tool both
 /// tests cut their slot with; returns their ids.
 async fn slot_stock_and_tool(c: &reqwest::Client, s: &Server) -> (String, String) {
-    let block = json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]});
+    let block = slot_block();
     let (st, v) = post_json(c, s, "/v1/stocks", &block).await;
     assert_eq!(st, 201, "{v}");
     (

@@ -10,24 +10,12 @@ use serde_json::{json, Value};
 
 use common::*;
 
-async fn create(c: &reqwest::Client, s: &Server, path: &str, body: Value) -> String {
-    let (st, v) = post_json(c, s, path, &body).await;
-    assert_eq!(st, 201, "{path}: {v}");
-    v["id"].as_str().unwrap().to_string()
-}
-
 #[tokio::test]
 async fn the_spindle_speed_is_chosen_out_of_chatter_and_bad_values_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let stock = create(
-        &c,
-        &s,
-        "/v1/stocks",
-        json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let stock = create(&c, &s, "/v1/stocks", slot_block()).await;
     let tool = create(&c, &s, "/v1/tools", json!({"type": "flat", "diameter_mm": 10, "flutes": 2, "helix_deg": 0, "flute_length_mm": 30})).await;
     let machine = create(&c, &s, "/v1/machines", json!({"name": "hsm", "rapid_rate": 30000, "max_feed": 20000,
         "acceleration": [2000, 2000, 2000], "spindle_min_rpm": 1000, "spindle_max_rpm": 30000, "rated_power": 15000})).await;

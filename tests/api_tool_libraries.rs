@@ -578,13 +578,7 @@ async fn explicit_tools_win_over_the_library_and_an_unknown_number_is_refused_by
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("t.db"), &["--workers", "1"]);
     let c = client();
-    let (_, stock) = post_json(
-        &c,
-        &s,
-        "/v1/stocks",
-        &json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]}),
-    )
-    .await;
+    let (_, stock) = post_json(&c, &s, "/v1/stocks", &slot_block()).await;
     // The table's T1 (Ø10, flutes and helix assumed) and T2 (Ø6).
     let (st, lib) = upload(
         &c,

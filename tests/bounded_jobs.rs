@@ -16,12 +16,6 @@ use common::*;
 const TOOL: &str =
     r#"{"type":"flat","diameter_mm":10,"flutes":3,"helix_deg":30,"flute_length_mm":25}"#;
 
-async fn create(c: &reqwest::Client, s: &Server, path: &str, body: Value) -> String {
-    let (st, v) = post_json(c, s, path, &body).await;
-    assert_eq!(st, 201, "{path}: {v}");
-    v["id"].as_str().unwrap().to_string()
-}
-
 /// A simulate job of `program` (inline) on a 40×30×10 block with a D10 flat tool.
 async fn simulate_body(c: &reqwest::Client, s: &Server, name: &str, program: &str) -> Value {
     let stock = create(

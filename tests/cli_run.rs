@@ -138,6 +138,15 @@ fn run_writes_summary_rows_and_final_stock() {
             .contains("at least one target")
     );
     assert!(refuse(&["--block=0,0,0,1,1"]).contains("six numbers"));
+    // A misspelt limit is named by the flag that gave it, without a position in JSON the
+    // command wrote itself.
+    let misspelt = refuse(&["--block=0,0,0,1,1,1", "--optimize", "max_forse=400"]);
+    assert!(
+        misspelt.contains("--optimize (options.limits")
+            && misspelt.contains("max_forse")
+            && !misspelt.contains(" column "),
+        "{misspelt}"
+    );
     let machine = dir.path().join("machine.json");
     std::fs::write(&machine, r#"{"name":"m","rapid_rate":0,"max_feed":1,"acceleration":[1,1,1],"spindle_min_rpm":0,"spindle_max_rpm":1,"rated_power":1}"#).unwrap();
     assert!(refuse(&[

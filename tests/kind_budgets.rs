@@ -43,12 +43,6 @@ fn program(lines: usize) -> String {
     p + "M30\n"
 }
 
-async fn create(c: &reqwest::Client, s: &Server, path: &str, body: Value) -> String {
-    let (st, v) = post_json(c, s, path, &body).await;
-    assert_eq!(st, 201, "{path}: {v}");
-    v["id"].as_str().unwrap().to_string()
-}
-
 const MACHINE: &str = r#"{"name": "VMC", "rapid_rate": 24000.0, "max_feed": 8000.0,
     "acceleration": [2000.0, 2000.0, 1500.0], "spindle_min_rpm": 500.0, "spindle_max_rpm": 12000.0,
     "rated_power": 5500.0, "efficiency": 0.8, "torque_limit": 30.0, "axis_thrust_limit": 3000.0,

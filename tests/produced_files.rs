@@ -98,7 +98,7 @@ async fn a_large_produced_stock_downloads_byte_for_byte() {
 /// its rows in the database, and that deleting the job removes them.
 async fn download_matches(s: &Server, program: &str, expected: &[u8]) {
     let c = client();
-    let block = json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]});
+    let block = slot_block();
     let (st, stock) = post_json(&c, s, "/v1/stocks", &block).await;
     assert_eq!(st, 201, "{stock}");
     let (st, tool) = post_json(&c, s, "/v1/tools", &serde_json::from_str(BALL).unwrap()).await;

@@ -289,7 +289,7 @@ async fn an_upload_the_disk_cannot_spare_is_refused_507() {
     assert_eq!(row_counts(&s).await, before, "a refused upload left rows");
 
     // A parametric stock is no upload to spool.
-    let block = json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]});
+    let block = slot_block();
     let (st, v) = post_json(&c, &s, "/v1/stocks", &block).await;
     assert_eq!(st, 201, "{v}");
 }

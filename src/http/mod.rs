@@ -49,7 +49,7 @@ pub struct AppState {
     pub shutdown: tokio::sync::watch::Receiver<bool>,
     pub max_attempts: i64,
     /// What each job is held to: submissions estimated over it are refused.
-    pub job_limits: crate::job_limits::JobLimits,
+    pub job_limits: crate::job_budget::JobLimits,
     /// Which webhook targets registration accepts.
     pub webhooks: crate::webhooks::WebhookConfig,
     /// The other sites whose pages may call the API (`--cors-origin`).

@@ -97,6 +97,16 @@ fn multipart_error(e: axum::extract::multipart::MultipartError, limit: u64) -> A
     }
 }
 
+/// The name an upload's checks call its file by: the one the query gives, else the
+/// upload's own, else `default`.
+fn file_label(query: &UploadQuery, upload_name: &Option<String>, default: &str) -> String {
+    query
+        .name
+        .clone()
+        .or(upload_name.clone())
+        .unwrap_or_else(|| default.into())
+}
+
 pub async fn create(
     kind: ResourceKind,
     State(state): State<AppState>,
@@ -128,11 +138,7 @@ pub async fn create(
                             crate::config::DEFAULT_MAX_STL_BYTES,
                         )
                     })?;
-            let file = query
-                .name
-                .clone()
-                .or(name.clone())
-                .unwrap_or_else(|| "stock.stl".into());
+            let file = file_label(&query, &name, "stock.stl");
             // Read back from the file a block at a time (twice if it has duplicate
             // triangles); the check is CPU work: keep it off the runtime.
             let spool = spooled.reader()?;
@@ -171,11 +177,7 @@ pub async fn create(
             let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0)
                 .await
                 .map_err(program_too_large)?;
-            let file = query
-                .name
-                .clone()
-                .or(name.clone())
-                .unwrap_or_else(|| "program.nc".into());
+            let file = file_label(&query, &name, "program.nc");
             let (bytes, _, checked) =
                 super::parsing::program(bytes, file, limits.max_program_bytes).await?;
             let name = query.name.or(name);
@@ -186,11 +188,7 @@ pub async fn create(
             let (bytes, name) = upload_into::<Vec<u8>>(req, limits.max_program_bytes, 0)
                 .await
                 .map_err(program_too_large)?;
-            let file = query
-                .name
-                .clone()
-                .or(name.clone())
-                .unwrap_or_else(|| "tools".into());
+            let file = file_label(&query, &name, "tools");
             // Read once, here: the GET answers from the view stored beside the file.
             let (bytes, (checked, view)) =
                 read_library_serially("the tool library reader", move || {

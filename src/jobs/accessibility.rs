@@ -19,6 +19,7 @@ use millsim_engine::tool::{HolderSegment, Tool};
 
 use super::inputs::{invalid, json_input};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile, SubmittedInputs};
+use crate::job_budget::KindEstimate;
 use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -186,10 +187,34 @@ pub fn check_part(o: &AccessibilityOptions, inputs: &SubmittedInputs) -> Result<
             "the part must be an STL mesh, not a parametric stock",
         ));
     }
-    if let Some((lo, hi)) = crate::job_limits::summary_bounds(&part.summary) {
+    if let Some((lo, hi)) = crate::job_budget::summary_bounds(&part.summary) {
         check_points(o, lo, hi)?;
     }
     Ok(())
+}
+
+/// Bytes an accessibility job holds per byte of its part's STL (50 bytes a triangle in
+/// binary): the mesh read (about 36 B a triangle), and the evaluations of
+/// axes running at once (about 4 with two threads nesting), each with the triangles seen
+/// along its axis and their clipped polygons (about 160 B a triangle). ASCII STL is larger
+/// per triangle, so the same factor overestimates it. Measured (release, `/usr/bin/time -v
+/// millsim accessibility` on the synthetic impeller, binary STL): 1.27 MB → 19.6 MB peak RSS,
+/// 10.0 MB → 52.9 MB, 39.7 MB → 173 MB; this estimate gives 41, 181 and 656 MB.
+pub const ACCESSIBILITY_BYTES_PER_PART_BYTE: u64 = 16;
+
+/// The rasters of the evaluations at once (512² cells, about 20 B a cell, four of them).
+pub const ACCESSIBILITY_RASTER_BYTES: u64 = 4 * 512 * 512 * 20;
+
+/// The memory of an accessibility job whose part's STL is `part_bytes` bytes: the mesh,
+/// the evaluations of axes at once and their rasters.
+pub fn estimate(_: &AccessibilityOptions, part_bytes: u64) -> KindEstimate {
+    KindEstimate::new(
+        part_bytes
+            .saturating_mul(ACCESSIBILITY_BYTES_PER_PART_BYTE)
+            .saturating_add(ACCESSIBILITY_RASTER_BYTES),
+        0,
+        0,
+    )
 }
 
 /// Entry and target inside the part's bounds.

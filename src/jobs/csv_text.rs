@@ -2,7 +2,57 @@
 //! line forces): a header naming the columns, then one row a line; each reader checks its own
 //! columns and turns cells into its rows with these pieces, so the three agree on the errors.
 
+use serde_json::Value;
+
 use crate::problem::Problem;
+
+/// The rows of option `field`, given as an array of objects or as CSV text (read by
+/// `csv`): anything else is refused naming `shape`, the fields a row has, and more than
+/// `max` rows naming `what` they are.
+pub(super) fn array_or_csv(
+    value: &Value,
+    field: &str,
+    shape: &str,
+    max: usize,
+    what: &str,
+    csv: impl FnOnce(&str) -> Result<Vec<Value>, Problem>,
+) -> Result<Vec<Value>, Problem> {
+    let rows: Vec<Value> = match value {
+        Value::Array(rows) => rows.clone(),
+        Value::String(text) => csv(text)?,
+        _ => {
+            return Err(Problem::invalid_field(
+                field,
+                format!("give an array of {shape} or CSV text with those columns"),
+            ))
+        }
+    };
+    if rows.len() > max {
+        return Err(Problem::invalid_field(
+            field,
+            format!("at most {max} {what}, got {}", rows.len()),
+        ));
+    }
+    Ok(rows)
+}
+
+/// Row `i` of option `field` (`options.cuts`) read as a `T`; a value that does not read
+/// is named by its path in the row (`options.cuts[2].fx_n`).
+pub(super) fn json_row<T: serde::de::DeserializeOwned>(
+    field: &str,
+    i: usize,
+    row: &Value,
+) -> Result<T, Problem> {
+    serde_path_to_error::deserialize(row).map_err(|e| {
+        let path = e.path().to_string();
+        let sub = if path == "." {
+            String::new()
+        } else {
+            format!(".{path}")
+        };
+        Problem::invalid_field(format!("{field}[{i}]{sub}"), e.inner().to_string())
+    })
+}
 
 /// The header's column names and the data lines that follow it (blank lines skipped), each
 /// with its 0-based line number in the text; `field` names the option in the problem.

@@ -6,11 +6,13 @@ use serde_json::{json, Value};
 
 use millsim_engine::job::CancelFlag;
 use millsim_engine::machine::Machine;
+use millsim_engine::optimize::energy::DEFAULT_SEARCH_STEPS;
 use millsim_engine::optimize::energy_search::{run_energy_job_with, EnergySearchOptions};
 use millsim_engine::tool::Tool;
 
 use super::inputs::{check_material, job_material, json_input, required};
 use super::{input, FieldError, InputSpec, JobFailure, JobOutput, LoadedInputs};
+use crate::job_budget::{lobe_matrices_bytes, KindEstimate};
 use crate::problem::Problem;
 use crate::store::ResourceKind;
 
@@ -46,6 +48,22 @@ pub fn options(options: &Value, has_material_input: bool) -> Result<EnergyOption
         .validate()
         .map_err(|e| FieldError::new(format!("options.{}", e.field()), e.to_string()))?;
     Ok((search, material))
+}
+
+/// The memory of an energy job whose `workers` lobe workers run at once: with modes, the
+/// transition matrices of its stability limit's lobes.
+pub fn estimate(energy: &EnergyOptions, workers: u64) -> KindEstimate {
+    let search = &energy.0;
+    let modes = (search.modes_x.len() + search.modes_y.len()) as u64;
+    let mut lobe_matrices = 0;
+    if modes > 0 {
+        let steps = search
+            .steps_per_period
+            .unwrap_or(DEFAULT_SEARCH_STEPS)
+            .into();
+        lobe_matrices = lobe_matrices_bytes(search.stability_method, modes, steps, workers);
+    }
+    KindEstimate::new(0, lobe_matrices, 0)
 }
 
 /// Spindle speed, depths and feed of a face or side milling task that maximize the energy

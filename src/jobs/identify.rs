@@ -21,7 +21,7 @@ use super::identify_cuts;
 use super::identify_program;
 use super::inputs::{invalid, json_input, required};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputResource};
-use crate::job_limits::JobLimits;
+use crate::job_budget::JobLimits;
 use crate::problem::Problem;
 use crate::store::ResourceKind;
 use millsim_engine::job::{CancelFlag, Progress};
@@ -286,16 +286,7 @@ fn rows_from_json(rows: &[Value]) -> Result<Vec<ForceMeasurement>, Problem> {
     rows.iter()
         .enumerate()
         .map(|(i, row)| {
-            let r: MeasurementRow = serde_path_to_error::deserialize(row).map_err(|e| {
-                let inner = e.inner().to_string();
-                let path = e.path().to_string();
-                let at = if path == "." {
-                    String::new()
-                } else {
-                    format!(".{path}")
-                };
-                Problem::invalid_field(format!("options.measurements[{i}]{at}"), inner)
-            })?;
+            let r: MeasurementRow = super::csv_text::json_row("options.measurements", i, row)?;
             Ok(ForceMeasurement {
                 feed_per_tooth: r.feed_per_tooth_mm,
                 fx: r.fx_n,

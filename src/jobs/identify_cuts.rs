@@ -61,35 +61,19 @@ pub fn read_cuts(
     default_angles: (f64, f64),
 ) -> Result<Vec<IdentificationCut>, Problem> {
     let field = "options.cuts";
-    let rows: Vec<Value> = match value {
-        Value::Array(rows) => rows.clone(),
-        Value::String(text) => csv_rows(text)?,
-        _ => {
-            return Err(Problem::invalid_field(
-                field,
-                "give an array of {depth_mm, feed_per_tooth_mm, fx_n, fy_n, fz_n, and entry_deg/exit_deg or width_mm with milling} or CSV text with those columns",
-            ))
-        }
-    };
-    if rows.len() > MAX_CUTS {
-        return Err(Problem::invalid_field(
-            field,
-            format!("at most {MAX_CUTS} cuts, got {}", rows.len()),
-        ));
-    }
+    let rows = super::csv_text::array_or_csv(
+        value,
+        field,
+        "{depth_mm, feed_per_tooth_mm, fx_n, fy_n, fz_n, and entry_deg/exit_deg or width_mm with milling}",
+        MAX_CUTS,
+        "cuts",
+        csv_rows,
+    )?;
     rows.iter()
         .enumerate()
         .map(|(i, row)| {
             let at = |f: &str| format!("{field}[{i}]{f}");
-            let r: CutRow = serde_path_to_error::deserialize(row).map_err(|e| {
-                let path = e.path().to_string();
-                let sub = if path == "." {
-                    String::new()
-                } else {
-                    format!(".{path}")
-                };
-                Problem::invalid_field(at(&sub), e.inner().to_string())
-            })?;
+            let r: CutRow = super::csv_text::json_row(field, i, row)?;
             let immersion =
                 match (r.width_mm, r.entry_deg.or(r.exit_deg), r.milling) {
                     (Some(_), Some(_), _) => {

@@ -15,7 +15,7 @@ use super::identify_cuts;
 use super::inputs::{invalid, program_failure};
 use super::simulate::{spec_from_inputs, BuiltSpec, SimulateOptions};
 use super::{JobFailure, JobOutput, LoadedInputs};
-use crate::job_limits::JobLimits;
+use crate::job_budget::JobLimits;
 use crate::problem::Problem;
 
 /// One measured line as the API names its columns.
@@ -34,35 +34,19 @@ const COLUMNS: [&str; 4] = ["line", "fx_n", "fy_n", "fz_n"];
 /// those columns (any order). Each line once.
 pub fn read_lines(value: &Value) -> Result<Vec<LineForce>, Problem> {
     let field = "options.line_forces";
-    let rows: Vec<Value> = match value {
-        Value::Array(rows) => rows.clone(),
-        Value::String(text) => csv_rows(text)?,
-        _ => {
-            return Err(Problem::invalid_field(
-                field,
-                "give an array of {line, fx_n, fy_n, fz_n} or CSV text with those columns",
-            ))
-        }
-    };
-    if rows.len() > MAX_LINES {
-        return Err(Problem::invalid_field(
-            field,
-            format!("at most {MAX_LINES} lines, got {}", rows.len()),
-        ));
-    }
+    let rows = super::csv_text::array_or_csv(
+        value,
+        field,
+        "{line, fx_n, fy_n, fz_n}",
+        MAX_LINES,
+        "lines",
+        csv_rows,
+    )?;
     let mut seen = std::collections::BTreeSet::new();
     rows.iter()
         .enumerate()
         .map(|(i, row)| {
-            let r: LineRow = serde_path_to_error::deserialize(row).map_err(|e| {
-                let path = e.path().to_string();
-                let sub = if path == "." {
-                    String::new()
-                } else {
-                    format!(".{path}")
-                };
-                Problem::invalid_field(format!("{field}[{i}]{sub}"), e.inner().to_string())
-            })?;
+            let r: LineRow = super::csv_text::json_row(field, i, row)?;
             if !seen.insert(r.line) {
                 return Err(Problem::invalid_field(
                     format!("{field}[{i}].line"),

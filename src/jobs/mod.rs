@@ -27,7 +27,7 @@ use millsim_engine::geometry::{Mesh, StlError};
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::pipeline::StlSource;
 
-use crate::job_limits::JobLimits;
+use crate::job_budget::{self, JobLimits, KindEstimate};
 use crate::problem::{parse_options, Problem};
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -372,11 +372,32 @@ impl JobOptions {
         }
     }
 
+    /// The memory estimate of a job with these options and a program of `program_bytes`
+    /// bytes (an accessibility job: a part), by its kind's own `estimate`, when its kind
+    /// is estimated from its options and the program's size (not simulate/optimize or
+    /// process, checked by their grid, nor identify); `workers` lobe workers run at once
+    /// (the job process's thread pool).
+    pub fn estimate(&self, program_bytes: u64, workers: u64) -> Option<KindEstimate> {
+        match self {
+            JobOptions::Interpret(o) => Some(interpret::estimate(o, program_bytes)),
+            JobOptions::RotaryFeed(o) => Some(rotary_feed::estimate(o, program_bytes)),
+            JobOptions::Accessibility(o) => Some(accessibility::estimate(o, program_bytes)),
+            JobOptions::Stability(o) => Some(stability::estimate(o, workers)),
+            JobOptions::Energy(o) => Some(energy::estimate(o, workers)),
+            JobOptions::Simulate(_)
+            | JobOptions::Optimize(_)
+            | JobOptions::Process(_)
+            | JobOptions::Identify(_) => None,
+        }
+    }
+
     /// A job that cannot fit the job memory budget is refused at submission (422 naming
     /// the budget and the estimate) rather than failed later. A simulation (and a
     /// process) by its grid and stock export alone, what needs the program (step records,
-    /// rows) being checked when the job runs; the other kinds by their options and the size
-    /// of their program (an accessibility job: of its part), see `job_estimates`.
+    /// rows) being checked when the job runs; the other kinds by their [`estimate`] from
+    /// their options and the size of their program (an accessibility job: of its part).
+    ///
+    /// [`estimate`]: Self::estimate
     pub fn check_memory_budget(
         &self,
         inputs: &SubmittedInputs,
@@ -399,7 +420,10 @@ impl JobOptions {
                 let program = inputs
                     .inline_program
                     .or(inputs.stored(input).map(|r| r.size));
-                crate::job_estimates::check(self, program.unwrap_or(0), limits)
+                match self.estimate(program.unwrap_or(0), job_budget::lobe_workers()) {
+                    Some(e) => job_budget::kinds::check(kind, &e, limits),
+                    None => Ok(()),
+                }
             }
         }
     }

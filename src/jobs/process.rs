@@ -25,7 +25,8 @@ use super::{
     input, FieldError, InputSpec, JobFailure, JobOutput, LoadedInput, LoadedInputs, OutputFile,
     SubmittedInputs,
 };
-use crate::job_limits::JobLimits;
+use crate::job_budget::problems::{mib, over_memory_budget};
+use crate::job_budget::JobLimits;
 use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -503,22 +504,18 @@ pub fn run(
     let memory = process_estimate(&estimates, o.keep_stocks);
     if let Some((bytes, estimate)) = &memory {
         if *bytes > limits.memory_bytes {
-            let mib = bytes.div_ceil(1 << 20);
-            return Err(JobFailure::Invalid(
-                Problem::resource_limit(
-                    "Over the job's memory budget",
-                    format!(
-                        "the process needs about {mib} MiB (its largest operation, the rows of the others{}), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, fewer operations{}",
-                        if o.keep_stocks { " and the stocks kept" } else { "" },
-                        limits.memory_mb(),
-                        if o.keep_stocks { " or keep_stocks false" } else { "" },
-                    ),
-                    "job_memory_mb",
-                )
-                .with("limit", limits.memory_mb())
-                .with("estimate_mb", mib)
-                .with("estimate", estimate.clone()),
-            ));
+            return Err(JobFailure::Invalid(over_memory_budget(
+                format!(
+                    "the process needs about {} MiB (its largest operation, the rows of the others{}), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, fewer operations{}",
+                    mib(*bytes),
+                    if o.keep_stocks { " and the stocks kept" } else { "" },
+                    limits.memory_mb(),
+                    if o.keep_stocks { " or keep_stocks false" } else { "" },
+                ),
+                limits,
+                *bytes,
+                estimate.clone(),
+            )));
         }
     }
     let process = ProcessSpec {

@@ -12,8 +12,9 @@ use millsim_engine::machine::Machine;
 use millsim_engine::nc;
 
 use super::inputs::{invalid, json_input, program_text, required, stem_and_ext};
-use super::interpret::default_dialect;
+use super::interpret::{default_dialect, INTERPRET_BYTES_PER_PROGRAM_BYTE};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
+use crate::job_budget::KindEstimate;
 use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -182,4 +183,17 @@ pub fn check(o: &RotaryFeedJobOptions) -> Result<(), Problem> {
         ));
     }
     Ok(())
+}
+
+/// A rotary-feed job also holds the corrected program and its report.
+pub const ROTARY_FEED_BYTES_PER_PROGRAM_BYTE: u64 = INTERPRET_BYTES_PER_PROGRAM_BYTE + 2;
+
+/// The memory of a rotary-feed job of a program of `program_bytes` bytes: as an
+/// interpret job's, and the corrected program and its report.
+pub fn estimate(_: &RotaryFeedJobOptions, program_bytes: u64) -> KindEstimate {
+    KindEstimate::new(
+        program_bytes.saturating_mul(ROTARY_FEED_BYTES_PER_PROGRAM_BYTE),
+        0,
+        0,
+    )
 }

@@ -23,8 +23,8 @@ use super::{
     input, FieldError, InputSpec, JobFailure, JobKind, JobOutput, LoadedInputs, OutputFile,
     SubmittedInputs,
 };
+use crate::job_budget::{check_simulation, Checked, JobLimits, Refusal, SimulationCheck};
 use crate::job_library::JobLibrary;
-use crate::job_limits::{check_simulation, Checked, JobLimits, Refusal, SimulationCheck};
 use crate::problem::Problem;
 use crate::store::artifacts::ArtifactContent;
 use crate::store::ResourceKind;
@@ -176,7 +176,7 @@ pub(super) fn grid_budget(
     let Some(stock) = inputs.stored("stock") else {
         return Ok(());
     };
-    let Some(bounds) = crate::job_limits::summary_bounds(&stock.summary) else {
+    let Some(bounds) = crate::job_budget::summary_bounds(&stock.summary) else {
         return Ok(());
     };
     let mut diameters = Vec::new();
@@ -187,7 +187,7 @@ pub(super) fn grid_budget(
         }
         diameters.extend(tool.summary["diameter"].as_f64());
     }
-    match crate::job_limits::submission_estimate(
+    match crate::job_budget::submission_estimate(
         bounds,
         stock.summary["triangles"].as_u64().unwrap_or(0),
         cell_mm,
@@ -195,7 +195,7 @@ pub(super) fn grid_budget(
         limits,
     ) {
         None => Ok(()),
-        Some(estimate) => Err(crate::job_limits::over_budget_problem(
+        Some(estimate) => Err(crate::job_budget::over_budget_problem(
             None, &estimate, limits,
         )),
     }

@@ -6,12 +6,13 @@ use serde_json::{json, Value};
 
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::physics::stability::{
-    compute_lobes_3d_with, compute_lobes_with, recommend_spindle_speed, Stability3dInput,
-    StabilityInput,
+    compute_lobes_3d_with, compute_lobes_with, recommend_spindle_speed, RpmRange, Stability3dInput,
+    StabilityInput, DEFAULT_STEPS_PER_PERIOD,
 };
 
 use super::inputs::invalid;
 use super::{FieldError, JobFailure, JobOutput};
+use crate::job_budget::{lobe_matrices_bytes, KindEstimate};
 
 /// Where to look for a spindle speed: the widest stable pocket within `near_rpm ± window_rpm`
 /// at `depth_mm`.
@@ -91,6 +92,54 @@ pub fn options(options: &Value) -> Result<StabilityRequest, FieldError> {
 
 /// Lobes as rows (rpm, critical depth) — or (allowance_mm, rpm, depth_mm) for a 3-D surface:
 /// /blocks serves them as JSON pages and CSV.
+/// Bytes of one row of lobes (rpm, depth, allowance) as stored JSON.
+const LOBE_ROW_BYTES: u64 = 100;
+
+/// The memory of a stability job whose `workers` lobe workers run at once: their
+/// transition matrices, and the rows of lobes.
+pub fn estimate(request: &StabilityRequest, workers: u64) -> KindEstimate {
+    let (method, mut modes, steps, mut rows) = match request {
+        StabilityRequest::Lobes(i, _) => (
+            i.method,
+            i.modes_x.len() + i.modes_y.len(),
+            i.steps_per_period,
+            speeds(&i.rpm),
+        ),
+        StabilityRequest::Surface(i) => (
+            i.method,
+            i.modes_x.len() + i.modes_y.len(),
+            i.steps_per_period,
+            speeds(&i.rpm),
+        ),
+    };
+    if let StabilityRequest::Surface(i) = request {
+        // A 3-D surface: the workpiece's modes join the tool's, per allowance.
+        modes += i
+            .allowance
+            .iter()
+            .map(|a| a.modes_x.len() + a.modes_y.len())
+            .max()
+            .unwrap_or(0);
+        rows = rows.saturating_mul((i.allowances_mm.len() as u64).max(1));
+    }
+    let steps = steps.unwrap_or(DEFAULT_STEPS_PER_PERIOD).into();
+    KindEstimate::new(
+        0,
+        lobe_matrices_bytes(method, modes as u64, steps, workers),
+        rows.saturating_mul(LOBE_ROW_BYTES),
+    )
+}
+
+/// Speeds of an rpm range (its own check bounds them).
+fn speeds(rpm: &RpmRange) -> u64 {
+    let n = ((rpm.to - rpm.from) / rpm.step).floor() + 1.0;
+    if n.is_finite() && n > 0.0 {
+        n.min(1e12) as u64
+    } else {
+        0
+    }
+}
+
 pub fn run(
     request: StabilityRequest,
     cancel: &CancelFlag,

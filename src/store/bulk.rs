@@ -193,13 +193,7 @@ mod tests {
     /// to `$last`, the last before groups, holding rows stored one by one; closes `$c`.
     macro_rules! migrate_before_groups_and_seed {
         ($c:ident, $backend:literal, $last:literal) => {
-            let old = crate::store::scratch::migrations_up_to($backend, $last);
-            sqlx::migrate::Migrator::new(old.path())
-                .await
-                .unwrap()
-                .run(&mut $c)
-                .await
-                .unwrap();
+            crate::store::scratch::migrate_up_to!($c, $backend, $last);
             for q in old_rows_statements() {
                 sqlx::query(&q).execute(&mut $c).await.unwrap();
             }
@@ -214,10 +208,7 @@ mod tests {
         let url = format!("sqlite://{}", dir.path().join("old.db").display());
         {
             use sqlx::Connection;
-            let opts: sqlx::sqlite::SqliteConnectOptions = url.parse().unwrap();
-            let mut c = sqlx::SqliteConnection::connect_with(&opts.create_if_missing(true))
-                .await
-                .unwrap();
+            let mut c = crate::store::scratch::sqlite_connection(&url).await;
             migrate_before_groups_and_seed!(c, "sqlite", 7);
         }
         old_rows_read_back(&Db::open(&url).await.unwrap()).await;

@@ -190,7 +190,7 @@ impl Db {
 mod tests {
     use std::io::Write;
 
-    use crate::store::scratch::migrations_up_to;
+    use crate::store::scratch::{migrate_up_to, sqlite_connection};
     use crate::store::ResourceKind;
 
     use super::ResourceBody;
@@ -198,13 +198,7 @@ mod tests {
     /// A program stored whole in its row, as before programs were chunked.
     macro_rules! seed_row_content {
         ($c:ident, $backend:literal, $last:literal, $id:expr, $content:expr) => {
-            let old = migrations_up_to($backend, $last);
-            sqlx::migrate::Migrator::new(old.path())
-                .await
-                .unwrap()
-                .run(&mut $c)
-                .await
-                .unwrap();
+            migrate_up_to!($c, $backend, $last);
             let content: &[u8] = $content;
             sqlx::query(
                 "INSERT INTO resources (id, owner, kind, name, media_type, size, summary, content, created_at)
@@ -254,10 +248,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let url = format!("sqlite://{}", dir.path().join("old.db").display());
         {
-            let opts: sqlx::sqlite::SqliteConnectOptions = url.parse().unwrap();
-            let mut c = sqlx::SqliteConnection::connect_with(&opts.create_if_missing(true))
-                .await
-                .unwrap();
+            let mut c = sqlite_connection(&url).await;
             seed_row_content!(c, "sqlite", 11, "big", &big);
             seed_row_content!(c, "sqlite", 11, "small", &small);
             c.close().await.unwrap();

@@ -379,7 +379,7 @@ impl Db {
         cursor: Option<&str>,
         limit: u32,
     ) -> Result<(Vec<JobRecord>, Option<String>), StoreError> {
-        let mut items = on_pool!(&self.pool, p => {
+        let items = on_pool!(&self.pool, p => {
             let rows = sqlx::query(
                 "SELECT * FROM jobs WHERE owner = $1 AND id > $2
                    AND ($3 IS NULL OR status = $3) AND ($4 IS NULL OR kind = $4)
@@ -394,13 +394,7 @@ impl Db {
             .await?;
             rows.iter().map(job_record).collect::<Result<Vec<_>, _>>()?
         });
-        let next = if items.len() > limit as usize {
-            items.truncate(limit as usize);
-            items.last().map(|j| j.id.clone())
-        } else {
-            None
-        };
-        Ok((items, next))
+        Ok(super::page(items, limit, |j| &j.id))
     }
 
     /// Cancels a queued job at once; asks a running one to stop (its worker sees the

@@ -50,6 +50,18 @@ pub enum StoreError {
     UnsupportedUrl(String),
 }
 
+/// A page of a list read with one row more than `limit` (`LIMIT limit + 1`): at most
+/// `limit` items, and the cursor of the next page (the last item's id) when there is one.
+fn page<T>(mut items: Vec<T>, limit: u32, id: impl Fn(&T) -> &String) -> (Vec<T>, Option<String>) {
+    let next = if items.len() > limit as usize {
+        items.truncate(limit as usize);
+        items.last().map(|i| id(i).clone())
+    } else {
+        None
+    };
+    (items, next)
+}
+
 #[derive(Clone)]
 pub struct Db {
     pool: Pool,

@@ -337,7 +337,7 @@ impl Db {
         cursor: Option<&str>,
         limit: u32,
     ) -> Result<(Vec<ResourceRecord>, Option<String>), StoreError> {
-        let mut items = on_pool!(&self.pool, p => {
+        let items = on_pool!(&self.pool, p => {
             let rows = sqlx::query(&format!(
                 "SELECT {RECORD_COLUMNS} FROM resources
                  WHERE owner = $1 AND kind = $2 AND id > $3 ORDER BY id LIMIT $4",
@@ -352,13 +352,7 @@ impl Db {
                 .map(|r| record(kind, r))
                 .collect::<Result<Vec<_>, _>>()?
         });
-        let next = if items.len() > limit as usize {
-            items.truncate(limit as usize);
-            items.last().map(|r| r.id.clone())
-        } else {
-            None
-        };
-        Ok((items, next))
+        Ok(super::page(items, limit, |r| &r.id))
     }
 
     /// Deletes a resource; false when there was none.

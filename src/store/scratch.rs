@@ -76,3 +76,28 @@ pub fn migrations_up_to(backend: &str, last: i64) -> tempfile::TempDir {
     }
     dir
 }
+
+/// Leaves the database of connection `$c` (either driver) at `$backend`'s migrations up
+/// to version `$last` (see [`migrations_up_to`]).
+macro_rules! migrate_up_to {
+    ($c:ident, $backend:literal, $last:literal) => {
+        let old = $crate::store::scratch::migrations_up_to($backend, $last);
+        sqlx::migrate::Migrator::new(old.path())
+            .await
+            .unwrap()
+            .run(&mut $c)
+            .await
+            .unwrap();
+    };
+}
+pub(crate) use migrate_up_to;
+
+/// A connection to the SQLite database at `url`, created if missing (to leave it at an
+/// older version with [`migrate_up_to`]).
+pub async fn sqlite_connection(url: &str) -> sqlx::SqliteConnection {
+    use sqlx::Connection;
+    let opts: sqlx::sqlite::SqliteConnectOptions = url.parse().unwrap();
+    sqlx::SqliteConnection::connect_with(&opts.create_if_missing(true))
+        .await
+        .unwrap()
+}

@@ -388,7 +388,7 @@ impl Db {
         cursor: Option<&str>,
         limit: u32,
     ) -> Result<(Vec<WebhookRecord>, Option<String>), StoreError> {
-        let mut items = on_pool!(&self.pool, p => {
+        let items = on_pool!(&self.pool, p => {
             let rows = sqlx::query(
                 "SELECT id, url, events, created_at FROM webhooks WHERE owner = $1 AND id > $2 ORDER BY id LIMIT $3",
             )
@@ -401,13 +401,7 @@ impl Db {
                 .map(webhook_record)
                 .collect::<Result<Vec<_>, _>>()?
         });
-        let next = if items.len() > limit as usize {
-            items.truncate(limit as usize);
-            items.last().map(|w| w.id.clone())
-        } else {
-            None
-        };
-        Ok((items, next))
+        Ok(super::page(items, limit, |w| &w.id))
     }
 
     /// Deletes a webhook and its deliveries (pending ones are not sent).

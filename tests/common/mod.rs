@@ -282,6 +282,19 @@ pub async fn json(res: reqwest::Response) -> (u16, Value) {
     )
 }
 
+/// Creates a resource (POST `path` with `body`; it must be accepted) and returns its id.
+pub async fn create(c: &reqwest::Client, s: &Server, path: &str, body: Value) -> String {
+    let (st, v) = post_json(c, s, path, &body).await;
+    assert_eq!(st, 201, "{path}: {v}");
+    v["id"].as_str().unwrap().to_string()
+}
+
+/// The block stock the slot tests cut (with [`post_slot_tool`]'s tool): 100 × 40 × 10 mm,
+/// x 0 to 100, y −20 to 20, its top at z 0.
+pub fn slot_block() -> Value {
+    serde_json::json!({"kind": "block", "min": [0, -20, -10], "max": [100, 20, 0]})
+}
+
 /// Uploads a program file and returns its id.
 pub async fn upload_program(c: &reqwest::Client, s: &Server, path: &Path) -> String {
     let name = path.file_name().unwrap().to_string_lossy().to_string();
