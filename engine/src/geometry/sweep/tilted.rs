@@ -202,7 +202,8 @@ struct SectionPlanes {
     /// −∞ for other tools.
     ball_below: f64,
     /// A ball: the highest centre for which the plane stays below the tool's top end (the
-    /// flute length), where `ball_transition` applies; −∞ for other tools.
+    /// flute length); above it the top's cut applies too (`half_ellipse_ray`); −∞ for other
+    /// tools.
     ball_top: f64,
     /// The axis's part along the rays (a·e).
     along: f64,
@@ -303,7 +304,7 @@ impl Sweep<'_> {
     /// tool in a whole ellipse all along the move (see `FullSection`), and on a ball where
     /// the plane cuts only the sphere (its capsule) or the sphere and the cylinder above its
     /// centre (`half_ellipse_ray`). `None` where none applies (a plane near the tool's tip
-    /// or top end): the caller takes the general path.
+    /// or top end, of a tool other than a ball): the caller takes the general path.
     pub(super) fn full_section_ray(
         &self,
         fam: usize,
@@ -332,15 +333,20 @@ impl Sweep<'_> {
         let sigma = tr.sigma_c + t0 * self.mv.axis[fam];
         let omega = tr.omega_c - tr.omega_uv[0] * u - tr.omega_uv[1] * v + t0 * tr.wa;
         if t0.min(t1) < sp.band.0 || t0.max(t1) > sp.band.1 {
-            // A ball whose plane cuts the sphere and the cylinder above it, below the top.
-            if t0.max(t1) <= sp.ball_top && sp.along.abs() > 1e-9 {
-                // The cut at the sphere's centre, one radius up the axis, as an offset along
-                // the ray from the ellipse's centre.
+            // A ball whose plane cuts the sphere and the cylinder above it, and the top end
+            // where the plane reaches it.
+            if sp.ball_top > f64::NEG_INFINITY && sp.along.abs() > 1e-9 {
+                // The cuts at the sphere's centre, one radius up the axis, and at the top,
+                // as offsets along the ray from the ellipse's centre.
                 let cut = ((r - t0) / sp.along, (r - t1) / sp.along);
+                let top = (t0.max(t1) > sp.ball_top).then(|| {
+                    let l = self.body.length;
+                    ((l - t0) / sp.along, (l - t1) / sp.along)
+                });
                 let (c0, c1) = ([sigma, omega], [sigma + tr.d_sigma, omega + tr.d_omega]);
                 return Some(hull(
                     swept_sphere(),
-                    half_ellipse_ray(c0, c1, cut, sp.along > 0.0, r, sp.k),
+                    half_ellipse_ray(c0, c1, cut, top, sp.along > 0.0, r, sp.k),
                 ));
             }
             return None;
@@ -367,19 +373,22 @@ pub(super) fn ray_point(fam: usize, u: f64, v: f64, s: f64) -> [f64; 3] {
     }
 }
 
-/// The line ω = 0 (coordinate σ) against the union over β ∈ [0, 1] of the half-ellipses
-/// {(k·(σ − σ_c))² + (ω − ω_c)² ≤ R², σ − σ_c ≥ γ} (`upper`; ≤ γ otherwise), whose
-/// centre (σ_c, ω_c) = c0 + β·(c1 − c0) and offset γ = γ0 + β·(γ1 − γ0) move linearly: the
-/// part of a ball's section plane above the sphere's centre, swept (see
-/// `Sweep::full_section_ray`). The union is convex (a section of a convex swept body), so
-/// its interval is [min of the lower ends, max of the upper ends] over the β where the
-/// half-ellipse meets the line; the lower end max(σ_c − ρ/k, σ_c + γ) is convex in β and the
-/// upper end σ_c + ρ/k concave (ρ = √(R² − ω_c²)), so each extreme lies at an end of that
-/// β range, where a derivative vanishes, or where the two lower ends cross.
+/// The line ω = 0 (coordinate σ) against the union over β ∈ [0, 1] of the parts of
+/// ellipses {(k·(σ − σ_c))² + (ω − ω_c)² ≤ R²} between two cuts, γ ≤ σ − σ_c ≤ γ_top
+/// (`upper`; mirrored, −γ_top ≤ σ_c − σ ≤ −γ otherwise), whose centre (σ_c, ω_c) = c0 +
+/// β·(c1 − c0) and offsets γ = γ0 + β·(γ1 − γ0), γ_top likewise, move linearly: the part of
+/// a ball's section plane between the sphere's centre and the tool's top end (no top cut
+/// where the plane stays below the top), swept (see `Sweep::full_section_ray`). The union
+/// is convex (a section of a convex swept body), so its interval is [min of the lower ends,
+/// max of the upper ends] over the β where the cut ellipse meets the line; the lower end
+/// max(σ_c − ρ/k, σ_c + γ) is convex in β and the upper end min(σ_c + ρ/k, σ_c + γ_top)
+/// concave (ρ = √(R² − ω_c²)), so each extreme lies at an end of that β range, where a
+/// derivative vanishes, or where a cut crosses the ellipse's end (ρ = ∓k·γ).
 fn half_ellipse_ray(
     c0: [f64; 2],
     c1: [f64; 2],
     cut: (f64, f64),
+    top: Option<(f64, f64)>,
     upper: bool,
     r: f64,
     k: f64,
@@ -387,7 +396,8 @@ fn half_ellipse_ray(
     // The lower side is the upper one with σ mirrored.
     if !upper {
         let m = |c: [f64; 2]| [-c[0], c[1]];
-        return half_ellipse_ray(m(c0), m(c1), (-cut.0, -cut.1), true, r, k)
+        let top = top.map(|t| (-t.0, -t.1));
+        return half_ellipse_ray(m(c0), m(c1), (-cut.0, -cut.1), top, true, r, k)
             .map(|(lo, hi)| (-hi, -lo));
     }
     let (s0, s1) = (c0[0], c1[0] - c0[0]);
@@ -406,67 +416,88 @@ fn half_ellipse_ray(
     if ba > bb {
         return None;
     }
-    // ... and where the cut leaves some of the chord: γ ≤ 0, or (kγ)² + ω_c² ≤ R².
-    let mut lo = f64::INFINITY;
-    let mut hi = f64::NEG_INFINITY;
-    let mut take = |x: f64, y: f64| {
-        let (x, y) = (x.max(ba), y.min(bb));
-        if x <= y {
-            lo = lo.min(x);
-            hi = hi.max(y);
+    // β where the cut at offset h0 + β·h1 leaves some of the chord, within [ba, bb]: on the
+    // side the cut keeps of the centre (sign·γ ≥ 0), or where its line crosses the ellipse
+    // ((kγ)² + ω_c² ≤ R²); the roots of that quadratic are where the cut meets the chord's
+    // end. The set is an interval (ρ + sign·kγ ≥ 0 is concave in β).
+    let cut_range = |(h0, h1): (f64, f64), sign: f64, ba: f64, bb: f64| {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        let mut take = |x: f64, y: f64| {
+            let (x, y) = (x.max(ba), y.min(bb));
+            if x <= y {
+                lo = lo.min(x);
+                hi = hi.max(y);
+            }
+        };
+        if h1.abs() > 1e-15 {
+            let b = -h0 / h1;
+            if sign * h1 < 0.0 {
+                take(f64::NEG_INFINITY, b);
+            } else {
+                take(b, f64::INFINITY);
+            }
+        } else if sign * h0 >= 0.0 {
+            take(f64::NEG_INFINITY, f64::INFINITY);
         }
-    };
-    if g1.abs() > 1e-15 {
-        let b = -g0 / g1;
-        if g1 > 0.0 {
-            take(f64::NEG_INFINITY, b);
-        } else {
-            take(b, f64::INFINITY);
-        }
-    } else if g0 <= 0.0 {
-        take(f64::NEG_INFINITY, f64::INFINITY);
-    }
-    let (qa, qb, qc) = (
-        k * k * g1 * g1 + w1 * w1,
-        2.0 * (k * k * g0 * g1 + w0 * w1),
-        k * k * g0 * g0 + w0 * w0 - r * r,
-    );
-    let roots = (qa > 1e-15)
-        .then(|| {
-            let disc = qb * qb - 4.0 * qa * qc;
-            (disc >= 0.0).then(|| {
-                let sq = disc.sqrt();
-                ((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa))
+        let (qa, qb, qc) = (
+            k * k * h1 * h1 + w1 * w1,
+            2.0 * (k * k * h0 * h1 + w0 * w1),
+            k * k * h0 * h0 + w0 * w0 - r * r,
+        );
+        let roots = (qa > 1e-15)
+            .then(|| {
+                let disc = qb * qb - 4.0 * qa * qc;
+                (disc >= 0.0).then(|| {
+                    let sq = disc.sqrt();
+                    ((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa))
+                })
             })
-        })
-        .flatten();
-    if let Some((x, y)) = roots {
-        take(x, y);
-    } else if qa <= 1e-15 && qc <= 0.0 {
-        take(f64::NEG_INFINITY, f64::INFINITY);
+            .flatten();
+        if let Some((x, y)) = roots {
+            take(x, y);
+        } else if qa <= 1e-15 && qc <= 0.0 {
+            take(f64::NEG_INFINITY, f64::INFINITY);
+        }
+        (lo, hi, roots)
+    };
+    // The centre's cut keeps σ − σ_c ≥ γ (its side is γ ≤ 0), the top's σ − σ_c ≤ γ_top.
+    let (ba, bb, roots) = cut_range((g0, g1), -1.0, ba, bb);
+    if !(ba <= bb) {
+        return None;
     }
-    let (ba, bb) = (lo, hi);
+    let top = top.map(|(t0, t1)| (t0, t1 - t0));
+    let (ba, bb, top_roots) = match top {
+        Some(t) => cut_range(t, 1.0, ba, bb),
+        None => (ba, bb, None),
+    };
     if !(ba <= bb) {
         return None;
     }
     // Candidate β: the ends, the stationary points of σ_c ± ρ/k (ω_c/ρ = ∓k·s1/w1), and
-    // where σ_c − ρ/k = σ_c + γ (ρ = −kγ, on the quadratic's roots).
-    let mut cands = [ba, bb, ba, ba, ba, ba];
+    // where σ_c − ρ/k = σ_c + γ or σ_c + ρ/k = σ_c + γ_top (the quadratics' roots).
+    let mut cands = [ba, bb, ba, ba, ba, ba, ba, ba];
     if w1.abs() > 1e-15 {
         for (i, m) in [k * s1 / w1, -k * s1 / w1].into_iter().enumerate() {
             let w = r * m / (1.0 + m * m).sqrt();
             cands[2 + i] = ((w - w0) / w1).clamp(ba, bb);
         }
     }
-    if let Some((x, y)) = roots {
-        cands[4] = x.clamp(ba, bb);
-        cands[5] = y.clamp(ba, bb);
+    for (i, rs) in [roots, top_roots].into_iter().enumerate() {
+        if let Some((x, y)) = rs {
+            cands[4 + 2 * i] = x.clamp(ba, bb);
+            cands[5 + 2 * i] = y.clamp(ba, bb);
+        }
     }
     let mut out = (f64::INFINITY, f64::NEG_INFINITY);
     for b in cands {
         let (sc, half, g) = (s0 + b * s1, rho(b) / k, g0 + b * g1);
         out.0 = out.0.min(sc + (-half).max(g));
-        out.1 = out.1.max(sc + half);
+        let up = match top {
+            Some((t0, t1)) => half.min(t0 + b * t1),
+            None => half,
+        };
+        out.1 = out.1.max(sc + up);
     }
     (out.0 <= out.1).then_some(out)
 }
@@ -593,6 +624,74 @@ mod tests {
         assert!(
             along_pos > 300 && along_neg > 300,
             "{checked}: {along_pos} {along_neg}"
+        );
+    }
+
+    #[test]
+    fn ball_rays_whose_plane_reaches_the_top_end_are_exact() {
+        // The same against the solids, for rays whose section plane crosses the axis within
+        // a margin of the top end (20 mm up): the plane cuts the cylinder and the top's
+        // disk, and on the steepest rays the sphere as well. Before, these rays took the
+        // general solids.
+        let mut rnd = crate::geometry::sweep::tests::uniform(43);
+        let mut t = Tool::ball(6.0, 2);
+        t.flute_length = 20.0;
+        let body = ToolBody::cutting_part(&t);
+        let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
+        let (mut hits, mut misses, mut along_pos, mut along_neg) = (0, 0, 0, 0);
+        for _ in 0..40_000 {
+            let axis = crate::geometry::sweep::tests::random_axis(&mut rnd, 0.2, 1.2);
+            let p1 = [rnd() * 2.0 - 1.0, rnd() * 2.0 - 1.0, rnd() - 0.5];
+            let sw = Sweep::new(
+                &body,
+                SubMove {
+                    p0: [0.0; 3],
+                    p1,
+                    axis,
+                },
+            );
+            let fam = (rnd() * 3.0) as usize % 3;
+            let Some(sp) = sw.full_section.as_ref().and_then(|f| f.planes[fam]) else {
+                continue;
+            };
+            let h = 20.0 - 6.0 * rnd();
+            let c = [h * axis[0], h * axis[1], h * axis[2]];
+            let (ua, va) = other_axes(fam);
+            let (u, v) = (c[ua] + rnd() * 8.0 - 4.0, c[va] + rnd() * 8.0 - 4.0);
+            let mut o = [0.0; 3];
+            o[ua] = u;
+            o[va] = v;
+            let q = dot(sp.n, o);
+            let (t0, t1) = (q / sp.k, (q - dot(sp.n, p1)) / sp.k);
+            let margin = 3.0 * sp.along.abs() / sp.k;
+            if !(t0.max(t1) > 20.0 - margin) {
+                continue;
+            }
+            let fast = sw
+                .full_section_ray(fam, u, v)
+                .expect("a ball's ray is in closed form");
+            o[fam] = -100.0;
+            let exact = sw.solid_ray(fam, o, 200.0, &full);
+            match (fast, exact) {
+                (Some(f), Some(e)) => {
+                    assert!(
+                        (f.0 - e.0).abs() < 1e-7 && (f.1 - e.1).abs() < 1e-7,
+                        "{fam} {u} {v} {axis:?} {p1:?}: {f:?} vs {e:?}"
+                    );
+                    hits += 1;
+                }
+                (None, None) => misses += 1,
+                _ => panic!("{fam} {u} {v} {axis:?} {p1:?}: {fast:?} vs {exact:?}"),
+            }
+            if sp.along > 0.0 {
+                along_pos += 1;
+            } else {
+                along_neg += 1;
+            }
+        }
+        assert!(
+            hits > 1000 && misses > 100 && along_pos > 300 && along_neg > 300,
+            "{hits} {misses} {along_pos} {along_neg}"
         );
     }
 }
