@@ -344,10 +344,14 @@ impl Sweep<'_> {
                     ((l - t0) / sp.along, (l - t1) / sp.along)
                 });
                 let (c0, c1) = ([sigma, omega], [sigma + tr.d_sigma, omega + tr.d_omega]);
-                return Some(hull(
-                    swept_sphere(),
-                    half_ellipse_ray(c0, c1, cut, top, sp.along > 0.0, r, sp.k),
-                ));
+                let cylinder = half_ellipse_ray(c0, c1, cut, top, sp.along > 0.0, r, sp.k);
+                // The sphere's centre lies (R − t)·k from the ray's plane: a plane more than
+                // R from it all along the move (with a margin for rounding) misses the swept
+                // sphere, and with it the ray.
+                if t0.min(t1) > r + (r / sp.k) * (1.0 + 1e-9) + 1e-9 {
+                    return Some(cylinder);
+                }
+                return Some(hull(swept_sphere(), cylinder));
             }
             return None;
         }
