@@ -203,6 +203,18 @@ impl Problem {
         .with("limit_name", limit_name)
     }
 
+    /// A job whose worker stopped without finishing it on each of its allowed attempts.
+    pub fn worker_lost(attempts: i64, max_attempts: i64) -> Self {
+        Self::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "worker-lost",
+            "Job failed",
+            format!(
+                "the worker running this job stopped without finishing it {attempts} times (max attempts {max_attempts})"
+            ),
+        )
+    }
+
     /// A request body that stalled (see `body::body_timeout`).
     pub fn body_timeout() -> Self {
         Self::new(

@@ -133,14 +133,6 @@ impl Backend {
             Backend::Postgres => " FOR UPDATE SKIP LOCKED",
         }
     }
-
-    /// A JSON object built in SQL from `key, value, ...` pairs, as text.
-    pub fn json_object(self, pairs: &str) -> String {
-        match self {
-            Backend::Sqlite => format!("json_object({pairs})"),
-            Backend::Postgres => format!("json_build_object({pairs})::text"),
-        }
-    }
 }
 
 /// Types a row column decodes to on both backends.

@@ -433,28 +433,32 @@ impl Db {
     pub async fn fail_exhausted(&self) -> Result<u64, StoreError> {
         let now = now_ms();
         let mut tx = self.begin().await?;
-        let backend = tx.backend();
-        let error = backend.json_object(
-            "'type', 'https://millsim.dev/problems/worker-lost', 'title', 'Job failed',
-                    'status', 500, 'detail', 'the worker running this job stopped without finishing it ' || attempts || ' times (max attempts ' || max_attempts || ')'",
-        );
-        let ids: Vec<(String, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
-            "UPDATE jobs SET status = 'failed', finished_at = $1, updated_at = $1, lease_owner = NULL,
-                error = {error}
+        let skip_locked = tx.backend().skip_locked();
+        let lost: Vec<(String, i64, i64)> = on_tx!(&mut tx, c => sqlx::query_as(&format!(
+            "UPDATE jobs SET status = 'failed', finished_at = $1, updated_at = $1, lease_owner = NULL
              WHERE id IN (SELECT id FROM jobs
-                          WHERE status = 'running' AND lease_expires_at < $1 AND attempts >= max_attempts{})
-             RETURNING id, attempts",
-            backend.skip_locked()
+                          WHERE status = 'running' AND lease_expires_at < $1 AND attempts >= max_attempts{skip_locked})
+             RETURNING id, attempts, max_attempts",
         ))
         .bind(now)
         .fetch_all(&mut *c)
         .await?);
-        for (id, attempt) in &ids {
-            close_lost_attempt(&mut tx, id, *attempt, now).await?;
+        // The problem is built here like every other, not as JSON inside the SQL.
+        for (id, attempts, max_attempts) in &lost {
+            let error = crate::problem::Problem::worker_lost(*attempts, *max_attempts)
+                .to_json()
+                .to_string();
+            on_tx!(&mut tx, c => sqlx::query("UPDATE jobs SET error = $1 WHERE id = $2")
+                .bind(error)
+                .bind(id)
+                .execute(&mut *c)
+                .await?
+                .rows_affected());
+            close_lost_attempt(&mut tx, id, *attempts, now).await?;
             enqueue_job_event(&mut tx, id, "job.failed").await?;
         }
         tx.commit().await?;
-        Ok(ids.len() as u64)
+        Ok(lost.len() as u64)
     }
 
     /// Settles the jobs of dead workers (leases expired): failed when their attempts are
