@@ -232,6 +232,10 @@ struct RayTerms {
     d_omega: f64,
     inv_k: f64,
     segment: Stadium,
+    /// A ball's cut ellipse (`half_ellipse_ray`): the ω_c where σ_c ± ρ/k is stationary in
+    /// the move's fraction (the same pair for either orientation), `None` when ω_c does
+    /// not move.
+    stationary: Option<[f64; 2]>,
 }
 
 impl FullSection {
@@ -280,6 +284,11 @@ impl FullSection {
                 d_omega,
                 inv_k,
                 segment: Stadium::new([0.0, 0.0], [k * d_sigma, d_omega]),
+                stationary: (d_omega.abs() > 1e-15).then(|| {
+                    let m = k * d_sigma / d_omega;
+                    let w = r * m / (1.0 + m * m).sqrt();
+                    [w, -w]
+                }),
             };
             (band.0 < band.1 || ball.is_some()).then_some(SectionPlanes {
                 #[cfg(test)]
@@ -344,7 +353,12 @@ impl Sweep<'_> {
                     ((l - t0) / sp.along, (l - t1) / sp.along)
                 });
                 let (c0, c1) = ([sigma, omega], [sigma + tr.d_sigma, omega + tr.d_omega]);
-                let cylinder = half_ellipse_ray(c0, c1, cut, top, sp.along > 0.0, r, sp.k);
+                let ellipse = CutEllipse {
+                    r,
+                    k: sp.k,
+                    stationary: tr.stationary,
+                };
+                let cylinder = half_ellipse_ray(c0, c1, cut, top, sp.along > 0.0, &ellipse);
                 // The sphere's centre lies (R − t)·k from the ray's plane: a plane more than
                 // R from it all along the move (with a margin for rounding) misses the swept
                 // sphere, and with it the ray.
@@ -377,6 +391,14 @@ pub(super) fn ray_point(fam: usize, u: f64, v: f64, s: f64) -> [f64; 3] {
     }
 }
 
+/// The ellipse `half_ellipse_ray` cuts: the tool's radius R, the squash k along the ray,
+/// and the sweep's stationary ω_c (see `RayTerms::stationary`).
+struct CutEllipse {
+    r: f64,
+    k: f64,
+    stationary: Option<[f64; 2]>,
+}
+
 /// The line ω = 0 (coordinate σ) against the union over β ∈ [0, 1] of the parts of
 /// ellipses {(k·(σ − σ_c))² + (ω − ω_c)² ≤ R²} between two cuts, γ ≤ σ − σ_c ≤ γ_top
 /// (`upper`; mirrored, −γ_top ≤ σ_c − σ ≤ −γ otherwise), whose centre (σ_c, ω_c) = c0 +
@@ -394,16 +416,16 @@ fn half_ellipse_ray(
     cut: (f64, f64),
     top: Option<(f64, f64)>,
     upper: bool,
-    r: f64,
-    k: f64,
+    ellipse: &CutEllipse,
 ) -> Option<(f64, f64)> {
     // The lower side is the upper one with σ mirrored.
     if !upper {
         let m = |c: [f64; 2]| [-c[0], c[1]];
         let top = top.map(|t| (-t.0, -t.1));
-        return half_ellipse_ray(m(c0), m(c1), (-cut.0, -cut.1), top, true, r, k)
+        return half_ellipse_ray(m(c0), m(c1), (-cut.0, -cut.1), top, true, ellipse)
             .map(|(lo, hi)| (-hi, -lo));
     }
+    let &CutEllipse { r, k, stationary } = ellipse;
     let (s0, s1) = (c0[0], c1[0] - c0[0]);
     let (w0, w1) = (c0[1], c1[1] - c0[1]);
     let (g0, g1) = (cut.0, cut.1 - cut.0);
@@ -480,10 +502,10 @@ fn half_ellipse_ray(
     }
     // Candidate β: the ends, the stationary points of σ_c ± ρ/k (ω_c/ρ = ∓k·s1/w1), and
     // where σ_c − ρ/k = σ_c + γ or σ_c + ρ/k = σ_c + γ_top (the quadratics' roots).
+    // The stationary ω_c come with the sweep: ±R·m/√(1 + m²), m = k·s1/w1.
     let mut cands = [ba, bb, ba, ba, ba, ba, ba, ba];
-    if w1.abs() > 1e-15 {
-        for (i, m) in [k * s1 / w1, -k * s1 / w1].into_iter().enumerate() {
-            let w = r * m / (1.0 + m * m).sqrt();
+    if let (true, Some(ws)) = (w1.abs() > 1e-15, stationary) {
+        for (i, w) in ws.into_iter().enumerate() {
             cands[2 + i] = ((w - w0) / w1).clamp(ba, bb);
         }
     }
