@@ -695,7 +695,7 @@ mod tests {
             }
             let fast = sw
                 .full_section_ray(fam, u, v)
-                .expect("a ball's ray is in closed form");
+                .expect("the ray of a ball is in closed form");
             o[fam] = -100.0;
             let exact = sw.solid_ray(fam, o, 200.0, &full);
             match (fast, exact) {
