@@ -188,10 +188,6 @@ pub(super) struct FullSection {
 /// One family's section planes (see `FullSection`).
 #[derive(Clone, Copy, Debug)]
 struct SectionPlanes {
-    /// The planes' normal (the per-ray terms hold what the rays need of it and of the
-    /// direction across the rays within a plane, w = n × e).
-    #[cfg(test)]
-    n: [f64; 3],
     /// a·n, the squash along the ray.
     k: f64,
     /// Heights of the ellipse's centre up the axis where it is whole within the top
@@ -291,8 +287,6 @@ impl FullSection {
                 }),
             };
             (band.0 < band.1 || ball.is_some()).then_some(SectionPlanes {
-                #[cfg(test)]
-                n,
                 k,
                 band,
                 ball_below,
@@ -587,6 +581,15 @@ mod tests {
     use crate::geometry::sweep::SubMove;
     use crate::tool::Tool;
 
+    /// The section planes' unit normal for rays of family `fam`: the axis with its part
+    /// along the rays taken out.
+    fn plane_normal(axis: [f64; 3], fam: usize) -> [f64; 3] {
+        let mut n = axis;
+        n[fam] = 0.0;
+        let k = norm(n);
+        [n[0] / k, n[1] / k, n[2] / k]
+    }
+
     #[test]
     fn ball_rays_whose_plane_cuts_the_sphere_and_the_cylinder_are_exact() {
         // A steeply tilted ball, every family: rays whose section plane crosses the axis
@@ -621,8 +624,9 @@ mod tests {
             let mut o = [0.0; 3];
             o[ua] = u;
             o[va] = v;
-            let q = dot(sp.n, o);
-            let (t0, t1) = (q / sp.k, (q - dot(sp.n, p1)) / sp.k);
+            let n = plane_normal(axis, fam);
+            let q = dot(n, o);
+            let (t0, t1) = (q / sp.k, (q - dot(n, p1)) / sp.k);
             let margin = 3.0 * sp.along.abs() / sp.k;
             if !(t0.max(t1) > 3.0 - margin && t0.min(t1) < 3.0 + margin) {
                 continue;
@@ -687,8 +691,9 @@ mod tests {
             let mut o = [0.0; 3];
             o[ua] = u;
             o[va] = v;
-            let q = dot(sp.n, o);
-            let (t0, t1) = (q / sp.k, (q - dot(sp.n, p1)) / sp.k);
+            let n = plane_normal(axis, fam);
+            let q = dot(n, o);
+            let (t0, t1) = (q / sp.k, (q - dot(n, p1)) / sp.k);
             let margin = 3.0 * sp.along.abs() / sp.k;
             if !(t0.max(t1) > 20.0 - margin) {
                 continue;
