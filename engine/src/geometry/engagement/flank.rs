@@ -133,8 +133,10 @@ impl FlankLine {
     }
 
     /// Pushes (m, lo, hi) for each run lo..hi of slices in `j0..j1` whose point is in
-    /// material, testing slice by slice (the points of a steep line cross a ray every few
-    /// slices: each ray is looked up once, for the slices on it).
+    /// material, testing slice by slice (the points of a steep line cross a ray every
+    /// slice or two). The rays of a batch of slices are found first, then read: the
+    /// cells' divisions and the rays' loads of one slice then wait on no test of the
+    /// slice before.
     pub(super) fn ranges_by_slices(
         &self,
         grid: &DexelGrid,
@@ -143,29 +145,46 @@ impl FlankLine {
         j1: usize,
         ranges: &mut Vec<(usize, usize, usize)>,
     ) {
+        const BATCH: usize = 32;
+        const OFF: usize = usize::MAX;
         let zf = &grid.families[2];
-        let mut cell = None;
-        let mut ray: &[[f64; 2]] = &[];
+        let (nx, ny) = (grid.n[0] as f64, grid.n[1] as f64);
+        let (bx, by) = (self.base[0] - grid.origin[0], self.base[1] - grid.origin[1]);
+        let mut at = [OFF; BATCH];
         let mut open: Option<usize> = None;
-        for j in j0..j1 {
-            let here = self.cell(grid, j);
-            if here != cell {
-                cell = here;
-                ray = match here {
-                    Some((i, k)) => &zf.rays[i + zf.nu * k],
-                    None => &[],
+        let mut jb = j0;
+        while jb < j1 {
+            let n = (j1 - jb).min(BATCH);
+            // Slice j's centre (j + ½ as `cell_coord` and `height` take it, counted in
+            // floating point: whole numbers, so the same values).
+            let mut c = jb as f64 + 0.5;
+            for slot in at[..n].iter_mut() {
+                let x = (bx + self.axis[0] * c * self.dz) / grid.cell;
+                let y = (by + self.axis[1] * c * self.dz) / grid.cell;
+                *slot = if x >= 0.0 && x < nx && y >= 0.0 && y < ny {
+                    x as usize + zf.nu * y as usize
+                } else {
+                    OFF
                 };
+                c += 1.0;
             }
-            let pz = self.height(j);
-            let inside = ray.iter().any(|iv| iv[0] <= pz && pz <= iv[1]);
-            match (inside, open) {
-                (true, None) => open = Some(j),
-                (false, Some(lo)) => {
-                    ranges.push((m, lo, j));
-                    open = None;
+            let mut c = jb as f64 + 0.5;
+            for (t, &at) in at[..n].iter().enumerate() {
+                let j = jb + t;
+                let ray: &[[f64; 2]] = if at == OFF { &[] } else { &zf.rays[at] };
+                let pz = self.base[2] + self.axis[2] * (c * self.dz);
+                c += 1.0;
+                let inside = ray.iter().any(|iv| iv[0] <= pz && pz <= iv[1]);
+                match (inside, open) {
+                    (true, None) => open = Some(j),
+                    (false, Some(lo)) => {
+                        ranges.push((m, lo, j));
+                        open = None;
+                    }
+                    _ => {}
                 }
-                _ => {}
             }
+            jb += n;
         }
         if let Some(lo) = open {
             ranges.push((m, lo, j1));
