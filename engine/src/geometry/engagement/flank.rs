@@ -2,7 +2,7 @@
 //! bin, read from the Z rays, on a vertical tool exactly and on a tilted one slice by slice
 //! or ray by ray along each bin's test line.
 
-use super::super::dexel::DexelGrid;
+use super::super::dexel::{contains, DexelGrid};
 use super::super::sweep::ToolBody;
 use super::{bisect, StepFrame, StepInput};
 use crate::vec3::dot;
@@ -21,15 +21,31 @@ pub(super) fn tilted_flank_ranges(
     let (dz, a) = (f.dz, f.a);
     // Runs' ends are settled between slice centres, as on a corner: the test point of
     // bin m at height z lies on its line.
-    let flank_in = |z: f64, m: usize| {
-        let (radial, p, out) = (f.radial(m), f.pos, f.out);
-        f.grid.material_at([
+    let point = |z: f64, radial: [f64; 3]| {
+        let (p, out) = (f.pos, f.out);
+        [
             p[0] + radial[0] * (r + out) + a[0] * z,
             p[1] + radial[1] * (r + out) + a[1] * z,
             p[2] + radial[2] * (r + out) + a[2] * z,
-        ])
+        ]
     };
-    let settle = |z_in: f64, z_out: f64, m: usize| bisect(z_in, z_out, |z| flank_in(z, m));
+    let flank_in = |z: f64, m: usize| f.grid.material_at(point(z, f.radial(m)));
+    let grid = f.grid;
+    let zf = &grid.families[2];
+    let cell_of = |p: [f64; 3]| Some((grid.cell_of(0, p[0])?, grid.cell_of(1, p[1])?));
+    // The points between two heights on the line lie in the cells between theirs (each
+    // coordinate is rounded monotonically in z): when both ends are in one cell, every
+    // point the bisection tests reads that cell's ray, which is then looked up once.
+    let settle = |z_in: f64, z_out: f64, m: usize| {
+        let radial = f.radial(m);
+        match (cell_of(point(z_in, radial)), cell_of(point(z_out, radial))) {
+            (Some(c), Some(d)) if c == d => {
+                let ray = &zf.rays[c.0 + zf.nu * c.1];
+                bisect(z_in, z_out, |z| contains(ray, point(z, radial)[2]))
+            }
+            _ => bisect(z_in, z_out, |z| flank_in(z, m)),
+        }
+    };
     for m in 0..f.nb {
         let radial = f.radial(m);
         if dot(radial, f.v) <= 0.0 {
@@ -149,6 +165,7 @@ impl FlankLine {
         const OFF: usize = usize::MAX;
         let zf = &grid.families[2];
         let (nx, ny) = (grid.n[0] as f64, grid.n[1] as f64);
+        debug_assert!(grid.n[0] <= i32::MAX as usize && grid.n[1] <= i32::MAX as usize);
         let (bx, by) = (self.base[0] - grid.origin[0], self.base[1] - grid.origin[1]);
         let mut at = [OFF; BATCH];
         let mut open: Option<usize> = None;
@@ -161,8 +178,10 @@ impl FlankLine {
             for slot in at[..n].iter_mut() {
                 let x = (bx + self.axis[0] * c * self.dz) / grid.cell;
                 let y = (by + self.axis[1] * c * self.dz) / grid.cell;
+                // In the grid, x and y are below its counts, far below 2³¹: truncated
+                // as i32 (fewer instructions than to usize), the same cell.
                 *slot = if x >= 0.0 && x < nx && y >= 0.0 && y < ny {
-                    x as usize + zf.nu * y as usize
+                    x as i32 as usize + zf.nu * y as i32 as usize
                 } else {
                     OFF
                 };
