@@ -2,7 +2,7 @@
 //! bin, read from the Z rays, on a vertical tool exactly and on a tilted one slice by slice
 //! or ray by ray along each bin's test line.
 
-use super::super::dexel::DexelGrid;
+use super::super::dexel::{contains, DexelGrid};
 use super::super::sweep::ToolBody;
 use super::{bisect, StepFrame, StepInput};
 use crate::vec3::dot;
@@ -21,15 +21,31 @@ pub(super) fn tilted_flank_ranges(
     let (dz, a) = (f.dz, f.a);
     // Runs' ends are settled between slice centres, as on a corner: the test point of
     // bin m at height z lies on its line.
-    let flank_in = |z: f64, m: usize| {
-        let (radial, p, out) = (f.radial(m), f.pos, f.out);
-        f.grid.material_at([
+    let point = |z: f64, radial: [f64; 3]| {
+        let (p, out) = (f.pos, f.out);
+        [
             p[0] + radial[0] * (r + out) + a[0] * z,
             p[1] + radial[1] * (r + out) + a[1] * z,
             p[2] + radial[2] * (r + out) + a[2] * z,
-        ])
+        ]
     };
-    let settle = |z_in: f64, z_out: f64, m: usize| bisect(z_in, z_out, |z| flank_in(z, m));
+    let flank_in = |z: f64, m: usize| f.grid.material_at(point(z, f.radial(m)));
+    let grid = f.grid;
+    let zf = &grid.families[2];
+    let cell_of = |p: [f64; 3]| Some((grid.cell_of(0, p[0])?, grid.cell_of(1, p[1])?));
+    // The points between two heights on the line lie in the cells between theirs (each
+    // coordinate is rounded monotonically in z): when both ends are in one cell, every
+    // point the bisection tests reads that cell's ray, which is then looked up once.
+    let settle = |z_in: f64, z_out: f64, m: usize| {
+        let radial = f.radial(m);
+        match (cell_of(point(z_in, radial)), cell_of(point(z_out, radial))) {
+            (Some(c), Some(d)) if c == d => {
+                let ray = &zf.rays[c.0 + zf.nu * c.1];
+                bisect(z_in, z_out, |z| contains(ray, point(z, radial)[2]))
+            }
+            _ => bisect(z_in, z_out, |z| flank_in(z, m)),
+        }
+    };
     for m in 0..f.nb {
         let radial = f.radial(m);
         if dot(radial, f.v) <= 0.0 {
@@ -133,8 +149,10 @@ impl FlankLine {
     }
 
     /// Pushes (m, lo, hi) for each run lo..hi of slices in `j0..j1` whose point is in
-    /// material, testing slice by slice (the points of a steep line cross a ray every few
-    /// slices: each ray is looked up once, for the slices on it).
+    /// material, testing slice by slice (the points of a steep line cross a ray every
+    /// slice or two). The rays of a batch of slices are found first, then read: the
+    /// cells' divisions and the rays' loads of one slice then wait on no test of the
+    /// slice before.
     pub(super) fn ranges_by_slices(
         &self,
         grid: &DexelGrid,
@@ -143,29 +161,49 @@ impl FlankLine {
         j1: usize,
         ranges: &mut Vec<(usize, usize, usize)>,
     ) {
+        const BATCH: usize = 32;
+        const OFF: usize = usize::MAX;
         let zf = &grid.families[2];
-        let mut cell = None;
-        let mut ray: &[[f64; 2]] = &[];
+        let (nx, ny) = (grid.n[0] as f64, grid.n[1] as f64);
+        debug_assert!(grid.n[0] <= i32::MAX as usize && grid.n[1] <= i32::MAX as usize);
+        let (bx, by) = (self.base[0] - grid.origin[0], self.base[1] - grid.origin[1]);
+        let mut at = [OFF; BATCH];
         let mut open: Option<usize> = None;
-        for j in j0..j1 {
-            let here = self.cell(grid, j);
-            if here != cell {
-                cell = here;
-                ray = match here {
-                    Some((i, k)) => &zf.rays[i + zf.nu * k],
-                    None => &[],
+        let mut jb = j0;
+        while jb < j1 {
+            let n = (j1 - jb).min(BATCH);
+            // Slice j's centre (j + ½ as `cell_coord` and `height` take it, counted in
+            // floating point: whole numbers, so the same values).
+            let mut c = jb as f64 + 0.5;
+            for slot in at[..n].iter_mut() {
+                let x = (bx + self.axis[0] * c * self.dz) / grid.cell;
+                let y = (by + self.axis[1] * c * self.dz) / grid.cell;
+                // In the grid, x and y are below its counts, far below 2³¹: truncated
+                // as i32 (fewer instructions than to usize), the same cell.
+                *slot = if x >= 0.0 && x < nx && y >= 0.0 && y < ny {
+                    x as i32 as usize + zf.nu * y as i32 as usize
+                } else {
+                    OFF
                 };
+                c += 1.0;
             }
-            let pz = self.height(j);
-            let inside = ray.iter().any(|iv| iv[0] <= pz && pz <= iv[1]);
-            match (inside, open) {
-                (true, None) => open = Some(j),
-                (false, Some(lo)) => {
-                    ranges.push((m, lo, j));
-                    open = None;
+            let mut c = jb as f64 + 0.5;
+            for (t, &at) in at[..n].iter().enumerate() {
+                let j = jb + t;
+                let ray: &[[f64; 2]] = if at == OFF { &[] } else { &zf.rays[at] };
+                let pz = self.base[2] + self.axis[2] * (c * self.dz);
+                c += 1.0;
+                let inside = ray.iter().any(|iv| iv[0] <= pz && pz <= iv[1]);
+                match (inside, open) {
+                    (true, None) => open = Some(j),
+                    (false, Some(lo)) => {
+                        ranges.push((m, lo, j));
+                        open = None;
+                    }
+                    _ => {}
                 }
-                _ => {}
             }
+            jb += n;
         }
         if let Some(lo) = open {
             ranges.push((m, lo, j1));

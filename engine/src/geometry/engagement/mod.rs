@@ -172,6 +172,8 @@ pub(crate) fn compute(
         return (eng, StepMetrics::default());
     }
     let nz = j_end - j0;
+    // At most a whole slice and two parts per slice: one allocation, not one per growth.
+    eng.slices.reserve(nz);
     // Both buffers are all false between calls (set bits are cleared below), so only
     // growth needs filling: clearing all bins of all slices each step cost more than the
     // few slices in contact.

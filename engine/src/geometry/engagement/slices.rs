@@ -97,10 +97,11 @@ pub(super) fn slices_of_ranges(
         row.fill(false);
         let mut any = false;
         for &(m, lo, hi) in full.iter() {
-            if lo <= ja && ja < hi {
-                row[m] = true;
-                any = true;
-            }
+            // Without a branch: whether a bin's range holds the slice is data, not a
+            // pattern.
+            let holds = lo <= ja && ja < hi;
+            row[m] |= holds;
+            any |= holds;
         }
         let first_part = next_part;
         while next_part < parts.len() && parts[next_part].0 == ja {
@@ -141,12 +142,18 @@ pub(super) fn slices_of_ranges(
             if c1 - c0 <= 1e-9 * dz {
                 continue;
             }
-            let (spread, hit) = in_slice
-                .iter()
-                .filter(|p| p.2 <= c0 && c1 <= p.3)
-                .fold((row_spread, any), |(sp, _), p| {
-                    (sp.join(bin_spread[p.1]), true)
-                });
+            // The parts covering [c0, c1]: those starting at c0 or below, the first ones
+            // of `in_slice` (sorted by their start), that end at c1 or above.
+            let (mut spread, mut hit) = (row_spread, any);
+            for p in in_slice {
+                if p.2 > c0 {
+                    break;
+                }
+                if c1 <= p.3 {
+                    spread = spread.join(bin_spread[p.1]);
+                    hit = true;
+                }
+            }
             if hit {
                 measure(spread, 0.5 * (c0 + c1), c0, c1, met);
             }
