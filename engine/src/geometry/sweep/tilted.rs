@@ -510,7 +510,11 @@ fn half_ellipse_ray(
         }
     }
     let mut out = (f64::INFINITY, f64::NEG_INFINITY);
-    for b in cands {
+    // A candidate clamped to an end is that end, evaluated already.
+    for (i, b) in cands.into_iter().enumerate() {
+        if i >= 2 && (b <= ba || b >= bb) {
+            continue;
+        }
         let (sc, half, g) = (s0 + b * s1, rho(b) / k, g0 + b * g1);
         out.0 = out.0.min(sc + (-half).max(g));
         let up = match top {
