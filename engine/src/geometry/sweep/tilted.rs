@@ -594,6 +594,82 @@ mod tests {
         [n[0] / k, n[1] / k, n[2] / k]
     }
 
+    /// A ray drawn for the ball tests: a random tilted move from the origin of `body` (a
+    /// ball, radius 3 mm), and a ray of a random family whose (u, v) lies within 4 mm of the
+    /// point `height` mm up the axis; `None` where the family has no section planes.
+    struct BallRay<'b> {
+        sw: Sweep<'b>,
+        fam: usize,
+        along: f64,
+        axis: [f64; 3],
+        p1: [f64; 3],
+        u: f64,
+        v: f64,
+        /// Where the axis crosses the ray's plane at the move's ends, as heights up it, and
+        /// how far up or down the axis the plane reaches across the sphere's radius.
+        t: (f64, f64),
+        margin: f64,
+    }
+
+    fn draw_ball_ray<'b, R: FnMut() -> f64>(
+        rnd: &mut R,
+        body: &'b ToolBody,
+        height: impl FnOnce(&mut R) -> f64,
+    ) -> Option<BallRay<'b>> {
+        let axis = crate::geometry::sweep::tests::random_axis(rnd, 0.2, 1.2);
+        let p1 = [rnd() * 2.0 - 1.0, rnd() * 2.0 - 1.0, rnd() - 0.5];
+        let sw = Sweep::new(
+            body,
+            SubMove {
+                p0: [0.0; 3],
+                p1,
+                axis,
+            },
+        );
+        let fam = (rnd() * 3.0) as usize % 3;
+        let sp = sw.full_section.as_ref().and_then(|f| f.planes[fam])?;
+        let h = height(rnd);
+        let c = [h * axis[0], h * axis[1], h * axis[2]];
+        let (ua, va) = other_axes(fam);
+        let (u, v) = (c[ua] + rnd() * 8.0 - 4.0, c[va] + rnd() * 8.0 - 4.0);
+        let n = plane_normal(axis, fam);
+        let q = dot(n, ray_point(fam, u, v, 0.0));
+        Some(BallRay {
+            sw,
+            fam,
+            along: sp.along,
+            axis,
+            p1,
+            u,
+            v,
+            t: (q / sp.k, (q - dot(n, p1)) / sp.k),
+            margin: 3.0 * sp.along.abs() / sp.k,
+        })
+    }
+
+    impl BallRay<'_> {
+        /// Asserts that `fast` (this ray's closed form) is the solids' interval, hit or
+        /// miss alike; true on a hit.
+        fn matches_the_solids(&self, fast: Option<(f64, f64)>) -> bool {
+            let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
+            let (fam, u, v, axis, p1) = (self.fam, self.u, self.v, self.axis, self.p1);
+            let exact = self
+                .sw
+                .solid_ray(fam, ray_point(fam, u, v, -100.0), 200.0, &full);
+            match (fast, exact) {
+                (Some(f), Some(e)) => {
+                    assert!(
+                        (f.0 - e.0).abs() < 1e-7 && (f.1 - e.1).abs() < 1e-7,
+                        "{fam} {u} {v} {axis:?} {p1:?}: {f:?} vs {e:?}"
+                    );
+                    true
+                }
+                (None, None) => false,
+                _ => panic!("{fam} {u} {v} {axis:?} {p1:?}: {fast:?} vs {exact:?}"),
+            }
+        }
+    }
+
     #[test]
     fn ball_rays_whose_plane_cuts_the_sphere_and_the_cylinder_are_exact() {
         // A steeply tilted ball, every family: rays whose section plane crosses the axis
@@ -604,52 +680,22 @@ mod tests {
         let mut t = Tool::ball(6.0, 2);
         t.flute_length = 20.0;
         let body = ToolBody::cutting_part(&t);
-        let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
         let (mut checked, mut along_pos, mut along_neg) = (0, 0, 0);
         for _ in 0..20_000 {
-            let axis = crate::geometry::sweep::tests::random_axis(&mut rnd, 0.2, 1.2);
-            let p1 = [rnd() * 2.0 - 1.0, rnd() * 2.0 - 1.0, rnd() - 0.5];
-            let sw = Sweep::new(
-                &body,
-                SubMove {
-                    p0: [0.0; 3],
-                    p1,
-                    axis,
-                },
-            );
-            let fam = (rnd() * 3.0) as usize % 3;
-            let Some(sp) = sw.full_section.as_ref().and_then(|f| f.planes[fam]) else {
+            // Near the sphere's centre, 3 mm up the axis.
+            let Some(ray) = draw_ball_ray(&mut rnd, &body, |_| 3.0) else {
                 continue;
             };
-            // A point near the sphere's centre, 3 mm up the axis.
-            let c = [3.0 * axis[0], 3.0 * axis[1], 3.0 * axis[2]];
-            let (ua, va) = other_axes(fam);
-            let (u, v) = (c[ua] + rnd() * 8.0 - 4.0, c[va] + rnd() * 8.0 - 4.0);
-            let mut o = [0.0; 3];
-            o[ua] = u;
-            o[va] = v;
-            let n = plane_normal(axis, fam);
-            let q = dot(n, o);
-            let (t0, t1) = (q / sp.k, (q - dot(n, p1)) / sp.k);
-            let margin = 3.0 * sp.along.abs() / sp.k;
+            let ((t0, t1), margin) = (ray.t, ray.margin);
             if !(t0.max(t1) > 3.0 - margin && t0.min(t1) < 3.0 + margin) {
                 continue;
             }
-            let Some(fast) = sw.full_section_ray(fam, u, v) else {
+            let Some(fast) = ray.sw.full_section_ray(ray.fam, ray.u, ray.v) else {
                 continue;
             };
-            o[fam] = -100.0;
-            let exact = sw.solid_ray(fam, o, 200.0, &full);
-            match (fast, exact) {
-                (Some(f), Some(e)) => assert!(
-                    (f.0 - e.0).abs() < 1e-7 && (f.1 - e.1).abs() < 1e-7,
-                    "{fam} {u} {v} {axis:?} {p1:?}: {f:?} vs {e:?}"
-                ),
-                (None, None) => {}
-                _ => panic!("{fam} {u} {v} {axis:?} {p1:?}: {fast:?} vs {exact:?}"),
-            }
+            ray.matches_the_solids(fast);
             checked += 1;
-            if sp.along > 0.0 {
+            if ray.along > 0.0 {
                 along_pos += 1;
             } else {
                 along_neg += 1;
@@ -671,54 +717,24 @@ mod tests {
         let mut t = Tool::ball(6.0, 2);
         t.flute_length = 20.0;
         let body = ToolBody::cutting_part(&t);
-        let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
         let (mut hits, mut misses, mut along_pos, mut along_neg) = (0, 0, 0, 0);
         for _ in 0..40_000 {
-            let axis = crate::geometry::sweep::tests::random_axis(&mut rnd, 0.2, 1.2);
-            let p1 = [rnd() * 2.0 - 1.0, rnd() * 2.0 - 1.0, rnd() - 0.5];
-            let sw = Sweep::new(
-                &body,
-                SubMove {
-                    p0: [0.0; 3],
-                    p1,
-                    axis,
-                },
-            );
-            let fam = (rnd() * 3.0) as usize % 3;
-            let Some(sp) = sw.full_section.as_ref().and_then(|f| f.planes[fam]) else {
+            let Some(ray) = draw_ball_ray(&mut rnd, &body, |rnd| 20.0 - 6.0 * rnd()) else {
                 continue;
             };
-            let h = 20.0 - 6.0 * rnd();
-            let c = [h * axis[0], h * axis[1], h * axis[2]];
-            let (ua, va) = other_axes(fam);
-            let (u, v) = (c[ua] + rnd() * 8.0 - 4.0, c[va] + rnd() * 8.0 - 4.0);
-            let mut o = [0.0; 3];
-            o[ua] = u;
-            o[va] = v;
-            let n = plane_normal(axis, fam);
-            let q = dot(n, o);
-            let (t0, t1) = (q / sp.k, (q - dot(n, p1)) / sp.k);
-            let margin = 3.0 * sp.along.abs() / sp.k;
-            if !(t0.max(t1) > 20.0 - margin) {
+            if !(ray.t.0.max(ray.t.1) > 20.0 - ray.margin) {
                 continue;
             }
-            let fast = sw
-                .full_section_ray(fam, u, v)
+            let fast = ray
+                .sw
+                .full_section_ray(ray.fam, ray.u, ray.v)
                 .expect("the ray of a ball is in closed form");
-            o[fam] = -100.0;
-            let exact = sw.solid_ray(fam, o, 200.0, &full);
-            match (fast, exact) {
-                (Some(f), Some(e)) => {
-                    assert!(
-                        (f.0 - e.0).abs() < 1e-7 && (f.1 - e.1).abs() < 1e-7,
-                        "{fam} {u} {v} {axis:?} {p1:?}: {f:?} vs {e:?}"
-                    );
-                    hits += 1;
-                }
-                (None, None) => misses += 1,
-                _ => panic!("{fam} {u} {v} {axis:?} {p1:?}: {fast:?} vs {exact:?}"),
+            if ray.matches_the_solids(fast) {
+                hits += 1;
+            } else {
+                misses += 1;
             }
-            if sp.along > 0.0 {
+            if ray.along > 0.0 {
                 along_pos += 1;
             } else {
                 along_neg += 1;
