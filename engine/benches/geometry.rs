@@ -1,6 +1,9 @@
 //! Removal + engagement throughput on the Fusion 360 adaptive roughing program
 //! (../shared/corpus/gcode/fusion360_2d_adaptive_1055_utab_265bit.nc, 6.5k lines, D2.65
-//! flat end mill, IJK arcs) on a block stock covering it, at a 0.05 mm grid.
+//! flat end mill, IJK arcs) on a block stock covering it, at a 0.05 mm grid; and on a
+//! simultaneous 5-axis pass (`five_axis_segments`): a Ø6 ball with 20 mm flutes buried
+//! 12 mm deep in a block, its axis turning all the time, at a 0.1 mm grid: the vertical
+//! and the tilted removal rates in one run (issue 32 asks the second to be half the first).
 //!
 //! Moves come from the engine's own NC interpreter (`millsim_engine::nc::interpret`).
 //! Before criterion runs, one timed pass on all threads and one on a single thread print
@@ -10,7 +13,7 @@
 //!
 //! Run: `CARGO_TARGET_DIR=/work/target-geom cargo bench -p millsim-engine --bench geometry`
 //! (with `GEOMETRY_BENCH_QUICK=1`: only the single-thread pass, for profiling, or with
-//! `GEOMETRY_BENCH_QUICK=all` only the all-threads one; add
+//! `GEOMETRY_BENCH_QUICK=all` only the all-threads one, `=5axis` only the 5-axis pass; add
 //! `GEOMETRY_BENCH_EXPORT=1` to time the STL export after it).
 
 use std::time::Instant;
@@ -22,6 +25,9 @@ use millsim_engine::geometry::{
 use millsim_engine::job::CancelFlag;
 use millsim_engine::nc::{interpret, InterpretOptions, MoveKind};
 use millsim_engine::tool::Tool;
+
+/// The 5-axis pass's grid, mm.
+const CELL_5AXIS: f64 = 0.1;
 
 const PROGRAM: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -105,6 +111,72 @@ fn timed(segs: &[Segment], base: &Stock, opts: &SimOptions, label: &str) -> Stoc
     s
 }
 
+/// Zig-zag rows across a 60 mm block at a 2 mm step over, the tip 12 mm down, in 2 mm
+/// segments whose axis leans 15°–35° and swings ±40° about the row: it turns about
+/// 2.5°/mm, as the corpus impeller's does (an axis step of the 0.1 mm grid's tolerance
+/// per step). The axis is continuous from segment to segment. Harder than the impeller:
+/// every row cuts 12 mm deep with the whole ball and flank, so a third of the rays in the
+/// sweeps' bounds take an exact intersection (a quarter on the impeller); it is a fixed,
+/// repeatable case for the tilted sweeps' speed, not the acceptance figure (issue 32 takes
+/// that from `millsim run` on the corpus impeller).
+fn five_axis_segments(rows: usize) -> Vec<Segment> {
+    let axis = |x: f64, y: f64| {
+        let tilt = (25.0 + 10.0 * (x / 8.0).sin()).to_radians();
+        let az = (90.0 + 40.0 * (x / 10.0 + y / 3.0).sin()).to_radians();
+        [tilt.sin() * az.cos(), tilt.sin() * az.sin(), tilt.cos()]
+    };
+    let (z, feed, rpm) = (-12.0, 800.0, 10000.0);
+    let mut segs = Vec::new();
+    let mut at = [-25.0, -20.0, z];
+    for row in 0..rows {
+        let y = -20.0 + 2.0 * row as f64;
+        let dir = if row % 2 == 0 { 1.0 } else { -1.0 };
+        if row > 0 {
+            // Step over to the next row.
+            let to = [at[0], y, z];
+            segs.push(
+                Segment::linear(segs.len(), at, to, feed, rpm)
+                    .with_axes(axis(at[0], at[1]), axis(to[0], to[1])),
+            );
+            at = to;
+        }
+        for _ in 0..25 {
+            let to = [at[0] + 2.0 * dir, y, z];
+            segs.push(
+                Segment::linear(segs.len(), at, to, feed, rpm)
+                    .with_axes(axis(at[0], at[1]), axis(to[0], to[1])),
+            );
+            at = to;
+        }
+    }
+    segs
+}
+
+fn ball() -> Tool {
+    let mut t = Tool::ball(6.0, 2);
+    t.flute_length = 20.0;
+    t
+}
+
+/// One timed 5-axis pass on all threads: the same figures as `timed`.
+fn timed_5axis(segs: &[Segment], base: &Stock) -> f64 {
+    let mut s = base.clone();
+    let t0 = Instant::now();
+    let rep = simulate_removal(&mut s, &ball(), segs, &SimOptions::default(), &CancelFlag::new())
+        .unwrap();
+    let dt = t0.elapsed().as_secs_f64();
+    let rate = rep.rays_tested as f64 / dt / 1e6;
+    println!(
+        "5-axis removal+engagement, all threads: {} segments in {dt:.3} s; rays tested {} = {rate:.1} M/s; exact intersections {}; rays changed {}; removed {:.1} mm³",
+        segs.len(),
+        rep.rays_tested,
+        rep.rays_intersected,
+        rep.rays_changed,
+        base.volume() - rep.stock_volume,
+    );
+    rate
+}
+
 /// Export of the machined stock as STL (the service's final-stock download).
 fn timed_export(stock: &Stock) {
     let t0 = Instant::now();
@@ -145,7 +217,13 @@ fn bench(c: &mut Criterion) {
         .build()
         .unwrap();
     if let Some(quick) = std::env::var_os("GEOMETRY_BENCH_QUICK") {
-        // For profiling: the single-thread pass only (or, with "all", the all-threads one).
+        // For profiling: the single-thread pass only (or, with "all", the all-threads one;
+        // with "5axis", the 5-axis pass).
+        if quick == "5axis" {
+            let block = Stock::block([-30.0, -30.0, -20.0], [30.0, 30.0, 0.0], CELL_5AXIS).unwrap();
+            timed_5axis(&five_axis_segments(10), &block);
+            return;
+        }
         let s = if quick == "all" {
             timed(&segs, &base, &with_eng, "removal+engagement, all threads")
         } else {
@@ -157,6 +235,19 @@ fn bench(c: &mut Criterion) {
         return;
     }
     let machined = timed(&segs, &base, &with_eng, "removal+engagement, all threads");
+    let five = five_axis_segments(10);
+    let block = Stock::block([-30.0, -30.0, -20.0], [30.0, 30.0, 0.0], CELL_5AXIS).unwrap();
+    let tilted_rate = timed_5axis(&five, &block);
+    let vertical_rate = {
+        let mut s = base.clone();
+        let t0 = Instant::now();
+        let rep = simulate_removal(&mut s, &tool(), &segs, &with_eng, &CancelFlag::new()).unwrap();
+        rep.rays_tested as f64 / t0.elapsed().as_secs_f64() / 1e6
+    };
+    println!(
+        "5-axis rate / vertical rate (adaptive at {CELL} mm, timed again): {:.2}",
+        tilted_rate / vertical_rate
+    );
     timed_export(&machined);
     timed(&segs, &base, &removal_only, "removal only, all threads");
     one.install(|| timed(&segs, &base, &with_eng, "removal+engagement, 1 thread"));
@@ -168,6 +259,18 @@ fn bench(c: &mut Criterion) {
         b.iter_batched_ref(
             || base.clone(),
             |s| simulate_removal(s, &tool(), &segs, &with_eng, &CancelFlag::new()).unwrap(),
+            BatchSize::PerIteration,
+        )
+    });
+    g.finish();
+
+    let mut g = c.benchmark_group("geometry_5axis_ball_0.1mm");
+    g.throughput(Throughput::Elements(five.len() as u64));
+    g.sample_size(10);
+    g.bench_function("removal+engagement", |b| {
+        b.iter_batched_ref(
+            || block.clone(),
+            |s| simulate_removal(s, &ball(), &five, &with_eng, &CancelFlag::new()).unwrap(),
             BatchSize::PerIteration,
         )
     });
