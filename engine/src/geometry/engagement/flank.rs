@@ -29,18 +29,16 @@ pub(super) fn tilted_flank_ranges(
             p[2] + radial[2] * (r + out) + a[2] * z,
         ]
     };
-    let flank_in = |z: f64, m: usize| f.grid.material_at(point(z, f.radial(m)));
-    let grid = f.grid;
-    let zf = &grid.families[2];
-    let cell_of = |p: [f64; 3]| Some((grid.cell_of(0, p[0])?, grid.cell_of(1, p[1])?));
+    let flank_in = |z: f64, m: usize| f.material_at(point(z, f.radial(m)));
+    let zf = &f.grid.families[2];
     // The points between two heights on the line lie in the cells between theirs (each
     // coordinate is rounded monotonically in z): when both ends are in one cell, every
     // point the bisection tests reads that cell's ray, which is then looked up once.
     let settle = |z_in: f64, z_out: f64, m: usize| {
         let radial = f.radial(m);
-        match (cell_of(point(z_in, radial)), cell_of(point(z_out, radial))) {
+        match (f.z_ray_index(point(z_in, radial)), f.z_ray_index(point(z_out, radial))) {
             (Some(c), Some(d)) if c == d => {
-                let ray = &zf.rays[c.0 + zf.nu * c.1];
+                let ray = &zf.rays[c];
                 bisect(z_in, z_out, |z| contains(ray, point(z, radial)[2]))
             }
             _ => bisect(z_in, z_out, |z| flank_in(z, m)),
@@ -52,7 +50,7 @@ pub(super) fn tilted_flank_ranges(
             continue;
         }
         let base = f.test_point(radial, 0.0, r);
-        let line = FlankLine { base, axis: a, dz };
+        let line = FlankLine::new(f.grid, base, a, dz);
         ranges.clear();
         if a[2] > 0.5 && line.crossings(f.grid, jf0, j_end) * 4 < j_end - jf0 {
             line.ranges_by_rays(f.grid, m, jf0, j_end, ranges);
@@ -117,22 +115,38 @@ pub(super) fn vertical_flank_ranges(
 /// The test points of one bin on a tilted flank: slice j's at `base + axis·(j + ½)·dz`, read
 /// from the nearest Z ray (the one whose cell holds the point).
 pub(super) struct FlankLine {
-    pub(super) base: [f64; 3],
-    pub(super) axis: [f64; 3],
-    pub(super) dz: f64,
+    base: [f64; 3],
+    axis: [f64; 3],
+    dz: f64,
+    /// The line in the grid's cell units along x and y: the base, and the step per
+    /// slice. Points are placed by a product and a sum, not a division each: two
+    /// divisions per point were most of a tilted flank's cost.
+    cell_base: [f64; 2],
+    cell_step: [f64; 2],
 }
 
 impl FlankLine {
+    pub(super) fn new(grid: &DexelGrid, base: [f64; 3], axis: [f64; 3], dz: f64) -> FlankLine {
+        let inv = 1.0 / grid.cell;
+        FlankLine {
+            base,
+            axis,
+            dz,
+            cell_base: [0, 1].map(|k| (base[k] - grid.origin[k]) * inv),
+            cell_step: [0, 1].map(|k| axis[k] * dz * inv),
+        }
+    }
+
     /// Slice j's point in cell units along grid axis k (0 or 1).
     #[inline]
-    pub(super) fn cell_coord(&self, grid: &DexelGrid, j: usize, k: usize) -> f64 {
-        ((self.base[k] - grid.origin[k]) + self.axis[k] * (j as f64 + 0.5) * self.dz) / grid.cell
+    pub(super) fn cell_coord(&self, j: usize, k: usize) -> f64 {
+        self.cell_base[k] + self.cell_step[k] * (j as f64 + 0.5)
     }
 
     /// The Z ray's cell of slice j's point, `None` off the grid.
     #[inline]
     pub(super) fn cell(&self, grid: &DexelGrid, j: usize) -> Option<(usize, usize)> {
-        let (x, y) = (self.cell_coord(grid, j, 0), self.cell_coord(grid, j, 1));
+        let (x, y) = (self.cell_coord(j, 0), self.cell_coord(j, 1));
         let (nx, ny) = (grid.n[0] as f64, grid.n[1] as f64);
         (x >= 0.0 && x < nx && y >= 0.0 && y < ny).then_some((x as usize, y as usize))
     }
@@ -151,7 +165,7 @@ impl FlankLine {
     /// Pushes (m, lo, hi) for each run lo..hi of slices in `j0..j1` whose point is in
     /// material, testing slice by slice (the points of a steep line cross a ray every
     /// slice or two). The rays of a batch of slices are found first, then read: the
-    /// cells' divisions and the rays' loads of one slice then wait on no test of the
+    /// cells and the rays' loads of one slice then wait on no test of the
     /// slice before.
     pub(super) fn ranges_by_slices(
         &self,
@@ -166,7 +180,6 @@ impl FlankLine {
         let zf = &grid.families[2];
         let (nx, ny) = (grid.n[0] as f64, grid.n[1] as f64);
         debug_assert!(grid.n[0] <= i32::MAX as usize && grid.n[1] <= i32::MAX as usize);
-        let (bx, by) = (self.base[0] - grid.origin[0], self.base[1] - grid.origin[1]);
         let mut at = [OFF; BATCH];
         let mut open: Option<usize> = None;
         let mut jb = j0;
@@ -176,8 +189,8 @@ impl FlankLine {
             // floating point: whole numbers, so the same values).
             let mut c = jb as f64 + 0.5;
             for slot in at[..n].iter_mut() {
-                let x = (bx + self.axis[0] * c * self.dz) / grid.cell;
-                let y = (by + self.axis[1] * c * self.dz) / grid.cell;
+                let x = self.cell_base[0] + self.cell_step[0] * c;
+                let y = self.cell_base[1] + self.cell_step[1] * c;
                 // In the grid, x and y are below its counts, far below 2³¹: truncated
                 // as i32 (fewer instructions than to usize), the same cell.
                 *slot = if x >= 0.0 && x < nx && y >= 0.0 && y < ny {
@@ -269,8 +282,8 @@ impl FlankLine {
             // estimated and then settled with `cell` itself.
             let mut end = j1;
             for (c, side) in [(0, i), (1, k)] {
-                let slope = self.axis[c] * self.dz / grid.cell;
-                let at0 = self.cell_coord(grid, 0, c);
+                let slope = self.cell_step[c];
+                let at0 = self.cell_coord(0, c);
                 let next = if slope > 0.0 {
                     ((side + 1) as f64 - at0) / slope
                 } else if slope < 0.0 {

@@ -27,7 +27,7 @@ mod tests;
 
 use std::f64::consts::PI;
 
-use super::dexel::DexelGrid;
+use super::dexel::{contains, DexelGrid};
 use super::path::unit;
 use super::sweep::ToolBody;
 use crate::engagement::Engagement;
@@ -204,6 +204,7 @@ pub(crate) fn compute(
         dz,
         dphi,
         out: 0.5 * grid.cell,
+        inv_cell: 1.0 / grid.cell,
         length,
         vertical,
     };
@@ -282,6 +283,8 @@ struct StepFrame<'a> {
     dphi: f64,
     /// How far out across the axis a test point lies from its edge point.
     out: f64,
+    /// 1 / the grid's cell: test points find their Z ray by products, not divisions.
+    inv_cell: f64,
     /// The cutting length taken.
     length: f64,
     vertical: bool,
@@ -330,7 +333,26 @@ impl StepFrame<'_> {
             sk * radial[1] - ck * a[1],
             sk * radial[2] - ck * a[2],
         ];
-        dot(n, self.v) > 0.0 && self.grid.material_at(self.test_point(radial, z, ep.radius))
+        dot(n, self.v) > 0.0 && self.material_at(self.test_point(radial, z, ep.radius))
+    }
+
+    /// The index of the Z ray whose cell holds `p` (x and y), `None` off the grid: the cell
+    /// found with a product instead of a division.
+    #[inline]
+    fn z_ray_index(&self, p: [f64; 3]) -> Option<usize> {
+        let g = self.grid;
+        let x = (p[0] - g.origin[0]) * self.inv_cell;
+        let y = (p[1] - g.origin[1]) * self.inv_cell;
+        (x >= 0.0 && x < g.n[0] as f64 && y >= 0.0 && y < g.n[1] as f64)
+            .then(|| x as usize + g.families[2].nu * y as usize)
+    }
+
+    /// Whether the Z ray whose cell holds `p` has material at its height
+    /// (`DexelGrid::material_at`, through `z_ray_index`).
+    #[inline]
+    fn material_at(&self, p: [f64; 3]) -> bool {
+        self.z_ray_index(p)
+            .is_some_and(|i| contains(&self.grid.families[2].rays[i], p[2]))
     }
 
     fn corner_in(&self, z: f64, m: usize) -> bool {
