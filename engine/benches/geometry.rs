@@ -162,8 +162,14 @@ fn ball() -> Tool {
 fn timed_5axis(segs: &[Segment], base: &Stock) -> f64 {
     let mut s = base.clone();
     let t0 = Instant::now();
-    let rep = simulate_removal(&mut s, &ball(), segs, &SimOptions::default(), &CancelFlag::new())
-        .unwrap();
+    let rep = simulate_removal(
+        &mut s,
+        &ball(),
+        segs,
+        &SimOptions::default(),
+        &CancelFlag::new(),
+    )
+    .unwrap();
     let dt = t0.elapsed().as_secs_f64();
     let rate = rep.rays_tested as f64 / dt / 1e6;
     println!(

@@ -36,7 +36,10 @@ pub(super) fn tilted_flank_ranges(
     // point the bisection tests reads that cell's ray, which is then looked up once.
     let settle = |z_in: f64, z_out: f64, m: usize| {
         let radial = f.radial(m);
-        match (f.z_ray_index(point(z_in, radial)), f.z_ray_index(point(z_out, radial))) {
+        match (
+            f.z_ray_index(point(z_in, radial)),
+            f.z_ray_index(point(z_out, radial)),
+        ) {
             (Some(c), Some(d)) if c == d => {
                 let ray = &zf.rays[c];
                 bisect(z_in, z_out, |z| contains(ray, point(z, radial)[2]))
