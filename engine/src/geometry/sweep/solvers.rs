@@ -1,6 +1,7 @@
 //! The 1-D and 2-D solvers of the sweeps: convex searches, chords of stadiums, and the
 //! closed-form intersections of a line with a capsule and with a swept cylinder.
 
+use crate::geometry::dexel::other_axes;
 use crate::vec3::{dot, sub};
 
 const GOLDEN_ITERS: usize = 56;
@@ -226,6 +227,86 @@ pub(super) fn line_capsule(
         }
     }
     out
+}
+
+/// `line_capsule` for the rays of one grid family (e the unit vector along axis `fam`),
+/// with the terms that do not depend on the ray prepared once per sweep: a ray then costs
+/// a few products and the square roots. Each ray's coordinate is measured from the
+/// capsule's start along it, which also keeps the large coordinates out of the
+/// differences (the generic form subtracts squares of the ray's distance from the origin).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct AxisCapsule {
+    /// The segment's ends (a, b) in (along the rays, u, v).
+    a: [f64; 3],
+    b: [f64; 3],
+    /// b − a across the rays (u, v), and along them.
+    d_uv: [f64; 2],
+    d_f: f64,
+    /// |b − a|², and its part across the rays (the cylinder's quadratic's leading term);
+    /// `None` when the segment is (nearly) along the rays, where its cylinder adds nothing
+    /// the end spheres do not.
+    dd: f64,
+    qa: Option<f64>,
+    r2: f64,
+}
+
+impl AxisCapsule {
+    pub(super) fn new(fam: usize, a: [f64; 3], b: [f64; 3], r: f64) -> AxisCapsule {
+        let (ua, va) = other_axes(fam);
+        let d = sub(b, a);
+        let dd = dot(d, d);
+        let qa = dd - d[fam] * d[fam];
+        AxisCapsule {
+            a: [a[fam], a[ua], a[va]],
+            b: [b[fam], b[ua], b[va]],
+            d_uv: [d[ua], d[va]],
+            d_f: d[fam],
+            dd,
+            qa: (dd > 0.0 && qa > 1e-12 * dd).then_some(qa),
+            r2: r * r,
+        }
+    }
+
+    /// The interval along the ray at (u, v) (coordinate along the family's axis) within
+    /// the capsule.
+    #[inline]
+    pub(super) fn ray(&self, u: f64, v: f64) -> Option<(f64, f64)> {
+        let mut out = None;
+        for c in [self.a, self.b] {
+            let (du, dv) = (u - c[1], v - c[2]);
+            let disc = self.r2 - du * du - dv * dv;
+            if disc >= 0.0 {
+                let sq = disc.sqrt();
+                out = hull(out, Some((c[0] - sq, c[0] + sq)));
+            }
+        }
+        let Some(qa) = self.qa else {
+            return out;
+        };
+        // From the point of the ray level with a along it: m = (0, du, dv).
+        let (du, dv) = (u - self.a[1], v - self.a[2]);
+        let md = du * self.d_uv[0] + dv * self.d_uv[1];
+        let (dd, nd) = (self.dd, self.d_f);
+        let qb = -nd * md;
+        let qc = dd * (du * du + dv * dv - self.r2) - md * md;
+        let disc = qb * qb - qa * qc;
+        if disc >= 0.0 {
+            let sq = disc.sqrt();
+            let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
+            // Axial parameter (md + s·nd)/dd within [0, 1].
+            if nd.abs() > 1e-15 {
+                let (t0, t1) = (-md / nd, (dd - md) / nd);
+                s0 = s0.max(t0.min(t1));
+                s1 = s1.min(t0.max(t1));
+            } else if md < 0.0 || md > dd {
+                s1 = s0 - 1.0;
+            }
+            if s0 <= s1 {
+                out = hull(out, Some((self.a[0] + s0, self.a[0] + s1)));
+            }
+        }
+        out
+    }
 }
 
 /// Line o + s·e (e unit, tool frame) against the volume swept by the cylinder of radius r
@@ -507,4 +588,61 @@ pub(crate) fn swept_frustum(
         }
     }
     (lo <= hi).then_some((lo, hi))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axis_capsule_is_line_capsule_along_each_family() {
+        // Random capsules (some nearly along the rays, some short) and rays of each family
+        // through and past them: the prepared form against the generic one, hits and misses
+        // alike, away from tangency (where either may round to a miss).
+        let mut rnd = crate::geometry::sweep::tests::uniform(7);
+        let (mut hits, mut misses) = (0, 0);
+        for i in 0..200_000 {
+            let fam = i % 3;
+            let mut p = || [rnd() * 60.0 - 30.0, rnd() * 60.0 - 30.0, rnd() * 30.0];
+            let a = p();
+            let mut b = p();
+            let scale = [1.0, 0.1, 1e-3, 0.0][i % 4];
+            for k in 0..3 {
+                b[k] = a[k] + (b[k] - a[k]) * scale;
+            }
+            if i % 7 == 0 {
+                // Along the rays, or nearly.
+                b = a;
+                b[fam] += 5.0;
+                let (ua, _) = other_axes(fam);
+                b[ua] += 1e-7 * (i % 5) as f64;
+            }
+            let r = 0.5 + 3.0 * rnd();
+            let (ua, va) = other_axes(fam);
+            let u = a[ua] + (b[ua] - a[ua]) * rnd() + (rnd() * 2.0 - 1.0) * (r + 0.5);
+            let v = a[va] + (b[va] - a[va]) * rnd() + (rnd() * 2.0 - 1.0) * (r + 0.5);
+            let mut o = [0.0; 3];
+            o[ua] = u;
+            o[va] = v;
+            let mut e = [0.0; 3];
+            e[fam] = 1.0;
+            let generic = line_capsule(o, e, a, b, r);
+            let fast = AxisCapsule::new(fam, a, b, r).ray(u, v);
+            match (generic, fast) {
+                (Some(g), Some(f)) => {
+                    assert!(
+                        (g.0 - f.0).abs() < 1e-7 && (g.1 - f.1).abs() < 1e-7,
+                        "{fam} {a:?} {b:?} {r} ({u}, {v}): {g:?} vs {f:?}"
+                    );
+                    hits += 1;
+                }
+                (None, None) => misses += 1,
+                // Tangent rays: the chord either keeps is a point, or nearly.
+                (Some(c), None) | (None, Some(c)) => {
+                    assert!(c.1 - c.0 < 1e-5, "{fam} {a:?} {b:?} {r} ({u}, {v}): {c:?}")
+                }
+            }
+        }
+        assert!(hits > 50_000 && misses > 20_000, "{hits} {misses}");
+    }
 }

@@ -8,7 +8,7 @@ use parry3d_f64::query::Ray;
 use parry3d_f64::shape::SupportMap;
 
 use super::profile::{Profile, ToolBody};
-use super::solvers::{hull, line_capsule, swept_cylinder, swept_frustum, Stadium};
+use super::solvers::{hull, line_capsule, swept_cylinder, swept_frustum, AxisCapsule, Stadium};
 use super::Sweep;
 use crate::geometry::dexel::{other_axes, Intervals};
 use crate::vec3::{cross, dot, norm, sub};
@@ -203,6 +203,8 @@ struct SectionPlanes {
     ball_top: f64,
     /// The axis's part along the rays (a·e).
     along: f64,
+    /// A ball: its swept sphere (a capsule) prepared for this family's rays.
+    sphere: Option<AxisCapsule>,
     /// The move's terms of each ray's quantities, affine in the ray's (u, v): prepared
     /// once per sweep, so that a ray costs a few products (no division, no square root
     /// beyond the stadium's end caps).
@@ -286,12 +288,22 @@ impl FullSection {
                     [w, -w]
                 }),
             };
+            // The sphere of the tool's radius (a ball's corner radius is that radius).
+            let sphere = ball.map(|_| {
+                let c0 = [
+                    p0[0] + r * axis[0],
+                    p0[1] + r * axis[1],
+                    p0[2] + r * axis[2],
+                ];
+                AxisCapsule::new(fam, c0, [c0[0] + d[0], c0[1] + d[1], c0[2] + d[2]], r)
+            });
             (band.0 < band.1 || ball.is_some()).then_some(SectionPlanes {
                 k,
                 band,
                 ball_below,
                 ball_top,
                 along,
+                sphere,
                 per_ray,
             })
         });
@@ -320,14 +332,8 @@ impl Sweep<'_> {
         let t0 = tr.t_uv[0] * u + tr.t_uv[1] * v + tr.t_c;
         let t1 = t0 + tr.dt;
         let r = self.body.radius;
-        let swept_sphere = || {
-            let (a, p0, d) = (self.mv.axis, self.mv.p0, self.delta);
-            let mut e = [0.0; 3];
-            e[fam] = 1.0;
-            let c0 = [p0[0] + r * a[0], p0[1] + r * a[1], p0[2] + r * a[2]];
-            let c1 = [c0[0] + d[0], c0[1] + d[1], c0[2] + d[2]];
-            line_capsule(ray_point(fam, u, v, 0.0), e, c0, c1, r)
-        };
+        // Only a ball has a sphere; `ball_below` and `ball_top` are −∞ otherwise.
+        let swept_sphere = || sp.sphere.as_ref().and_then(|c| c.ray(u, v));
         if t0.max(t1) <= sp.ball_below {
             return Some(swept_sphere());
         }
