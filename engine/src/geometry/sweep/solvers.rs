@@ -209,24 +209,31 @@ pub(super) fn line_capsule(
     if dd > 0.0 && qa > 1e-12 * dd {
         let qb = dd * mn - nd * md;
         let qc = dd * (dot(m, m) - r * r) - md * md;
-        let disc = qb * qb - qa * qc;
-        if disc >= 0.0 {
-            let sq = disc.sqrt();
-            let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
-            // Axial parameter (md + s·nd)/dd within [0, 1].
-            if nd.abs() > 1e-15 {
-                let (t0, t1) = (-md / nd, (dd - md) / nd);
-                s0 = s0.max(t0.min(t1));
-                s1 = s1.min(t0.max(t1));
-            } else if md < 0.0 || md > dd {
-                s1 = s0 - 1.0;
-            }
-            if s0 <= s1 {
-                out = hull(out, Some((s0, s1)));
-            }
-        }
+        out = hull(out, capsule_side(qa, qb, qc, md, nd, dd));
     }
     out
+}
+
+/// The ray parameters s where a line meets a capsule's side (the cylinder between its end
+/// spheres): the roots of qa·s² + 2·qb·s + qc ≤ 0, kept where the axial parameter
+/// (md + s·nd)/dd lies within [0, 1] (m the line's point at s = 0 less the segment's
+/// start, d the segment, dd = d·d, nd = e·d).
+#[inline]
+fn capsule_side(qa: f64, qb: f64, qc: f64, md: f64, nd: f64, dd: f64) -> Option<(f64, f64)> {
+    let disc = qb * qb - qa * qc;
+    if disc < 0.0 {
+        return None;
+    }
+    let sq = disc.sqrt();
+    let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
+    if nd.abs() > 1e-15 {
+        let (t0, t1) = (-md / nd, (dd - md) / nd);
+        s0 = s0.max(t0.min(t1));
+        s1 = s1.min(t0.max(t1));
+    } else if md < 0.0 || md > dd {
+        s1 = s0 - 1.0;
+    }
+    (s0 <= s1).then_some((s0, s1))
 }
 
 /// `line_capsule` for the rays of one grid family (e the unit vector along axis `fam`),
@@ -289,23 +296,8 @@ impl AxisCapsule {
         let (dd, nd) = (self.dd, self.d_f);
         let qb = -nd * md;
         let qc = dd * (du * du + dv * dv - self.r2) - md * md;
-        let disc = qb * qb - qa * qc;
-        if disc >= 0.0 {
-            let sq = disc.sqrt();
-            let (mut s0, mut s1) = ((-qb - sq) / qa, (-qb + sq) / qa);
-            // Axial parameter (md + s·nd)/dd within [0, 1].
-            if nd.abs() > 1e-15 {
-                let (t0, t1) = (-md / nd, (dd - md) / nd);
-                s0 = s0.max(t0.min(t1));
-                s1 = s1.min(t0.max(t1));
-            } else if md < 0.0 || md > dd {
-                s1 = s0 - 1.0;
-            }
-            if s0 <= s1 {
-                out = hull(out, Some((self.a[0] + s0, self.a[0] + s1)));
-            }
-        }
-        out
+        let side = capsule_side(qa, qb, qc, md, nd, dd);
+        hull(out, side.map(|(s0, s1)| (self.a[0] + s0, self.a[0] + s1)))
     }
 }
 
@@ -592,6 +584,7 @@ pub(crate) fn swept_frustum(
 
 #[cfg(test)]
 mod tests {
+    use super::super::tilted::ray_point;
     use super::*;
 
     #[test]
@@ -621,12 +614,9 @@ mod tests {
             let (ua, va) = other_axes(fam);
             let u = a[ua] + (b[ua] - a[ua]) * rnd() + (rnd() * 2.0 - 1.0) * (r + 0.5);
             let v = a[va] + (b[va] - a[va]) * rnd() + (rnd() * 2.0 - 1.0) * (r + 0.5);
-            let mut o = [0.0; 3];
-            o[ua] = u;
-            o[va] = v;
             let mut e = [0.0; 3];
             e[fam] = 1.0;
-            let generic = line_capsule(o, e, a, b, r);
+            let generic = line_capsule(ray_point(fam, u, v, 0.0), e, a, b, r);
             let fast = AxisCapsule::new(fam, a, b, r).ray(u, v);
             match (generic, fast) {
                 (Some(g), Some(f)) => {
