@@ -15,6 +15,7 @@ pub mod nc;
 pub mod optimize;
 pub mod physics;
 pub mod pipeline;
+mod prefetch;
 pub mod tool;
 pub mod tool_library;
 mod vec3;

@@ -779,7 +779,7 @@ mod tests {
                     1 => (z, across),
                     _ => (rnd() * 16.0 - 8.0, rnd() * 16.0 - 8.0),
                 };
-                let Some(fast) = sw.full_section_ray(fam, u, v) else {
+                let Some(fast) = sw.full_section_ray(fam, u, v, &full) else {
                     continue;
                 };
                 let mut o = [0.0; 3];

@@ -8,6 +8,7 @@ use super::Sweep;
 use crate::geometry::dexel::{
     index_range, other_axes, subtract, DexelGrid, Family, Intervals, RaySummaries, RaySummary,
 };
+use crate::prefetch::prefetch;
 
 /// A straight sweep of the cutting part from tip position `p0` to `p1` with a fixed unit
 /// tool axis.
@@ -360,6 +361,10 @@ fn remove_family(
                 while candidates != 0 {
                     let iu = c0 + candidates.trailing_zeros() as usize;
                     candidates &= candidates - 1;
+                    // The next candidate's ray, read after this one's exact intersection.
+                    if candidates != 0 {
+                        prefetch(&row[c0 + candidates.trailing_zeros() as usize]);
+                    }
                     let ray = &mut row[iu];
                     let (ea, eb) = extent(iu);
                     if !ray.iter().any(|r| r[0] < eb && ea < r[1]) {

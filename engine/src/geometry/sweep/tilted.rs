@@ -66,7 +66,7 @@ impl Sweep<'_> {
         if span <= 0.0 {
             return None;
         }
-        if let Some(iv) = self.full_section_ray(fam, u, v) {
+        if let Some(iv) = self.full_section_ray(fam, u, v, material) {
             return iv;
         }
         self.solid_ray(fam, ray_point(fam, u, v, start), span, material)
@@ -320,11 +320,17 @@ impl Sweep<'_> {
     /// the plane cuts only the sphere (its capsule) or the sphere and the cylinder above its
     /// centre (`half_ellipse_ray`). `None` where none applies (a plane near the tool's tip
     /// or top end, of a tool other than a ball): the caller takes the general path.
+    ///
+    /// On a ball, where `material` has nothing within the reach of the cylinder's part,
+    /// the interval is the sphere's alone: it removes the same from `material` as the
+    /// whole (the swept body is convex, so its interval is the union of the two parts'),
+    /// and the cut ellipse, the dearer part, is not solved.
     pub(super) fn full_section_ray(
         &self,
         fam: usize,
         u: f64,
         v: f64,
+        material: &Intervals,
     ) -> Option<Option<(f64, f64)>> {
         let sp = self.full_section.as_ref()?.planes[fam].as_ref()?;
         let tr = &sp.per_ray;
@@ -352,17 +358,39 @@ impl Sweep<'_> {
                     let l = self.body.length;
                     ((l - t0) / sp.along, (l - t1) / sp.along)
                 });
-                let (c0, c1) = ([sigma, omega], [sigma + tr.d_sigma, omega + tr.d_omega]);
+                // The cylinder's part lies beyond the centre's cut and within R/k of the
+                // ellipse's centre along the ray, each moving linearly with the move.
+                let sigma1 = sigma + tr.d_sigma;
+                let reach = r / sp.k;
+                let (lo, hi) = if sp.along > 0.0 {
+                    (
+                        (sigma + cut.0).min(sigma1 + cut.1),
+                        sigma.max(sigma1) + reach,
+                    )
+                } else {
+                    (
+                        sigma.min(sigma1) - reach,
+                        (sigma + cut.0).max(sigma1 + cut.1),
+                    )
+                };
+                let slack = 1e-9 * (1.0 + lo.abs().max(hi.abs()));
+                let (lo, hi) = (lo - slack, hi + slack);
+                let in_cylinder = material.iter().any(|iv| iv[0] <= hi && lo <= iv[1]);
+                // The sphere's centre lies (R − t)·k from the ray's plane: a plane more than
+                // R from it all along the move (with a margin for rounding) misses the swept
+                // sphere, and with it the ray.
+                let misses_sphere = t0.min(t1) > r + (r / sp.k) * (1.0 + 1e-9) + 1e-9;
+                if !in_cylinder {
+                    return Some(if misses_sphere { None } else { swept_sphere() });
+                }
+                let (c0, c1) = ([sigma, omega], [sigma1, omega + tr.d_omega]);
                 let ellipse = CutEllipse {
                     r,
                     k: sp.k,
                     stationary: tr.stationary,
                 };
                 let cylinder = half_ellipse_ray(c0, c1, cut, top, sp.along > 0.0, &ellipse);
-                // The sphere's centre lies (R − t)·k from the ray's plane: a plane more than
-                // R from it all along the move (with a margin for rounding) misses the swept
-                // sphere, and with it the ray.
-                if t0.min(t1) > r + (r / sp.k) * (1.0 + 1e-9) + 1e-9 {
+                if misses_sphere {
                     return Some(cylinder);
                 }
                 return Some(hull(swept_sphere(), cylinder));
@@ -588,6 +616,7 @@ fn through_the_bottom(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::dexel::subtract;
     use crate::geometry::sweep::SubMove;
     use crate::tool::Tool;
 
@@ -598,6 +627,47 @@ mod tests {
         n[fam] = 0.0;
         let k = norm(n);
         [n[0] / k, n[1] / k, n[2] / k]
+    }
+
+    /// Material all along a ray.
+    fn everywhere() -> Intervals {
+        Intervals::from_slice(&[[-1000.0, 1000.0]])
+    }
+
+    #[test]
+    fn ball_rays_remove_the_same_whatever_part_they_skip() {
+        // Material in a few random pieces along each ray: where it lies out of the
+        // cylinder's reach the sphere's interval alone is used, and it must leave the same
+        // material, to the bit, as the whole interval does.
+        let mut rnd = crate::geometry::sweep::tests::uniform(47);
+        let mut t = Tool::ball(6.0, 2);
+        t.flute_length = 20.0;
+        let body = ToolBody::cutting_part(&t);
+        let (mut skipped, mut changed) = (0, 0);
+        for _ in 0..40_000 {
+            let Some(ray) = draw_ball_ray(&mut rnd, &body, |rnd| 1.0 + 6.0 * rnd()) else {
+                continue;
+            };
+            let (fam, u, v) = (ray.fam, ray.u, ray.v);
+            let Some(whole) = ray.sw.full_section_ray(fam, u, v, &everywhere()) else {
+                continue;
+            };
+            // One to three pieces of material within ±8 mm of the ray's origin.
+            let mut ends: Vec<f64> = (0..2 * (1 + (rnd() * 3.0) as usize))
+                .map(|_| rnd() * 16.0 - 8.0)
+                .collect();
+            ends.sort_by(f64::total_cmp);
+            let material: Intervals = ends.chunks(2).map(|c| [c[0], c[1]]).collect();
+            let part = ray.sw.full_section_ray(fam, u, v, &material).unwrap();
+            let (mut a, mut b) = (material.clone(), material.clone());
+            let ra = whole.map_or(0.0, |(x, y)| subtract(&mut a, x, y));
+            let rb = part.map_or(0.0, |(x, y)| subtract(&mut b, x, y));
+            assert_eq!(a, b, "{fam} {u} {v}: {whole:?} vs {part:?} on {material:?}");
+            assert_eq!(ra.to_bits(), rb.to_bits());
+            skipped += (part != whole) as usize;
+            changed += (ra > 0.0) as usize;
+        }
+        assert!(skipped > 1000 && changed > 1000, "{skipped} {changed}");
     }
 
     /// A ray drawn for the ball tests: a random tilted move from the origin of `body` (a
@@ -657,7 +727,7 @@ mod tests {
         /// Asserts that `fast` (this ray's closed form) is the solids' interval, hit or
         /// miss alike; true on a hit.
         fn matches_the_solids(&self, fast: Option<(f64, f64)>) -> bool {
-            let full = Intervals::from_slice(&[[-1000.0, 1000.0]]);
+            let full = everywhere();
             let (fam, u, v, axis, p1) = (self.fam, self.u, self.v, self.axis, self.p1);
             let exact = self
                 .sw
@@ -696,7 +766,10 @@ mod tests {
             if !(t0.max(t1) > 3.0 - margin && t0.min(t1) < 3.0 + margin) {
                 continue;
             }
-            let Some(fast) = ray.sw.full_section_ray(ray.fam, ray.u, ray.v) else {
+            let Some(fast) = ray
+                .sw
+                .full_section_ray(ray.fam, ray.u, ray.v, &everywhere())
+            else {
                 continue;
             };
             ray.matches_the_solids(fast);
@@ -733,7 +806,7 @@ mod tests {
             }
             let fast = ray
                 .sw
-                .full_section_ray(ray.fam, ray.u, ray.v)
+                .full_section_ray(ray.fam, ray.u, ray.v, &everywhere())
                 .expect("the ray of a ball is in closed form");
             if ray.matches_the_solids(fast) {
                 hits += 1;
