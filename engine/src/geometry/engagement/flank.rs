@@ -5,6 +5,7 @@
 use super::super::dexel::{contains, DexelGrid};
 use super::super::sweep::ToolBody;
 use super::{bisect, StepFrame, StepInput};
+use crate::prefetch::prefetch;
 use crate::vec3::dot;
 
 /// A tilted flank's heights in material per bin (κ = 90°, radius `r`, slices
@@ -197,7 +198,10 @@ impl FlankLine {
                 // In the grid, x and y are below its counts, far below 2³¹: truncated
                 // as i32 (fewer instructions than to usize), the same cell.
                 *slot = if x >= 0.0 && x < nx && y >= 0.0 && y < ny {
-                    x as i32 as usize + zf.nu * y as i32 as usize
+                    let at = x as i32 as usize + zf.nu * y as i32 as usize;
+                    // Asked for now, read below: the batch's loads overlap.
+                    prefetch(&zf.rays[at]);
+                    at
                 } else {
                     OFF
                 };

@@ -238,6 +238,8 @@ fn remove_family(
     let (ua, va) = other_axes(fam);
     let (gmin, gmax) = (g.origin, g.max);
     let (h, ou, ov) = (g.cell, g.origin[ua], g.origin[va]);
+    // The grid's memory limit keeps every count far below 2³¹ (see `centre` below).
+    debug_assert!(g.n[ua] < i32::MAX as usize);
     // Index box of each sub-move on this family, and their union.
     let mut boxes: Vec<RayBox> = Vec::with_capacity(sweeps.len());
     let (mut u0, mut u1, mut v0, mut v1) = (usize::MAX, 0, usize::MAX, 0);
@@ -347,16 +349,28 @@ fn remove_family(
                 // A tilted sweep's extent along each ray is its slab's there: far tighter
                 // than its box under a tilted tool's upper part, where the material is
                 // the floor far below the flank.
+                // (Ray indices are far below 2³¹: through i32, the same centre with one
+                // conversion instruction rather than an unsigned one's several.)
+                let centre = |iu: usize| ou + (iu as i32 as f64 + 0.5) * h;
                 let extent = |iu: usize| match &row_slabs {
                     None => (lo_f, hi_f),
                     Some(rs) => {
-                        let (a, b) = rs.at(ou + (iu as f64 + 0.5) * h);
+                        let (a, b) = rs.at(centre(iu));
                         (a.max(lo_f), b.min(hi_f))
                     }
                 };
-                for (i, s) in chunk.iter().enumerate() {
-                    let (a, b) = extent(c0 + i);
-                    candidates |= (s.may_overlap(a, b) as u64) << i;
+                match &row_slabs {
+                    None => {
+                        for (i, s) in chunk.iter().enumerate() {
+                            candidates |= (s.may_overlap(lo_f, hi_f) as u64) << i;
+                        }
+                    }
+                    Some(rs) => {
+                        for (i, s) in chunk.iter().enumerate() {
+                            let (a, b) = rs.loose(centre(c0 + i), lo_f, hi_f);
+                            candidates |= (s.may_overlap(a, b) as u64) << i;
+                        }
+                    }
                 }
                 while candidates != 0 {
                     let iu = c0 + candidates.trailing_zeros() as usize;
@@ -370,7 +384,7 @@ fn remove_family(
                     if !ray.iter().any(|r| r[0] < eb && ea < r[1]) {
                         continue;
                     }
-                    let u = ou + (iu as f64 + 0.5) * h;
+                    let u = centre(iu);
                     *exact += 1;
                     let hit = if row_in_section {
                         bx.column_sections[iu - bx.u0]
@@ -379,7 +393,7 @@ fn remove_family(
                     } else if sweep.vertical {
                         sweep.ray_interval(fam, u, v, s_min, s_max, ray)
                     } else {
-                        sweep.general_ray(fam, u, v, (ea, eb), ray)
+                        sweep.general_ray_meeting(fam, u, v, (ea, eb), ray)
                     };
                     if let Some((a, b)) = hit {
                         let r = subtract(ray, a, b);

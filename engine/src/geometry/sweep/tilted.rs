@@ -57,7 +57,25 @@ impl Sweep<'_> {
         material: &Intervals,
     ) -> Option<(f64, f64)> {
         let (c_in, c_out) = extent;
-        if !(c_in <= c_out) || !material.iter().any(|iv| iv[0] < c_out && c_in < iv[1]) {
+        if !material.iter().any(|iv| iv[0] < c_out && c_in < iv[1]) {
+            return None;
+        }
+        self.general_ray_meeting(fam, u, v, extent, material)
+    }
+
+    /// `general_ray` for a ray whose material is known to meet `extent` (the removal
+    /// pass has just tested it).
+    #[inline]
+    pub(crate) fn general_ray_meeting(
+        &self,
+        fam: usize,
+        u: f64,
+        v: f64,
+        extent: (f64, f64),
+        material: &Intervals,
+    ) -> Option<(f64, f64)> {
+        let (c_in, c_out) = extent;
+        if !(c_in <= c_out) {
             return None;
         }
         // The slabs are shrunk by 1e-9 mm: the margin takes the cast's start well outside.
@@ -325,6 +343,7 @@ impl Sweep<'_> {
     /// the interval is the sphere's alone: it removes the same from `material` as the
     /// whole (the swept body is convex, so its interval is the union of the two parts'),
     /// and the cut ellipse, the dearer part, is not solved.
+    #[inline]
     pub(super) fn full_section_ray(
         &self,
         fam: usize,
