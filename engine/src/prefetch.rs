@@ -3,7 +3,9 @@
 //! The removal pass reads the rays it intersects in an order known a few rays ahead
 //! (the candidates of a row), each after some hundreds of instructions of exact
 //! geometry: fetching the next one while the current is solved hides the wait for
-//! memory that the first read of each ray otherwise costs.
+//! memory that the first read of each ray otherwise costs. A tilted flank's engagement
+//! finds the Z rays of a batch of test points before it reads them, and asks for them
+//! all first.
 
 /// Asks for the cache line holding `value` (no effect on the program's results; a no-op
 /// off x86-64).

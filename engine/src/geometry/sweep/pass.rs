@@ -346,12 +346,12 @@ fn remove_family(
                 // half the rays pass, in no order a branch predictor could learn.
                 let chunk = &row_summaries[c0..bu1.min(c0 + 64)];
                 let mut candidates = 0u64;
-                // A tilted sweep's extent along each ray is its slab's there: far tighter
-                // than its box under a tilted tool's upper part, where the material is
-                // the floor far below the flank.
                 // (Ray indices are far below 2³¹: through i32, the same centre with one
                 // conversion instruction rather than an unsigned one's several.)
                 let centre = |iu: usize| ou + (iu as i32 as f64 + 0.5) * h;
+                // A tilted sweep's extent along each ray is its slab's there: far tighter
+                // than its box under a tilted tool's upper part, where the material is
+                // the floor far below the flank.
                 let extent = |iu: usize| match &row_slabs {
                     None => (lo_f, hi_f),
                     Some(rs) => {
