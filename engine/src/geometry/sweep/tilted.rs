@@ -47,7 +47,9 @@ pub(crate) fn frame_around(axis: [f64; 3]) -> ([f64; 3], [f64; 3]) {
 
 impl Sweep<'_> {
     /// The interval of the ray of family `fam` at (u, v) within `extent` (a range along
-    /// it that holds the sweep there, see `slab_range`, clipped to the grid).
+    /// it that holds the sweep there, see `slab_range`, clipped to the grid): the swept
+    /// body's, or, where `material` allows a shortcut (`full_section_ray` on a ball,
+    /// `through_the_bottom`), one that removes the same from it.
     pub(crate) fn general_ray(
         &self,
         fam: usize,
