@@ -400,7 +400,7 @@ impl Sweep<'_> {
                 // The sphere's centre lies (R − t)·k from the ray's plane: a plane more than
                 // R from it all along the move (with a margin for rounding) misses the swept
                 // sphere, and with it the ray.
-                let misses_sphere = t0.min(t1) > r + (r / sp.k) * (1.0 + 1e-9) + 1e-9;
+                let misses_sphere = t0.min(t1) > r + reach * (1.0 + 1e-9) + 1e-9;
                 if !in_cylinder {
                     return Some(if misses_sphere { None } else { swept_sphere() });
                 }
@@ -650,6 +650,13 @@ mod tests {
         [n[0] / k, n[1] / k, n[2] / k]
     }
 
+    /// The cutting part of the ball tests' tool: Ø6 with 20 mm flutes.
+    fn ball_with_20mm_flutes() -> ToolBody {
+        let mut t = Tool::ball(6.0, 2);
+        t.flute_length = 20.0;
+        ToolBody::cutting_part(&t)
+    }
+
     /// Material all along a ray.
     fn everywhere() -> Intervals {
         Intervals::from_slice(&[[-1000.0, 1000.0]])
@@ -661,9 +668,7 @@ mod tests {
         // cylinder's reach the sphere's interval alone is used, and it must leave the same
         // material, to the bit, as the whole interval does.
         let mut rnd = crate::geometry::sweep::tests::uniform(47);
-        let mut t = Tool::ball(6.0, 2);
-        t.flute_length = 20.0;
-        let body = ToolBody::cutting_part(&t);
+        let body = ball_with_20mm_flutes();
         let (mut skipped, mut changed) = (0, 0);
         for _ in 0..40_000 {
             let Some(ray) = draw_ball_ray(&mut rnd, &body, |rnd| 1.0 + 6.0 * rnd()) else {
@@ -774,9 +779,7 @@ mod tests {
         // solids, hits and misses alike, and enough of them to exercise both sides of the
         // cut (the axis along the ray and against it).
         let mut rnd = crate::geometry::sweep::tests::uniform(41);
-        let mut t = Tool::ball(6.0, 2);
-        t.flute_length = 20.0;
-        let body = ToolBody::cutting_part(&t);
+        let body = ball_with_20mm_flutes();
         let (mut checked, mut along_pos, mut along_neg) = (0, 0, 0);
         for _ in 0..20_000 {
             // Near the sphere's centre, 3 mm up the axis.
@@ -814,9 +817,7 @@ mod tests {
         // disk, and on the steepest rays the sphere as well. Before, these rays took the
         // general solids.
         let mut rnd = crate::geometry::sweep::tests::uniform(43);
-        let mut t = Tool::ball(6.0, 2);
-        t.flute_length = 20.0;
-        let body = ToolBody::cutting_part(&t);
+        let body = ball_with_20mm_flutes();
         let (mut hits, mut misses, mut along_pos, mut along_neg) = (0, 0, 0, 0);
         for _ in 0..40_000 {
             let Some(ray) = draw_ball_ray(&mut rnd, &body, |rnd| 20.0 - 6.0 * rnd()) else {
