@@ -82,13 +82,15 @@ pub(crate) struct Scratch {
     ranges: Vec<(usize, usize, usize)>,
     /// Per bin, the heights above the tip in material: (bin, lo, hi).
     zranges: Vec<(usize, f64, f64)>,
-    /// The whole slices of those ranges (bin, first, end) and the slices covered in part
-    /// (slice, bin, lo, hi).
-    full: Vec<(usize, usize, usize)>,
+    /// Where the whole slices of those ranges start and end (slice, opens, bin), and the
+    /// slices covered in part (slice, bin, lo, hi).
+    edges: Vec<(usize, bool, usize)>,
     parts: Vec<(usize, usize, f64, f64)>,
     /// Where runs of whole slices break; one row of bins.
     cuts: Vec<usize>,
     row: Vec<bool>,
+    /// Per bin, how many of its ranges hold the slice swept to.
+    depth: Vec<u32>,
     /// Heights where some bin's range ends in a slice covered in part.
     sub: Vec<f64>,
     /// Per slice: whether any of its bits is set (most slices of a step have none).
@@ -233,10 +235,11 @@ pub(crate) fn compute(
         ..Default::default()
     };
     let assembly = Assembly {
-        full: &mut scratch.full,
+        edges: &mut scratch.edges,
         parts: &mut scratch.parts,
         cuts: &mut scratch.cuts,
         row: &mut scratch.row,
+        depth: &mut scratch.depth,
         sub: &mut scratch.sub,
         bin_spread: &scratch.bin_spread,
     };

@@ -8,10 +8,11 @@ use crate::engagement::{Arcs, EngagedSlice};
 
 /// The buffers `slices_of_ranges` works in (see `Scratch`).
 pub(super) struct Assembly<'s> {
-    pub(super) full: &'s mut Vec<(usize, usize, usize)>,
+    pub(super) edges: &'s mut Vec<(usize, bool, usize)>,
     pub(super) parts: &'s mut Vec<(usize, usize, f64, f64)>,
     pub(super) cuts: &'s mut Vec<usize>,
     pub(super) row: &'s mut Vec<bool>,
+    pub(super) depth: &'s mut Vec<u32>,
     pub(super) sub: &'s mut Vec<f64>,
     pub(super) bin_spread: &'s [Spread],
 }
@@ -31,10 +32,11 @@ pub(super) fn slices_of_ranges(
 ) {
     let (nb, dz, dphi, tool) = (f.nb, f.dz, f.dphi, f.tool);
     let Assembly {
-        full,
+        edges,
         parts,
         cuts,
         row,
+        depth,
         sub,
         bin_spread,
     } = buf;
@@ -55,7 +57,7 @@ pub(super) fn slices_of_ranges(
             slices.push(EngagedSlice { z, dz: h, arcs });
         }
     };
-    full.clear();
+    edges.clear();
     parts.clear();
     for &(m, lo, hi) in zranges.iter() {
         let (lo, hi) = (snap_to_slices(lo, dz), snap_to_slices(hi, dz));
@@ -64,7 +66,8 @@ pub(super) fn slices_of_ranges(
         }
         let (jl, jh) = ((lo / dz).ceil(), (hi / dz).floor());
         if jl < jh {
-            full.push((m, jl as usize, jh as usize));
+            edges.push((jl as usize, true, m));
+            edges.push((jh as usize, false, m));
         }
         if lo < jl * dz {
             parts.push((jl as usize - 1, m, lo, hi.min(jl * dz)));
@@ -73,7 +76,7 @@ pub(super) fn slices_of_ranges(
             parts.push((jh as usize, m, jh * dz, hi));
         }
     }
-    if full.is_empty() && parts.is_empty() {
+    if edges.is_empty() && parts.is_empty() {
         return;
     }
     // By slice, and in a slice by the heights covered, so that bins covering the same
@@ -84,25 +87,39 @@ pub(super) fn slices_of_ranges(
             .then(p.3.total_cmp(&q.3))
             .then(p.1.cmp(&q.1))
     });
+    // Where whole-slice ranges open and close, in slice order, closes before opens at a
+    // slice: swept once, the bins in material per run of slices follow from them.
+    edges.sort_unstable();
     cuts.clear();
-    cuts.extend(full.iter().flat_map(|&(_, lo, hi)| [lo, hi]));
+    cuts.extend(edges.iter().map(|e| e.0));
     cuts.extend(parts.iter().flat_map(|p| [p.0, p.0 + 1]));
     cuts.sort_unstable();
     cuts.dedup();
     row.clear();
     row.resize(nb, false);
+    // Per bin, how many of its whole-slice ranges hold the current slice.
+    depth.clear();
+    depth.resize(nb, 0);
+    let (mut next_edge, mut open_bins) = (0, 0usize);
     let mut next_part = 0;
     for w in cuts.windows(2) {
         let (ja, jb) = (w[0], w[1]);
-        row.fill(false);
-        let mut any = false;
-        for &(m, lo, hi) in full.iter() {
-            // Without a branch: whether a bin's range holds the slice is data, not a
-            // pattern.
-            let holds = lo <= ja && ja < hi;
-            row[m] |= holds;
-            any |= holds;
+        // Every edge's slice is a cut: the edges up to `ja` are those at it.
+        while let Some(&(j, opens, m)) = edges.get(next_edge) {
+            if j > ja {
+                break;
+            }
+            if opens {
+                depth[m] += 1;
+                open_bins += (depth[m] == 1) as usize;
+            } else {
+                depth[m] -= 1;
+                open_bins -= (depth[m] == 0) as usize;
+            }
+            row[m] = depth[m] > 0;
+            next_edge += 1;
         }
+        let any = open_bins > 0;
         let first_part = next_part;
         while next_part < parts.len() && parts[next_part].0 == ja {
             next_part += 1;
