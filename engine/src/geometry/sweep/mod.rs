@@ -47,7 +47,7 @@ use tilted::FullSection;
 use crate::geometry::dexel::{other_axes, Intervals};
 use crate::vec3::{dot, norm, sub};
 use profile::Profile;
-use solvers::{line_stadium, Stadium};
+use solvers::Stadium;
 
 /// A sweep prepared for ray queries.
 pub(crate) struct Sweep<'a> {
@@ -59,16 +59,17 @@ pub(crate) struct Sweep<'a> {
     e1: [f64; 3],
     e2: [f64; 3],
     delta_local: [f64; 3],
-    cap_a: [f64; 3],
-    cap_b: [f64; 3],
+    /// A capsule holding the swept body (its axis segment's ends spread by half the
+    /// move) seen along each family's rays: a stadium in (u, v), and its radius.
+    capsule_shadow: [Stadium; 3],
     cap_r: f64,
     /// Horizontal moves: the path's stadium seen by X rays and by Y rays.
     stadium: [Stadium; 2],
     /// Tilted axis: the whole elliptic sections of the top cylinder (X and Y rays).
     full_section: Option<FullSection>,
     /// Per ray family, two slabs `lo ≤ p·normal ≤ hi` holding the swept body (see
-    /// `slab_range`).
-    slabs: [[Slab; 2]; 3],
+    /// `slab_range`), prepared along that family's rays.
+    slabs: [FamilySlabs; 3],
 }
 
 /// The points p with `lo ≤ p·normal ≤ hi`.
@@ -86,35 +87,72 @@ impl Slab {
         hi: f64::INFINITY,
     };
 
-    /// Along the rays of family `fam` in row v: (lo, hi, slope) of the range as a linear
-    /// function of u, and the u-range where it applies (all u unless the slab is parallel
-    /// to the rays).
-    fn row(&self, fam: usize, v: f64) -> ((f64, f64, f64), (f64, f64)) {
+    /// The slab along the rays of family `fam`, its divisions done once for all rows.
+    fn along(&self, fam: usize) -> SlabAlong {
         let (ua, va) = other_axes(fam);
         let n = self.normal;
-        let (lo, hi) = (self.lo - n[va] * v, self.hi - n[va] * v);
         let nf = n[fam];
-        let all = (f64::NEG_INFINITY, f64::INFINITY);
+        let every = (f64::NEG_INFINITY, f64::INFINITY);
+        // lo ≤ nf·s + n_u·u + n_v·v ≤ hi, solved for s (or for u, parallel to the rays).
+        let solved = |by: f64| {
+            let inv = 1.0 / by;
+            let (x, y) = (self.lo * inv, self.hi * inv);
+            ((x.min(y), x.max(y)), -n[va] * inv)
+        };
         if nf.abs() > 1e-9 {
-            let slope = -n[ua] / nf;
-            let (x, y) = (lo / nf, hi / nf);
-            ((x.min(y), x.max(y), slope), all)
+            let (range, per_v) = solved(nf);
+            SlabAlong {
+                range,
+                per_v,
+                slope: -n[ua] / nf,
+                clip: every,
+                clip_per_v: 0.0,
+            }
         } else if n[ua].abs() > 1e-12 {
-            // lo ≤ n_u·u ≤ hi, whatever s.
-            let (x, y) = (lo / n[ua], hi / n[ua]);
-            (
-                (f64::NEG_INFINITY, f64::INFINITY, 0.0),
-                (x.min(y), x.max(y)),
-            )
-        } else if lo <= 0.0 && 0.0 <= hi {
-            ((f64::NEG_INFINITY, f64::INFINITY, 0.0), all)
+            // lo ≤ n_u·u + n_v·v ≤ hi, whatever s.
+            let (clip, clip_per_v) = solved(n[ua]);
+            SlabAlong {
+                range: every,
+                per_v: 0.0,
+                slope: 0.0,
+                clip,
+                clip_per_v,
+            }
         } else {
-            (
-                (f64::NEG_INFINITY, f64::INFINITY, 0.0),
-                (f64::INFINITY, f64::NEG_INFINITY),
-            )
+            // lo ≤ n_v·v ≤ hi: a constant normal n_v ≈ 0, all rows or none.
+            let holds = self.lo <= 0.0 && 0.0 <= self.hi;
+            SlabAlong {
+                range: every,
+                per_v: 0.0,
+                slope: 0.0,
+                clip: if holds {
+                    every
+                } else {
+                    (f64::INFINITY, f64::NEG_INFINITY)
+                },
+                clip_per_v: 0.0,
+            }
         }
     }
+}
+
+/// One family's two slabs and the reciprocals of their slopes' differences
+/// (`RowSlabs::inv_slopes`), prepared once per sweep.
+#[derive(Clone, Copy, Debug)]
+struct FamilySlabs {
+    slabs: [SlabAlong; 2],
+    inv_slopes: [f64; 3],
+}
+
+/// A slab along the rays of one family (`Slab::along`): in row v, the range along the ray
+/// at u is `range + per_v·v + slope·u`, for u within `clip + clip_per_v·v`.
+#[derive(Clone, Copy, Debug)]
+struct SlabAlong {
+    range: (f64, f64),
+    per_v: f64,
+    slope: f64,
+    clip: (f64, f64),
+    clip_per_v: f64,
 }
 
 /// A sweep's slabs along the rays of one row, each range linear in the cross coordinate
@@ -125,6 +163,8 @@ pub(crate) struct RowSlabs {
     hi: [f64; 2],
     slope: [f64; 2],
     u_clip: (f64, f64),
+    /// 1/(slope₀ − slope₁), 1/slope₀, 1/slope₁: `chord`'s divisors, the same in every row.
+    inv_slopes: [f64; 3],
 }
 
 impl RowSlabs {
@@ -159,6 +199,15 @@ impl RowSlabs {
     /// candidates' test could pass, widened a little for rounding.
     pub(crate) fn chord(&self, a: f64, b: f64) -> Option<(f64, f64)> {
         let (mut ulo, mut uhi) = self.u_clip;
+        // 1/d of the pair (i, j) below where |d| is not negligible (a and b have no slope).
+        let inv = |i: usize, j: usize| match (i, j) {
+            (0, 1) => self.inv_slopes[0],
+            (1, 0) => -self.inv_slopes[0],
+            (0, 2) => self.inv_slopes[1],
+            (2, 0) => -self.inv_slopes[1],
+            (1, 2) => self.inv_slopes[2],
+            _ => -self.inv_slopes[2],
+        };
         // Each pair (a lower end, an upper end) must stay ordered: c + d·u ≤ 0.
         let lows = [
             (self.lo[0], self.slope[0]),
@@ -184,9 +233,9 @@ impl RowSlabs {
                         return None;
                     }
                 } else if d > 0.0 {
-                    uhi = uhi.min(-c / d);
+                    uhi = uhi.min(-c * inv(i, j));
                 } else {
-                    ulo = ulo.max(-c / d);
+                    ulo = ulo.max(-c * inv(i, j));
                 }
             }
         }
@@ -260,14 +309,23 @@ impl<'a> Sweep<'a> {
             e1,
             e2,
             delta_local,
-            cap_a,
-            cap_b,
+            capsule_shadow: [0, 1, 2].map(|fam| {
+                let (ua, va) = other_axes(fam);
+                Stadium::new([cap_a[ua], cap_a[va]], [cap_b[ua], cap_b[va]])
+            }),
             cap_r,
             stadium: [
                 Stadium::new([mv.p0[0], mv.p0[1]], [mv.p1[0], mv.p1[1]]),
                 Stadium::new([mv.p0[1], mv.p0[0]], [mv.p1[1], mv.p1[0]]),
             ],
-            slabs: [0, 1, 2].map(|fam| slabs_for(body, &mv, fam)),
+            slabs: [0, 1, 2].map(|fam| {
+                let slabs = slabs_for(body, &mv, fam).map(|sl| sl.along(fam));
+                let [s0, s1] = slabs.map(|sl| sl.slope);
+                FamilySlabs {
+                    slabs,
+                    inv_slopes: [1.0 / (s0 - s1), 1.0 / s0, 1.0 / s1],
+                }
+            }),
             full_section: (!vertical)
                 .then(|| FullSection::new(body, mv.p0, mv.axis, delta))
                 .flatten(),
@@ -324,27 +382,28 @@ impl<'a> Sweep<'a> {
 
     /// The slabs' ranges along the rays of family `fam` in row v.
     pub(crate) fn row_slabs(&self, fam: usize, v: f64) -> RowSlabs {
-        let [a, b] = self.slabs[fam];
-        let ((alo, ahi, asl), aclip) = a.row(fam, v);
-        let ((blo, bhi, bsl), bclip) = b.row(fam, v);
+        let FamilySlabs {
+            slabs: [a, b],
+            inv_slopes,
+        } = self.slabs[fam];
+        let (ka, kb) = (a.per_v * v, b.per_v * v);
+        let (ca, cb) = (a.clip_per_v * v, b.clip_per_v * v);
         RowSlabs {
-            lo: [alo, blo],
-            hi: [ahi, bhi],
-            slope: [asl, bsl],
-            u_clip: (aclip.0.max(bclip.0), aclip.1.min(bclip.1)),
+            lo: [a.range.0 + ka, b.range.0 + kb],
+            hi: [a.range.1 + ka, b.range.1 + kb],
+            slope: [a.slope, b.slope],
+            u_clip: (
+                (a.clip.0 + ca).max(b.clip.0 + cb),
+                (a.clip.1 + ca).min(b.clip.1 + cb),
+            ),
+            inv_slopes,
         }
     }
 
     /// The cross coordinates `u` of the rays of family `fam` in row `v` that meet the
     /// sweep's capsule: the chord at `v` of its shadow along the rays (a stadium).
     fn capsule_chord(&self, fam: usize, v: f64) -> Option<(f64, f64)> {
-        let (ua, va) = other_axes(fam);
-        line_stadium(
-            [self.cap_a[ua], self.cap_a[va]],
-            [self.cap_b[ua], self.cap_b[va]],
-            self.cap_r + 1e-9,
-            v,
-        )
+        self.capsule_shadow[fam].line(self.cap_r + 1e-9, v)
     }
 }
 
@@ -839,24 +898,60 @@ mod tests {
     fn prepared_stadium_matches_line_stadium() {
         let mut unit = uniform(7);
         let mut rnd = || unit() * 10.0 - 5.0;
-        for k in 0..2000 {
+        // The distance from (x, c0) to the segment, for a brute-force check of the ends.
+        let dist = |a: [f64; 2], b: [f64; 2], x: f64, c0: f64| {
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let dd = d[0] * d[0] + d[1] * d[1];
+            let t = if dd > 0.0 {
+                (((x - a[0]) * d[0] + (c0 - a[1]) * d[1]) / dd).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (x - a[0] - t * d[0]).hypot(c0 - a[1] - t * d[1])
+        };
+        let (mut capped, mut sided) = (0, 0);
+        for k in 0..20000 {
             let a = [rnd(), rnd()];
             let b = if k % 7 == 0 {
                 [a[0], rnd()]
             } else if k % 11 == 0 {
                 [rnd(), a[1]]
+            } else if k % 5 == 0 {
+                // Shorter than the radius: the caps overlap.
+                [a[0] + 0.1 * rnd(), a[1] + 0.1 * rnd()]
             } else {
                 [rnd(), rnd()]
             };
-            let (rho, c0) = (rnd().abs() * 0.5 + 0.1, rnd());
+            let (rho, c0) = (rnd().abs() * 0.5 + 0.1, rnd() * 0.5);
             let x = line_stadium(a, b, rho, c0);
             let y = Stadium::new(a, b).line(rho, c0);
             match (x, y) {
-                (Some(x), Some(y)) => assert!((x.0 - y.0).abs() < 1e-9 && (x.1 - y.1).abs() < 1e-9),
+                (Some(x), Some(y)) => {
+                    assert!(
+                        (x.0 - y.0).abs() < 1e-9 && (x.1 - y.1).abs() < 1e-9,
+                        "{a:?} {b:?} {rho} {c0}: {x:?} vs {y:?}"
+                    );
+                    // The ends lie on the stadium's boundary, and just beyond them is out.
+                    for (end, out) in [(y.0, y.0 - 1e-6), (y.1, y.1 + 1e-6)] {
+                        assert!((dist(a, b, end, c0) - rho).abs() < 1e-9, "{a:?} {b:?}");
+                        assert!(dist(a, b, out, c0) > rho, "{a:?} {b:?}");
+                    }
+                    let on_cap = |x: f64| {
+                        let on = |p: [f64; 2]| ((x - p[0]).hypot(c0 - p[1]) - rho).abs() < 1e-9;
+                        on(a) || on(b)
+                    };
+                    if on_cap(y.0) && on_cap(y.1) {
+                        capped += 1;
+                    } else {
+                        sided += 1;
+                    }
+                }
                 (None, None) => {}
                 _ => panic!("{a:?} {b:?} {rho} {c0}: {x:?} vs {y:?}"),
             }
         }
+        // Both kinds of ends were met often.
+        assert!(capped > 1000 && sided > 1000, "{capped} {sided}");
     }
 
     #[test]

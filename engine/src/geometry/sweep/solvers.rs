@@ -103,7 +103,6 @@ pub(super) struct Stadium {
     b: [f64; 2],
     len: f64,
     u: [f64; 2],
-    inv_u0: f64,
     inv_n0: f64,
 }
 
@@ -122,55 +121,56 @@ impl Stadium {
             b,
             len,
             u,
-            inv_u0: inv(u[0]),
             inv_n0: inv(-u[1]),
         }
     }
 
-    /// Same as `line_stadium(a, b, rho, c0)`.
+    /// Same as `line_stadium(a, b, rho, c0)`. Each end of the chord is where the line
+    /// leaves the band |across| ≤ ρ along the segment when the segment's own coordinate
+    /// there lies within it (the stadium's side), else on the end cap that coordinate
+    /// points to (every point of the line beyond an end of the segment has that end as
+    /// its closest): a cap's square root is taken only where a cap ends the chord.
     #[inline]
     pub(super) fn line(&self, rho: f64, c0: f64) -> Option<(f64, f64)> {
         let (a, b) = (self.a, self.b);
-        let mut lo = f64::INFINITY;
-        let mut hi = f64::NEG_INFINITY;
-        for p in [a, b] {
+        let cap = |p: [f64; 2]| {
             let dy = c0 - p[1];
-            if dy.abs() <= rho {
+            (dy.abs() <= rho).then(|| {
                 let w = (rho * rho - dy * dy).sqrt();
-                lo = lo.min(p[0] - w);
-                hi = hi.max(p[0] + w);
-            }
+                (p[0] - w, p[0] + w)
+            })
+        };
+        if self.len <= 1e-12 || self.inv_n0 == 0.0 {
+            // A point, or a segment along the line: the caps end the chord, and the
+            // band holds the whole line or none of it.
+            return hull(cap(a), cap(b));
         }
-        if self.len > 1e-12 {
-            let (u, len) = (self.u, self.len);
-            let dy = c0 - a[1];
-            // Along the segment: (x − a0)·u0 + dy·u1 ∈ [0, len].
-            let eu = dy * u[1];
-            let (mut xl, mut xh, mut ok) = (f64::NEG_INFINITY, f64::INFINITY, true);
-            if self.inv_u0 == 0.0 {
-                ok &= (0.0..=len).contains(&eu);
+        let (u, len) = (self.u, self.len);
+        let dy = c0 - a[1];
+        let (eu, en) = (dy * u[1], dy * u[0]);
+        // The band: (x − a0)·n0 + dy·n1 ∈ [−ρ, ρ], n = (−u1, u0).
+        let (x0, x1) = (
+            a[0] + (-rho - en) * self.inv_n0,
+            a[0] + (rho - en) * self.inv_n0,
+        );
+        let (xl, xh) = (x0.min(x1), x0.max(x1));
+        // The segment's coordinate at x: (x − a0)·u0 + dy·u1.
+        let (sl, sh) = ((xl - a[0]) * u[0] + eu, (xh - a[0]) * u[0] + eu);
+        let beyond = |s: f64| {
+            if s < 0.0 {
+                Some(a)
             } else {
-                let (x0, x1) = (a[0] - eu * self.inv_u0, a[0] + (len - eu) * self.inv_u0);
-                xl = x0.min(x1);
-                xh = x0.max(x1);
+                (s > len).then_some(b)
             }
-            // Across it: (x − a0)·n0 + dy·n1 ∈ [−ρ, ρ], n = (−u1, u0).
-            let en = dy * u[0];
-            if self.inv_n0 == 0.0 {
-                ok &= en.abs() <= rho;
-            } else {
-                let (x0, x1) = (
-                    a[0] + (-rho - en) * self.inv_n0,
-                    a[0] + (rho - en) * self.inv_n0,
-                );
-                xl = xl.max(x0.min(x1));
-                xh = xh.min(x0.max(x1));
-            }
-            if ok && xl <= xh {
-                lo = lo.min(xl);
-                hi = hi.max(xh);
-            }
-        }
+        };
+        let lo = match beyond(sl) {
+            None => xl,
+            Some(p) => cap(p)?.0,
+        };
+        let hi = match beyond(sh) {
+            None => xh,
+            Some(p) => cap(p)?.1,
+        };
         (lo <= hi).then_some((lo, hi))
     }
 }
