@@ -249,11 +249,12 @@ pub(super) struct AxisCapsule {
     /// b − a across the rays (u, v), and along them.
     d_uv: [f64; 2],
     d_f: f64,
-    /// |b − a|², and its part across the rays (the cylinder's quadratic's leading term);
-    /// `None` when the segment is (nearly) along the rays, where its cylinder adds nothing
-    /// the end spheres do not.
+    /// |b − a|².
     dd: f64,
-    qa: Option<f64>,
+    /// The cylinder's quadratic's leading term qa (|b − a|² less its part along the rays),
+    /// 1/qa and 1/|b − a|²; `None` when the segment is (nearly) along the rays, where its
+    /// cylinder adds nothing the end spheres do not.
+    side: Option<(f64, f64, f64)>,
     r2: f64,
 }
 
@@ -269,35 +270,61 @@ impl AxisCapsule {
             d_uv: [d[ua], d[va]],
             d_f: d[fam],
             dd,
-            qa: (dd > 0.0 && qa > 1e-12 * dd).then_some(qa),
+            side: (dd > 0.0 && qa > 1e-12 * dd).then(|| (qa, 1.0 / qa, 1.0 / dd)),
             r2: r * r,
         }
     }
 
     /// The interval along the ray at (u, v) (coordinate along the family's axis) within
-    /// the capsule.
+    /// the capsule. Each end is where the ray leaves the capsule's infinite cylinder when
+    /// the axial parameter there lies within [0, 1] (the side), else on the end sphere
+    /// that parameter points to (every point of the ray beyond an end of the segment has
+    /// that end as its closest): a sphere's square root is taken only where a sphere
+    /// ends the interval.
     #[inline]
     pub(super) fn ray(&self, u: f64, v: f64) -> Option<(f64, f64)> {
-        let mut out = None;
-        for c in [self.a, self.b] {
+        let sphere = |c: [f64; 3]| {
             let (du, dv) = (u - c[1], v - c[2]);
             let disc = self.r2 - du * du - dv * dv;
-            if disc >= 0.0 {
+            (disc >= 0.0).then(|| {
                 let sq = disc.sqrt();
-                out = hull(out, Some((c[0] - sq, c[0] + sq)));
-            }
-        }
-        let Some(qa) = self.qa else {
-            return out;
+                (c[0] - sq, c[0] + sq)
+            })
+        };
+        let Some((qa, inv_qa, inv_dd)) = self.side else {
+            return hull(sphere(self.a), sphere(self.b));
         };
         // From the point of the ray level with a along it: m = (0, du, dv).
         let (du, dv) = (u - self.a[1], v - self.a[2]);
         let md = du * self.d_uv[0] + dv * self.d_uv[1];
         let (dd, nd) = (self.dd, self.d_f);
+        // The infinite cylinder: qa·s² + 2·qb·s + qc ≤ 0.
         let qb = -nd * md;
         let qc = dd * (du * du + dv * dv - self.r2) - md * md;
-        let side = capsule_side(qa, qb, qc, md, nd, dd);
-        hull(out, side.map(|(s0, s1)| (self.a[0] + s0, self.a[0] + s1)))
+        let disc = qb * qb - qa * qc;
+        if disc < 0.0 {
+            return None;
+        }
+        let sq = disc.sqrt();
+        let (s0, s1) = ((-qb - sq) * inv_qa, (-qb + sq) * inv_qa);
+        // The end sphere beyond the axial parameter (md + s·nd)/dd at s, if any.
+        let beyond = |s: f64| {
+            let t = (md + s * nd) * inv_dd;
+            if t < 0.0 {
+                Some(self.a)
+            } else {
+                (t > 1.0).then_some(self.b)
+            }
+        };
+        let lo = match beyond(s0) {
+            None => self.a[0] + s0,
+            Some(c) => sphere(c)?.0,
+        };
+        let hi = match beyond(s1) {
+            None => self.a[0] + s1,
+            Some(c) => sphere(c)?.1,
+        };
+        (lo <= hi).then_some((lo, hi))
     }
 }
 

@@ -570,7 +570,15 @@ fn half_ellipse_ray(
         if i >= 2 && (b <= ba || b >= bb) {
             continue;
         }
-        let (sc, half, g) = (s0 + b * s1, rho(b) / k, g0 + b * g1);
+        let g = g0 + b * g1;
+        // At a cut's root the chord's half-length ρ/k is that cut's |offset|, no root
+        // taken: (k·γ)² + ω_c² = R² there.
+        let half = match (i, top) {
+            (4 | 5, _) => g.abs(),
+            (6 | 7, Some((t0, t1))) => (t0 + b * t1).abs(),
+            _ => rho(b) / k,
+        };
+        let sc = s0 + b * s1;
         out.0 = out.0.min(sc + (-half).max(g));
         let up = match top {
             Some((t0, t1)) => half.min(t0 + b * t1),
