@@ -446,7 +446,7 @@ pub fn overlaps(r: &Intervals, a: f64, b: f64) -> bool {
 }
 
 /// Removes `[a, b]` from the sorted intervals; returns the length removed.
-#[inline]
+#[inline(always)]
 pub fn subtract(r: &mut Intervals, a: f64, b: f64) -> f64 {
     if !(b > a) {
         return 0.0;

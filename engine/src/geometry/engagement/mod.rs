@@ -85,6 +85,11 @@ pub(crate) struct Scratch {
     /// Where the whole slices of those ranges start and end (slice, opens, bin), and the
     /// slices covered in part (slice, bin, lo, hi).
     edges: Vec<(usize, bool, usize)>,
+    /// The edges in slice order, and per slice where its edges start, then end.
+    sorted: Vec<(usize, bool, usize)>,
+    at_slice: Vec<usize>,
+    /// Per slice: whether a run of whole slices breaks there.
+    marks: Vec<bool>,
     parts: Vec<(usize, usize, f64, f64)>,
     /// Where runs of whole slices break; one row of bins.
     cuts: Vec<usize>,
@@ -236,6 +241,9 @@ pub(crate) fn compute(
     };
     let assembly = Assembly {
         edges: &mut scratch.edges,
+        sorted: &mut scratch.sorted,
+        at_slice: &mut scratch.at_slice,
+        marks: &mut scratch.marks,
         parts: &mut scratch.parts,
         cuts: &mut scratch.cuts,
         row: &mut scratch.row,

@@ -9,6 +9,9 @@ use crate::engagement::{Arcs, EngagedSlice};
 /// The buffers `slices_of_ranges` works in (see `Scratch`).
 pub(super) struct Assembly<'s> {
     pub(super) edges: &'s mut Vec<(usize, bool, usize)>,
+    pub(super) sorted: &'s mut Vec<(usize, bool, usize)>,
+    pub(super) at_slice: &'s mut Vec<usize>,
+    pub(super) marks: &'s mut Vec<bool>,
     pub(super) parts: &'s mut Vec<(usize, usize, f64, f64)>,
     pub(super) cuts: &'s mut Vec<usize>,
     pub(super) row: &'s mut Vec<bool>,
@@ -33,6 +36,9 @@ pub(super) fn slices_of_ranges(
     let (nb, dz, dphi, tool) = (f.nb, f.dz, f.dphi, f.tool);
     let Assembly {
         edges,
+        sorted,
+        at_slice,
+        marks,
         parts,
         cuts,
         row,
@@ -87,14 +93,39 @@ pub(super) fn slices_of_ranges(
             .then(p.3.total_cmp(&q.3))
             .then(p.1.cmp(&q.1))
     });
-    // Where whole-slice ranges open and close, in slice order, closes before opens at a
-    // slice: swept once, the bins in material per run of slices follow from them.
-    edges.sort_unstable();
+    // Where whole-slice ranges open and close, in slice order (by counting: slice indices
+    // are few), swept once below: the bins in material per run of slices follow from
+    // them. The runs break at the slices holding an edge or a part.
+    let n = edges
+        .iter()
+        .map(|e| e.0)
+        .chain(parts.iter().map(|p| p.0 + 1))
+        .max()
+        .map_or(0, |j| j + 1);
+    at_slice.clear();
+    at_slice.resize(n + 1, 0);
+    marks.clear();
+    marks.resize(n, false);
+    for e in edges.iter() {
+        at_slice[e.0 + 1] += 1;
+        marks[e.0] = true;
+    }
+    for p in parts.iter() {
+        marks[p.0] = true;
+        marks[p.0 + 1] = true;
+    }
+    for j in 0..n {
+        at_slice[j + 1] += at_slice[j];
+    }
+    sorted.clear();
+    sorted.resize(edges.len(), (0, false, 0));
+    for &e in edges.iter() {
+        sorted[at_slice[e.0]] = e;
+        at_slice[e.0] += 1;
+    }
+    let edges = &*sorted;
     cuts.clear();
-    cuts.extend(edges.iter().map(|e| e.0));
-    cuts.extend(parts.iter().flat_map(|p| [p.0, p.0 + 1]));
-    cuts.sort_unstable();
-    cuts.dedup();
+    cuts.extend((0..n).filter(|&j| marks[j]));
     row.clear();
     row.resize(nb, false);
     // Per bin, how many of its whole-slice ranges hold the current slice.

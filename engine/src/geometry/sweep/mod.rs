@@ -59,17 +59,19 @@ pub(crate) struct Sweep<'a> {
     e1: [f64; 3],
     e2: [f64; 3],
     delta_local: [f64; 3],
-    /// A capsule holding the swept body (its axis segment's ends spread by half the
-    /// move) seen along each family's rays: a stadium in (u, v), and its radius.
-    capsule_shadow: [Stadium; 3],
+    /// A capsule holding the swept body: its axis segment (spread by half the move into
+    /// its radius).
+    cap_a: [f64; 3],
+    cap_b: [f64; 3],
     cap_r: f64,
     /// Horizontal moves: the path's stadium seen by X rays and by Y rays.
     stadium: [Stadium; 2],
     /// Tilted axis: the whole elliptic sections of the top cylinder (X and Y rays).
     full_section: Option<FullSection>,
-    /// Per ray family, two slabs `lo ≤ p·normal ≤ hi` holding the swept body (see
-    /// `slab_range`), prepared along that family's rays.
-    slabs: [FamilySlabs; 3],
+    /// Tilted axis: the capsule's shadow and the slabs along each family's rays, prepared
+    /// for the removal pass's rows (a vertical sweep, whose rows do not use them, prepares
+    /// them when asked).
+    row_bounds: Option<[RowBounds; 3]>,
 }
 
 /// The points p with `lo ≤ p·normal ≤ hi`.
@@ -132,6 +134,29 @@ impl Slab {
                 },
                 clip_per_v: 0.0,
             }
+        }
+    }
+}
+
+/// Along one family's rays: the shadow of the sweep's capsule (a stadium in (u, v)) and
+/// the slabs.
+#[derive(Clone, Copy, Debug)]
+struct RowBounds {
+    capsule_shadow: Stadium,
+    slabs: FamilySlabs,
+}
+
+impl RowBounds {
+    fn new(body: &ToolBody, mv: &SubMove, (a, b): ([f64; 3], [f64; 3]), fam: usize) -> RowBounds {
+        let (ua, va) = other_axes(fam);
+        let slabs = slabs_for(body, mv, fam).map(|sl| sl.along(fam));
+        let [s0, s1] = slabs.map(|sl| sl.slope);
+        RowBounds {
+            capsule_shadow: Stadium::new([a[ua], a[va]], [b[ua], b[va]]),
+            slabs: FamilySlabs {
+                slabs,
+                inv_slopes: [1.0 / (s0 - s1), 1.0 / s0, 1.0 / s1],
+            },
         }
     }
 }
@@ -199,45 +224,34 @@ impl RowSlabs {
     /// candidates' test could pass, widened a little for rounding.
     pub(crate) fn chord(&self, a: f64, b: f64) -> Option<(f64, f64)> {
         let (mut ulo, mut uhi) = self.u_clip;
-        // 1/d of the pair (i, j) below where |d| is not negligible (a and b have no slope).
-        let inv = |i: usize, j: usize| match (i, j) {
-            (0, 1) => self.inv_slopes[0],
-            (1, 0) => -self.inv_slopes[0],
-            (0, 2) => self.inv_slopes[1],
-            (2, 0) => -self.inv_slopes[1],
-            (1, 2) => self.inv_slopes[2],
-            _ => -self.inv_slopes[2],
-        };
-        // Each pair (a lower end, an upper end) must stay ordered: c + d·u ≤ 0.
-        let lows = [
-            (self.lo[0], self.slope[0]),
-            (self.lo[1], self.slope[1]),
-            (a, 0.0),
-        ];
-        let highs = [
-            (self.hi[0], self.slope[0]),
-            (self.hi[1], self.slope[1]),
-            (b, 0.0),
-        ];
-        for (i, &(l, ls)) in lows.iter().enumerate() {
-            for (j, &(h, hs)) in highs.iter().enumerate() {
-                if i == j && i < 2 {
-                    continue;
-                }
-                let (c, d) = (l - h, ls - hs);
-                if c.is_nan() {
-                    return None;
-                }
-                if d.abs() < 1e-300 {
-                    if c > 0.0 {
-                        return None;
-                    }
-                } else if d > 0.0 {
-                    uhi = uhi.min(-c * inv(i, j));
-                } else {
-                    ulo = ulo.max(-c * inv(i, j));
-                }
+        // Each pair (a lower end, an upper end) must stay ordered: c + d·u ≤ 0, with 1/d
+        // prepared (`inv_slopes`); false where no u does.
+        let mut keep = |c: f64, d: f64, inv_d: f64| {
+            if c.is_nan() {
+                return false;
             }
+            if d.abs() < 1e-300 {
+                return c <= 0.0;
+            }
+            if d > 0.0 {
+                uhi = uhi.min(-c * inv_d);
+            } else {
+                ulo = ulo.max(-c * inv_d);
+            }
+            true
+        };
+        let ([l0, l1], [h0, h1], [s0, s1]) = (self.lo, self.hi, self.slope);
+        let [i01, i0, i1] = self.inv_slopes;
+        // A slab's own ends are ordered; a and b have no slope.
+        let ordered = keep(l0 - h1, s0 - s1, i01)
+            && keep(l1 - h0, s1 - s0, -i01)
+            && keep(l0 - b, s0, i0)
+            && keep(a - h0, -s0, -i0)
+            && keep(l1 - b, s1, i1)
+            && keep(a - h1, -s1, -i1)
+            && keep(a - b, 0.0, 0.0);
+        if !ordered {
+            return None;
         }
         let margin = 1e-9 * (1.0 + ulo.abs().max(uhi.abs()));
         (ulo <= uhi).then_some((ulo - margin, uhi + margin))
@@ -309,23 +323,15 @@ impl<'a> Sweep<'a> {
             e1,
             e2,
             delta_local,
-            capsule_shadow: [0, 1, 2].map(|fam| {
-                let (ua, va) = other_axes(fam);
-                Stadium::new([cap_a[ua], cap_a[va]], [cap_b[ua], cap_b[va]])
-            }),
+            cap_a,
+            cap_b,
             cap_r,
             stadium: [
                 Stadium::new([mv.p0[0], mv.p0[1]], [mv.p1[0], mv.p1[1]]),
                 Stadium::new([mv.p0[1], mv.p0[0]], [mv.p1[1], mv.p1[0]]),
             ],
-            slabs: [0, 1, 2].map(|fam| {
-                let slabs = slabs_for(body, &mv, fam).map(|sl| sl.along(fam));
-                let [s0, s1] = slabs.map(|sl| sl.slope);
-                FamilySlabs {
-                    slabs,
-                    inv_slopes: [1.0 / (s0 - s1), 1.0 / s0, 1.0 / s1],
-                }
-            }),
+            row_bounds: (!vertical)
+                .then(|| [0, 1, 2].map(|fam| RowBounds::new(body, &mv, (cap_a, cap_b), fam))),
             full_section: (!vertical)
                 .then(|| FullSection::new(body, mv.p0, mv.axis, delta))
                 .flatten(),
@@ -385,7 +391,7 @@ impl<'a> Sweep<'a> {
         let FamilySlabs {
             slabs: [a, b],
             inv_slopes,
-        } = self.slabs[fam];
+        } = self.row_bounds(fam).slabs;
         let (ka, kb) = (a.per_v * v, b.per_v * v);
         let (ca, cb) = (a.clip_per_v * v, b.clip_per_v * v);
         RowSlabs {
@@ -403,7 +409,17 @@ impl<'a> Sweep<'a> {
     /// The cross coordinates `u` of the rays of family `fam` in row `v` that meet the
     /// sweep's capsule: the chord at `v` of its shadow along the rays (a stadium).
     fn capsule_chord(&self, fam: usize, v: f64) -> Option<(f64, f64)> {
-        self.capsule_shadow[fam].line(self.cap_r + 1e-9, v)
+        self.row_bounds(fam)
+            .capsule_shadow
+            .line(self.cap_r + 1e-9, v)
+    }
+
+    #[inline]
+    fn row_bounds(&self, fam: usize) -> RowBounds {
+        match &self.row_bounds {
+            Some(b) => b[fam],
+            None => RowBounds::new(self.body, &self.mv, (self.cap_a, self.cap_b), fam),
+        }
     }
 }
 

@@ -130,7 +130,7 @@ impl Stadium {
     /// there lies within it (the stadium's side), else on the end cap that coordinate
     /// points to (every point of the line beyond an end of the segment has that end as
     /// its closest): a cap's square root is taken only where a cap ends the chord.
-    #[inline]
+    #[inline(always)]
     pub(super) fn line(&self, rho: f64, c0: f64) -> Option<(f64, f64)> {
         let (a, b) = (self.a, self.b);
         let cap = |p: [f64; 2]| {
