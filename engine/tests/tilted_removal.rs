@@ -107,7 +107,14 @@ fn tilted_sweeps_through_a_block_remove_the_closed_form_volume() {
     let mut cham = chamfer(6.0, 1.0, 30.0);
     cham.flute_length = 12.0;
     for tool in [&flat, &ball, &bull, &cham] {
-        for (tilt, along_y) in [(15.0, false), (35.0, true), (-20.0, false)] {
+        // At 90° the axis lies along a grid axis, across the rays of one family's rows.
+        for (tilt, along_y) in [
+            (15.0, false),
+            (35.0, true),
+            (-20.0, false),
+            (90.0, true),
+            (90.0, false),
+        ] {
             check(tool, tilt, along_y, 0.05);
         }
     }

@@ -109,6 +109,7 @@ impl Slab {
                 slope: -n[ua] / nf,
                 clip: every,
                 clip_per_v: 0.0,
+                rows: every,
             }
         } else if n[ua].abs() > 1e-12 {
             // lo ≤ n_u·u + n_v·v ≤ hi, whatever s.
@@ -119,20 +120,25 @@ impl Slab {
                 slope: 0.0,
                 clip,
                 clip_per_v,
+                rows: every,
             }
         } else {
-            // lo ≤ n_v·v ≤ hi: a constant normal n_v ≈ 0, all rows or none.
-            let holds = self.lo <= 0.0 && 0.0 <= self.hi;
+            // lo ≤ n_v·v ≤ hi, whatever s and u: some rows hold all of it, the others none.
+            let rows = if n[va].abs() > 1e-12 {
+                let (x, y) = (self.lo / n[va], self.hi / n[va]);
+                (x.min(y), x.max(y))
+            } else if self.lo <= 0.0 && 0.0 <= self.hi {
+                every
+            } else {
+                (f64::INFINITY, f64::NEG_INFINITY)
+            };
             SlabAlong {
                 range: every,
                 per_v: 0.0,
                 slope: 0.0,
-                clip: if holds {
-                    every
-                } else {
-                    (f64::INFINITY, f64::NEG_INFINITY)
-                },
+                clip: every,
                 clip_per_v: 0.0,
+                rows,
             }
         }
     }
@@ -170,7 +176,8 @@ struct FamilySlabs {
 }
 
 /// A slab along the rays of one family (`Slab::along`): in row v, the range along the ray
-/// at u is `range + per_v·v + slope·u`, for u within `clip + clip_per_v·v`.
+/// at u is `range + per_v·v + slope·u`, for u within `clip + clip_per_v·v`, in the rows v
+/// within `rows` (a slab across the rows' own axis holds some rows whole, no others).
 #[derive(Clone, Copy, Debug)]
 struct SlabAlong {
     range: (f64, f64),
@@ -178,6 +185,7 @@ struct SlabAlong {
     slope: f64,
     clip: (f64, f64),
     clip_per_v: f64,
+    rows: (f64, f64),
 }
 
 /// A sweep's slabs along the rays of one row, each range linear in the cross coordinate
@@ -394,14 +402,19 @@ impl<'a> Sweep<'a> {
         } = self.row_bounds(fam).slabs;
         let (ka, kb) = (a.per_v * v, b.per_v * v);
         let (ca, cb) = (a.clip_per_v * v, b.clip_per_v * v);
+        let in_rows = |sl: SlabAlong| sl.rows.0 <= v && v <= sl.rows.1;
         RowSlabs {
             lo: [a.range.0 + ka, b.range.0 + kb],
             hi: [a.range.1 + ka, b.range.1 + kb],
             slope: [a.slope, b.slope],
-            u_clip: (
-                (a.clip.0 + ca).max(b.clip.0 + cb),
-                (a.clip.1 + ca).min(b.clip.1 + cb),
-            ),
+            u_clip: if in_rows(a) && in_rows(b) {
+                (
+                    (a.clip.0 + ca).max(b.clip.0 + cb),
+                    (a.clip.1 + ca).min(b.clip.1 + cb),
+                )
+            } else {
+                (f64::INFINITY, f64::NEG_INFINITY)
+            },
             inv_slopes,
         }
     }
