@@ -82,14 +82,14 @@ pub(crate) struct Scratch {
     ranges: Vec<(usize, usize, usize)>,
     /// Per bin, the heights above the tip in material: (bin, lo, hi).
     zranges: Vec<(usize, f64, f64)>,
-    /// Where the whole slices of those ranges start and end (slice, opens, bin), and the
-    /// slices covered in part (slice, bin, lo, hi).
+    /// Where the whole slices of those ranges start and end (slice, opens, bin).
     edges: Vec<(usize, bool, usize)>,
     /// The edges in slice order, and per slice where its edges start, then end.
     sorted: Vec<(usize, bool, usize)>,
     at_slice: Vec<usize>,
     /// Per slice: whether a run of whole slices breaks there.
     marks: Vec<bool>,
+    /// The slices covered in part (slice, bin, lo, hi).
     parts: Vec<(usize, usize, f64, f64)>,
     /// Where runs of whole slices break; one row of bins.
     cuts: Vec<usize>,

@@ -144,12 +144,13 @@ impl Slab {
     }
 }
 
-/// Along one family's rays: the shadow of the sweep's capsule (a stadium in (u, v)) and
-/// the slabs.
+/// Along one family's rays: the shadow of the sweep's capsule (a stadium in (u, v)), the
+/// two slabs, and the reciprocals of their slopes' differences (`RowSlabs::inv_slopes`).
 #[derive(Clone, Copy, Debug)]
 struct RowBounds {
     capsule_shadow: Stadium,
-    slabs: FamilySlabs,
+    slabs: [SlabAlong; 2],
+    inv_slopes: [f64; 3],
 }
 
 impl RowBounds {
@@ -159,20 +160,10 @@ impl RowBounds {
         let [s0, s1] = slabs.map(|sl| sl.slope);
         RowBounds {
             capsule_shadow: Stadium::new([a[ua], a[va]], [b[ua], b[va]]),
-            slabs: FamilySlabs {
-                slabs,
-                inv_slopes: [1.0 / (s0 - s1), 1.0 / s0, 1.0 / s1],
-            },
+            slabs,
+            inv_slopes: [1.0 / (s0 - s1), 1.0 / s0, 1.0 / s1],
         }
     }
-}
-
-/// One family's two slabs and the reciprocals of their slopes' differences
-/// (`RowSlabs::inv_slopes`), prepared once per sweep.
-#[derive(Clone, Copy, Debug)]
-struct FamilySlabs {
-    slabs: [SlabAlong; 2],
-    inv_slopes: [f64; 3],
 }
 
 /// A slab along the rays of one family (`Slab::along`): in row v, the range along the ray
@@ -396,10 +387,11 @@ impl<'a> Sweep<'a> {
 
     /// The slabs' ranges along the rays of family `fam` in row v.
     pub(crate) fn row_slabs(&self, fam: usize, v: f64) -> RowSlabs {
-        let FamilySlabs {
+        let RowBounds {
             slabs: [a, b],
             inv_slopes,
-        } = self.row_bounds(fam).slabs;
+            ..
+        } = self.row_bounds(fam);
         let (ka, kb) = (a.per_v * v, b.per_v * v);
         let (ca, cb) = (a.clip_per_v * v, b.clip_per_v * v);
         let in_rows = |sl: SlabAlong| sl.rows.0 <= v && v <= sl.rows.1;
