@@ -221,8 +221,11 @@ struct SectionPlanes {
     /// flute length); above it the top's cut applies too (`half_ellipse_ray`); −∞ for other
     /// tools.
     ball_top: f64,
-    /// The axis's part along the rays (a·e).
+    /// The axis's part along the rays (a·e), and its reciprocal (where it is not near 0).
     along: f64,
+    inv_along: f64,
+    /// R/k: how far the ellipse reaches along the ray from its centre.
+    reach: f64,
     /// A ball: its swept sphere (a capsule) prepared for this family's rays.
     sphere: Option<AxisCapsule>,
     /// The move's terms of each ray's quantities, affine in the ray's (u, v): prepared
@@ -323,6 +326,8 @@ impl FullSection {
                 ball_below,
                 ball_top,
                 along,
+                inv_along: if along.abs() > 1e-9 { 1.0 / along } else { 0.0 },
+                reach: r / k,
                 sphere,
                 per_ray,
             })
@@ -374,15 +379,15 @@ impl Sweep<'_> {
             if sp.ball_top > f64::NEG_INFINITY && sp.along.abs() > 1e-9 {
                 // The cuts at the sphere's centre, one radius up the axis, and at the top,
                 // as offsets along the ray from the ellipse's centre.
-                let cut = ((r - t0) / sp.along, (r - t1) / sp.along);
+                let cut = ((r - t0) * sp.inv_along, (r - t1) * sp.inv_along);
                 let top = (t0.max(t1) > sp.ball_top).then(|| {
                     let l = self.body.length;
-                    ((l - t0) / sp.along, (l - t1) / sp.along)
+                    ((l - t0) * sp.inv_along, (l - t1) * sp.inv_along)
                 });
                 // The cylinder's part lies beyond the centre's cut and within R/k of the
                 // ellipse's centre along the ray, each moving linearly with the move.
                 let sigma1 = sigma + tr.d_sigma;
-                let reach = r / sp.k;
+                let reach = sp.reach;
                 let (lo, hi) = if sp.along > 0.0 {
                     (
                         (sigma + cut.0).min(sigma1 + cut.1),
@@ -408,9 +413,14 @@ impl Sweep<'_> {
                 let ellipse = CutEllipse {
                     r,
                     k: sp.k,
+                    inv_k: tr.inv_k,
                     stationary: tr.stationary,
                 };
-                let cylinder = half_ellipse_ray(c0, c1, cut, top, sp.along > 0.0, &ellipse);
+                let cylinder = if sp.along > 0.0 {
+                    half_ellipse_ray::<true>(c0, c1, cut, top, &ellipse)
+                } else {
+                    half_ellipse_ray::<false>(c0, c1, cut, top, &ellipse)
+                };
                 if misses_sphere {
                     return Some(cylinder);
                 }
@@ -445,12 +455,13 @@ pub(super) fn ray_point(fam: usize, u: f64, v: f64, s: f64) -> [f64; 3] {
 struct CutEllipse {
     r: f64,
     k: f64,
+    inv_k: f64,
     stationary: Option<[f64; 2]>,
 }
 
 /// The line ω = 0 (coordinate σ) against the union over β ∈ [0, 1] of the parts of
 /// ellipses {(k·(σ − σ_c))² + (ω − ω_c)² ≤ R²} between two cuts, γ ≤ σ − σ_c ≤ γ_top
-/// (`upper`; mirrored, −γ_top ≤ σ_c − σ ≤ −γ otherwise), whose centre (σ_c, ω_c) = c0 +
+/// (`UPPER`; mirrored, −γ_top ≤ σ_c − σ ≤ −γ otherwise), whose centre (σ_c, ω_c) = c0 +
 /// β·(c1 − c0) and offsets γ = γ0 + β·(γ1 − γ0), γ_top likewise, move linearly: the part of
 /// a ball's section plane between the sphere's centre and the tool's top end (no top cut
 /// where the plane stays below the top), swept (see `Sweep::full_section_ray`). The union
@@ -459,30 +470,33 @@ struct CutEllipse {
 /// max(σ_c − ρ/k, σ_c + γ) is convex in β and the upper end min(σ_c + ρ/k, σ_c + γ_top)
 /// concave (ρ = √(R² − ω_c²)), so each extreme lies at an end of that β range, where a
 /// derivative vanishes, or where a cut crosses the ellipse's end (ρ = ∓k·γ).
-fn half_ellipse_ray(
+fn half_ellipse_ray<const UPPER: bool>(
     c0: [f64; 2],
     c1: [f64; 2],
     cut: (f64, f64),
     top: Option<(f64, f64)>,
-    upper: bool,
     ellipse: &CutEllipse,
 ) -> Option<(f64, f64)> {
-    // The lower side is the upper one with σ mirrored.
-    if !upper {
-        let m = |c: [f64; 2]| [-c[0], c[1]];
-        let top = top.map(|t| (-t.0, -t.1));
-        return half_ellipse_ray(m(c0), m(c1), (-cut.0, -cut.1), top, true, ellipse)
-            .map(|(lo, hi)| (-hi, -lo));
-    }
-    let &CutEllipse { r, k, stationary } = ellipse;
-    let (s0, s1) = (c0[0], c1[0] - c0[0]);
+    // The lower side is the upper one with σ mirrored (negation is exact: the same
+    // values as a mirrored call's, without the call).
+    let m = if UPPER { 1.0 } else { -1.0 };
+    let &CutEllipse {
+        r,
+        k,
+        inv_k,
+        stationary,
+    } = ellipse;
+    let (s0, s1) = (m * c0[0], m * c1[0] - m * c0[0]);
     let (w0, w1) = (c0[1], c1[1] - c0[1]);
-    let (g0, g1) = (cut.0, cut.1 - cut.0);
+    let (g0, g1) = (m * cut.0, m * cut.1 - m * cut.0);
+    let top = top.map(|(t0, t1)| (m * t0, m * t1));
     let rho = |b: f64| (r * r - (w0 + b * w1).powi(2)).max(0.0).sqrt();
     // β where the line meets the ellipse at all: |ω_c| ≤ R.
     let (mut ba, mut bb) = (0.0f64, 1.0f64);
+    // Divisions by ω_c's motion as products (one division, not four).
+    let inv_w1 = if w1.abs() > 1e-15 { 1.0 / w1 } else { 0.0 };
     if w1.abs() > 1e-15 {
-        let (x, y) = ((-r - w0) / w1, (r - w0) / w1);
+        let (x, y) = ((-r - w0) * inv_w1, (r - w0) * inv_w1);
         ba = ba.max(x.min(y));
         bb = bb.min(x.max(y));
     } else if w0.abs() > r {
@@ -524,8 +538,8 @@ fn half_ellipse_ray(
             .then(|| {
                 let disc = qb * qb - 4.0 * qa * qc;
                 (disc >= 0.0).then(|| {
-                    let sq = disc.sqrt();
-                    ((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa))
+                    let (sq, inv) = (disc.sqrt(), 0.5 / qa);
+                    ((-qb - sq) * inv, (-qb + sq) * inv)
                 })
             })
             .flatten();
@@ -555,7 +569,7 @@ fn half_ellipse_ray(
     let mut cands = [ba, bb, ba, ba, ba, ba, ba, ba];
     if let (true, Some(ws)) = (w1.abs() > 1e-15, stationary) {
         for (i, w) in ws.into_iter().enumerate() {
-            cands[2 + i] = ((w - w0) / w1).clamp(ba, bb);
+            cands[2 + i] = ((w - w0) * inv_w1).clamp(ba, bb);
         }
     }
     for (i, rs) in [roots, top_roots].into_iter().enumerate() {
@@ -567,7 +581,7 @@ fn half_ellipse_ray(
     let mut out = (f64::INFINITY, f64::NEG_INFINITY);
     // A candidate clamped to an end is that end, evaluated already.
     for (i, b) in cands.into_iter().enumerate() {
-        if i >= 2 && (b <= ba || b >= bb) {
+        if i >= 2 && !(ba < b && b < bb) {
             continue;
         }
         let g = g0 + b * g1;
@@ -576,7 +590,7 @@ fn half_ellipse_ray(
         let half = match (i, top) {
             (4 | 5, _) => g.abs(),
             (6 | 7, Some((t0, t1))) => (t0 + b * t1).abs(),
-            _ => rho(b) / k,
+            _ => rho(b) * inv_k,
         };
         let sc = s0 + b * s1;
         out.0 = out.0.min(sc + (-half).max(g));
@@ -586,7 +600,7 @@ fn half_ellipse_ray(
         };
         out.1 = out.1.max(sc + up);
     }
-    (out.0 <= out.1).then_some(out)
+    (out.0 <= out.1).then_some(if UPPER { out } else { (-out.1, -out.0) })
 }
 
 /// A ray running up the axis's way (within 60° of it) that crosses the tool's bottom disk
