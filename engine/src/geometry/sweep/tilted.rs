@@ -493,9 +493,10 @@ fn half_ellipse_ray<const UPPER: bool>(
     let rho = |b: f64| (r * r - (w0 + b * w1).powi(2)).max(0.0).sqrt();
     // β where the line meets the ellipse at all: |ω_c| ≤ R.
     let (mut ba, mut bb) = (0.0f64, 1.0f64);
-    // Divisions by ω_c's motion as products (one division, not four).
-    let inv_w1 = if w1.abs() > 1e-15 { 1.0 / w1 } else { 0.0 };
-    if w1.abs() > 1e-15 {
+    // Divisions by ω_c's motion as products (one division, not four); `None` where ω_c
+    // does not move.
+    let inv_w1 = (w1.abs() > 1e-15).then(|| 1.0 / w1);
+    if let Some(inv_w1) = inv_w1 {
         let (x, y) = ((-r - w0) * inv_w1, (r - w0) * inv_w1);
         ba = ba.max(x.min(y));
         bb = bb.min(x.max(y));
@@ -567,7 +568,7 @@ fn half_ellipse_ray<const UPPER: bool>(
     // where σ_c − ρ/k = σ_c + γ or σ_c + ρ/k = σ_c + γ_top (the quadratics' roots).
     // The stationary ω_c come with the sweep: ±R·m/√(1 + m²), m = k·s1/w1.
     let mut cands = [ba, bb, ba, ba, ba, ba, ba, ba];
-    if let (true, Some(ws)) = (w1.abs() > 1e-15, stationary) {
+    if let (Some(inv_w1), Some(ws)) = (inv_w1, stationary) {
         for (i, w) in ws.into_iter().enumerate() {
             cands[2 + i] = ((w - w0) * inv_w1).clamp(ba, bb);
         }
