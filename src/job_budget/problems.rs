@@ -41,10 +41,11 @@ pub fn over_budget_problem(
 ) -> Problem {
     let problem = over_memory_budget(
         format!(
-            "{}the simulation needs about {} MiB (grid {} MiB, step records held at once {} MiB, what the steps keep {} MiB, rows {} MiB, stock export {} MiB, STL mesh read {} MiB), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, a smaller stock or shorter moves",
+            "{}the simulation needs about {} MiB (grid {} MiB, its removal summaries {} MiB, step records held at once {} MiB, what the steps keep {} MiB, rows {} MiB, stock export {} MiB, STL mesh read {} MiB), over the job memory budget of {} MiB (job_memory_mb); use a coarser cell_mm, a smaller stock or shorter moves",
             file.map(|f| format!("{f}: ")).unwrap_or_default(),
             mib(estimate.peak_bytes),
             mib(estimate.grid_bytes),
+            mib(estimate.summaries_bytes),
             mib(estimate.steps_bytes),
             mib(estimate.kept_bytes),
             mib(estimate.rows_bytes),
