@@ -359,11 +359,28 @@ fn features_of_other_controls_are_refused_naming_them() {
         ),
         // G68.2 is read now (tilted_plane.rs); the plane from the tool axis, G68.3, is not.
         ("O1\nG68.3 X0 Y0 Z0\nM30\n", "tilted working plane"),
+        // Siemens and Heidenhain ISO write G71 for millimetres: named, with its equivalent.
+        ("O1\nG71\nM30\n", "G20/G21"),
     ] {
         let (line, col, msg) = fail(src, &dialect(Dialect::Fanuc));
         assert_eq!((line, col), (2, 1), "{src}");
         assert!(msg.contains(what) && msg.contains("not supported"), "{msg}");
     }
+}
+
+/// A Heidenhain conversational program is refused as one, at its BEGIN PGM line, by the
+/// interpreter and the parser alike (before, its line number `0` was "unexpected number 0").
+#[test]
+fn a_klartext_program_is_refused_by_name() {
+    let src = "0 BEGIN PGM TEST MM\n1 BLK FORM 0.1 Z X+0 Y+0 Z-20\n2 TOOL CALL 1 Z S8000\n3 L X+0 Y+0 R0 FMAX\n4 END PGM TEST MM\n";
+    let (line, col, msg) = fail(src, &InterpretOptions::default());
+    assert_eq!((line, col), (1, 1));
+    assert!(
+        msg.contains("Heidenhain") && msg.contains("not supported"),
+        "{msg}"
+    );
+    let e = Program::parse(src).unwrap_err();
+    assert!(e.0[0].message.contains("Heidenhain"), "{e}");
 }
 
 /// Fanuc cycle data: R and the hole bottom carry over from one cycle code to the next (G81

@@ -94,6 +94,7 @@
 //! (else a warning), writes to the parameters that hold machine state (#5161-#5425).
 
 mod arc;
+mod conversational;
 mod expr;
 mod interp;
 mod lexer;
@@ -419,6 +420,7 @@ pub fn interpret_each(
     options: &InterpretOptions,
     on_move: &mut dyn FnMut(Move),
 ) -> Result<Interpretation, Diagnostics> {
+    conversational::refuse_conversational(source)?;
     match interp::scan(source)? {
         interp::Scan::Straight(summary, lines) => {
             interp::interpret_streamed(source, &summary, lines, options, on_move)

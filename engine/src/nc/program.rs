@@ -490,6 +490,7 @@ impl Program {
     /// ([`Program::deferred_errors`]) and raised by the interpreter only if it executes the
     /// line, as LinuxCNC reads a line only when it runs it.
     pub fn parse(source: &str) -> Result<Program, Diagnostics> {
+        super::conversational::refuse_conversational(source)?;
         let mut list = super::parser::BlockList::with_capacity(super::parser::line_count(source));
         let (summary, errors) = super::parser::parse_blocks(source, &mut list);
         if errors.is_empty() {

@@ -121,6 +121,7 @@ pub(super) fn g_name(code: u16) -> String {
 pub(super) fn g_refusal(code: u16) -> &'static str {
     match code {
         70 | 80 => "lathe diameter/radius mode is not supported",
+        700 | 710 => "(inches/millimetres on Siemens, Heidenhain ISO and Fagor controls; G20/G21 in the supported dialects) is not supported",
         330 => "spindle-synchronized motion (G33) is not supported",
         380..=389 => "probing (G38.x) cannot be simulated without a probe model",
         760 => "threading cycle G76 is not supported",
