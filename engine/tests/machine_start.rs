@@ -136,3 +136,49 @@ fn the_row_columns_do_not_depend_on_the_first_move() {
         "the first row has every column: the test shows nothing ({first})"
     );
 }
+
+/// A Fanuc post retracts with `G91 G28 Z0.` and ends with `G28 X0. Y0.`: the reference
+/// position is where the machine stands retracted (the start position), not machine zero,
+/// which in a simulation without work offsets is program zero. On this block (its top at
+/// Z+1) a rapid to Z0 then across to X0 Y0 cut a 1 mm deep Ø10 lane through the top.
+/// Interpreted alone, as `rs274` does, the home stays at machine zero.
+#[test]
+fn g28_returns_to_the_retracted_start_not_to_program_zero() {
+    let program = "G21 G90\nG91 G28 Z0.\nG90\nT1 M6\nS8000 M3\nG0 X40 Y0 Z5\nG0 Z-3\nG1 X20 F500\nG0 Z5\nG91 G28 Z0.\nG28 X0. Y0.\nG90\nM30\n";
+    let out = simulate(
+        &spec(program, BTreeMap::from([(1, Tool::flat(10.0, 4))])),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    assert_eq!(out.summary.rapid_in_material_moves, 0, "{:?}", out.summary);
+    for line in [2, 10, 11] {
+        for r in out.rows.iter().filter(|r| r.line == line) {
+            assert_eq!(r.removed_volume, 0.0, "{r:?}");
+        }
+    }
+    // Interpreted: to machine zero without a start position (rs274), to the start height
+    // with one (the simulation's: the stock's top, Z+1, plus the clearance, 10).
+    let moves = nc::interpret(program, &InterpretOptions::default())
+        .unwrap()
+        .moves;
+    let z_after = |moves: &[nc::Move]| {
+        moves
+            .iter()
+            .filter(|m| m.line == 10)
+            .last()
+            .map(|m| m.end[2])
+            .unwrap()
+    };
+    assert_eq!(z_after(&moves), 0.0, "rs274's home: machine zero");
+    let started = InterpretOptions {
+        start_position: Some([0.0, 0.0, 11.0]),
+        ..InterpretOptions::default()
+    };
+    let moves = nc::interpret(program, &started).unwrap().moves;
+    assert_eq!(z_after(&moves), 11.0);
+    // `G28 X0. Y0.` under G91: the intermediate point is the current one, then X and Y go
+    // home, Z stays retracted.
+    let last = moves.iter().filter(|m| m.line == 11).last().unwrap();
+    assert_eq!([last.end[0], last.end[1], last.end[2]], [0.0, 0.0, 11.0]);
+}

@@ -171,8 +171,10 @@ pub struct InterpretOptions {
     /// `o<name> call`); see [`ProgramLibrary`]. Shared, as options are cloned per job stage.
     pub library: Option<std::sync::Arc<ProgramLibrary>>,
     /// Where the tool tip stands (machine frame, mm) before the first block: a real machine
-    /// starts where the last job or the operator left it, not at program zero. None: at
-    /// program zero, as LinuxCNC's `rs274` starts (the `interpret` job's default).
+    /// starts where the last job or the operator left it, not at program zero. It is also the
+    /// G28 and G30 home (until G28.1/G30.1 store others): a machine's reference position is
+    /// retracted above the work. None: at program zero, homes at machine zero, as LinuxCNC's
+    /// `rs274` starts (the `interpret` job's default).
     pub start_position: Option<[f64; 3]>,
     /// Where an M6 tool change leaves the tip (the next move starts there). None: where it was.
     pub tool_change: Option<ToolChangeTo>,

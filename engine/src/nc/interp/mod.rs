@@ -284,6 +284,11 @@ impl<'p> Interp<'p> {
         if let Some([x, y, z]) = options.start_position {
             // Only the setup's work offsets can be active yet (the program's have not run).
             it.cur = it.from_machine([x, y, z, 0.0, 0.0, 0.0]);
+            // The machine's reference position is where it stands retracted, never machine
+            // zero in the stock: `G91 G28 Z0` retracts Z there, as on the control (G28.1 and
+            // G30.1 still store their own).
+            it.coords.g28 = [x, y, z, 0.0, 0.0, 0.0];
+            it.coords.g30 = it.coords.g28;
         }
         it
     }
