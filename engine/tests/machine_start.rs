@@ -182,3 +182,59 @@ fn g28_returns_to_the_retracted_start_not_to_program_zero() {
     let last = moves.iter().filter(|m| m.line == 11).last().unwrap();
     assert_eq!([last.end[0], last.end[1], last.end[2]], [0.0, 0.0, 11.0]);
 }
+
+/// A Haas post retracts with `G53 G0 Z0.` (machine Z zero: the top of the Z travel) at the
+/// start, between tools and at the end. Without the setup's work offsets the machine frame
+/// is the program's, so that was program zero: on this block (its top at Z+1) the first
+/// retract plunged a Ø10 tool 1 mm into the top at rapid and the last dragged it across.
+/// A simulation puts machine Z zero at its start height, as for the G28 home; given work
+/// offsets, G53 Z0 is theirs; interpreted alone (rs274) it is zero.
+#[test]
+fn g53_z0_retracts_above_the_stock_in_a_simulation() {
+    let program = "G21 G90\nG53 G0 Z0.\nT1 M6\nS8000 M3\nG0 G54 X40 Y0\nG43 H1 Z5\nG1 Z-3 F500\nG1 X20\nG53 G0 Z0.\nG53 G0 X-20 Y0\nM30\n";
+    let out = simulate(
+        &spec(program, BTreeMap::from([(1, Tool::flat(10.0, 4))])),
+        &CancelFlag::new(),
+        &NoProgress,
+    )
+    .unwrap();
+    assert_eq!(out.summary.rapid_in_material_moves, 0, "{:?}", out.summary);
+    for line in [2, 9, 10] {
+        for r in out.rows.iter().filter(|r| r.line == line) {
+            assert_eq!(r.removed_volume, 0.0, "{r:?}");
+        }
+    }
+    let z_after = |opts: &InterpretOptions, line: u32| {
+        let moves = nc::interpret(program, opts).unwrap().moves;
+        let m = moves.iter().filter(|m| m.line == line).last().unwrap();
+        m.end[2]
+    };
+    assert_eq!(z_after(&InterpretOptions::default(), 9), 0.0, "rs274");
+    let simulated = InterpretOptions {
+        start_position: Some([0.0, 0.0, 11.0]),
+        machine_z_home: Some(11.0),
+        ..InterpretOptions::default()
+    };
+    assert_eq!(z_after(&simulated, 9), 11.0);
+    assert_eq!(z_after(&simulated, 2), 11.0);
+    // A setup with its work offsets: machine Z zero is 100 mm above G54's zero.
+    let mut s = spec(program, BTreeMap::from([(1, Tool::flat(10.0, 4))]));
+    s.interpret.work_offsets = vec![(0, [0.0, 0.0, -100.0])];
+    s.stock = StockSource::Shape(StockShape::Block {
+        min: [-30.0, -30.0, -120.0],
+        max: [30.0, 30.0, -99.0],
+    });
+    let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
+    assert_eq!(out.summary.rapid_in_material_moves, 0, "{:?}", out.summary);
+    let moves = nc::interpret(
+        program,
+        &InterpretOptions {
+            work_offsets: vec![(0, [0.0, 0.0, -100.0])],
+            ..InterpretOptions::default()
+        },
+    )
+    .unwrap()
+    .moves;
+    let m = moves.iter().filter(|m| m.line == 9).last().unwrap();
+    assert_eq!(m.end[2], 0.0, "machine frame: Z0 is machine zero");
+}

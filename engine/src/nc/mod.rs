@@ -190,6 +190,11 @@ pub struct InterpretOptions {
     /// [`work_offset_index`] (G54 = 0 ... G59.3 = 8). Unlisted systems start at zero; the
     /// program's own G10 L2 / L20 still change them.
     pub work_offsets: Vec<(usize, [f64; 3])>,
+    /// Where machine Z zero is (machine frame, mm) for `G53` moves: a mill's Z home is the
+    /// top of its travel, above the work, and posts retract there with `G53 G0 Z0.`. None:
+    /// at zero, the frame's own (LinuxCNC's `rs274`; a setup that gives its work offsets).
+    /// A simulation without work offsets puts it at its start height.
+    pub machine_z_home: Option<f64>,
 }
 
 /// The work offsets a setup can define: G54 ... G59, G59.1, G59.2, G59.3.
@@ -233,6 +238,7 @@ impl Default for InterpretOptions {
             kinematics: None,
             tool_tip_reading: false,
             work_offsets: Vec::new(),
+            machine_z_home: None,
         }
     }
 }

@@ -103,6 +103,13 @@ impl SimulateSpec {
     ) -> nc::InterpretOptions {
         let mut o = self.interpret.clone();
         o.start_position = o.start_position.or(start);
+        // Without the setup's work offsets the machine frame is the program's, so machine Z
+        // zero, where posts retract with `G53 G0 Z0.`, would be program zero: a mill's Z home
+        // is the top of its travel, and the start height (retracted above the stock) stands
+        // in for it, as it does for the G28 home.
+        if o.work_offsets.is_empty() && o.machine_z_home.is_none() {
+            o.machine_z_home = o.start_position.map(|p| p[2]);
+        }
         o.tool_change = o.tool_change.or(change);
         // G53.1 turns this machine's rotary axes; G69 hands the position back in its reading.
         if o.kinematics.is_none() && self.machine.kinematics != crate::machine::Kinematics::Xyz {

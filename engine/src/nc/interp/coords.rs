@@ -331,19 +331,22 @@ impl Interp<'_> {
         Ok(t)
     }
 
-    /// The target of a G53 move: machine coordinates for the given axes.
+    /// The target of a G53 move: machine coordinates for the given axes (Z counted from
+    /// `InterpretOptions::machine_z_home`).
     fn g53_target(&self, w: &mut Words) -> R<[f64; 6]> {
         let mut t = self.cur;
         if !self.modal.absolute {
             return Err(self.err_block("G53 in incremental mode (G91)"));
         }
+        let mut home = [0.0; 6];
+        home[2] = self.opts.machine_z_home.unwrap_or(0.0);
         if !self.only_offsets() {
             // Machine coordinates for the given axes, the current machine position for the
             // others, back through the transforms.
             let mut m = self.to_machine(self.cur);
             for (ai, &c) in AXES.iter().enumerate() {
                 if let Some(v) = w.take(c) {
-                    m[ai] = if ai < 3 { v * self.unit() } else { v };
+                    m[ai] = (if ai < 3 { v * self.unit() } else { v }) + home[ai];
                 }
             }
             return Ok(self.from_machine(m));
@@ -351,7 +354,10 @@ impl Interp<'_> {
         for (ai, &c) in AXES.iter().enumerate() {
             if let Some(v) = w.take(c) {
                 let s = if ai < 3 { self.unit() } else { 1.0 };
-                t[ai] = (v * s - self.coords.g5x[self.modal.cs][ai] - self.local_offset()[ai]) / s;
+                t[ai] = (v * s + home[ai]
+                    - self.coords.g5x[self.modal.cs][ai]
+                    - self.local_offset()[ai])
+                    / s;
             }
         }
         Ok(t)
