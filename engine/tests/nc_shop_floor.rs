@@ -548,3 +548,33 @@ fn g28_2_homing_in_a_header_is_a_rapid_home_with_a_warning() {
         2
     );
 }
+
+/// Haas local subprograms: `M97 P2000 L2` runs the blocks from N2000 of the same program
+/// (after its M30) twice, each back at its M99; a nested M97 returns to its caller. Before,
+/// M97 was an unknown M code, ignored with a warning: the subprogram's cuts were dropped.
+#[test]
+fn haas_m97_runs_the_local_subprogram_at_its_n_number() {
+    use MoveKind::{Linear, Rapid};
+    let src = "%\nO01000 (HAAS)\nG21 G90\nG0 X0 Y0 Z5\nM97 P2000 L2\nG0 Z20\nM30\nN2000 G91 G1 X5 F300\nM97 P3000\nG90\nM99\nN3000 G91 Y1\nG90\nM99\n%\n";
+    let i = run(src);
+    assert!(i.warnings.is_empty(), "{:?}", i.warnings);
+    assert_eq!(
+        path(&i),
+        vec![
+            (Rapid, [0.0, 0.0, 5.0]),
+            (Linear, [5.0, 0.0, 5.0]),
+            (Linear, [5.0, 1.0, 5.0]),
+            (Linear, [10.0, 1.0, 5.0]),
+            (Linear, [10.0, 2.0, 5.0]),
+            (Rapid, [10.0, 2.0, 20.0]),
+        ]
+    );
+    let (line, _, msg) = fail("O1\nG0 X0\nM97 P5\nM30\n", &InterpretOptions::default());
+    assert_eq!(line, 3);
+    assert!(msg.contains("no block N5"), "{msg}");
+    let plain = "G0 X0\nM97 P10\nM30\nN10 G1 X1 F100\nM99\n";
+    assert_eq!(motions(&run(plain)).len(), 2, "auto reads M97 as Fanuc");
+    let (line, _, msg) = fail(plain, &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 2);
+    assert!(msg.contains("not valid with dialect linuxcnc"), "{msg}");
+}

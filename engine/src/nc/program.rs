@@ -330,7 +330,7 @@ impl Block {
 
 /// Dialect evidence in one block. Weak evidence (an `O1234` program number and `,R`/`,C`
 /// corners for Fanuc; parameter assignments and word values that are not plain numbers for
-/// LinuxCNC) decides when there is no strong evidence: Fanuc macro B statements, M98/M99, G65
+/// LinuxCNC) decides when there is no strong evidence: Fanuc macro B statements, M97/M98/M99, G65
 /// and unbracketed expressions for Fanuc; O-word control lines and named parameters for
 /// LinuxCNC.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -365,7 +365,7 @@ fn dialect_syntax(block: &Block, words: &[Word]) -> DialectEvidence {
         // polar mode) are not in LinuxCNC.
         e.linuxcnc |= matches!(w.letter, '@' | '^');
         if let Expr::Number { value, .. } = w.value {
-            e.fanuc_strong |= (w.letter == 'M' && (value == 98.0 || value == 99.0))
+            e.fanuc_strong |= (w.letter == 'M' && (97.0..=99.0).contains(&value))
                 || (w.letter == 'G' && value == 65.0);
             e.fanuc |= w.letter == 'G'
                 && [15.0, 16.0, 50.0, 51.0, 50.1, 51.1, 68.0, 69.0].contains(&value);
@@ -406,7 +406,7 @@ pub(crate) struct Summary {
     /// Syntax errors of lines raised only when the line is executed (block index, error),
     /// in block order; see `parser::parse_blocks`.
     pub deferred: Vec<(usize, Diagnostic)>,
-    /// A word that calls or returns (M98, M99, G65, G66) or an M or G word whose number is
+    /// A word that calls or returns (M97, M98, M99, G65, G66) or an M or G word whose number is
     /// computed (it might be one).
     pub calls: bool,
     /// An O word other than a program number (`O1234`): LinuxCNC control flow or calls.
@@ -459,7 +459,7 @@ impl Summary {
         }
         self.calls |= words.iter().any(|w| match w.value {
             Expr::Number { value, .. } => {
-                (w.letter == 'M' && (value == 98.0 || value == 99.0))
+                (w.letter == 'M' && (97.0..=99.0).contains(&value))
                     || (w.letter == 'G' && (value == 65.0 || value == 66.0 || value == 66.1))
             }
             _ => matches!(w.letter, 'M' | 'G'),

@@ -139,7 +139,7 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
 /// M code modal group (LinuxCNC numbering); None: not a known M code.
 pub(super) fn m_group(code: u32) -> Option<u8> {
     Some(match code {
-        0 | 1 | 2 | 30 | 60 | 98 | 99 => 4,
+        0 | 1 | 2 | 30 | 60 | 97 | 98 | 99 => 4,
         6 | 61 => 6,
         3 | 4 | 5 => 7,
         7 | 8 | 9 => 8,

@@ -137,6 +137,35 @@ impl Interp<'_> {
         self.call_fanuc_program(number, unit, body, repeats, None, at)
     }
 
+    /// Haas `M97 P.. L..`: call the local subprogram at block `N<P>` of the running program
+    /// (after its M30, most often), `L` times; its M99 returns after the call.
+    pub(super) fn call_local_subprogram(&mut self, w: &mut Words, m97: usize) -> R<()> {
+        let at = self.word_pos(m97);
+        let Some(p) = w.take('P') else {
+            return Err(self.err_at(
+                at,
+                "M97 needs P (the block number N of the local subprogram)",
+            ));
+        };
+        let n = self.program_number(p, at, "M97")?;
+        let repeats = match w.take('L') {
+            Some(l) if l.fract() != 0.0 || !(0.0..=9999.0).contains(&l) => {
+                return Err(self.err_word(
+                    w,
+                    'L',
+                    format!("M97 L{l}: the repeat count must be 0..9999"),
+                ))
+            }
+            Some(l) => l as u32,
+            None => 1,
+        };
+        let unit = self.units.unit;
+        let Some(body) = self.find_sequence(unit, self.cur_block, n) else {
+            return Err(self.err_at(at, format!("M97 P{n}: no block N{n} in this program")));
+        };
+        self.call_fanuc_program(n, unit, body, repeats, None, at)
+    }
+
     /// Whether program `number` is in the running file, the program or its library.
     fn program_exists(&self, number: u32) -> bool {
         self.control.programs.contains_key(&number)

@@ -185,10 +185,10 @@ impl<'p> Interp<'p> {
                     let code = v as u32;
                     // Passthrough codes each get a group of their own, above every real one
                     // (u32: M codes run into the thousands).
-                    if matches!(code, 98 | 99) && !self.fanuc {
+                    if matches!(code, 97..=99) && !self.fanuc {
                         return Err(self.err_at(
                             pos,
-                            format!("M{code}: Fanuc subprogram call/return; not valid with dialect linuxcnc (use o-word call/endsub)"),
+                            format!("M{code}: Fanuc/Haas subprogram call/return; not valid with dialect linuxcnc (use o-word call/endsub)"),
                         ));
                     }
                     let group = match m_group(code) {

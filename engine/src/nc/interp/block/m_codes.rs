@@ -101,6 +101,9 @@ impl Interp<'_> {
             self.flow.ended = true;
         }
         if !w.ms.is_empty() {
+            if let Some(i) = w.m(97) {
+                self.call_local_subprogram(w, i)?;
+            }
             if let Some(i) = w.m(98) {
                 self.call_subprogram(w, i)?;
             }
