@@ -578,3 +578,24 @@ fn haas_m97_runs_the_local_subprogram_at_its_n_number() {
     assert_eq!(line, 2);
     assert!(msg.contains("not valid with dialect linuxcnc"), "{msg}");
 }
+
+/// Haas UMC programs switch tool-centre-point control on with `G234 H1`: read as Fanuc's
+/// `G43.4 H1` (the same moves, tool-tip flagged), cancelled by G49. Haas's dynamic work
+/// offset (G254) and 3-D cutter compensation (G141) are refused by name.
+#[test]
+fn haas_g234_is_tool_centre_point_control() {
+    let body = "G0 X0 Y0 Z5 A10\nG1 X10 C20 F500\nG49\nG0 Z50\nM30\n";
+    let haas = run(&format!("O1\nG21 G90\nG234 H0\n{body}"));
+    let fanuc = run(&format!("O1\nG21 G90\nG43.4 H0\n{body}"));
+    assert_eq!(haas.moves, fanuc.moves);
+    assert!(haas.moves.iter().any(|m| m.tool_tip));
+    assert!(!haas.moves.last().unwrap().tool_tip, "G49 ends it");
+    for (src, what) in [
+        ("O1\nG254\nM30\n", "dynamic work offset"),
+        ("O1\nG141 D1 X1\nM30\n", "3-D cutter compensation"),
+    ] {
+        let (line, _, msg) = fail(src, &InterpretOptions::default());
+        assert_eq!(line, 2, "{src}");
+        assert!(msg.contains(what) && msg.contains("not supported"), "{msg}");
+    }
+}

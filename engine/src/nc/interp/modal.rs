@@ -131,6 +131,8 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         120 | 130 => "(Haas circular pocket milling) is not supported",
         470 => "(Haas text engraving) is not supported",
         1500 => "(Haas general-purpose pocket milling) is not supported",
+        1410 => "(Haas 3-D cutter compensation) is not supported",
+        2540 | 2550 => "(Haas dynamic work offset) is not supported: program the tool tip with G234 (or G43.4), or a 3+2 setup with G68.2 and G53.1",
         683 | 684 => "(tilted working plane from the tool axis, or incremental) is not supported: define the plane with G68.2 X Y Z I J K (origin and Euler angles), then G53.1 turns the tool normal to it",
         _ => "is not a supported G code",
     }

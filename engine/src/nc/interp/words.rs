@@ -140,6 +140,14 @@ impl<'p> Interp<'p> {
                         return Err(self.err_at(pos, format!("G{v} is not a G code")));
                     }
                     let code = code as u16;
+                    // Haas's tool-centre-point control (UMC) is Fanuc's G43.4, cancelled by G49
+                    // alike; LinuxCNC has no G234.
+                    let code = if code == 2340 && self.opts.dialect != crate::nc::Dialect::LinuxCnc
+                    {
+                        434
+                    } else {
+                        code
+                    };
                     if let Some(what) = matches!(code, 50 | 51 | 80 | 1030 | 1870)
                         .then(|| self.machine_mode_code(code))
                         .flatten()
