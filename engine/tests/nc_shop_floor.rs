@@ -599,3 +599,32 @@ fn haas_g234_is_tool_centre_point_control() {
         assert!(msg.contains(what) && msg.contains("not supported"), "{msg}");
     }
 }
+
+/// Fanuc's (and Haas's) G76 is the fine boring cycle: to R, bore to Z at F, dwell P ms,
+/// orient and stop, rapid out (the shift Q off the wall is not simulated: a rotating tool
+/// going straight up its own bore cuts nothing either). It was refused as LinuxCNC's lathe
+/// threading cycle, which it still is with dialect linuxcnc.
+#[test]
+fn fanuc_g76_bores_dwells_and_rapids_out() {
+    use MoveKind::{Dwell, Linear, Rapid};
+    let body = "G21 G90\nS1000 M3\nG0 X10 Y10 Z5\nG98 G76 Z-10 R2 Q0.1 P500 F100\nX20\nG80\nM30\n";
+    let i = run(&format!("O1\n{body}"));
+    let hole = |x: f64| {
+        vec![
+            (Rapid, [x, 10.0, 5.0]),
+            (Rapid, [x, 10.0, 2.0]),
+            (Linear, [x, 10.0, -10.0]),
+            (Dwell, [x, 10.0, -10.0]),
+            (Rapid, [x, 10.0, 5.0]),
+        ]
+    };
+    let mut want = vec![(Rapid, [10.0, 10.0, 5.0])];
+    want.extend(hole(10.0));
+    want.extend(hole(20.0));
+    assert_eq!(path(&i), want);
+    let dwell = i.moves.iter().find(|m| m.kind == Dwell).unwrap();
+    assert_eq!(dwell.seconds, Some(0.5));
+    let (line, _, msg) = fail(body, &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 4);
+    assert!(msg.contains("fine boring"), "{msg}");
+}

@@ -173,7 +173,14 @@ impl Interp<'_> {
         let mut q = 0.0;
         let (mut ci, mut cj, mut ck) = (0.0, 0.0, 0.0);
         match g {
-            82 | 86 | 88 | 89 => {
+            76 | 82 | 86 | 88 | 89 => {
+                if g == 76 {
+                    // The oriented spindle's shift away from the wall (Q, and the direction
+                    // a parameter sets) keeps the stopped bar off the bore on the way out; a
+                    // rotating tool retracting straight up its own bore cuts nothing either,
+                    // so the shift is not simulated.
+                    w.take('Q');
+                }
                 p = match w.take('P') {
                     // Fanuc: the dwell in ms, as G04 P.
                     Some(v) if self.fanuc => v / 1000.0,
@@ -237,7 +244,7 @@ impl Interp<'_> {
             }
             _ => {}
         }
-        if matches!(g, 86 | 87 | 88) && self.modal.spindle == SpindleDir::Off {
+        if matches!(g, 76 | 86 | 87 | 88) && self.modal.spindle == SpindleDir::Off {
             return Err(self.err_block(format!("G{g} needs the spindle turning")));
         }
         // Below the R plane: rapid up to it first.
@@ -320,7 +327,8 @@ impl Interp<'_> {
                     self.cyc_move(false, plane, aa, bb, r)?;
                     self.cyc_move(true, plane, aa, bb, clear)?;
                 }
-                86 => {
+                // Fanuc fine boring: bore, dwell, orient and stop, rapid out.
+                76 | 86 => {
                     let dir = self.modal.spindle;
                     self.cyc_move(false, plane, aa, bb, cc)?;
                     self.dwell(p)?;

@@ -163,7 +163,8 @@ impl<'p> Interp<'p> {
                         w.machine_mode = true;
                         continue;
                     }
-                    let Some(group) = g_group(code) else {
+                    // G76 is Fanuc's fine boring cycle, LinuxCNC's lathe threading.
+                    let Some(group) = g_group(code).filter(|_| code != 760 || self.fanuc) else {
                         return Err(
                             self.err_at(pos, format!("{} {}", g_name(code), g_refusal(code)))
                         );
