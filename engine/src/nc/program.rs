@@ -365,7 +365,7 @@ fn dialect_syntax(block: &Block, words: &[Word]) -> DialectEvidence {
         // polar mode) are not in LinuxCNC.
         e.linuxcnc |= matches!(w.letter, '@' | '^');
         if let Expr::Number { value, .. } = w.value {
-            e.fanuc_strong |= (w.letter == 'M' && (97.0..=99.0).contains(&value))
+            e.fanuc_strong |= (w.letter == 'M' && [97.0, 98.0, 99.0].contains(&value))
                 || (w.letter == 'G' && value == 65.0);
             e.fanuc |= w.letter == 'G'
                 && [15.0, 16.0, 50.0, 51.0, 50.1, 51.1, 68.0, 69.0].contains(&value);
@@ -459,7 +459,7 @@ impl Summary {
         }
         self.calls |= words.iter().any(|w| match w.value {
             Expr::Number { value, .. } => {
-                (w.letter == 'M' && (97.0..=99.0).contains(&value))
+                (w.letter == 'M' && [97.0, 98.0, 99.0].contains(&value))
                     || (w.letter == 'G' && (value == 65.0 || value == 66.0 || value == 66.1))
             }
             _ => matches!(w.letter, 'M' | 'G'),
