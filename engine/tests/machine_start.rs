@@ -145,6 +145,27 @@ fn the_row_columns_do_not_depend_on_the_first_move() {
 #[test]
 fn g28_returns_to_the_retracted_start_not_to_program_zero() {
     let program = "G21 G90\nG91 G28 Z0.\nG90\nT1 M6\nS8000 M3\nG0 X40 Y0 Z5\nG0 Z-3\nG1 X20 F500\nG0 Z5\nG91 G28 Z0.\nG28 X0. Y0.\nG90\nM30\n";
+    rapids_cut_nothing(program, &[2, 10, 11]);
+    // Interpreted: to machine zero without a start position (rs274), to the start height
+    // with one (the simulation's: the stock's top, Z+1, plus the clearance, 10).
+    assert_eq!(
+        end_of_line(program, &InterpretOptions::default(), 10)[2],
+        0.0,
+        "rs274's home: machine zero"
+    );
+    let started = InterpretOptions {
+        start_position: Some([0.0, 0.0, 11.0]),
+        ..InterpretOptions::default()
+    };
+    assert_eq!(end_of_line(program, &started, 10)[2], 11.0);
+    // `G28 X0. Y0.` under G91: the intermediate point is the current one, then X and Y go
+    // home, Z stays retracted.
+    assert_eq!(end_of_line(program, &started, 11), [0.0, 0.0, 11.0]);
+}
+
+/// Simulates `program` with a Ø10 T1 on the block and asserts that no rapid meets the
+/// stock and that the moves of `lines` remove nothing.
+fn rapids_cut_nothing(program: &str, lines: &[u32]) {
     let out = simulate(
         &spec(program, BTreeMap::from([(1, Tool::flat(10.0, 4))])),
         &CancelFlag::new(),
@@ -152,35 +173,18 @@ fn g28_returns_to_the_retracted_start_not_to_program_zero() {
     )
     .unwrap();
     assert_eq!(out.summary.rapid_in_material_moves, 0, "{:?}", out.summary);
-    for line in [2, 10, 11] {
-        for r in out.rows.iter().filter(|r| r.line == line) {
+    for line in lines {
+        for r in out.rows.iter().filter(|r| r.line == *line) {
             assert_eq!(r.removed_volume, 0.0, "{r:?}");
         }
     }
-    // Interpreted: to machine zero without a start position (rs274), to the start height
-    // with one (the simulation's: the stock's top, Z+1, plus the clearance, 10).
-    let moves = nc::interpret(program, &InterpretOptions::default())
-        .unwrap()
-        .moves;
-    let z_after = |moves: &[nc::Move]| {
-        moves
-            .iter()
-            .filter(|m| m.line == 10)
-            .last()
-            .map(|m| m.end[2])
-            .unwrap()
-    };
-    assert_eq!(z_after(&moves), 0.0, "rs274's home: machine zero");
-    let started = InterpretOptions {
-        start_position: Some([0.0, 0.0, 11.0]),
-        ..InterpretOptions::default()
-    };
-    let moves = nc::interpret(program, &started).unwrap().moves;
-    assert_eq!(z_after(&moves), 11.0);
-    // `G28 X0. Y0.` under G91: the intermediate point is the current one, then X and Y go
-    // home, Z stays retracted.
-    let last = moves.iter().filter(|m| m.line == 11).last().unwrap();
-    assert_eq!([last.end[0], last.end[1], last.end[2]], [0.0, 0.0, 11.0]);
+}
+
+/// Where the last move of `line` ends (X, Y, Z), interpreted with `opts`.
+fn end_of_line(program: &str, opts: &InterpretOptions, line: u32) -> [f64; 3] {
+    let moves = nc::interpret(program, opts).unwrap().moves;
+    let m = moves.iter().filter(|m| m.line == line).last().unwrap();
+    [m.end[0], m.end[1], m.end[2]]
 }
 
 /// A Haas post retracts with `G53 G0 Z0.` (machine Z zero: the top of the Z travel) at the
@@ -192,23 +196,8 @@ fn g28_returns_to_the_retracted_start_not_to_program_zero() {
 #[test]
 fn g53_z0_retracts_above_the_stock_in_a_simulation() {
     let program = "G21 G90\nG53 G0 Z0.\nT1 M6\nS8000 M3\nG0 G54 X40 Y0\nG43 H1 Z5\nG1 Z-3 F500\nG1 X20\nG53 G0 Z0.\nG53 G0 X-20 Y0\nM30\n";
-    let out = simulate(
-        &spec(program, BTreeMap::from([(1, Tool::flat(10.0, 4))])),
-        &CancelFlag::new(),
-        &NoProgress,
-    )
-    .unwrap();
-    assert_eq!(out.summary.rapid_in_material_moves, 0, "{:?}", out.summary);
-    for line in [2, 9, 10] {
-        for r in out.rows.iter().filter(|r| r.line == line) {
-            assert_eq!(r.removed_volume, 0.0, "{r:?}");
-        }
-    }
-    let z_after = |opts: &InterpretOptions, line: u32| {
-        let moves = nc::interpret(program, opts).unwrap().moves;
-        let m = moves.iter().filter(|m| m.line == line).last().unwrap();
-        m.end[2]
-    };
+    rapids_cut_nothing(program, &[2, 9, 10]);
+    let z_after = |opts: &InterpretOptions, line: u32| end_of_line(program, opts, line)[2];
     assert_eq!(z_after(&InterpretOptions::default(), 9), 0.0, "rs274");
     let simulated = InterpretOptions {
         start_position: Some([0.0, 0.0, 11.0]),
@@ -226,15 +215,13 @@ fn g53_z0_retracts_above_the_stock_in_a_simulation() {
     });
     let out = simulate(&s, &CancelFlag::new(), &NoProgress).unwrap();
     assert_eq!(out.summary.rapid_in_material_moves, 0, "{:?}", out.summary);
-    let moves = nc::interpret(
-        program,
-        &InterpretOptions {
-            work_offsets: vec![(0, [0.0, 0.0, -100.0])],
-            ..InterpretOptions::default()
-        },
-    )
-    .unwrap()
-    .moves;
-    let m = moves.iter().filter(|m| m.line == 9).last().unwrap();
-    assert_eq!(m.end[2], 0.0, "machine frame: Z0 is machine zero");
+    let offset = InterpretOptions {
+        work_offsets: vec![(0, [0.0, 0.0, -100.0])],
+        ..InterpretOptions::default()
+    };
+    assert_eq!(
+        z_after(&offset, 9),
+        0.0,
+        "machine frame: Z0 is machine zero"
+    );
 }

@@ -116,19 +116,9 @@ impl Interp<'_> {
         let Some(p) = w.take('P') else {
             return Err(self.err_at(at, "M98 needs P (the subprogram number)"));
         };
-        let l = w.take('L');
+        let l = self.repeat_count(w, "M98")?;
         let mut number = self.program_number(p, at, "M98")?;
-        let mut repeats = match l {
-            Some(l) if l.fract() != 0.0 || !(0.0..=9999.0).contains(&l) => {
-                return Err(self.err_word(
-                    w,
-                    'L',
-                    format!("M98 L{l}: the repeat count must be 0..9999"),
-                ))
-            }
-            Some(l) => l as u32,
-            None => 1,
-        };
+        let mut repeats = l.unwrap_or(1);
         if l.is_none() && number > 9999 && !self.program_exists(number) {
             repeats = number / 10_000;
             number %= 10_000;
@@ -148,22 +138,24 @@ impl Interp<'_> {
             ));
         };
         let n = self.program_number(p, at, "M97")?;
-        let repeats = match w.take('L') {
-            Some(l) if l.fract() != 0.0 || !(0.0..=9999.0).contains(&l) => {
-                return Err(self.err_word(
-                    w,
-                    'L',
-                    format!("M97 L{l}: the repeat count must be 0..9999"),
-                ))
-            }
-            Some(l) => l as u32,
-            None => 1,
-        };
+        let repeats = self.repeat_count(w, "M97")?.unwrap_or(1);
         let unit = self.units.unit;
         let Some(body) = self.find_sequence(unit, self.cur_block, n) else {
             return Err(self.err_at(at, format!("M97 P{n}: no block N{n} in this program")));
         };
         self.call_fanuc_program(n, unit, body, repeats, None, at)
+    }
+
+    /// A subprogram call's `L` repeat count (0..9999), `None` without L.
+    fn repeat_count(&self, w: &mut Words, what: &str) -> R<Option<u32>> {
+        match w.take('L') {
+            Some(l) if l.fract() != 0.0 || !(0.0..=9999.0).contains(&l) => Err(self.err_word(
+                w,
+                'L',
+                format!("{what} L{l}: the repeat count must be 0..9999"),
+            )),
+            l => Ok(l.map(|l| l as u32)),
+        }
     }
 
     /// Whether program `number` is in the running file, the program or its library.
