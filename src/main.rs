@@ -594,13 +594,10 @@ fn tool_diameter(spec: &str) -> Result<(u32, f64), String> {
 fn interpret(args: InterpretArgs) -> ExitCode {
     let file = args.file.display().to_string();
     let text = match std::fs::read(&args.file) {
-        Ok(bytes) => match String::from_utf8(bytes) {
-            Ok(t) => t,
-            Err(e) => {
-                eprintln!(
-                    "{file}: not UTF-8 text (byte {})",
-                    e.utf8_error().valid_up_to()
-                );
+        Ok(bytes) => match validate::program_string(bytes) {
+            Some(t) => t,
+            None => {
+                eprintln!("{file}: not text (neither UTF-8 nor ISO 8859-1)");
                 return ExitCode::from(2);
             }
         },
@@ -646,6 +643,8 @@ fn interpret(args: InterpretArgs) -> ExitCode {
             }
         }
     }
+    // Where no --tool gives a number, the tool the program's header describes (as `run`).
+    millsim_engine::tool_library::add_header_diameters(&mut options.tool_diameters, &text);
     if let Some(dir) = &args.program.library {
         match nc::ProgramLibrary::from_dir(dir) {
             Ok(l) => options.library = Some(std::sync::Arc::new(l)),

@@ -19,8 +19,9 @@ pub struct RunArgs {
     /// Stock as an STL file, or a JSON parametric stock (`{"kind":"cylinder",...}`).
     #[arg(long, conflicts_with = "block", required_unless_present = "block")]
     stock: Option<PathBuf>,
-    /// Stock as a block: X,Y,Z of the lowest corner and DX,DY,DZ sizes, mm.
-    #[arg(long, value_name = "X,Y,Z,DX,DY,DZ")]
+    /// Stock as a block: X,Y,Z of the lowest corner and DX,DY,DZ sizes, mm (a corner
+    /// below zero as written, `--block -10,-10,-20,80,80,20`).
+    #[arg(long, value_name = "X,Y,Z,DX,DY,DZ", allow_hyphen_values = true)]
     block: Option<String>,
     /// The NC program.
     #[arg(long)]
@@ -779,7 +780,7 @@ pub fn run_report(summary: &Value) -> String {
             }
         }
     }
-    for key in ["tool_warnings", "warnings"] {
+    for key in ["tool_warnings", "program_warnings", "warnings"] {
         for w in summary[key].as_array().into_iter().flatten() {
             let _ = writeln!(out, "warning: {}", w.as_str().unwrap_or_default());
         }

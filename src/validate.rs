@@ -2,6 +2,8 @@
 //! stored, and what they find becomes the resource's summary. Errors name the field,
 //! or the line and column.
 
+use std::borrow::Cow;
+
 use serde_json::{json, Value};
 
 use millsim_engine::tool_library::ToolLibrary;
@@ -65,12 +67,40 @@ fn utf8<'a>(
     })
 }
 
+/// A program's text: UTF-8 (or plain ASCII), else ISO 8859-1 byte for character, as
+/// programs written on Windows or kept by older controls carry their comments
+/// (`(FR\u{c4}SER \u{d8}10)`): the NC words are ASCII either way. None for bytes that are
+/// not text at all (control bytes other than tab, line ends, form feed and the DOS end of
+/// file), which are refused as before.
+pub fn program_text(bytes: &[u8]) -> Option<Cow<'_, str>> {
+    if let Ok(text) = std::str::from_utf8(bytes) {
+        return Some(Cow::Borrowed(text));
+    }
+    let text_like = bytes
+        .iter()
+        .all(|&b| (b >= 0x20 && b != 0x7f) || matches!(b, b'\t' | b'\n' | b'\r' | 0x0c | 0x1a));
+    text_like.then(|| Cow::Owned(bytes.iter().map(|&b| char::from(b)).collect()))
+}
+
+/// `program_text` of owned bytes, without a copy when they are UTF-8.
+pub fn program_string(bytes: Vec<u8>) -> Option<String> {
+    match String::from_utf8(bytes) {
+        Ok(text) => Some(text),
+        Err(e) => program_text(e.as_bytes()).map(Cow::into_owned),
+    }
+}
+
 /// Syntax errors a program's summary lists (the rest are counted).
 const MAX_LISTED_ERRORS: usize = 100;
 
 /// NC program text: UTF-8 (or plain ASCII), then the syntax of G-code or CLS.
 pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
-    let text = utf8(bytes, file, "invalid-program", "Program is not text")?;
+    let latin1 = std::str::from_utf8(bytes).is_err();
+    let text = match program_text(bytes) {
+        Some(text) => text,
+        None => Cow::Borrowed(utf8(bytes, file, "invalid-program", "Program is not text")?),
+    };
+    let text = text.as_ref();
     if text.trim().is_empty() {
         return Err(Problem::invalid_field(
             "content",
@@ -110,6 +140,7 @@ pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
         media_type: "text/plain",
         summary: json!({
             "format": "gcode",
+            "encoding": if latin1 { "iso-8859-1" } else { "utf-8" },
             "lines": lines,
             "blocks": parsed.blocks().len(),
             "syntax_errors_if_executed": if_executed,
@@ -285,6 +316,27 @@ mod tests {
     fn line_col_counts_from_one() {
         assert_eq!(line_col(b"ab\ncd", 0), (1, 1));
         assert_eq!(line_col(b"ab\ncd", 4), (2, 2));
+    }
+
+    #[test]
+    fn a_latin1_program_reads_and_binary_data_does_not() {
+        // `(FRÄSER Ø10)` as a Windows editor saves it: 0xC4 and 0xD8, not UTF-8.
+        let bytes = b"O0001 (FR\xc4SER \xd810)\r\nG21 G90\r\nG1 X10 F100\r\nM30\r\n\x1a";
+        let text = program_string(bytes.to_vec()).unwrap();
+        assert!(text.starts_with("O0001 (FR\u{c4}SER \u{d8}10)"), "{text}");
+        let v = program(bytes, "p.nc").unwrap();
+        assert_eq!(v.summary["encoding"], "iso-8859-1");
+        // The DOS end-of-file byte after M30 is a line never run, not a refusal.
+        assert_eq!(v.summary["blocks"], 5);
+        // UTF-8 stays as it is, and says so.
+        let utf8 = program("G1 X1 F1 (Ø)\n".as_bytes(), "p.nc").unwrap();
+        assert_eq!(utf8.summary["encoding"], "utf-8");
+        // Binary data (a NUL, other control bytes) is not a program in either encoding.
+        assert!(program_text(b"G1 X1\n\x00\xff\x10").is_none());
+        let Err(p) = program(b"G1 X1\n\x00\xff", "p.nc") else {
+            panic!("binary data was taken as a program");
+        };
+        assert_eq!(p.status, axum::http::StatusCode::UNPROCESSABLE_ENTITY);
     }
 
     #[test]

@@ -569,3 +569,58 @@ fn run_takes_the_program_options_interpret_and_the_jobs_take() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+#[test]
+fn run_takes_a_block_below_zero_and_a_g41_radius_from_its_tool() {
+    // A job's checks read the program as the simulation does: `G41 D1` takes the radius of
+    // the T1 given on the command line (it was refused as "no radius for tool 1" before the
+    // simulation started). And `--block` takes a corner below zero without `=`.
+    let dir = tempfile::tempdir().unwrap();
+    let program = dir.path().join("boss.nc");
+    std::fs::write(
+        &program,
+        "G21 G17 G90 G40\nT1 M6\nS8000 M3\nG0 X-10 Y-10 Z5\nG1 Z-2 F300\nG41 D1\nG1 X0 Y-5 F600\n\
+         G1 Y20\nG1 X20\nG1 Y0\nG1 X0\nG1 Y5\nG40 G1 X-10 Y-10\nG0 Z5\nM30\n",
+    )
+    .unwrap();
+    let tool = dir.path().join("tool.json");
+    std::fs::write(
+        &tool,
+        r#"{"type":"flat","diameter_mm":6,"flutes":3,"flute_length_mm":15}"#,
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--block",
+            "-12,-12,-4,44,44,4",
+            "--material",
+            "Al7075-T6",
+            "--resolution",
+            "0.2",
+        ])
+        .arg("--program")
+        .arg(&program)
+        .arg("--tool")
+        .arg(format!("T1={}", tool.display()))
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
+    // At least the ring one diameter wide around the 20×20 boss, 2 mm deep (its outside
+    // corners rounded at the diameter); uncompensated the tool would straddle the outline.
+    let ring = (80.0 * 6.0 + std::f64::consts::PI * 36.0) * 2.0;
+    let removed = summary["removed_volume_mm3"].as_f64().unwrap();
+    assert!(
+        removed > ring && removed < ring + 250.0,
+        "{removed} vs {ring}"
+    );
+}

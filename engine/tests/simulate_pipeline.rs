@@ -571,13 +571,18 @@ fn cutter_compensation_takes_the_radius_of_the_jobs_tool() {
         .unwrap_or_else(|e| panic!("optimize with G41 D1: {e}"));
     assert_eq!(removed(&optimized), removed(&out));
     assert!(optimized.optimized_program.is_some());
-    // One tool for every number gives no radius to number 1: refused, naming it.
-    let mut one = spec(program);
-    one.cell = Some(0.5);
-    let Err(err) = simulate(&one, &CancelFlag::new(), &NoProgress) else {
-        panic!("G41 D1 with no radius for number 1 ran");
+    // The job's one tool, serving every number, gives its radius to D1 too.
+    let one = spec(program);
+    let single = simulate(&one, &CancelFlag::new(), &NoProgress).unwrap();
+    assert_eq!(removed(&single), removed(&out));
+    // A number the job has no tool for is refused, naming it.
+    s.program = program.replace("G41 D1", "G41 D2");
+    s.optimize = None;
+    s.cell = Some(0.5);
+    let Err(err) = simulate(&s, &CancelFlag::new(), &NoProgress) else {
+        panic!("G41 D2 with no radius for number 2 ran");
     };
-    assert!(err.to_string().contains("no radius for tool 1"), "{err}");
+    assert!(err.to_string().contains("no radius for tool 2"), "{err}");
 }
 
 #[test]

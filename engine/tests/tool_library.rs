@@ -166,6 +166,37 @@ fn header_comments_describe_tools_with_every_assumed_value_named() {
 }
 
 #[test]
+fn mastercam_piped_header_comments_describe_tools() {
+    // As Mastercam's Fanuc posts write the tool list: the size leads the name.
+    let program = "%\nO0000(ACRYLIC TOP)\n( T212 |    3. FLAT ENDMILL | H0 )\n( T2 | 6. BALL ENDMILL | H2 )\n( T3 | 1/4 FLAT ENDMILL | H3 | D3 | TOOL DIA. - 6.5 )\n( T4 | 1/4 DRILL | H4 )\n( T5 | 10. BULL ENDMILL 1. RAD | H5 )\n( T6 | #7 DRILL | H6 )\n(T7 | MY TOOL | no offset field)\nN1 G21\n";
+    let lib = tools_from_header(program);
+    assert_eq!(
+        (lib.tools[&212].shape, lib.tools[&212].diameter),
+        (ToolShape::Flat, 3.0)
+    );
+    assert_eq!(
+        (lib.tools[&2].shape, lib.tools[&2].diameter),
+        (ToolShape::Ball, 6.0)
+    );
+    // TOOL DIA. wins over the name's size.
+    assert_eq!(lib.tools[&3].diameter, 6.5);
+    // An inch fraction in a metric program is inches.
+    assert_eq!(
+        (lib.tools[&4].shape, lib.tools[&4].diameter),
+        (ToolShape::Drill, 6.35)
+    );
+    assert_eq!(
+        (lib.tools[&5].shape, lib.tools[&5].corner_radius),
+        (ToolShape::BullNose, 1.0)
+    );
+    // A letter/number drill names no size; a comment without the offset field is not the form.
+    assert!(!lib.tools.contains_key(&6) && !lib.tools.contains_key(&7));
+    // In an inch program a decimal size is inches.
+    let inch = tools_from_header("( T1 | .5 FLAT ENDMILL | H1 )\nG20\n");
+    assert!((inch.tools[&1].diameter - 12.7).abs() < 1e-12);
+}
+
+#[test]
 fn a_header_tool_flutes_reach_its_zmin() {
     // The README example's tool: Ø2.65, ZMIN=-12.55 below a program zero on the stock's top;
     // 3·D = 7.95 mm of flutes would call every cut below 7.95 mm deep past the flutes.

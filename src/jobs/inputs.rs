@@ -96,8 +96,8 @@ pub fn program_library(
     for name in names {
         let input = inputs.remove(&name).expect("listed above");
         let file = library_file_name(&name).expect("filtered").to_string();
-        let text = String::from_utf8(input.content)
-            .map_err(|_| invalid("Program is not text", format!("{name} is not UTF-8")))?;
+        let text = crate::validate::program_string(input.content)
+            .ok_or_else(|| invalid("Program is not text", format!("{name} is not text")))?;
         files.push(nc::LibraryFile { name: file, text });
     }
     Ok(Some(std::sync::Arc::new(nc::ProgramLibrary::new(files))))
@@ -109,8 +109,8 @@ pub fn program_text(inputs: &mut LoadedInputs) -> Result<(String, String), JobFa
         .remove("program")
         .ok_or_else(|| invalid("Missing input", "the job has no `program` input"))?;
     let file = p.file_name.unwrap_or_else(|| "program.nc".into());
-    let text = String::from_utf8(p.content)
-        .map_err(|_| invalid("Program is not text", format!("{file} is not UTF-8")))?;
+    let text = crate::validate::program_string(p.content)
+        .ok_or_else(|| invalid("Program is not text", format!("{file} is not text")))?;
     Ok((file, text))
 }
 

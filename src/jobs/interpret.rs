@@ -100,8 +100,9 @@ pub fn run(
         .engine_options()
         .map_err(|d| JobFailure::Invalid(Problem::program_failed("tool_table", &d)))?;
     engine_opts.cancel = Some(cancel.clone());
-    // The job's tools by number: the radius cutter compensation takes where the program's
-    // tool table and G10 give none, as a simulate job's.
+    // The job's tools by number, else its header comments' tools: the radius cutter
+    // compensation takes where the program's tool table and G10 give none, as a simulate
+    // job's.
     let numbered: Vec<(String, u32)> = inputs
         .keys()
         .filter_map(|k| Some((k.clone(), super::JobKind::Interpret.tool_number_input(k)?)))
@@ -111,6 +112,7 @@ pub fn run(
             super::inputs::required(json_input(&mut inputs, &name, "Invalid tool")?, &name)?;
         engine_opts.tool_diameters.insert(number, tool.diameter);
     }
+    millsim_engine::tool_library::add_header_diameters(&mut engine_opts.tool_diameters, &text);
     engine_opts.library = super::inputs::program_library(&mut inputs)?;
     let result = if crate::validate::looks_like_cls(&text) {
         millsim_engine::cl::read_cls(&text)

@@ -675,10 +675,11 @@ pub(super) fn check_spec(
     limits: &JobLimits,
     cancel: &CancelFlag,
 ) -> Result<Checked, JobFailure> {
+    let interpret = spec.interpret_options_for_checks();
     let check = SimulationCheck {
         file,
         program: &spec.program,
-        interpret: &spec.interpret,
+        interpret: &interpret,
         machine: &spec.machine,
         axes: spec.axes,
         stock: &spec.stock,
@@ -834,7 +835,7 @@ pub(super) fn place_collisions(spec: &SimulateSpec, summary: &mut Value) {
     if list.is_empty() || spec.machine.kinematics != millsim_engine::machine::Kinematics::Xyz {
         return;
     }
-    let Ok(program) = nc::interpret(&spec.program, &spec.interpret) else {
+    let Ok(program) = nc::interpret(&spec.program, &spec.interpret_options_for_checks()) else {
         return;
     };
     for c in list.iter_mut() {

@@ -138,6 +138,8 @@ pub struct InterpretOptions {
     pub tool_table: ToolTable,
     /// Diameters of the tools the caller cuts with, by number (mm): the radius cutter
     /// compensation takes for a number with no diameter in the tool table and no G10 radius.
+    /// Under 0: the caller's one tool, which serves every number (not Fanuc's D0, the zero
+    /// offset).
     pub tool_diameters: std::collections::BTreeMap<u32, f64>,
     /// Fanuc "implied decimal": a length/angle word written without a decimal point counts in
     /// least input increments (0.001 mm, 0.0001 inch, 0.001 degree). Off: the LinuxCNC rule

@@ -310,6 +310,7 @@ fn run(
             tool_life,
             tool_warnings: tools.warnings,
             warnings,
+            program_warnings: rows::program_warnings(&interpretation.warnings),
             chatter,
             part,
             fixture,
@@ -399,7 +400,7 @@ fn stock(
 /// The radii of every tool the spec's program cuts with (as the simulation will look them
 /// up), for a cell size shared by several operations.
 pub(super) fn tool_radii(spec: &SimulateSpec) -> Result<Vec<f64>, SimulateError> {
-    let interpretation = nc::interpret(&spec.program, &spec.interpret_options((None, None)))
+    let interpretation = nc::interpret(&spec.program, &spec.interpret_options_for_checks())
         .map_err(SimulateError::Program)?;
     let tools =
         tools::ToolLookup::new(spec, &interpretation.moves, &interpretation.selected_tools)?;

@@ -402,6 +402,11 @@ pub struct SimulationSummary {
     /// cut with no force, limits the optimizer could not hold), one sentence each.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// What the interpreter said of the program as it read it (codes that make no motion
+    /// ignored, a compensation radius taken from the job's tool, ...), `line:column:
+    /// message`, the first `MAX_PROGRAM_WARNINGS` and then how many more.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub program_warnings: Vec<String>,
     /// The worst scallop and feed marks of the program and where.
     pub roughness: RoughnessSummary,
     /// Per tool: its largest deflection, form error and bending stress, and where.
@@ -628,9 +633,30 @@ pub(super) struct SummaryExtras {
     pub(super) tool_life: Result<Vec<ToolLife>, String>,
     pub(super) tool_warnings: Vec<String>,
     pub(super) warnings: Vec<String>,
+    pub(super) program_warnings: Vec<String>,
     pub(super) chatter: Option<(usize, f64)>,
     pub(super) part: Option<geometry::PartComparison>,
     pub(super) fixture: Option<super::fixture_stage::FixtureSummary>,
+}
+
+/// Interpreter warnings a summary lists; a program that warns on every block says so
+/// in the count after them.
+pub const MAX_PROGRAM_WARNINGS: usize = 50;
+
+/// The interpreter's warnings as a summary lists them (see `program_warnings`).
+pub(super) fn program_warnings(warnings: &[crate::nc::Diagnostic]) -> Vec<String> {
+    let mut out: Vec<String> = warnings
+        .iter()
+        .take(MAX_PROGRAM_WARNINGS)
+        .map(ToString::to_string)
+        .collect();
+    if warnings.len() > MAX_PROGRAM_WARNINGS {
+        out.push(format!(
+            "... and {} more",
+            warnings.len() - MAX_PROGRAM_WARNINGS
+        ));
+    }
+    out
 }
 
 /// The program's summary from its rows: (moves, blocks) counted, the stock volume before
@@ -693,6 +719,7 @@ pub(super) fn summarize(
         tool_life: extras.tool_life.ok(),
         tool_warnings: extras.tool_warnings,
         warnings: extras.warnings,
+        program_warnings: extras.program_warnings,
         chatter_moves: extras.chatter.map(|(n, _)| n),
         chatter_margin_max: extras.chatter.map(|(_, m)| m),
         part: extras.part,

@@ -97,6 +97,13 @@ impl SimulateSpec {
     /// gives none.
     /// `start`: where the machine stands at the start and after a tool change (see
     /// `setup::start_positions`), unless the caller's options already say.
+    /// The interpreter's options as the simulation will read the program, before the
+    /// stock is known: for checks made ahead of it (travel, memory), which must see the
+    /// moves the simulation will (a `G41 D1` takes the radius of the job's T1 here too).
+    pub fn interpret_options_for_checks(&self) -> nc::InterpretOptions {
+        self.interpret_options((None, None))
+    }
+
     pub(super) fn interpret_options(
         &self,
         (start, change): (Option<[f64; 3]>, Option<nc::ToolChangeTo>),
@@ -116,9 +123,13 @@ impl SimulateSpec {
             o.kinematics = Some(crate::machine::MachineKinematics::of(&self.machine));
         }
         o.tool_tip_reading |= self.axes == AxisReading::ToolTip;
-        for (&number, tool) in self.tools.iter().filter(|(&n, _)| n > 0) {
+        // The job's tools, the one tool (key 0) serving every number; then the tools the
+        // program's header comments describe, which the simulation cuts with for numbers
+        // the job does not give (see `ToolLookup`).
+        for (&number, tool) in self.tools.iter() {
             o.tool_diameters.entry(number).or_insert(tool.diameter);
         }
+        crate::tool_library::add_header_diameters(&mut o.tool_diameters, &self.program);
         o
     }
 }

@@ -1,6 +1,8 @@
 //! Tools from the comments a CAM post writes at the top of a program, for T numbers no
 //! library names: Fusion 360 / HSM `(T1 D=2.65 CR=0 - ZMIN=-12.55 - flat end mill)` (with
-//! `TAPER=45deg` on chamfer tools) and Mastercam `( TOOL - 1 DIA. OFF. - 1 LEN. - 1 DIA. - 6. )`.
+//! `TAPER=45deg` on chamfer tools), Mastercam's `( TOOL - 1 DIA. OFF. - 1 LEN. - 1 DIA. - 6. )`
+//! and its later `( T1 |  10. FLAT ENDMILL | H1 )` (the size leads the tool's name;
+//! `TOOL DIA. - .25` where the post writes it).
 //! Whatever the comment does not say (flutes, lengths, helix) is assumed and reported with
 //! the line it came from.
 
@@ -15,7 +17,8 @@ pub fn tools_from_header(program: &str) -> ToolLibrary {
         format: "program header",
         ..ToolLibrary::default()
     };
-    let unit = if program_is_inch(program) { 25.4 } else { 1.0 };
+    let inch = program_is_inch(program);
+    let unit = if inch { 25.4 } else { 1.0 };
     for (i, line) in program.lines().enumerate() {
         let Some(comment) = line
             .split_once('(')
@@ -24,7 +27,10 @@ pub fn tools_from_header(program: &str) -> ToolLibrary {
         else {
             continue;
         };
-        let Some((number, diameter, text)) = fusion(comment).or_else(|| mastercam(comment)) else {
+        let Some((number, diameter, text)) = fusion(comment)
+            .or_else(|| mastercam(comment))
+            .or_else(|| mastercam_piped(comment, inch))
+        else {
             continue;
         };
         if lib.tools.contains_key(&number) || !(diameter > 0.0) {
@@ -47,7 +53,8 @@ pub fn tools_from_header(program: &str) -> ToolLibrary {
                 .find_map(|w| w.strip_prefix(key))
                 .and_then(|v| v.trim_end_matches("deg").parse::<f64>().ok())
         };
-        match (shape, value("CR="), value("TAPER=")) {
+        let corner = value("CR=").or_else(|| piped_corner_radius(comment, inch));
+        match (shape, corner, value("TAPER=")) {
             (ToolShape::BullNose, Some(r), _) if r > 0.0 => tool.corner_radius = r * unit,
             (ToolShape::Chamfer | ToolShape::Drill, _, Some(a)) if a > 0.0 && a < 90.0 => {
                 tool.taper_half_angle_deg = a
@@ -82,6 +89,21 @@ pub fn tools_from_header(program: &str) -> ToolLibrary {
     lib
 }
 
+/// Adds to the caller's tool diameters by number (cutter compensation's radii, see
+/// `nc::InterpretOptions::tool_diameters`) those of the tools the program's header comments
+/// describe, for numbers it lacks: the tools a simulation cuts with where the job gives
+/// none. A job's one tool (number 0) serves every number and leaves the map as it is.
+pub fn add_header_diameters(diameters: &mut std::collections::BTreeMap<u32, f64>, program: &str) {
+    if diameters.contains_key(&0) {
+        return;
+    }
+    for (&number, tool) in tools_from_header(program).tools.iter() {
+        if number > 0 {
+            diameters.entry(number).or_insert(tool.diameter);
+        }
+    }
+}
+
 /// `T<n> D=<d> ... - <type>`: (number, diameter, the whole comment).
 fn fusion(c: &str) -> Option<(u32, f64, &str)> {
     let mut words = c.split_whitespace();
@@ -103,6 +125,66 @@ fn mastercam(c: &str) -> Option<(u32, f64, &str)> {
         .parse()
         .ok()?;
     Some((number, d, c))
+}
+
+/// Mastercam's `T<n> | <size> <name> | H<n> | ...`: (number, diameter in the program's
+/// unit, the name). The diameter is `TOOL DIA. - <d>` where a field gives it, else the size
+/// the name starts with: a decimal in the program's unit (`10. FLAT ENDMILL`) or an inch
+/// fraction (`1/4 FLAT ENDMILL`, in inches in a metric program too). A name without a size
+/// (`#7 DRILL`) describes no tool.
+fn mastercam_piped(c: &str, inch: bool) -> Option<(u32, f64, &str)> {
+    let mut fields = c.split('|').map(str::trim);
+    let number: u32 = fields.next()?.strip_prefix(['T', 't'])?.parse().ok()?;
+    let name = fields.next()?;
+    let rest: Vec<&str> = fields.collect();
+    // The offset field after the name marks the form (`H1`, `H0`).
+    if !rest.first().is_some_and(|h| {
+        h.strip_prefix(['H', 'h'])
+            .is_some_and(|n| n.parse::<u32>().is_ok())
+    }) {
+        return None;
+    }
+    let given = rest.iter().find_map(|f| {
+        let upper = f.to_ascii_uppercase();
+        let d = upper
+            .strip_prefix("TOOL DIA.")?
+            .trim_start()
+            .strip_prefix('-')?;
+        d.trim().trim_end_matches('"').parse::<f64>().ok()
+    });
+    let d = given.or_else(|| size_in_unit(name.split_whitespace().next()?, inch))?;
+    Some((number, d, name))
+}
+
+/// A size as a name writes it, in the program's unit: a decimal (`10.`, `.5`) as it is,
+/// an inch fraction (`1/4`, `1-1/2`) converted for a metric program.
+fn size_in_unit(word: &str, inch: bool) -> Option<f64> {
+    let to_unit = |inches: f64| if inch { inches } else { inches * 25.4 };
+    if let Some((whole, frac)) = word.split_once('-') {
+        let w: f64 = whole.parse().ok()?;
+        return Some(to_unit(w + fraction(frac)?));
+    }
+    if word.contains('/') {
+        return fraction(word).map(to_unit);
+    }
+    word.parse::<f64>().ok().filter(|d| d.is_finite())
+}
+
+fn fraction(word: &str) -> Option<f64> {
+    let (n, d) = word.split_once('/')?;
+    let (n, d): (f64, f64) = (n.parse().ok()?, d.parse().ok()?);
+    (d > 0.0).then(|| n / d)
+}
+
+/// A bull nose's corner radius in a Mastercam name: the size before `RAD` (`10. BULL
+/// ENDMILL 1. RAD`), in the program's unit.
+fn piped_corner_radius(name: &str, inch: bool) -> Option<f64> {
+    let words: Vec<&str> = name.split_whitespace().collect();
+    let at = words
+        .iter()
+        .position(|w| w.eq_ignore_ascii_case("RAD") || w.eq_ignore_ascii_case("RAD."))?;
+    let r = size_in_unit(words.get(at.checked_sub(1)?)?, inch)?;
+    (r > 0.0).then_some(r)
 }
 
 /// Whether the program selects inches (G20) before it selects mm (G21), outside comments.

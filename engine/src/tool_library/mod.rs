@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use crate::tool::Tool;
 
-pub use header::tools_from_header;
+pub use header::{add_header_diameters, tools_from_header};
 
 /// Tools by T number, and what the import could not carry over.
 #[derive(Clone, Debug, Default, Serialize)]

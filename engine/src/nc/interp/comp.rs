@@ -177,8 +177,26 @@ impl Interp<'_> {
                 }
                 None => self.tool.radius_offset.unwrap_or(self.tool.current),
             };
+            let from_the_job = !self.tool.radii.contains_key(&number)
+                && self
+                    .opts
+                    .tool_table
+                    .get(number)
+                    .and_then(|t| t.diameter)
+                    .is_none();
             match self.tool_radius(number) {
-                Some(r) => r / u,
+                Some(r) => {
+                    // CAM posts write G41 D1 both on the part's outline (control compensation,
+                    // D the radius) and on a path already offset (wear compensation, D only
+                    // the wear): the program does not say which, the offset table does.
+                    if from_the_job && self.out.warned_radii.insert(number) {
+                        self.out.warnings.push(self.err_at(
+                            at,
+                            format!("{name} D{number}: no tool table radius; the radius {r} mm of the job's tool {number} is taken (control compensation). A program posted with wear compensation (its path already offset) wants a tool table with D0 or G10 L1 P{number} R0"),
+                        ));
+                    }
+                    r / u
+                }
                 // Fanuc's offset number 0 is the zero offset (D0/D00 cancels the radius while
                 // G41/G42 stays modal): the path runs uncompensated, as the control runs it.
                 None if self.fanuc && number == 0 => 0.0,
@@ -212,7 +230,8 @@ impl Interp<'_> {
     }
 
     /// Radius (mm) of tool/offset number `n`: a G10 radius (plus Fanuc wear), else half the
-    /// tool table's diameter, else half the diameter of the caller's tool of that number.
+    /// tool table's diameter, else half the diameter of the caller's tool of that number (or
+    /// of its one tool).
     pub(super) fn tool_radius(&self, n: u32) -> Option<f64> {
         let geometry = self.tool.radii.get(&n).copied().or_else(|| {
             self.opts
@@ -220,6 +239,10 @@ impl Interp<'_> {
                 .get(n)
                 .and_then(|t| t.diameter)
                 .or_else(|| self.opts.tool_diameters.get(&n).copied())
+                .or_else(|| {
+                    let one = self.opts.tool_diameters.get(&0).copied();
+                    one.filter(|_| n != 0 && self.opts.tool_diameters.len() == 1)
+                })
                 .map(|d| d / 2.0)
         })?;
         Some(geometry + self.tool.radius_wear.get(&n).copied().unwrap_or(0.0))

@@ -111,6 +111,8 @@ struct Output {
     warnings: Vec<Diagnostic>,
     /// Non-standard M codes already warned about.
     warned_m_codes: std::collections::HashSet<u32>,
+    /// Tool numbers whose compensation radius came from the job's tools, warned about.
+    warned_radii: std::collections::HashSet<u32>,
 }
 
 type R<T> = Result<T, Diagnostic>;
@@ -265,6 +267,7 @@ impl<'p> Interp<'p> {
                 moves_sent: 0,
                 warnings: Vec::new(),
                 warned_m_codes: Default::default(),
+                warned_radii: Default::default(),
             },
             pending_corner: None,
             cur_block: 0,
