@@ -595,7 +595,7 @@ fn interpret(args: InterpretArgs) -> ExitCode {
     let file = args.file.display().to_string();
     let text = match std::fs::read(&args.file) {
         Ok(bytes) => match validate::program_string(bytes) {
-            Some(t) => t,
+            Some((t, _)) => t,
             None => {
                 eprintln!("{file}: not text (neither UTF-8 nor ISO 8859-1)");
                 return ExitCode::from(2);

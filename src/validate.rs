@@ -82,11 +82,42 @@ pub fn program_text(bytes: &[u8]) -> Option<Cow<'_, str>> {
     text_like.then(|| Cow::Owned(bytes.iter().map(|&b| char::from(b)).collect()))
 }
 
-/// `program_text` of owned bytes, without a copy when they are UTF-8.
-pub fn program_string(bytes: Vec<u8>) -> Option<String> {
+/// How a program's bytes were read (`program_text`): a program rewritten from it is
+/// written back the same way, every byte the rewrite does not change kept.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TextEncoding {
+    #[default]
+    Utf8,
+    Latin1,
+}
+
+impl TextEncoding {
+    /// `text` (read in this encoding, and changed only in ASCII) as bytes again.
+    pub fn encode(self, text: String) -> Vec<u8> {
+        match self {
+            TextEncoding::Utf8 => text.into_bytes(),
+            // Every character came from one byte; a rewrite adds only ASCII.
+            TextEncoding::Latin1 => text
+                .chars()
+                .map(|c| u8::try_from(u32::from(c)).unwrap_or(b'?'))
+                .collect(),
+        }
+    }
+
+    /// The media type of a program written in this encoding.
+    pub fn media_type(self) -> &'static str {
+        match self {
+            TextEncoding::Utf8 => "text/plain; charset=utf-8",
+            TextEncoding::Latin1 => "text/plain; charset=iso-8859-1",
+        }
+    }
+}
+
+/// `program_text` of owned bytes, without a copy when they are UTF-8, and how they read.
+pub fn program_string(bytes: Vec<u8>) -> Option<(String, TextEncoding)> {
     match String::from_utf8(bytes) {
-        Ok(text) => Some(text),
-        Err(e) => program_text(e.as_bytes()).map(Cow::into_owned),
+        Ok(text) => Some((text, TextEncoding::Utf8)),
+        Err(e) => program_text(e.as_bytes()).map(|t| (t.into_owned(), TextEncoding::Latin1)),
     }
 }
 
@@ -322,7 +353,10 @@ mod tests {
     fn a_latin1_program_reads_and_binary_data_does_not() {
         // `(FRÄSER Ø10)` as a Windows editor saves it: 0xC4 and 0xD8, not UTF-8.
         let bytes = b"O0001 (FR\xc4SER \xd810)\r\nG21 G90\r\nG1 X10 F100\r\nM30\r\n\x1a";
-        let text = program_string(bytes.to_vec()).unwrap();
+        let (text, encoding) = program_string(bytes.to_vec()).unwrap();
+        assert_eq!(encoding, TextEncoding::Latin1);
+        // Written back byte for byte.
+        assert_eq!(encoding.encode(text.clone()), bytes.to_vec());
         assert!(text.starts_with("O0001 (FR\u{c4}SER \u{d8}10)"), "{text}");
         let v = program(bytes, "p.nc").unwrap();
         assert_eq!(v.summary["encoding"], "iso-8859-1");

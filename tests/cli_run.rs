@@ -624,3 +624,64 @@ fn run_takes_a_block_below_zero_and_a_g41_radius_from_its_tool() {
         "{removed} vs {ring}"
     );
 }
+
+#[test]
+fn a_latin1_program_is_read_and_its_optimized_program_keeps_its_bytes() {
+    // `(FRÄSER Ø10)` as a Windows editor saves it (ISO 8859-1): read byte for character,
+    // and written back the same way, so every byte the feeds do not change is kept.
+    let dir = tempfile::tempdir().unwrap();
+    let program = dir.path().join("slot.nc");
+    let text: &[u8] = b"(FR\xc4SER \xd810)\nG21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n";
+    std::fs::write(&program, text).unwrap();
+    let tool = dir.path().join("tool.json");
+    std::fs::write(
+        &tool,
+        r#"{"type":"flat","diameter_mm":10,"flutes":4,"flute_length_mm":20}"#,
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--block",
+            "0,-20,-10,100,40,10",
+            "--material",
+            "Al7075-T6",
+            "--resolution",
+            "0.5",
+            "--optimize",
+            "max_force=300",
+        ])
+        .arg("--program")
+        .arg(&program)
+        .arg("--tool")
+        .arg(format!("T1={}", tool.display()))
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let written = std::fs::read(out_dir.join("slot.opt.nc")).unwrap_or_else(|e| {
+        panic!(
+            "{e}: {:?}",
+            std::fs::read_dir(&out_dir).unwrap().collect::<Vec<_>>()
+        )
+    });
+    assert!(written.starts_with(b"(FR\xc4SER \xd810)\n"), "{written:?}");
+    // The feed changed (the limit binds), nothing else did.
+    assert_ne!(written, text);
+    let unchanged: Vec<&[u8]> = text
+        .split(|&b| b == b'\n')
+        .filter(|l| !l.contains(&b'F'))
+        .collect();
+    for line in unchanged {
+        assert!(
+            written.split(|&b| b == b'\n').any(|l| l == line),
+            "{line:?} lost"
+        );
+    }
+}

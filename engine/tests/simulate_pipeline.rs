@@ -652,3 +652,30 @@ fn after_optimizing_the_mean_force_power_and_torque_are_those_at_the_new_feeds()
     }
     assert!(cutting >= 3, "{cutting}");
 }
+
+#[test]
+fn cuts_with_the_spindle_not_turning_are_said_once_with_the_reason() {
+    // CAMotics' cameo program turns the spindle on with M03 and never gives S: every cut is
+    // at 0 rpm, which the summary says once, naming the first line and the missing S.
+    let cut = "G0 X-10 Y0 Z5\nG0 Z-2\nG1 X30 F600\nG1 X50\nG0 Z5\nM30\n";
+    let warning = |program: &str| -> Vec<String> {
+        let out = simulate(&spec(program), &CancelFlag::new(), &NoProgress).unwrap();
+        out.summary
+            .warnings
+            .into_iter()
+            .filter(|w| w.contains("spindle not turning"))
+            .collect()
+    };
+    let no_s = warning(&format!("G21 G90\nM3\n{cut}"));
+    assert_eq!(no_s.len(), 1, "{no_s:?}");
+    assert!(
+        no_s[0].starts_with("2 moves")
+            && no_s[0].contains("first at line 5")
+            && no_s[0].contains("no S word"),
+        "{}",
+        no_s[0]
+    );
+    let off = warning(&format!("G21 G90\nS8000\n{cut}"));
+    assert!(off[0].contains("no M3 or M4"), "{off:?}");
+    assert!(warning(&format!("G21 G90\nS8000 M3\n{cut}")).is_empty());
+}

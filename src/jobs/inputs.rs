@@ -96,7 +96,7 @@ pub fn program_library(
     for name in names {
         let input = inputs.remove(&name).expect("listed above");
         let file = library_file_name(&name).expect("filtered").to_string();
-        let text = crate::validate::program_string(input.content)
+        let (text, _) = crate::validate::program_string(input.content)
             .ok_or_else(|| invalid("Program is not text", format!("{name} is not text")))?;
         files.push(nc::LibraryFile { name: file, text });
     }
@@ -105,13 +105,21 @@ pub fn program_library(
 
 /// The program input as (file name, text).
 pub fn program_text(inputs: &mut LoadedInputs) -> Result<(String, String), JobFailure> {
+    program_text_encoded(inputs).map(|(file, text, _)| (file, text))
+}
+
+/// The program input as (file name, text, how its bytes read), for a job that writes a
+/// rewritten program back.
+pub fn program_text_encoded(
+    inputs: &mut LoadedInputs,
+) -> Result<(String, String, crate::validate::TextEncoding), JobFailure> {
     let p = inputs
         .remove("program")
         .ok_or_else(|| invalid("Missing input", "the job has no `program` input"))?;
     let file = p.file_name.unwrap_or_else(|| "program.nc".into());
-    let text = crate::validate::program_string(p.content)
+    let (text, encoding) = crate::validate::program_string(p.content)
         .ok_or_else(|| invalid("Program is not text", format!("{file} is not text")))?;
-    Ok((file, text))
+    Ok((file, text, encoding))
 }
 
 /// An interpretation that stopped: on a cancel (the interpreter stops with an error when

@@ -441,6 +441,7 @@ pub fn run(
     let estimate_cell = shared_cell.or((!radii.is_empty()).then(|| geometry::default_cell(&radii)));
     let mut operations = Vec::with_capacity(o.operations.len());
     let mut files = Vec::with_capacity(o.operations.len());
+    let mut encodings = Vec::with_capacity(o.operations.len());
     let mut estimates = Vec::new();
     let mut estimate_cells = Vec::new();
     let mut all_radii = Vec::new();
@@ -468,6 +469,7 @@ pub fn run(
         }
         let BuiltSpec {
             file,
+            encoding,
             spec,
             estimate,
             tool_radii,
@@ -476,6 +478,7 @@ pub fn run(
         } = spec_from_inputs(&opts, optimize, &mut own, limits, cancel)
             .map_err(|f| in_operation(f, i, &op.name))?;
         files.push(file);
+        encodings.push(encoding);
         estimates.push((estimate, optimize));
         estimate_cells.push(estimate_cell);
         all_radii.extend(tool_radii);
@@ -557,7 +560,7 @@ pub fn run(
     output(
         &process,
         out,
-        (&files, libraries, memory.map(|(_, v)| v)),
+        (&files, &encodings, libraries, memory.map(|(_, v)| v)),
         (o.keep_stocks, kept),
         limits,
         stock_file,
@@ -578,6 +581,7 @@ fn in_operation(f: JobFailure, i: usize, name: &str) -> JobFailure {
 
 type Reports<'a> = (
     &'a [String],
+    &'a [crate::validate::TextEncoding],
     Vec<Option<crate::job_library::JobLibrary>>,
     Option<Value>,
 );
@@ -587,7 +591,7 @@ type Reports<'a> = (
 fn output(
     process: &ProcessSpec,
     mut out: pipeline::ProcessOutput,
-    (files, libraries, memory): Reports,
+    (files, encodings, libraries, memory): Reports,
     (keep_stocks, kept): (bool, Vec<Result<Vec<u8>, String>>),
     limits: &JobLimits,
     stock_file: Option<&std::path::Path>,
@@ -636,7 +640,7 @@ fn output(
             } else {
                 format!("program.op{}", i + 1)
             },
-            media_type: "text/plain; charset=utf-8",
+            media_type: encodings[i].media_type(),
             file_name: format!(
                 "{stem}.op{}{}{ext}",
                 i + 1,
@@ -646,7 +650,7 @@ fn output(
                     ""
                 }
             ),
-            content: ArtifactContent::Bytes(text.into_bytes()),
+            content: ArtifactContent::Bytes(encodings[i].encode(text)),
         });
     }
     for (i, stl) in kept.into_iter().enumerate() {

@@ -11,7 +11,7 @@ use millsim_engine::machine::rotary_feed::{
 use millsim_engine::machine::Machine;
 use millsim_engine::nc;
 
-use super::inputs::{invalid, json_input, program_text, required, stem_and_ext};
+use super::inputs::{invalid, json_input, program_text_encoded, required, stem_and_ext};
 use super::interpret::{default_dialect, INTERPRET_BYTES_PER_PROGRAM_BYTE};
 use super::{input, InputSpec, JobFailure, JobOutput, LoadedInputs, OutputFile};
 use crate::job_budget::KindEstimate;
@@ -126,7 +126,7 @@ fn post_cls_job(
 /// Rotary-axis feed correction of a G-code program: F words rewritten so the tool tip moves
 /// at the programmed feed; rows are the corrected feed per block.
 pub fn run(opts: &RotaryFeedJobOptions, mut inputs: LoadedInputs) -> Result<JobOutput, JobFailure> {
-    let (file, text) = program_text(&mut inputs)?;
+    let (file, text, encoding) = program_text_encoded(&mut inputs)?;
     let machine: Machine = required(
         json_input(&mut inputs, "machine", "Invalid machine")?,
         "machine",
@@ -166,9 +166,9 @@ pub fn run(opts: &RotaryFeedJobOptions, mut inputs: LoadedInputs) -> Result<JobO
         samples: Vec::new(),
         files: vec![OutputFile {
             name: "program".into(),
-            media_type: "text/plain; charset=utf-8",
+            media_type: encoding.media_type(),
             file_name: format!("{stem}.rotary{ext}"),
-            content: ArtifactContent::Bytes(corrected.into_bytes()),
+            content: ArtifactContent::Bytes(encoding.encode(corrected)),
         }],
         resources: Vec::new(),
     })

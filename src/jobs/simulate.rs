@@ -15,8 +15,8 @@ use millsim_engine::tool::Tool;
 use millsim_engine::{geometry, nc};
 
 use super::inputs::{
-    check_material, invalid, job_material, json_input, program_failure, program_text, required,
-    stem_and_ext,
+    check_material, invalid, job_material, json_input, program_failure, program_text_encoded,
+    required, stem_and_ext,
 };
 use super::interpret::default_dialect;
 use super::{
@@ -533,7 +533,7 @@ pub(super) fn spec_from_inputs(
     limits: &JobLimits,
     cancel: &CancelFlag,
 ) -> Result<BuiltSpec, JobFailure> {
-    let (file, text) = program_text(inputs)?;
+    let (file, text, encoding) = program_text_encoded(inputs)?;
     // Key 0: one tool serves every tool number; else the tool of each number.
     let mut tools = BTreeMap::new();
     let names: Vec<String> = inputs.keys().cloned().collect();
@@ -657,6 +657,7 @@ pub(super) fn spec_from_inputs(
     let checked = check_spec(&file, &spec, keeps_steps, opts.cell_mm, limits, cancel)?;
     Ok(BuiltSpec {
         file,
+        encoding,
         spec,
         estimate: checked.estimate,
         tool_radii: checked.tool_radii,
@@ -703,6 +704,8 @@ pub(super) fn check_spec(
 /// A simulation built from a job's inputs, with what its summary reports of them.
 pub(super) struct BuiltSpec {
     pub file: String,
+    /// How the program's bytes read: a rewritten program is written back the same way.
+    pub encoding: crate::validate::TextEncoding,
     pub spec: SimulateSpec,
     pub estimate: Option<millsim_engine::budget::MemoryEstimate>,
     /// The radii of the tools the program cuts with (given, a library's, its header's).
@@ -725,6 +728,7 @@ pub fn run(
         .map_err(|e| invalid("Invalid options", e.to_string()))?;
     let BuiltSpec {
         file,
+        encoding,
         spec,
         estimate,
         library,
@@ -789,9 +793,9 @@ pub fn run(
     if let Some(text) = out.optimized_program {
         files.push(OutputFile {
             name: "program".into(),
-            media_type: "text/plain; charset=utf-8",
+            media_type: encoding.media_type(),
             file_name: format!("{stem}.opt{ext}"),
-            content: ArtifactContent::Bytes(text.into_bytes()),
+            content: ArtifactContent::Bytes(encoding.encode(text)),
         });
     }
     let mut summary = serde_json::to_value(SimulateSummary {

@@ -212,6 +212,7 @@ fn run(
     // The rows' volumes are the three families' mean, batch by batch; the stock read voxel
     // by voxel before and after gives the program's total (see `voxel_scale`).
     let volume_after = stock.volume();
+    warnings.extend(rows::spindle_warning(&rows, moves));
     let removed: f64 = rows.iter().map(|r| r.removed_volume).sum();
     let scale = geometry::removal::voxel_scale(volume_before - volume_after, removed);
     for row in rows.iter_mut() {

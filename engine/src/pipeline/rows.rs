@@ -639,6 +639,28 @@ pub(super) struct SummaryExtras {
     pub(super) fixture: Option<super::fixture_stage::FixtureSummary>,
 }
 
+/// The cuts made with the spindle not turning, said once for the program with the reason
+/// (an M3 with no S word is 0 rpm: no chip, no force, where the machine would break the
+/// tool).
+pub(super) fn spindle_warning(rows: &[MoveRow], moves: &[crate::nc::Move]) -> Option<String> {
+    let stopped = || {
+        rows.iter()
+            .zip(moves)
+            .filter(|(r, _)| r.spindle_stopped_in_material)
+    };
+    let (first, m) = stopped().next()?;
+    let n = stopped().count();
+    let why = if m.spindle_dir == crate::nc::SpindleDir::Off {
+        "no M3 or M4 turns the spindle on before it"
+    } else {
+        "M3/M4 turns the spindle on but no S word has given it a speed (add S to the program)"
+    };
+    Some(format!(
+        "{n} moves cut material with the spindle not turning (0 rpm), the first at line {}: {why}; they have no force and are flagged spindle_stopped_in_material",
+        first.line
+    ))
+}
+
 /// Interpreter warnings a summary lists; a program that warns on every block says so
 /// in the count after them.
 pub const MAX_PROGRAM_WARNINGS: usize = 50;
