@@ -324,6 +324,11 @@ fn stock_input(args: &RunArgs) -> Result<LoadedInput, String> {
                 crate::validate::stock_json(&stock.content)
                     .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
                 stock.media_type = "application/json".into();
+            } else {
+                // Checked first, so a refusal names this file (and where the mesh is
+                // open) rather than the program the simulation was reading it for.
+                crate::validate::stl(&stock.content, &path.display().to_string())
+                    .map_err(|e| e.detail)?;
             }
             stock
         }
@@ -674,16 +679,30 @@ pub fn run_report(summary: &Value) -> String {
     }
     // Each tool's worst bending: where it deflects most and the form error it leaves.
     for t in summary["deflection"].as_array().into_iter().flatten() {
-        let line = |k: &str| t[k].as_u64().map_or("?".to_string(), |l| l.to_string());
+        // A value no move reached (no finishing pass for a form error) names no line.
+        let at = |k: &str| {
+            t[k].as_u64()
+                .map_or(String::new(), |l| format!(" at line {l}"))
+        };
+        let form = match t["form_error_line"].as_u64() {
+            Some(_) => format!(
+                "{:+.1} µm{} ({})",
+                num(&t["form_error_um"]),
+                at("form_error_line"),
+                if num(&t["form_error_um"]) >= 0.0 {
+                    "material left"
+                } else {
+                    "overcut"
+                }
+            ),
+            None => "none".to_string(),
+        };
         let _ = writeln!(
             out,
-            "T{}: deflection {:.1} µm at line {}; form error {:+.1} µm at line {} ({}); bending stress {:.0} MPa",
+            "T{}: deflection {:.1} µm{}; form error {form}; bending stress {:.0} MPa",
             t["tool"],
             num(&t["deflection_peak_um"]),
-            line("deflection_line"),
-            num(&t["form_error_um"]),
-            line("form_error_line"),
-            if num(&t["form_error_um"]) >= 0.0 { "material left" } else { "overcut" },
+            at("deflection_line"),
             num(&t["bending_stress_mpa"]),
         );
     }

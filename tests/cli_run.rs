@@ -685,3 +685,63 @@ fn a_latin1_program_is_read_and_its_optimized_program_keeps_its_bytes() {
         );
     }
 }
+
+#[test]
+fn an_open_stl_stock_is_refused_naming_its_file_and_where_it_is_open() {
+    let dir = tempfile::tempdir().unwrap();
+    let program = dir.path().join("p.nc");
+    std::fs::write(
+        &program,
+        "G21 G90\nS8000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F100\nM30\n",
+    )
+    .unwrap();
+    // A unit cube missing one of its twelve triangles.
+    let v = |x: f32, y: f32, z: f32| [x, y, z];
+    let quads = [
+        [v(0., 0., 0.), v(0., 1., 0.), v(1., 1., 0.), v(1., 0., 0.)],
+        [v(0., 0., 1.), v(1., 0., 1.), v(1., 1., 1.), v(0., 1., 1.)],
+        [v(0., 0., 0.), v(1., 0., 0.), v(1., 0., 1.), v(0., 0., 1.)],
+        [v(0., 1., 0.), v(0., 1., 1.), v(1., 1., 1.), v(1., 1., 0.)],
+        [v(0., 0., 0.), v(0., 0., 1.), v(0., 1., 1.), v(0., 1., 0.)],
+        [v(1., 0., 0.), v(1., 1., 0.), v(1., 1., 1.), v(1., 0., 1.)],
+    ];
+    let mut tris: Vec<[[f32; 3]; 3]> = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    tris.pop();
+    let mut stl = vec![0u8; 80];
+    stl.extend((tris.len() as u32).to_le_bytes());
+    for t in &tris {
+        stl.extend([0u8; 12]);
+        for p in t {
+            for c in p {
+                stl.extend(c.to_le_bytes());
+            }
+        }
+        stl.extend([0u8; 2]);
+    }
+    let stock = dir.path().join("open_part.stl");
+    std::fs::write(&stock, stl).unwrap();
+    let tool = dir.path().join("tool.json");
+    std::fs::write(&tool, r#"{"type":"flat","diameter_mm":6,"flutes":3}"#).unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--material", "Al7075-T6"])
+        .arg("--stock")
+        .arg(&stock)
+        .arg("--program")
+        .arg(&program)
+        .arg("--tool")
+        .arg(format!("T1={}", tool.display()))
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("open_part.stl: mesh is not closed: 3 edges") && err.contains("near"),
+        "{err}"
+    );
+    assert!(!err.contains("p.nc:"), "{err}");
+}
