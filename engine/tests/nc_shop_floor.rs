@@ -87,6 +87,41 @@ fn probing_moves_to_the_programmed_end_point_with_a_warning() {
 }
 
 #[test]
+fn fanuc_g31_skip_is_a_probing_move_for_its_block_only() {
+    // Renishaw-style probing on a Fanuc control: G31 moves at F to the end point (no probe
+    // contact is modelled), and the G0 mode in force before it carries on after it.
+    let fanuc = dialect(Dialect::Fanuc);
+    let i = run_with(
+        "G0 X1 Z10\nG31 Z-5 F200\nX4\nG31 P2 X8 F300\nG1 Z-6 F50\n",
+        &fanuc,
+    );
+    assert_eq!(
+        path(&i),
+        vec![
+            (MoveKind::Rapid, [1.0, 0.0, 10.0]),
+            (MoveKind::Linear, [1.0, 0.0, -5.0]),
+            (MoveKind::Rapid, [4.0, 0.0, -5.0]),
+            (MoveKind::Linear, [8.0, 0.0, -5.0]),
+            (MoveKind::Linear, [8.0, 0.0, -6.0]),
+        ]
+    );
+    assert_eq!((i.moves[1].feed, i.moves[3].feed), (200.0, 300.0));
+    let warned: Vec<u32> = i
+        .warnings
+        .iter()
+        .filter(|w| w.message.starts_with("G31") && w.message.contains("no probe contact"))
+        .map(|w| w.line)
+        .collect();
+    assert_eq!(warned, vec![2, 4]);
+    let (line, _, msg) = fail("G0 X1 Z10\nG31 F200\n", &fanuc);
+    assert_eq!(line, 2);
+    assert!(msg.contains("G31 needs axis words"), "{msg}");
+    // LinuxCNC has no G31: refused, naming the dialect that has it.
+    let (_, _, msg) = fail("G0 X1 Z10\nG31 Z-5 F200\n", &dialect(Dialect::LinuxCnc));
+    assert!(msg.contains("with dialect fanuc"), "{msg}");
+}
+
+#[test]
 fn non_standard_m_codes_warn_once_unless_strict() {
     let src = "M8\nM123\nG0 X1\nM123\nM19 M8\nM66 P1 L3 Q5\n";
     let i = run(src);

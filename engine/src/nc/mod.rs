@@ -43,7 +43,8 @@
 //!   not an unclosed comment) stops the program only when the line is executed, as rs274
 //!   reads a line only when it runs it; lines never reached are warnings. `:1234` program
 //!   numbers, G10 L1/L10/L11 tool offsets (Fanuc G10 L10-L13
-//!   offset memory), G38.2-G38.5 probing as a feed move to the end point (a warning), a Fanuc
+//!   offset memory), G38.2-G38.5 probing (Fanuc's G31 skip, for its block) as a feed move
+//!   to the end point (a warning), a Fanuc
 //!   G80 returns to the G0/G1/G2/G3 mode from before the cycle (with the dialect left to
 //!   auto, also in a program without Fanuc syntax, with a warning: LinuxCNC refuses it),
 //!   non-standard M codes run as no-ops with a warning (`strict_m_codes` refuses them).

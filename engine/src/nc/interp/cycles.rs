@@ -407,10 +407,10 @@ impl Interp<'_> {
         self.straight(rapid, t)
     }
 
-    /// G38.2..G38.5 probing: without a probe model the move runs to its programmed end point
-    /// (a probe that never trips), with a warning.
+    /// G38.2..G38.5 probing (and Fanuc's G31 skip, `g` 310): without a probe model the
+    /// move runs to its programmed end point (a probe that never trips), with a warning.
     pub(super) fn probe(&mut self, w: &mut Words, g: u16) -> R<()> {
-        let name = format!("G{}.{}", g / 10, g % 10);
+        let name = super::modal::g_name(g);
         if self.modal.feed_mode == FeedMode::InverseTime {
             return Err(self.err_block(format!("{name} probing in inverse time mode (G93)")));
         }

@@ -85,7 +85,7 @@ pub(super) struct MotionModes {
 /// Modal group of a G code (times ten), LinuxCNC numbering; None: unsupported.
 pub(super) fn g_group(code: u16) -> Option<u8> {
     Some(match code {
-        40 | 100 | 280 | 281 | 282 | 300 | 301 | 520 | 530 | 531 | 920 | 921 | 922 | 923 => 0,
+        40 | 100 | 280 | 281 | 282 | 300 | 301 | 310 | 520 | 530 | 531 | 920 | 921 | 922 | 923 => 0,
         0 | 10 | 20 | 30 | 50 | 51 | 52 | 53 | 331 | 382 | 383 | 384 | 385 | 730 | 740 | 800
         | 760 | 810 | 820 | 830 | 840 | 850 | 860 | 870 | 880 | 890 => 1,
         170 | 180 | 190 => 2,
@@ -124,6 +124,7 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         700 | 710 => "(inches/millimetres on Siemens, Heidenhain ISO and Fagor controls; G20/G21 in the supported dialects) is not supported",
         330 => "spindle-synchronized motion (G33) is not supported",
         380..=389 => "probing (G38.x) cannot be simulated without a probe model",
+        310 => "(Fanuc's skip function, a probing move) is Fanuc's: with dialect fanuc (or auto on a Fanuc program); LinuxCNC probes with G38.2",
         760 => "(LinuxCNC's lathe threading cycle) is not supported; with dialect fanuc G76 is the fine boring cycle",
         650 => "macro call (G65) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
         660 => "modal macro call (G66) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",

@@ -163,8 +163,11 @@ impl<'p> Interp<'p> {
                         w.machine_mode = true;
                         continue;
                     }
-                    // G76 is Fanuc's fine boring cycle, LinuxCNC's lathe threading.
-                    let Some(group) = g_group(code).filter(|_| code != 760 || self.fanuc) else {
+                    // G76 is Fanuc's fine boring cycle, LinuxCNC's lathe threading; G31 is
+                    // Fanuc's skip (probing) move.
+                    let Some(group) =
+                        g_group(code).filter(|_| !matches!(code, 760 | 310) || self.fanuc)
+                    else {
                         return Err(
                             self.err_at(pos, format!("{} {}", g_name(code), g_refusal(code)))
                         );

@@ -104,6 +104,16 @@ impl Interp<'_> {
             .corner_r
             .or(w.corner_c)
             .map(|(v, i)| (v, i, w.corner_c.is_some()));
+        if let Some((310, i)) = group0 {
+            // Fanuc's skip function: a feed move that stops where the probe trips, for this
+            // block only (the motion mode stays).
+            if !w.has_axis() {
+                return Err(self.err_at(self.word_pos(i), "G31 needs axis words"));
+            }
+            w.take('P'); // the skip signal's number (G31 P1..P4)
+            self.probe(w, 310)?;
+            return Ok(true);
+        }
         if w.has_axis() && !axis_users {
             let motion = match self.motion.mode {
                 Some(m) => m,
