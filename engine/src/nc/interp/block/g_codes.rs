@@ -123,7 +123,12 @@ impl Interp<'_> {
             let off = match self.tool_length(h) {
                 Some(z) => z,
                 None => {
-                    if self.tool.warned.insert(h) {
+                    // Without any tool table or G10 length every H reads as length 0 (the
+                    // programmed point is the tool tip, as a CAM post writes it): said only
+                    // where lengths were given and this one is not among them.
+                    let given =
+                        !self.opts.tool_table.tools.is_empty() || !self.tool.lengths.is_empty();
+                    if given && self.tool.warned.insert(h) {
                         self.out.warnings.push(self.err_at(
                             self.word_pos(i),
                             format!("G43: tool {h} is not in the tool table; tool length 0 used"),
