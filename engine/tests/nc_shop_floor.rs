@@ -122,6 +122,26 @@ fn fanuc_g31_skip_is_a_probing_move_for_its_block_only() {
 }
 
 #[test]
+fn fanuc_g30_takes_its_reference_point_number() {
+    // `G91 G30 P2 Z0` (the second reference point, as posts retract for a tool change) is
+    // G30; P3/P4 go to the same position with a warning; another P is refused.
+    let fanuc = dialect(Dialect::Fanuc);
+    let plain = run_with("G0 X5 Y5 Z10\nG91 G30 Z0\nG90 G0 X7\n", &fanuc);
+    let p2 = run_with("G0 X5 Y5 Z10\nG91 G30 P2 Z0\nG90 G0 X7\n", &fanuc);
+    assert_eq!(path(&p2), path(&plain));
+    assert!(p2.warnings.is_empty(), "{:?}", p2.warnings);
+    let p3 = run_with("G0 X5 Y5 Z10\nG91 G30 P3 Z0\nG90 G0 X7\n", &fanuc);
+    assert_eq!(path(&p3), path(&plain));
+    assert!(p3
+        .warnings
+        .iter()
+        .any(|w| w.line == 2 && w.message.contains("G30 P3")));
+    let (line, _, msg) = fail("G0 X5 Y5 Z10\nG91 G30 P7 Z0\n", &fanuc);
+    assert_eq!(line, 2);
+    assert!(msg.contains("P2, P3 or P4"), "{msg}");
+}
+
+#[test]
 fn non_standard_m_codes_warn_once_unless_strict() {
     let src = "M8\nM123\nG0 X1\nM123\nM19 M8\nM66 P1 L3 Q5\n";
     let i = run(src);

@@ -203,6 +203,25 @@ impl Interp<'_> {
                 }
             }
             280 | 300 => {
+                // Fanuc's G30 P2..P4: the second to fourth reference points. There is one
+                // G30 position here (the machine's, else the start above the stock): P2 is
+                // it, P3 and P4 (machine parameters) are taken as it with a warning.
+                if g == 300 && self.fanuc {
+                    if let Some(p) = w.take('P') {
+                        if !matches!(p, 2.0 | 3.0 | 4.0) {
+                            return Err(self.err_at(
+                                self.word_pos(i),
+                                format!("G30 P{p}: the reference point is P2, P3 or P4"),
+                            ));
+                        }
+                        if p != 2.0 {
+                            self.out.warnings.push(self.err_at(
+                                self.word_pos(i),
+                                format!("G30 P{p}: the machine's reference point {p} is not known; its G30 (second reference) position is taken"),
+                            ));
+                        }
+                    }
+                }
                 let home = if g == 280 {
                     self.coords.g28
                 } else {
