@@ -126,11 +126,12 @@ const MAX_LISTED_ERRORS: usize = 100;
 
 /// NC program text: UTF-8 (or plain ASCII), then the syntax of G-code or CLS.
 pub fn program(bytes: &[u8], file: &str) -> Result<Validated, Problem> {
-    let latin1 = std::str::from_utf8(bytes).is_err();
     let text = match program_text(bytes) {
         Some(text) => text,
         None => Cow::Borrowed(utf8(bytes, file, "invalid-program", "Program is not text")?),
     };
+    // Decoded into a string of its own only when it was not UTF-8.
+    let latin1 = matches!(text, Cow::Owned(_));
     let text = text.as_ref();
     if text.trim().is_empty() {
         return Err(Problem::invalid_field(

@@ -92,11 +92,6 @@ pub struct SimulateSpec {
 }
 
 impl SimulateSpec {
-    /// The interpreter's options for this job's program and every rewrite of it: cutter
-    /// compensation takes the radius of the job's own tool where the program's tool table
-    /// gives none.
-    /// `start`: where the machine stands at the start and after a tool change (see
-    /// `setup::start_positions`), unless the caller's options already say.
     /// The interpreter's options as the simulation will read the program, before the
     /// stock is known: for checks made ahead of it (travel, memory), which must see the
     /// moves the simulation will (a `G41 D1` takes the radius of the job's T1 here too).
@@ -104,6 +99,11 @@ impl SimulateSpec {
         self.interpret_options((None, None))
     }
 
+    /// The interpreter's options for this job's program and every rewrite of it: cutter
+    /// compensation takes the radius of the job's own tool where the program's tool table
+    /// gives none.
+    /// `start`: where the machine stands at the start and after a tool change (see
+    /// `setup::start_positions`), unless the caller's options already say.
     pub(super) fn interpret_options(
         &self,
         (start, change): (Option<[f64; 3]>, Option<nc::ToolChangeTo>),
