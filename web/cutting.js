@@ -36,6 +36,10 @@ function summaryCards(s, opt) {
   if (Array.isArray(s.tool_warnings) && s.tool_warnings.length) warn.push(s.tool_warnings.length + ' tool warning(s)');
   if (opt && opt.force_limit_unreachable_moves) warn.push(opt.force_limit_unreachable_moves + ' moves cannot reach the force limit');
   cards.append(card('Warnings', String(warn.length), warn.join('; ') || 'none', warn.length ? 'bad' : ''));
+  // What the program as a whole may have wrong, and what the interpreter said as it read it
+  // (codes ignored, a compensation radius taken from the job's tool), each with its line.
+  const notes = [...(Array.isArray(s.warnings) ? s.warnings : []), ...(Array.isArray(s.program_warnings) ? s.program_warnings : [])];
+  if (notes.length) cards.append(card('Program notes', String(notes.length), notes.slice(0, 5).join(' · ') + (notes.length > 5 ? ' · …' : '')));
   // Each tool's worst form error, the one a CAM programmer acts on.
   for (const t of Array.isArray(s.deflection) ? s.deflection : []) {
     cards.append(card('T' + t.tool + ' form error', fmt(t.form_error_um, 1) + ' µm',

@@ -113,6 +113,14 @@ async function main() {
     assert.ok(text.includes(secs), `${k}: ${text} lacks ${secs}`);
   }
   assert.match(await cardText('Collisions'), new RegExp('^Collisions' + s.collisions.length));
+  // The program's own warnings and the interpreter's, counted, the first shown.
+  const notes = [...(s.warnings || []), ...(s.program_warnings || [])];
+  if (notes.length) {
+    const text = await cardText('Program notes');
+    assert.ok(text.startsWith('Program notes' + notes.length) && text.includes(notes[0]), text);
+  } else {
+    assert.equal(await page.$('[data-card="Program notes"]'), null, 'a notes card with no notes');
+  }
   const titles = ['Cutting force', 'Deflection and form error', 'Feed', 'Material removal rate', 'Spindle power', 'Torque'];
   // Each tool's worst form error, as the summary gives it.
   for (const t of s.deflection) {

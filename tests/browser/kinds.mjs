@@ -128,7 +128,7 @@ async function main() {
   // A rapid through the stock: the collision's move is drawn in red over the 3-D stock.
   const stock = await api(base, '/v1/stocks', { kind: 'block', min: [0, 0, -10], max: [60, 40, 0] });
   const tool = await api(base, '/v1/tools', { type: 'flat', diameter_mm: 8, flutes: 3, helix_deg: 35, flute_length_mm: 20 });
-  const crash = await submitJob({ kind: 'simulate', inputs: { program: { name: 'crash.nc', content: 'G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z10\nG0 Z-3\nG0 X70\nG0 Z10\nM30\n' }, stock: stock.id, tool: tool.id },
+  const crash = await submitJob({ kind: 'simulate', inputs: { program: { name: 'crash.nc', content: 'G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z10\nG0 Z-3\nG0 X70\nG0 Z10\nM88\nM30\n' }, stock: stock.id, tool: tool.id },
     options: { material: 'Al7075-T6' } });
   const cj = await waitJob(base, crash.id, 120);
   assert.equal(cj.status, 'succeeded', JSON.stringify(cj.error));
@@ -140,6 +140,9 @@ async function main() {
   await page.goto(base + '/jobs/' + crash.id);
   await page.waitForSelector('#collisions');
   assert.match(await page.textContent('#collisions tbody tr'), /rapid_in_material.*-10\.00, 20\.00, -3\.00 → 70\.00, 20\.00, -3\.00/);
+  // The interpreter's warning of the machine's own M88 (through-spindle coolant), with its line.
+  assert.ok(cj.summary.program_warnings.some((w) => w.startsWith('8:1: M88')), JSON.stringify(cj.summary.program_warnings));
+  assert.match(await page.textContent('[data-card="Program notes"]'), /^Program notes1.*8:1: M88 is not a standard M code/);
   await page.click('#load-stock');
   await page.waitForSelector('#stockinfo', { timeout: 60000 });
   const red = await glPixels(page, '#stock3d canvas', [0xd5, 0x00, 0x00]);
