@@ -142,6 +142,24 @@ fn fanuc_g30_takes_its_reference_point_number() {
 }
 
 #[test]
+fn fanuc_m29_rigid_tapping_is_read_without_a_warning() {
+    let fanuc = dialect(Dialect::Fanuc);
+    let tap = "G21 G90\nT2 M6\nG0 X10 Y10 S500 M3\nG43 H2 Z25.\nM29 S500\nG84 Z-12. R3. F750.\nG80\nM30\n";
+    let rigid = run_with(tap, &fanuc);
+    assert!(rigid.warnings.is_empty(), "{:?}", rigid.warnings);
+    assert_eq!(
+        path(&rigid),
+        path(&run_with(&tap.replace("M29 S500\n", ""), &fanuc))
+    );
+    // Not a LinuxCNC code: there it is a machine's own M code, warned of.
+    let linuxcnc = run_with(tap, &dialect(Dialect::LinuxCnc));
+    assert!(linuxcnc
+        .warnings
+        .iter()
+        .any(|w| w.message.starts_with("M29")));
+}
+
+#[test]
 fn non_standard_m_codes_warn_once_unless_strict() {
     let src = "M8\nM123\nG0 X1\nM123\nM19 M8\nM66 P1 L3 Q5\n";
     let i = run(src);

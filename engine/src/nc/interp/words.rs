@@ -206,6 +206,9 @@ impl<'p> Interp<'p> {
                     let group = match m_group(code) {
                         Some(g) => u32::from(g),
                         None if self.opts.passthrough_m_codes.contains(&code) => 1000 + code,
+                        // Fanuc/Haas rigid tapping (`M29 S500` before G84): the tap's path is the
+                        // cycle's either way, nothing to warn of.
+                        None if code == 29 && self.fanuc => 1000 + code,
                         None if self.opts.strict_m_codes => {
                             let why = match code {
                                 100..=199 => "user M codes run external programs; list it in passthrough_m_codes if it does not move the machine".to_string(),
