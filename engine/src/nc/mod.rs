@@ -29,7 +29,8 @@
 //!   The manual's two-letter keywords (`WH[..]DO1`, `GO10`, `EN1`, `IF[..]TH`) are taken.
 //!   A `D` on any block selects the radius offset G41/G42 take (`T1 D1 M6`); rotary axis
 //!   words in a canned cycle block index with the hole positioning (`G91 A45.` in G81 mode);
-//!   the control powers up in G00. Extended work offsets Fanuc `G54.1 P1..P48` and Haas
+//!   the control powers up in G00. `G30 P2..P4` (P3/P4 at the one G30 position, a warning);
+//!   `M29` before G84 (rigid tapping) is read without a warning. Extended work offsets Fanuc `G54.1 P1..P48` and Haas
 //!   `G154 P1..P99` (zero until `G10 L20 Pn` sets them, absolute in G90, added in G91;
 //!   `#4014` reads 54.1 and `#4130` the P number; the #7001/#14001 offset variables are not
 //!   readable). Canned cycle data (R, hole bottom, P, Q) carries over
@@ -52,7 +53,8 @@
 //!   motion: a warning, the path as programmed.
 //!
 //! * Cutter radius compensation G41/G42 (radius from the tool table's diameter, a G10 radius
-//!   or the Fanuc offset D) and G41.1/G42.1 (D the diameter), G40, in the XY and XZ planes, as
+//!   or the Fanuc offset D, else the caller's tool of that number with a warning: control,
+//!   not wear, compensation) and G41.1/G42.1 (D the diameter), G40, in the XY and XZ planes, as
 //!   LinuxCNC 2.9 does it in both dialects (entry line or arc, arcs around outside corners,
 //!   inside corners trimmed, gouges refused naming the line); checked against LinuxCNC.
 //!   In the Fanuc dialect the start-up is the control's default type A: the entry line ends
