@@ -177,15 +177,8 @@ impl Interp<'_> {
                 }
                 None => self.tool.radius_offset.unwrap_or(self.tool.current),
             };
-            let from_the_job = !self.tool.radii.contains_key(&number)
-                && self
-                    .opts
-                    .tool_table
-                    .get(number)
-                    .and_then(|t| t.diameter)
-                    .is_none();
             match self.tool_radius(number) {
-                Some(r) => {
+                Some((r, from_the_job)) => {
                     // CAM posts write G41 D1 both on the part's outline (control compensation,
                     // D the radius) and on a path already offset (wear compensation, D only
                     // the wear): the program does not say which, the offset table does.
@@ -229,23 +222,29 @@ impl Interp<'_> {
         Ok(())
     }
 
-    /// Radius (mm) of tool/offset number `n`: a G10 radius (plus Fanuc wear), else half the
-    /// tool table's diameter, else half the diameter of the caller's tool of that number (or
-    /// of its one tool).
-    pub(super) fn tool_radius(&self, n: u32) -> Option<f64> {
-        let geometry = self.tool.radii.get(&n).copied().or_else(|| {
+    /// Radius (mm) of tool/offset number `n`, and whether it is the caller's tool's: a G10
+    /// radius (plus Fanuc wear), else half the tool table's diameter, else half the diameter
+    /// of the caller's tool of that number (or of its one tool).
+    pub(super) fn tool_radius(&self, n: u32) -> Option<(f64, bool)> {
+        let program_own = self.tool.radii.get(&n).copied().or_else(|| {
             self.opts
                 .tool_table
                 .get(n)
                 .and_then(|t| t.diameter)
-                .or_else(|| self.opts.tool_diameters.get(&n).copied())
-                .or_else(|| {
+                .map(|d| d / 2.0)
+        });
+        let (geometry, from_the_job) = match program_own {
+            Some(r) => (r, false),
+            None => {
+                let d = self.opts.tool_diameters.get(&n).copied().or_else(|| {
                     let one = self.opts.tool_diameters.get(&0).copied();
                     one.filter(|_| n != 0 && self.opts.tool_diameters.len() == 1)
-                })
-                .map(|d| d / 2.0)
-        })?;
-        Some(geometry + self.tool.radius_wear.get(&n).copied().unwrap_or(0.0))
+                })?;
+                (d / 2.0, true)
+            }
+        };
+        let wear = self.tool.radius_wear.get(&n).copied().unwrap_or(0.0);
+        Some((geometry + wear, from_the_job))
     }
 
     /// G40: the waiting moves go out; the next move starts where the tool is and goes to its
