@@ -9,12 +9,6 @@ use std::time::Duration;
 use common::*;
 use serde_json::{json, Value};
 
-/// An STL of the box `lo`..`hi` (12 triangles, outward normals).
-fn box_stl(lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {
-    let stock = millsim_engine::geometry::Stock::block(lo, hi, 0.5).unwrap();
-    millsim_engine::geometry::export_stl_vec(&stock).unwrap().0
-}
-
 #[tokio::test]
 async fn a_rapid_through_a_clamp_is_named_in_the_summary_and_the_rows() {
     let dir = tempfile::tempdir().unwrap();
@@ -29,7 +23,7 @@ async fn a_rapid_through_a_clamp_is_named_in_the_summary_and_the_rows() {
         &c,
         &s,
         "/v1/stocks",
-        box_stl([60.0, -32.0, -10.0], [70.0, -22.0, 6.0]),
+        exported_box_stl([60.0, -32.0, -10.0], [70.0, -22.0, 6.0]),
     )
     .await;
     assert_eq!(st, 201, "{jaw}");
@@ -124,7 +118,7 @@ async fn a_bad_fixture_is_refused_at_submission_naming_the_field() {
         &c,
         &s,
         "/v1/stocks",
-        box_stl([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]),
+        exported_box_stl([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]),
     )
     .await;
     let block = json!({"kind":"block","min":[0,0,0],"max":[1,1,1]});

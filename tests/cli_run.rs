@@ -570,51 +570,59 @@ fn run_takes_the_program_options_interpret_and_the_jobs_take() {
     );
 }
 
-#[test]
-fn run_takes_a_block_below_zero_and_a_g41_radius_from_its_tool() {
-    // A job's checks read the program as the simulation does: `G41 D1` takes the radius of
-    // the T1 given on the command line (it was refused as "no radius for tool 1" before the
-    // simulation started). And `--block` takes a corner below zero without `=`.
-    let dir = tempfile::tempdir().unwrap();
-    let program = dir.path().join("boss.nc");
-    std::fs::write(
-        &program,
-        "G21 G17 G90 G40\nT1 M6\nS8000 M3\nG0 X-10 Y-10 Z5\nG1 Z-2 F300\nG41 D1\nG1 X0 Y-5 F600\n\
-         G1 Y20\nG1 X20\nG1 Y0\nG1 X0\nG1 Y5\nG40 G1 X-10 Y-10\nG0 Z5\nM30\n",
-    )
-    .unwrap();
-    let tool = dir.path().join("tool.json");
-    std::fs::write(
-        &tool,
-        r#"{"type":"flat","diameter_mm":6,"flutes":3,"flute_length_mm":15}"#,
-    )
-    .unwrap();
-    let out_dir = dir.path().join("out");
+/// `millsim run` in `dir` of `program` (saved as `name`) with one tool, T1 (`tool_json`),
+/// the stock and the other options in `args`: its output and the summary it wrote, if any
+/// (the results are in `dir/out`).
+fn run_with_t1(
+    dir: &std::path::Path,
+    (name, program): (&str, &[u8]),
+    tool_json: &str,
+    args: &[&str],
+) -> (std::process::Output, Option<serde_json::Value>) {
+    let path = dir.join(name);
+    std::fs::write(&path, program).unwrap();
+    let tool = dir.join("tool.json");
+    std::fs::write(&tool, tool_json).unwrap();
+    let out_dir = dir.join("out");
     let out = Command::new(BIN)
-        .args([
-            "run",
-            "--block",
-            "-12,-12,-4,44,44,4",
-            "--material",
-            "Al7075-T6",
-            "--resolution",
-            "0.2",
-        ])
+        .args(["run", "--material", "Al7075-T6"])
+        .args(args)
         .arg("--program")
-        .arg(&program)
+        .arg(&path)
         .arg("--tool")
         .arg(format!("T1={}", tool.display()))
         .arg("--out")
         .arg(&out_dir)
         .output()
         .unwrap();
+    let summary = std::fs::read(out_dir.join("summary.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok());
+    (out, summary)
+}
+
+#[test]
+fn run_takes_a_block_below_zero_and_a_g41_radius_from_its_tool() {
+    // A job's checks read the program as the simulation does: `G41 D1` takes the radius of
+    // the T1 given on the command line (it was refused as "no radius for tool 1" before the
+    // simulation started). And `--block` takes a corner below zero without `=`.
+    let dir = tempfile::tempdir().unwrap();
+    let (out, summary) = run_with_t1(
+        dir.path(),
+        (
+            "boss.nc",
+            b"G21 G17 G90 G40\nT1 M6\nS8000 M3\nG0 X-10 Y-10 Z5\nG1 Z-2 F300\nG41 D1\nG1 X0 Y-5 F600\n\
+              G1 Y20\nG1 X20\nG1 Y0\nG1 X0\nG1 Y5\nG40 G1 X-10 Y-10\nG0 Z5\nM30\n",
+        ),
+        r#"{"type":"flat","diameter_mm":6,"flutes":3,"flute_length_mm":15}"#,
+        &["--block", "-12,-12,-4,44,44,4", "--resolution", "0.2"],
+    );
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let summary: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
+    let summary = summary.unwrap();
     // At least the ring one diameter wide around the 20×20 boss, 2 mm deep (its outside
     // corners rounded at the diameter); uncompensated the tool would straddle the outline.
     let ring = (80.0 * 6.0 + std::f64::consts::PI * 36.0) * 2.0;
@@ -630,41 +638,26 @@ fn a_latin1_program_is_read_and_its_optimized_program_keeps_its_bytes() {
     // `(FRÄSER Ø10)` as a Windows editor saves it (ISO 8859-1): read byte for character,
     // and written back the same way, so every byte the feeds do not change is kept.
     let dir = tempfile::tempdir().unwrap();
-    let program = dir.path().join("slot.nc");
     let text: &[u8] = b"(FR\xc4SER \xd810)\nG21 G90\nS10000 M3\nG0 Z5\nG0 X-10 Y0\nG0 Z-5\nG1 X60 F4000\nG0 Z5\nM30\n";
-    std::fs::write(&program, text).unwrap();
-    let tool = dir.path().join("tool.json");
-    std::fs::write(
-        &tool,
+    let (out, _) = run_with_t1(
+        dir.path(),
+        ("slot.nc", text),
         r#"{"type":"flat","diameter_mm":10,"flutes":4,"flute_length_mm":20}"#,
-    )
-    .unwrap();
-    let out_dir = dir.path().join("out");
-    let out = Command::new(BIN)
-        .args([
-            "run",
+        &[
             "--block",
             "0,-20,-10,100,40,10",
-            "--material",
-            "Al7075-T6",
             "--resolution",
             "0.5",
             "--optimize",
             "max_force=300",
-        ])
-        .arg("--program")
-        .arg(&program)
-        .arg("--tool")
-        .arg(format!("T1={}", tool.display()))
-        .arg("--out")
-        .arg(&out_dir)
-        .output()
-        .unwrap();
+        ],
+    );
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let out_dir = dir.path().join("out");
     let written = std::fs::read(out_dir.join("slot.opt.nc")).unwrap_or_else(|e| {
         panic!(
             "{e}: {:?}",
@@ -689,54 +682,23 @@ fn a_latin1_program_is_read_and_its_optimized_program_keeps_its_bytes() {
 #[test]
 fn an_open_stl_stock_is_refused_naming_its_file_and_where_it_is_open() {
     let dir = tempfile::tempdir().unwrap();
-    let program = dir.path().join("p.nc");
-    std::fs::write(
-        &program,
-        "G21 G90\nS8000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F100\nM30\n",
-    )
-    .unwrap();
-    // A unit cube missing one of its twelve triangles.
-    let v = |x: f32, y: f32, z: f32| [x, y, z];
-    let quads = [
-        [v(0., 0., 0.), v(0., 1., 0.), v(1., 1., 0.), v(1., 0., 0.)],
-        [v(0., 0., 1.), v(1., 0., 1.), v(1., 1., 1.), v(0., 1., 1.)],
-        [v(0., 0., 0.), v(1., 0., 0.), v(1., 0., 1.), v(0., 0., 1.)],
-        [v(0., 1., 0.), v(0., 1., 1.), v(1., 1., 1.), v(1., 1., 0.)],
-        [v(0., 0., 0.), v(0., 0., 1.), v(0., 1., 1.), v(0., 1., 0.)],
-        [v(1., 0., 0.), v(1., 1., 0.), v(1., 1., 1.), v(1., 0., 1.)],
-    ];
-    let mut tris: Vec<[[f32; 3]; 3]> = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    tris.pop();
-    let mut stl = vec![0u8; 80];
-    stl.extend((tris.len() as u32).to_le_bytes());
-    for t in &tris {
-        stl.extend([0u8; 12]);
-        for p in t {
-            for c in p {
-                stl.extend(c.to_le_bytes());
-            }
-        }
-        stl.extend([0u8; 2]);
-    }
+    // A closed box as the engine exports it, less its last triangle (50 bytes each after
+    // the 80-byte header and the count): three edges left open.
+    let mut stl = exported_box_stl([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]);
+    let count = u32::from_le_bytes(stl[80..84].try_into().unwrap());
+    stl[80..84].copy_from_slice(&(count - 1).to_le_bytes());
+    stl.truncate(stl.len() - 50);
     let stock = dir.path().join("open_part.stl");
     std::fs::write(&stock, stl).unwrap();
-    let tool = dir.path().join("tool.json");
-    std::fs::write(&tool, r#"{"type":"flat","diameter_mm":6,"flutes":3}"#).unwrap();
-    let out = Command::new(BIN)
-        .args(["run", "--material", "Al7075-T6"])
-        .arg("--stock")
-        .arg(&stock)
-        .arg("--program")
-        .arg(&program)
-        .arg("--tool")
-        .arg(format!("T1={}", tool.display()))
-        .arg("--out")
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
+    let (out, _) = run_with_t1(
+        dir.path(),
+        (
+            "p.nc",
+            b"G21 G90\nS8000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F100\nM30\n",
+        ),
+        r#"{"type":"flat","diameter_mm":6,"flutes":3}"#,
+        &["--stock", stock.to_str().unwrap()],
+    );
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -289,6 +289,13 @@ pub async fn create(c: &reqwest::Client, s: &Server, path: &str, body: Value) ->
     v["id"].as_str().unwrap().to_string()
 }
 
+/// A closed STL of the box `lo`..`hi`, as the engine's exporter writes a block stock
+/// (outward normals).
+pub fn exported_box_stl(lo: [f64; 3], hi: [f64; 3]) -> Vec<u8> {
+    let stock = millsim_engine::geometry::Stock::block(lo, hi, 0.5).unwrap();
+    millsim_engine::geometry::export_stl_vec(&stock).unwrap().0
+}
+
 /// The block stock the slot tests cut (with [`post_slot_tool`]'s tool): 100 × 40 × 10 mm,
 /// x 0 to 100, y −20 to 20, its top at z 0.
 pub fn slot_block() -> Value {
