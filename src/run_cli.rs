@@ -259,8 +259,9 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     let mut options = Map::new();
     if let Some(path) = &args.part {
         let part = file_input(path, "model/stl")?;
-        crate::validate::stl(&part.content, &path.display().to_string())
+        let checked = crate::validate::stl(&part.content, &path.display().to_string())
             .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
+        print_stl_repairs(path, &checked);
         inputs.insert("part".into(), part);
     }
     if let Some(path) = &args.fixture {
@@ -327,8 +328,9 @@ fn stock_input(args: &RunArgs) -> Result<LoadedInput, String> {
             } else {
                 // Checked first, so a refusal names this file (and where the mesh is
                 // open) rather than the program the simulation was reading it for.
-                crate::validate::stl(&stock.content, &path.display().to_string())
+                let checked = crate::validate::stl(&stock.content, &path.display().to_string())
                     .map_err(|e| e.detail)?;
+                print_stl_repairs(path, &checked);
             }
             stock
         }
@@ -805,4 +807,13 @@ pub fn run_report(summary: &Value) -> String {
         }
     }
     out
+}
+
+/// What reading an STL repaired (the upload summary's warnings), one line each on stderr.
+fn print_stl_repairs(path: &Path, checked: &crate::validate::Validated) {
+    for w in checked.summary["warnings"].as_array().into_iter().flatten() {
+        if let Some(w) = w.as_str() {
+            eprintln!("{}: {w} (warning)", path.display());
+        }
+    }
 }

@@ -205,7 +205,11 @@ fn stl_summary(
         "triangles": triangles,
         "bounds": { "min": min, "max": max },
         "volume_mm3": volume,
-        "repairs": { "duplicate_triangles_dropped": repairs.duplicates, "turned_right_way_out": repairs.flipped },
+        "repairs": {
+            "duplicate_triangles_dropped": repairs.duplicates,
+            "triangles_turned_to_match": repairs.reoriented,
+            "turned_right_way_out": repairs.flipped,
+        },
         "warnings": repairs.warnings(),
     })
 }

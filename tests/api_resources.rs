@@ -458,9 +458,19 @@ fn box_stl(a: [f32; 3], b: [f32; 3], inside_out: bool, copies: usize) -> Vec<u8>
     out
 }
 
+/// `stl` with its triangle `t` wound the other way (its last two corners swapped).
+fn turn_triangle(mut stl: Vec<u8>, t: usize) -> Vec<u8> {
+    let at = 84 + 50 * t + 12 + 12;
+    let second: Vec<u8> = stl[at..at + 12].to_vec();
+    stl.copy_within(at + 12..at + 24, at);
+    stl[at + 12..at + 24].copy_from_slice(&second);
+    stl
+}
+
 /// Issue 34: an inside-out STL stock (stored before with volume −24,000 mm³, and read by a
-/// job as no material) and one with every face twice (volume doubled) are repaired, with a
-/// warning in the upload's summary, and a job cuts them as the plain box.
+/// job as no material), one with every face twice (volume doubled) and one with a triangle
+/// wound against its neighbours are repaired, with a warning in the upload's summary, and
+/// a job cuts them as the plain box.
 #[tokio::test]
 async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
     let dir = tempfile::tempdir().unwrap();
@@ -476,6 +486,13 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
             box_stl(a, b, false, 2),
             Some("12 duplicate triangles"),
         ),
+        // A triangle wound against its neighbours (its normal pointing in), as sloppy
+        // exporters write: turned to match them, not refused as open.
+        (
+            "one-turned.stl",
+            turn_triangle(box_stl(a, b, false, 1), 3),
+            Some("1 triangles were wound against their neighbours"),
+        ),
     ] {
         let (st, v) = post_stl(&c, &s, &format!("/v1/stocks?name={name}"), stl).await;
         assert_eq!(st, 201, "{name}: {v}");
@@ -490,6 +507,8 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
                 "{name}: {v}"
             ),
         }
+        let turned = summary["repairs"]["triangles_turned_to_match"].clone();
+        assert_eq!(turned, i32::from(name == "one-turned.stl"), "{name}: {v}");
         stocks.push(v["id"].as_str().unwrap().to_string());
     }
     let (_, tool) = post_json(
@@ -526,4 +545,5 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
     );
     assert_eq!(summaries[1], summaries[0]);
     assert_eq!(summaries[2], summaries[0]);
+    assert_eq!(summaries[3], summaries[0]);
 }

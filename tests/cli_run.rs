@@ -707,3 +707,35 @@ fn an_open_stl_stock_is_refused_naming_its_file_and_where_it_is_open() {
     );
     assert!(!err.contains("p.nc:"), "{err}");
 }
+
+#[test]
+fn an_stl_stock_with_a_triangle_wound_the_wrong_way_runs_and_says_it_was_turned() {
+    let dir = tempfile::tempdir().unwrap();
+    // The exported box with its first triangle's last two corners swapped: its normal
+    // points in, as some exporters write a few.
+    let mut stl = exported_box_stl([0.0, 0.0, -10.0], [20.0, 20.0, 0.0]);
+    let at = 84 + 12 + 12;
+    let second = stl[at..at + 12].to_vec();
+    stl.copy_within(at + 12..at + 24, at);
+    stl[at + 12..at + 24].copy_from_slice(&second);
+    let stock = dir.path().join("turned.stl");
+    std::fs::write(&stock, stl).unwrap();
+    let (out, summary) = run_with_t1(
+        dir.path(),
+        (
+            "p.nc",
+            b"G21 G90\nS8000 M3\nG0 X-5 Y10 Z5\nG1 Z-1 F100\nG1 X25 F500\nG0 Z5\nM30\n",
+        ),
+        r#"{"type":"flat","diameter_mm":6,"flutes":3,"flute_length_mm":15}"#,
+        &["--stock", stock.to_str().unwrap()],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("turned.stl: 1 triangles were wound against their neighbours"),
+        "{err}"
+    );
+    // The slot through the 20 mm box, 6 mm wide and 1 mm deep: 120 mm³.
+    let removed = summary.unwrap()["removed_volume_mm3"].as_f64().unwrap();
+    assert!((removed - 120.0).abs() < 2.0, "{removed}");
+}

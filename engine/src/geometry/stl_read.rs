@@ -261,9 +261,14 @@ pub fn vertex_f64(v: [f32; 3]) -> [f64; 3] {
 /// other makes the total zero exactly when that holds, but for hash collisions (about
 /// 2^-64 for a file that is not built to collide; a job's exact check still runs on
 /// the mesh it builds). It cannot say which edge is open, only that one is.
+///
+/// XOR-ing the same hash for either direction makes `parity` zero when every undirected
+/// edge is used an even number of times: closed but for windings, which a mesh can
+/// repair (`Mesh::orient_consistently`).
 #[derive(Default)]
 pub struct EdgeSum {
     sum: [u64; 2],
+    parity: [u64; 2],
 }
 
 fn mix(mut h: u64, w: u64) -> u64 {
@@ -284,6 +289,7 @@ impl EdgeSum {
             .enumerate()
         {
             let h = p.iter().chain(q.iter()).fold(seed, |h, &w| mix(h, w));
+            self.parity[k] ^= h;
             self.sum[k] = if forward {
                 self.sum[k].wrapping_add(h)
             } else {
@@ -294,6 +300,12 @@ impl EdgeSum {
 
     pub fn closed(&self) -> bool {
         self.sum == [0, 0]
+    }
+
+    /// Closed if some triangles' windings were turned (every edge used an even number
+    /// of times).
+    pub fn closed_but_for_windings(&self) -> bool {
+        self.parity == [0, 0]
     }
 }
 
@@ -390,6 +402,10 @@ fn pass<R: Read>(
     Ok(p)
 }
 
+/// The most triangles [`scan`] reads into a mesh to turn those wound against their
+/// neighbours (about 110 bytes a triangle while it does).
+pub const MAX_REORIENTED_SCAN: usize = 1_000_000;
+
 /// Reads an STL of `len` bytes and checks it as `Mesh::from_stl_reader_repaired` does:
 /// finite vertices, at least one non-degenerate triangle, exact duplicate triangles
 /// dropped, closed, turned right way out. `open` gives the file from its start: a file with
@@ -428,7 +444,25 @@ pub fn scan<R: Read>(
         repairs.duplicates = skip.skipped;
     }
     if !p.edges.closed() {
-        return Err(StlError::NotClosedSomewhere);
+        if !p.edges.closed_but_for_windings() {
+            return Err(StlError::NotClosedSomewhere);
+        }
+        // Some triangles wound against their neighbours: whether turning them closes the
+        // mesh, and the volume it then has, need the whole mesh, so this rare case reads
+        // it (as a job will), up to a size.
+        if p.kept > MAX_REORIENTED_SCAN {
+            return Err(StlError::WoundAgainstNeighbours {
+                triangles: p.kept,
+                limit: MAX_REORIENTED_SCAN,
+            });
+        }
+        let (mesh, repairs) = super::stl::Mesh::from_stl_reader_repaired(open()?, len)?;
+        return Ok(StlScan {
+            triangles: mesh.triangles.len(),
+            bounds: (p.lo, p.hi),
+            volume: mesh.volume(),
+            repairs,
+        });
     }
     if p.volume < 0.0 {
         p.volume = -p.volume;
@@ -576,6 +610,7 @@ mod tests {
             let want = StlRepairs {
                 duplicates: 0,
                 flipped: true,
+                reoriented: 0,
             };
             assert_eq!((s.repairs, repairs), (want, want));
         }
@@ -610,22 +645,112 @@ mod tests {
         }
     }
 
+    /// A binary STL of triangles given by their corners.
+    fn binary_of(tris: &[[[f32; 3]; 3]]) -> Vec<u8> {
+        let mut out = vec![0u8; 80];
+        out.extend_from_slice(&(tris.len() as u32).to_le_bytes());
+        for t in tris {
+            out.extend_from_slice(&[0u8; 12]);
+            for c in t.iter().flatten() {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+            out.extend_from_slice(&[0u8; 2]);
+        }
+        out
+    }
+
+    /// A cube of side `size` from the corner `at`, wound outward or (a cavity) inward.
+    fn box_tris(at: [f32; 3], size: f32, outward: bool) -> Vec<[[f32; 3]; 3]> {
+        let corner = |i: usize| [0, 1, 2].map(|a| at[a] + size * ((i >> a) & 1) as f32);
+        cube_faces(&cube(false))
+            .into_iter()
+            .map(|[a, b, c]| {
+                let t = if outward { [a, b, c] } else { [a, c, b] };
+                t.map(corner)
+            })
+            .collect()
+    }
+
+    fn turn(t: &mut [[f32; 3]; 3]) {
+        t.swap(1, 2);
+    }
+
     #[test]
-    fn a_flipped_triangle_is_not_closed() {
-        // Same edges, one triangle wound the other way: every undirected edge is used
-        // twice, but not in opposite directions.
-        let mut bytes = cube(false);
-        let at = 84 + 12;
-        let (a, b) = (
-            bytes[at..at + 12].to_vec(),
-            bytes[at + 12..at + 24].to_vec(),
-        );
-        bytes[at..at + 12].copy_from_slice(&b);
-        bytes[at + 12..at + 24].copy_from_slice(&a);
+    fn triangles_wound_against_their_neighbours_are_turned_to_match() {
+        // One triangle of the cube wound the other way: every edge still joins two
+        // triangles, one pair the same way round.
+        let mut tris = box_tris([0.0; 3], 1.0, true);
+        turn(&mut tris[1]);
+        for bytes in [binary_of(&tris), ascii(&binary_of(&tris)).into_bytes()] {
+            let (s, volume, repairs) = both(&bytes);
+            assert!((s.volume - 1.0).abs() < 1e-12, "{}", s.volume);
+            assert!((volume - 1.0).abs() < 1e-12, "{volume}");
+            let want = StlRepairs {
+                reoriented: 1,
+                ..StlRepairs::default()
+            };
+            assert_eq!((s.repairs, repairs), (want, want));
+            assert!(s.repairs.warnings()[0].contains("1 triangles were wound against"));
+        }
+        // Seven of twelve turned: the five the file left are the minority and turn to
+        // match, which leaves the cube inside out, turned the right way out as a whole.
+        let mut tris = box_tris([0.0; 3], 1.0, true);
+        for t in &mut tris[..7] {
+            turn(t);
+        }
+        let (s, volume, repairs) = both(&binary_of(&tris));
+        assert!((s.volume - 1.0).abs() < 1e-12 && (volume - 1.0).abs() < 1e-12);
+        let want = StlRepairs {
+            reoriented: 5,
+            flipped: true,
+            ..StlRepairs::default()
+        };
+        assert_eq!((s.repairs, repairs), (want, want));
+    }
+
+    #[test]
+    fn a_cavity_keeps_its_inward_winding_when_a_triangle_of_each_shell_is_turned() {
+        // A 3 mm cube with a 1 mm cavity: 26 mm³. Each shell's majority decides its
+        // own winding, so the cavity stays a cavity (by its own volume alone it would be
+        // turned into a solid).
+        let mut tris = box_tris([0.0; 3], 3.0, true);
+        let mut cavity = box_tris([1.0; 3], 1.0, false);
+        turn(&mut tris[4]);
+        turn(&mut cavity[9]);
+        tris.extend(cavity);
+        let (s, volume, repairs) = both(&binary_of(&tris));
+        assert!((s.volume - 26.0).abs() < 1e-9, "{}", s.volume);
+        assert!((volume - 26.0).abs() < 1e-9, "{volume}");
+        assert_eq!((s.repairs.reoriented, repairs.reoriented), (2, 2));
+        assert!(!s.repairs.flipped && !repairs.flipped);
+    }
+
+    #[test]
+    fn turned_windings_are_refused_where_the_turn_is_ambiguous_or_the_mesh_open() {
+        // An edge of four triangles (two cubes touching along it) with a triangle turned
+        // elsewhere: closed but for windings, but which neighbour matches is ambiguous.
+        let mut tris = box_tris([0.0; 3], 1.0, true);
+        tris.extend(box_tris([1.0, 1.0, 0.0], 1.0, true));
+        turn(&mut tris[2]);
+        let bytes = binary_of(&tris);
+        assert!(matches!(
+            scan(|| Ok(&bytes[..]), bytes.len() as u64),
+            Err(StlError::NotClosed { .. })
+        ));
+        assert!(matches!(
+            Mesh::from_stl_bytes(&bytes),
+            Err(StlError::NotClosed { .. })
+        ));
+        // Open and turned: refused without reading the mesh.
+        let mut tris = box_tris([0.0; 3], 1.0, true);
+        tris.pop();
+        turn(&mut tris[0]);
+        let bytes = binary_of(&tris);
         assert_eq!(
             scan(|| Ok(&bytes[..]), bytes.len() as u64),
             Err(StlError::NotClosedSomewhere)
         );
+        assert!(Mesh::from_stl_bytes(&bytes).is_err());
     }
 
     #[test]

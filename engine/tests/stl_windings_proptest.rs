@@ -1,0 +1,107 @@
+//! Property test of the STL readers' winding repair: closed boxes with random triangles
+//! wound against their neighbours read as the boxes, the upload scan and the job's mesh
+//! read agreeing on what they turned.
+
+use millsim_engine::geometry::stl_read::scan;
+use millsim_engine::geometry::{Mesh, StlRepairs};
+use proptest::prelude::*;
+
+/// A box's 12 triangles, wound outward, from corner `lo` with sides `size`.
+fn box_triangles(lo: [f32; 3], size: [f32; 3]) -> Vec<[[f32; 3]; 3]> {
+    let corner =
+        |i: usize| [0, 1, 2].map(|a| lo[a] + if (i >> a) & 1 == 1 { size[a] } else { 0.0 });
+    [
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ]
+    .into_iter()
+    .map(|t: [usize; 3]| t.map(corner))
+    .collect()
+}
+
+fn binary(tris: &[[[f32; 3]; 3]]) -> Vec<u8> {
+    let mut b = vec![0u8; 80];
+    b.extend_from_slice(&(tris.len() as u32).to_le_bytes());
+    for t in tris {
+        b.extend_from_slice(&[0u8; 12]);
+        for c in t.iter().flatten() {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
+        b.extend_from_slice(&[0, 0]);
+    }
+    b
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    /// Up to three boxes side by side (whole millimetres, so the volumes are exact), each
+    /// with fewer than half its triangles turned: read as the boxes, every turned
+    /// triangle turned back, by both readers.
+    #[test]
+    fn boxes_with_a_minority_of_turned_triangles_read_as_the_boxes(
+        boxes in prop::collection::vec(
+            ([1u8..5, 1u8..5, 1u8..5], prop::collection::vec(any::<bool>(), 12)),
+            1..4,
+        ),
+    ) {
+        let mut tris = Vec::new();
+        let (mut x, mut volume, mut turned) = (0.0f32, 0.0, 0);
+        for (size, turn) in &boxes {
+            let size = size.map(f32::from);
+            let mut b = box_triangles([x, 0.0, 0.0], size);
+            // Fewer than half: the file's winding is the shell's majority.
+            let n = turn.iter().filter(|&&t| t).count();
+            for (t, &turn_it) in b.iter_mut().zip(turn) {
+                if turn_it && n < 6 {
+                    t.swap(1, 2);
+                }
+            }
+            turned += if n < 6 { n } else { 0 };
+            volume += f64::from(size[0] * size[1] * size[2]);
+            tris.extend(b);
+            x += size[0] + 1.0;
+        }
+        let bytes = binary(&tris);
+        let s = scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap();
+        let (mesh, repairs) = Mesh::from_stl_reader_repaired(&bytes[..], bytes.len() as u64).unwrap();
+        let want = StlRepairs { reoriented: turned, ..StlRepairs::default() };
+        prop_assert_eq!(s.repairs, want);
+        prop_assert_eq!(repairs, want);
+        prop_assert_eq!(s.triangles, mesh.triangles.len());
+        prop_assert!((s.volume - volume).abs() < 1e-9, "{} vs {}", s.volume, volume);
+        prop_assert!((mesh.volume() - volume).abs() < 1e-9);
+    }
+
+    /// One box with any number turned: the majority's winding wins (half and half: either),
+    /// and the box reads right way out whatever it was left.
+    #[test]
+    fn a_box_with_any_triangles_turned_reads_as_the_box(turn in prop::collection::vec(any::<bool>(), 12)) {
+        let mut tris = box_triangles([-1.0, 2.0, -3.0], [2.0, 3.0, 4.0]);
+        for (t, &turn_it) in tris.iter_mut().zip(&turn) {
+            if turn_it {
+                t.swap(1, 2);
+            }
+        }
+        let n = turn.iter().filter(|&&t| t).count();
+        let bytes = binary(&tris);
+        let s = scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap();
+        let (mesh, repairs) = Mesh::from_stl_reader_repaired(&bytes[..], bytes.len() as u64).unwrap();
+        prop_assert_eq!(s.repairs, repairs);
+        prop_assert_eq!(repairs.reoriented, n.min(12 - n));
+        if n != 6 {
+            prop_assert_eq!(repairs.flipped, n > 6);
+        }
+        prop_assert!((s.volume - 24.0).abs() < 1e-9 && (mesh.volume() - 24.0).abs() < 1e-9);
+    }
+}
