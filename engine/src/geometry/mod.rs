@@ -47,6 +47,7 @@ pub mod path;
 pub mod removal;
 pub mod stl;
 pub mod stl_read;
+mod stl_repair;
 pub mod stock;
 pub mod sweep;
 mod voxel_volume;
