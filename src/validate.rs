@@ -208,6 +208,7 @@ fn stl_summary(
         "repairs": {
             "duplicate_triangles_dropped": repairs.duplicates,
             "triangles_turned_to_match": repairs.reoriented,
+            "vertices_merged": repairs.welded,
             "turned_right_way_out": repairs.flipped,
         },
         "warnings": repairs.warnings(),

@@ -467,10 +467,18 @@ fn turn_triangle(mut stl: Vec<u8>, t: usize) -> Vec<u8> {
     stl
 }
 
+/// `stl` with corner `k` of triangle `t` moved by `d` along x.
+fn nudge_corner(mut stl: Vec<u8>, t: usize, k: usize, d: f32) -> Vec<u8> {
+    let at = 84 + 50 * t + 12 + 12 * k;
+    let x = f32::from_le_bytes(stl[at..at + 4].try_into().unwrap()) + d;
+    stl[at..at + 4].copy_from_slice(&x.to_le_bytes());
+    stl
+}
+
 /// Issue 34: an inside-out STL stock (stored before with volume −24,000 mm³, and read by a
-/// job as no material), one with every face twice (volume doubled) and one with a triangle
-/// wound against its neighbours are repaired, with a warning in the upload's summary, and
-/// a job cuts them as the plain box.
+/// job as no material), one with every face twice (volume doubled), one with a triangle
+/// wound against its neighbours and one with a corner a rounding off are repaired, with a
+/// warning in the upload's summary, and a job cuts them as the plain box.
 #[tokio::test]
 async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
     let dir = tempfile::tempdir().unwrap();
@@ -493,6 +501,12 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
             turn_triangle(box_stl(a, b, false, 1), 3),
             Some("1 triangles were wound against their neighbours"),
         ),
+        // A corner 0.1 µm off its neighbours' (a rounding in the exporter): merged.
+        (
+            "rounded.stl",
+            nudge_corner(box_stl(a, b, false, 1), 5, 1, 1e-4),
+            Some("1 vertices lay within a rounding"),
+        ),
     ] {
         let (st, v) = post_stl(&c, &s, &format!("/v1/stocks?name={name}"), stl).await;
         assert_eq!(st, 201, "{name}: {v}");
@@ -509,6 +523,8 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
         }
         let turned = summary["repairs"]["triangles_turned_to_match"].clone();
         assert_eq!(turned, i32::from(name == "one-turned.stl"), "{name}: {v}");
+        let merged = summary["repairs"]["vertices_merged"].clone();
+        assert_eq!(merged, i32::from(name == "rounded.stl"), "{name}: {v}");
         stocks.push(v["id"].as_str().unwrap().to_string());
     }
     let (_, tool) = post_json(
@@ -546,4 +562,5 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
     assert_eq!(summaries[1], summaries[0]);
     assert_eq!(summaries[2], summaries[0]);
     assert_eq!(summaries[3], summaries[0]);
+    assert_eq!(summaries[4], summaries[0]);
 }

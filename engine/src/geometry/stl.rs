@@ -124,12 +124,28 @@ impl Mesh {
             triangles,
         };
         if let Err(open) = mesh.check_closed() {
-            match mesh.orient_consistently() {
-                Some(turned) if turned > 0 => {
-                    repairs.reoriented = turned;
-                    mesh.check_closed()?;
+            // Not closed as written: triangles wound against their neighbours, vertices a
+            // rounding apart (merged, then windings again). Refused as written where
+            // neither closes it.
+            let mut closed = false;
+            if let Some(turned) = mesh.orient_consistently() {
+                repairs.reoriented = turned;
+                closed = mesh.check_closed().is_ok();
+            }
+            if !closed {
+                repairs.welded = mesh.weld();
+                if repairs.welded > 0 {
+                    closed = mesh.check_closed().is_ok();
+                    if !closed {
+                        if let Some(turned) = mesh.orient_consistently() {
+                            repairs.reoriented += turned;
+                            closed = mesh.check_closed().is_ok();
+                        }
+                    }
                 }
-                _ => return Err(open),
+            }
+            if !closed {
+                return Err(open);
             }
         }
         if mesh.volume() < 0.0 {

@@ -402,9 +402,9 @@ fn pass<R: Read>(
     Ok(p)
 }
 
-/// The most triangles [`scan`] reads into a mesh to turn those wound against their
-/// neighbours (about 110 bytes a triangle while it does).
-pub const MAX_REORIENTED_SCAN: usize = 1_000_000;
+/// The most triangles [`scan`] reads into a mesh to repair one not closed as written
+/// (about 110 bytes a triangle while it does).
+pub const MAX_REPAIRED_SCAN: usize = 1_000_000;
 
 /// Reads an STL of `len` bytes and checks it as `Mesh::from_stl_reader_repaired` does:
 /// finite vertices, at least one non-degenerate triangle, exact duplicate triangles
@@ -444,16 +444,17 @@ pub fn scan<R: Read>(
         repairs.duplicates = skip.skipped;
     }
     if !p.edges.closed() {
-        if !p.edges.closed_but_for_windings() {
-            return Err(StlError::NotClosedSomewhere);
-        }
-        // Some triangles wound against their neighbours: whether turning them closes the
-        // mesh, and the volume it then has, need the whole mesh, so this rare case reads
-        // it (as a job will), up to a size.
-        if p.kept > MAX_REORIENTED_SCAN {
-            return Err(StlError::WoundAgainstNeighbours {
-                triangles: p.kept,
-                limit: MAX_REORIENTED_SCAN,
+        // Not closed as written: whether the repairs of a mesh read whole (windings
+        // turned, vertices a rounding apart merged) close it, and the volume it then has,
+        // need the whole mesh, so this rare case reads it (as a job will), up to a size.
+        if p.kept > MAX_REPAIRED_SCAN {
+            return Err(if p.edges.closed_but_for_windings() {
+                StlError::WoundAgainstNeighbours {
+                    triangles: p.kept,
+                    limit: MAX_REPAIRED_SCAN,
+                }
+            } else {
+                StlError::NotClosedSomewhere
             });
         }
         let (mesh, repairs) = super::stl::Mesh::from_stl_reader_repaired(open()?, len)?;
@@ -545,10 +546,12 @@ mod tests {
     #[test]
     fn an_open_cube_is_refused_by_both_checks() {
         for bytes in [cube(true), ascii(&cube(true)).into_bytes()] {
-            assert_eq!(
+            // Not closed as written, the scan reads the mesh to try its repairs: the same
+            // refusal, naming where.
+            assert!(matches!(
                 scan(|| Ok(&bytes[..]), bytes.len() as u64),
-                Err(StlError::NotClosedSomewhere)
-            );
+                Err(StlError::NotClosed { open_edges: 3, .. })
+            ));
             assert!(matches!(
                 Mesh::from_stl_bytes(&bytes),
                 Err(StlError::NotClosed { open_edges: 3, .. })
@@ -610,7 +613,7 @@ mod tests {
             let want = StlRepairs {
                 duplicates: 0,
                 flipped: true,
-                reoriented: 0,
+                ..StlRepairs::default()
             };
             assert_eq!((s.repairs, repairs), (want, want));
         }
@@ -741,16 +744,65 @@ mod tests {
             Mesh::from_stl_bytes(&bytes),
             Err(StlError::NotClosed { .. })
         ));
-        // Open and turned: refused without reading the mesh.
+        // Open and turned: refused.
         let mut tris = box_tris([0.0; 3], 1.0, true);
         tris.pop();
         turn(&mut tris[0]);
         let bytes = binary_of(&tris);
-        assert_eq!(
+        assert!(matches!(
             scan(|| Ok(&bytes[..]), bytes.len() as u64),
-            Err(StlError::NotClosedSomewhere)
-        );
+            Err(StlError::NotClosed { .. })
+        ));
         assert!(Mesh::from_stl_bytes(&bytes).is_err());
+    }
+
+    /// `tris` with the corner `k` of triangle `t` moved by `d` along x, y and z.
+    fn nudged(mut tris: Vec<[[f32; 3]; 3]>, t: usize, k: usize, d: f32) -> Vec<[[f32; 3]; 3]> {
+        for c in &mut tris[t][k] {
+            *c += d;
+        }
+        tris
+    }
+
+    #[test]
+    fn vertices_a_rounding_apart_are_merged_and_a_real_gap_is_refused() {
+        // A 100 mm cube one of whose triangles has a corner 0.2 µm off along each axis
+        // (0.35 µm away, as a rounding in the exporter leaves it): three edges open as
+        // written, closed once merged (within 1 µm, WELD_FRACTION of 100 mm).
+        let cube = box_tris([0.0; 3], 100.0, true);
+        let tris = nudged(cube.clone(), 5, 1, 2e-4);
+        let bytes = binary_of(&tris);
+        assert!(Mesh::from_stl_bytes(&bytes).is_ok());
+        let (s, volume, repairs) = both(&bytes);
+        assert!((s.volume - 1e6).abs() < 1e-3 && (volume - 1e6).abs() < 1e-3);
+        let want = StlRepairs {
+            welded: 1,
+            ..StlRepairs::default()
+        };
+        assert_eq!((s.repairs, repairs), (want, want));
+        assert!(s.repairs.warnings()[0].contains("1 vertices lay within a rounding"));
+        // The same and a triangle wound the other way: merged, then turned.
+        let mut tris = tris;
+        turn(&mut tris[8]);
+        let (s, _, repairs) = both(&binary_of(&tris));
+        let want = StlRepairs {
+            welded: 1,
+            reoriented: 1,
+            ..StlRepairs::default()
+        };
+        assert_eq!((s.repairs, repairs), (want, want));
+        // 20 µm off: a gap, not a rounding; refused by both, naming where (the corner's two
+        // edges and its neighbours' two).
+        let bytes = binary_of(&nudged(cube, 5, 1, 0.02));
+        for e in [
+            scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap_err(),
+            Mesh::from_stl_bytes(&bytes).unwrap_err(),
+        ] {
+            assert!(
+                matches!(e, StlError::NotClosed { open_edges: 4, .. }),
+                "{e}"
+            );
+        }
     }
 
     #[test]

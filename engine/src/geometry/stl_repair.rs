@@ -7,9 +7,11 @@ use super::stl::Mesh;
 
 /// What reading an STL repaired, where the repair is unambiguous: exact duplicate
 /// triangles (same vertices, same winding) dropped, since a surface covered twice encloses
-/// nothing more and doubled the volume; and a mesh whose enclosed volume came out negative
-/// (wound inside out, every normal pointing in) turned the right way out, since a solid's
-/// volume is positive and material is where the winding count is.
+/// nothing more and doubled the volume; in a mesh not closed as written, vertices a
+/// rounding apart merged and triangles wound against their neighbours turned; and a mesh
+/// whose enclosed volume came out negative (wound inside out, every normal pointing in)
+/// turned the right way out, since a solid's volume is positive and material is where the
+/// winding count is.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StlRepairs {
     /// Exact duplicate triangles dropped.
@@ -19,7 +21,14 @@ pub struct StlRepairs {
     /// Triangles wound against their neighbours turned to match them
     /// (`Mesh::orient_consistently`).
     pub reoriented: usize,
+    /// Vertices merged into another within the weld distance (`Mesh::weld`).
+    pub welded: usize,
 }
+
+/// The weld distance as a fraction of the mesh's largest extent: 1 µm on a 100 mm part,
+/// about ten float32 roundings there, far below any feature a machine cuts or a grid
+/// resolves.
+pub const WELD_FRACTION: f64 = 1e-5;
 
 impl StlRepairs {
     /// One sentence per repair made, for an upload's summary.
@@ -35,6 +44,12 @@ impl StlRepairs {
             w.push(format!(
                 "{} triangles were wound against their neighbours (normals pointing the wrong way); they are read turned to match them",
                 self.reoriented
+            ));
+        }
+        if self.welded > 0 {
+            w.push(format!(
+                "{} vertices lay within a rounding ({} of the mesh's size) of another and were merged with it, closing the gaps between their triangles",
+                self.welded, WELD_FRACTION
             ));
         }
         if self.flipped {
@@ -122,5 +137,64 @@ impl Mesh {
             }
         }
         Some(turned)
+    }
+
+    /// Merges each vertex within `WELD_FRACTION` of the mesh's size of an earlier one
+    /// into it (a hash grid of that cell size finds the neighbours), then drops the
+    /// triangles that collapse and the copies that merging makes. The number merged.
+    pub(super) fn weld(&mut self) -> usize {
+        let (lo, hi) = self.bounds();
+        let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+        let tol = WELD_FRACTION * size;
+        if !(tol > 0.0) {
+            return 0;
+        }
+        let cell_of = |p: [f64; 3]| p.map(|x| (x / tol).floor() as i64);
+        let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+        let mut kept: Vec<[f64; 3]> = Vec::new();
+        let mut to_kept = Vec::with_capacity(self.vertices.len());
+        let mut merged = 0;
+        for &p in &self.vertices {
+            let c = cell_of(p);
+            let mut near = None;
+            'search: for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let Some(list) = cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                            continue;
+                        };
+                        for &k in list {
+                            let q = kept[k as usize];
+                            let d2 = (0..3).map(|a| (p[a] - q[a]).powi(2)).sum::<f64>();
+                            if d2 <= tol * tol {
+                                near = Some(k);
+                                break 'search;
+                            }
+                        }
+                    }
+                }
+            }
+            to_kept.push(near.unwrap_or_else(|| {
+                let k = kept.len() as u32;
+                kept.push(p);
+                cells.entry(c).or_default().push(k);
+                k
+            }));
+            merged += usize::from(near.is_some());
+        }
+        if merged == 0 {
+            return 0;
+        }
+        drop(cells);
+        let mut seen = std::collections::HashSet::with_capacity(self.triangles.len());
+        self.triangles = self
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| to_kept[i as usize]))
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .filter(|t| seen.insert(super::stl::canonical_rotation(*t)))
+            .collect();
+        self.vertices = kept;
+        merged
     }
 }

@@ -1,6 +1,6 @@
-//! Property test of the STL readers' winding repair: closed boxes with random triangles
-//! wound against their neighbours read as the boxes, the upload scan and the job's mesh
-//! read agreeing on what they turned.
+//! Property test of the STL readers' repairs: closed boxes with random triangles wound
+//! against their neighbours, and random corners a rounding off, read as the boxes, the
+//! upload scan and the job's mesh read agreeing on what they repaired.
 
 use millsim_engine::geometry::stl_read::scan;
 use millsim_engine::geometry::{Mesh, StlRepairs};
@@ -103,5 +103,41 @@ proptest! {
             prop_assert_eq!(repairs.flipped, n > 6);
         }
         prop_assert!((s.volume - 24.0).abs() < 1e-9 && (mesh.volume() - 24.0).abs() < 1e-9);
+    }
+
+    /// Boxes whose triangles' corners are each moved by up to a micrometre or so along
+    /// each axis (a float32 rounding or two at these sizes, far within the weld
+    /// distance), a minority of them turned too: read as the boxes.
+    #[test]
+    fn boxes_with_corners_a_rounding_apart_read_as_the_boxes(
+        boxes in prop::collection::vec(
+            ([1u8..5, 1u8..5, 1u8..5], prop::collection::vec(-1i8..=1, 108), 0usize..12),
+            1..4,
+        ),
+    ) {
+        let mut tris = Vec::new();
+        let (mut x, mut volume) = (0.0f32, 0.0);
+        for (size, jitter, turned) in &boxes {
+            let size = size.map(f32::from);
+            let mut b = box_triangles([x, 0.0, 0.0], size);
+            for (c, &j) in b.iter_mut().flatten().flatten().zip(jitter) {
+                *c += f32::from(j) * 1e-6;
+            }
+            // One triangle turned in some boxes.
+            if *turned < 4 {
+                b[*turned].swap(1, 2);
+            }
+            volume += f64::from(size[0] * size[1] * size[2]);
+            tris.extend(b);
+            x += size[0] + 1.0;
+        }
+        let bytes = binary(&tris);
+        let s = scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap();
+        let (mesh, repairs) = Mesh::from_stl_reader_repaired(&bytes[..], bytes.len() as u64).unwrap();
+        prop_assert_eq!(s.repairs, repairs);
+        prop_assert_eq!(s.triangles, mesh.triangles.len());
+        prop_assert_eq!(mesh.triangles.len(), 12 * boxes.len());
+        prop_assert!((s.volume - volume).abs() < 1e-4 * volume, "{} vs {}", s.volume, volume);
+        prop_assert!((mesh.volume() - volume).abs() < 1e-4 * volume);
     }
 }
