@@ -402,8 +402,9 @@ fn pass<R: Read>(
     Ok(p)
 }
 
-/// The most triangles [`scan`] reads into a mesh to repair one not closed as written
-/// (about 110 bytes a triangle while it does).
+/// The most triangles [`scan`] reads into a mesh to repair one not closed as written:
+/// 80 to 125 bytes a triangle while it does (a 1 M-triangle file uploaded to the service:
+/// 80 MB above the plain scan's 26 MB to turn a winding, 124 MB to merge a vertex).
 pub const MAX_REPAIRED_SCAN: usize = 1_000_000;
 
 /// Reads an STL of `len` bytes and checks it as `Mesh::from_stl_reader_repaired` does:
