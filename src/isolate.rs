@@ -213,7 +213,8 @@ pub fn job_exec_main() -> ExitCode {
                 }
                 let len = u64::from_le_bytes(head[1..9].try_into().expect("8 bytes"));
                 let mut frame = (&mut stdin).take(len);
-                let mesh = Mesh::from_stl_reader(&mut frame, len).map(Arc::new);
+                let mesh = Mesh::from_stl_reader_repaired(&mut frame, len)
+                    .map(|(mesh, repairs)| (Arc::new(mesh), repairs));
                 // What a refused file left unread belongs to this frame.
                 std::io::copy(&mut frame, &mut std::io::sink())?;
                 inputs.insert(

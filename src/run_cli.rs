@@ -259,9 +259,8 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     let mut options = Map::new();
     if let Some(path) = &args.part {
         let part = file_input(path, "model/stl")?;
-        let checked = crate::validate::stl(&part.content, &path.display().to_string())
+        crate::validate::stl(&part.content, &path.display().to_string())
             .map_err(|e| format!("{}: {}", path.display(), e.detail))?;
-        print_stl_repairs(path, &checked);
         inputs.insert("part".into(), part);
     }
     if let Some(path) = &args.fixture {
@@ -328,9 +327,8 @@ fn stock_input(args: &RunArgs) -> Result<LoadedInput, String> {
             } else {
                 // Checked first, so a refusal names this file (and where the mesh is
                 // open) rather than the program the simulation was reading it for.
-                let checked = crate::validate::stl(&stock.content, &path.display().to_string())
+                crate::validate::stl(&stock.content, &path.display().to_string())
                     .map_err(|e| e.detail)?;
-                print_stl_repairs(path, &checked);
             }
             stock
         }
@@ -807,13 +805,4 @@ pub fn run_report(summary: &Value) -> String {
         }
     }
     out
-}
-
-/// What reading an STL repaired (the upload summary's warnings), one line each on stderr.
-fn print_stl_repairs(path: &Path, checked: &crate::validate::Validated) {
-    for w in checked.summary["warnings"].as_array().into_iter().flatten() {
-        if let Some(w) = w.as_str() {
-            eprintln!("{}: {w} (warning)", path.display());
-        }
-    }
 }

@@ -536,7 +536,7 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
     .await;
     let program =
         "G21 G90\nT1 M6\nS10000 M3\nG0 X-10 Y20 Z5\nG1 Z-2 F300\nG1 X70 F600\nG0 Z5\nM30\n";
-    let mut summaries = Vec::new();
+    let (mut summaries, mut job_warnings) = (Vec::new(), Vec::new());
     for stock in &stocks {
         let body = json!({"kind": "simulate", "inputs": {"program": {"name": "slot.nc", "content": program},
             "stock": stock, "tool": tool["id"]}, "options": {"material": "Al7075-T6"}});
@@ -553,6 +553,20 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
         .map(|k| done["summary"][k].clone())
         .collect();
         summaries.push(cut);
+        job_warnings.push(done["summary"]["warnings"].to_string());
+    }
+    // The job says what reading its stock repaired, as the upload did.
+    for (i, w) in job_warnings.iter().enumerate() {
+        let repaired = [
+            (1, "stock STL: the mesh is inside out"),
+            (2, "stock STL: 12 duplicate triangles"),
+            (3, "stock STL: 1 triangles were wound against"),
+            (4, "stock STL: 1 vertices lay within a rounding"),
+        ];
+        match repaired.iter().find(|(k, _)| *k == i) {
+            Some((_, want)) => assert!(w.contains(want), "{i}: {w}"),
+            None => assert!(!w.contains("stock STL"), "{i}: {w}"),
+        }
     }
     assert!(
         summaries[0][2].as_f64().unwrap() > 900.0,

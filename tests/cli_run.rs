@@ -732,7 +732,7 @@ fn an_stl_stock_with_a_triangle_wound_the_wrong_way_runs_and_says_it_was_turned(
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(
-        err.contains("turned.stl: 1 triangles were wound against their neighbours"),
+        err.contains("warning: stock STL: 1 triangles were wound against their neighbours"),
         "{err}"
     );
     // The slot through the 20 mm box, 6 mm wide and 1 mm deep: 120 mm³.

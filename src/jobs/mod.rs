@@ -23,7 +23,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use millsim_engine::geometry::{Mesh, StlError};
+use millsim_engine::geometry::{Mesh, StlError, StlRepairs};
 use millsim_engine::job::{CancelFlag, Progress};
 use millsim_engine::pipeline::StlSource;
 
@@ -508,7 +508,7 @@ pub struct LoadedInput {
     pub stored_chunks: Option<StoredChunks>,
     /// In the job's process: an STL input read into a mesh as it streamed in (or why it
     /// could not be), so its bytes were never whole in memory.
-    pub mesh: Option<Result<Arc<Mesh>, StlError>>,
+    pub mesh: Option<Result<(Arc<Mesh>, StlRepairs), StlError>>,
 }
 
 /// Where a chunked resource's content is (`store::chunks`).
@@ -524,7 +524,7 @@ impl LoadedInput {
     /// bytes to read.
     pub fn stl(self) -> Result<StlSource, StlError> {
         match self.mesh {
-            Some(mesh) => mesh.map(StlSource::Mesh),
+            Some(mesh) => mesh.map(|(mesh, repairs)| StlSource::Mesh(mesh, repairs)),
             None => Ok(StlSource::Bytes(self.content)),
         }
     }

@@ -350,7 +350,7 @@ fn share(input: &LoadedInput) -> LoadedInput {
         stored_chunks: input.stored_chunks.clone(),
         // The stock's mesh was read once (`run`); a mesh that failed is not shared.
         mesh: match &input.mesh {
-            Some(Ok(mesh)) => Some(Ok(mesh.clone())),
+            Some(Ok((mesh, repairs))) => Some(Ok((mesh.clone(), *repairs))),
             _ => None,
         },
     }
@@ -407,9 +407,11 @@ pub fn run(
         };
         if name == "stock" && i.media_type != "application/json" && i.mesh.is_none() {
             let file = i.file_name.clone().unwrap_or_else(|| "stock.stl".into());
-            let mesh = geometry::Mesh::from_stl_bytes(&std::mem::take(&mut i.content))
-                .map_err(|e| invalid("Invalid stock", format!("{file}: {e}")))?;
-            i.mesh = Some(Ok(std::sync::Arc::new(mesh)));
+            let content = std::mem::take(&mut i.content);
+            let (mesh, repairs) =
+                geometry::Mesh::from_stl_reader_repaired(&content[..], content.len() as u64)
+                    .map_err(|e| invalid("Invalid stock", format!("{file}: {e}")))?;
+            i.mesh = Some(Ok((std::sync::Arc::new(mesh), repairs)));
         }
         shared.push((name.to_string(), i));
     }

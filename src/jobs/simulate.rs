@@ -689,7 +689,7 @@ pub(super) fn check_spec(
         optimize: keeps_steps,
         // The fixture's meshes are held as a part's is (a mesh and its BVH each).
         part_triangles: match &spec.part {
-            Some(StlSource::Mesh(mesh)) => mesh.triangles.len() as u64,
+            Some(StlSource::Mesh(mesh, _)) => mesh.triangles.len() as u64,
             // Not read yet: the binary size's count (an ASCII file's is lower).
             Some(StlSource::Bytes(bytes)) => bytes.len() as u64 / 50,
             None => 0,

@@ -117,10 +117,11 @@ fn run(
     if let Some(g) = &given {
         setup::check_given_grid(spec, g)?;
     }
-    let mesh = match (&spec.stock, &given) {
-        (_, Some(_)) | (StockSource::Shape(_), None) => None,
+    let (mesh, stock_repairs) = match (&spec.stock, &given) {
+        (_, Some(_)) | (StockSource::Shape(_), None) => (None, Default::default()),
         (StockSource::Stl(source), None) => {
-            Some(source.mesh().map_err(geometry::GeometryError::from)?)
+            let (mesh, repairs) = source.repaired().map_err(geometry::GeometryError::from)?;
+            (Some(mesh), repairs)
         }
     };
     let bounds = match &given {
@@ -133,9 +134,10 @@ fn run(
         nc::interpret(&spec.program, &interpret).map_err(SimulateError::Program)?;
     timings.interpret_s = clock.elapsed().as_secs_f64();
     let moves = &interpretation.moves;
-    let warnings: Vec<String> = setup::size_mismatch_warning(moves, bounds)
+    let mut warnings: Vec<String> = setup::size_mismatch_warning(moves, bounds)
         .into_iter()
         .collect();
+    warnings.extend(stl_warnings("stock", &stock_repairs));
     let tools = tools::ToolLookup::new(spec, moves, &interpretation.selected_tools)?;
     check_inputs(spec, moves, &tools)?;
 
@@ -294,7 +296,8 @@ fn run(
 
     let part = match &spec.part {
         Some(source) => {
-            let mesh = source.mesh().map_err(geometry::GeometryError::from)?;
+            let (mesh, repairs) = source.repaired().map_err(geometry::GeometryError::from)?;
+            warnings.extend(stl_warnings("part", &repairs));
             Some(geometry::compare_with_part(&stock, &mesh)?)
         }
         None => None,
@@ -406,6 +409,16 @@ pub(super) fn tool_radii(spec: &SimulateSpec) -> Result<Vec<f64>, SimulateError>
     let tools =
         tools::ToolLookup::new(spec, &interpretation.moves, &interpretation.selected_tools)?;
     Ok(tools.all().map(Tool::radius).collect())
+}
+
+/// What reading the STL of the job's `input` (stock, part) repaired, as the summary's
+/// warnings.
+fn stl_warnings(input: &str, repairs: &geometry::StlRepairs) -> Vec<String> {
+    repairs
+        .warnings()
+        .into_iter()
+        .map(|w| format!("{input} STL: {w}"))
+        .collect()
 }
 
 /// The stock of `spec` as a grid in the part frame at cell `cell`, for operations that

@@ -24,17 +24,28 @@ pub enum StockSource {
 #[derive(Clone)]
 pub enum StlSource {
     Bytes(Vec<u8>),
-    Mesh(std::sync::Arc<geometry::Mesh>),
+    /// Read already, with what reading it repaired.
+    Mesh(std::sync::Arc<geometry::Mesh>, geometry::StlRepairs),
 }
 
 impl StlSource {
     /// The mesh, read and checked (borrowed when it was given read).
     pub fn mesh(&self) -> Result<std::borrow::Cow<'_, geometry::Mesh>, geometry::StlError> {
+        self.repaired().map(|(mesh, _)| mesh)
+    }
+
+    /// `mesh`, with what reading it repaired.
+    pub fn repaired(
+        &self,
+    ) -> Result<(std::borrow::Cow<'_, geometry::Mesh>, geometry::StlRepairs), geometry::StlError>
+    {
         Ok(match self {
             StlSource::Bytes(bytes) => {
-                std::borrow::Cow::Owned(geometry::Mesh::from_stl_bytes(bytes)?)
+                let (mesh, repairs) =
+                    geometry::Mesh::from_stl_reader_repaired(&bytes[..], bytes.len() as u64)?;
+                (std::borrow::Cow::Owned(mesh), repairs)
             }
-            StlSource::Mesh(mesh) => std::borrow::Cow::Borrowed(mesh),
+            StlSource::Mesh(mesh, repairs) => (std::borrow::Cow::Borrowed(mesh), *repairs),
         })
     }
 }
