@@ -414,8 +414,18 @@ pub const MAX_REPAIRED_SCAN: usize = 1_000_000;
 /// (a fingerprint, to find duplicates; two triangles sharing one by chance, about
 /// n²/2^65, would be taken for duplicates), nothing else grows with the file.
 pub fn scan<R: Read>(
+    open: impl FnMut() -> Result<R, StlError>,
+    len: u64,
+) -> Result<StlScan, StlError> {
+    scan_repairing_up_to(open, len, MAX_REPAIRED_SCAN)
+}
+
+/// [`scan`], reading a file not closed as written into a mesh up to `max_repaired`
+/// triangles.
+fn scan_repairing_up_to<R: Read>(
     mut open: impl FnMut() -> Result<R, StlError>,
     len: u64,
+    max_repaired: usize,
 ) -> Result<StlScan, StlError> {
     let mut prints = Vec::new();
     let mut p = pass(open()?, len, Some(&mut prints), None)?;
@@ -448,11 +458,11 @@ pub fn scan<R: Read>(
         // Not closed as written: whether the repairs of a mesh read whole (windings
         // turned, vertices a rounding apart merged) close it, and the volume it then has,
         // need the whole mesh, so this rare case reads it (as a job will), up to a size.
-        if p.kept > MAX_REPAIRED_SCAN {
+        if p.kept > max_repaired {
             return Err(if p.edges.closed_but_for_windings() {
                 StlError::WoundAgainstNeighbours {
                     triangles: p.kept,
-                    limit: MAX_REPAIRED_SCAN,
+                    limit: max_repaired,
                 }
             } else {
                 StlError::NotClosedSomewhere
@@ -755,6 +765,31 @@ mod tests {
             Err(StlError::NotClosed { .. })
         ));
         assert!(Mesh::from_stl_bytes(&bytes).is_err());
+    }
+
+    #[test]
+    fn past_the_repair_limit_the_scan_refuses_without_reading_the_mesh() {
+        let scan_to_11 = |bytes: &[u8]| scan_repairing_up_to(|| Ok(bytes), bytes.len() as u64, 11);
+        // Closed as written: no mesh read, whatever the size.
+        assert!(scan_to_11(&binary_of(&box_tris([0.0; 3], 1.0, true))).is_ok());
+        // Closed but for a winding: named as that, with the limit.
+        let mut tris = box_tris([0.0; 3], 1.0, true);
+        turn(&mut tris[1]);
+        let e = scan_to_11(&binary_of(&tris)).unwrap_err();
+        assert_eq!(
+            e,
+            StlError::WoundAgainstNeighbours {
+                triangles: 12,
+                limit: 11
+            }
+        );
+        assert!(
+            e.to_string().contains("more than 11 triangles (12 here)"),
+            "{e}"
+        );
+        // Open: not closed, somewhere.
+        let bytes = binary_of(&nudged(box_tris([0.0; 3], 1.0, true), 5, 1, 0.1));
+        assert_eq!(scan_to_11(&bytes), Err(StlError::NotClosedSomewhere));
     }
 
     /// `tris` with the corner `k` of triangle `t` moved by `d` along x, y and z.
