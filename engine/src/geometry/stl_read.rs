@@ -493,37 +493,25 @@ mod tests {
     use super::*;
     use crate::geometry::Mesh;
 
-    /// A binary STL of a unit cube's 12 triangles (outward normals), optionally without
-    /// its last triangle.
+    /// The unit cube's 12 triangles, outward, as corner numbers (bit k: 1 along axis k).
+    const CUBE_FACES: [[usize; 3]; 12] = [
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+
+    /// A binary STL of the unit cube, optionally without its last triangle.
     fn cube(drop_last: bool) -> Vec<u8> {
-        let v = |i: usize| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32];
-        let faces: [[usize; 3]; 12] = [
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ];
-        let n = if drop_last { 11 } else { 12 };
-        let mut out = vec![0u8; 80];
-        out.extend_from_slice(&(n as u32).to_le_bytes());
-        for f in &faces[..n] {
-            out.extend_from_slice(&[0u8; 12]);
-            for &i in f {
-                for c in v(i) {
-                    out.extend_from_slice(&c.to_le_bytes());
-                }
-            }
-            out.extend_from_slice(&[0u8; 2]);
-        }
-        out
+        binary(&CUBE_FACES[..if drop_last { 11 } else { 12 }])
     }
 
     fn ascii(bytes: &[u8]) -> String {
@@ -570,37 +558,11 @@ mod tests {
         }
     }
 
-    /// The binary STL of `tris` (triangles as cube corner numbers, see `cube`).
+    /// The binary STL of `tris` (triangles as unit cube corner numbers, see `CUBE_FACES`).
     fn binary(tris: &[[usize; 3]]) -> Vec<u8> {
-        let v = |i: usize| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32];
-        let mut out = vec![0u8; 80];
-        out.extend_from_slice(&(tris.len() as u32).to_le_bytes());
-        for f in tris {
-            out.extend_from_slice(&[0u8; 12]);
-            for &i in f {
-                for c in v(i) {
-                    out.extend_from_slice(&c.to_le_bytes());
-                }
-            }
-            out.extend_from_slice(&[0u8; 2]);
-        }
-        out
-    }
-
-    /// The unit cube's triangles, outward (as `cube` writes them).
-    fn cube_faces(bytes: &[u8]) -> Vec<[usize; 3]> {
-        (0..12)
-            .map(|t| {
-                let at = 84 + 50 * t + 12;
-                [0, 1, 2].map(|k| {
-                    let c = |j: usize| {
-                        let o = at + 12 * k + 4 * j;
-                        f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()) as usize
-                    };
-                    c(0) | c(1) << 1 | c(2) << 2
-                })
-            })
-            .collect()
+        let corner = |i: usize| [0, 1, 2].map(|a| ((i >> a) & 1) as f32);
+        let tris: Vec<_> = tris.iter().map(|t| t.map(corner)).collect();
+        binary_of(&tris)
     }
 
     /// Both readers on `bytes`: (scan, mesh volume, mesh repairs).
@@ -613,10 +575,7 @@ mod tests {
 
     #[test]
     fn an_inside_out_cube_is_read_turned_out_and_says_so() {
-        let faces: Vec<[usize; 3]> = cube_faces(&cube(false))
-            .into_iter()
-            .map(|[a, b, c]| [a, c, b])
-            .collect();
+        let faces: Vec<[usize; 3]> = CUBE_FACES.map(|[a, b, c]| [a, c, b]).to_vec();
         for bytes in [binary(&faces), ascii(&binary(&faces)).into_bytes()] {
             let (s, volume, repairs) = both(&bytes);
             assert!((s.volume - 1.0).abs() < 1e-12, "{}", s.volume);
@@ -639,7 +598,7 @@ mod tests {
 
     #[test]
     fn duplicate_triangles_are_dropped_wherever_the_copy_starts() {
-        let faces = cube_faces(&cube(false));
+        let faces = CUBE_FACES.to_vec();
         // Every face twice (the volume doubled before), the copies rotated.
         let mut twice = faces.clone();
         twice.extend(faces.iter().map(|&[a, b, c]| [b, c, a]));
@@ -676,7 +635,7 @@ mod tests {
     /// A cube of side `size` from the corner `at`, wound outward or (a cavity) inward.
     fn box_tris(at: [f32; 3], size: f32, outward: bool) -> Vec<[[f32; 3]; 3]> {
         let corner = |i: usize| [0, 1, 2].map(|a| at[a] + size * ((i >> a) & 1) as f32);
-        cube_faces(&cube(false))
+        CUBE_FACES
             .into_iter()
             .map(|[a, b, c]| {
                 let t = if outward { [a, b, c] } else { [a, c, b] };
