@@ -9,7 +9,7 @@ use millsim_engine::geometry::{
 use millsim_engine::job::CancelFlag;
 use millsim_engine::tool::Tool;
 
-use common::mesh::box_mesh;
+use common::mesh::{binary_stl as binary, box_mesh};
 
 const CORPUS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/corpus/stl/");
 
@@ -22,22 +22,6 @@ fn grid(cell: f64) -> GridOptions {
         cell: Some(cell),
         ..Default::default()
     }
-}
-
-/// A binary STL from triangles.
-fn binary(tris: &[[[f32; 3]; 3]]) -> Vec<u8> {
-    let mut b = vec![0u8; 80];
-    b.extend_from_slice(&(tris.len() as u32).to_le_bytes());
-    for t in tris {
-        b.extend_from_slice(&[0u8; 12]);
-        for v in t {
-            for c in v {
-                b.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        b.extend_from_slice(&[0, 0]);
-    }
-    b
 }
 
 fn cube_triangles() -> Vec<[[f32; 3]; 3]> {

@@ -2,44 +2,21 @@
 //! against their neighbours, and random corners a rounding off, read as the boxes, the
 //! upload scan and the job's mesh read agreeing on what they repaired.
 
-use millsim_engine::geometry::stl_read::scan;
+mod common;
+
+use common::mesh::{binary_stl, box_triangles};
+use millsim_engine::geometry::stl_read::{scan, StlScan};
 use millsim_engine::geometry::{Mesh, StlRepairs};
 use proptest::prelude::*;
 
-/// A box's 12 triangles, wound outward, from corner `lo` with sides `size`.
-fn box_triangles(lo: [f32; 3], size: [f32; 3]) -> Vec<[[f32; 3]; 3]> {
-    let corner =
-        |i: usize| [0, 1, 2].map(|a| lo[a] + if (i >> a) & 1 == 1 { size[a] } else { 0.0 });
-    [
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ]
-    .into_iter()
-    .map(|t: [usize; 3]| t.map(corner))
-    .collect()
-}
-
-fn binary(tris: &[[[f32; 3]; 3]]) -> Vec<u8> {
-    let mut b = vec![0u8; 80];
-    b.extend_from_slice(&(tris.len() as u32).to_le_bytes());
-    for t in tris {
-        b.extend_from_slice(&[0u8; 12]);
-        for c in t.iter().flatten() {
-            b.extend_from_slice(&c.to_le_bytes());
-        }
-        b.extend_from_slice(&[0, 0]);
-    }
-    b
+/// Both readers on `tris`' binary STL: the upload scan, and the job's mesh read with its
+/// repairs (the triangle counts agreeing).
+fn read_both(tris: &[[[f32; 3]; 3]]) -> (StlScan, Mesh, StlRepairs) {
+    let bytes = binary_stl(tris);
+    let s = scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap();
+    let (mesh, repairs) = Mesh::from_stl_reader_repaired(&bytes[..], bytes.len() as u64).unwrap();
+    assert_eq!(s.triangles, mesh.triangles.len());
+    (s, mesh, repairs)
 }
 
 proptest! {
@@ -72,13 +49,10 @@ proptest! {
             tris.extend(b);
             x += size[0] + 1.0;
         }
-        let bytes = binary(&tris);
-        let s = scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap();
-        let (mesh, repairs) = Mesh::from_stl_reader_repaired(&bytes[..], bytes.len() as u64).unwrap();
+        let (s, mesh, repairs) = read_both(&tris);
         let want = StlRepairs { reoriented: turned, ..StlRepairs::default() };
         prop_assert_eq!(s.repairs, want);
         prop_assert_eq!(repairs, want);
-        prop_assert_eq!(s.triangles, mesh.triangles.len());
         prop_assert!((s.volume - volume).abs() < 1e-9, "{} vs {}", s.volume, volume);
         prop_assert!((mesh.volume() - volume).abs() < 1e-9);
     }
@@ -94,9 +68,7 @@ proptest! {
             }
         }
         let n = turn.iter().filter(|&&t| t).count();
-        let bytes = binary(&tris);
-        let s = scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap();
-        let (mesh, repairs) = Mesh::from_stl_reader_repaired(&bytes[..], bytes.len() as u64).unwrap();
+        let (s, mesh, repairs) = read_both(&tris);
         prop_assert_eq!(s.repairs, repairs);
         prop_assert_eq!(repairs.reoriented, n.min(12 - n));
         if n != 6 {
@@ -131,11 +103,8 @@ proptest! {
             tris.extend(b);
             x += size[0] + 1.0;
         }
-        let bytes = binary(&tris);
-        let s = scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap();
-        let (mesh, repairs) = Mesh::from_stl_reader_repaired(&bytes[..], bytes.len() as u64).unwrap();
+        let (s, mesh, repairs) = read_both(&tris);
         prop_assert_eq!(s.repairs, repairs);
-        prop_assert_eq!(s.triangles, mesh.triangles.len());
         prop_assert_eq!(mesh.triangles.len(), 12 * boxes.len());
         prop_assert!((s.volume - volume).abs() < 1e-4 * volume, "{} vs {}", s.volume, volume);
         prop_assert!((mesh.volume() - volume).abs() < 1e-4 * volume);
