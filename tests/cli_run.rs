@@ -274,21 +274,30 @@ fn run_two_tools(extra: &[&str]) -> (std::process::Output, Option<serde_json::Va
         "number,type,diameter,flutes,flute_length,helix\n1,flat,10,4,20,0\n2,ball,6,2,12,30\n9,flat,0.5,2,2,30\n",
     )
     .unwrap();
-    let out_dir = dir.path().join("out");
-    let mut cmd = Command::new(BIN);
-    cmd.current_dir(dir.path())
-        .args([
-            "run",
-            "--block=0,-20,-10,100,40,10",
-            "--material",
-            "Al7075-T6",
-        ])
-        .arg("--program")
-        .arg(&program)
+    let program = program.to_str().unwrap();
+    let args = [
+        &["--block=0,-20,-10,100,40,10", "--program", program][..],
+        extra,
+    ]
+    .concat();
+    run_in(dir.path(), &args)
+}
+
+/// `millsim run --material Al7075-T6` with `args` in `dir`, writing to `dir/out`: its
+/// output and the summary it wrote, if any.
+fn run_in(
+    dir: &std::path::Path,
+    args: &[&str],
+) -> (std::process::Output, Option<serde_json::Value>) {
+    let out_dir = dir.join("out");
+    let out = Command::new(BIN)
+        .current_dir(dir)
+        .args(["run", "--material", "Al7075-T6"])
+        .args(args)
         .arg("--out")
         .arg(&out_dir)
-        .args(extra);
-    let out = cmd.output().unwrap();
+        .output()
+        .unwrap();
     let summary = std::fs::read(out_dir.join("summary.json"))
         .ok()
         .and_then(|b| serde_json::from_slice(&b).ok());
@@ -583,22 +592,9 @@ fn run_with_t1(
     std::fs::write(&path, program).unwrap();
     let tool = dir.join("tool.json");
     std::fs::write(&tool, tool_json).unwrap();
-    let out_dir = dir.join("out");
-    let out = Command::new(BIN)
-        .args(["run", "--material", "Al7075-T6"])
-        .args(args)
-        .arg("--program")
-        .arg(&path)
-        .arg("--tool")
-        .arg(format!("T1={}", tool.display()))
-        .arg("--out")
-        .arg(&out_dir)
-        .output()
-        .unwrap();
-    let summary = std::fs::read(out_dir.join("summary.json"))
-        .ok()
-        .and_then(|b| serde_json::from_slice(&b).ok());
-    (out, summary)
+    let t1 = format!("T1={}", tool.display());
+    let args = [args, &["--program", path.to_str().unwrap(), "--tool", &t1]].concat();
+    run_in(dir, &args)
 }
 
 #[test]
