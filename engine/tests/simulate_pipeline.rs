@@ -54,6 +54,11 @@ fn slot_volume_and_steady_power_match_closed_forms() {
     );
     assert!((steady.cutting_energy_j - steady.mean_power * steady.time_s).abs() < 1e-9);
     assert!(out.summary.cycle_time_s > out.summary.nominal_time_s);
+    // No air cuts: zero air time, written as 0.0 (an empty f64 sum is −0.0).
+    assert_eq!(out.summary.air_moves, 0);
+    assert_eq!(out.summary.air_time_s.to_bits(), 0.0f64.to_bits());
+    let json = serde_json::to_string(&out.summary).unwrap();
+    assert!(json.contains("\"air_time_s\":0.0"), "{json}");
     // Reference peak |Fxy| of this slot is 664.2 N; |F| adds the axial part.
     assert!(
         steady.peak_force >= 664.2 * 0.99 && steady.peak_force < 664.2 * 1.3,

@@ -726,14 +726,15 @@ pub(super) fn summarize(
         force_evaluations: evaluations,
         cycle_time_s: times.total_s,
         cutting_time_s: times.cutting_s,
+        // Folded from +0: an empty f64 sum is −0, which a summary would print as -0.0
+        // for every program without air cuts.
         air_time_s: rows
             .iter()
             .filter(|r| r.is_air_cut())
-            .map(|r| r.time_s)
-            .sum(),
+            .fold(0.0, |t, r| t + r.time_s),
         rapid_time_s: times.rapid_s,
         nominal_time_s: times.nominal_s,
-        cutting_energy_j: rows.iter().map(|r| r.cutting_energy_j).sum(),
+        cutting_energy_j: rows.iter().fold(0.0, |e, r| e + r.cutting_energy_j),
         energy: extras.energy,
         roughness: roughest(rows),
         deflection: deflection_per_tool(rows),
