@@ -385,6 +385,29 @@ fn dialect_auto_picks_fanuc_for_macro_programs() {
 }
 
 #[test]
+fn a_fanuc_dwell_in_x_is_read_in_fanuc_and_named_in_linuxcnc() {
+    // G4 X is in seconds, G4 P in milliseconds on Fanuc.
+    for (src, secs) in [("O1\nG4 X1.5\nM30\n", 1.5), ("O1\nG04 P250\nM30\n", 0.25)] {
+        let i = run_with(src, &fanuc());
+        let d = i.moves.iter().find(|m| m.kind == MoveKind::Dwell).unwrap();
+        assert_eq!(d.seconds, Some(secs), "{src}");
+    }
+    // Under LinuxCNC rules (a program with nothing Fanuc about it) the error names the
+    // dialect that reads it, on the G4's line and column.
+    let (line, col, msg) = fail(
+        "G21 G90\nG0 X0 Y0\nG4 X1.5\nM2\n",
+        &InterpretOptions::default(),
+    );
+    assert_eq!((line, col), (3, 1));
+    assert!(
+        msg.contains("Fanuc's dwell") && msg.contains("dialect fanuc"),
+        "{msg}"
+    );
+    let (_, _, msg) = fail("G21 G90\nG4\nM2\n", &InterpretOptions::default());
+    assert!(msg.contains("G4 needs a P word"), "{msg}");
+}
+
+#[test]
 fn runaway_macro_loops_stop_naming_the_loop() {
     let o = InterpretOptions {
         max_blocks: 10_000,

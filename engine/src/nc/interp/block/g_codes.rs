@@ -25,7 +25,14 @@ impl Interp<'_> {
                 match w.take('P') {
                     Some(p) => p,
                     None => {
-                        return Err(self.err_at(self.word_pos(i), "G4 needs a P word (seconds)"))
+                        // G4 X is how Fanuc and Haas posts write a dwell: say so, rather
+                        // than only what LinuxCNC wants.
+                        let message = if w.take('X').is_some() {
+                            "G4 X (seconds) is Fanuc's dwell; with dialect linuxcnc G4 takes P in seconds (dialect fanuc, or auto on a Fanuc program, reads G4 X and G4 P in ms)"
+                        } else {
+                            "G4 needs a P word (seconds)"
+                        };
+                        return Err(self.err_at(self.word_pos(i), message));
                     }
                 }
             };
