@@ -408,6 +408,46 @@ fn a_fanuc_dwell_in_x_is_read_in_fanuc_and_named_in_linuxcnc() {
 }
 
 #[test]
+fn a_cycle_with_k0_stores_its_data_and_moves_nothing() {
+    // Fanuc 0i: "When K0 is specified, the drilling data is stored, but drilling is not
+    // performed." The holes follow at the next positions with the stored R and Z.
+    let src = "O1\nG90 G21 G0 X5. Y5. Z5.\nG81 G99 R2. Z-3. F100. K0\nX10. Y10.\nX20.\nG80\nM30\n";
+    let i = run_with(src, &fanuc());
+    let hole = |x: f64, y: f64| vec![[x, y, 5.0], [x, y, 2.0], [x, y, -3.0], [x, y, 2.0]];
+    let mut want = vec![[5.0, 5.0, 5.0]];
+    want.extend(hole(10.0, 10.0));
+    want.extend([[20.0, 10.0, 2.0], [20.0, 10.0, -3.0], [20.0, 10.0, 2.0]]);
+    assert_eq!(xyz(&i), want);
+    assert!(i.warnings.is_empty(), "{:?}", i.warnings);
+    // With the hole's position in the K0 block: nothing moves there, and a warning says so
+    // (the holes are where the next blocks put them).
+    let src =
+        "O1\nG90 G21 G0 X5. Y5. Z5.\nG81 G98 X8. Y8. R2. Z-3. F100. K0\nX10. Y10.\nG80\nM30\n";
+    let i = run_with(src, &fanuc());
+    assert_eq!(xyz(&i)[1], [10.0, 10.0, 5.0], "{:?}", xyz(&i));
+    assert!(xyz(&i).iter().all(|p| p[0] != 8.0), "{:?}", xyz(&i));
+    assert!(
+        i.warnings
+            .iter()
+            .any(|w| w.line == 3 && w.message.contains("repeat count of 0")),
+        "{:?}",
+        i.warnings
+    );
+    // LinuxCNC has no L0; a fractional K is refused naming the word written.
+    let (line, _, msg) = fail(
+        "G21 G90 G0 Z5\nG81 R2 Z-3 F100 L0\n",
+        &InterpretOptions::default(),
+    );
+    assert_eq!(line, 2);
+    assert!(
+        msg.contains("repeat count L0 must be a whole number of at least 1"),
+        "{msg}"
+    );
+    let (_, _, msg) = fail("O1\nG0 Z5.\nG81 R2. Z-3. F100. K1.5\n", &fanuc());
+    assert!(msg.contains("repeat count K1.5"), "{msg}");
+}
+
+#[test]
 fn runaway_macro_loops_stop_naming_the_loop() {
     let o = InterpretOptions {
         max_blocks: 10_000,

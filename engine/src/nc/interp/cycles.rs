@@ -91,22 +91,24 @@ impl Interp<'_> {
             None => return Err(self.err_block(format!("G{g} needs an R word (retract plane)"))),
         };
         // Repeats: L (LinuxCNC); Fanuc uses K except in G87 where K is the bore top.
-        let mut l = w.take('L');
+        let mut l = w.take('L').map(|v| ('L', v));
         if self.fanuc && g != 87 {
             if let Some(k) = w.take('K') {
                 if l.is_some() {
                     return Err(self.err_word(w, 'K', "both L and K repeat counts"));
                 }
-                l = Some(k);
+                l = Some(('K', k));
             }
         }
+        // Fanuc K0 (Haas L0): the cycle's data is stored and no hole is made.
+        let least = if self.fanuc { 0.0 } else { 1.0 };
         let repeats = match l {
-            Some(v) if v.fract() != 0.0 || v < 1.0 => {
+            Some((c, v)) if v.fract() != 0.0 || v < least => {
                 return Err(self.err_block(format!(
-                    "repeat count L{v} must be a whole number of at least 1"
+                    "repeat count {c}{v} must be a whole number of at least {least}"
                 )))
             }
-            Some(v) => v,
+            Some((_, v)) => v,
             None => 1.0,
         };
         // Fanuc: an additional (rotary) axis moves with the positioning rapid of the hole
@@ -246,6 +248,18 @@ impl Interp<'_> {
         }
         if matches!(g, 76 | 86 | 87 | 88) && self.modal.spindle == SpindleDir::Off {
             return Err(self.err_block(format!("G{g} needs the spindle turning")));
+        }
+        if repeats == 0.0 {
+            // Stored for the holes that follow; nothing moves, the position words included
+            // (the control makes no hole and no positioning at K0).
+            if wa.is_some() || wb.is_some() || rotary.is_some() {
+                self.out.warnings.push(self.err_block(format!(
+                    "G{g} with a repeat count of 0: the cycle's data is stored and nothing moves; this block's {la}/{lb} are not moved to"
+                )));
+            }
+            self.cycle.cc = cc_num;
+            self.cycle.r = r_num;
+            return Ok(());
         }
         // Below the R plane: rapid up to it first.
         if old_cc < r {
