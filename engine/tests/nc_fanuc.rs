@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::nc::{dialect, fail, motions, run, run_with, xyz};
+use common::nc::{dialect, fail, motions, run, run_with, warned, xyz};
 use millsim_engine::nc::{Dialect, InterpretOptions, MoveKind, Program};
 
 fn fanuc() -> InterpretOptions {
@@ -426,13 +426,7 @@ fn a_cycle_with_k0_stores_its_data_and_moves_nothing() {
     let i = run_with(src, &fanuc());
     assert_eq!(xyz(&i)[1], [10.0, 10.0, 5.0], "{:?}", xyz(&i));
     assert!(xyz(&i).iter().all(|p| p[0] != 8.0), "{:?}", xyz(&i));
-    assert!(
-        i.warnings
-            .iter()
-            .any(|w| w.line == 3 && w.message.contains("repeat count of 0")),
-        "{:?}",
-        i.warnings
-    );
+    assert!(warned(&i, 3, "repeat count of 0"), "{:?}", i.warnings);
     // LinuxCNC has no L0; a fractional K is refused naming the word written.
     let (line, _, msg) = fail(
         "G21 G90 G0 Z5\nG81 R2 Z-3 F100 L0\n",

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::nc::{close, dialect, fail, motions, run, run_with, xyz};
+use common::nc::{close, dialect, fail, motions, run, run_with, warned, xyz};
 use millsim_engine::nc::{
     parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
 };
@@ -132,10 +132,7 @@ fn fanuc_g30_takes_its_reference_point_number() {
     assert!(p2.warnings.is_empty(), "{:?}", p2.warnings);
     let p3 = run_with("G0 X5 Y5 Z10\nG91 G30 P3 Z0\nG90 G0 X7\n", &fanuc);
     assert_eq!(path(&p3), path(&plain));
-    assert!(p3
-        .warnings
-        .iter()
-        .any(|w| w.line == 2 && w.message.contains("G30 P3")));
+    assert!(warned(&p3, 2, "G30 P3"));
     let (line, _, msg) = fail("G0 X5 Y5 Z10\nG91 G30 P7 Z0\n", &fanuc);
     assert_eq!(line, 2);
     assert!(msg.contains("P2, P3 or P4"), "{msg}");
@@ -312,13 +309,7 @@ fn dialect_auto_applies_the_fanuc_g80_rule_with_a_warning() {
     let p = path(&i);
     assert_eq!(p[p.len() - 2], (Rapid, [0.0, 14.249, 5.533]));
     assert_eq!(p[p.len() - 1], (Linear, [2.0, 14.249, 5.533]));
-    assert!(
-        i.warnings
-            .iter()
-            .any(|w| w.line == 7 && w.message.contains("Fanuc rule")),
-        "{:?}",
-        i.warnings
-    );
+    assert!(warned(&i, 7, "Fanuc rule"), "{:?}", i.warnings);
     let (line, _, msg) = fail(src, &dialect(Dialect::LinuxCnc));
     assert_eq!(line, 7);
     assert!(msg.contains("no motion mode"), "{msg}");
@@ -380,13 +371,7 @@ fn look_ahead_and_smoothing_codes_warn_and_leave_the_path_as_programmed() {
         let i = run(&format!("O1\n{mode}\nG0 X1 Y2\nG1 X5 F100\n{off}\nM30\n"));
         assert_eq!(path(&i), path(&plain), "{mode}");
         let code = mode.split(' ').next().unwrap().replace("G0", "G");
-        assert!(
-            i.warnings
-                .iter()
-                .any(|w| w.line == 2 && w.message.contains("makes no motion")),
-            "{code}: {:?}",
-            i.warnings
-        );
+        assert!(warned(&i, 2, "makes no motion"), "{code}: {:?}", i.warnings);
     }
     // With dialect linuxcnc the numbers keep their LinuxCNC meaning or are refused.
     let l = dialect(Dialect::LinuxCnc);
@@ -590,12 +575,7 @@ fn a_zero_centre_word_off_the_arc_plane_is_ignored_with_a_warning() {
     assert!(close(&last.end[..3], &[20.0, 0.0, 0.0]), "{:?}", last.end);
     assert!(last.arc.is_some());
     let w: Vec<&str> = i.warnings.iter().map(|w| w.message.as_str()).collect();
-    assert!(
-        i.warnings
-            .iter()
-            .any(|w| w.line == 4 && w.message.contains("K0 in a")),
-        "{w:?}"
-    );
+    assert!(warned(&i, 4, "K0 in a"), "{w:?}");
     let (line, _, msg) = fail(&src.replace("K0", "K2"), &InterpretOptions::default());
     assert_eq!(line, 4);
     assert!(msg.contains("K word"), "{msg}");

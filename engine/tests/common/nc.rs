@@ -25,6 +25,13 @@ pub fn fail(src: &str, opts: &InterpretOptions) -> (u32, u32, String) {
     (d.line, d.col, d.message.clone())
 }
 
+/// Whether a warning on `line` says `text`.
+pub fn warned(i: &Interpretation, line: u32, text: &str) -> bool {
+    i.warnings
+        .iter()
+        .any(|w| w.line == line && w.message.contains(text))
+}
+
 /// The motions (tool changes and dwells left out).
 pub fn motions(i: &Interpretation) -> Vec<&Move> {
     i.moves
