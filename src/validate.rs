@@ -209,6 +209,7 @@ fn stl_summary(
             "duplicate_triangles_dropped": repairs.duplicates,
             "triangles_turned_to_match": repairs.reoriented,
             "vertices_merged": repairs.welded,
+            "t_junctions_split": repairs.t_junctions,
             "turned_right_way_out": repairs.flipped,
         },
         "warnings": repairs.warnings(),

@@ -525,6 +525,7 @@ async fn inside_out_and_duplicated_stl_stocks_are_repaired_with_a_warning() {
         assert_eq!(turned, i32::from(name == "one-turned.stl"), "{name}: {v}");
         let merged = summary["repairs"]["vertices_merged"].clone();
         assert_eq!(merged, i32::from(name == "rounded.stl"), "{name}: {v}");
+        assert_eq!(summary["repairs"]["t_junctions_split"], 0, "{name}: {v}");
         stocks.push(v["id"].as_str().unwrap().to_string());
     }
     let (_, tool) = post_json(

@@ -1,6 +1,7 @@
 //! Property test of the STL readers' repairs: closed boxes with random triangles wound
-//! against their neighbours, and random corners a rounding off, read as the boxes, the
-//! upload scan and the job's mesh read agreeing on what they repaired.
+//! against their neighbours, random corners a rounding off, and faces cut where their
+//! neighbours are not (T-junctions), read as the boxes, the upload scan and the job's
+//! mesh read agreeing on what they repaired.
 
 mod common;
 
@@ -108,5 +109,51 @@ proptest! {
         prop_assert_eq!(mesh.triangles.len(), 12 * boxes.len());
         prop_assert!((s.volume - volume).abs() < 1e-4 * volume, "{} vs {}", s.volume, volume);
         prop_assert!((mesh.volume() - volume).abs() < 1e-4 * volume);
+    }
+
+    /// Boxes whose top is cut into strips across x while the front and back faces keep
+    /// their whole top edges (T-junctions at each cut's two ends), a side triangle
+    /// turned in some: read as the boxes, each cut's ends split into, by both readers.
+    #[test]
+    fn boxes_with_a_top_cut_into_strips_read_as_the_boxes(
+        boxes in prop::collection::vec(
+            ([1u8..5, 1u8..5, 1u8..5], prop::collection::btree_set(1u8..40, 1..5), any::<bool>()),
+            1..4,
+        ),
+    ) {
+        let mut tris = Vec::new();
+        let (mut x, mut volume, mut cuts, mut turned) = (0.0f32, 0.0, 0, 0);
+        for (size, at, turn) in &boxes {
+            let size = size.map(f32::from);
+            let top = size[2];
+            let mut b: Vec<_> = box_triangles([x, 0.0, 0.0], size)
+                .into_iter()
+                .filter(|t| t.iter().any(|c| c[2] != top))
+                .collect();
+            // Cut positions in tenths of the box's length, strictly inside it.
+            let mut xs = vec![x];
+            xs.extend(at.iter().map(|&k| x + size[0] * f32::from(k) / 40.0));
+            xs.push(x + size[0]);
+            xs.dedup();
+            cuts += xs.len() - 2;
+            for w in xs.windows(2) {
+                let (x0, x1) = (w[0], w[1]);
+                b.push([[x0, 0.0, top], [x1, 0.0, top], [x1, size[1], top]]);
+                b.push([[x0, 0.0, top], [x1, size[1], top], [x0, size[1], top]]);
+            }
+            if *turn {
+                b[0].swap(1, 2);
+                turned += 1;
+            }
+            volume += f64::from(size[0] * size[1] * size[2]);
+            tris.extend(b);
+            x += size[0] + 1.0;
+        }
+        let (s, mesh, repairs) = read_both(&tris);
+        prop_assert_eq!(s.repairs, repairs);
+        prop_assert_eq!(repairs.t_junctions, 2 * cuts);
+        prop_assert_eq!(repairs.reoriented, turned);
+        prop_assert!((s.volume - volume).abs() < 1e-9 * volume, "{} vs {}", s.volume, volume);
+        prop_assert!((mesh.volume() - volume).abs() < 1e-9 * volume);
     }
 }

@@ -125,8 +125,8 @@ impl Mesh {
         };
         if let Err(open) = mesh.check_closed() {
             // Not closed as written: triangles wound against their neighbours, vertices a
-            // rounding apart (merged, then windings again). Refused as written where
-            // neither closes it.
+            // rounding apart (merged, then windings again), T-junctions (split). Refused
+            // as written where none closes it.
             let mut closed = false;
             if let Some(turned) = mesh.orient_consistently() {
                 repairs.reoriented = turned;
@@ -135,6 +135,20 @@ impl Mesh {
             if !closed {
                 repairs.welded = mesh.weld();
                 if repairs.welded > 0 {
+                    closed = mesh.check_closed().is_ok();
+                    if !closed {
+                        if let Some(turned) = mesh.orient_consistently() {
+                            repairs.reoriented += turned;
+                            closed = mesh.check_closed().is_ok();
+                        }
+                    }
+                }
+            }
+            if !closed {
+                // Edges that meet another triangle's vertex part way along (T-junctions):
+                // split there, then windings again.
+                repairs.t_junctions = mesh.split_t_junctions();
+                if repairs.t_junctions > 0 {
                     closed = mesh.check_closed().is_ok();
                     if !closed {
                         if let Some(turned) = mesh.orient_consistently() {

@@ -491,7 +491,7 @@ fn scan_repairing_up_to<R: Read>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::Mesh;
+    use crate::geometry::{GridOptions, Mesh, Stock};
 
     /// The unit cube's 12 triangles, outward, as corner numbers (bit k: 1 along axis k).
     const CUBE_FACES: [[usize; 3]; 12] = [
@@ -798,6 +798,85 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    /// A 10 mm cube whose top is split down x = 5 into two halves while the front and
+    /// back faces keep their whole top edges: the surface is closed in space, but those
+    /// two edges each meet the split's end vertex part way along (T-junctions).
+    fn t_junction_cube(off: f32) -> Vec<[[f32; 3]; 3]> {
+        let mut tris: Vec<_> = box_tris([0.0; 3], 10.0, true)
+            .into_iter()
+            .filter(|t| t.iter().any(|c| c[2] != 10.0))
+            .collect();
+        let (m0, m1) = ([5.0, -off, 10.0], [5.0, 10.0 + off, 10.0]);
+        tris.extend([
+            [[0.0, 0.0, 10.0], m0, m1],
+            [[0.0, 0.0, 10.0], m1, [0.0, 10.0, 10.0]],
+            [m0, [10.0, 0.0, 10.0], [10.0, 10.0, 10.0]],
+            [m0, [10.0, 10.0, 10.0], m1],
+        ]);
+        tris
+    }
+
+    #[test]
+    fn t_junctions_are_split_and_a_surface_closed_in_space_is_read() {
+        let tris = t_junction_cube(0.0);
+        let bytes = binary_of(&tris);
+        let (s, volume, repairs) = both(&bytes);
+        assert!((s.volume - 1000.0).abs() < 1e-9 && (volume - 1000.0).abs() < 1e-9);
+        let want = StlRepairs {
+            t_junctions: 2,
+            ..StlRepairs::default()
+        };
+        assert_eq!((s.repairs, repairs), (want, want));
+        assert!(s.repairs.warnings()[0].starts_with("2 vertices lay on another triangle's edge"));
+        // The stock fills as the plain cube's does (the same rays, the same volume).
+        let opts = GridOptions {
+            cell: Some(0.7),
+            ..GridOptions::default()
+        };
+        let plain =
+            Stock::from_stl_bytes(&binary_of(&box_tris([0.0; 3], 10.0, true)), &opts).unwrap();
+        let split = Stock::from_stl_bytes(&bytes, &opts).unwrap();
+        assert_eq!(split.grid.ray_count(), plain.grid.ray_count());
+        assert!((split.volume() - plain.volume()).abs() < 1e-9 * plain.volume());
+        assert!((plain.volume() - 1000.0).abs() < 1e-6, "{}", plain.volume());
+        // Wound the other way as well: split, then turned.
+        let mut turned = tris.clone();
+        turn(&mut turned[0]);
+        let (_, volume, repairs) = both(&binary_of(&turned));
+        assert!((volume - 1000.0).abs() < 1e-9, "{volume}");
+        assert_eq!((repairs.t_junctions, repairs.reoriented), (2, 1));
+        // The split's end 20 µm off the edges (beyond the weld distance, 0.1 µm here): a
+        // gap along them, refused as it was.
+        let bytes = binary_of(&t_junction_cube(0.02));
+        for e in [
+            scan(|| Ok(&bytes[..]), bytes.len() as u64).unwrap_err(),
+            Mesh::from_stl_bytes(&bytes).unwrap_err(),
+        ] {
+            assert!(
+                matches!(e, StlError::NotClosed { open_edges: 6, .. }),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_sliver_of_zero_area_along_an_edge_is_split_away() {
+        // An exporter's sliver: three points along the cube's bottom front edge. Its
+        // three edges are left unmatched; cut at its middle point they cancel.
+        let mut tris = box_tris([0.0; 3], 10.0, true);
+        tris.push([[0.0; 3], [4.0, 0.0, 0.0], [10.0, 0.0, 0.0]]);
+        let (s, volume, repairs) = both(&binary_of(&tris));
+        assert!((s.volume - 1000.0).abs() < 1e-9 && (volume - 1000.0).abs() < 1e-9);
+        assert_eq!((s.repairs.t_junctions, repairs.t_junctions), (1, 1));
+        // A missing triangle is a hole, not a T-junction: refused.
+        let mut holed = box_tris([0.0; 3], 10.0, true);
+        holed.pop();
+        assert!(matches!(
+            Mesh::from_stl_bytes(&binary_of(&holed)).unwrap_err(),
+            StlError::NotClosed { open_edges: 3, .. }
+        ));
     }
 
     #[test]

@@ -23,7 +23,17 @@ pub struct StlRepairs {
     pub reoriented: usize,
     /// Vertices merged into another within the weld distance (`Mesh::weld`).
     pub welded: usize,
+    /// Vertices lying on another triangle's edge (T-junctions) that the edge's triangle
+    /// was split at (`Mesh::split_t_junctions`).
+    pub t_junctions: usize,
 }
+
+/// The most open edges [`Mesh::split_t_junctions`] looks at, and the most vertex-on-edge
+/// tests it makes: beyond either, the mesh is refused as not closed rather than searched
+/// at length (a mesh with that many T-junctions is rare; a mesh with holes is refused
+/// either way).
+const MAX_OPEN_EDGES: usize = 200_000;
+const MAX_T_TESTS: u64 = 100_000_000;
 
 /// The weld distance as a fraction of the mesh's largest extent: 1 µm on a 100 mm part,
 /// about ten float32 roundings there, far below any feature a machine cuts or a grid
@@ -50,6 +60,12 @@ impl StlRepairs {
             w.push(format!(
                 "{} vertices lay within a rounding ({} of the mesh's size) of another and were merged with it, closing the gaps between their triangles",
                 self.welded, WELD_FRACTION
+            ));
+        }
+        if self.t_junctions > 0 {
+            w.push(format!(
+                "{} vertices lay on another triangle's edge (T-junctions: the surface closed, its edges not matched); the triangles were split there",
+                self.t_junctions
             ));
         }
         if self.flipped {
@@ -196,5 +212,140 @@ impl Mesh {
             .collect();
         self.vertices = kept;
         merged
+    }
+
+    /// Splits triangles at the vertices of other triangles that lie on their edges, where
+    /// the edges left unmatched are all explained so: a surface closed in space whose
+    /// edges do not meet vertex to vertex (one face split where its neighbour is not, a
+    /// sliver of zero area along an edge). Each open edge is cut at the open edges' end
+    /// points within the weld distance of it, strictly between its ends; the pieces must
+    /// then pair up as a closed mesh's edges do (but for windings), or nothing changes. A triangle cut is
+    /// replaced by a fan from its centroid over its corners and cuts in order (the same
+    /// surface and winding). The number of vertices cut at; 0 when nothing changed.
+    pub(super) fn split_t_junctions(&mut self) -> usize {
+        let (lo, hi) = self.bounds();
+        let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+        let tol = WELD_FRACTION * size;
+        if !(tol > 0.0) {
+            return 0;
+        }
+        // Directed edges left unmatched, with their triangle and side.
+        let mut count: HashMap<(u32, u32), i32> = HashMap::new();
+        for t in &self.triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                let (key, s) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
+                *count.entry(key).or_insert(0) += s;
+            }
+        }
+        count.retain(|_, c| *c != 0);
+        if count.is_empty() || count.len() > MAX_OPEN_EDGES {
+            return 0;
+        }
+        let mut open: Vec<(u32, u32, usize, usize)> = Vec::new();
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                if count.contains_key(&(a.min(b), a.max(b))) {
+                    open.push((a, b, t, k));
+                }
+            }
+        }
+        // The open edges' end points, by x, for the points near each edge.
+        let mut ends: Vec<u32> = open.iter().flat_map(|e| [e.0, e.1]).collect();
+        ends.sort_unstable();
+        ends.dedup();
+        let x = |i: u32| self.vertices[i as usize][0];
+        ends.sort_by(|&i, &j| x(i).total_cmp(&x(j)));
+        let mut tests = 0u64;
+        // Per open edge: its cut points, by their place along it.
+        let mut cuts: Vec<Vec<(f64, u32)>> = vec![Vec::new(); open.len()];
+        for (e, &(a, b, _, _)) in open.iter().enumerate() {
+            let (pa, pb) = (self.vertices[a as usize], self.vertices[b as usize]);
+            let d = [pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]];
+            let len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            if len2 <= tol * tol {
+                continue;
+            }
+            let (x0, x1) = (pa[0].min(pb[0]) - tol, pa[0].max(pb[0]) + tol);
+            let from = ends.partition_point(|&i| x(i) < x0);
+            for &v in ends[from..].iter().take_while(|&&i| x(i) <= x1) {
+                tests += 1;
+                if tests > MAX_T_TESTS {
+                    return 0;
+                }
+                if v == a || v == b {
+                    continue;
+                }
+                let p = self.vertices[v as usize];
+                let w = [p[0] - pa[0], p[1] - pa[1], p[2] - pa[2]];
+                let t = (w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) / len2;
+                let off = [w[0] - t * d[0], w[1] - t * d[1], w[2] - t * d[2]];
+                let dist2 = off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
+                let along = t * len2.sqrt();
+                if dist2 <= tol * tol && along > tol && along < len2.sqrt() - tol {
+                    cuts[e].push((t, v));
+                }
+            }
+            cuts[e].sort_by(|p, q| p.0.total_cmp(&q.0));
+        }
+        // The pieces must pair up as a closed mesh's edges do, but for windings (which
+        // `orient_consistently` may turn next): each used an even number of times.
+        let mut pieces: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut add = |a: u32, b: u32| {
+            *pieces.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        };
+        for (e, &(a, b, _, _)) in open.iter().enumerate() {
+            let mut prev = a;
+            for &(_, v) in &cuts[e] {
+                add(prev, v);
+                prev = v;
+            }
+            add(prev, b);
+        }
+        let mut cut_at: Vec<u32> = cuts.iter().flatten().map(|c| c.1).collect();
+        if cut_at.is_empty() || pieces.values().any(|&c| c % 2 != 0) {
+            return 0;
+        }
+        cut_at.sort_unstable();
+        cut_at.dedup();
+        // Each cut triangle: a fan from its centroid over its outline.
+        let mut outline: HashMap<usize, [Vec<u32>; 3]> = HashMap::new();
+        for (e, &(_, _, t, k)) in open.iter().enumerate() {
+            if !cuts[e].is_empty() {
+                outline.entry(t).or_default()[k] = cuts[e].iter().map(|c| c.1).collect();
+            }
+        }
+        let mut cut_triangles: Vec<usize> = outline.keys().copied().collect();
+        cut_triangles.sort_unstable();
+        let mut fans = Vec::new();
+        for &t in &cut_triangles {
+            let tri = self.triangles[t];
+            let sides = &outline[&t];
+            let corners = tri.map(|i| self.vertices[i as usize]);
+            let centroid = [0, 1, 2].map(|a| (corners[0][a] + corners[1][a] + corners[2][a]) / 3.0);
+            let c = self.vertices.len() as u32;
+            self.vertices.push(centroid);
+            let mut ring = Vec::new();
+            for k in 0..3 {
+                ring.push(tri[k]);
+                ring.extend_from_slice(&sides[k]);
+            }
+            for i in 0..ring.len() {
+                fans.push([c, ring[i], ring[(i + 1) % ring.len()]]);
+            }
+        }
+        let mut next = cut_triangles.iter().peekable();
+        let mut kept = Vec::with_capacity(self.triangles.len() + fans.len());
+        for (t, tri) in self.triangles.iter().enumerate() {
+            if next.peek() == Some(&&t) {
+                next.next();
+            } else {
+                kept.push(*tri);
+            }
+        }
+        kept.extend(fans);
+        self.triangles = kept;
+        cut_at.len()
     }
 }
