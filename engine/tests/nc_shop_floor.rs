@@ -419,6 +419,10 @@ fn features_of_other_controls_are_refused_naming_them() {
         ("O1\nG68.3 X0 Y0 Z0\nM30\n", "tilted working plane"),
         // Siemens and Heidenhain ISO write G71 for millimetres: named, with its equivalent.
         ("O1\nG71\nM30\n", "G20/G21"),
+        // Haas's bolt-hole patterns (G70 circle, G72 line) and LinuxCNC's lathe cycles
+        // share the numbers: each meaning named.
+        ("O1\nG70 I50. J0. L6\nM30\n", "bolt-hole circle on Haas"),
+        ("O1\nG72 I10. J45. L4\nM30\n", "lathe facing cycle"),
     ] {
         let (line, col, msg) = fail(src, &dialect(Dialect::Fanuc));
         assert_eq!((line, col), (2, 1), "{src}");

@@ -121,7 +121,10 @@ pub(super) fn g_name(code: u16) -> String {
 pub(super) fn g_refusal(code: u16) -> &'static str {
     match code {
         70 | 80 => "lathe diameter/radius mode is not supported",
-        700 | 710 => "(inches/millimetres on Siemens, Heidenhain ISO and Fagor controls; G20/G21 in the supported dialects) is not supported",
+        // One number, several meanings: name each, so the message fits the program's.
+        700 => "(LinuxCNC's lathe finishing cycle; a bolt-hole circle on Haas and Yasnac mills; inch units on Siemens, Heidenhain ISO and Fagor controls) is not supported: program bolt holes as the positions of a canned cycle, and units with G20/G21",
+        710 | 711 | 712 => "(LinuxCNC's lathe roughing cycle; a bolt-hole arc on Haas and Yasnac mills; millimetre units on Siemens, Heidenhain ISO and Fagor controls) is not supported: program bolt holes as the positions of a canned cycle, and units with G20/G21",
+        720 | 721 | 722 => "(LinuxCNC's lathe facing cycle; bolt holes along a line on Haas and Yasnac mills) is not supported: program the holes as the positions of a canned cycle",
         330 => "spindle-synchronized motion (G33) is not supported",
         380..=389 => "probing (G38.x) cannot be simulated without a probe model",
         310 => "(Fanuc's skip function, a probing move) is Fanuc's: with dialect fanuc (or auto on a Fanuc program); LinuxCNC probes with G38.2",
