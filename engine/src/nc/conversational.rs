@@ -5,13 +5,13 @@
 use super::{Diagnostic, Diagnostics};
 
 /// Refuses a Heidenhain conversational (Klartext) program: its first line that is not
-/// blank reads `0 BEGIN PGM <name> MM|INCH`.
+/// blank or a whole-line comment (`(…`, `;…`, `%`: a simulator's or a DNC sender's header)
+/// reads `0 BEGIN PGM <name> MM|INCH` (the name may be missing).
 pub(super) fn refuse_conversational(source: &str) -> Result<(), Diagnostics> {
-    let Some((index, line)) = source
-        .lines()
-        .enumerate()
-        .find(|(_, l)| !l.trim().is_empty())
-    else {
+    let Some((index, line)) = source.lines().enumerate().find(|(_, l)| {
+        let l = l.trim();
+        !(l.is_empty() || l.starts_with(['(', ';', '%']))
+    }) else {
         return Ok(());
     };
     let words: Vec<&str> = line.split_whitespace().take(3).collect();
@@ -44,6 +44,10 @@ mod tests {
         assert_eq!((e.0[0].line, e.0[0].col), (3, 1));
         assert!(e.0[0].message.contains("Heidenhain"), "{e}");
         assert!(refuse_conversational("begin pgm x mm\n").is_err());
+        // After a header of comments, and without a name (a simulator's sample).
+        let e = refuse_conversational("($Message(\"load the settings\"))\n; note\nBEGIN PGM  MM\n")
+            .unwrap_err();
+        assert_eq!(e.0[0].line, 3);
         for ok in [
             "",
             "G0 X0\n",
