@@ -6,7 +6,7 @@ mod common;
 
 use common::nc::{close, dialect, fail, motions, run, run_with, warned, xyz};
 use millsim_engine::nc::{
-    parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program,
+    parse_tool_table, Dialect, InterpretOptions, Interpretation, MoveKind, Program, SpindleDir,
 };
 
 /// (kind, X Y Z) of every move.
@@ -158,7 +158,7 @@ fn fanuc_m29_rigid_tapping_is_read_without_a_warning() {
 
 #[test]
 fn non_standard_m_codes_warn_once_unless_strict() {
-    let src = "M8\nM123\nG0 X1\nM123\nM19 M8\nM66 P1 L3 Q5\n";
+    let src = "M8\nM123\nG0 X1\nM123\nM21 M8\nM66 P1 L3 Q5\n";
     let i = run(src);
     assert_eq!(path(&i), vec![(MoveKind::Rapid, [1.0, 0.0, 0.0])]);
     let w: Vec<(u32, u32)> = i.warnings.iter().map(|w| (w.line, w.col)).collect();
@@ -175,10 +175,26 @@ fn non_standard_m_codes_warn_once_unless_strict() {
     assert!(msg.contains("M123"), "{msg}");
     // Listed codes pass silently.
     let quiet = InterpretOptions {
-        passthrough_m_codes: vec![123, 19, 66],
+        passthrough_m_codes: vec![123, 21, 66],
         ..InterpretOptions::default()
     };
     assert!(run_with(src, &quiet).warnings.is_empty());
+}
+
+/// M19 orients the spindle, a standard code of both dialects: no warning, and the spindle
+/// stopped after it (as M5 leaves it) until M3 turns it again.
+#[test]
+fn m19_orients_and_stops_the_spindle_without_a_warning() {
+    for d in [Dialect::LinuxCnc, Dialect::Fanuc] {
+        let i = run_with(
+            "S1000 M3\nG1 X1 F100\nG0 Z10 M19\nG0 X2\nM3\nG1 X3\n",
+            &dialect(d),
+        );
+        assert!(i.warnings.is_empty(), "{d:?}: {:?}", i.warnings);
+        let turning: Vec<SpindleDir> = motions(&i).iter().map(|m| m.spindle_dir).collect();
+        use SpindleDir::{Cw, Off};
+        assert_eq!(turning, vec![Cw, Off, Off, Cw], "{d:?}");
+    }
 }
 
 #[test]

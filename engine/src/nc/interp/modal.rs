@@ -147,7 +147,8 @@ pub(super) fn m_group(code: u32) -> Option<u8> {
     Some(match code {
         0 | 1 | 2 | 30 | 60 | 97 | 98 | 99 => 4,
         6 | 61 => 6,
-        3 | 4 | 5 => 7,
+        // M19 orients the spindle: it stops it at an angle (LinuxCNC and Fanuc alike).
+        3 | 4 | 5 | 19 => 7,
         7 | 8 | 9 => 8,
         48 | 49 | 50 | 51 | 52 | 53 => 9,
         70 | 71 | 72 | 73 => 5,

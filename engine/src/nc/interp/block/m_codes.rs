@@ -47,7 +47,7 @@ impl Interp<'_> {
         Ok(())
     }
 
-    /// 9. M3, M4, M5.
+    /// 9. M3, M4, M5, and M19 (orient: the spindle stopped at an angle).
     pub(super) fn set_spindle_direction(&mut self, w: &Words) {
         if w.m(3).is_some() {
             self.modal.spindle = SpindleDir::Cw;
@@ -55,7 +55,7 @@ impl Interp<'_> {
         if w.m(4).is_some() {
             self.modal.spindle = SpindleDir::Ccw;
         }
-        if w.m(5).is_some() {
+        if w.m(5).is_some() || w.m(19).is_some() {
             self.modal.spindle = SpindleDir::Off;
         }
     }
