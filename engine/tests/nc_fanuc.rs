@@ -775,3 +775,46 @@ fn d0_is_the_zero_offset() {
     let (_, _, msg) = fail(&src.replace("D00", "D7"), &fanuc());
     assert!(msg.contains("D7"), "{msg}");
 }
+
+/// Shop idioms of Fanuc-style programs a simulator's samples write (free-cnc-simulator's
+/// G81/G73 examples, NUM/Fagor ISO headers): `G00 G28 G91 Z1` (the mode with G28's axis
+/// words), P on a peck cycle (a dwell at the bottom), `%123` as the start line.
+#[test]
+fn g0_with_g28_peck_dwell_and_a_numbered_percent_line() {
+    // G0 and G28 in one block: G28 takes the words, G0 is the mode after it.
+    let with_g0 = run_with("O1\nG0 G28 G91 Z1\nX5\n", &fanuc());
+    let without = run_with("O1\nG91 G28 Z1\nG0 X5\n", &fanuc());
+    assert_eq!(xyz(&with_g0), xyz(&without));
+    assert_eq!(motions(&with_g0).last().unwrap().kind, MoveKind::Rapid);
+    let (line, _, msg) = fail("G0 G28 G91 Z1\n", &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 1);
+    assert!(msg.contains("both use axis words"), "{msg}");
+    // G73 P500: half a second at each hole's bottom (Z-30), after the last peck.
+    let src = "O1\nG21 G90 G17\nS800 M3\nG0 X0 Y0 Z20\nG73 G99 X10 Z-30 R5 P500 Q10 F200\nX25\nG80\nM30\n";
+    let i = run_with(src, &fanuc());
+    let dwells: Vec<(f64, [f64; 3])> = i
+        .moves
+        .iter()
+        .filter(|m| m.kind == MoveKind::Dwell)
+        .map(|m| (m.seconds.unwrap(), [m.end[0], m.end[1], m.end[2]]))
+        .collect();
+    assert_eq!(
+        dwells,
+        vec![(0.5, [10.0, 0.0, -30.0]), (0.5, [25.0, 0.0, -30.0])]
+    );
+    // Each dwell follows the feed to the bottom and precedes the rapid out to R.
+    let k = i.moves.iter().position(|m| m.kind == MoveKind::Dwell).unwrap();
+    assert_eq!(i.moves[k - 1].kind, MoveKind::Linear);
+    assert_eq!(i.moves[k + 1].kind, MoveKind::Rapid);
+    assert_eq!(i.moves[k + 1].end[2], 5.0);
+    let (line, _, msg) = fail(&src[3..], &dialect(Dialect::LinuxCnc));
+    assert_eq!(line, 4);
+    assert!(msg.contains("P500"), "{msg}");
+    // `%123` and `%O0100 (name)` start a program as `%` does; a word after them does not.
+    for start in ["%123", "%O0100 (PART 7)"] {
+        let i = run(&format!("{start}\nG21 G90\nG0 X1\n%\n"));
+        assert_eq!(xyz(&i), vec![[1.0, 0.0, 0.0]], "{start}");
+    }
+    let (line, col, msg) = fail("%123 G0 X1\nG0 X1\n", &InterpretOptions::default());
+    assert_eq!((line, col), (1, 6), "{msg}");
+}

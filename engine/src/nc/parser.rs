@@ -601,6 +601,15 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
     if p.lx.peek_byte() == Some(b'%') {
         p.lx.next(false)?;
         block.percent = true;
+        // A program number or name written on to it (`%123`, `%O1234`: the start line of
+        // NUM and Fagor ISO programs and of some DNC senders) names the program; only
+        // comments may follow.
+        let mut i = p.lx.pos;
+        while matches!(p.lx.byte(i), Some(c) if c.is_ascii_alphanumeric() || matches!(c, b'_' | b'-' | b'.'))
+        {
+            i += 1;
+        }
+        p.lx.pos = i;
         return rest_comments(
             &mut p,
             block,

@@ -220,6 +220,16 @@ impl Interp<'_> {
                     return Err(self.err_block(format!("G{g} peck depth Q must be positive")));
                 }
                 self.cycle.q = q;
+                // Fanuc (small-hole peck drilling), Haas and Mitsubishi: P is a dwell at the
+                // hole's bottom, in ms as G04 P; LinuxCNC has none (P is refused there).
+                if self.fanuc {
+                    p = match w.take('P') {
+                        Some(v) => v / 1000.0,
+                        None if kept => self.cycle.p,
+                        None => 0.0,
+                    };
+                    self.cycle.p = p;
+                }
             }
             87 => {
                 // I J K of the XY plane; in other planes the letters follow the plane's axes.
@@ -321,6 +331,9 @@ impl Interp<'_> {
                         depth -= q;
                     }
                     self.cyc_move(false, plane, aa, bb, cc)?;
+                    if p > 0.0 {
+                        self.dwell(p)?;
+                    }
                     self.cyc_move(true, plane, aa, bb, clear)?;
                 }
                 74 | 84 => {

@@ -468,7 +468,9 @@ impl Interp<'_> {
                 FeedMode::InverseTime => {
                     "feed move in inverse time mode (G93) without an F word".to_string()
                 }
-                _ => "feed move with zero feed rate (no F word yet)".to_string(),
+                // A control's feed at power-on (Fanuc parameter 1411) is not assumed: the
+                // program must say it, as LinuxCNC requires.
+                _ => "feed move with zero feed rate (no F word yet): give the feed with an F word on this block or before it (a control's feed at power-on is not assumed)".to_string(),
             }));
         }
         if self.modal.feed_mode == FeedMode::PerRev && self.modal.speed <= 0.0 {

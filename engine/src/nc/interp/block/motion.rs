@@ -28,7 +28,14 @@ impl Interp<'_> {
                 .copied();
         let g53 = w.g(530);
         if let (Some((g0, i0)), Some((gm, _))) = (group0, block_motion) {
-            if matches!(g0, 100 | 280 | 282 | 300 | 520 | 920) && gm != 800 && w.has_axis() {
+            // Fanuc: G0/G1 with G28, G30, G92… (`G00 G28 G91 Z1`) sets the motion mode, and
+            // the group 0 code takes the axis words (LinuxCNC refuses the pair).
+            let fanuc_mode_only = self.fanuc && matches!(gm, 0 | 10);
+            if matches!(g0, 100 | 280 | 282 | 300 | 520 | 920)
+                && gm != 800
+                && w.has_axis()
+                && !fanuc_mode_only
+            {
                 return Err(self.err_at(
                     self.word_pos(i0),
                     format!("{} and {} both use axis words", g_name(g0), g_name(gm)),
