@@ -803,7 +803,11 @@ fn g0_with_g28_peck_dwell_and_a_numbered_percent_line() {
         vec![(0.5, [10.0, 0.0, -30.0]), (0.5, [25.0, 0.0, -30.0])]
     );
     // Each dwell follows the feed to the bottom and precedes the rapid out to R.
-    let k = i.moves.iter().position(|m| m.kind == MoveKind::Dwell).unwrap();
+    let k = i
+        .moves
+        .iter()
+        .position(|m| m.kind == MoveKind::Dwell)
+        .unwrap();
     assert_eq!(i.moves[k - 1].kind, MoveKind::Linear);
     assert_eq!(i.moves[k + 1].kind, MoveKind::Rapid);
     assert_eq!(i.moves[k + 1].end[2], 5.0);

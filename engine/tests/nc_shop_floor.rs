@@ -530,7 +530,10 @@ fn fanuc_cycle_r_carries_over_and_is_the_initial_level_after_g80() {
         &dialect(Dialect::LinuxCnc),
     );
     assert_eq!(line, 3);
-    assert!(msg.contains("needs an R word"), "{msg}");
+    assert!(
+        msg.contains("needs an R word") && msg.contains("dialect fanuc"),
+        "{msg}"
+    );
 }
 
 /// Extended work offsets: Fanuc G54.1 Pn and Haas G154 Pn select sets of their own, which

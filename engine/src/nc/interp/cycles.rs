@@ -88,7 +88,11 @@ impl Interp<'_> {
                     0.0
                 }
             }
-            None => return Err(self.err_block(format!("G{g} needs an R word (retract plane)"))),
+            None => {
+                return Err(self.err_block(format!(
+                    "G{g} needs an R word (retract plane) under LinuxCNC rules; a Fanuc control takes the initial level without one (dialect fanuc)"
+                )))
+            }
         };
         // Repeats: L (LinuxCNC); Fanuc uses K except in G87 where K is the bore top.
         let mut l = w.take('L').map(|v| ('L', v));
