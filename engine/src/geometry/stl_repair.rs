@@ -219,9 +219,10 @@ impl Mesh {
     /// edges do not meet vertex to vertex (one face split where its neighbour is not, a
     /// sliver of zero area along an edge). Each open edge is cut at the open edges' end
     /// points within the weld distance of it, strictly between its ends; the pieces must
-    /// then pair up as a closed mesh's edges do (but for windings), or nothing changes. A triangle cut is
-    /// replaced by a fan from its centroid over its corners and cuts in order (the same
-    /// surface and winding). The number of vertices cut at; 0 when nothing changed.
+    /// then pair up as a closed mesh's edges do (but for windings), or nothing changes. A
+    /// triangle cut is replaced by a fan from its centroid over its corners and cuts in
+    /// order (the same surface and winding). The number of vertices cut at; 0 when nothing
+    /// changed.
     pub(super) fn split_t_junctions(&mut self) -> usize {
         let (lo, hi) = self.bounds();
         let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
@@ -229,7 +230,8 @@ impl Mesh {
         if !(tol > 0.0) {
             return 0;
         }
-        // Directed edges left unmatched, with their triangle and side.
+        // Edges left unmatched (by their ends), then every directed edge on them with its
+        // triangle and side.
         let mut count: HashMap<(u32, u32), i32> = HashMap::new();
         for t in &self.triangles {
             for k in 0..3 {
