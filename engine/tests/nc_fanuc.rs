@@ -811,6 +811,13 @@ fn g0_with_g28_peck_dwell_and_a_numbered_percent_line() {
     assert_eq!(i.moves[k - 1].kind, MoveKind::Linear);
     assert_eq!(i.moves[k + 1].kind, MoveKind::Rapid);
     assert_eq!(i.moves[k + 1].end[2], 5.0);
+    // A G82's P kept into a G83 without one is no peck dwell.
+    let i = run_with(
+        "O1\nG0 X0 Y0 Z20\nG82 X5 Z-3 R2 P800 F100\nG83 X9 Z-9 R2 Q3\nG80\nM30\n",
+        &fanuc(),
+    );
+    let secs: Vec<f64> = i.moves.iter().filter_map(|m| m.seconds).collect();
+    assert_eq!(secs, vec![0.8]);
     let (line, _, msg) = fail(&src[3..], &dialect(Dialect::LinuxCnc));
     assert_eq!(line, 4);
     assert!(msg.contains("P500"), "{msg}");

@@ -225,14 +225,17 @@ impl Interp<'_> {
                 }
                 self.cycle.q = q;
                 // Fanuc (small-hole peck drilling), Haas and Mitsubishi: P is a dwell at the
-                // hole's bottom, in ms as G04 P; LinuxCNC has none (P is refused there).
+                // hole's bottom, in ms as G04 P; LinuxCNC has none (P is refused there). Only
+                // a P given to this peck cycle dwells: a G82's kept P is no peck dwell.
                 if self.fanuc {
                     p = match w.take('P') {
-                        Some(v) => v / 1000.0,
-                        None if kept => self.cycle.p,
+                        Some(v) => {
+                            self.cycle.p = v / 1000.0;
+                            self.cycle.p
+                        }
+                        None if same => self.cycle.p,
                         None => 0.0,
                     };
-                    self.cycle.p = p;
                 }
             }
             87 => {
