@@ -439,6 +439,11 @@ fn features_of_other_controls_are_refused_naming_them() {
         // share the numbers: each meaning named.
         ("O1\nG70 I50. J0. L6\nM30\n", "bolt-hole circle on Haas"),
         ("O1\nG72 I10. J45. L4\nM30\n", "lathe facing cycle"),
+        // Fanuc's back boring (R below the part, Z above it) is named as such.
+        (
+            "O1\nG87 X10 Y10 Z-5 R-25 Q1 F50\nM30\n",
+            "Fanuc's back boring",
+        ),
     ] {
         let (line, col, msg) = fail(src, &dialect(Dialect::Fanuc));
         assert_eq!((line, col), (2, 1), "{src}");

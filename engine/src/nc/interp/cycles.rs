@@ -170,6 +170,13 @@ impl Interp<'_> {
         }
         let polar_inc = self.cycle_polar(w, &mut aa, &mut bb)?;
         if r < cc {
+            // Fanuc's G87 starts below the part (R) and bores upward to Z with a bar that
+            // passes the hole oriented and shifted: no rotating-tool model of it here.
+            if g == 87 && self.fanuc {
+                return Err(self.err_block(format!(
+                    "G87 with R ({r}) below {lc} ({cc}) is Fanuc's back boring (the oriented bar lowered through the hole, shifted by Q, then boring upward): not supported; LinuxCNC's G87 (I J K, R above) is"
+                )));
+            }
             return Err(
                 self.err_block(format!("R ({r}) below the hole bottom {lc} ({cc}) in G{g}"))
             );
