@@ -127,36 +127,18 @@ impl Mesh {
             // Not closed as written: triangles wound against their neighbours, vertices a
             // rounding apart (merged, then windings again), T-junctions (split). Refused
             // as written where none closes it.
-            let mut closed = false;
-            if let Some(turned) = mesh.orient_consistently() {
-                repairs.reoriented = turned;
-                closed = mesh.check_closed().is_ok();
-            }
+            let mut closed = windings_close(&mut mesh, &mut repairs);
             if !closed {
                 repairs.welded = mesh.weld();
-                if repairs.welded > 0 {
-                    closed = mesh.check_closed().is_ok();
-                    if !closed {
-                        if let Some(turned) = mesh.orient_consistently() {
-                            repairs.reoriented += turned;
-                            closed = mesh.check_closed().is_ok();
-                        }
-                    }
-                }
+                closed = repairs.welded > 0
+                    && (mesh.check_closed().is_ok() || windings_close(&mut mesh, &mut repairs));
             }
             if !closed {
                 // Edges that meet another triangle's vertex part way along (T-junctions):
                 // split there, then windings again.
                 repairs.t_junctions = mesh.split_t_junctions();
-                if repairs.t_junctions > 0 {
-                    closed = mesh.check_closed().is_ok();
-                    if !closed {
-                        if let Some(turned) = mesh.orient_consistently() {
-                            repairs.reoriented += turned;
-                            closed = mesh.check_closed().is_ok();
-                        }
-                    }
-                }
+                closed = repairs.t_junctions > 0
+                    && (mesh.check_closed().is_ok() || windings_close(&mut mesh, &mut repairs));
             }
             if !closed {
                 return Err(open);
@@ -171,8 +153,9 @@ impl Mesh {
         Ok((mesh, repairs))
     }
 
-    /// Every directed edge must be matched by the opposite edge of another triangle.
-    fn check_closed(&self) -> Result<(), StlError> {
+    /// Per undirected edge (its ends in order), the uses from the first end to the second
+    /// less those the other way: 0 on every edge of a closed mesh.
+    pub(super) fn edge_balance(&self) -> HashMap<(u32, u32), i32> {
         let mut count: HashMap<(u32, u32), i32> = HashMap::new();
         for t in &self.triangles {
             for k in 0..3 {
@@ -181,6 +164,12 @@ impl Mesh {
                 *count.entry(key).or_insert(0) += s;
             }
         }
+        count
+    }
+
+    /// Every directed edge must be matched by the opposite edge of another triangle.
+    fn check_closed(&self) -> Result<(), StlError> {
+        let count = self.edge_balance();
         let open: Vec<_> = count
             .iter()
             .filter(|(_, &c)| c != 0)
@@ -249,6 +238,18 @@ impl Mesh {
                 (a[0] * cr[0] + a[1] * cr[1] + a[2] * cr[2]) / 6.0
             })
             .sum()
+    }
+}
+
+/// Turns the triangles wound against their neighbours (`Mesh::orient_consistently`) and
+/// says whether the mesh is then closed, counting the turned ones in `repairs`.
+fn windings_close(mesh: &mut Mesh, repairs: &mut StlRepairs) -> bool {
+    match mesh.orient_consistently() {
+        Some(turned) => {
+            repairs.reoriented += turned;
+            mesh.check_closed().is_ok()
+        }
+        None => false,
     }
 }
 

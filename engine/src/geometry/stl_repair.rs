@@ -155,13 +155,19 @@ impl Mesh {
         Some(turned)
     }
 
+    /// `WELD_FRACTION` of the mesh's largest extent: the distance within which vertices
+    /// are one (`weld`) and a vertex lies on an edge (`split_t_junctions`).
+    fn weld_distance(&self) -> f64 {
+        let (lo, hi) = self.bounds();
+        let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+        WELD_FRACTION * size
+    }
+
     /// Merges each vertex within `WELD_FRACTION` of the mesh's size of an earlier one
     /// into it (a hash grid of that cell size finds the neighbours), then drops the
     /// triangles that collapse and the copies that merging makes. The number merged.
     pub(super) fn weld(&mut self) -> usize {
-        let (lo, hi) = self.bounds();
-        let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-        let tol = WELD_FRACTION * size;
+        let tol = self.weld_distance();
         if !(tol > 0.0) {
             return 0;
         }
@@ -224,22 +230,13 @@ impl Mesh {
     /// order (the same surface and winding). The number of vertices cut at; 0 when nothing
     /// changed.
     pub(super) fn split_t_junctions(&mut self) -> usize {
-        let (lo, hi) = self.bounds();
-        let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-        let tol = WELD_FRACTION * size;
+        let tol = self.weld_distance();
         if !(tol > 0.0) {
             return 0;
         }
         // Edges left unmatched (by their ends), then every directed edge on them with its
         // triangle and side.
-        let mut count: HashMap<(u32, u32), i32> = HashMap::new();
-        for t in &self.triangles {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let (key, s) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
-                *count.entry(key).or_insert(0) += s;
-            }
-        }
+        let mut count = self.edge_balance();
         count.retain(|_, c| *c != 0);
         if count.is_empty() || count.len() > MAX_OPEN_EDGES {
             return 0;
