@@ -365,19 +365,34 @@ fn external_output_warns_without_motion() {
 
 #[test]
 fn dialect_auto_picks_fanuc_for_macro_programs() {
-    // Macro statements, M98 and G65 are Fanuc evidence even with #-assignments (which alone
-    // count for LinuxCNC): G4 P is then in milliseconds.
+    // Macro statements, M98, G65 and a program number are Fanuc evidence; #-assignments and
+    // bracketed values are in both dialects and do not outweigh them: G4 P is then in
+    // milliseconds.
     for src in [
         "O1\n#1=5\nIF [#1 GT 2] GOTO 5\nN5 G4 P500\nM30\n",
         "O1\n#1=5\nM98 P2\nG4 P500\nM30\nO2\nM99\n",
         "#1=2*3\nG4 P500\n",
+        // A program number over numbered parameters (a hand-written Fanuc macro program
+        // without IF/WHILE): LinuxCNC would refuse the O line.
+        "%\nO0091 (ENGRAVE)\nG52 X0. Y0. Z[-24.]\n#11=-8.25\nG0 X#11\nG4 P500\nM30\n%\n",
     ] {
         let i = run(src);
         let d = i.moves.iter().find(|m| m.kind == MoveKind::Dwell).unwrap();
         assert_eq!(d.seconds, Some(0.5), "{src}");
     }
-    // LinuxCNC-only syntax (o-word control, named parameters) keeps LinuxCNC rules: the macro
-    // statement is then refused, naming the feature.
+    // Assignments alone decide nothing: LinuxCNC rules, G4 P in seconds.
+    let i = run("#1=5\nG0 X#1\nG4 P2\nM2\n");
+    let d = i.moves.iter().find(|m| m.kind == MoveKind::Dwell).unwrap();
+    assert_eq!(d.seconds, Some(2.0));
+    // LinuxCNC-only syntax (o-word control, named parameters, polar words) keeps LinuxCNC
+    // rules even beside a program number: the O line and the macro statement are then
+    // refused, naming the feature.
+    let (line, _, msg) = fail("O1\n#<r>=2\nG0 X#<r>\nM30\n", &InterpretOptions::default());
+    assert_eq!(line, 1);
+    assert!(msg.contains("Fanuc program number"), "{msg}");
+    let (line, _, msg) = fail("O1\nG0 @5 ^30\nM30\n", &InterpretOptions::default());
+    assert_eq!(line, 1);
+    assert!(msg.contains("Fanuc program number"), "{msg}");
     let src = "#<a>=1\nIF [#<a> GT 0] GOTO 5\nN5 G0 X1\n";
     let (line, col, msg) = fail(src, &InterpretOptions::default());
     assert_eq!((line, col), (2, 1));

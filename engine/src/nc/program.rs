@@ -328,23 +328,21 @@ impl Block {
     }
 }
 
-/// Dialect evidence in one block. Weak evidence (an `O1234` program number and `,R`/`,C`
-/// corners for Fanuc; parameter assignments and word values that are not plain numbers for
-/// LinuxCNC) decides when there is no strong evidence: Fanuc macro B statements, M97/M98/M99, G65
-/// and unbracketed expressions for Fanuc; O-word control lines and named parameters for
-/// LinuxCNC.
+/// Dialect evidence in one block: syntax that one dialect has and the other refuses.
+/// Fanuc's: macro B statements, M97/M98/M99, G65, unbracketed expressions, an `O1234`
+/// program number, `,R`/`,C` corners and the transform codes G15/G16, G50/G51 and
+/// G68/G69; LinuxCNC's: O-word control lines, named parameters and polar words.
+/// `#1=` assignments and bracketed expressions are in both, so they decide nothing: a
+/// program number above them still says Fanuc.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct DialectEvidence {
     pub fanuc: bool,
     pub linuxcnc: bool,
-    pub fanuc_strong: bool,
-    pub linuxcnc_strong: bool,
 }
 
 fn dialect_syntax(block: &Block, words: &[Word]) -> DialectEvidence {
     let mut e = DialectEvidence {
-        linuxcnc: !block.assignments.is_empty(),
-        fanuc_strong: block.macro_line.is_some(),
+        fanuc: block.macro_line.is_some(),
         ..DialectEvidence::default()
     };
     if let Some(o) = &block.o_word {
@@ -352,12 +350,11 @@ fn dialect_syntax(block: &Block, words: &[Word]) -> DialectEvidence {
             e.fanuc = true;
         } else {
             e.linuxcnc = true;
-            e.linuxcnc_strong = true;
         }
     }
     for a in &block.assignments {
-        e.fanuc_strong |= a.bare;
-        e.linuxcnc_strong |= matches!(a.target, ParamRef::Named(_)) || has_named(&a.value);
+        e.fanuc |= a.bare;
+        e.linuxcnc |= matches!(a.target, ParamRef::Named(_)) || has_named(&a.value);
     }
     for w in words {
         e.fanuc |= w.comma;
@@ -365,16 +362,14 @@ fn dialect_syntax(block: &Block, words: &[Word]) -> DialectEvidence {
         // polar mode) are not in LinuxCNC.
         e.linuxcnc |= matches!(w.letter, '@' | '^');
         if let Expr::Number { value, .. } = w.value {
-            e.fanuc_strong |= (w.letter == 'M' && [97.0, 98.0, 99.0].contains(&value))
+            e.fanuc |= (w.letter == 'M' && [97.0, 98.0, 99.0].contains(&value))
                 || (w.letter == 'G' && value == 65.0);
             e.fanuc |= w.letter == 'G'
                 && [15.0, 16.0, 50.0, 51.0, 50.1, 51.1, 68.0, 69.0].contains(&value);
         } else if !matches!(w.value, Expr::Neg(_)) {
-            e.linuxcnc = true;
-            e.linuxcnc_strong |= has_named(&w.value);
+            e.linuxcnc |= has_named(&w.value);
         }
     }
-    e.fanuc |= e.fanuc_strong;
     e
 }
 
@@ -443,8 +438,6 @@ impl Summary {
         let (d, e) = (&mut self.dialect, later.dialect);
         d.fanuc |= e.fanuc;
         d.linuxcnc |= e.linuxcnc;
-        d.fanuc_strong |= e.fanuc_strong;
-        d.linuxcnc_strong |= e.linuxcnc_strong;
         self.deferred.extend(later.deferred);
         self.calls |= later.calls;
         self.control_o_words |= later.control_o_words;
@@ -471,8 +464,6 @@ impl Summary {
         let d = &mut self.dialect;
         d.fanuc |= e.fanuc;
         d.linuxcnc |= e.linuxcnc;
-        d.fanuc_strong |= e.fanuc_strong;
-        d.linuxcnc_strong |= e.linuxcnc_strong;
     }
 }
 

@@ -297,11 +297,12 @@ impl<'p> Interp<'p> {
     }
 }
 
-/// Fanuc macro B or subprogram syntax and no LinuxCNC control lines or named parameters;
-/// or, without either, Fanuc-only syntax (program number, `,R`) and no LinuxCNC-only syntax.
+/// Fanuc-only syntax (macro B, subprogram calls, a program number, `,R` corners, ...) and
+/// no LinuxCNC-only syntax (O-word control lines, named parameters, polar words): the
+/// reading under which the program can run (see `DialectEvidence`).
 fn detect_fanuc(summary: &super::program::Summary) -> bool {
     let d = &summary.dialect;
-    (d.fanuc_strong && !d.linuxcnc_strong) || (d.fanuc && !d.linuxcnc)
+    d.fanuc && !d.linuxcnc
 }
 
 impl Interp<'_> {
