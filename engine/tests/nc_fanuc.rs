@@ -375,15 +375,24 @@ fn dialect_auto_picks_fanuc_for_macro_programs() {
         // A program number over numbered parameters (a hand-written Fanuc macro program
         // without IF/WHILE): LinuxCNC would refuse the O line.
         "%\nO0091 (ENGRAVE)\nG52 X0. Y0. Z[-24.]\n#11=-8.25\nG0 X#11\nG4 P500\nM30\n%\n",
+        // The program number written on to the start line, as some DNC senders do.
+        "%O0100 (BRACKET)\nG0 X1\nG4 P500\nM30\n%\n",
     ] {
         let i = run(src);
         let d = i.moves.iter().find(|m| m.kind == MoveKind::Dwell).unwrap();
         assert_eq!(d.seconds, Some(0.5), "{src}");
     }
-    // Assignments alone decide nothing: LinuxCNC rules, G4 P in seconds.
-    let i = run("#1=5\nG0 X#1\nG4 P2\nM2\n");
-    let d = i.moves.iter().find(|m| m.kind == MoveKind::Dwell).unwrap();
-    assert_eq!(d.seconds, Some(2.0));
+    // Assignments alone decide nothing, nor does a name on the start line that is no
+    // program number (NUM's `%123`): LinuxCNC rules, G4 P in seconds.
+    for src in [
+        "#1=5\nG0 X#1\nG4 P2\nM2\n",
+        "%123\nG0 X1\nG4 P2\nM2\n%\n",
+        "%OP1\nG4 P2\nM2\n%\n",
+    ] {
+        let i = run(src);
+        let d = i.moves.iter().find(|m| m.kind == MoveKind::Dwell).unwrap();
+        assert_eq!(d.seconds, Some(2.0), "{src}");
+    }
     // LinuxCNC-only syntax (o-word control, named parameters, polar words) keeps LinuxCNC
     // rules even beside a program number: the O line and the macro statement are then
     // refused, naming the feature.

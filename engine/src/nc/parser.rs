@@ -609,6 +609,10 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
         {
             i += 1;
         }
+        let name = &source.as_bytes()[p.lx.pos..i];
+        block.percent_program_number = name.len() > 1
+            && matches!(name[0], b'O' | b'o')
+            && name[1..].iter().all(u8::is_ascii_digit);
         p.lx.pos = i;
         return rest_comments(
             &mut p,

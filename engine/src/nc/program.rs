@@ -306,6 +306,9 @@ pub struct Block {
     pub block_delete: bool,
     /// A `%` demarcation line.
     pub percent: bool,
+    /// A `%` line with an `O1234` program number written on to it (`%O1234`, as some DNC
+    /// senders join Fanuc's two start lines): Fanuc evidence, like a program number line.
+    pub percent_program_number: bool,
     /// After the closing `%`: kept as text, not parsed and not run.
     pub after_end: bool,
     /// `N123`
@@ -342,7 +345,7 @@ pub(crate) struct DialectEvidence {
 
 fn dialect_syntax(block: &Block, words: &[Word]) -> DialectEvidence {
     let mut e = DialectEvidence {
-        fanuc: block.macro_line.is_some(),
+        fanuc: block.macro_line.is_some() || block.percent_program_number,
         ..DialectEvidence::default()
     };
     if let Some(o) = &block.o_word {
