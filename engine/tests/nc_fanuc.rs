@@ -852,4 +852,9 @@ fn g0_with_g28_peck_dwell_and_a_numbered_percent_line() {
     }
     let (line, col, msg) = fail("%123 G0 X1\nG0 X1\n", &InterpretOptions::default());
     assert_eq!((line, col), (1, 6), "{msg}");
+    // A CNCjs sender's macro line is named as such, at its '%'.
+    let src = "G0 Z5\nM5\n%global.gx = mposx - posx\n%global.gy = mposy - posy\nG0 X1\n";
+    let (line, col, msg) = fail(src, &InterpretOptions::default());
+    assert_eq!((line, col), (3, 1), "{msg}");
+    assert!(msg.contains("CNCjs"), "{msg}");
 }

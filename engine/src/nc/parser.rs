@@ -599,6 +599,7 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
         block.block_delete = true;
     }
     if p.lx.peek_byte() == Some(b'%') {
+        let percent_at = p.lx.pos;
         p.lx.next(false)?;
         block.percent = true;
         // A program number or name written on to it (`%123`, `%O1234`: the start line of
@@ -614,6 +615,16 @@ fn parse_line(source: &str, block: &mut Block, words: &mut Vec<Word>) -> PResult
             && matches!(name[0], b'O' | b'o')
             && name[1..].iter().all(u8::is_ascii_digit);
         p.lx.pos = i;
+        // `%name = value` is a CNCjs (or bCNC) sender's macro line, not G-code.
+        let eq = p.lx.after_blanks(i);
+        if p.lx.byte(eq) == Some(b'=') {
+            return err(
+                percent_at,
+                "a '%' line with an assignment is a CNCjs or bCNC sender macro, not G-code: \
+                 not supported (the sender evaluates it; remove it or run the program through \
+                 the sender's output)",
+            );
+        }
         return rest_comments(
             &mut p,
             block,
