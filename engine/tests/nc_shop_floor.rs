@@ -194,6 +194,21 @@ fn m19_orients_and_stops_the_spindle_without_a_warning() {
         let turning: Vec<SpindleDir> = motions(&i).iter().map(|m| m.spindle_dir).collect();
         use SpindleDir::{Cw, Off};
         assert_eq!(turning, vec![Cw, Off, Off, Cw], "{d:?}");
+        // The orientation angle (LinuxCNC's and Haas's R, Haas's P in whole degrees) and
+        // LinuxCNC's timeout Q move no axis.
+        for m19 in ["M19 R90.", "M19 P270", "M19 R45 Q2 P1"] {
+            let i = run_with(&format!("S1000 M3\nG0 Z10\n{m19}\nG0 X2\n"), &dialect(d));
+            let ends: Vec<[f64; 3]> = motions(&i)
+                .iter()
+                .map(|m| [m.end[0], m.end[1], m.end[2]])
+                .collect();
+            assert_eq!(
+                ends,
+                vec![[0.0, 0.0, 10.0], [2.0, 0.0, 10.0]],
+                "{d:?} {m19}"
+            );
+            assert_eq!(motions(&i)[1].spindle_dir, Off, "{d:?} {m19}");
+        }
     }
 }
 

@@ -47,16 +47,23 @@ impl Interp<'_> {
         Ok(())
     }
 
-    /// 9. M3, M4, M5, and M19 (orient: the spindle stopped at an angle).
-    pub(super) fn set_spindle_direction(&mut self, w: &Words) {
+    /// 9. M3, M4, M5, and M19 (orient: the spindle stopped at an angle; its R, Q and P, the
+    /// angle, LinuxCNC's timeout and direction or Haas's angle in whole degrees, move no axis).
+    pub(super) fn set_spindle_direction(&mut self, w: &mut Words) {
         if w.m(3).is_some() {
             self.modal.spindle = SpindleDir::Cw;
         }
         if w.m(4).is_some() {
             self.modal.spindle = SpindleDir::Ccw;
         }
-        if w.m(5).is_some() || w.m(19).is_some() {
+        if w.m(5).is_some() {
             self.modal.spindle = SpindleDir::Off;
+        }
+        if w.m(19).is_some() {
+            self.modal.spindle = SpindleDir::Off;
+            for c in ['R', 'Q', 'P'] {
+                w.take(c);
+            }
         }
     }
 
