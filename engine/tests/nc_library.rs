@@ -173,6 +173,22 @@ fn without_a_library_a_call_to_another_file_is_an_error_naming_the_program() {
     let e = interpret("O0001\nM98 P1000\nM30\n", &InterpretOptions::default()).unwrap_err();
     assert_eq!(e.0[0].line, 2);
     assert!(e.0[0].message.contains("program O1000 is not in this file"));
+    assert!(
+        !e.0[0].message.contains("control keeps"),
+        "{}",
+        e.0[0].message
+    );
+    // A call to a macro the control keeps resident (a Renishaw probing cycle) says so.
+    let e = interpret(
+        "O0001\nG65 P9810 Z5. F1000.\nM30\n",
+        &InterpretOptions::default(),
+    )
+    .unwrap_err();
+    let msg = &e.0[0].message;
+    assert_eq!(e.0[0].line, 2);
+    assert!(msg.contains("program O9810 is not in this file"), "{msg}");
+    assert!(msg.contains("control keeps in its own memory"), "{msg}");
+    assert!(msg.contains("Renishaw"), "{msg}");
 }
 
 #[test]

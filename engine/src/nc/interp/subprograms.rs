@@ -45,10 +45,31 @@ impl Interp<'_> {
         }
         match self.program_elsewhere(number, at, what)? {
             Some(found) => Ok(found),
-            None => Err(self.err_at(
-                at,
-                format!("{what}: program O{number} is not in this file nor in its program library"),
-            )),
+            None => {
+                // Fanuc keeps O8000-O9999 for the machine's own macros (probing, tool setting,
+                // pallets), resident in the control rather than in a part program's file.
+                let resident = if (8000..=9999).contains(&number) {
+                    let probing = if (9700..=9899).contains(&number) {
+                        " (Renishaw's probing macros are O97xx and O98xx)"
+                    } else {
+                        ""
+                    };
+                    format!(
+                        "; O8000-O9999 are macros the control keeps in its own memory{probing}: \
+                         put their files in the program library (inputs library/<file name>, or \
+                         --library DIR offline), or simulate the program without the blocks that \
+                         call them"
+                    )
+                } else {
+                    String::new()
+                };
+                Err(self.err_at(
+                    at,
+                    format!(
+                        "{what}: program O{number} is not in this file nor in its program library{resident}"
+                    ),
+                ))
+            }
         }
     }
 
