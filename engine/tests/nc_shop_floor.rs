@@ -440,6 +440,10 @@ fn features_of_other_controls_are_refused_naming_them() {
             "O1\nG47 P0 (TEXT) X0 Y0 I0 J.1 R.05 Z-.005 F15. E10.\nM30\n",
             "engraving",
         ),
+        (
+            "O1\nG101 X0.\nG0 X5\nG100 X0.\nM30\n",
+            "Haas programmable mirror image",
+        ),
         // G43.4 is read now (tool-centre-point control, simulate_multiaxis); a G43.5 vector
         // form is not.
         (

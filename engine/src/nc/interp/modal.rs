@@ -134,6 +134,7 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         661 => "modal macro call G66.1 (every block) is not supported",
         120 | 130 => "(Haas circular pocket milling) is not supported",
         470 => "(Haas text engraving) is not supported",
+        1000 | 1010 => "(Haas programmable mirror image off/on) is not supported: Fanuc's G50.1/G51.1 are (with dialect fanuc, or auto on a Fanuc program)",
         1500 => "(Haas general-purpose pocket milling) is not supported",
         1410 => "(Haas 3-D cutter compensation) is not supported",
         2540 | 2550 => "(Haas dynamic work offset) is not supported: program the tool tip with G234 (or G43.4), or a 3+2 setup with G68.2 and G53.1",
