@@ -404,6 +404,10 @@ fn look_ahead_and_smoothing_codes_warn_and_leave_the_path_as_programmed() {
         let code = mode.split(' ').next().unwrap().replace("G0", "G");
         assert!(warned(&i, 2, "makes no motion"), "{code}: {:?}", i.warnings);
     }
+    // G09, Fanuc's and Haas's exact stop for one block, with that block's move.
+    let i = run("O1\nG0 X1 Y2\nG09 G1 X5 F100\nM30\n");
+    assert_eq!(path(&i), path(&plain));
+    assert!(warned(&i, 3, "exact stop"), "{:?}", i.warnings);
     // With dialect linuxcnc the numbers keep their LinuxCNC meaning or are refused.
     let l = dialect(Dialect::LinuxCnc);
     let (line, _, msg) = fail("G187 P1\nM2\n", &l);
@@ -443,6 +447,14 @@ fn features_of_other_controls_are_refused_naming_them() {
         (
             "O1\nG101 X0.\nG0 X5\nG100 X0.\nM30\n",
             "Haas programmable mirror image",
+        ),
+        (
+            "O1\nG12.1\nG1 X10 C5 F100\nG13.1\nM30\n",
+            "polar coordinate interpolation",
+        ),
+        (
+            "O1\nG07.1 C57.3\nG1 Z-5 C90 F100\nM30\n",
+            "cylindrical interpolation",
         ),
         // G43.4 is read now (tool-centre-point control, simulate_multiaxis); a G43.5 vector
         // form is not.

@@ -133,6 +133,8 @@ pub(super) fn g_refusal(code: u16) -> &'static str {
         660 => "modal macro call (G66) is Fanuc custom macro B: with dialect fanuc (or auto on a Fanuc program), written first in its block",
         661 => "modal macro call G66.1 (every block) is not supported",
         120 | 130 => "(Haas circular pocket milling) is not supported",
+        121 | 131 => "(Fanuc polar coordinate interpolation, on mill-turn machines) is not supported",
+        71 => "(Fanuc cylindrical interpolation) is not supported",
         470 => "(Haas text engraving) is not supported",
         1000 | 1010 => "(Haas programmable mirror image off/on) is not supported: Fanuc's G50.1/G51.1 are (with dialect fanuc, or auto on a Fanuc program)",
         1500 => "(Haas general-purpose pocket milling) is not supported",

@@ -148,7 +148,7 @@ impl<'p> Interp<'p> {
                     } else {
                         code
                     };
-                    if let Some(what) = matches!(code, 50 | 51 | 80 | 1030 | 1870)
+                    if let Some(what) = matches!(code, 50 | 51 | 80 | 90 | 1030 | 1870)
                         .then(|| self.machine_mode_code(code))
                         .flatten()
                     {
@@ -308,6 +308,9 @@ impl Interp<'_> {
             50 if self.fanuc => Some("Fanuc high-precision contour control"),
             51 if self.fanuc => Some("Fanuc AI contour control"),
             80 if self.fanuc => Some("Fanuc look-ahead control"),
+            90 if self.opts.dialect != crate::nc::Dialect::LinuxCnc => {
+                Some("exact stop check for this block")
+            }
             1030 | 1870 if self.opts.dialect != crate::nc::Dialect::LinuxCnc => {
                 Some(if code == 1030 {
                     "Haas block look-ahead limit"
