@@ -740,3 +740,22 @@ fn fanuc_g76_bores_dwells_and_rapids_out() {
     assert_eq!(line, 4);
     assert!(msg.contains("fine boring"), "{msg}");
 }
+
+/// G97 (rpm mode, the default) is written by mill posts before S; both dialects read it.
+/// G96 (constant surface speed) is refused naming what to write instead.
+#[test]
+fn g97_is_read_and_g96_refused() {
+    for d in [Dialect::LinuxCnc, Dialect::Fanuc] {
+        let i = run_with("G21 G90\nG97 S1000 M3\nG0 X1\nG1 X2 F100\n", &dialect(d));
+        assert!(i.warnings.is_empty(), "{d:?}: {:?}", i.warnings);
+        let m = motions(&i);
+        assert_eq!(m.len(), 2, "{d:?}");
+        assert_eq!(m[1].spindle, 1000.0, "{d:?}");
+        let (line, col, msg) = fail("G21 G90\nG96 S200 M3\nG1 X2 F100\n", &dialect(d));
+        assert_eq!((line, col), (2, 1), "{d:?}");
+        assert!(
+            msg.contains("constant surface speed") && msg.contains("G97"),
+            "{msg}"
+        );
+    }
+}

@@ -98,6 +98,7 @@ pub(super) fn g_group(code: u16) -> Option<u8> {
         980 | 990 => 10,
         540 | 550 | 560 | 570 | 580 | 590 | 591 | 592 | 593 | 541 | 1540 => 12,
         610 | 611 | 640 => 13,
+        960 | 970 => 14,
         // Fanuc's own groups: scaling, rotation, polar coordinates, mirror image.
         500 | 510 => 11,
         // G68.2 (tilted working plane) shares G68's group: G69 ends either.

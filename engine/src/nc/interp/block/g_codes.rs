@@ -189,6 +189,18 @@ impl Interp<'_> {
         Ok(())
     }
 
+    /// 7a. G97 (spindle speed in rpm, the only mode simulated) is accepted; G96 (constant
+    /// surface speed: the rpm follows the cutting radius, a lathe's mode) is refused.
+    pub(super) fn spindle_mode(&mut self, w: &Words) -> R<()> {
+        if let Some(i) = w.g(960) {
+            return Err(self.err_at(
+                self.word_pos(i),
+                "G96 (constant surface speed: the spindle speed follows the cutting radius) is not supported: program the spindle speed in rpm (G97 S..)",
+            ));
+        }
+        Ok(())
+    }
+
     pub(super) fn set_path_control(&mut self, w: &mut Words) {
         // 20. path control: blending changes no end point.
         if w.g(640).is_some() {
