@@ -179,6 +179,13 @@ fn non_standard_m_codes_warn_once_unless_strict() {
         ..InterpretOptions::default()
     };
     assert!(run_with(src, &quiet).warnings.is_empty());
+    // LinuxCNC's analog I/O takes an E word (M67 E0 Q50, M66 E0 L0); elsewhere an E is
+    // refused as unused.
+    let i = run("G21\nM67 E0 Q50\nM66 E1 L0\nG0 X1\n");
+    assert_eq!(path(&i), vec![(MoveKind::Rapid, [1.0, 0.0, 0.0])]);
+    let (line, col, msg) = fail("G21\nG0 X1 E5\n", &InterpretOptions::default());
+    assert_eq!((line, col), (2, 7));
+    assert!(msg.contains("E5 is not used"), "{msg}");
 }
 
 /// M19 orients the spindle, a standard code of both dialects: no warning, and the spindle

@@ -258,7 +258,6 @@ impl<'p> Interp<'p> {
                     w.vals[letter_index('E')] = Some((v, i));
                     w.used[letter_index('E')] = true;
                 }
-                'E' => return Err(self.err_at(pos, "E word is not supported")),
                 '@' | '^' => {
                     let slot = if c == '@' {
                         &mut w.polar_r

@@ -153,10 +153,10 @@ impl<'p> Interp<'p> {
                 self.tool.radius_offset = Some(d as u32);
             }
         }
-        // Every word must have been used by something; P and Q go with a machine's own M code
-        // (M62 P1, M66 P0 L3 Q5: parameters we cannot interpret).
+        // Every word must have been used by something; E, L, P and Q go with a machine's own
+        // M code (M62 P1, M66 P0 L3 Q5, M67 E0 Q50: I/O we cannot interpret).
         if !w.ms.is_empty() && w.ms.iter().any(|m| m_group(m.0).is_none()) {
-            for c in ['L', 'P', 'Q'] {
+            for c in ['E', 'L', 'P', 'Q'] {
                 w.used[letter_index(c)] = true;
             }
         }
