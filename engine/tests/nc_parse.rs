@@ -119,7 +119,7 @@ fn o_words() {
 #[test]
 fn all_errors_reported_at_once_with_positions() {
     // An unclosed comment and an O-word line's error fail the parse, all of them at once.
-    let src = "G1 X1\nG1 X(unclosed\nG1 Y[1+\no1 if [1+\nG1 X1 $\no2 while\n";
+    let src = "G1 X1\nG1 X(unclosed\nG1 Y[1+\no1 if [1+\nG1 X1 &\no2 while\n";
     let e = Program::parse(src).unwrap_err();
     let pos: Vec<(u32, u32)> = e.0.iter().map(|d| (d.line, d.col)).collect();
     assert_eq!(pos, vec![(2, 5), (4, 10), (6, 9)], "{e}");
@@ -129,7 +129,7 @@ fn all_errors_reported_at_once_with_positions() {
     assert_eq!(text.lines().count(), 3);
     assert!(text.starts_with("2:5: "));
     // Any other line's error is kept for when the line runs, with its position.
-    let p = Program::parse("G1 X1\nG1 Y[1+\nG1 Z1\nG1 X1 $\n").unwrap();
+    let p = Program::parse("G1 X1\nG1 Y[1+\nG1 Z1\nG1 X1 &\n").unwrap();
     let deferred: Vec<(u32, u32)> = p.deferred_errors().map(|d| (d.line, d.col)).collect();
     assert_eq!(deferred, vec![(2, 8), (4, 7)]);
     assert!(p
@@ -137,7 +137,12 @@ fn all_errors_reported_at_once_with_positions() {
         .nth(1)
         .unwrap()
         .message
-        .contains("unexpected character '$'"));
+        .contains("unexpected character '&'"));
+    // A grbl sender's commands are named as such where they stand.
+    let p = Program::parse("$H\nG21\nG0 X1 ~\n").unwrap();
+    let d: Vec<_> = p.deferred_errors().collect();
+    assert_eq!((d[0].line, d[0].col, d[1].line, d[1].col), (1, 1, 3, 7));
+    assert!(d.iter().all(|d| d.message.contains("grbl")), "{d:?}");
 }
 
 #[test]

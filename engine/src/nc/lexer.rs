@@ -292,6 +292,15 @@ impl<'a> Lexer<'a> {
                     "unexpected ':' (a program number :1234 stands at the start of its line; a block ends with ';' or the line end)",
                 );
             }
+            // grbl's system commands (`$H` homing, `$X` unlock, `$J=` jog) and real-time
+            // commands (`~` resume, `!` hold, `?` status) go to the controller, not the program.
+            b'$' | b'~' | b'!' | b'?' => {
+                let ch = b as char;
+                return self.err(
+                    start,
+                    format!("'{ch}' starts a grbl system or real-time command (`$H` homing, `$X` unlock, `$J=` jog, `~` resume, `!` feed hold), which a sender gives the controller: not G-code and not supported; remove the line"),
+                );
+            }
             _ => {
                 let ch = self.src[start..].chars().next().unwrap_or('?');
                 return self.err(start, format!("unexpected character '{ch}'"));

@@ -189,7 +189,7 @@ impl Interp<'_> {
         Ok(())
     }
 
-    /// 7a. G97 (spindle speed in rpm, the only mode simulated) is accepted; G96 (constant
+    /// G97 (spindle speed in rpm, the only mode simulated) is accepted; G96 (constant
     /// surface speed: the rpm follows the cutting radius, a lathe's mode) is refused.
     pub(super) fn spindle_mode(&mut self, w: &Words) -> R<()> {
         if let Some(i) = w.g(960) {

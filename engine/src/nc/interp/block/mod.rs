@@ -67,7 +67,7 @@ impl<'p> Interp<'p> {
         }
         self.read_override_words(w); // 11-13. coolant, overrides, passthrough M codes
         if !w.gs.is_empty() {
-            self.spindle_mode(w)?; // 7a. G96 G97
+            self.spindle_mode(w)?; // G96 G97 (with S in LinuxCNC's order; only a refusal)
             self.dwell_code(w)?; // 14. G4
             self.set_plane(w)?; // 15. G17 G18 G19
             self.set_units(w); // 16. G20 G21
